@@ -1,0 +1,164 @@
+"""The narrow interface every constraint implements, and the embedding of points in a mesh.
+
+A constraint contributes rows to the constraint space: a characteristic distance delta_i(x)
+and its Jacobian H_i = d delta_i / dx. Actuators add a control mode and bounds. The solvers only
+see these rows, so a new actuator or contact type never touches them.
+"""
+
+from __future__ import annotations
+
+import math
+from abc import ABC, abstractmethod
+from dataclasses import dataclass
+from typing import Literal
+
+import numpy as np
+
+from pliant.errors import ConstraintError, ModelError
+from pliant.mesh.tetmesh import TetMesh
+
+
+@dataclass(frozen=True)
+class JacobianRows:
+    """Sparse rows of H: row i depends on nodes[i, :] with gradients values[i, :, :] (3-vectors)."""
+
+    nodes: np.ndarray  # (r, k) int64
+    values: np.ndarray  # (r, k, 3)
+
+
+class EmbeddedPoints:
+    """Points carried by the mesh: p_j = sum_a w_ja x[node_ja] (barycentric in their tetrahedron).
+
+    SOFA attaches cable and effector points the same way (BarycentricMapping).
+    """
+
+    def __init__(self, mesh: TetMesh, points: np.ndarray) -> None:
+        from pliant.mesh import locate_points
+
+        pts = np.atleast_2d(np.asarray(points, dtype=float))
+        if pts.ndim != 2 or pts.shape[1] != 3 or pts.shape[0] == 0:
+            raise ModelError(f"points must be a non-empty (k, 3) array, got shape {pts.shape}")
+        if not np.all(np.isfinite(pts)):
+            raise ModelError("points must be finite")
+        tet_index, bary = locate_points(mesh, pts)
+        self.nodes = np.ascontiguousarray(mesh.tets[tet_index], dtype=np.int64)
+        self.weights = np.ascontiguousarray(bary, dtype=float)
+
+    @classmethod
+    def at_nodes(cls, node_indices: np.ndarray) -> EmbeddedPoints:
+        obj = cls.__new__(cls)
+        idx = np.asarray(node_indices, dtype=np.int64).reshape(-1)
+        obj.nodes = np.zeros((idx.size, 4), dtype=np.int64)
+        obj.nodes[:, 0] = idx
+        obj.weights = np.zeros((idx.size, 4))
+        obj.weights[:, 0] = 1.0
+        return obj
+
+    def __len__(self) -> int:
+        return int(self.nodes.shape[0])
+
+    def positions(self, x: np.ndarray) -> np.ndarray:
+        return np.einsum("ka,kai->ki", self.weights, x[self.nodes])
+
+
+class Constraint(ABC):
+    """A set of constraint rows: distances delta(x) and Jacobian H(x)."""
+
+    role: Literal["actuator", "effector", "contact"]
+    name: str
+
+    @property
+    @abstractmethod
+    def n_rows(self) -> int: ...
+
+    @abstractmethod
+    def distance(self, x: np.ndarray) -> np.ndarray:
+        """delta(x), shape (n_rows,)."""
+
+    @abstractmethod
+    def jacobian(self, x: np.ndarray) -> JacobianRows:
+        """H(x) as sparse rows."""
+
+
+def _check_real(name: str, value: float) -> float:
+    try:
+        v = float(value)
+    except (TypeError, ValueError) as exc:
+        raise ConstraintError(f"{name} must be a number, got {value!r}") from exc
+    if math.isnan(v):
+        raise ConstraintError(f"{name} is NaN")
+    return v
+
+
+class Actuator(Constraint):
+    """One actuation row with a control mode and bounds (SoftRobots' parameters).
+
+    Args:
+        mode: "force" (lambda imposed: cable tension, cavity pressure) or "displacement"
+            (delta imposed: cable shortening, cavity volume growth).
+        value: initial command in that mode.
+        min_force, max_force: effort bounds on lambda.
+        min_displacement, max_displacement: course bounds on delta.
+        max_displacement_change: largest change of delta in one step (None: unbounded).
+    """
+
+    role = "actuator"
+
+    def __init__(
+        self,
+        *,
+        name: str,
+        mode: Literal["force", "displacement"] = "displacement",
+        value: float = 0.0,
+        min_force: float = 0.0,
+        max_force: float = math.inf,
+        min_displacement: float = -math.inf,
+        max_displacement: float = math.inf,
+        max_displacement_change: float | None = None,
+    ) -> None:
+        self.name = name
+        self.mode = mode
+        self.value = value
+        self.min_force = _check_real("min_force", min_force)
+        self.max_force = _check_real("max_force", max_force)
+        self.min_displacement = _check_real("min_displacement", min_displacement)
+        self.max_displacement = _check_real("max_displacement", max_displacement)
+        if self.min_force > self.max_force:
+            raise ConstraintError(
+                f"{name}: min_force {self.min_force} > max_force {self.max_force}: no force is admissible"
+            )
+        if self.min_displacement > self.max_displacement:
+            raise ConstraintError(
+                f"{name}: min_displacement {self.min_displacement} > max_displacement"
+                f" {self.max_displacement}: no displacement is admissible"
+            )
+        if max_displacement_change is not None:
+            max_displacement_change = _check_real("max_displacement_change", max_displacement_change)
+            if max_displacement_change <= 0:
+                raise ConstraintError(f"{name}: max_displacement_change must be > 0")
+        self.max_displacement_change = max_displacement_change
+
+    @property
+    def mode(self) -> str:
+        return self._mode
+
+    @mode.setter
+    def mode(self, mode: str) -> None:
+        if mode not in ("force", "displacement"):
+            raise ConstraintError(f"{self.name}: mode must be 'force' or 'displacement', got {mode!r}")
+        self._mode = mode
+
+    @property
+    def value(self) -> float:
+        return self._value
+
+    @value.setter
+    def value(self, value: float) -> None:
+        v = _check_real(f"{self.name} command", value)
+        if math.isinf(v):
+            raise ConstraintError(f"{self.name}: the command must be finite, got {v}")
+        self._value = v
+
+    @property
+    def n_rows(self) -> int:
+        return 1

@@ -1,0 +1,70 @@
+"""Pneumatic cavity actuator (SoftRobots' SurfacePressureConstraint)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from pliant.constraints.base import Actuator, JacobianRows
+from pliant.errors import ConstraintError
+
+
+def enclosed_volume(x: np.ndarray, triangles: np.ndarray) -> float:
+    """Volume enclosed by a closed triangulated surface, sum x0 . (x1 x x2) / 6 (divergence theorem)."""
+    p = x[triangles]
+    return float(np.einsum("ij,ij->i", p[:, 0], np.cross(p[:, 1], p[:, 2])).sum() / 6.0)
+
+
+class CavityActuator(Actuator):
+    """A closed cavity of the body, inflated by a pressure.
+
+    delta = V(x) - V0, the volume growth; lambda is the pressure; H = dV/dx, so H^T lambda is
+    the pressure force on the cavity walls (lambda times the area-weighted normals).
+
+    Args:
+        triangles: (t, 3) node indices of the cavity wall, a closed surface whose enclosed
+            volume is positive (flip_normals=True reverses a surface given the other way).
+        rest_positions: to define V0.
+    """
+
+    def __init__(
+        self,
+        triangles: np.ndarray,
+        rest_positions: np.ndarray,
+        *,
+        flip_normals: bool = False,
+        name: str = "cavity",
+        **bounds,
+    ) -> None:
+        bounds.setdefault("min_force", 0.0)
+        super().__init__(name=name, **bounds)
+        tri = np.asarray(triangles, dtype=np.int64)
+        if tri.ndim != 2 or tri.shape[1] != 3 or tri.shape[0] < 4:
+            raise ConstraintError(f"{name}: a cavity needs a closed surface of at least 4 triangles")
+        if tri.min() < 0 or tri.max() >= rest_positions.shape[0]:
+            raise ConstraintError(f"{name}: cavity triangles index nodes outside the body")
+        self.triangles = tri[:, ::-1].copy() if flip_normals else tri
+        edges = np.sort(np.concatenate([self.triangles[:, [0, 1]], self.triangles[:, [1, 2]],
+                                        self.triangles[:, [2, 0]]]), axis=1)
+        _, counts = np.unique(edges, axis=0, return_counts=True)
+        if np.any(counts != 2):
+            raise ConstraintError(f"{name}: the cavity surface is not closed ({np.count_nonzero(counts != 2)} open edges)")
+        self.rest_volume = enclosed_volume(rest_positions, self.triangles)
+        if not self.rest_volume > 0:
+            raise ConstraintError(
+                f"{name}: the cavity encloses a non-positive volume ({self.rest_volume:.3g});"
+                " its normals are inverted: pass flip_normals=True"
+            )
+        self._nodes = self.triangles.reshape(1, -1)
+
+    def volume(self, x: np.ndarray) -> float:
+        return enclosed_volume(x, self.triangles)
+
+    def distance(self, x: np.ndarray) -> np.ndarray:
+        return np.array([self.volume(x) - self.rest_volume])
+
+    def jacobian(self, x: np.ndarray) -> JacobianRows:
+        p = x[self.triangles]
+        grad = np.stack(
+            [np.cross(p[:, 1], p[:, 2]), np.cross(p[:, 2], p[:, 0]), np.cross(p[:, 0], p[:, 1])], axis=1
+        ) / 6.0
+        return JacobianRows(self._nodes, grad.reshape(1, -1, 3))

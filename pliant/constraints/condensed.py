@@ -1,0 +1,34 @@
+"""The condensed (compliance) problem: W and delta_free in the constraint space (Eq. 2.14)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class CondensedProblem:
+    """delta = W lambda + delta_free for all constraint rows, at one step.
+
+    W_ij = H_i A^-1 H_j^T (dynamic step, A scaled to map forces to displacements over the
+    step: W = h^2 H (M + h D + h^2 K)^-1 H^T) or H_i K^-1 H_j^T (static). Rows are ordered
+    actuators, effectors, contacts; `slices` gives each block.
+    """
+
+    compliance: np.ndarray
+    free_distance: np.ndarray
+    slices: dict[str, slice]
+
+    def block(self, row: str, col: str) -> np.ndarray:
+        """W_{row,col}, e.g. block("effector", "actuator") is W_ea."""
+        return self.compliance[self.slices[row], self.slices[col]]
+
+    def free(self, role: str) -> np.ndarray:
+        """delta_free of one role."""
+        return self.free_distance[self.slices[role]]
+
+    @property
+    def n_actuators(self) -> int:
+        s = self.slices["actuator"]
+        return s.stop - s.start

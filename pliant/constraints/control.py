@@ -1,0 +1,60 @@
+"""Controls: how actuator forces are chosen once the step is condensed."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from pliant.constraints.condensed import CondensedProblem
+from pliant.constraints.direct import solve_direct
+from pliant.constraints.inverse import solve_inverse
+from pliant.errors import ModelError
+
+
+@dataclass
+class DirectControl:
+    """Apply the actuators' commands (in their own modes); None keeps the current commands."""
+
+    values: np.ndarray | None = None
+
+    def prepare(self, model) -> None:
+        if self.values is not None:
+            model.set_actuation(self.values)
+
+    def actuation(self, problem: CondensedProblem, model, previous_displacement: np.ndarray) -> np.ndarray:
+        return solve_direct(problem, model.actuators, previous_displacement)
+
+
+@dataclass
+class InverseControl:
+    """Choose actuator forces by the QP of Eq. 2.15 so that the effectors reach `goals`.
+
+    goals: one (k, 3) array per effector of the model (a single array for a single effector),
+    or None to keep the effectors' current goals.
+    """
+
+    goals: list[np.ndarray] | np.ndarray | None = None
+    regularisation: float = 1e-3
+
+    def prepare(self, model) -> None:
+        if self.goals is None:
+            return
+        goals = [self.goals] if isinstance(self.goals, np.ndarray) else list(self.goals)
+        if len(goals) != len(model.effectors):
+            raise ModelError(f"{model.name} has {len(model.effectors)} effectors, got {len(goals)} goals")
+        for eff, g in zip(model.effectors, goals, strict=True):
+            eff.goals = g
+
+    def actuation(self, problem: CondensedProblem, model, previous_displacement: np.ndarray) -> np.ndarray:
+        sol = solve_inverse(problem, model.actuators, previous_displacement,
+                            regularisation=self.regularisation)
+        return sol.actuation
+
+
+def as_control(control) -> DirectControl | InverseControl:
+    if control is None:
+        return DirectControl()
+    if isinstance(control, (DirectControl, InverseControl)):
+        return control
+    return DirectControl(np.asarray(control, dtype=float))

@@ -1,0 +1,104 @@
+"""Direct problem: actuator forces from commands, with effort and course bounds."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from pliant.constraints.base import Actuator
+from pliant.constraints.condensed import CondensedProblem
+from pliant.errors import InfeasibleProblemError, SolverError
+
+
+def box_qp(hess: np.ndarray, grad: np.ndarray, lower: np.ndarray, upper: np.ndarray) -> np.ndarray:
+    """Exact minimiser of 1/2 x^T H x + g^T x on lower <= x <= upper, H symmetric positive definite.
+
+    Primal active-set method: the free variables solve H_FF x_F = -(g_F + H_FB x_B); bounds
+    that the step would cross are added, bounds whose multiplier has the wrong sign are
+    released. Finite for the small systems of actuator rows it serves.
+    """
+    n = grad.size
+    if np.any(lower > upper):
+        raise InfeasibleProblemError("box bounds with lower > upper admit no solution")
+    x = np.clip(np.zeros(n), lower, upper)
+    at_bound = (x == lower) | (x == upper)
+    at_bound &= np.isfinite(np.where(x == lower, lower, upper))
+    for _ in range(10 * n + 10):
+        free = ~at_bound
+        if free.any():
+            rhs = -(grad[free] + hess[np.ix_(free, at_bound)] @ x[at_bound])
+            target = np.linalg.solve(hess[np.ix_(free, free)], rhs)
+            step = target - x[free]
+            # Longest feasible fraction of the step towards the free-set optimum.
+            with np.errstate(divide="ignore", invalid="ignore"):
+                ratio_up = np.where(step > 0, (upper[free] - x[free]) / step, np.inf)
+                ratio_lo = np.where(step < 0, (lower[free] - x[free]) / step, np.inf)
+            ratios = np.minimum(ratio_up, ratio_lo)
+            t = min(1.0, float(ratios.min()))
+            x[free] += t * step
+            if t < 1.0:
+                blocking = np.flatnonzero(free)[np.isclose(ratios, t, rtol=1e-12, atol=0.0) | (ratios <= t)]
+                x[blocking] = np.where(step[np.isin(np.flatnonzero(free), blocking)] > 0,
+                                       upper[blocking], lower[blocking])
+                at_bound[blocking] = True
+                continue
+        gradient = hess @ x + grad
+        wrong = at_bound & (((x == lower) & (gradient < 0)) | ((x == upper) & (gradient > 0)))
+        if not wrong.any():
+            return x
+        release = np.flatnonzero(wrong)[np.argmax(np.abs(gradient[wrong]))]
+        at_bound[release] = False
+    raise SolverError("the box-constrained QP did not converge (cycling active set)")
+
+
+def solve_direct(
+    problem: CondensedProblem,
+    actuators: list[Actuator],
+    previous_displacement: np.ndarray,
+    *,
+    tolerance: float = 1e-9,
+) -> np.ndarray:
+    """Actuator forces lambda_a that realise the commands within their bounds.
+
+    Displacement commands are clamped to the course bounds (and to the largest change per
+    step), then met exactly unless an effort bound binds. Force commands are clamped to the
+    effort bounds; if the resulting displacement leaves its course bounds, the actuator is held
+    at that bound instead. Effectors are passive (lambda_e = 0).
+    """
+    n = len(actuators)
+    if n == 0:
+        return np.zeros(0)
+    sl = problem.slices["actuator"]
+    w = problem.compliance[sl, sl]
+    d_free = problem.free_distance[sl]
+    lo = np.array([a.min_force for a in actuators])
+    hi = np.array([a.max_force for a in actuators])
+    dmin = np.array([a.min_displacement for a in actuators])
+    dmax = np.array([a.max_displacement for a in actuators])
+    for i, a in enumerate(actuators):
+        if a.max_displacement_change is not None:
+            dmin[i] = max(dmin[i], previous_displacement[i] - a.max_displacement_change)
+            dmax[i] = min(dmax[i], previous_displacement[i] + a.max_displacement_change)
+    controlled = np.array([a.mode == "displacement" for a in actuators])
+    values = np.array([a.value for a in actuators])
+    target = np.clip(values, dmin, dmax)
+    lam = np.where(controlled, 0.0, np.clip(values, lo, hi))
+    lo_eff, hi_eff = lo.copy(), hi.copy()
+    for _ in range(n + 1):
+        fixed = ~controlled
+        if controlled.any():
+            c = controlled
+            shift = d_free[c] + w[np.ix_(c, fixed)] @ lam[fixed] - target[c]
+            lam[c] = box_qp(w[np.ix_(c, c)], shift, lo_eff[c], hi_eff[c])
+        delta = w @ lam + d_free
+        scale = tolerance * max(1.0, float(np.abs(delta).max()))
+        over = fixed & (delta > dmax + scale)
+        under = fixed & (delta < dmin - scale)
+        if not (over.any() or under.any()):
+            return lam
+        # Hold these force-controlled actuators at the course bound they cross.
+        hi_eff[over] = lam[over]
+        target[over] = dmax[over]
+        lo_eff[under] = lam[under]
+        target[under] = dmin[under]
+        controlled = controlled | over | under
+    return lam

@@ -1,0 +1,71 @@
+"""Exceptions raised by Pliant.
+
+Every error names what is wrong and why, so that a user never has to chase a NaN.
+"""
+
+from __future__ import annotations
+
+
+class PliantError(Exception):
+    """Base class of every error Pliant raises on purpose."""
+
+
+class MeshError(PliantError, ValueError):
+    """A mesh cannot be used for simulation (malformed, degenerate, inverted, disconnected)."""
+
+
+class DegenerateElementError(MeshError):
+    """An element has (near) zero volume."""
+
+
+class InvertedElementError(MeshError):
+    """An element has negative signed volume."""
+
+
+class DisconnectedMeshError(MeshError):
+    """The mesh has several connected components."""
+
+
+class MeshFileError(MeshError):
+    """A mesh file is missing, unreadable or holds no tetrahedra."""
+
+
+class MaterialError(PliantError, ValueError):
+    """Invalid material parameters (E <= 0, nu outside [0, 0.5), density <= 0, NaN)."""
+
+
+class ModelError(PliantError, ValueError):
+    """Invalid model construction (bad indices, empty selections, unknown names)."""
+
+
+class ConstraintError(PliantError, ValueError):
+    """Invalid constraint definition or bounds."""
+
+
+class InfeasibleProblemError(PliantError):
+    """The bounds of a direct or inverse problem admit no solution."""
+
+
+class SolverError(PliantError, RuntimeError):
+    """A linear or nonlinear solve failed."""
+
+
+class DivergenceError(PliantError, RuntimeError):
+    """The simulation diverged: non-finite state, inverted elements, energy blow-up.
+
+    Attributes:
+        step: index of the step at which divergence was detected.
+        cause: short machine-readable cause ("non-finite", "inverted", "energy", "solver").
+    """
+
+    def __init__(self, message: str, *, step: int, cause: str) -> None:
+        super().__init__(message)
+        self.step = step
+        self.cause = cause
+
+
+class UnknownRobotError(PliantError, KeyError):
+    """No robot builder is registered under this name."""
+
+    def __str__(self) -> str:  # KeyError quotes its argument; keep the sentence readable
+        return str(self.args[0]) if self.args else ""

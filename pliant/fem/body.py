@@ -1,0 +1,229 @@
+"""Tetrahedral deformable body: mesh + material + mass + boundary conditions.
+
+The body is part of the model (built once). Everything that changes while simulating lives in
+:class:`pliant.model.State`; the body only evaluates forces and tangent operators at given
+positions.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Literal
+
+import numpy as np
+import scipy.sparse as sp
+
+from pliant.errors import MaterialError, ModelError
+from pliant.fem import kernels
+from pliant.fem.material import Material
+from pliant.fem.sparsity import StiffnessPattern
+from pliant.mesh.tetmesh import TetMesh
+
+MassType = Literal["lumped", "uniform", "consistent"]
+
+
+def nodes_in_box(points: np.ndarray, box: np.ndarray | tuple) -> np.ndarray:
+    """Indices of the nodes inside the axis-aligned box [[xmin, ymin, zmin], [xmax, ymax, zmax]]."""
+    box = np.asarray(box, dtype=float)
+    if box.shape != (2, 3) or np.any(box[0] > box[1]):
+        raise ModelError(f"a box is [[xmin, ymin, zmin], [xmax, ymax, zmax]], got {box.tolist()}")
+    inside = np.all((points >= box[0]) & (points <= box[1]), axis=1)
+    return np.flatnonzero(inside)
+
+
+@dataclass
+class Linearisation:
+    """Forces and per-element frames of the body at one configuration."""
+
+    positions: np.ndarray
+    forces: np.ndarray
+    energy: float
+    frames: np.ndarray
+    dets: np.ndarray
+
+    @property
+    def n_inverted(self) -> int:
+        return int(np.count_nonzero(~(self.dets > 0.0)))
+
+
+class TetBody:
+    """A deformable body of linear tetrahedra.
+
+    Args:
+        mesh: the tetrahedral mesh (validated).
+        material: constitutive law, e.g. ``Corotational(180.0, 0.45)``.
+        density: mass per volume; or give ``total_mass`` instead.
+        total_mass: total mass of the body (SOFA scenes give this).
+        mass: "lumped" (tet masses split over their nodes), "uniform" (total mass / nodes,
+            SOFA's UniformMass) or "consistent" (full element mass matrices).
+        fixed_nodes: indices of nodes held at their rest position.
+        gravity: acceleration vector (robot scenes: (0, 0, -9810) mm/s^2).
+        rayleigh_mass, rayleigh_stiffness: alpha and beta of D = alpha M + beta K.
+    """
+
+    def __init__(
+        self,
+        mesh: TetMesh,
+        material: Material,
+        *,
+        density: float | None = None,
+        total_mass: float | None = None,
+        mass: MassType = "lumped",
+        fixed_nodes: np.ndarray | None = None,
+        gravity: tuple[float, float, float] | np.ndarray = (0.0, 0.0, 0.0),
+        rayleigh_mass: float = 0.0,
+        rayleigh_stiffness: float = 0.0,
+    ) -> None:
+        self.mesh = mesh
+        self.material = material
+        self.rest_positions = np.ascontiguousarray(mesh.points, dtype=np.float64)
+        self.tets = np.ascontiguousarray(mesh.tets, dtype=np.int64)
+        self.volumes, self.grads = kernels.rest_gradients(self.rest_positions, self.tets)
+        if np.any(self.volumes <= 0):
+            raise ModelError(
+                f"{np.count_nonzero(self.volumes <= 0)} elements have non-positive rest volume;"
+                " validate the mesh with pliant.mesh.validate_mesh"
+            )
+        n_elem = self.tets.shape[0]
+        self.mu = np.full(n_elem, material.mu)
+        self.lam = np.full(n_elem, material.lam)
+
+        volume = float(self.volumes.sum())
+        if (density is None) == (total_mass is None):
+            raise MaterialError("give exactly one of density or total_mass")
+        rho = float(density) if density is not None else float(total_mass) / volume
+        if not math.isfinite(rho) or rho <= 0:
+            raise MaterialError(f"density must be finite and > 0, got {rho!r}")
+        self.density = rho
+        self.total_mass = rho * volume
+        for name, val in (("rayleigh_mass", rayleigh_mass), ("rayleigh_stiffness", rayleigh_stiffness)):
+            if not math.isfinite(val) or val < 0:
+                raise MaterialError(f"{name} must be finite and >= 0, got {val!r}")
+        self.rayleigh_mass = float(rayleigh_mass)
+        self.rayleigh_stiffness = float(rayleigh_stiffness)
+        self.gravity = np.asarray(gravity, dtype=float)
+        if self.gravity.shape != (3,) or not np.all(np.isfinite(self.gravity)):
+            raise ModelError(f"gravity must be a finite 3-vector, got {gravity!r}")
+
+        n = self.n_nodes
+        fixed = np.unique(np.asarray([] if fixed_nodes is None else fixed_nodes, dtype=np.int64))
+        if fixed.size and (fixed.min() < 0 or fixed.max() >= n):
+            raise ModelError(f"fixed node indices must lie in [0, {n}), got {fixed.min()}..{fixed.max()}")
+        self.fixed_nodes = fixed
+        fixed_mask = np.zeros(3 * n, dtype=bool)
+        fixed_mask[(3 * fixed[:, None] + np.arange(3)).ravel()] = True
+        self.free_dofs = np.flatnonzero(~fixed_mask)
+        self.free_index = np.full(3 * n, -1, dtype=np.int64)
+        self.free_index[self.free_dofs] = np.arange(self.free_dofs.size)
+        self.pattern = StiffnessPattern.build(self.tets, self.free_index)
+
+        self.mass_type: MassType = mass
+        self.node_masses = self._node_masses(mass)
+        self.mass_data = self._mass_data(mass)
+        self._element_blocks = np.empty((n_elem, 12, 12))
+
+    # --- layout -----------------------------------------------------------------------------
+    @property
+    def n_nodes(self) -> int:
+        return int(self.rest_positions.shape[0])
+
+    @property
+    def n_free(self) -> int:
+        return int(self.free_dofs.size)
+
+    def gather(self, full: np.ndarray) -> np.ndarray:
+        """Free-DoF part of nodal arrays (n, 3) or (n, 3, k) -> (n_free,) or (n_free, k)."""
+        flat = full.reshape(3 * self.n_nodes, *full.shape[2:])
+        return flat[self.free_dofs]
+
+    def scatter(self, free: np.ndarray) -> np.ndarray:
+        """Nodal array (n, 3[, k]) with zeros on fixed DoFs from a free-DoF vector."""
+        out = np.zeros((3 * self.n_nodes, *free.shape[1:]))
+        out[self.free_dofs] = free
+        return out.reshape(self.n_nodes, 3, *free.shape[1:])
+
+    # --- mass -------------------------------------------------------------------------------
+    def _node_masses(self, mass: str) -> np.ndarray:
+        n = self.n_nodes
+        if mass == "uniform":
+            return np.full(n, self.total_mass / n)
+        if mass in ("lumped", "consistent"):
+            nm = np.zeros(n)
+            np.add.at(nm, self.tets.ravel(), np.repeat(self.density * self.volumes / 4.0, 4))
+            return nm
+        raise ModelError(f"mass must be 'lumped', 'uniform' or 'consistent', got {mass!r}")
+
+    def _mass_data(self, mass: str) -> np.ndarray:
+        """Mass matrix on the free DoFs, as data aligned with the stiffness pattern."""
+        if mass == "consistent":
+            # Element mass rho V / 20 (1 + delta_ab) I3 (linear tetrahedron, exact integration).
+            blocks = np.zeros((self.tets.shape[0], 12, 12))
+            local = (np.ones((4, 4)) + np.eye(4)) / 20.0
+            pattern = np.kron(local, np.eye(3))
+            blocks[:] = pattern[None] * (self.density * self.volumes)[:, None, None]
+            data = np.zeros(self.pattern.nnz)
+            kernels.scatter_add(blocks, 1.0, self.pattern.scatter, data)
+            return data
+        diag = np.repeat(self.node_masses, 3)[self.free_dofs]
+        mat = sp.csr_matrix((diag, (np.arange(self.n_free), np.arange(self.n_free))),
+                            shape=(self.n_free, self.n_free))
+        data = np.zeros(self.pattern.nnz)
+        # Every diagonal entry exists in the stiffness pattern; locate it row by row.
+        k = self.pattern.matrix(np.arange(self.pattern.nnz, dtype=float)).diagonal().astype(np.int64)
+        data[k] = mat.diagonal()
+        return data
+
+    def mass_matvec(self, u: np.ndarray) -> np.ndarray:
+        """M u on the free DoFs; u is (n_free,) or (n_free, k)."""
+        if self.mass_type == "consistent":
+            return self.pattern.matrix(self.mass_data) @ u
+        diag = np.repeat(self.node_masses, 3)[self.free_dofs]
+        return diag[:, None] * u if u.ndim == 2 else diag * u
+
+    def gravity_forces(self) -> np.ndarray:
+        """Weight of the nodes, (n, 3): M g with the lumped masses (rows of M sum to them)."""
+        return self.node_masses[:, None] * self.gravity[None, :]
+
+    # --- elasticity -------------------------------------------------------------------------
+    def linearise(self, positions: np.ndarray) -> Linearisation:
+        """Internal forces, energy and element frames at `positions` (n, 3)."""
+        x = np.ascontiguousarray(positions, dtype=np.float64)
+        forces = np.zeros_like(x)
+        m = self.tets.shape[0]
+        frames = np.empty((m, 3, 3))
+        dets = np.empty(m)
+        energy = kernels.internal_forces(
+            x, self.tets, self.grads, self.volumes, self.mu, self.lam,
+            self.material.kernel_tag, forces, frames, dets,
+        )
+        return Linearisation(x, forces, float(energy), frames, dets)
+
+    def stiffness_matvec(self, lin: Linearisation, u: np.ndarray, *, exact: bool = False) -> np.ndarray:
+        """K_s u on the free DoFs (K_s = -df/dx); u is (n_free,) or (n_free, k)."""
+        cols = u[:, None] if u.ndim == 1 else u
+        out = np.empty_like(cols)
+        full_in = np.zeros((self.n_nodes, 3))
+        full_out = np.zeros((self.n_nodes, 3))
+        for c in range(cols.shape[1]):
+            full_in.reshape(-1)[self.free_dofs] = cols[:, c]
+            full_out[:] = 0.0
+            kernels.stiffness_matvec(
+                full_in, lin.positions, self.tets, self.grads, self.volumes, self.mu, self.lam,
+                self.material.kernel_tag, lin.frames, lin.dets, exact, full_out,
+            )
+            out[:, c] = full_out.reshape(-1)[self.free_dofs]
+        return out[:, 0] if u.ndim == 1 else out
+
+    def stiffness_data(self, lin: Linearisation, *, exact: bool = False) -> np.ndarray:
+        """Tangent stiffness on the free DoFs, as data aligned with `self.pattern`."""
+        kernels.element_stiffness(
+            lin.positions, self.tets, self.grads, self.volumes, self.mu, self.lam,
+            self.material.kernel_tag, lin.frames, lin.dets, exact, self._element_blocks,
+        )
+        data = np.zeros(self.pattern.nnz)
+        kernels.scatter_add(self._element_blocks, 1.0, self.pattern.scatter, data)
+        return data
+
+    def stiffness_matrix(self, lin: Linearisation, *, exact: bool = False) -> sp.csr_matrix:
+        return self.pattern.matrix(self.stiffness_data(lin, exact=exact))

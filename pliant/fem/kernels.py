@@ -1,0 +1,316 @@
+"""Compiled element kernels for linear tetrahedra.
+
+Every kernel loops over elements; per element the deformation gradient is
+F = sum_a x_a (x) g_a, with g_a the rest-shape gradients of the linear shape functions.
+Forces are f_a = -V P(F) g_a. The stiffness K_s = -df/dx is applied element by element from
+the first Piola-Kirchhoff differential dP(dF). 3x3 algebra is written out on preallocated
+scratch arrays: small-matrix calls (``@``, ``np.linalg``) would dominate the cost. A plain
+NumPy transcription used by the tests lives in :mod:`pliant.fem.reference`.
+
+Material tags: 0 corotational (tangent R K0 R^T, or exact), 1 Neo-Hookean (exact tangent).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+# Quadratic convergence: a step smaller than 1e-8 leaves an error near machine precision.
+_POLAR_TOL = 1e-8
+_POLAR_MAX_ITER = 40
+
+
+@njit(cache=True, inline="always")
+def _inv3(a, out):
+    """out = a^-1; returns det a."""
+    c00 = a[1, 1] * a[2, 2] - a[1, 2] * a[2, 1]
+    c01 = a[1, 2] * a[2, 0] - a[1, 0] * a[2, 2]
+    c02 = a[1, 0] * a[2, 1] - a[1, 1] * a[2, 0]
+    det = a[0, 0] * c00 + a[0, 1] * c01 + a[0, 2] * c02
+    inv = 1.0 / det
+    out[0, 0] = c00 * inv
+    out[1, 0] = c01 * inv
+    out[2, 0] = c02 * inv
+    out[0, 1] = (a[0, 2] * a[2, 1] - a[0, 1] * a[2, 2]) * inv
+    out[1, 1] = (a[0, 0] * a[2, 2] - a[0, 2] * a[2, 0]) * inv
+    out[2, 1] = (a[0, 1] * a[2, 0] - a[0, 0] * a[2, 1]) * inv
+    out[0, 2] = (a[0, 1] * a[1, 2] - a[0, 2] * a[1, 1]) * inv
+    out[1, 2] = (a[0, 2] * a[1, 0] - a[0, 0] * a[1, 2]) * inv
+    out[2, 2] = (a[0, 0] * a[1, 1] - a[0, 1] * a[1, 0]) * inv
+    return det
+
+
+@njit(cache=True, inline="always")
+def _det3(a):
+    return (
+        a[0, 0] * (a[1, 1] * a[2, 2] - a[1, 2] * a[2, 1])
+        - a[0, 1] * (a[1, 0] * a[2, 2] - a[1, 2] * a[2, 0])
+        + a[0, 2] * (a[1, 0] * a[2, 1] - a[1, 1] * a[2, 0])
+    )
+
+
+@njit(cache=True)
+def _polar(f, r, work):
+    """r = rotation of the polar decomposition F = R S (det F > 0).
+
+    Higham's scaled Newton iteration X <- (z X + X^-T / z) / 2, z = |det X|^(-1/3),
+    which converges quadratically (a few iterations for elastic strains).
+    """
+    for i in range(3):
+        for j in range(3):
+            r[i, j] = f[i, j]
+    for _ in range(_POLAR_MAX_ITER):
+        det = _inv3(r, work)
+        # Determinant scaling speeds up the first iterations of strongly stretched elements;
+        # near orthogonality the unscaled iteration is already quadratic.
+        z = abs(det) ** (-1.0 / 3.0) if abs(det - 1.0) > 0.05 else 1.0
+        diff = 0.0
+        for i in range(3):
+            for j in range(3):
+                nxt = 0.5 * (z * r[i, j] + work[j, i] / z)
+                diff = max(diff, abs(nxt - r[i, j]))
+                r[i, j] = nxt
+        if diff < _POLAR_TOL:
+            break
+
+
+@njit(cache=True)
+def polar_rotation(f):
+    """Rotation of the polar decomposition of a 3x3 matrix with positive determinant."""
+    r = np.empty((3, 3))
+    _polar(np.ascontiguousarray(f), r, np.empty((3, 3)))
+    return r
+
+
+@njit(cache=True)
+def rest_gradients(points, tets):
+    """Signed rest volumes (m,) and shape-function gradients g (m, 4, 3) of linear tetrahedra."""
+    m = tets.shape[0]
+    grads = np.empty((m, 4, 3))
+    vols = np.empty(m)
+    dm = np.empty((3, 3))
+    dminv = np.empty((3, 3))
+    for e in range(m):
+        for k in range(3):
+            for i in range(3):
+                dm[i, k] = points[tets[e, k + 1], i] - points[tets[e, 0], i]
+        det = _det3(dm)
+        vols[e] = det / 6.0
+        if det == 0.0:
+            grads[e] = 0.0
+            continue
+        _inv3(dm, dminv)
+        for k in range(3):
+            s = 0.0
+            for a in range(3):
+                grads[e, a + 1, k] = dminv[a, k]
+                s += dminv[a, k]
+            grads[e, 0, k] = -s
+    return vols, grads
+
+
+@njit(cache=True, inline="always")
+def _gradient(x, tet, g, out):
+    """out = sum_a x[tet[a]] (x) g[a]."""
+    for i in range(3):
+        for j in range(3):
+            out[i, j] = (
+                x[tet[0], i] * g[0, j]
+                + x[tet[1], i] * g[1, j]
+                + x[tet[2], i] * g[2, j]
+                + x[tet[3], i] * g[3, j]
+            )
+
+
+@njit(cache=True)
+def internal_forces(x, tets, grads, vols, mu, lam, tag, forces, frames, dets):
+    """Accumulate internal forces into `forces` (n, 3); return the elastic energy.
+
+    Stores per element the linearisation frame (R for corotational, F^-1 for Neo-Hookean)
+    in `frames` (m, 3, 3) and det F in `dets`. An element with det F <= 0 contributes no
+    force; its det is recorded so that the caller reports the inversion instead of a NaN.
+    """
+    energy = 0.0
+    f = np.empty((3, 3))
+    r = np.empty((3, 3))
+    work = np.empty((3, 3))
+    p = np.empty((3, 3))
+    sig = np.empty((3, 3))
+    for e in range(tets.shape[0]):
+        g = grads[e]
+        _gradient(x, tets[e], g, f)
+        det = _det3(f)
+        dets[e] = det
+        if not det > 0.0:
+            continue
+        if tag == 0:
+            _polar(f, r, work)
+            # S = R^T F, eps = sym(S) - I.
+            for i in range(3):
+                for j in range(3):
+                    work[i, j] = r[0, i] * f[0, j] + r[1, i] * f[1, j] + r[2, i] * f[2, j]
+            tr = work[0, 0] + work[1, 1] + work[2, 2] - 3.0
+            eps2 = 0.0
+            for i in range(3):
+                for j in range(3):
+                    eij = 0.5 * (work[i, j] + work[j, i]) - (1.0 if i == j else 0.0)
+                    eps2 += eij * eij
+                    sig[i, j] = 2.0 * mu[e] * eij + (lam[e] * tr if i == j else 0.0)
+            for i in range(3):
+                for j in range(3):
+                    p[i, j] = r[i, 0] * sig[0, j] + r[i, 1] * sig[1, j] + r[i, 2] * sig[2, j]
+                    frames[e, i, j] = r[i, j]
+            energy += vols[e] * (mu[e] * eps2 + 0.5 * lam[e] * tr * tr)
+        else:
+            _inv3(f, work)
+            lnj = np.log(det)
+            c = mu[e] * np.sum(f * f)
+            for i in range(3):
+                for j in range(3):
+                    p[i, j] = mu[e] * f[i, j] + (lam[e] * lnj - mu[e]) * work[j, i]
+                    frames[e, i, j] = work[i, j]
+            energy += vols[e] * (0.5 * (c - 3.0 * mu[e]) - mu[e] * lnj + 0.5 * lam[e] * lnj * lnj)
+        for a in range(4):
+            node = tets[e, a]
+            for i in range(3):
+                forces[node, i] -= vols[e] * (
+                    p[i, 0] * g[a, 0] + p[i, 1] * g[a, 1] + p[i, 2] * g[a, 2]
+                )
+    return energy
+
+
+@njit(cache=True)
+def _piola_differential(df, frame, f, det, mu, lam, tag, exact, dp, w1, w2):
+    """dp = dP for a variation dF of the deformation gradient (w1, w2 are scratch).
+
+    Corotational: SOFA's tangent R (2 mu sym(R^T dF) + lam tr(R^T dF) I), plus, when
+    `exact`, the variation of R: (lam tr(S - I) - 2 mu) dR with dR = R [w]x and
+    (tr(S) I - S) w = axial(R^T dF - dF^T R).
+    Neo-Hookean (frame = F^-1): mu dF + (mu - lam ln J) F^-T dF^T F^-T + lam tr(F^-1 dF) F^-T.
+    """
+    if tag == 0:
+        r = frame
+        for i in range(3):  # w1 = R^T dF
+            for j in range(3):
+                w1[i, j] = r[0, i] * df[0, j] + r[1, i] * df[1, j] + r[2, i] * df[2, j]
+        tr = w1[0, 0] + w1[1, 1] + w1[2, 2]
+        for i in range(3):  # w2 = 2 mu sym(w1) + lam tr I
+            for j in range(3):
+                w2[i, j] = mu * (w1[i, j] + w1[j, i]) + (lam * tr if i == j else 0.0)
+        if exact:
+            b0 = w1[2, 1] - w1[1, 2]
+            b1 = w1[0, 2] - w1[2, 0]
+            b2 = w1[1, 0] - w1[0, 1]
+            for i in range(3):  # w1 = S = R^T F
+                for j in range(3):
+                    w1[i, j] = r[0, i] * f[0, j] + r[1, i] * f[1, j] + r[2, i] * f[2, j]
+            trs = w1[0, 0] + w1[1, 1] + w1[2, 2]
+            coef = lam * (trs - 3.0) - 2.0 * mu
+            for i in range(3):  # w1 = tr(S) I - S
+                for j in range(3):
+                    w1[i, j] = (trs if i == j else 0.0) - w1[i, j]
+            det_m = _det3(w1)
+            m00 = (w1[1, 1] * w1[2, 2] - w1[1, 2] * w1[2, 1]) / det_m
+            m01 = (w1[0, 2] * w1[2, 1] - w1[0, 1] * w1[2, 2]) / det_m
+            m02 = (w1[0, 1] * w1[1, 2] - w1[0, 2] * w1[1, 1]) / det_m
+            m10 = (w1[1, 2] * w1[2, 0] - w1[1, 0] * w1[2, 2]) / det_m
+            m11 = (w1[0, 0] * w1[2, 2] - w1[0, 2] * w1[2, 0]) / det_m
+            m12 = (w1[0, 2] * w1[1, 0] - w1[0, 0] * w1[1, 2]) / det_m
+            m20 = (w1[1, 0] * w1[2, 1] - w1[1, 1] * w1[2, 0]) / det_m
+            m21 = (w1[0, 1] * w1[2, 0] - w1[0, 0] * w1[2, 1]) / det_m
+            m22 = (w1[0, 0] * w1[1, 1] - w1[0, 1] * w1[1, 0]) / det_m
+            v0 = m00 * b0 + m01 * b1 + m02 * b2
+            v1 = m10 * b0 + m11 * b1 + m12 * b2
+            v2 = m20 * b0 + m21 * b1 + m22 * b2
+            # w2 += coef [v]x, so that R w2 adds coef R [v]x = coef dR.
+            w2[0, 1] -= coef * v2
+            w2[0, 2] += coef * v1
+            w2[1, 0] += coef * v2
+            w2[1, 2] -= coef * v0
+            w2[2, 0] -= coef * v1
+            w2[2, 1] += coef * v0
+        for i in range(3):
+            for j in range(3):
+                dp[i, j] = r[i, 0] * w2[0, j] + r[i, 1] * w2[1, j] + r[i, 2] * w2[2, j]
+        return
+    finv = frame
+    lnj = np.log(det)
+    tr = 0.0
+    for i in range(3):
+        for k in range(3):
+            tr += finv[i, k] * df[k, i]
+    for i in range(3):  # w1 = dF^T F^-T
+        for j in range(3):
+            w1[i, j] = df[0, i] * finv[j, 0] + df[1, i] * finv[j, 1] + df[2, i] * finv[j, 2]
+    for i in range(3):  # w2 = F^-T w1
+        for j in range(3):
+            w2[i, j] = finv[0, i] * w1[0, j] + finv[1, i] * w1[1, j] + finv[2, i] * w1[2, j]
+    c = mu - lam * lnj
+    for i in range(3):
+        for j in range(3):
+            dp[i, j] = mu * df[i, j] + c * w2[i, j] + lam * tr * finv[j, i]
+
+
+@njit(cache=True)
+def stiffness_matvec(u, x, tets, grads, vols, mu, lam, tag, frames, dets, exact, out):
+    """out += K_s u for nodal arrays u, out (n, 3), K_s = -df/dx at the stored frames."""
+    df = np.empty((3, 3))
+    f = np.empty((3, 3))
+    dp = np.empty((3, 3))
+    w1 = np.empty((3, 3))
+    w2 = np.empty((3, 3))
+    for e in range(tets.shape[0]):
+        if not dets[e] > 0.0:
+            continue
+        g = grads[e]
+        _gradient(u, tets[e], g, df)
+        if exact:
+            _gradient(x, tets[e], g, f)
+        _piola_differential(df, frames[e], f, dets[e], mu[e], lam[e], tag, exact, dp, w1, w2)
+        v = vols[e]
+        for a in range(4):
+            node = tets[e, a]
+            for i in range(3):
+                out[node, i] += v * (dp[i, 0] * g[a, 0] + dp[i, 1] * g[a, 1] + dp[i, 2] * g[a, 2])
+
+
+@njit(cache=True)
+def element_stiffness(x, tets, grads, vols, mu, lam, tag, frames, dets, exact, blocks):
+    """Element tangent stiffness matrices, blocks (m, 12, 12), node-major (a, i)."""
+    df = np.zeros((3, 3))
+    f = np.empty((3, 3))
+    dp = np.empty((3, 3))
+    w1 = np.empty((3, 3))
+    w2 = np.empty((3, 3))
+    for e in range(tets.shape[0]):
+        if not dets[e] > 0.0:
+            blocks[e] = 0.0
+            continue
+        g = grads[e]
+        _gradient(x, tets[e], g, f)
+        v = vols[e]
+        for b in range(4):
+            for j in range(3):
+                for k in range(3):
+                    df[j, k] = g[b, k]
+                _piola_differential(
+                    df, frames[e], f, dets[e], mu[e], lam[e], tag, exact, dp, w1, w2
+                )
+                for k in range(3):
+                    df[j, k] = 0.0
+                for a in range(4):
+                    for i in range(3):
+                        blocks[e, 3 * a + i, 3 * b + j] = v * (
+                            dp[i, 0] * g[a, 0] + dp[i, 1] * g[a, 1] + dp[i, 2] * g[a, 2]
+                        )
+
+
+@njit(cache=True)
+def scatter_add(blocks, scale, scatter, data):
+    """data[scatter[e, r, c]] += scale * blocks[e, r, c] for every entry with scatter >= 0."""
+    for e in range(blocks.shape[0]):
+        for r in range(12):
+            for c in range(12):
+                k = scatter[e, r, c]
+                if k >= 0:
+                    data[k] += scale * blocks[e, r, c]

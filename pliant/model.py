@@ -1,0 +1,162 @@
+"""Model (built once) and State (what changes every step).
+
+The model owns the body and its constraints; the state is a small value that can be copied,
+saved, restored and compared, which planning, RL resets and trajectory optimisation rely on.
+"""
+
+from __future__ import annotations
+
+import os
+import tempfile
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from pliant.constraints.base import Actuator, Constraint
+from pliant.errors import ModelError
+from pliant.fem.body import TetBody
+
+
+@dataclass
+class State:
+    """Positions and velocities of the nodes, time, step count and the last constraint forces.
+
+    Attributes:
+        positions, velocities: (n, 3).
+        time: simulated time.
+        step: number of steps taken.
+        actuation: (n_actuators,) actuator forces lambda_a of the last step.
+        displacement: (n_actuators,) actuator distances delta_a at the end of the last step.
+    """
+
+    positions: np.ndarray
+    velocities: np.ndarray
+    time: float = 0.0
+    step: int = 0
+    actuation: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    displacement: np.ndarray = field(default_factory=lambda: np.zeros(0))
+
+    def copy(self) -> State:
+        return State(
+            self.positions.copy(), self.velocities.copy(), self.time, self.step,
+            self.actuation.copy(), self.displacement.copy(),
+        )
+
+    def allclose(self, other: State, *, atol: float = 0.0) -> bool:
+        return (
+            self.step == other.step
+            and np.allclose(self.positions, other.positions, rtol=0, atol=atol)
+            and np.allclose(self.velocities, other.velocities, rtol=0, atol=atol)
+        )
+
+    def save(self, path: str | os.PathLike) -> None:
+        """Write the state to an .npz file atomically."""
+        path = Path(path)
+        fd, tmp = tempfile.mkstemp(dir=path.parent, suffix=".npz")
+        os.close(fd)
+        np.savez(tmp, positions=self.positions, velocities=self.velocities, time=self.time,
+                 step=self.step, actuation=self.actuation, displacement=self.displacement)
+        os.replace(tmp, path)
+
+    @classmethod
+    def load(cls, path: str | os.PathLike) -> State:
+        with np.load(path) as d:
+            return cls(d["positions"], d["velocities"], float(d["time"]), int(d["step"]),
+                       d["actuation"], d["displacement"])
+
+
+@dataclass(frozen=True)
+class ConstraintSpace:
+    """All constraint rows at one configuration, in the order actuators, effectors, contacts.
+
+    Attributes:
+        distance: delta (r,).
+        jacobian_t: H^T restricted to the free DoFs, dense (n_free, r).
+        slices: role -> slice of rows.
+    """
+
+    distance: np.ndarray
+    jacobian_t: np.ndarray
+    slices: dict[str, slice]
+
+
+class Model:
+    """A simulated robot: one deformable body and its constraints.
+
+    Args:
+        body: the deformable body.
+        actuators: cables, cavities, ... in the order of the actuation vector.
+        effectors: position effectors, used by inverse control.
+    """
+
+    def __init__(
+        self,
+        body: TetBody,
+        *,
+        actuators: list[Actuator] | tuple = (),
+        effectors: list[Constraint] | tuple = (),
+        name: str = "robot",
+    ) -> None:
+        self.body = body
+        self.actuators = list(actuators)
+        self.effectors = list(effectors)
+        self.name = name
+        for c in self.actuators:
+            if c.role != "actuator":
+                raise ModelError(f"{c.name} is a {c.role}, not an actuator")
+        for c in self.effectors:
+            if c.role != "effector":
+                raise ModelError(f"{c.name} is a {c.role}, not an effector")
+        names = [c.name for c in self.actuators + self.effectors]
+        if len(set(names)) != len(names):
+            raise ModelError(f"constraint names must be unique, got {names}")
+
+    @property
+    def constraints(self) -> list[Constraint]:
+        return self.actuators + self.effectors
+
+    @property
+    def n_actuators(self) -> int:
+        return len(self.actuators)
+
+    def rest_state(self) -> State:
+        q = self.body.rest_positions.copy()
+        return State(q, np.zeros_like(q), actuation=np.zeros(self.n_actuators),
+                     displacement=np.zeros(self.n_actuators))
+
+    def set_actuation(self, values: np.ndarray | list[float], mode: str | None = None) -> None:
+        """Set every actuator's command (and, optionally, mode)."""
+        vals = np.asarray(values, dtype=float).reshape(-1)
+        if vals.size != self.n_actuators:
+            raise ModelError(f"{self.name} has {self.n_actuators} actuators, got {vals.size} commands")
+        for act, v in zip(self.actuators, vals, strict=True):
+            if mode is not None:
+                act.mode = mode
+            act.value = v
+
+    def actuator_distances(self, positions: np.ndarray) -> np.ndarray:
+        return np.concatenate([a.distance(positions) for a in self.actuators]) if self.actuators else np.zeros(0)
+
+    def constraint_space(self, positions: np.ndarray, constraints: list[Constraint] | None = None) -> ConstraintSpace:
+        """Distances and Jacobians of the constraints (default: actuators then effectors)."""
+        cons = self.constraints if constraints is None else constraints
+        body = self.body
+        rows = sum(c.n_rows for c in cons)
+        ht_full = np.zeros((3 * body.n_nodes, rows))
+        delta = np.empty(rows)
+        slices: dict[str, slice] = {}
+        start = 0
+        for c in cons:
+            stop = start + c.n_rows
+            delta[start:stop] = c.distance(positions)
+            jac = c.jacobian(positions)
+            r_idx = np.broadcast_to(np.arange(start, stop)[:, None, None], jac.values.shape)
+            dofs = 3 * jac.nodes[:, :, None] + np.arange(3)
+            np.add.at(ht_full, (dofs.ravel(), r_idx.ravel()), jac.values.ravel())
+            role = slices.get(c.role)
+            slices[c.role] = slice(start if role is None else role.start, stop)
+            start = stop
+        for role in ("actuator", "effector", "contact"):
+            slices.setdefault(role, slice(rows, rows))
+        return ConstraintSpace(delta, ht_full[body.free_dofs], slices)

@@ -1,0 +1,108 @@
+"""Linearised implicit Euler with constraints in the compliance space (Eq. 2.2-2.5).
+
+Per step, with h the time step, K_s = -df/dx and D = alpha M + beta K_s:
+
+    A dv = b + h H^T lambda,   A = (1 + h alpha) M + (h beta + h^2) K_s,
+    b = h (f(q) + f_ext) - h alpha M v - (h beta + h^2) K_s v,
+
+solved in two steps: free motion A dv_free = b, then correction dv = dv_free + h A^-1 H^T lambda.
+The displacement over the step is h (v + dv), so in the constraint space
+delta = W lambda + delta_free with W = h^2 H A^-1 H^T and delta_free = delta(q_free).
+One factorisation (or one preconditioned block CG) serves the free motion and every constraint
+column.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from pliant.constraints.condensed import CondensedProblem
+from pliant.constraints.control import as_control
+from pliant.errors import DivergenceError, SolverError
+from pliant.model import Model, State
+from pliant.solvers.base import StepReport, check_linearisation, check_motion
+from pliant.solvers.system import LinearisedSystem, TangentPolicy
+
+
+class ImplicitEuler:
+    """Dynamic solver.
+
+    Args:
+        model: the robot.
+        dt: time step h.
+        tangent: factorisation policy, see :mod:`pliant.solvers.system`.
+        rtol: relative tolerance of the preconditioned CG ("pcg" policy).
+    """
+
+    def __init__(self, model: Model, dt: float = 0.01, *, tangent: TangentPolicy = "pcg",
+                 rtol: float = 1e-10) -> None:
+        if not (np.isfinite(dt) and dt > 0):
+            raise SolverError(f"the time step must be finite and > 0, got {dt!r}")
+        self.model = model
+        self.dt = float(dt)
+        self.system = LinearisedSystem(model.body, policy=tangent, rtol=rtol)
+        body = model.body
+        self._size = float(np.linalg.norm(np.ptp(body.rest_positions, axis=0)))
+        self._gravity = body.gravity_forces()
+        self.last_report = StepReport()
+
+    def _coefficients(self) -> tuple[float, float]:
+        b, h = self.model.body, self.dt
+        return 1.0 + h * b.rayleigh_mass, h * b.rayleigh_stiffness + h * h
+
+    def step(self, state: State, control=None) -> State:
+        """Advance one step; `control`: None, actuator commands, DirectControl or InverseControl."""
+        model, body, h = self.model, self.model.body, self.dt
+        ctrl = as_control(control)
+        ctrl.prepare(model)
+        step = state.step + 1
+        lin = body.linearise(state.positions)
+        check_linearisation(lin, step, h)
+        a_m, a_k = self._coefficients()
+        try:
+            self.system.prepare(lin, a_m, a_k)
+            space = model.constraint_space(state.positions)
+            v = body.gather(state.velocities)
+            f = body.gather(lin.forces + self._gravity)
+            kv = body.stiffness_matvec(lin, v)
+            rhs = h * f - (a_m - 1.0) * body.mass_matvec(v) - a_k * kv
+            cols = self.system.solve(np.column_stack([rhs, space.jacobian_t]))
+        except SolverError as exc:
+            raise DivergenceError(f"step {step}: {exc}", step=step, cause="solver") from exc
+        dv_free, a_inv_ht = cols[:, 0], cols[:, 1:]
+        q_free = state.positions + h * body.scatter(v + dv_free)
+        delta_free = np.concatenate([c.distance(q_free) for c in model.constraints]) \
+            if model.constraints else np.zeros(0)
+        w = h * h * (space.jacobian_t.T @ a_inv_ht)
+        problem = CondensedProblem(0.5 * (w + w.T), delta_free, space.slices)
+        lam_a = ctrl.actuation(problem, model, state.displacement)
+        sa = space.slices["actuator"]
+        dv = dv_free + h * (a_inv_ht[:, sa] @ lam_a)
+        v_new = v + dv
+        dq = body.scatter(h * v_new)
+        new = State(state.positions + dq, body.scatter(v_new), state.time + h, step,
+                    lam_a, model.actuator_distances(state.positions + dq))
+        check_motion(new.positions, new.velocities, dq, self._size, step, h)
+        self.last_report = StepReport(problem, lam_a, self.system.last_iterations,
+                                      self.system.factorisations)
+        return new
+
+    def condense(self, state: State) -> CondensedProblem:
+        """Exact W and delta_free of the next step from `state` (fresh factorisation)."""
+        saved = self.system.policy
+        self.system.policy = "fresh"
+        try:
+            self.step(state.copy(), _Passive())
+        finally:
+            self.system.policy = saved
+        return self.last_report.problem
+
+
+class _Passive:
+    """Control applying no actuation (to read the condensed problem of a step)."""
+
+    def prepare(self, model) -> None:
+        pass
+
+    def actuation(self, problem, model, previous_displacement):
+        return np.zeros(problem.n_actuators)

@@ -1,0 +1,87 @@
+"""Static equilibrium by Newton iterations with constraints (Eq. 5.1).
+
+K_s(q) dq = f_ext + f(q) + H^T lambda, with lambda the *total* constraint forces chosen at every
+iteration from the condensed problem delta = W lambda + delta_free, W = H K_s^-1 H^T,
+delta_free = delta(q) + H K_s^-1 (f_ext + f(q)). At convergence the residual vanishes and the
+constraints hold exactly.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from pliant.constraints.condensed import CondensedProblem
+from pliant.constraints.control import as_control
+from pliant.errors import DivergenceError, SolverError
+from pliant.model import Model, State
+from pliant.solvers.base import StepReport, check_linearisation, check_motion
+from pliant.solvers.system import LinearisedSystem, TangentPolicy
+
+
+class StaticSolver:
+    """Quasi-static solver: each step solves the equilibrium for the current commands.
+
+    Args:
+        model: the robot (must be held: fixed nodes, or the stiffness is singular).
+        tolerance: convergence when the Newton update is below tolerance times the body size.
+        max_iterations: Newton iterations before giving up.
+        tangent: factorisation policy, see :mod:`pliant.solvers.system`.
+    """
+
+    def __init__(self, model: Model, *, tolerance: float = 1e-10, max_iterations: int = 100,
+                 tangent: TangentPolicy = "fresh") -> None:
+        self.model = model
+        self.tolerance = tolerance
+        self.max_iterations = max_iterations
+        self.system = LinearisedSystem(model.body, policy=tangent, rtol=1e-12)
+        self._size = float(np.linalg.norm(np.ptp(model.body.rest_positions, axis=0)))
+        self._gravity = model.body.gravity_forces()
+        self.dt = None
+        self.last_report = StepReport()
+
+    def _condense(self, q: np.ndarray, step: int):
+        model, body = self.model, self.model.body
+        lin = body.linearise(q)
+        check_linearisation(lin, step, None)
+        self.system.prepare(lin, 0.0, 1.0)
+        space = model.constraint_space(q)
+        residual = body.gather(lin.forces + self._gravity)
+        cols = self.system.solve(np.column_stack([residual, space.jacobian_t]))
+        dq_free, k_inv_ht = cols[:, 0], cols[:, 1:]
+        w = space.jacobian_t.T @ k_inv_ht
+        delta_free = space.distance + space.jacobian_t.T @ dq_free
+        return CondensedProblem(0.5 * (w + w.T), delta_free, space.slices), dq_free, k_inv_ht
+
+    def step(self, state: State, control=None) -> State:
+        model, body = self.model, self.model.body
+        ctrl = as_control(control)
+        ctrl.prepare(model)
+        step = state.step + 1
+        q = state.positions.copy()
+        previous = state.displacement
+        for it in range(1, self.max_iterations + 1):
+            try:
+                problem, dq_free, k_inv_ht = self._condense(q, step)
+            except SolverError as exc:
+                raise DivergenceError(f"step {step}: {exc}", step=step, cause="solver") from exc
+            lam_a = ctrl.actuation(problem, model, previous)
+            sa = problem.slices["actuator"]
+            dq = body.scatter(dq_free + k_inv_ht[:, sa] @ lam_a)
+            check_motion(q + dq, np.zeros_like(q), dq, self._size, step, None)
+            q += dq
+            if np.max(np.abs(dq)) <= self.tolerance * self._size:
+                break
+        else:
+            raise DivergenceError(
+                f"step {step}: the static solve did not converge in {self.max_iterations} Newton"
+                f" iterations (last update {np.max(np.abs(dq)):.3g}); reduce the load or the"
+                " actuation per step (load stepping)", step=step, cause="solver",
+            )
+        self.last_report = StepReport(problem, lam_a, self.system.last_iterations,
+                                      self.system.factorisations, it)
+        return State(q, np.zeros_like(q), state.time, step, lam_a, model.actuator_distances(q))
+
+    def condense(self, state: State) -> CondensedProblem:
+        """Exact W = H K^-1 H^T and delta_free at `state`."""
+        problem, _, _ = self._condense(state.positions, state.step)
+        return problem
