@@ -39,8 +39,12 @@ class State:
 
     def copy(self) -> State:
         return State(
-            self.positions.copy(), self.velocities.copy(), self.time, self.step,
-            self.actuation.copy(), self.displacement.copy(),
+            self.positions.copy(),
+            self.velocities.copy(),
+            self.time,
+            self.step,
+            self.actuation.copy(),
+            self.displacement.copy(),
         )
 
     def allclose(self, other: State, *, atol: float = 0.0) -> bool:
@@ -55,15 +59,28 @@ class State:
         path = Path(path)
         fd, tmp = tempfile.mkstemp(dir=path.parent, suffix=".npz")
         os.close(fd)
-        np.savez(tmp, positions=self.positions, velocities=self.velocities, time=self.time,
-                 step=self.step, actuation=self.actuation, displacement=self.displacement)
+        np.savez(
+            tmp,
+            positions=self.positions,
+            velocities=self.velocities,
+            time=self.time,
+            step=self.step,
+            actuation=self.actuation,
+            displacement=self.displacement,
+        )
         os.replace(tmp, path)
 
     @classmethod
     def load(cls, path: str | os.PathLike) -> State:
         with np.load(path) as d:
-            return cls(d["positions"], d["velocities"], float(d["time"]), int(d["step"]),
-                       d["actuation"], d["displacement"])
+            return cls(
+                d["positions"],
+                d["velocities"],
+                float(d["time"]),
+                int(d["step"]),
+                d["actuation"],
+                d["displacement"],
+            )
 
 
 @dataclass(frozen=True)
@@ -122,23 +139,35 @@ class Model:
 
     def rest_state(self) -> State:
         q = self.body.rest_positions.copy()
-        return State(q, np.zeros_like(q), actuation=np.zeros(self.n_actuators),
-                     displacement=np.zeros(self.n_actuators))
+        return State(
+            q,
+            np.zeros_like(q),
+            actuation=np.zeros(self.n_actuators),
+            displacement=np.zeros(self.n_actuators),
+        )
 
     def set_actuation(self, values: np.ndarray | list[float], mode: str | None = None) -> None:
         """Set every actuator's command (and, optionally, mode)."""
         vals = np.asarray(values, dtype=float).reshape(-1)
         if vals.size != self.n_actuators:
-            raise ModelError(f"{self.name} has {self.n_actuators} actuators, got {vals.size} commands")
+            raise ModelError(
+                f"{self.name} has {self.n_actuators} actuators, got {vals.size} commands"
+            )
         for act, v in zip(self.actuators, vals, strict=True):
             if mode is not None:
                 act.mode = mode
             act.value = v
 
     def actuator_distances(self, positions: np.ndarray) -> np.ndarray:
-        return np.concatenate([a.distance(positions) for a in self.actuators]) if self.actuators else np.zeros(0)
+        return (
+            np.concatenate([a.distance(positions) for a in self.actuators])
+            if self.actuators
+            else np.zeros(0)
+        )
 
-    def constraint_space(self, positions: np.ndarray, constraints: list[Constraint] | None = None) -> ConstraintSpace:
+    def constraint_space(
+        self, positions: np.ndarray, constraints: list[Constraint] | None = None
+    ) -> ConstraintSpace:
         """Distances and Jacobians of the constraints (default: actuators then effectors)."""
         cons = self.constraints if constraints is None else constraints
         body = self.body

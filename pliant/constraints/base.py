@@ -32,7 +32,12 @@ class EmbeddedPoints:
     SOFA attaches cable and effector points the same way (BarycentricMapping).
     """
 
-    def __init__(self, mesh: TetMesh, points: np.ndarray) -> None:
+    def __init__(
+        self, mesh: TetMesh, points: np.ndarray, *, tolerance: float | None = None
+    ) -> None:
+        """Embed `points`; a point up to `tolerance` outside the mesh (default 1 % of the
+        bounding-box diagonal) is projected onto its nearest element, as SOFA's mapping does
+        for points placed on a curved surface."""
         from pliant.mesh import locate_points
 
         pts = np.atleast_2d(np.asarray(points, dtype=float))
@@ -40,7 +45,9 @@ class EmbeddedPoints:
             raise ModelError(f"points must be a non-empty (k, 3) array, got shape {pts.shape}")
         if not np.all(np.isfinite(pts)):
             raise ModelError("points must be finite")
-        tet_index, bary = locate_points(mesh, pts)
+        if tolerance is None:
+            tolerance = 0.01 * float(np.linalg.norm(np.ptp(mesh.points, axis=0)))
+        tet_index, bary = locate_points(mesh, pts, tolerance=tolerance)
         self.nodes = np.ascontiguousarray(mesh.tets[tet_index], dtype=np.int64)
         self.weights = np.ascontiguousarray(bary, dtype=float)
 
@@ -133,7 +140,9 @@ class Actuator(Constraint):
                 f" {self.max_displacement}: no displacement is admissible"
             )
         if max_displacement_change is not None:
-            max_displacement_change = _check_real("max_displacement_change", max_displacement_change)
+            max_displacement_change = _check_real(
+                "max_displacement_change", max_displacement_change
+            )
             if max_displacement_change <= 0:
                 raise ConstraintError(f"{name}: max_displacement_change must be > 0")
         self.max_displacement_change = max_displacement_change
@@ -145,7 +154,9 @@ class Actuator(Constraint):
     @mode.setter
     def mode(self, mode: str) -> None:
         if mode not in ("force", "displacement"):
-            raise ConstraintError(f"{self.name}: mode must be 'force' or 'displacement', got {mode!r}")
+            raise ConstraintError(
+                f"{self.name}: mode must be 'force' or 'displacement', got {mode!r}"
+            )
         self._mode = mode
 
     @property

@@ -34,9 +34,13 @@ class CableActuator(Actuator):
     ) -> None:
         super().__init__(name=name, **bounds)
         self.points = points
-        self.pull_point = None if pull_point is None else np.asarray(pull_point, dtype=float).reshape(3)
+        self.pull_point = (
+            None if pull_point is None else np.asarray(pull_point, dtype=float).reshape(3)
+        )
         if len(points) + (self.pull_point is not None) < 2:
-            raise ConstraintError(f"{name}: a cable needs at least two points (or a point and a pull point)")
+            raise ConstraintError(
+                f"{name}: a cable needs at least two points (or a point and a pull point)"
+            )
         self.rest_length = self.length(rest_positions)
         if not self.rest_length > 0:
             raise ConstraintError(f"{name}: the cable has zero rest length")

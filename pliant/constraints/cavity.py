@@ -39,15 +39,23 @@ class CavityActuator(Actuator):
         super().__init__(name=name, **bounds)
         tri = np.asarray(triangles, dtype=np.int64)
         if tri.ndim != 2 or tri.shape[1] != 3 or tri.shape[0] < 4:
-            raise ConstraintError(f"{name}: a cavity needs a closed surface of at least 4 triangles")
+            raise ConstraintError(
+                f"{name}: a cavity needs a closed surface of at least 4 triangles"
+            )
         if tri.min() < 0 or tri.max() >= rest_positions.shape[0]:
             raise ConstraintError(f"{name}: cavity triangles index nodes outside the body")
         self.triangles = tri[:, ::-1].copy() if flip_normals else tri
-        edges = np.sort(np.concatenate([self.triangles[:, [0, 1]], self.triangles[:, [1, 2]],
-                                        self.triangles[:, [2, 0]]]), axis=1)
+        edges = np.sort(
+            np.concatenate(
+                [self.triangles[:, [0, 1]], self.triangles[:, [1, 2]], self.triangles[:, [2, 0]]]
+            ),
+            axis=1,
+        )
         _, counts = np.unique(edges, axis=0, return_counts=True)
         if np.any(counts != 2):
-            raise ConstraintError(f"{name}: the cavity surface is not closed ({np.count_nonzero(counts != 2)} open edges)")
+            raise ConstraintError(
+                f"{name}: the cavity surface is not closed ({np.count_nonzero(counts != 2)} open edges)"
+            )
         self.rest_volume = enclosed_volume(rest_positions, self.triangles)
         if not self.rest_volume > 0:
             raise ConstraintError(
@@ -64,7 +72,15 @@ class CavityActuator(Actuator):
 
     def jacobian(self, x: np.ndarray) -> JacobianRows:
         p = x[self.triangles]
-        grad = np.stack(
-            [np.cross(p[:, 1], p[:, 2]), np.cross(p[:, 2], p[:, 0]), np.cross(p[:, 0], p[:, 1])], axis=1
-        ) / 6.0
+        grad = (
+            np.stack(
+                [
+                    np.cross(p[:, 1], p[:, 2]),
+                    np.cross(p[:, 2], p[:, 0]),
+                    np.cross(p[:, 0], p[:, 1]),
+                ],
+                axis=1,
+            )
+            / 6.0
+        )
         return JacobianRows(self._nodes, grad.reshape(1, -1, 3))

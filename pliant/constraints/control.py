@@ -22,7 +22,9 @@ class DirectControl:
         if self.values is not None:
             model.set_actuation(self.values)
 
-    def actuation(self, problem: CondensedProblem, model, previous_displacement: np.ndarray) -> np.ndarray:
+    def actuation(
+        self, problem: CondensedProblem, model, previous_displacement: np.ndarray
+    ) -> np.ndarray:
         return solve_direct(problem, model.actuators, previous_displacement)
 
 
@@ -42,13 +44,18 @@ class InverseControl:
             return
         goals = [self.goals] if isinstance(self.goals, np.ndarray) else list(self.goals)
         if len(goals) != len(model.effectors):
-            raise ModelError(f"{model.name} has {len(model.effectors)} effectors, got {len(goals)} goals")
+            raise ModelError(
+                f"{model.name} has {len(model.effectors)} effectors, got {len(goals)} goals"
+            )
         for eff, g in zip(model.effectors, goals, strict=True):
             eff.goals = g
 
-    def actuation(self, problem: CondensedProblem, model, previous_displacement: np.ndarray) -> np.ndarray:
-        sol = solve_inverse(problem, model.actuators, previous_displacement,
-                            regularisation=self.regularisation)
+    def actuation(
+        self, problem: CondensedProblem, model, previous_displacement: np.ndarray
+    ) -> np.ndarray:
+        sol = solve_inverse(
+            problem, model.actuators, previous_displacement, regularisation=self.regularisation
+        )
         return sol.actuation
 
 

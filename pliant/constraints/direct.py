@@ -36,9 +36,14 @@ def box_qp(hess: np.ndarray, grad: np.ndarray, lower: np.ndarray, upper: np.ndar
             t = min(1.0, float(ratios.min()))
             x[free] += t * step
             if t < 1.0:
-                blocking = np.flatnonzero(free)[np.isclose(ratios, t, rtol=1e-12, atol=0.0) | (ratios <= t)]
-                x[blocking] = np.where(step[np.isin(np.flatnonzero(free), blocking)] > 0,
-                                       upper[blocking], lower[blocking])
+                blocking = np.flatnonzero(free)[
+                    np.isclose(ratios, t, rtol=1e-12, atol=0.0) | (ratios <= t)
+                ]
+                x[blocking] = np.where(
+                    step[np.isin(np.flatnonzero(free), blocking)] > 0,
+                    upper[blocking],
+                    lower[blocking],
+                )
                 at_bound[blocking] = True
                 continue
         gradient = hess @ x + grad

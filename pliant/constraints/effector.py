@@ -48,7 +48,9 @@ class PositionEffector(Constraint):
     def goals(self, goals: np.ndarray) -> None:
         g = np.asarray(goals, dtype=float).reshape(-1, 3) if np.size(goals) else np.empty((0, 3))
         if g.shape != (len(self.points), 3):
-            raise ConstraintError(f"{self.name}: goals must have shape ({len(self.points)}, 3), got {np.shape(goals)}")
+            raise ConstraintError(
+                f"{self.name}: goals must have shape ({len(self.points)}, 3), got {np.shape(goals)}"
+            )
         if not np.all(np.isfinite(g)):
             raise ConstraintError(f"{self.name}: goals must be finite")
         self._goals = g

@@ -67,9 +67,15 @@ def solve_inverse(
     qp.settings.max_iter = max_iterations
     qp.settings.primal_infeasibility_solving = False
     qp.init(
-        hess, grad, None, None, w_aa,
-        np.clip(dmin - da_free, -big, big), np.clip(dmax - da_free, -big, big),
-        np.clip(lo, -big, big), np.clip(hi, -big, big),
+        hess,
+        grad,
+        None,
+        None,
+        w_aa,
+        np.clip(dmin - da_free, -big, big),
+        np.clip(dmax - da_free, -big, big),
+        np.clip(lo, -big, big),
+        np.clip(hi, -big, big),
     )
     qp.solve()
     status = qp.results.info.status

@@ -97,7 +97,10 @@ class TetBody:
             raise MaterialError(f"density must be finite and > 0, got {rho!r}")
         self.density = rho
         self.total_mass = rho * volume
-        for name, val in (("rayleigh_mass", rayleigh_mass), ("rayleigh_stiffness", rayleigh_stiffness)):
+        for name, val in (
+            ("rayleigh_mass", rayleigh_mass),
+            ("rayleigh_stiffness", rayleigh_stiffness),
+        ):
             if not math.isfinite(val) or val < 0:
                 raise MaterialError(f"{name} must be finite and >= 0, got {val!r}")
         self.rayleigh_mass = float(rayleigh_mass)
@@ -109,7 +112,9 @@ class TetBody:
         n = self.n_nodes
         fixed = np.unique(np.asarray([] if fixed_nodes is None else fixed_nodes, dtype=np.int64))
         if fixed.size and (fixed.min() < 0 or fixed.max() >= n):
-            raise ModelError(f"fixed node indices must lie in [0, {n}), got {fixed.min()}..{fixed.max()}")
+            raise ModelError(
+                f"fixed node indices must lie in [0, {n}), got {fixed.min()}..{fixed.max()}"
+            )
         self.fixed_nodes = fixed
         fixed_mask = np.zeros(3 * n, dtype=bool)
         fixed_mask[(3 * fixed[:, None] + np.arange(3)).ravel()] = True
@@ -166,11 +171,17 @@ class TetBody:
             kernels.scatter_add(blocks, 1.0, self.pattern.scatter, data)
             return data
         diag = np.repeat(self.node_masses, 3)[self.free_dofs]
-        mat = sp.csr_matrix((diag, (np.arange(self.n_free), np.arange(self.n_free))),
-                            shape=(self.n_free, self.n_free))
+        mat = sp.csr_matrix(
+            (diag, (np.arange(self.n_free), np.arange(self.n_free))),
+            shape=(self.n_free, self.n_free),
+        )
         data = np.zeros(self.pattern.nnz)
         # Every diagonal entry exists in the stiffness pattern; locate it row by row.
-        k = self.pattern.matrix(np.arange(self.pattern.nnz, dtype=float)).diagonal().astype(np.int64)
+        k = (
+            self.pattern.matrix(np.arange(self.pattern.nnz, dtype=float))
+            .diagonal()
+            .astype(np.int64)
+        )
         data[k] = mat.diagonal()
         return data
 
@@ -194,12 +205,22 @@ class TetBody:
         frames = np.empty((m, 3, 3))
         dets = np.empty(m)
         energy = kernels.internal_forces(
-            x, self.tets, self.grads, self.volumes, self.mu, self.lam,
-            self.material.kernel_tag, forces, frames, dets,
+            x,
+            self.tets,
+            self.grads,
+            self.volumes,
+            self.mu,
+            self.lam,
+            self.material.kernel_tag,
+            forces,
+            frames,
+            dets,
         )
         return Linearisation(x, forces, float(energy), frames, dets)
 
-    def stiffness_matvec(self, lin: Linearisation, u: np.ndarray, *, exact: bool = False) -> np.ndarray:
+    def stiffness_matvec(
+        self, lin: Linearisation, u: np.ndarray, *, exact: bool = False
+    ) -> np.ndarray:
         """K_s u on the free DoFs (K_s = -df/dx); u is (n_free,) or (n_free, k)."""
         cols = u[:, None] if u.ndim == 1 else u
         out = np.empty_like(cols)
@@ -209,8 +230,18 @@ class TetBody:
             full_in.reshape(-1)[self.free_dofs] = cols[:, c]
             full_out[:] = 0.0
             kernels.stiffness_matvec(
-                full_in, lin.positions, self.tets, self.grads, self.volumes, self.mu, self.lam,
-                self.material.kernel_tag, lin.frames, lin.dets, exact, full_out,
+                full_in,
+                lin.positions,
+                self.tets,
+                self.grads,
+                self.volumes,
+                self.mu,
+                self.lam,
+                self.material.kernel_tag,
+                lin.frames,
+                lin.dets,
+                exact,
+                full_out,
             )
             out[:, c] = full_out.reshape(-1)[self.free_dofs]
         return out[:, 0] if u.ndim == 1 else out
@@ -218,8 +249,17 @@ class TetBody:
     def stiffness_data(self, lin: Linearisation, *, exact: bool = False) -> np.ndarray:
         """Tangent stiffness on the free DoFs, as data aligned with `self.pattern`."""
         kernels.element_stiffness(
-            lin.positions, self.tets, self.grads, self.volumes, self.mu, self.lam,
-            self.material.kernel_tag, lin.frames, lin.dets, exact, self._element_blocks,
+            lin.positions,
+            self.tets,
+            self.grads,
+            self.volumes,
+            self.mu,
+            self.lam,
+            self.material.kernel_tag,
+            lin.frames,
+            lin.dets,
+            exact,
+            self._element_blocks,
         )
         data = np.zeros(self.pattern.nnz)
         kernels.scatter_add(self._element_blocks, 1.0, self.pattern.scatter, data)

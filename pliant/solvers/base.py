@@ -26,30 +26,46 @@ def check_linearisation(lin: Linearisation, step: int, dt: float | None) -> None
     """Raise DivergenceError if elements are inverted or forces are not finite."""
     hint = (
         f"reduce the time step (now {dt}) or the actuation rate"
-        if dt is not None else "reduce the load or actuation per static step (load stepping)"
+        if dt is not None
+        else "reduce the load or actuation per static step (load stepping)"
     )
     if lin.n_inverted:
         first = int(np.flatnonzero(~(lin.dets > 0))[0])
         raise DivergenceError(
             f"step {step}: {lin.n_inverted} element(s) inverted (first: element {first},"
-            f" det F = {lin.dets[first]:.3g}); {hint}", step=step, cause="inverted",
+            f" det F = {lin.dets[first]:.3g}); {hint}",
+            step=step,
+            cause="inverted",
         )
     if not (np.all(np.isfinite(lin.forces)) and np.isfinite(lin.energy)):
-        raise DivergenceError(f"step {step}: non-finite internal forces; {hint}", step=step,
-                              cause="non-finite")
+        raise DivergenceError(
+            f"step {step}: non-finite internal forces; {hint}", step=step, cause="non-finite"
+        )
 
 
-def check_motion(positions: np.ndarray, velocities: np.ndarray, displacement: np.ndarray,
-                 size: float, step: int, dt: float | None) -> None:
+def check_motion(
+    positions: np.ndarray,
+    velocities: np.ndarray,
+    displacement: np.ndarray,
+    size: float,
+    step: int,
+    dt: float | None,
+) -> None:
     """Raise DivergenceError for non-finite states or a jump larger than the body itself."""
-    hint = (f"reduce the time step (now {dt}) or the actuation rate" if dt is not None
-            else "reduce the load or actuation per static step (load stepping)")
+    hint = (
+        f"reduce the time step (now {dt}) or the actuation rate"
+        if dt is not None
+        else "reduce the load or actuation per static step (load stepping)"
+    )
     if not (np.all(np.isfinite(positions)) and np.all(np.isfinite(velocities))):
-        raise DivergenceError(f"step {step}: the state became non-finite; {hint}", step=step,
-                              cause="non-finite")
+        raise DivergenceError(
+            f"step {step}: the state became non-finite; {hint}", step=step, cause="non-finite"
+        )
     jump = float(np.max(np.abs(displacement))) if displacement.size else 0.0
     if jump > size:
         raise DivergenceError(
             f"step {step}: a node moved {jump:.3g} in one step, more than the body's size"
-            f" ({size:.3g}): energy blow-up; {hint}", step=step, cause="energy",
+            f" ({size:.3g}): energy blow-up; {hint}",
+            step=step,
+            cause="energy",
         )

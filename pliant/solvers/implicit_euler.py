@@ -34,8 +34,9 @@ class ImplicitEuler:
         rtol: relative tolerance of the preconditioned CG ("pcg" policy).
     """
 
-    def __init__(self, model: Model, dt: float = 0.01, *, tangent: TangentPolicy = "pcg",
-                 rtol: float = 1e-10) -> None:
+    def __init__(
+        self, model: Model, dt: float = 0.01, *, tangent: TangentPolicy = "pcg", rtol: float = 1e-10
+    ) -> None:
         if not (np.isfinite(dt) and dt > 0):
             raise SolverError(f"the time step must be finite and > 0, got {dt!r}")
         self.model = model
@@ -71,8 +72,11 @@ class ImplicitEuler:
             raise DivergenceError(f"step {step}: {exc}", step=step, cause="solver") from exc
         dv_free, a_inv_ht = cols[:, 0], cols[:, 1:]
         q_free = state.positions + h * body.scatter(v + dv_free)
-        delta_free = np.concatenate([c.distance(q_free) for c in model.constraints]) \
-            if model.constraints else np.zeros(0)
+        delta_free = (
+            np.concatenate([c.distance(q_free) for c in model.constraints])
+            if model.constraints
+            else np.zeros(0)
+        )
         w = h * h * (space.jacobian_t.T @ a_inv_ht)
         problem = CondensedProblem(0.5 * (w + w.T), delta_free, space.slices)
         lam_a = ctrl.actuation(problem, model, state.displacement)
@@ -80,11 +84,18 @@ class ImplicitEuler:
         dv = dv_free + h * (a_inv_ht[:, sa] @ lam_a)
         v_new = v + dv
         dq = body.scatter(h * v_new)
-        new = State(state.positions + dq, body.scatter(v_new), state.time + h, step,
-                    lam_a, model.actuator_distances(state.positions + dq))
+        new = State(
+            state.positions + dq,
+            body.scatter(v_new),
+            state.time + h,
+            step,
+            lam_a,
+            model.actuator_distances(state.positions + dq),
+        )
         check_motion(new.positions, new.velocities, dq, self._size, step, h)
-        self.last_report = StepReport(problem, lam_a, self.system.last_iterations,
-                                      self.system.factorisations)
+        self.last_report = StepReport(
+            problem, lam_a, self.system.last_iterations, self.system.factorisations
+        )
         return new
 
     def condense(self, state: State) -> CondensedProblem:

@@ -28,8 +28,14 @@ class StaticSolver:
         tangent: factorisation policy, see :mod:`pliant.solvers.system`.
     """
 
-    def __init__(self, model: Model, *, tolerance: float = 1e-10, max_iterations: int = 100,
-                 tangent: TangentPolicy = "fresh") -> None:
+    def __init__(
+        self,
+        model: Model,
+        *,
+        tolerance: float = 1e-10,
+        max_iterations: int = 100,
+        tangent: TangentPolicy = "fresh",
+    ) -> None:
         self.model = model
         self.tolerance = tolerance
         self.max_iterations = max_iterations
@@ -75,10 +81,13 @@ class StaticSolver:
             raise DivergenceError(
                 f"step {step}: the static solve did not converge in {self.max_iterations} Newton"
                 f" iterations (last update {np.max(np.abs(dq)):.3g}); reduce the load or the"
-                " actuation per step (load stepping)", step=step, cause="solver",
+                " actuation per step (load stepping)",
+                step=step,
+                cause="solver",
             )
-        self.last_report = StepReport(problem, lam_a, self.system.last_iterations,
-                                      self.system.factorisations, it)
+        self.last_report = StepReport(
+            problem, lam_a, self.system.last_iterations, self.system.factorisations, it
+        )
         return State(q, np.zeros_like(q), state.time, step, lam_a, model.actuator_distances(q))
 
     def condense(self, state: State) -> CondensedProblem:

@@ -97,8 +97,13 @@ class LinearisedSystem:
             self.last_iterations = 0
             return self._factor.solve(rhs)
         cols = rhs[:, None] if rhs.ndim == 1 else rhs
-        x, report = block_pcg(self.apply, self._factor.solve, cols, rtol=self.rtol,
-                              max_iterations=self.refactor_iterations * 4)
+        x, report = block_pcg(
+            self.apply,
+            self._factor.solve,
+            cols,
+            rtol=self.rtol,
+            max_iterations=self.refactor_iterations * 4,
+        )
         self.last_iterations = report.iterations
         if not report.converged:
             self.refactorise()

@@ -1,0 +1,331 @@
+"""``pliant bench``: steps per second beside SOFA's figures measured on this kind of machine.
+
+Scenes follow SPEC §5 ("SOFA measured on this machine"): same meshes (the reference SOFA meshes,
+read from ``--meshes``), same materials, dt = 0.01, implicit Euler, fixed base; "cables" adds the
+constraint solve with the cables in displacement mode. Every figure is the median over
+``repeats`` timed runs after a warm-up (compilation, first factorisation), measured in this one
+process, one scene after the other.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import platform
+import resource
+import statistics
+import tempfile
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+from rich.console import Console
+from rich.table import Table
+
+from pliant import __version__, robots
+from pliant.constraints.control import InverseControl
+from pliant.fem.body import TetBody, nodes_in_box
+from pliant.fem.material import Corotational
+from pliant.mesh import box_beam, load_mesh
+from pliant.mesh.tetmesh import TetMesh
+from pliant.model import Model
+from pliant.solvers import ImplicitEuler, StaticSolver
+
+# SOFA master (Aug 2026) + SoftRobots on this machine kind, steps/s (SPEC §5).
+SOFA_STEPS_PER_S = {
+    "diamond": 43.2,
+    "diamond+cables": 38.5,
+    "trunk": 123.2,
+    "trunk+cables": 97.0,
+    "multigait": 0.36,
+    "cantilever-240": 1221.0,
+    "cantilever-1920": 77.6,
+    "cantilever-15360": 1.65,
+    "cantilever-51840": 0.06,
+}
+# Thesis Fig. 5.5 / Table 5.2 (SOFA, the thesis' machine), frames/s of the Soft Finger.
+THESIS_FINGER_FPS = {"coarse": 32.6, "fine": 4.8, "superfine": 1.8}
+
+
+def _default_meshes() -> Path | None:
+    for cand in (os.environ.get("PLIANT_REFERENCE_MESHES"), "../shared/meshes", "shared/meshes"):
+        if cand and Path(cand, "Diamond_siliconeV0.vtu").is_file():
+            return Path(cand)
+    return None
+
+
+def _placed(mesh: TetMesh, rotation: np.ndarray, shift: tuple[float, float, float]) -> TetMesh:
+    return TetMesh(mesh.points @ rotation.T + np.asarray(shift), mesh.tets)
+
+
+def reference_diamond(meshes: Path) -> TetMesh:
+    """The SoftRobots Diamond mesh as its scene places it: 90 degrees about x, +35 mm in z."""
+    rot = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]])
+    return _placed(load_mesh(meshes / "Diamond_siliconeV0.vtu"), rot, (0.0, 0.0, 35.0))
+
+
+def cantilever(n: int) -> Model:
+    """SPEC §5 cantilever: 100 x 20 x 20 mm, (5n) x n x n cubes of 6 tets, E=1000, nu=0.45, 0.04 kg."""
+    mesh = box_beam(100.0, 20.0, 20.0, nx=5 * n, ny=n, nz=n)
+    fixed = np.flatnonzero(mesh.points[:, 0] <= 1e-9)
+    body = TetBody(
+        mesh,
+        Corotational(1000.0, 0.45),
+        total_mass=0.04,
+        mass="uniform",
+        fixed_nodes=fixed,
+        gravity=(0.0, 0.0, -9810.0),
+    )
+    return Model(body, name=f"cantilever-{mesh.n_tets}")
+
+
+def multigait(meshes: Path) -> Model:
+    """SPEC §5 Multigait body: E=70, nu=0.45, 0.035 kg, centre fixed, gravity."""
+    mesh = load_mesh(meshes / "MultiGaitRobot_full_quadriped_fine.vtk")
+    c = mesh.points.mean(axis=0)
+    fixed = nodes_in_box(mesh.points, [c - [10.0, 10.0, 50.0], c + [10.0, 10.0, 50.0]])
+    body = TetBody(
+        mesh,
+        Corotational(70.0, 0.45),
+        total_mass=0.035,
+        mass="uniform",
+        fixed_nodes=fixed,
+        gravity=(0.0, 0.0, -9810.0),
+    )
+    return Model(body, name="multigait")
+
+
+@dataclass
+class Measurement:
+    scene: str
+    tets: int
+    policy: str
+    steps_per_s: float
+    repeats: list[float]
+    factorisations_per_step: float
+    sofa: float | None = None
+    extra: dict = field(default_factory=dict)
+
+    @property
+    def speedup(self) -> float | None:
+        return self.steps_per_s / self.sofa if self.sofa else None
+
+
+def time_steps(
+    make_solver: Callable[[], object],
+    state,
+    control: Callable[[object], object],
+    steps: int,
+    repeats: int,
+    warmup: int,
+) -> tuple[list[float], float]:
+    """steps/s of `repeats` runs of `steps` steps, each from the state after the warm-up."""
+    solver = make_solver()
+    for _ in range(warmup):
+        state = solver.step(state, control(state))
+    rates, facts = [], []
+    for _ in range(repeats):
+        s = state.copy()
+        f0 = solver.system.factorisations
+        t0 = time.perf_counter()
+        for _ in range(steps):
+            s = solver.step(s, control(s))
+        rates.append(steps / (time.perf_counter() - t0))
+        facts.append((solver.system.factorisations - f0) / steps)
+    return rates, statistics.median(facts)
+
+
+def run_benchmarks(
+    *, meshes: Path | None, repeats: int, steps: int, quick: bool, out: Path, console: Console
+) -> list[Measurement]:
+    meshes = meshes or _default_meshes()
+    results: list[Measurement] = []
+
+    def measure(
+        scene: str,
+        model: Model,
+        *,
+        cables: np.ndarray | None = None,
+        policies=("pcg", "lagged", "fresh"),
+        n_steps: int = steps,
+        warmup: int = 10,
+        sofa: float | None = None,
+        **extra,
+    ) -> None:
+        for policy in policies:
+            if cables is not None:
+                model.set_actuation(cables, mode="displacement")
+            rates, facts = time_steps(
+                lambda p=policy: ImplicitEuler(model, 0.01, tangent=p),
+                model.rest_state(),
+                lambda s: None,
+                n_steps,
+                repeats,
+                warmup,
+            )
+            m = Measurement(
+                scene,
+                model.body.mesh.n_tets,
+                policy,
+                statistics.median(rates),
+                rates,
+                facts,
+                sofa,
+                dict(extra),
+            )
+            results.append(m)
+            ratio = f"{m.speedup:.1f}x SOFA" if m.speedup else ""
+            console.print(
+                f"  {scene:<22} {policy:<6} {m.steps_per_s:9.2f} steps/s"
+                f"  ({facts:.3f} factorisations/step) {ratio}"
+            )
+
+    console.print(f"[bold]pliant bench[/bold] {__version__}; reference meshes: {meshes}")
+    if meshes is not None:
+        dia = robots.diamond(mesh=reference_diamond(meshes))
+        measure("diamond", Model(dia.body, name="diamond"), sofa=SOFA_STEPS_PER_S["diamond"])
+        measure(
+            "diamond+cables", dia, cables=np.full(4, 10.0), sofa=SOFA_STEPS_PER_S["diamond+cables"]
+        )
+        tr = robots.trunk(mesh=load_mesh(meshes / "Trunk_trunk.vtk"))
+        measure("trunk", Model(tr.body, name="trunk"), sofa=SOFA_STEPS_PER_S["trunk"])
+        measure(
+            "trunk+cables",
+            tr,
+            cables=np.array([10.0, 0, 0, 0, 0, 0, 5.0, 0]),
+            sofa=SOFA_STEPS_PER_S["trunk+cables"],
+        )
+    else:
+        console.print(
+            "[yellow]reference meshes not found: SOFA-comparison scenes skipped"
+            " (pass --meshes ../shared/meshes)[/yellow]"
+        )
+    sizes = (2, 4) if quick else (2, 4, 8, 12)
+    for n in sizes:
+        model = cantilever(n)
+        big = model.body.mesh.n_tets > 20000
+        measure(
+            model.name,
+            model,
+            sofa=SOFA_STEPS_PER_S.get(model.name),
+            policies=("pcg", "lagged")
+            if model.body.mesh.n_tets > 5000
+            else ("pcg", "lagged", "fresh"),
+            n_steps=max(5, steps // (20 if big else 1)) if not big else 5,
+            warmup=3 if big else 10,
+        )
+    if meshes is not None and not quick:
+        measure(
+            "multigait",
+            multigait(meshes),
+            sofa=SOFA_STEPS_PER_S["multigait"],
+            policies=("pcg", "lagged"),
+            n_steps=5,
+            warmup=3,
+        )
+    for res in ("coarse",) if quick else ("coarse", "fine", "superfine"):
+        finger = robots.soft_finger(resolution=res)
+        measure(
+            f"finger-{res}",
+            finger,
+            cables=np.array([5.0, 0.0]),
+            policies=("pcg", "lagged"),
+            n_steps=steps if res == "coarse" else max(10, steps // 5),
+            thesis_sofa_fps=THESIS_FINGER_FPS[res],
+        )
+
+    # Static solve and inverse control step on the Diamond (Pliant's mesh in quick mode).
+    dia = robots.diamond(mesh=reference_diamond(meshes)) if meshes is not None else robots.diamond()
+    dia.set_actuation(np.full(4, 10.0), mode="displacement")
+    static_times = []
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        st = StaticSolver(dia).step(dia.rest_state())
+        static_times.append(time.perf_counter() - t0)
+    console.print(
+        f"  static solve (diamond, 4 cables at 10 mm): {statistics.median(static_times) * 1e3:.1f} ms"
+    )
+    goal = dia.effectors[0].position(st.positions) + np.array([[5.0, 0.0, 0.0]])
+    rates, _ = time_steps(
+        lambda: ImplicitEuler(dia, 0.01),
+        dia.rest_state(),
+        lambda s: InverseControl(goals=[goal]),
+        steps,
+        repeats,
+        10,
+    )
+    inverse_ms = 1e3 / statistics.median(rates)
+    console.print(f"  inverse QP control step (diamond): {inverse_ms:.2f} ms")
+    peak_mb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
+
+    _print_table(results, console)
+    payload = {
+        "pliant_version": __version__,
+        "machine": platform.platform(),
+        "cpus": os.cpu_count(),
+        "dt": 0.01,
+        "repeats": repeats,
+        "reference_meshes": str(meshes) if meshes else None,
+        "scenes": [m.__dict__ | {"speedup_vs_sofa": m.speedup} for m in results],
+        "static_solve_ms": statistics.median(static_times) * 1e3,
+        "inverse_step_ms": inverse_ms,
+        "peak_memory_mb": peak_mb,
+    }
+    out.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(dir=out.parent, suffix=".json")
+    with os.fdopen(fd, "w") as fh:
+        json.dump(payload, fh, indent=1)
+    os.replace(tmp, out)
+    _plot(results, out.with_suffix(".png"))
+    console.print(f"peak memory {peak_mb:.0f} MB; wrote {out} and {out.with_suffix('.png')}")
+    return results
+
+
+def _print_table(results: list[Measurement], console: Console) -> None:
+    table = Table(title="median steps/s at dt = 0.01 (Pliant vs SOFA on this machine kind)")
+    for col in ("scene", "tets", "SOFA", "pcg (exact)", "lagged", "fresh", "best / SOFA"):
+        table.add_column(col, justify="right")
+    scenes = dict.fromkeys(m.scene for m in results)
+    for scene in scenes:
+        ms = {m.policy: m for m in results if m.scene == scene}
+        any_m = next(iter(ms.values()))
+        best = max(m.steps_per_s for m in ms.values())
+        cells = [f"{ms[p].steps_per_s:.1f}" if p in ms else "-" for p in ("pcg", "lagged", "fresh")]
+        table.add_row(
+            scene,
+            str(any_m.tets),
+            f"{any_m.sofa}" if any_m.sofa else "-",
+            *cells,
+            f"{best / any_m.sofa:.1f}x" if any_m.sofa else "-",
+        )
+    console.print(table)
+
+
+def _plot(results: list[Measurement], path: Path) -> None:
+    from pliant.viz import plot_loglog
+
+    series = {}
+    for policy in ("pcg", "lagged"):
+        pts = sorted(
+            (m.tets, m.steps_per_s)
+            for m in results
+            if m.policy == policy and m.scene.startswith("cantilever")
+        )
+        if pts:
+            series[f"Pliant ({policy})"] = (
+                np.array([p[0] for p in pts]),
+                np.array([p[1] for p in pts]),
+            )
+    sofa = sorted(
+        (int(k.split("-")[1]), v) for k, v in SOFA_STEPS_PER_S.items() if k.startswith("cantilever")
+    )
+    series["SOFA (SparseLDL)"] = (np.array([p[0] for p in sofa]), np.array([p[1] for p in sofa]))
+    plot_loglog(
+        series,
+        path,
+        xlabel="tetrahedra",
+        ylabel="steps / s (dt = 0.01)",
+        title="Cantilever: steps/s vs element count",
+    )

@@ -1,0 +1,78 @@
+"""Reading and writing tetrahedral meshes in any format meshio knows (.msh, .vtu, .vtk, ...)."""
+
+from __future__ import annotations
+
+import os
+import tempfile
+from pathlib import Path
+
+import meshio
+import numpy as np
+
+from pliant.errors import MeshFileError
+from pliant.mesh.quality import fix_orientation, remove_unused_nodes, validate_mesh
+from pliant.mesh.tetmesh import TetMesh
+
+
+def load_mesh(path: str | os.PathLike[str]) -> TetMesh:
+    """Read the tetrahedra of a mesh file into a validated `TetMesh`.
+
+    Only the linear 'tetra' cell blocks are kept (files often also hold vertex, line and
+    triangle blocks); nodes that no tetrahedron uses are dropped and negatively oriented
+    tetrahedra are flipped, since conventions differ between tools.
+
+    Raises:
+        MeshFileError: the file is missing, unreadable, malformed or holds no tetrahedra.
+        MeshError: the tetrahedra do not form a usable mesh (see `validate_mesh`).
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise MeshFileError(f"mesh file {str(path)!r} does not exist")
+    try:
+        raw = meshio.read(path)
+    except Exception as exc:  # meshio signals malformed input with many exception types
+        raise MeshFileError(f"cannot read mesh file {str(path)!r}: {exc}") from exc
+
+    blocks = [block.data for block in raw.cells if block.type == "tetra"]
+    if not blocks or sum(len(b) for b in blocks) == 0:
+        found = sorted({block.type for block in raw.cells}) or ["no cells"]
+        raise MeshFileError(
+            f"mesh file {str(path)!r} holds no linear tetrahedra ('tetra' cells); found: "
+            f"{', '.join(found)}"
+        )
+    points = np.asarray(raw.points, dtype=np.float64)
+    if points.ndim != 2 or points.shape[1] != 3:
+        raise MeshFileError(
+            f"mesh file {str(path)!r} has points of shape {points.shape}, expected (n, 3)"
+        )
+    tets = np.concatenate(blocks).astype(np.int64)
+    points, tets = remove_unused_nodes(points, tets)
+    tets = fix_orientation(points, tets)
+    validate_mesh(points, tets)
+    return TetMesh(points=points, tets=tets)
+
+
+def save_mesh(mesh: TetMesh, path: str | os.PathLike[str]) -> None:
+    """Write the nodes and tetrahedra of `mesh`; the format follows the file extension.
+
+    The file is written next to its destination and moved into place, so that a reader never
+    sees a half-written mesh. Surfaces and landmarks are not written.
+
+    Raises:
+        MeshFileError: the format is unknown or the file cannot be written.
+    """
+    path = Path(path)
+    out = meshio.Mesh(points=mesh.points, cells=[("tetra", mesh.tets)])
+    try:
+        fd, tmp_name = tempfile.mkstemp(
+            prefix=f".{path.name}.", suffix=path.suffix, dir=path.parent
+        )
+    except OSError as exc:
+        raise MeshFileError(f"cannot write mesh file {str(path)!r}: {exc}") from exc
+    os.close(fd)
+    try:
+        meshio.write(tmp_name, out)
+        os.replace(tmp_name, path)
+    except Exception as exc:  # unknown extension (ValueError), I/O failures (OSError), ...
+        Path(tmp_name).unlink(missing_ok=True)
+        raise MeshFileError(f"cannot write mesh file {str(path)!r}: {exc}") from exc

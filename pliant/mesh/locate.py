@@ -1,0 +1,111 @@
+"""Embedding points in a tetrahedral mesh: containing element and barycentric coordinates.
+
+Cable paths, effectors and contact points are carried by the mesh through these coordinates:
+x = sum_i b_i p_i over the four nodes p_i of the containing tetrahedron.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from pliant.errors import ModelError
+from pliant.mesh.tetmesh import TetMesh
+
+# Number of nearest element centroids tried before searching every element.
+_CANDIDATES = 16
+# Barycentric coordinates down to -_INSIDE_EPS count as inside (points on faces and edges).
+_INSIDE_EPS = 1e-10
+
+
+def barycentric_coordinates(mesh: TetMesh, tets: np.ndarray, points: np.ndarray) -> np.ndarray:
+    """Barycentric coordinates of points[j] in element tets[j], shape (k, 4).
+
+    Solves [p1 - p0, p2 - p0, p3 - p0] (b1, b2, b3) = x - p0 and b0 = 1 - b1 - b2 - b3.
+    """
+    p = mesh.points[mesh.tets[tets]]
+    edges = np.stack([p[:, 1] - p[:, 0], p[:, 2] - p[:, 0], p[:, 3] - p[:, 0]], axis=-1)
+    b = np.linalg.solve(edges, (points - p[:, 0])[..., None])[..., 0]
+    return np.concatenate([1.0 - b.sum(axis=1, keepdims=True), b], axis=1)
+
+
+def _clamped(bary: np.ndarray) -> np.ndarray:
+    """Project barycentric coordinates onto the element: negative parts to 0, sum back to 1."""
+    b = np.clip(bary, 0.0, None)
+    return b / b.sum(axis=-1, keepdims=True)
+
+
+def locate_points(
+    mesh: TetMesh, points: np.ndarray, *, tolerance: float | None = None
+) -> tuple[np.ndarray, np.ndarray]:
+    """Find the tetrahedron containing each point and its barycentric coordinates.
+
+    A point outside the mesh but within `tolerance` of it (a point on a curved surface that the
+    mesh approximates by flat faces, say) is attached to the nearest element found, with its
+    barycentric coordinates clamped onto that element.
+
+    Args:
+        mesh: the mesh.
+        points: (k, 3) or (3,) query points.
+        tolerance: largest accepted distance outside the mesh; by default 1e-3 times the
+            bounding-box diagonal of the mesh.
+
+    Returns:
+        (k,) element indices and (k, 4) barycentric coordinates, non-negative and summing to 1.
+
+    Raises:
+        ModelError: a point is non-finite or farther than `tolerance` outside the mesh.
+    """
+    points = np.atleast_2d(np.asarray(points, dtype=np.float64))
+    if points.ndim != 2 or points.shape[1] != 3:
+        raise ModelError(f"points must have shape (k, 3), got {points.shape}")
+    if not np.isfinite(points).all():
+        raise ModelError("points to locate must be finite")
+    if tolerance is None:
+        tolerance = 1e-3 * float(np.linalg.norm(np.ptp(mesh.points, axis=0)))
+
+    k = points.shape[0]
+    if k == 0:
+        return np.zeros(0, dtype=np.int64), np.zeros((0, 4))
+
+    centroids = mesh.points[mesh.tets].mean(axis=1)
+    n_candidates = min(_CANDIDATES, mesh.n_tets)
+    _, candidates = cKDTree(centroids).query(points, k=n_candidates)
+    candidates = candidates.reshape(k, n_candidates)
+    candidate_bary = barycentric_coordinates(
+        mesh, candidates.ravel(), np.repeat(points, n_candidates, axis=0)
+    ).reshape(k, n_candidates, 4)
+    best = np.argmax(candidate_bary.min(axis=2), axis=1)
+    element = candidates[np.arange(k), best]
+    bary = candidate_bary[np.arange(k), best]
+    # The nearest centroids may miss the container in stretched meshes: try every element.
+    for j in np.flatnonzero(bary.min(axis=1) < -_INSIDE_EPS):
+        element[j], bary[j] = _best_element(mesh, np.arange(mesh.n_tets), points[j])
+
+    outside = bary.min(axis=1) < -_INSIDE_EPS
+    bary[outside] = _clamped(bary[outside])
+    projected = np.einsum("ki,kij->kj", bary, mesh.points[mesh.tets[element]])
+    distance = np.linalg.norm(projected - points, axis=1)
+    too_far = np.flatnonzero(distance > tolerance)
+    if too_far.size:
+        j = too_far[0]
+        raise ModelError(
+            f"{too_far.size} point(s) lie outside the mesh, first: point {j} at "
+            f"{points[j].tolist()} is {distance[j]:.3g} from the nearest element "
+            f"(tolerance {tolerance:.3g})"
+        )
+    return element, bary
+
+
+def _best_element(mesh: TetMesh, candidates: np.ndarray, x: np.ndarray) -> tuple[int, np.ndarray]:
+    """Among `candidates`, the element containing x, or else the one nearest to x."""
+    bary = barycentric_coordinates(mesh, candidates, np.broadcast_to(x, (candidates.size, 3)))
+    inside = np.flatnonzero(bary.min(axis=1) >= -_INSIDE_EPS)
+    if inside.size:
+        best = inside[np.argmax(bary[inside].min(axis=1))]
+        return int(candidates[best]), bary[best]
+    # The clamped barycentric point lies in the element: its distance bounds the true one.
+    nodes = mesh.points[mesh.tets[candidates]]
+    projected = np.einsum("ci,cij->cj", _clamped(bary), nodes)
+    best = int(np.argmin(np.linalg.norm(projected - x, axis=1)))
+    return int(candidates[best]), bary[best]

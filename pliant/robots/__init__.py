@@ -1,0 +1,65 @@
+"""Robot builders with the reference parameters as defaults (SPEC §3).
+
+``build("diamond", young_modulus=200)`` or the builders themselves, e.g.
+:func:`pliant.robots.diamond`. Each registered robot also carries a scripted actuation for
+``pliant run`` and a goal trajectory for ``pliant inverse``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+from pliant.errors import UnknownRobotError
+from pliant.model import Model
+from pliant.robots import diamond as _diamond
+from pliant.robots import finger as _finger
+from pliant.robots import pneunet as _pneunet
+from pliant.robots import trunk as _trunk
+from pliant.robots.diamond import diamond
+from pliant.robots.finger import soft_finger
+from pliant.robots.pneunet import pneunet
+from pliant.robots.trunk import trunk
+
+
+@dataclass(frozen=True)
+class RobotEntry:
+    """A registered robot: builder, scripted actuation, goal trajectories and camera."""
+
+    build: Callable[..., Model]
+    demo_actuation: Callable[[float], np.ndarray]
+    trajectories: dict[str, Callable[[int], np.ndarray]]
+    view: tuple[float, float]
+
+
+ROBOTS: dict[str, RobotEntry] = {
+    "diamond": RobotEntry(
+        diamond, _diamond.demo_actuation, {"circle": _diamond.circle}, (20.0, -60.0)
+    ),
+    "trunk": RobotEntry(trunk, _trunk.demo_actuation, {"circle": _trunk.circle}, (15.0, -45.0)),
+    "finger": RobotEntry(
+        soft_finger, _finger.demo_actuation, {"closing": _finger.closing}, (10.0, -80.0)
+    ),
+    "pneunet": RobotEntry(
+        pneunet, _pneunet.demo_actuation, {"bending": _pneunet.bending}, (10.0, -80.0)
+    ),
+}
+
+
+def entry(name: str) -> RobotEntry:
+    try:
+        return ROBOTS[name]
+    except KeyError:
+        raise UnknownRobotError(
+            f"unknown robot {name!r}; available: {', '.join(sorted(ROBOTS))}"
+        ) from None
+
+
+def build(name: str, **kwargs) -> Model:
+    """Build a registered robot by name with keyword overrides of its defaults."""
+    return entry(name).build(**kwargs)
+
+
+__all__ = ["ROBOTS", "RobotEntry", "build", "diamond", "entry", "pneunet", "soft_finger", "trunk"]

@@ -1,0 +1,69 @@
+"""Pieces shared by the robot builders."""
+
+from __future__ import annotations
+
+from typing import Literal
+
+import numpy as np
+
+from pliant.constraints.base import EmbeddedPoints
+from pliant.constraints.cable import CableActuator
+from pliant.constraints.effector import PositionEffector
+from pliant.errors import ModelError
+from pliant.fem.body import TetBody, nodes_in_box
+from pliant.fem.material import MATERIALS, Material
+from pliant.mesh.tetmesh import TetMesh
+
+MaterialName = Literal["corotational", "neo-hookean"]
+
+
+def make_material(name: str, young_modulus: float, poisson_ratio: float) -> Material:
+    try:
+        cls = MATERIALS[name]
+    except KeyError:
+        raise ModelError(f"unknown material {name!r}; choose one of {sorted(MATERIALS)}") from None
+    return cls(young_modulus, poisson_ratio)
+
+
+def fixed_by_box(mesh: TetMesh, box: np.ndarray) -> np.ndarray:
+    nodes = nodes_in_box(mesh.points, box)
+    if nodes.size == 0:
+        raise ModelError(f"the fixing box {np.asarray(box).tolist()} holds no node of the mesh")
+    return nodes
+
+
+def landmark(mesh: TetMesh, name: str, default: np.ndarray | list) -> np.ndarray:
+    """A landmark of a parametric mesh, or the reference scene's value for a loaded mesh."""
+    return np.atleast_2d(np.asarray(mesh.landmarks.get(name, default), dtype=float))
+
+
+def cables(
+    mesh: TetMesh,
+    body: TetBody,
+    paths: list[np.ndarray],
+    pull_points: list[np.ndarray],
+    *,
+    mode: str,
+    max_displacement: list[float] | float,
+    max_displacement_change: float | None,
+    max_force: float,
+) -> list[CableActuator]:
+    maxd = np.broadcast_to(np.asarray(max_displacement, dtype=float), (len(paths),))
+    return [
+        CableActuator(
+            EmbeddedPoints(mesh, path),
+            body.rest_positions,
+            pull_point=pull,
+            name=f"cable_{i}",
+            mode=mode,
+            min_force=0.0,
+            max_force=max_force,
+            max_displacement=float(maxd[i]),
+            max_displacement_change=max_displacement_change,
+        )
+        for i, (path, pull) in enumerate(zip(paths, pull_points, strict=True))
+    ]
+
+
+def effector(mesh: TetMesh, body: TetBody, point: np.ndarray) -> PositionEffector:
+    return PositionEffector(EmbeddedPoints(mesh, point), body.rest_positions, name="effector")
