@@ -172,7 +172,7 @@ class Model:
         cons = self.constraints if constraints is None else constraints
         body = self.body
         rows = sum(c.n_rows for c in cons)
-        ht_full = np.zeros((3 * body.n_nodes, rows))
+        ht = np.empty((body.n_free, rows))
         delta = np.empty(rows)
         slices: dict[str, slice] = {}
         start = 0
@@ -180,12 +180,14 @@ class Model:
             stop = start + c.n_rows
             delta[start:stop] = c.distance(positions)
             jac = c.jacobian(positions)
-            r_idx = np.broadcast_to(np.arange(start, stop)[:, None, None], jac.values.shape)
-            dofs = 3 * jac.nodes[:, :, None] + np.arange(3)
-            np.add.at(ht_full, (dofs.ravel(), r_idx.ravel()), jac.values.ravel())
+            free = body.free_index[3 * jac.nodes[:, :, None] + np.arange(3)]
+            for r in range(c.n_rows):
+                keep = free[r] >= 0
+                ht[:, start + r] = np.bincount(free[r][keep], weights=jac.values[r][keep],
+                                               minlength=body.n_free)
             role = slices.get(c.role)
             slices[c.role] = slice(start if role is None else role.start, stop)
             start = stop
         for role in ("actuator", "effector", "contact"):
             slices.setdefault(role, slice(rows, rows))
-        return ConstraintSpace(delta, ht_full[body.free_dofs], slices)
+        return ConstraintSpace(delta, ht, slices)

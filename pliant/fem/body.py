@@ -127,6 +127,14 @@ class TetBody:
         self.node_masses = self._node_masses(mass)
         self.mass_data = self._mass_data(mass)
         self._element_blocks = np.empty((n_elem, 12, 12))
+        # Node -> (element, local vertex) incidence, to gather element contributions in parallel.
+        order = np.argsort(self.tets.ravel(), kind="stable")
+        self._incidence = order.astype(np.int64)
+        self._incidence_ptr = np.zeros(n + 1, dtype=np.int64)
+        np.cumsum(np.bincount(self.tets.ravel(), minlength=n), out=self._incidence_ptr[1:])
+        self._elem_dofs = self.free_index[
+            (3 * self.tets[:, :, None] + np.arange(3)).reshape(-1, 12)
+        ].copy()
 
     # --- layout -----------------------------------------------------------------------------
     @property
@@ -200,50 +208,30 @@ class TetBody:
     def linearise(self, positions: np.ndarray) -> Linearisation:
         """Internal forces, energy and element frames at `positions` (n, 3)."""
         x = np.ascontiguousarray(positions, dtype=np.float64)
-        forces = np.zeros_like(x)
         m = self.tets.shape[0]
+        elem_forces = np.empty((m, 4, 3))
         frames = np.empty((m, 3, 3))
         dets = np.empty(m)
         energy = kernels.internal_forces(
-            x,
-            self.tets,
-            self.grads,
-            self.volumes,
-            self.mu,
-            self.lam,
-            self.material.kernel_tag,
-            forces,
-            frames,
-            dets,
+            x, self.tets, self.grads, self.volumes, self.mu, self.lam,
+            self.material.kernel_tag, elem_forces, frames, dets,
         )
+        forces = np.empty_like(x)
+        kernels.gather_nodal(elem_forces, self._incidence_ptr, self._incidence, forces)
         return Linearisation(x, forces, float(energy), frames, dets)
 
     def stiffness_matvec(
         self, lin: Linearisation, u: np.ndarray, *, exact: bool = False
     ) -> np.ndarray:
         """K_s u on the free DoFs (K_s = -df/dx); u is (n_free,) or (n_free, k)."""
-        cols = u[:, None] if u.ndim == 1 else u
+        cols = np.ascontiguousarray(u[:, None] if u.ndim == 1 else u, dtype=np.float64)
+        elem_out = np.empty((self.tets.shape[0], 4, 3, cols.shape[1]))
+        kernels.stiffness_matvec(
+            cols, self._elem_dofs, lin.positions, self.tets, self.grads, self.volumes, self.mu,
+            self.lam, self.material.kernel_tag, lin.frames, lin.dets, exact, elem_out,
+        )
         out = np.empty_like(cols)
-        full_in = np.zeros((self.n_nodes, 3))
-        full_out = np.zeros((self.n_nodes, 3))
-        for c in range(cols.shape[1]):
-            full_in.reshape(-1)[self.free_dofs] = cols[:, c]
-            full_out[:] = 0.0
-            kernels.stiffness_matvec(
-                full_in,
-                lin.positions,
-                self.tets,
-                self.grads,
-                self.volumes,
-                self.mu,
-                self.lam,
-                self.material.kernel_tag,
-                lin.frames,
-                lin.dets,
-                exact,
-                full_out,
-            )
-            out[:, c] = full_out.reshape(-1)[self.free_dofs]
+        kernels.gather_free(elem_out, self._incidence_ptr, self._incidence, self.free_index, out)
         return out[:, 0] if u.ndim == 1 else out
 
     def stiffness_data(self, lin: Linearisation, *, exact: bool = False) -> np.ndarray:

@@ -13,7 +13,7 @@ Material tags: 0 corotational (tangent R K0 R^T, or exact), 1 Neo-Hookean (exact
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
+from numba import njit, prange
 
 # Quadratic convergence: a step smaller than 1e-8 leaves an error near machine precision.
 _POLAR_TOL = 1e-8
@@ -49,7 +49,7 @@ def _det3(a):
     )
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _polar(f, r, work):
     """r = rotation of the polar decomposition F = R S (det F > 0).
 
@@ -122,64 +122,94 @@ def _gradient(x, tet, g, out):
             )
 
 
-@njit(cache=True)
-def internal_forces(x, tets, grads, vols, mu, lam, tag, forces, frames, dets):
-    """Accumulate internal forces into `forces` (n, 3); return the elastic energy.
+@njit(cache=True, parallel=True)
+def internal_forces(x, tets, grads, vols, mu, lam, tag, elem_forces, frames, dets):
+    """Element internal forces and elastic energy.
 
-    Stores per element the linearisation frame (R for corotational, F^-1 for Neo-Hookean)
-    in `frames` (m, 3, 3) and det F in `dets`. An element with det F <= 0 contributes no
-    force; its det is recorded so that the caller reports the inversion instead of a NaN.
+    Writes -V P g_a into `elem_forces` (m, 4, 3) (gather them with `gather_nodal`), the
+    linearisation frame (R for corotational, F^-1 for Neo-Hookean) into `frames` (m, 3, 3)
+    and det F into `dets`. An element with det F <= 0 contributes no force; its det is recorded
+    so that the caller reports the inversion instead of a NaN. Returns the total energy.
     """
-    energy = 0.0
-    f = np.empty((3, 3))
-    r = np.empty((3, 3))
-    work = np.empty((3, 3))
-    p = np.empty((3, 3))
-    sig = np.empty((3, 3))
-    for e in range(tets.shape[0]):
-        g = grads[e]
-        _gradient(x, tets[e], g, f)
-        det = _det3(f)
-        dets[e] = det
-        if not det > 0.0:
-            continue
-        if tag == 0:
-            _polar(f, r, work)
-            # S = R^T F, eps = sym(S) - I.
-            for i in range(3):
-                for j in range(3):
-                    work[i, j] = r[0, i] * f[0, j] + r[1, i] * f[1, j] + r[2, i] * f[2, j]
-            tr = work[0, 0] + work[1, 1] + work[2, 2] - 3.0
-            eps2 = 0.0
-            for i in range(3):
-                for j in range(3):
-                    eij = 0.5 * (work[i, j] + work[j, i]) - (1.0 if i == j else 0.0)
-                    eps2 += eij * eij
-                    sig[i, j] = 2.0 * mu[e] * eij + (lam[e] * tr if i == j else 0.0)
-            for i in range(3):
-                for j in range(3):
-                    p[i, j] = r[i, 0] * sig[0, j] + r[i, 1] * sig[1, j] + r[i, 2] * sig[2, j]
-                    frames[e, i, j] = r[i, j]
-            energy += vols[e] * (mu[e] * eps2 + 0.5 * lam[e] * tr * tr)
-        else:
-            _inv3(f, work)
-            lnj = np.log(det)
-            c = mu[e] * np.sum(f * f)
-            for i in range(3):
-                for j in range(3):
-                    p[i, j] = mu[e] * f[i, j] + (lam[e] * lnj - mu[e]) * work[j, i]
-                    frames[e, i, j] = work[i, j]
-            energy += vols[e] * (0.5 * (c - 3.0 * mu[e]) - mu[e] * lnj + 0.5 * lam[e] * lnj * lnj)
-        for a in range(4):
-            node = tets[e, a]
-            for i in range(3):
-                forces[node, i] -= vols[e] * (
-                    p[i, 0] * g[a, 0] + p[i, 1] * g[a, 1] + p[i, 2] * g[a, 2]
+    m = tets.shape[0]
+    n_chunks = max(1, min(m, 64))
+    bounds = np.linspace(0, m, n_chunks + 1).astype(np.int64)
+    energies = np.zeros(n_chunks)
+    for c in prange(n_chunks):
+        f = np.empty((3, 3))
+        r = np.empty((3, 3))
+        work = np.empty((3, 3))
+        p = np.empty((3, 3))
+        sig = np.empty((3, 3))
+        energy = 0.0
+        for e in range(bounds[c], bounds[c + 1]):
+            g = grads[e]
+            _gradient(x, tets[e], g, f)
+            det = _det3(f)
+            dets[e] = det
+            if not det > 0.0:
+                elem_forces[e] = 0.0
+                continue
+            if tag == 0:
+                _polar(f, r, work)
+                # S = R^T F, eps = sym(S) - I.
+                for i in range(3):
+                    for j in range(3):
+                        work[i, j] = r[0, i] * f[0, j] + r[1, i] * f[1, j] + r[2, i] * f[2, j]
+                tr = work[0, 0] + work[1, 1] + work[2, 2] - 3.0
+                eps2 = 0.0
+                for i in range(3):
+                    for j in range(3):
+                        eij = 0.5 * (work[i, j] + work[j, i]) - (1.0 if i == j else 0.0)
+                        eps2 += eij * eij
+                        sig[i, j] = 2.0 * mu[e] * eij + (lam[e] * tr if i == j else 0.0)
+                for i in range(3):
+                    for j in range(3):
+                        p[i, j] = r[i, 0] * sig[0, j] + r[i, 1] * sig[1, j] + r[i, 2] * sig[2, j]
+                        frames[e, i, j] = r[i, j]
+                energy += vols[e] * (mu[e] * eps2 + 0.5 * lam[e] * tr * tr)
+            else:
+                _inv3(f, work)
+                lnj = np.log(det)
+                c2 = 0.0
+                for i in range(3):
+                    for j in range(3):
+                        c2 += f[i, j] * f[i, j]
+                for i in range(3):
+                    for j in range(3):
+                        p[i, j] = mu[e] * f[i, j] + (lam[e] * lnj - mu[e]) * work[j, i]
+                        frames[e, i, j] = work[i, j]
+                energy += vols[e] * (
+                    0.5 * mu[e] * (c2 - 3.0) - mu[e] * lnj + 0.5 * lam[e] * lnj * lnj
                 )
-    return energy
+            for a in range(4):
+                for i in range(3):
+                    elem_forces[e, a, i] = -vols[e] * (
+                        p[i, 0] * g[a, 0] + p[i, 1] * g[a, 1] + p[i, 2] * g[a, 2]
+                    )
+        energies[c] = energy
+    return energies.sum()
 
 
-@njit(cache=True)
+@njit(cache=True, parallel=True)
+def gather_nodal(elem_values, incidence_ptr, incidence, out):
+    """out[n] = sum of elem_values[e, a] over the (e, a) with tets[e, a] == n.
+
+    elem_values (m, 4, ...) and out (n, ...) are contiguous; `incidence` lists e * 4 + a per
+    node (sorted by node, `incidence_ptr` its CSR offsets). Node-parallel, no write conflicts.
+    """
+    width = out.size // out.shape[0]
+    flat = elem_values.reshape((elem_values.shape[0] * 4, width))
+    res = out.reshape((out.shape[0], width))
+    for n in prange(res.shape[0]):
+        for j in range(width):
+            acc = 0.0
+            for k in range(incidence_ptr[n], incidence_ptr[n + 1]):
+                acc += flat[incidence[k], j]
+            res[n, j] = acc
+
+
+@njit(cache=True, inline="always")
 def _piola_differential(df, frame, f, det, mu, lam, tag, exact, dp, w1, w2):
     """dp = dP for a variation dF of the deformation gradient (w1, w2 are scratch).
 
@@ -251,27 +281,69 @@ def _piola_differential(df, frame, f, det, mu, lam, tag, exact, dp, w1, w2):
             dp[i, j] = mu * df[i, j] + c * w2[i, j] + lam * tr * finv[j, i]
 
 
-@njit(cache=True)
-def stiffness_matvec(u, x, tets, grads, vols, mu, lam, tag, frames, dets, exact, out):
-    """out += K_s u for nodal arrays u, out (n, 3), K_s = -df/dx at the stored frames."""
-    df = np.empty((3, 3))
-    f = np.empty((3, 3))
-    dp = np.empty((3, 3))
-    w1 = np.empty((3, 3))
-    w2 = np.empty((3, 3))
-    for e in range(tets.shape[0]):
-        if not dets[e] > 0.0:
-            continue
-        g = grads[e]
-        _gradient(u, tets[e], g, df)
-        if exact:
-            _gradient(x, tets[e], g, f)
-        _piola_differential(df, frames[e], f, dets[e], mu[e], lam[e], tag, exact, dp, w1, w2)
-        v = vols[e]
-        for a in range(4):
-            node = tets[e, a]
-            for i in range(3):
-                out[node, i] += v * (dp[i, 0] * g[a, 0] + dp[i, 1] * g[a, 1] + dp[i, 2] * g[a, 2])
+@njit(cache=True, parallel=True)
+def stiffness_matvec(u, elem_dofs, x, tets, grads, vols, mu, lam, tag, frames, dets, exact,
+                     elem_out):
+    """Element contributions of K_s u for k free-DoF vectors at once.
+
+    u (n_free, k); elem_dofs (m, 12) maps element DoFs to free DoFs (-1 when fixed);
+    elem_out (m, 4, 3, k). K_s = -df/dx at the stored frames; gather with `gather_free`.
+    """
+    m = tets.shape[0]
+    k = u.shape[1]
+    n_chunks = max(1, min(m, 64))
+    bounds = np.linspace(0, m, n_chunks + 1).astype(np.int64)
+    for c in prange(n_chunks):
+        df = np.empty((3, 3))
+        f = np.empty((3, 3))
+        dp = np.empty((3, 3))
+        w1 = np.empty((3, 3))
+        w2 = np.empty((3, 3))
+        ue = np.empty((4, 3))
+        for e in range(bounds[c], bounds[c + 1]):
+            if not dets[e] > 0.0:
+                elem_out[e] = 0.0
+                continue
+            g = grads[e]
+            if exact:
+                _gradient(x, tets[e], g, f)
+            v = vols[e]
+            for col in range(k):
+                for a in range(4):
+                    for i in range(3):
+                        d = elem_dofs[e, 3 * a + i]
+                        ue[a, i] = u[d, col] if d >= 0 else 0.0
+                for i in range(3):
+                    for j in range(3):
+                        df[i, j] = (
+                            ue[0, i] * g[0, j] + ue[1, i] * g[1, j]
+                            + ue[2, i] * g[2, j] + ue[3, i] * g[3, j]
+                        )
+                _piola_differential(
+                    df, frames[e], f, dets[e], mu[e], lam[e], tag, exact, dp, w1, w2
+                )
+                for a in range(4):
+                    for i in range(3):
+                        elem_out[e, a, i, col] = v * (
+                            dp[i, 0] * g[a, 0] + dp[i, 1] * g[a, 1] + dp[i, 2] * g[a, 2]
+                        )
+
+
+@njit(cache=True, parallel=True)
+def gather_free(elem_values, incidence_ptr, incidence, free_index, out):
+    """out[free_index[3 n + i], :] = sum of elem_values[e, a, i, :] over the elements of node n."""
+    k = out.shape[1]
+    flat = elem_values.reshape((elem_values.shape[0] * 4, 3, k))
+    for n in prange(incidence_ptr.shape[0] - 1):
+        for i in range(3):
+            d = free_index[3 * n + i]
+            if d < 0:
+                continue
+            for j in range(k):
+                acc = 0.0
+                for q in range(incidence_ptr[n], incidence_ptr[n + 1]):
+                    acc += flat[incidence[q], i, j]
+                out[d, j] = acc
 
 
 @njit(cache=True)
