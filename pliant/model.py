@@ -125,9 +125,31 @@ class Model:
         for c in self.effectors:
             if c.role != "effector":
                 raise ModelError(f"{c.name} is a {c.role}, not an effector")
+        self._groups = self._group(self.actuators) + self._group(self.effectors)
+        self._n_actuator_groups = len(self._group(self.actuators))
         names = [c.name for c in self.actuators + self.effectors]
         if len(set(names)) != len(names):
             raise ModelError(f"constraint names must be unique, got {names}")
+
+    @staticmethod
+    def _group(constraints: list[Constraint]) -> list:
+        """Runs of consecutive constraints of one class, bundled when the class can."""
+        groups, run = [], []
+        for c in [*constraints, None]:
+            if run and (c is None or type(c) is not type(run[0])):
+                bundled = type(run[0]).bundle(run) if len(run) > 1 else None
+                groups += [bundled] if bundled is not None else run
+                run = []
+            if c is not None:
+                run.append(c)
+        return groups
+
+    def distances(self, positions: np.ndarray, *, actuators_only: bool = False) -> np.ndarray:
+        """delta(x) of every constraint row (or only the actuators'), in row order."""
+        groups = self._groups[: self._n_actuator_groups] if actuators_only else self._groups
+        if not groups:
+            return np.zeros(0)
+        return np.concatenate([g.distance(positions) for g in groups])
 
     @property
     def constraints(self) -> list[Constraint]:
@@ -159,32 +181,37 @@ class Model:
             act.value = v
 
     def actuator_distances(self, positions: np.ndarray) -> np.ndarray:
-        return (
-            np.concatenate([a.distance(positions) for a in self.actuators])
-            if self.actuators
-            else np.zeros(0)
-        )
+        return self.distances(positions, actuators_only=True)
 
     def constraint_space(
-        self, positions: np.ndarray, constraints: list[Constraint] | None = None
+        self,
+        positions: np.ndarray,
+        constraints: list[Constraint] | None = None,
+        *,
+        with_distance: bool = True,
     ) -> ConstraintSpace:
-        """Distances and Jacobians of the constraints (default: actuators then effectors)."""
-        cons = self.constraints if constraints is None else constraints
+        """Jacobians (and distances) of the constraints (default: actuators then effectors).
+
+        The dynamic step evaluates distances at the free configuration itself and skips them
+        here (`with_distance=False`: the distance is then all zeros).
+        """
+        cons = self._groups if constraints is None else constraints
         body = self.body
         rows = sum(c.n_rows for c in cons)
         ht = np.empty((body.n_free, rows))
-        delta = np.empty(rows)
+        delta = np.zeros(rows)
         slices: dict[str, slice] = {}
         start = 0
         for c in cons:
             stop = start + c.n_rows
-            delta[start:stop] = c.distance(positions)
+            delta[start:stop] = c.distance(positions) if with_distance else 0.0
             jac = c.jacobian(positions)
             free = body.free_index[3 * jac.nodes[:, :, None] + np.arange(3)]
             for r in range(c.n_rows):
                 keep = free[r] >= 0
-                ht[:, start + r] = np.bincount(free[r][keep], weights=jac.values[r][keep],
-                                               minlength=body.n_free)
+                ht[:, start + r] = np.bincount(
+                    free[r][keep], weights=jac.values[r][keep], minlength=body.n_free
+                )
             role = slices.get(c.role)
             slices[c.role] = slice(start if role is None else role.start, stop)
             start = stop

@@ -86,6 +86,13 @@ class Constraint(ABC):
     def jacobian(self, x: np.ndarray) -> JacobianRows:
         """H(x) as sparse rows."""
 
+    @classmethod
+    def bundle(cls, constraints: list[Constraint]) -> Constraint | None:
+        """An object evaluating several constraints of this class at once (same rows, same
+        order, with `role`, `n_rows`, `distance` and `jacobian`), or None if the class has
+        no faster joint evaluation."""
+        return None
+
 
 def _check_real(name: str, value: float) -> float:
     try:

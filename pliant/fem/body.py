@@ -213,8 +213,16 @@ class TetBody:
         frames = np.empty((m, 3, 3))
         dets = np.empty(m)
         energy = kernels.internal_forces(
-            x, self.tets, self.grads, self.volumes, self.mu, self.lam,
-            self.material.kernel_tag, elem_forces, frames, dets,
+            x,
+            self.tets,
+            self.grads,
+            self.volumes,
+            self.mu,
+            self.lam,
+            self.material.kernel_tag,
+            elem_forces,
+            frames,
+            dets,
         )
         forces = np.empty_like(x)
         kernels.gather_nodal(elem_forces, self._incidence_ptr, self._incidence, forces)
@@ -227,8 +235,19 @@ class TetBody:
         cols = np.ascontiguousarray(u[:, None] if u.ndim == 1 else u, dtype=np.float64)
         elem_out = np.empty((self.tets.shape[0], 4, 3, cols.shape[1]))
         kernels.stiffness_matvec(
-            cols, self._elem_dofs, lin.positions, self.tets, self.grads, self.volumes, self.mu,
-            self.lam, self.material.kernel_tag, lin.frames, lin.dets, exact, elem_out,
+            cols,
+            self._elem_dofs,
+            lin.positions,
+            self.tets,
+            self.grads,
+            self.volumes,
+            self.mu,
+            self.lam,
+            self.material.kernel_tag,
+            lin.frames,
+            lin.dets,
+            exact,
+            elem_out,
         )
         out = np.empty_like(cols)
         kernels.gather_free(elem_out, self._incidence_ptr, self._incidence, self.free_index, out)

@@ -282,8 +282,9 @@ def _piola_differential(df, frame, f, det, mu, lam, tag, exact, dp, w1, w2):
 
 
 @njit(cache=True, parallel=True)
-def stiffness_matvec(u, elem_dofs, x, tets, grads, vols, mu, lam, tag, frames, dets, exact,
-                     elem_out):
+def stiffness_matvec(
+    u, elem_dofs, x, tets, grads, vols, mu, lam, tag, frames, dets, exact, elem_out
+):
     """Element contributions of K_s u for k free-DoF vectors at once.
 
     u (n_free, k); elem_dofs (m, 12) maps element DoFs to free DoFs (-1 when fixed);
@@ -316,8 +317,10 @@ def stiffness_matvec(u, elem_dofs, x, tets, grads, vols, mu, lam, tag, frames, d
                 for i in range(3):
                     for j in range(3):
                         df[i, j] = (
-                            ue[0, i] * g[0, j] + ue[1, i] * g[1, j]
-                            + ue[2, i] * g[2, j] + ue[3, i] * g[3, j]
+                            ue[0, i] * g[0, j]
+                            + ue[1, i] * g[1, j]
+                            + ue[2, i] * g[2, j]
+                            + ue[3, i] * g[3, j]
                         )
                 _piola_differential(
                     df, frames[e], f, dets[e], mu[e], lam[e], tag, exact, dp, w1, w2

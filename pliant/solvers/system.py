@@ -3,13 +3,18 @@
 Three policies:
 
 * ``"fresh"``: assemble and factorise at every linearisation (what SOFA's SparseLDL does);
-* ``"pcg"`` (default): solve the *current* system exactly (to ``rtol``) by conjugate gradients
+* ``"pcg"``: solve the *current* system exactly (to ``rtol``) by conjugate gradients
   preconditioned with the last factorisation; refactorise when CG needs more than
   ``refactor_iterations`` iterations. Same result as "fresh" to the tolerance, far fewer
   factorisations while rotations change slowly;
-* ``"lagged"``: use the last factorisation as the system itself (a lagged tangent, first-order
-  accurate like the linearisation it replaces); refactorise when an element frame has moved
-  more than ``lag_tolerance`` since. Fastest, not identical to "fresh".
+* ``"lagged"`` (default): use the last factorisation as the system itself (a lagged tangent,
+  first-order accurate like the linearisation it replaces; forces are always exact);
+  refactorise when an element frame (rotation, or F^-1) has moved by more than
+  ``lag_tolerance`` (max entry change) since. Fastest; not identical to "fresh": on the
+  Diamond pulled by 4 cables (16 mm motion, 100 steps) the trajectories differ by at most
+  8e-3 mm during the transient and 5e-5 mm at the end (measured; see the tests and bench).
+
+The static solver uses "fresh" by default: its Newton iterations then converge quadratically.
 """
 
 from __future__ import annotations
@@ -30,7 +35,7 @@ class LinearisedSystem:
         self,
         body: TetBody,
         *,
-        policy: TangentPolicy = "pcg",
+        policy: TangentPolicy = "lagged",
         rtol: float = 1e-10,
         refactor_iterations: int = 6,
         lag_tolerance: float = 0.02,
