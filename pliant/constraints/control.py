@@ -22,10 +22,11 @@ class DirectControl:
         if self.values is not None:
             model.set_actuation(self.values)
 
-    def actuation(
-        self, problem: CondensedProblem, model, previous_displacement: np.ndarray
-    ) -> np.ndarray:
-        return solve_direct(problem, model.actuators, previous_displacement)
+    def actuation(self, problem: CondensedProblem, model, state) -> np.ndarray:
+        """Actuator forces for this step; `state` is the state the step starts from."""
+        return solve_direct(
+            problem, model.actuators, state.displacement, previous_actuation=state.actuation
+        )
 
 
 @dataclass
@@ -50,11 +51,9 @@ class InverseControl:
         for eff, g in zip(model.effectors, goals, strict=True):
             eff.goals = g
 
-    def actuation(
-        self, problem: CondensedProblem, model, previous_displacement: np.ndarray
-    ) -> np.ndarray:
+    def actuation(self, problem: CondensedProblem, model, state) -> np.ndarray:
         sol = solve_inverse(
-            problem, model.actuators, previous_displacement, regularisation=self.regularisation
+            problem, model.actuators, state.displacement, regularisation=self.regularisation
         )
         return sol.actuation
 

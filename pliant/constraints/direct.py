@@ -9,20 +9,30 @@ from pliant.constraints.condensed import CondensedProblem
 from pliant.errors import InfeasibleProblemError, SolverError
 
 
-def box_qp(hess: np.ndarray, grad: np.ndarray, lower: np.ndarray, upper: np.ndarray) -> np.ndarray:
+def box_qp(
+    hess: np.ndarray,
+    grad: np.ndarray,
+    lower: np.ndarray,
+    upper: np.ndarray,
+    guess: np.ndarray | None = None,
+) -> np.ndarray:
     """Exact minimiser of 1/2 x^T H x + g^T x on lower <= x <= upper, H symmetric positive definite.
 
     Primal active-set method: the free variables solve H_FF x_F = -(g_F + H_FB x_B); bounds
     that the step would cross are added, bounds whose multiplier has the wrong sign are
-    released. Finite for the small systems of actuator rows it serves.
+    released. Finite for the small systems of actuator rows it serves. `guess` (e.g. the
+    previous step's solution) seeds the active set: usually it is already the right one.
     """
     n = grad.size
     if np.any(lower > upper):
         raise InfeasibleProblemError("box bounds with lower > upper admit no solution")
-    # Start from the unconstrained minimiser: most steps keep every actuator inside its bounds.
-    x = np.linalg.solve(hess, -grad)
-    if np.all((x >= lower) & (x <= upper)):
-        return x
+    if guess is None:
+        # Start from the unconstrained minimiser: often every bound is inactive.
+        x = np.linalg.solve(hess, -grad)
+        if np.all((x >= lower) & (x <= upper)):
+            return x
+    else:
+        x = np.asarray(guess, dtype=float).copy()
     x = np.clip(x, lower, upper)
     at_bound = ((x == lower) & np.isfinite(lower)) | ((x == upper) & np.isfinite(upper))
     for _ in range(10 * n + 10):
@@ -63,6 +73,7 @@ def solve_direct(
     actuators: list[Actuator],
     previous_displacement: np.ndarray,
     *,
+    previous_actuation: np.ndarray | None = None,
     tolerance: float = 1e-9,
 ) -> np.ndarray:
     """Actuator forces lambda_a that realise the commands within their bounds.
@@ -96,7 +107,8 @@ def solve_direct(
         if controlled.any():
             c = controlled
             shift = d_free[c] + w[np.ix_(c, fixed)] @ lam[fixed] - target[c]
-            lam[c] = box_qp(w[np.ix_(c, c)], shift, lo_eff[c], hi_eff[c])
+            guess = None if previous_actuation is None or previous_actuation.size != n else previous_actuation[c]
+            lam[c] = box_qp(w[np.ix_(c, c)], shift, lo_eff[c], hi_eff[c], guess)
         delta = w @ lam + d_free
         scale = tolerance * max(1.0, float(np.abs(delta).max()))
         over = fixed & (delta > dmax + scale)

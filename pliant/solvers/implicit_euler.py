@@ -80,7 +80,7 @@ class ImplicitEuler:
         delta_free = model.distances(q_free)
         w = h * h * (space.jacobian_t.T @ a_inv_ht)
         problem = CondensedProblem(0.5 * (w + w.T), delta_free, space.slices)
-        lam_a = ctrl.actuation(problem, model, state.displacement)
+        lam_a = ctrl.actuation(problem, model, state)
         sa = space.slices["actuator"]
         dv = dv_free + h * (a_inv_ht[:, sa] @ lam_a)
         v_new = v + dv
@@ -116,5 +116,5 @@ class _Passive:
     def prepare(self, model) -> None:
         pass
 
-    def actuation(self, problem, model, previous_displacement):
+    def actuation(self, problem, model, state):
         return np.zeros(problem.n_actuators)

@@ -64,13 +64,12 @@ class StaticSolver:
         ctrl.prepare(model)
         step = state.step + 1
         q = state.positions.copy()
-        previous = state.displacement
         for it in range(1, self.max_iterations + 1):
             try:
                 problem, dq_free, k_inv_ht = self._condense(q, step)
             except SolverError as exc:
                 raise DivergenceError(f"step {step}: {exc}", step=step, cause="solver") from exc
-            lam_a = ctrl.actuation(problem, model, previous)
+            lam_a = ctrl.actuation(problem, model, state)
             sa = problem.slices["actuator"]
             dq = body.scatter(dq_free + k_inv_ht[:, sa] @ lam_a)
             check_motion(q + dq, np.zeros_like(q), dq, self._size, step, None)
