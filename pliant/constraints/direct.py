@@ -107,7 +107,11 @@ def solve_direct(
         if controlled.any():
             c = controlled
             shift = d_free[c] + w[np.ix_(c, fixed)] @ lam[fixed] - target[c]
-            guess = None if previous_actuation is None or previous_actuation.size != n else previous_actuation[c]
+            guess = (
+                None
+                if previous_actuation is None or previous_actuation.size != n
+                else previous_actuation[c]
+            )
             lam[c] = box_qp(w[np.ix_(c, c)], shift, lo_eff[c], hi_eff[c], guess)
         delta = w @ lam + d_free
         scale = tolerance * max(1.0, float(np.abs(delta).max()))

@@ -25,7 +25,7 @@ def solve_inverse(
     previous_displacement: np.ndarray,
     *,
     regularisation: float = 1e-3,
-    tolerance: float = 1e-10,
+    tolerance: float = 1e-9,
     max_iterations: int = 1000,
 ) -> InverseSolution:
     """min ||W_ea l + d_e_free||^2 + eps l^T W_aa l  s.t. effort and course bounds.
@@ -55,27 +55,31 @@ def solve_inverse(
     if np.any(lo > hi) or np.any(dmin > dmax):
         raise InfeasibleProblemError("actuator bounds with lower > upper admit no solution")
 
+    # Solve in displacement units: lambda = mu / c with c the mean actuator compliance, so that
+    # the QP's data are O(1) whatever the scene's units and time step.
+    c = float(np.mean(np.abs(np.diag(w_aa))))
+    if not c > 0:
+        raise SolverError("the actuators have zero compliance: they cannot move the robot")
     hess = w_ea.T @ w_ea
     eps = regularisation * np.linalg.norm(hess) / max(np.linalg.norm(w_aa), 1e-300)
-    hess = hess + eps * 0.5 * (w_aa + w_aa.T)
-    grad = w_ea.T @ de_free
+    hess = (hess + eps * 0.5 * (w_aa + w_aa.T)) / c**2
+    grad = (w_ea.T @ de_free) / c
     # proxsuite wants finite bounds: replace infinities by a bound far outside the solution.
     big = 1e20
     qp = proxqp.dense.QP(na, 0, na, True)
     qp.settings.eps_abs = tolerance
     qp.settings.eps_rel = 0.0
     qp.settings.max_iter = max_iterations
-    qp.settings.primal_infeasibility_solving = False
     qp.init(
         hess,
         grad,
         None,
         None,
-        w_aa,
+        w_aa / c,
         np.clip(dmin - da_free, -big, big),
         np.clip(dmax - da_free, -big, big),
-        np.clip(lo, -big, big),
-        np.clip(hi, -big, big),
+        np.clip(lo * c, -big, big),
+        np.clip(hi * c, -big, big),
     )
     qp.solve()
     status = qp.results.info.status
@@ -86,5 +90,5 @@ def solve_inverse(
         )
     if status != proxqp.QPSolverOutput.PROXQP_SOLVED:
         raise SolverError(f"ProxQP did not solve the inverse problem: {status}")
-    lam = np.clip(qp.results.x, lo, hi)
+    lam = np.clip(qp.results.x / c, lo, hi)
     return InverseSolution(lam, w_ea @ lam + de_free, int(qp.results.info.iter))
