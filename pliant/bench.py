@@ -67,7 +67,7 @@ def reference_diamond(meshes: Path) -> TetMesh:
 
 
 def cantilever(n: int) -> Model:
-    """SPEC §5 cantilever: 100 x 20 x 20 mm, (5n) x n x n cubes of 6 tets, E=1000, nu=0.45, 0.04 kg."""
+    """SPEC §5 cantilever: 100 x 20 x 20 mm, 5n x n x n cubes of 6 tets, E=1000, nu=0.45."""
     mesh = box_beam(100.0, 20.0, 20.0, nx=5 * n, ny=n, nz=n)
     fixed = np.flatnonzero(mesh.points[:, 0] <= 1e-9)
     body = TetBody(
@@ -245,7 +245,8 @@ def run_benchmarks(
         st = StaticSolver(dia).step(dia.rest_state())
         static_times.append(time.perf_counter() - t0)
     console.print(
-        f"  static solve (diamond, 4 cables at 10 mm): {statistics.median(static_times) * 1e3:.1f} ms"
+        f"  static solve (diamond, 4 cables at 10 mm):"
+        f" {statistics.median(static_times) * 1e3:.1f} ms"
     )
     goal = dia.effectors[0].position(st.positions) + np.array([[5.0, 0.0, 0.0]])
     rates, _ = time_steps(

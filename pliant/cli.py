@@ -61,7 +61,7 @@ def run(
             Progress(console=console) as bar,
         ):
             task = bar.add_task(f"{robot}: {n_steps} steps", total=n_steps)
-            for state in scripted(sim, state, entry.demo_actuation, n_steps):
+            for state in scripted(sim, model.rest_state(), entry.demo_actuation, n_steps):  # noqa: B020
                 bar.advance(task)
                 if state.step % every == 0 or state.step == n_steps:
                     images.append(camera.frame(state, title=f"{robot}  t = {state.time:.2f} s"))

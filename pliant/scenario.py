@@ -53,7 +53,7 @@ def track_goals(
     for goal in np.atleast_2d(goals):
         control = InverseControl(goals=[goal[None, :]])
         previous = effector.position(state.positions)[0]
-        for k in range(1, max_steps + 1):
+        for k in range(1, max_steps + 1):  # noqa: B007 (k is reported after the loop)
             state = solver.step(state, control)
             now = effector.position(state.positions)[0]
             if on_step is not None:

@@ -139,7 +139,8 @@ class Actuator(Constraint):
         self.max_displacement = _check_real("max_displacement", max_displacement)
         if self.min_force > self.max_force:
             raise ConstraintError(
-                f"{name}: min_force {self.min_force} > max_force {self.max_force}: no force is admissible"
+                f"{name}: min_force {self.min_force} > max_force {self.max_force}:"
+                " no force is admissible"
             )
         if self.min_displacement > self.max_displacement:
             raise ConstraintError(

@@ -9,7 +9,7 @@ from pliant.errors import ConstraintError
 
 
 def enclosed_volume(x: np.ndarray, triangles: np.ndarray) -> float:
-    """Volume enclosed by a closed triangulated surface, sum x0 . (x1 x x2) / 6 (divergence theorem)."""
+    """Volume enclosed by a closed triangulated surface: sum x0 . (x1 x x2) / 6 (Gauss)."""
     p = x[triangles]
     return float(np.einsum("ij,ij->i", p[:, 0], np.cross(p[:, 1], p[:, 2])).sum() / 6.0)
 
@@ -54,7 +54,8 @@ class CavityActuator(Actuator):
         _, counts = np.unique(edges, axis=0, return_counts=True)
         if np.any(counts != 2):
             raise ConstraintError(
-                f"{name}: the cavity surface is not closed ({np.count_nonzero(counts != 2)} open edges)"
+                f"{name}: the cavity surface is not closed"
+                f" ({np.count_nonzero(counts != 2)} open edges)"
             )
         self.rest_volume = enclosed_volume(rest_positions, self.triangles)
         if not self.rest_volume > 0:

@@ -64,7 +64,7 @@ class StaticSolver:
         ctrl.prepare(model)
         step = state.step + 1
         q = state.positions.copy()
-        for it in range(1, self.max_iterations + 1):
+        for it in range(1, self.max_iterations + 1):  # noqa: B007 (reported after the loop)
             try:
                 problem, dq_free, k_inv_ht = self._condense(q, step)
             except SolverError as exc:
