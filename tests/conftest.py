@@ -1,0 +1,73 @@
+"""Builders shared by the verification tests: small clamped beams and seeded randomness."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import numpy as np
+import pytest
+
+from pliant.fem.body import TetBody
+from pliant.fem.material import Corotational, Material, NeoHookean
+from pliant.mesh import TetMesh, box_beam
+from pliant.model import Model
+
+MATERIALS: dict[str, type[Material]] = {"corotational": Corotational, "neo-hookean": NeoHookean}
+
+
+@pytest.fixture
+def rng() -> np.random.Generator:
+    return np.random.default_rng(20261123)
+
+
+def clamped_body(
+    mesh: TetMesh,
+    material: Material,
+    *,
+    density: float = 1e-6,
+    gravity: tuple[float, float, float] = (0.0, 0.0, 0.0),
+    **kwargs,
+) -> TetBody:
+    """A body of `mesh` held at its x = min face (a cantilever's clamp)."""
+    x = mesh.points
+    fixed = np.flatnonzero(x[:, 0] <= x[:, 0].min() + 1e-9)
+    return TetBody(mesh, material, density=density, fixed_nodes=fixed, gravity=gravity, **kwargs)
+
+
+@pytest.fixture
+def clamped_beam() -> Callable[..., Model]:
+    """Factory: clamped_beam(material, size=(L, b, h), cells=(nx, ny, nz), actuators=..., ...)."""
+
+    def build(
+        material: Material,
+        *,
+        size: tuple[float, float, float] = (60.0, 20.0, 20.0),
+        cells: tuple[int, int, int] = (6, 2, 2),
+        actuators=(),
+        effectors=(),
+        **body_kwargs,
+    ) -> Model:
+        mesh = box_beam(*size, *cells)
+        body = clamped_body(mesh, material, **body_kwargs)
+        return Model(body, actuators=list(actuators), effectors=list(effectors), name="beam")
+
+    return build
+
+
+def distorted_box(rng: np.random.Generator, cells: int = 3, size: float = 30.0) -> TetMesh:
+    """A cube of cells^3 Kuhn cells whose interior nodes are moved randomly by up to 30 % of
+    a cell (a patch test needs an irregular mesh); returns the mesh, all volumes positive."""
+    base = box_beam(size, size, size, cells, cells, cells)
+    boundary = np.unique(base.boundary_triangles())
+    interior = np.setdiff1d(np.arange(base.n_nodes), boundary)
+    points = base.points.copy()
+    h = size / cells
+    points[interior] += rng.uniform(-0.3 * h, 0.3 * h, (interior.size, 3))
+    mesh = TetMesh(points, base.tets)
+    assert mesh.signed_volumes().min() > 0.0
+    return mesh
+
+
+@pytest.fixture
+def distorted_mesh(rng) -> TetMesh:
+    return distorted_box(rng)
