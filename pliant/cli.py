@@ -51,7 +51,8 @@ def run(
         model = entry.build()
         sim = _solver(model, solver, dt)
         n_steps = max(1, round(duration / dt))
-        every = max(1, n_steps // max(frames, 1))
+        frames = max(1, min(frames, n_steps))
+        frame_steps = set(np.linspace(n_steps / frames, n_steps, frames).round().astype(int))
         camera = RobotCamera(model, view=entry.view)
         folder = out / robot
         images = []
@@ -63,7 +64,7 @@ def run(
             task = bar.add_task(f"{robot}: {n_steps} steps", total=n_steps)
             for state in scripted(sim, model.rest_state(), entry.demo_actuation, n_steps):  # noqa: B020
                 bar.advance(task)
-                if state.step % every == 0 or state.step == n_steps:
+                if state.step in frame_steps:
                     images.append(camera.frame(state, title=f"{robot}  t = {state.time:.2f} s"))
                     vtu.write(
                         state.time,

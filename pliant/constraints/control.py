@@ -34,11 +34,13 @@ class InverseControl:
     """Choose actuator forces by the QP of Eq. 2.15 so that the effectors reach `goals`.
 
     goals: one (k, 3) array per effector of the model (a single array for a single effector),
-    or None to keep the effectors' current goals.
+    or None to keep the effectors' current goals. course="soft" widens course bounds that the
+    dynamics made infeasible (with a warning) instead of stopping the loop; "hard" raises.
     """
 
     goals: list[np.ndarray] | np.ndarray | None = None
     regularisation: float = 1e-3
+    course: str = "soft"
 
     def prepare(self, model) -> None:
         if self.goals is None:
@@ -53,14 +55,20 @@ class InverseControl:
 
     def actuation(self, problem: CondensedProblem, model, state) -> np.ndarray:
         sol = solve_inverse(
-            problem, model.actuators, state.displacement, regularisation=self.regularisation
+            problem,
+            model.actuators,
+            state.displacement,
+            regularisation=self.regularisation,
+            course=self.course,
         )
         return sol.actuation
 
 
-def as_control(control) -> DirectControl | InverseControl:
+def as_control(control):
+    """A control object from None (keep the commands), commands, or any object with
+    `prepare(model)` and `actuation(problem, model, state)`."""
     if control is None:
         return DirectControl()
-    if isinstance(control, (DirectControl, InverseControl)):
+    if hasattr(control, "actuation") and hasattr(control, "prepare"):
         return control
     return DirectControl(np.asarray(control, dtype=float))

@@ -60,7 +60,8 @@ def box_qp(
                 at_bound[blocking] = True
                 continue
         gradient = hess @ x + grad
-        wrong = at_bound & (((x == lower) & (gradient < 0)) | ((x == upper) & (gradient > 0)))
+        wrong = at_bound & (lower < upper)
+        wrong &= ((x == lower) & (gradient < 0)) | ((x == upper) & (gradient > 0))
         if not wrong.any():
             return x
         release = np.flatnonzero(wrong)[np.argmax(np.abs(gradient[wrong]))]
@@ -97,16 +98,25 @@ def solve_direct(
         if a.max_displacement_change is not None:
             dmin[i] = max(dmin[i], previous_displacement[i] - a.max_displacement_change)
             dmax[i] = min(dmax[i], previous_displacement[i] + a.max_displacement_change)
-    controlled = np.array([a.mode == "displacement" for a in actuators])
+    displacement_mode = np.array([a.mode == "displacement" for a in actuators])
     values = np.array([a.value for a in actuators])
-    target = np.clip(values, dmin, dmax)
-    lam = np.where(controlled, 0.0, np.clip(values, lo, hi))
-    lo_eff, hi_eff = lo.copy(), hi.copy()
-    for _ in range(n + 1):
-        fixed = ~controlled
-        if controlled.any():
-            c = controlled
-            shift = d_free[c] + w[np.ix_(c, fixed)] @ lam[fixed] - target[c]
+    commanded = np.where(displacement_mode, 0.0, np.clip(values, lo, hi))
+    # A force-controlled actuator is free (lambda = command), or held at its upper course bound
+    # (+1, lambda <= command) or at its lower one (-1, lambda >= command).
+    status = np.zeros(n, dtype=int)
+    lam = commanded.copy()
+    for _ in range(3 * n + 3):
+        held = ~displacement_mode & (status != 0)
+        solved = displacement_mode | held
+        target = np.where(
+            displacement_mode, np.clip(values, dmin, dmax), np.where(status > 0, dmax, dmin)
+        )
+        lo_eff = np.where(held & (status < 0), np.maximum(lo, commanded), lo)
+        hi_eff = np.where(held & (status > 0), np.minimum(hi, commanded), hi)
+        lam = np.where(solved, lam, commanded)
+        if solved.any():
+            c, f = solved, ~solved
+            shift = d_free[c] + w[np.ix_(c, f)] @ lam[f] - target[c]
             guess = (
                 None
                 if previous_actuation is None or previous_actuation.size != n
@@ -115,14 +125,16 @@ def solve_direct(
             lam[c] = box_qp(w[np.ix_(c, c)], shift, lo_eff[c], hi_eff[c], guess)
         delta = w @ lam + d_free
         scale = tolerance * max(1.0, float(np.abs(delta).max()))
-        over = fixed & (delta > dmax + scale)
-        under = fixed & (delta < dmin - scale)
-        if not (over.any() or under.any()):
+        new = status.copy()
+        force = ~displacement_mode
+        new[force & (status == 0) & (delta > dmax + scale)] = 1
+        new[force & (status == 0) & (delta < dmin - scale)] = -1
+        # A held actuator whose force came back to its command is released, unless it then
+        # crosses the other course bound (checked at the next pass).
+        release = held & np.isclose(lam, commanded, rtol=0.0, atol=scale)
+        release &= ((status > 0) & (delta < dmax - scale)) | ((status < 0) & (delta > dmin + scale))
+        new[release] = 0
+        if np.array_equal(new, status):
             return lam
-        # Hold these force-controlled actuators at the course bound they cross.
-        hi_eff[over] = lam[over]
-        target[over] = dmax[over]
-        lo_eff[under] = lam[under]
-        target[under] = dmin[under]
-        controlled = controlled | over | under
+        status = new
     return lam

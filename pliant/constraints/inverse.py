@@ -2,14 +2,20 @@
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass
 
 import numpy as np
 from proxsuite import proxqp
+from scipy.optimize import linprog
 
 from pliant.constraints.base import Actuator
 from pliant.constraints.condensed import CondensedProblem
 from pliant.errors import InfeasibleProblemError, SolverError
+
+
+class InfeasibleCourseWarning(UserWarning):
+    """The actuators' course bounds were widened to keep the inverse problem feasible."""
 
 
 @dataclass
@@ -17,6 +23,54 @@ class InverseSolution:
     actuation: np.ndarray
     predicted_effector_distance: np.ndarray
     iterations: int
+
+
+def _course_relaxation(c_mat, lower, upper, lo_box, hi_box) -> np.ndarray:
+    """Smallest s >= 0 (sum) with lower - s <= C x <= upper + s and lo <= x <= hi (an LP)."""
+    n, m = c_mat.shape[1], c_mat.shape[0]
+    cost = np.concatenate([np.zeros(n), np.ones(m)])
+    eye = np.eye(m)
+    a_ub = np.block([[c_mat, -eye], [-c_mat, -eye]])
+    b_ub = np.concatenate([upper, -lower])
+    keep = np.isfinite(b_ub)
+    bounds = [
+        (lo if np.isfinite(lo) else None, hi if np.isfinite(hi) else None)
+        for lo, hi in zip(lo_box, hi_box, strict=True)
+    ] + [(0.0, None)] * m
+    res = linprog(cost, A_ub=a_ub[keep], b_ub=b_ub[keep], bounds=bounds, method="highs")
+    if not res.success:
+        raise SolverError(f"the course-feasibility LP failed: {res.message}")
+    return res.x[n:]
+
+
+def _polish(hess, grad, c_mat, lower, upper, lo_box, hi_box, x, z):
+    """Exact optimum on the active set ProxQP found (its non-zero multipliers z): the KKT
+    system of the equality-constrained QP, kept if feasible and no worse."""
+    n, m = x.size, c_mat.shape[0]
+    full = np.vstack([c_mat, np.eye(n)])
+    lows, ups = np.concatenate([lower, lo_box]), np.concatenate([upper, hi_box])
+    values = full @ x
+    zscale = max(1e-300, float(np.max(np.abs(z), initial=0.0)))
+    active = np.flatnonzero(np.abs(z[: m + n]) > 1e-8 * zscale)
+    rows, rhs = [], []
+    for k in active:
+        bound = ups[k] if abs(values[k] - ups[k]) <= abs(values[k] - lows[k]) else lows[k]
+        if np.isfinite(bound):
+            rows.append(full[k])
+            rhs.append(bound)
+    if rows:
+        a = np.array(rows)
+        kkt = np.block([[hess, a.T], [a, np.zeros((len(rows), len(rows)))]])
+        cand = np.linalg.lstsq(kkt, np.concatenate([-grad, rhs]), rcond=None)[0][:n]
+    else:
+        cand = np.linalg.solve(hess, -grad)
+    slack = 1e-9 * max(1.0, float(np.max(np.abs(values), initial=0.0)))
+    feasible = np.all(full @ cand >= lows - slack) and np.all(full @ cand <= ups + slack)
+    objective = 0.5 * cand @ hess @ cand + grad @ cand
+    previous = 0.5 * x @ hess @ x + grad @ x
+    if feasible and objective <= previous + 1e-12 * max(1.0, abs(previous)):
+        return cand
+    return x
 
 
 def solve_inverse(
@@ -27,13 +81,21 @@ def solve_inverse(
     regularisation: float = 1e-3,
     tolerance: float = 1e-9,
     max_iterations: int = 1000,
+    course: str = "hard",
 ) -> InverseSolution:
     """min ||W_ea l + d_e_free||^2 + eps l^T W_aa l  s.t. effort and course bounds.
 
     The regularisation eps is relative: eps = regularisation * ||W_ea^T W_ea|| / ||W_aa||
     (Frobenius norms), so that it does not depend on the scene's units. ProxQP (proxsuite)
-    solves the QP; bounds that admit no solution raise InfeasibleProblemError.
+    solves the QP, then the optimum is made exact on the active set it found.
+
+    Bounds that admit no solution: with course="hard" they raise InfeasibleProblemError; with
+    course="soft" (what closed-loop controllers use: a cable that the dynamics carried past its
+    course cannot be pulled back by a tension) the course bounds are widened by the least
+    amount that makes them feasible (an LP), with an InfeasibleCourseWarning.
     """
+    if course not in ("hard", "soft"):
+        raise InfeasibleProblemError(f"course must be 'hard' or 'soft', got {course!r}")
     na = len(actuators)
     if na == 0:
         raise InfeasibleProblemError("inverse control needs at least one actuator")
@@ -64,9 +126,44 @@ def solve_inverse(
     eps = regularisation * np.linalg.norm(hess) / max(np.linalg.norm(w_aa), 1e-300)
     hess = (hess + eps * 0.5 * (w_aa + w_aa.T)) / c**2
     grad = (w_ea.T @ de_free) / c
+    lower, upper = dmin - da_free, dmax - da_free
+    c_mat = w_aa / c
+    lo_box, hi_box = lo * c, hi * c
+    mu, z, status, iterations = _proxqp(
+        hess, grad, c_mat, lower, upper, lo_box, hi_box, tolerance, max_iterations
+    )
+    if status != proxqp.QPSolverOutput.PROXQP_SOLVED:
+        relax = _course_relaxation(c_mat, lower, upper, lo_box, hi_box)
+        finite = np.abs(np.concatenate([lower, upper]))
+        size = max(1.0, float(np.max(finite[np.isfinite(finite)], initial=0.0)))
+        if not np.any(relax > 1e-9 * size):
+            raise SolverError(f"ProxQP did not solve the inverse problem: {status}")
+        worst = int(np.argmax(relax))
+        message = (
+            f"the course bounds cannot be met with the effort bounds at this step:"
+            f" {actuators[worst].name} is {relax[worst]:.3g} outside its course"
+        )
+        if course == "hard":
+            raise InfeasibleProblemError(message)
+        warnings.warn(
+            message + "; course widened by that much", InfeasibleCourseWarning, stacklevel=3
+        )
+        lower, upper = lower - relax * (1 + 1e-9), upper + relax * (1 + 1e-9)
+        mu, z, status, iterations = _proxqp(
+            hess, grad, c_mat, lower, upper, lo_box, hi_box, tolerance, max_iterations
+        )
+        if status != proxqp.QPSolverOutput.PROXQP_SOLVED:
+            raise SolverError(f"ProxQP did not solve the relaxed inverse problem: {status}")
+    mu = _polish(hess, grad, c_mat, lower, upper, lo_box, hi_box, mu, z)
+    lam = np.clip(mu / c, lo, hi)
+    return InverseSolution(lam, w_ea @ lam + de_free, iterations)
+
+
+def _proxqp(hess, grad, c_mat, lower, upper, lo_box, hi_box, tolerance, max_iterations):
     # proxsuite wants finite bounds: replace infinities by a bound far outside the solution.
     big = 1e20
-    qp = proxqp.dense.QP(na, 0, na, True)
+    n = grad.size
+    qp = proxqp.dense.QP(n, 0, c_mat.shape[0], True)
     qp.settings.eps_abs = tolerance
     qp.settings.eps_rel = 0.0
     qp.settings.max_iter = max_iterations
@@ -75,20 +172,12 @@ def solve_inverse(
         grad,
         None,
         None,
-        w_aa / c,
-        np.clip(dmin - da_free, -big, big),
-        np.clip(dmax - da_free, -big, big),
-        np.clip(lo * c, -big, big),
-        np.clip(hi * c, -big, big),
+        c_mat,
+        np.clip(lower, -big, big),
+        np.clip(upper, -big, big),
+        np.clip(lo_box, -big, big),
+        np.clip(hi_box, -big, big),
     )
     qp.solve()
-    status = qp.results.info.status
-    if status == proxqp.QPSolverOutput.PROXQP_PRIMAL_INFEASIBLE:
-        raise InfeasibleProblemError(
-            "the actuators' effort and course bounds cannot be met together at this step"
-            f" (course bounds on delta_a - delta_a_free: [{dmin - da_free}, {dmax - da_free}])"
-        )
-    if status != proxqp.QPSolverOutput.PROXQP_SOLVED:
-        raise SolverError(f"ProxQP did not solve the inverse problem: {status}")
-    lam = np.clip(qp.results.x / c, lo, hi)
-    return InverseSolution(lam, w_ea @ lam + de_free, int(qp.results.info.iter))
+    res = qp.results
+    return res.x.copy(), res.z.copy(), res.info.status, int(res.info.iter)

@@ -18,6 +18,7 @@ from pliant.errors import MaterialError, ModelError
 from pliant.fem import kernels
 from pliant.fem.material import Material
 from pliant.fem.sparsity import StiffnessPattern
+from pliant.mesh.quality import validate_mesh
 from pliant.mesh.tetmesh import TetMesh
 
 MassType = Literal["lumped", "uniform", "consistent"]
@@ -75,16 +76,13 @@ class TetBody:
         rayleigh_mass: float = 0.0,
         rayleigh_stiffness: float = 0.0,
     ) -> None:
+        # Inverted, degenerate, disconnected or malformed meshes raise their MeshError here.
+        validate_mesh(mesh.points, mesh.tets)
         self.mesh = mesh
         self.material = material
         self.rest_positions = np.ascontiguousarray(mesh.points, dtype=np.float64)
         self.tets = np.ascontiguousarray(mesh.tets, dtype=np.int64)
         self.volumes, self.grads = kernels.rest_gradients(self.rest_positions, self.tets)
-        if np.any(self.volumes <= 0):
-            raise ModelError(
-                f"{np.count_nonzero(self.volumes <= 0)} elements have non-positive rest volume;"
-                " validate the mesh with pliant.mesh.validate_mesh"
-            )
         n_elem = self.tets.shape[0]
         self.mu = np.full(n_elem, material.mu)
         self.lam = np.full(n_elem, material.lam)

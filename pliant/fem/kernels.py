@@ -228,6 +228,10 @@ def _piola_differential(df, frame, f, det, mu, lam, tag, exact, dp, w1, w2):
             for j in range(3):
                 w2[i, j] = mu * (w1[i, j] + w1[j, i]) + (lam * tr if i == j else 0.0)
         if exact:
+            # 2 mu dF = 2 mu R (sym + skew)(R^T dF): the skew part completes the tangent.
+            for i in range(3):
+                for j in range(3):
+                    w2[i, j] += mu * (w1[i, j] - w1[j, i])
             b0 = w1[2, 1] - w1[1, 2]
             b1 = w1[0, 2] - w1[2, 0]
             b2 = w1[1, 0] - w1[0, 1]

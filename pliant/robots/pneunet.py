@@ -7,6 +7,7 @@ import math
 import numpy as np
 
 from pliant.constraints.cavity import CavityActuator
+from pliant.errors import ModelError
 from pliant.fem.body import TetBody
 from pliant.mesh import shapes
 from pliant.mesh.tetmesh import TetMesh
@@ -49,7 +50,10 @@ def pneunet(
         rayleigh_mass=rayleigh_mass,
         rayleigh_stiffness=rayleigh_stiffness,
     )
-    mode = {"pressure": "force", "volume": "displacement"}[cavity_mode]
+    modes = {"pressure": "force", "volume": "displacement"}
+    if cavity_mode not in modes:
+        raise ModelError(f"cavity_mode must be 'pressure' or 'volume', got {cavity_mode!r}")
+    mode = modes[cavity_mode]
     cavity = CavityActuator(
         mesh.surfaces["cavity"],
         body.rest_positions,
