@@ -185,7 +185,7 @@ def test_dynamic_condense_returns_the_exact_step_problem() -> None:
 def test_condensed_problems_equal_an_independent_assembly() -> None:
     """W and delta_free from sparse solves written here, at a state out of equilibrium (the rest
     state under gravity): static W = H K^-1 H^T, delta_free = delta(q) + H K^-1 r(q) with
-    r = f(q) + M g; dynamic W = h^2 H A^-1 H^T, delta_free = delta(q) + h H (v + A^-1 b) (linearised at q)."""
+    r = f(q) + M g; dynamic W = h^2 H A^-1 H^T, delta_free = delta(q) + h H (v + A^-1 b)."""
     model = _model("corotational", gravity=(0.0, 0.0, -9810.0), rayleigh_mass=0.3)
     body = model.body
     state = model.rest_state()
