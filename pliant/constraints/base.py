@@ -181,3 +181,19 @@ class Actuator(Constraint):
     @property
     def n_rows(self) -> int:
         return 1
+
+
+def actuator_bounds(
+    actuators: list[Actuator], previous_displacement: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Effort bounds (lo, hi) and the course bounds (dmin, dmax) of this step: the course
+    narrowed to previous_displacement +- max_displacement_change where that is set."""
+    lo = np.array([a.min_force for a in actuators])
+    hi = np.array([a.max_force for a in actuators])
+    dmin = np.array([a.min_displacement for a in actuators])
+    dmax = np.array([a.max_displacement for a in actuators])
+    for i, a in enumerate(actuators):
+        if a.max_displacement_change is not None:
+            dmin[i] = max(dmin[i], previous_displacement[i] - a.max_displacement_change)
+            dmax[i] = min(dmax[i], previous_displacement[i] + a.max_displacement_change)
+    return lo, hi, dmin, dmax

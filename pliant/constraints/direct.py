@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from pliant.constraints.base import Actuator
+from pliant.constraints.base import Actuator, actuator_bounds
 from pliant.constraints.condensed import CondensedProblem
 from pliant.errors import InfeasibleProblemError, SolverError
 
@@ -90,14 +90,7 @@ def solve_direct(
     sl = problem.slices["actuator"]
     w = problem.compliance[sl, sl]
     d_free = problem.free_distance[sl]
-    lo = np.array([a.min_force for a in actuators])
-    hi = np.array([a.max_force for a in actuators])
-    dmin = np.array([a.min_displacement for a in actuators])
-    dmax = np.array([a.max_displacement for a in actuators])
-    for i, a in enumerate(actuators):
-        if a.max_displacement_change is not None:
-            dmin[i] = max(dmin[i], previous_displacement[i] - a.max_displacement_change)
-            dmax[i] = min(dmax[i], previous_displacement[i] + a.max_displacement_change)
+    lo, hi, dmin, dmax = actuator_bounds(actuators, previous_displacement)
     displacement_mode = np.array([a.mode == "displacement" for a in actuators])
     values = np.array([a.value for a in actuators])
     commanded = np.where(displacement_mode, 0.0, np.clip(values, lo, hi))

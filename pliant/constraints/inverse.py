@@ -9,7 +9,7 @@ import numpy as np
 from proxsuite import proxqp
 from scipy.optimize import linprog
 
-from pliant.constraints.base import Actuator
+from pliant.constraints.base import Actuator, actuator_bounds
 from pliant.constraints.condensed import CondensedProblem
 from pliant.errors import InfeasibleProblemError, SolverError
 
@@ -106,14 +106,7 @@ def solve_inverse(
     w_aa = problem.compliance[sa, sa]
     de_free = problem.free_distance[se]
     da_free = problem.free_distance[sa]
-    lo = np.array([a.min_force for a in actuators])
-    hi = np.array([a.max_force for a in actuators])
-    dmin = np.array([a.min_displacement for a in actuators])
-    dmax = np.array([a.max_displacement for a in actuators])
-    for i, a in enumerate(actuators):
-        if a.max_displacement_change is not None:
-            dmin[i] = max(dmin[i], previous_displacement[i] - a.max_displacement_change)
-            dmax[i] = min(dmax[i], previous_displacement[i] + a.max_displacement_change)
+    lo, hi, dmin, dmax = actuator_bounds(actuators, previous_displacement)
     if np.any(lo > hi) or np.any(dmin > dmax):
         raise InfeasibleProblemError("actuator bounds with lower > upper admit no solution")
 
