@@ -56,13 +56,13 @@ def run(
         camera = RobotCamera(model, view=entry.view)
         folder = out / robot
         images = []
-        state = model.rest_state()
+        state = start = model.rest_state()
         with (
             VtuSeriesWriter(folder, robot, model.body.tets) as vtu,
             Progress(console=console) as bar,
         ):
             task = bar.add_task(f"{robot}: {n_steps} steps", total=n_steps)
-            for state in scripted(sim, model.rest_state(), entry.demo_actuation, n_steps):  # noqa: B020
+            for state in scripted(sim, start, entry.demo_actuation, n_steps):  # noqa: B020
                 bar.advance(task)
                 if state.step in frame_steps:
                     images.append(camera.frame(state, title=f"{robot}  t = {state.time:.2f} s"))

@@ -87,13 +87,14 @@ class ImplicitEuler:
         dv = dv_free + h * (a_inv_ht[:, sa] @ lam_a)
         v_new = v + dv
         dq = body.scatter(h * v_new)
+        positions = state.positions + dq
         new = State(
-            state.positions + dq,
+            positions,
             body.scatter(v_new),
             state.time + h,
             step,
             lam_a,
-            model.actuator_distances(state.positions + dq),
+            model.actuator_distances(positions),
         )
         check_motion(new.positions, new.velocities, dq, self._size, step, h)
         self.last_report = StepReport(
