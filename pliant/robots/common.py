@@ -12,6 +12,7 @@ from pliant.constraints.effector import PositionEffector
 from pliant.errors import ModelError
 from pliant.fem.body import TetBody, nodes_in_box
 from pliant.fem.material import MATERIALS, Material
+from pliant.mesh.quality import validate_mesh
 from pliant.mesh.tetmesh import TetMesh
 
 MaterialName = Literal["corotational", "neo-hookean"]
@@ -26,6 +27,9 @@ def make_material(name: str, young_modulus: float, poisson_ratio: float) -> Mate
 
 
 def fixed_by_box(mesh: TetMesh, box: np.ndarray) -> np.ndarray:
+    # A mesh passed by the user is checked before its nodes are selected, so that an empty or
+    # broken mesh reports what is wrong with it rather than an empty fixing box.
+    validate_mesh(mesh.points, mesh.tets)
     nodes = nodes_in_box(mesh.points, box)
     if nodes.size == 0:
         raise ModelError(f"the fixing box {np.asarray(box).tolist()} holds no node of the mesh")
