@@ -188,33 +188,43 @@ class Model:
         positions: np.ndarray,
         constraints: list[Constraint] | None = None,
         *,
+        roles: tuple[str, ...] | None = None,
         with_distance: bool = True,
     ) -> ConstraintSpace:
         """Jacobians (and distances) of the constraints (default: actuators then effectors).
 
-        The dynamic step evaluates distances at the free configuration itself and skips them
-        here (`with_distance=False`: the distance is then all zeros).
+        `roles` keeps only the constraints of those roles (a direct step needs no effector
+        rows); `with_distance=False` skips the distances (then all zeros).
         """
         cons = self._groups if constraints is None else constraints
+        if roles is not None:
+            cons = [c for c in cons if c.role in roles]
         body = self.body
         rows = sum(c.n_rows for c in cons)
-        ht = np.empty((body.n_free, rows))
         delta = np.zeros(rows)
         slices: dict[str, slice] = {}
+        index, weights = [], []
         start = 0
         for c in cons:
             stop = start + c.n_rows
-            delta[start:stop] = c.distance(positions) if with_distance else 0.0
-            jac = c.jacobian(positions)
+            if with_distance:
+                delta[start:stop], jac = c.distance_and_jacobian(positions)
+            else:
+                jac = c.jacobian(positions)
+            # Entry (free DoF d, row r) of H^T, flattened as d * rows + r.
             free = body.free_index[3 * jac.nodes[:, :, None] + np.arange(3)]
-            for r in range(c.n_rows):
-                keep = free[r] >= 0
-                ht[:, start + r] = np.bincount(
-                    free[r][keep], weights=jac.values[r][keep], minlength=body.n_free
-                )
+            keep = free >= 0
+            row = np.arange(start, stop)[:, None, None]
+            index.append((free * rows + row)[keep])
+            weights.append(jac.values[keep])
             role = slices.get(c.role)
             slices[c.role] = slice(start if role is None else role.start, stop)
             start = stop
+        ht = np.bincount(
+            np.concatenate(index) if index else np.zeros(0, dtype=np.int64),
+            weights=np.concatenate(weights) if weights else None,
+            minlength=body.n_free * rows,
+        ).reshape(body.n_free, rows)
         for role in ("actuator", "effector", "contact"):
             slices.setdefault(role, slice(rows, rows))
         return ConstraintSpace(delta, ht, slices)

@@ -86,6 +86,10 @@ class Constraint(ABC):
     def jacobian(self, x: np.ndarray) -> JacobianRows:
         """H(x) as sparse rows."""
 
+    def distance_and_jacobian(self, x: np.ndarray) -> tuple[np.ndarray, JacobianRows]:
+        """Both at once; constraints that share work between them override this."""
+        return self.distance(x), self.jacobian(x)
+
     @classmethod
     def bundle(cls, constraints: list[Constraint]) -> Constraint | None:
         """An object evaluating several constraints of this class at once (same rows, same

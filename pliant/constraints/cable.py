@@ -136,10 +136,19 @@ class CableBundle:
 
     def distance(self, x: np.ndarray) -> np.ndarray:
         _, length = self._segments(x)
+        return self._distance(length)
+
+    def _distance(self, length: np.ndarray) -> np.ndarray:
         return self._rest - np.bincount(self._owner, weights=length, minlength=self.n_rows)
 
-    def jacobian(self, x: np.ndarray) -> JacobianRows:
+    def distance_and_jacobian(self, x: np.ndarray) -> tuple[np.ndarray, JacobianRows]:
         seg, length = self._segments(x)
+        return self._distance(length), self._jacobian(seg, length)
+
+    def jacobian(self, x: np.ndarray) -> JacobianRows:
+        return self._jacobian(*self._segments(x))
+
+    def _jacobian(self, seg: np.ndarray, length: np.ndarray) -> JacobianRows:
         unit = np.divide(seg, length[:, None], out=np.zeros_like(seg), where=length[:, None] > 0)
         dl = np.zeros((self._n_vertices, 3))
         for axis in range(3):

@@ -17,6 +17,8 @@ class DirectControl:
     """Apply the actuators' commands (in their own modes); None keeps the current commands."""
 
     values: np.ndarray | None = None
+    # Effectors are passive under direct control: the step needs no effector rows.
+    roles = ("actuator",)
 
     def prepare(self, model) -> None:
         if self.values is not None:
@@ -41,6 +43,7 @@ class InverseControl:
     goals: list[np.ndarray] | np.ndarray | None = None
     regularisation: float = 1e-3
     course: str = "soft"
+    roles = ("actuator", "effector")
 
     def prepare(self, model) -> None:
         if self.goals is None:
@@ -66,7 +69,8 @@ class InverseControl:
 
 def as_control(control):
     """A control object from None (keep the commands), commands, or any object with
-    `prepare(model)` and `actuation(problem, model, state)`."""
+    `prepare(model)` and `actuation(problem, model, state)`; an optional `roles` attribute names
+    the constraint roles whose rows the control reads (absent or None: every row)."""
     if control is None:
         return DirectControl()
     if hasattr(control, "actuation") and hasattr(control, "prepare"):

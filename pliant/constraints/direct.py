@@ -26,12 +26,11 @@ def box_qp(
     n = grad.size
     if np.any(lower > upper):
         raise InfeasibleProblemError("box bounds with lower > upper admit no solution")
-    if guess is None:
-        # Start from the unconstrained minimiser: often every bound is inactive.
-        x = np.linalg.solve(hess, -grad)
-        if np.all((x >= lower) & (x <= upper)):
-            return x
-    else:
+    # The unconstrained minimiser is the answer whenever it is feasible (the usual case).
+    x = np.linalg.solve(hess, -grad)
+    if np.all((x >= lower) & (x <= upper)):
+        return x
+    if guess is not None:
         x = np.asarray(guess, dtype=float).copy()
     x = np.clip(x, lower, upper)
     at_bound = ((x == lower) & np.isfinite(lower)) | ((x == upper) & np.isfinite(upper))
@@ -93,6 +92,11 @@ def solve_direct(
     lo, hi, dmin, dmax = actuator_bounds(actuators, previous_displacement)
     displacement_mode = np.array([a.mode == "displacement" for a in actuators])
     values = np.array([a.value for a in actuators])
+    if displacement_mode.all():
+        # Only displacement commands: one box QP, min 1/2 l^T W l + (d_free - target)^T l.
+        return box_qp(
+            w, d_free - np.clip(values, dmin, dmax), lo, hi, _matching(previous_actuation, n)
+        )
     commanded = np.where(displacement_mode, 0.0, np.clip(values, lo, hi))
     # A force-controlled actuator is free (lambda = command), or held at its upper course bound
     # (+1, lambda <= command) or at its lower one (-1, lambda >= command).
@@ -110,11 +114,8 @@ def solve_direct(
         if solved.any():
             c, f = solved, ~solved
             shift = d_free[c] + w[np.ix_(c, f)] @ lam[f] - target[c]
-            guess = (
-                None
-                if previous_actuation is None or previous_actuation.size != n
-                else previous_actuation[c]
-            )
+            guess = _matching(previous_actuation, n)
+            guess = None if guess is None else guess[c]
             lam[c] = box_qp(w[np.ix_(c, c)], shift, lo_eff[c], hi_eff[c], guess)
         delta = w @ lam + d_free
         scale = tolerance * max(1.0, float(np.abs(delta).max()))
@@ -131,3 +132,10 @@ def solve_direct(
             return lam
         status = new
     return lam
+
+
+def _matching(previous_actuation: np.ndarray | None, n: int) -> np.ndarray | None:
+    """The previous step's forces as a warm start, if they are for the same actuators."""
+    if previous_actuation is None or previous_actuation.size != n:
+        return None
+    return previous_actuation

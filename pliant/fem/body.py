@@ -42,6 +42,7 @@ class Linearisation:
     energy: float
     frames: np.ndarray
     dets: np.ndarray
+    stiffness_velocity: np.ndarray | None = None  # K_s v (n, 3) when linearised with v
 
     @property
     def n_inverted(self) -> int:
@@ -124,6 +125,7 @@ class TetBody:
         self.mass_type: MassType = mass
         self.node_masses = self._node_masses(mass)
         self.mass_data = self._mass_data(mass)
+        self._mass_diagonal = np.repeat(self.node_masses, 3)[self.free_dofs]
         self._element_blocks = np.empty((n_elem, 12, 12))
         # Node -> (element, local vertex) incidence, to gather element contributions in parallel.
         order = np.argsort(self.tets.ravel(), kind="stable")
@@ -195,7 +197,7 @@ class TetBody:
         """M u on the free DoFs; u is (n_free,) or (n_free, k)."""
         if self.mass_type == "consistent":
             return self.pattern.matrix(self.mass_data) @ u
-        diag = np.repeat(self.node_masses, 3)[self.free_dofs]
+        diag = self._mass_diagonal
         return diag[:, None] * u if u.ndim == 2 else diag * u
 
     def gravity_forces(self) -> np.ndarray:
@@ -203,15 +205,25 @@ class TetBody:
         return self.node_masses[:, None] * self.gravity[None, :]
 
     # --- elasticity -------------------------------------------------------------------------
-    def linearise(self, positions: np.ndarray) -> Linearisation:
-        """Internal forces, energy and element frames at `positions` (n, 3)."""
+    def linearise(
+        self, positions: np.ndarray, velocities: np.ndarray | None = None
+    ) -> Linearisation:
+        """Internal forces, energy and element frames at `positions` (n, 3), and K_s v when
+        `velocities` (n, 3, zero on fixed nodes) are given."""
         x = np.ascontiguousarray(positions, dtype=np.float64)
+        v = (
+            np.empty((0, 3))
+            if velocities is None
+            else np.ascontiguousarray(velocities, dtype=np.float64)
+        )
         m = self.tets.shape[0]
         elem_forces = np.empty((m, 4, 3))
+        elem_kv = np.empty((m if v.shape[0] else 0, 4, 3))
         frames = np.empty((m, 3, 3))
         dets = np.empty(m)
         energy = kernels.internal_forces(
             x,
+            v,
             self.tets,
             self.grads,
             self.volumes,
@@ -219,12 +231,17 @@ class TetBody:
             self.lam,
             self.material.kernel_tag,
             elem_forces,
+            elem_kv,
             frames,
             dets,
         )
         forces = np.empty_like(x)
         kernels.gather_nodal(elem_forces, self._incidence_ptr, self._incidence, forces)
-        return Linearisation(x, forces, float(energy), frames, dets)
+        kv = None
+        if v.shape[0]:
+            kv = np.empty_like(x)
+            kernels.gather_nodal(elem_kv, self._incidence_ptr, self._incidence, kv)
+        return Linearisation(x, forces, float(energy), frames, dets, kv)
 
     def stiffness_matvec(
         self, lin: Linearisation, u: np.ndarray, *, exact: bool = False

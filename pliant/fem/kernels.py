@@ -123,15 +123,18 @@ def _gradient(x, tet, g, out):
 
 
 @njit(cache=True, parallel=True)
-def internal_forces(x, tets, grads, vols, mu, lam, tag, elem_forces, frames, dets):
-    """Element internal forces and elastic energy.
+def internal_forces(x, v, tets, grads, vols, mu, lam, tag, elem_forces, elem_kv, frames, dets):
+    """Element internal forces and elastic energy, and optionally K_s v.
 
     Writes -V P g_a into `elem_forces` (m, 4, 3) (gather them with `gather_nodal`), the
     linearisation frame (R for corotational, F^-1 for Neo-Hookean) into `frames` (m, 3, 3)
     and det F into `dets`. An element with det F <= 0 contributes no force; its det is recorded
-    so that the caller reports the inversion instead of a NaN. Returns the total energy.
+    so that the caller reports the inversion instead of a NaN. When `v` (n, 3) is not empty,
+    also writes the element contributions of K_s v (default tangent, the one assembled) into
+    `elem_kv` (m, 4, 3), in the same pass: an implicit step needs both. Returns the energy.
     """
     m = tets.shape[0]
+    with_v = v.shape[0] > 0
     n_chunks = max(1, min(m, 64))
     bounds = np.linspace(0, m, n_chunks + 1).astype(np.int64)
     energies = np.zeros(n_chunks)
@@ -141,6 +144,7 @@ def internal_forces(x, tets, grads, vols, mu, lam, tag, elem_forces, frames, det
         work = np.empty((3, 3))
         p = np.empty((3, 3))
         sig = np.empty((3, 3))
+        w1 = np.empty((3, 3))
         energy = 0.0
         for e in range(bounds[c], bounds[c + 1]):
             g = grads[e]
@@ -149,6 +153,8 @@ def internal_forces(x, tets, grads, vols, mu, lam, tag, elem_forces, frames, det
             dets[e] = det
             if not det > 0.0:
                 elem_forces[e] = 0.0
+                if with_v:
+                    elem_kv[e] = 0.0
                 continue
             if tag == 0:
                 _polar(f, r, work)
@@ -187,6 +193,14 @@ def internal_forces(x, tets, grads, vols, mu, lam, tag, elem_forces, frames, det
                     elem_forces[e, a, i] = -vols[e] * (
                         p[i, 0] * g[a, 0] + p[i, 1] * g[a, 1] + p[i, 2] * g[a, 2]
                     )
+            if with_v:
+                _gradient(v, tets[e], g, work)
+                _piola_differential(work, frames[e], f, det, mu[e], lam[e], tag, False, p, w1, sig)
+                for a in range(4):
+                    for i in range(3):
+                        elem_kv[e, a, i] = vols[e] * (
+                            p[i, 0] * g[a, 0] + p[i, 1] * g[a, 1] + p[i, 2] * g[a, 2]
+                        )
         energies[c] = energy
     return energies.sum()
 
@@ -353,35 +367,39 @@ def gather_free(elem_values, incidence_ptr, incidence, free_index, out):
                 out[d, j] = acc
 
 
-@njit(cache=True)
+@njit(cache=True, parallel=True)
 def element_stiffness(x, tets, grads, vols, mu, lam, tag, frames, dets, exact, blocks):
     """Element tangent stiffness matrices, blocks (m, 12, 12), node-major (a, i)."""
-    df = np.zeros((3, 3))
-    f = np.empty((3, 3))
-    dp = np.empty((3, 3))
-    w1 = np.empty((3, 3))
-    w2 = np.empty((3, 3))
-    for e in range(tets.shape[0]):
-        if not dets[e] > 0.0:
-            blocks[e] = 0.0
-            continue
-        g = grads[e]
-        _gradient(x, tets[e], g, f)
-        v = vols[e]
-        for b in range(4):
-            for j in range(3):
-                for k in range(3):
-                    df[j, k] = g[b, k]
-                _piola_differential(
-                    df, frames[e], f, dets[e], mu[e], lam[e], tag, exact, dp, w1, w2
-                )
-                for k in range(3):
-                    df[j, k] = 0.0
-                for a in range(4):
-                    for i in range(3):
-                        blocks[e, 3 * a + i, 3 * b + j] = v * (
-                            dp[i, 0] * g[a, 0] + dp[i, 1] * g[a, 1] + dp[i, 2] * g[a, 2]
-                        )
+    m = tets.shape[0]
+    n_chunks = max(1, min(m, 64))
+    bounds = np.linspace(0, m, n_chunks + 1).astype(np.int64)
+    for c in prange(n_chunks):
+        df = np.zeros((3, 3))
+        f = np.empty((3, 3))
+        dp = np.empty((3, 3))
+        w1 = np.empty((3, 3))
+        w2 = np.empty((3, 3))
+        for e in range(bounds[c], bounds[c + 1]):
+            if not dets[e] > 0.0:
+                blocks[e] = 0.0
+                continue
+            g = grads[e]
+            _gradient(x, tets[e], g, f)
+            v = vols[e]
+            for b in range(4):
+                for j in range(3):
+                    for k in range(3):
+                        df[j, k] = g[b, k]
+                    _piola_differential(
+                        df, frames[e], f, dets[e], mu[e], lam[e], tag, exact, dp, w1, w2
+                    )
+                    for k in range(3):
+                        df[j, k] = 0.0
+                    for a in range(4):
+                        for i in range(3):
+                            blocks[e, 3 * a + i, 3 * b + j] = v * (
+                                dp[i, 0] * g[a, 0] + dp[i, 1] * g[a, 1] + dp[i, 2] * g[a, 2]
+                            )
 
 
 @njit(cache=True)

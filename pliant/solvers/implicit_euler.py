@@ -63,16 +63,17 @@ class ImplicitEuler:
         ctrl = as_control(control)
         ctrl.prepare(model)
         step = state.step + 1
-        lin = body.linearise(state.positions)
+        lin = body.linearise(state.positions, state.velocities)
         check_linearisation(lin, step, h)
         a_m, a_k = self._coefficients()
         try:
             self.system.prepare(lin, a_m, a_k)
-            space = model.constraint_space(state.positions)
+            space = model.constraint_space(state.positions, roles=getattr(ctrl, "roles", None))
             v = body.gather(state.velocities)
-            f = body.gather(lin.forces + self._gravity)
-            kv = body.stiffness_matvec(lin, v)
-            rhs = h * f - (a_m - 1.0) * body.mass_matvec(v) - a_k * kv
+            rhs = h * body.gather(lin.forces + self._gravity)
+            rhs -= a_k * body.gather(lin.stiffness_velocity)
+            if a_m != 1.0:
+                rhs -= (a_m - 1.0) * body.mass_matvec(v)
             cols = self.system.solve(np.column_stack([rhs, space.jacobian_t]))
         except SolverError as exc:
             raise DivergenceError(f"step {step}: {exc}", step=step, cause="solver") from exc

@@ -1,53 +1,87 @@
-"""Sparse linear algebra: the Cholesky backend and the preconditioned block CG.
+"""Sparse linear algebra: the Cholesky backends and the preconditioned block CG.
 
-Backend choice (measured on the Diamond's A = M + h^2 K, 4812 DoFs, 145k non-zeros, this
-2-core machine): CHOLMOD through ``cholespy`` factorises in 16 ms and solves 1 / 5 right-hand
-sides in 0.21 / 0.53 ms; SuperLU (scipy) 33 ms and 0.70 ms per RHS; PARDISO (pypardiso)
-180 ms and 1.05 ms. CHOLMOD it is.
+Backend choice (measured on the Diamond's A = M + h^2 K, 4710 DoFs, 141k non-zeros, this
+2-core machine): CHOLMOD with the symbolic analysis kept (:mod:`pliant.solvers.cholmod`)
+refactorises in 2.3 ms; CHOLMOD through ``cholespy``, which analyses again every time, in 21.6 ms;
+SuperLU (scipy) 33 ms; PARDISO (pypardiso) numeric-only 1.7 ms but 0.7 ms per right-hand side
+solved (CHOLMOD: 0.95 ms for 9 together). The default is CHOLMOD with a kept analysis, cholespy
+the fallback when cvxopt's CHOLMOD is missing (``PLIANT_CHOLESKY=cholespy`` forces it).
 """
 
 from __future__ import annotations
 
+import os
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Protocol
 
 import numpy as np
-import scipy.sparse as sp
 from cholespy import CholeskySolverD, MatrixType
 
 from pliant.errors import SolverError
+from pliant.solvers.cholmod import CholmodCholesky
+from pliant.solvers.cholmod import available as cholmod_available
 
 
-class CholeskyFactor:
-    """Sparse Cholesky factor of a symmetric positive definite matrix (CHOLMOD)."""
+class SparseCholesky(Protocol):
+    """Cholesky factorisations of SPD matrices on one fixed symmetric sparsity pattern."""
 
-    def __init__(self, matrix: sp.csr_matrix) -> None:
-        if matrix.shape[0] == 0:
+    n: int
+
+    def factorize(self, data: np.ndarray) -> None: ...
+
+    def solve(self, rhs: np.ndarray) -> np.ndarray: ...
+
+
+class CholespyCholesky:
+    """CHOLMOD through cholespy: analysis and factorisation at every `factorize`."""
+
+    def __init__(self, indptr: np.ndarray, indices: np.ndarray) -> None:
+        self.n = int(indptr.size - 1)
+        if self.n == 0:
             raise SolverError("cannot factorise an empty system: every degree of freedom is fixed")
-        csr = sp.csr_matrix(matrix)
-        if not np.all(np.isfinite(csr.data)):
+        self._indptr = np.ascontiguousarray(indptr, dtype=np.int32)
+        self._indices = np.ascontiguousarray(indices, dtype=np.int32)
+        self._solver = None
+
+    def factorize(self, data: np.ndarray) -> None:
+        values = np.ascontiguousarray(data, dtype=np.float64)
+        if not np.all(np.isfinite(values)):
             raise SolverError("the system matrix has non-finite entries")
         try:
             self._solver = CholeskySolverD(
-                csr.shape[0],
-                csr.indptr.astype(np.int32),
-                csr.indices.astype(np.int32),
-                csr.data.astype(np.float64),
-                MatrixType.CSR,
+                self.n, self._indptr, self._indices, values, MatrixType.CSR
             )
         except (ValueError, RuntimeError) as exc:
+            self._solver = None
             raise SolverError(
                 f"Cholesky factorisation failed ({exc}); the matrix is not positive definite:"
                 " is the body held (fixed nodes) for a static solve, are elements inverted?"
             ) from exc
-        self.n = csr.shape[0]
 
     def solve(self, rhs: np.ndarray) -> np.ndarray:
-        """x = A^-1 rhs for rhs (n,) or (n, k)."""
+        if self._solver is None:
+            raise SolverError("solve called before a successful factorisation")
         b = np.ascontiguousarray(rhs, dtype=np.float64)
         x = np.empty_like(b)
         self._solver.solve(b, x)
         return x
+
+
+def sparse_cholesky(
+    indptr: np.ndarray, indices: np.ndarray, backend: str | None = None
+) -> SparseCholesky:
+    """A Cholesky backend for the pattern: "cholmod" (default when available) or "cholespy"."""
+    backend = (
+        backend
+        or os.environ.get("PLIANT_CHOLESKY")
+        or ("cholmod" if cholmod_available() else "cholespy")
+    )
+    if backend == "cholmod":
+        return CholmodCholesky(indptr, indices)
+    if backend == "cholespy":
+        return CholespyCholesky(indptr, indices)
+    raise SolverError(f"unknown Cholesky backend {backend!r}; use 'cholmod' or 'cholespy'")
 
 
 @dataclass

@@ -45,12 +45,12 @@ class StaticSolver:
         self.dt = None
         self.last_report = StepReport()
 
-    def _condense(self, q: np.ndarray, step: int):
+    def _condense(self, q: np.ndarray, step: int, roles: tuple[str, ...] | None = None):
         model, body = self.model, self.model.body
         lin = body.linearise(q)
         check_linearisation(lin, step, None)
         self.system.prepare(lin, 0.0, 1.0)
-        space = model.constraint_space(q)
+        space = model.constraint_space(q, roles=roles)
         residual = body.gather(lin.forces + self._gravity)
         cols = self.system.solve(np.column_stack([residual, space.jacobian_t]))
         dq_free, k_inv_ht = cols[:, 0], cols[:, 1:]
@@ -66,7 +66,7 @@ class StaticSolver:
         q = state.positions.copy()
         for it in range(1, self.max_iterations + 1):  # noqa: B007 (reported after the loop)
             try:
-                problem, dq_free, k_inv_ht = self._condense(q, step)
+                problem, dq_free, k_inv_ht = self._condense(q, step, getattr(ctrl, "roles", None))
             except SolverError as exc:
                 raise DivergenceError(f"step {step}: {exc}", step=step, cause="solver") from exc
             lam_a = ctrl.actuation(problem, model, state)

@@ -25,7 +25,7 @@ import numpy as np
 
 from pliant.errors import SolverError
 from pliant.fem.body import Linearisation, TetBody
-from pliant.solvers.linear import CholeskyFactor, block_pcg
+from pliant.solvers.linear import SparseCholesky, block_pcg, sparse_cholesky
 
 TangentPolicy = Literal["fresh", "pcg", "lagged"]
 
@@ -49,7 +49,8 @@ class LinearisedSystem:
         self.refactor_iterations = refactor_iterations
         self.lag_tolerance = lag_tolerance
         self.max_iterations = max_iterations
-        self._factor: CholeskyFactor | None = None
+        self._cholesky: SparseCholesky | None = None
+        self._factor_valid = False
         self._factor_frames: np.ndarray | None = None
         self._factor_coefs: tuple[float, float] | None = None
         self._fresh = False
@@ -59,7 +60,7 @@ class LinearisedSystem:
 
     def invalidate(self) -> None:
         """Forget the factorisation (after a state restore, to stay reproducible)."""
-        self._factor = None
+        self._factor_valid = False
 
     def prepare(self, lin: Linearisation, mass_coef: float, stiffness_coef: float) -> None:
         """Set the linearisation of the next solves: A = mass_coef M + stiffness_coef K_s."""
@@ -68,7 +69,7 @@ class LinearisedSystem:
         self.stiffness_coef = stiffness_coef
         self._fresh = False
         needs = (
-            self._factor is None
+            not self._factor_valid
             or self.policy == "fresh"
             or self._refactor_next
             or self._factor_coefs != (mass_coef, stiffness_coef)
@@ -82,7 +83,11 @@ class LinearisedSystem:
     def refactorise(self) -> None:
         body = self.body
         data = self.stiffness_coef * body.stiffness_data(self.lin) + self.mass_coef * body.mass_data
-        self._factor = CholeskyFactor(body.pattern.matrix(data))
+        if self._cholesky is None:
+            self._cholesky = sparse_cholesky(body.pattern.indptr, body.pattern.indices)
+        self._factor_valid = False
+        self._cholesky.factorize(data)
+        self._factor_valid = True
         self._factor_frames = self.lin.frames.copy()
         self._factor_coefs = (self.mass_coef, self.stiffness_coef)
         self._fresh = True
@@ -100,11 +105,11 @@ class LinearisedSystem:
         """A^-1 rhs for rhs (n_free,) or (n_free, k)."""
         if self._fresh or self.policy == "lagged":
             self.last_iterations = 0
-            return self._factor.solve(rhs)
+            return self._cholesky.solve(rhs)
         cols = rhs[:, None] if rhs.ndim == 1 else rhs
         x, report = block_pcg(
             self.apply,
-            self._factor.solve,
+            self._cholesky.solve,
             cols,
             rtol=self.rtol,
             max_iterations=self.refactor_iterations * 4,
@@ -112,7 +117,7 @@ class LinearisedSystem:
         self.last_iterations = report.iterations
         if not report.converged:
             self.refactorise()
-            x = self._factor.solve(cols)
+            x = self._cholesky.solve(cols)
         elif report.iterations > self.refactor_iterations:
             self._refactor_next = True
         if not np.all(np.isfinite(x)):
