@@ -221,3 +221,60 @@ def test_restored_state_replays_the_trajectory(tmp_path, robot_models, tangent) 
             assert np.array_equal(a.actuation, b.actuation)
         else:
             assert np.abs(a.positions - b.positions).max() < 1e-2 * motion
+
+
+# ---------------------------------------------------------------------------------------------
+# Cholesky backends: CHOLMOD with a kept symbolic analysis, and cholespy
+
+
+def _tangent_system(seed: int):
+    """A = M + h^2 K_s of a clamped beam at a randomly deformed configuration (SPD)."""
+    body = clamped_body(box_beam(40.0, 8.0, 8.0, nx=6, ny=2, nz=2), Corotational(200.0, 0.4))
+    rng = np.random.default_rng(seed)
+    x = body.rest_positions + rng.normal(0.0, 0.3, body.rest_positions.shape)
+    x[body.fixed_nodes] = body.rest_positions[body.fixed_nodes]
+    data = 1e-4 * body.stiffness_data(body.linearise(x)) + body.mass_data
+    return body.pattern, data
+
+
+@pytest.mark.parametrize("backend", ["cholmod", "cholespy"])
+def test_cholesky_backends_solve_refactorised_systems(backend) -> None:
+    """One analysis, several numeric factorisations: each solve matches SuperLU to 1e-10."""
+    import scipy.sparse.linalg as spla
+
+    from pliant.solvers.linear import sparse_cholesky
+
+    pattern, _ = _tangent_system(0)
+    factor = sparse_cholesky(pattern.indptr, pattern.indices, backend)
+    rng = np.random.default_rng(1)
+    for seed in range(3):
+        _, data = _tangent_system(seed)
+        factor.factorize(data)
+        a = pattern.matrix(data).tocsc()
+        rhs = rng.normal(size=(pattern.n_free, 4))
+        expected = spla.splu(a).solve(rhs)
+        got = factor.solve(rhs)
+        assert got.shape == rhs.shape
+        assert np.abs(got - expected).max() < 1e-10 * np.abs(expected).max()
+        single = factor.solve(rhs[:, 0])
+        assert np.abs(single - expected[:, 0]).max() < 1e-10 * np.abs(expected).max()
+
+
+@pytest.mark.parametrize("backend", ["cholmod", "cholespy"])
+def test_cholesky_backends_reject_indefinite_and_non_finite_matrices(backend) -> None:
+    from pliant.solvers.linear import sparse_cholesky
+
+    pattern, data = _tangent_system(0)
+    factor = sparse_cholesky(pattern.indptr, pattern.indices, backend)
+    with pytest.raises(SolverError, match="not positive definite"):
+        factor.factorize(-data)
+    with pytest.raises(SolverError, match="before a successful factorisation"):
+        factor.solve(np.ones(pattern.n_free))
+    bad = data.copy()
+    bad[0] = np.nan
+    with pytest.raises(SolverError, match="non-finite"):
+        factor.factorize(bad)
+    factor.factorize(data)  # usable again after the failures
+    assert np.all(np.isfinite(factor.solve(np.ones(pattern.n_free))))
+    with pytest.raises(SolverError, match="unknown Cholesky backend"):
+        sparse_cholesky(pattern.indptr, pattern.indices, "umfpack")
