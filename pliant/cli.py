@@ -13,6 +13,7 @@ from rich.progress import Progress
 from rich.table import Table
 
 from pliant import robots
+from pliant.condensed.cli import app as condensed_app
 from pliant.errors import PliantError
 from pliant.solvers import ImplicitEuler, StaticSolver
 
@@ -22,6 +23,7 @@ app = typer.Typer(
     help="Simulate, control and benchmark FEM soft robots.",
 )
 console = Console()
+app.add_typer(condensed_app, name="condensed")
 
 
 def _solver(model, solver: str, dt: float):

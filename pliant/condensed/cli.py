@@ -1,0 +1,299 @@
+"""``pliant condensed``: collect a dataset, train F, evaluate it, control with it."""
+
+from __future__ import annotations
+
+import json
+import warnings
+from pathlib import Path
+from typing import Annotated
+
+import numpy as np
+import typer
+from rich.console import Console
+from rich.progress import Progress
+from rich.table import Table
+
+from pliant import robots
+from pliant.errors import PliantError
+
+app = typer.Typer(
+    add_completion=False,
+    no_args_is_help=True,
+    help="Learned condensed FEM model (thesis §5.1): data, training, evaluation, control.",
+)
+console = Console()
+
+
+def _fail(exc: Exception) -> typer.Exit:
+    console.print(f"[red]error:[/red] {exc}")
+    return typer.Exit(1)
+
+
+def _number_or_text(text: str) -> float | int | str:
+    for kind in (int, float):
+        try:
+            return kind(text)
+        except ValueError:
+            pass
+    return text
+
+
+def _interval(text: str) -> tuple[float, float]:
+    try:
+        low, high = (float(v) for v in text.split(":"))
+    except ValueError:
+        raise typer.BadParameter(f"expected LOW:HIGH, got {text!r}") from None
+    return low, high
+
+
+def _assignments(items: list[str]) -> dict[str, str]:
+    out = {}
+    for item in items:
+        key, sep, value = item.partition("=")
+        if not sep or not key:
+            raise typer.BadParameter(f"expected NAME=VALUE, got {item!r}")
+        out[key] = value
+    return out
+
+
+@app.command()
+def collect(
+    robot: Annotated[str, typer.Argument(help=f"one of {', '.join(sorted(robots.ROBOTS))}")],
+    out: Annotated[Path, typer.Option(help="HDF5 dataset to write")],
+    bounds: Annotated[
+        list[str],
+        typer.Option(help="LOW:HIGH of the actuator displacements, once for all or per actuator"),
+    ],
+    samples: Annotated[int, typer.Option(help="training samples (test: 25 %)")] = 6500,
+    test_fraction: Annotated[float, typer.Option(help="test samples / training samples")] = 0.25,
+    seed: Annotated[int, typer.Option(help="seed of the sampling")] = 0,
+    set_: Annotated[
+        list[str] | None,
+        typer.Option("--set", help="builder keyword NAME=VALUE, e.g. resolution=fine"),
+    ] = None,
+    design: Annotated[
+        list[str] | None, typer.Option(help="design parameter NAME=LOW:HIGH sampled with the rest")
+    ] = None,
+    max_increment: Annotated[
+        float, typer.Option(help="largest command change per static step")
+    ] = 1.0,
+    chunk_size: Annotated[int, typer.Option(help="samples per saved chunk")] = 16,
+    workers: Annotated[
+        int | None, typer.Option(help="local processes (default: one per CPU)")
+    ] = None,
+    ray: Annotated[str | None, typer.Option(help="Ray cluster address (auto, ray://...)")] = None,
+) -> None:
+    """Sample ROBOT's actuator displacements (scrambled Halton), solve each, write OUT.
+
+    Rerun the same command to resume an interrupted collection.
+    """
+    from pliant.condensed.collect import collect as run_collection
+    from pliant.condensed.dataset import CollectionPlan
+
+    try:
+        kwargs = {k: _number_or_text(v) for k, v in _assignments(set_ or []).items()}
+        n_act = robots.build(robot, **kwargs).n_actuators
+        intervals = [_interval(b) for b in bounds]
+        if len(intervals) == 1:
+            intervals *= n_act
+        if len(intervals) != n_act:
+            raise typer.BadParameter(f"{robot} has {n_act} actuators, got {len(intervals)} bounds")
+        plan = CollectionPlan(
+            robot,
+            tuple(intervals),
+            samples,
+            robot_kwargs=kwargs,
+            design_bounds={k: _interval(v) for k, v in _assignments(design or []).items()},
+            test_fraction=test_fraction,
+            seed=seed,
+            max_increment=max_increment,
+            chunk_size=chunk_size,
+        )
+        with Progress(console=console) as bar:
+            task = bar.add_task(f"{robot}: equilibria", total=plan.n_train + plan.n_test)
+            dataset = run_collection(
+                plan,
+                out,
+                workers=workers,
+                ray_address=ray,
+                on_chunk=lambda done, total: bar.update(task, completed=done),
+            )
+    except PliantError as exc:
+        raise _fail(exc) from exc
+    failed = {s: int((~dataset.split(s).converged.astype(bool)).sum()) for s in ("train", "test")}
+    console.print(
+        f"saved {out}: {plan.n_train} training and {plan.n_test} test samples"
+        f" ({failed['train']} and {failed['test']} did not converge)"
+    )
+
+
+@app.command()
+def train(
+    dataset: Annotated[Path, typer.Argument(help="HDF5 dataset")],
+    out: Annotated[Path, typer.Option(help="learned model file to write (.pt)")],
+    epochs: Annotated[int, typer.Option()] = 1000,
+    batch_size: Annotated[int, typer.Option()] = 256,
+    learning_rate: Annotated[float, typer.Option()] = 1e-4,
+    hidden: Annotated[
+        str, typer.Option(help="hidden layer widths, comma separated")
+    ] = "450,450,450",
+    dropout: Annotated[float, typer.Option()] = 0.0,
+    seed: Annotated[int, typer.Option()] = 0,
+    log_dir: Annotated[Path | None, typer.Option(help="TensorBoard folder")] = None,
+    checkpoint: Annotated[
+        Path | None, typer.Option(help="checkpoint file, resumed from if it exists")
+    ] = None,
+) -> None:
+    """Train F (3 x 450 ReLU MLP by default) on DATASET; keep the best epoch."""
+    from pliant.condensed.dataset import Dataset
+    from pliant.condensed.train import TrainConfig, evaluate, train_condensed
+
+    try:
+        data = Dataset.load(dataset)
+        config = TrainConfig(
+            epochs=epochs,
+            batch_size=batch_size,
+            learning_rate=learning_rate,
+            hidden=tuple(int(h) for h in hidden.split(",")),
+            dropout=dropout,
+            seed=seed,
+            log_dir=log_dir,
+            checkpoint=checkpoint,
+        )
+        learned, result = train_condensed(data, config)
+        learned.save(out)
+        scores = evaluate(learned, data.test)
+    except PliantError as exc:
+        raise _fail(exc) from exc
+    console.print(
+        f"saved {out}: best epoch {result.best_epoch}, standardised test loss"
+        f" {scores['loss']:.3g} (constant-W0 baseline {scores['baseline_loss']:.3g})"
+    )
+
+
+@app.command()
+def evaluate(
+    model: Annotated[Path, typer.Argument(help="learned model file")],
+    dataset: Annotated[Path, typer.Argument(help="HDF5 dataset")],
+) -> None:
+    """Standardised loss (Eq. 5.5) of MODEL on DATASET beside the constant-W0 baseline."""
+    from pliant.condensed.dataset import Dataset
+    from pliant.condensed.learned import LearnedCondensedModel
+    from pliant.condensed.train import evaluate as scores_of
+
+    try:
+        learned = LearnedCondensedModel.load(model)
+        data = Dataset.load(dataset)
+        learned.layout.check_matches(data.layout, str(dataset))
+        table = Table(title=f"{model.name} on {dataset.name}")
+        for col in ("split", "samples", "loss", "constant-W0 baseline"):
+            table.add_column(col)
+        for name in ("train", "test"):
+            s = scores_of(learned, data.split(name))
+            table.add_row(name, str(s["samples"]), f"{s['loss']:.3g}", f"{s['baseline_loss']:.3g}")
+    except PliantError as exc:
+        raise _fail(exc) from exc
+    console.print(table)
+
+
+@app.command()
+def control(
+    model: Annotated[Path, typer.Argument(help="learned model file")],
+    trajectory: Annotated[str, typer.Option(help="goal trajectory of the robot")] = "",
+    goals: Annotated[int, typer.Option(help="number of goals")] = 30,
+    iterations: Annotated[int, typer.Option(help="control iterations per goal")] = 5,
+    pid: Annotated[str, typer.Option(help="K,I,D of the goal correction (Eq. 5.14)")] = "",
+    exact: Annotated[bool, typer.Option(help="also control with the exact FEM matrices")] = True,
+    embedded: Annotated[
+        int, typer.Option(help="also run the embedded loop this many iterations, report its rate")
+    ] = 0,
+    out: Annotated[Path, typer.Option(help="output folder")] = Path("out"),
+) -> None:
+    """Control the FEM robot with MODEL along a trajectory, beside the exact matrices.
+
+    Writes a plot (Fig. 5.4) and a JSON report to OUT.
+    """
+    from pliant.condensed.control import (
+        PID,
+        EmbeddedController,
+        ExactCondensed,
+        follow_trajectory,
+        loop_frequency,
+    )
+    from pliant.condensed.learned import LearnedCondensedModel, OutOfBoundsWarning
+    from pliant.condensed.plots import plot_reached
+    from pliant.solvers import StaticSolver
+
+    try:
+        learned = LearnedCondensedModel.load(model)
+        plan = learned.plan
+        entry = robots.entry(plan.robot)
+        name = trajectory or next(iter(entry.trajectories))
+        if name not in entry.trajectories:
+            raise typer.BadParameter(
+                f"{plan.robot} has trajectories {sorted(entry.trajectories)}, not {name!r}"
+            )
+        targets = entry.trajectories[name](goals)
+        gains = [float(v) for v in pid.split(",")] if pid else []
+
+        def controller() -> PID | None:
+            return PID(*gains) if gains else None
+
+        robot = robots.build(plan.robot, **plan.robot_kwargs)
+        reached = {}
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always", OutOfBoundsWarning)
+            result = follow_trajectory(
+                robot,
+                targets,
+                learned,
+                iterations=iterations,
+                pid=controller(),
+                course=learned.input_box,
+            )
+        reached["learned"] = result
+        if exact:
+            reference = ExactCondensed(robot, StaticSolver(robot))
+            reached["exact"] = follow_trajectory(
+                robot,
+                targets,
+                reference,
+                iterations=iterations,
+                pid=controller(),
+                course=learned.input_box,
+            )
+        rate = None
+        if embedded:
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore", OutOfBoundsWarning)
+                rate = loop_frequency(
+                    EmbeddedController(learned, pid=controller()), targets, embedded
+                )
+    except PliantError as exc:
+        raise _fail(exc) from exc
+    folder = out / f"{plan.robot}_{name}"
+    folder.mkdir(parents=True, exist_ok=True)
+    plane = (0, 1) if plan.robot == "diamond" else (0, 2)
+    plot = plot_reached(
+        targets,
+        {k: r.reached[:, 0] for k, r in reached.items()},
+        folder / "reached.png",
+        plane=plane,
+        title=f"{plan.robot} {name}: learned vs exact condensed model",
+    )
+    report = {
+        k: {"errors": r.errors.tolist(), "mean_error": float(r.errors.mean())}
+        for k, r in reached.items()
+    }
+    report["out_of_bounds_warnings"] = len(caught)
+    if rate is not None:
+        report["embedded_loop_hz"] = rate
+    (folder / "report.json").write_text(json.dumps(report, indent=1))
+    for k, r in reached.items():
+        console.print(f"{k}: mean distance to goal {r.errors.mean():.3f}, max {r.errors.max():.3f}")
+    if "exact" in reached:
+        gap = np.linalg.norm(reached["learned"].reached - reached["exact"].reached, axis=-1)
+        console.print(f"learned vs exact reached positions: mean gap {gap.mean():.3f}")
+    if rate is not None:
+        console.print(f"embedded loop (network + QP): {rate:.0f} iterations/s")
+    console.print(f"saved {plot} and {folder / 'report.json'}")

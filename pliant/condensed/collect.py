@@ -1,0 +1,237 @@
+"""Data acquisition (thesis §5.1.2): the robot solved quasi-statically at every planned sample.
+
+The samples are cut into chunks of `plan.chunk_size`. A worker solves a chunk in a row, each
+sample load-stepped from the previous one's equilibrium (Newton converges where a jump from rest
+would not), the first from the rest equilibrium; so a chunk's result does not depend on which
+worker solves it, nor when. Every finished chunk is written at once, atomically, next to the
+output file (`OUT.parts/`): an interrupted collection loses nothing already computed, and the
+next call with the same plan solves only the missing chunks and gives the same dataset.
+
+Chunks run on local processes (default), in this process (`workers=1`), or on a Ray cluster
+(`ray_address`, e.g. "auto" for the cluster this machine belongs to).
+"""
+
+from __future__ import annotations
+
+import functools
+import json
+import multiprocessing
+import os
+import shutil
+from collections.abc import Callable, Iterator
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from contextlib import closing
+from dataclasses import fields
+from pathlib import Path
+
+import numpy as np
+
+from pliant import robots
+from pliant.condensed.dataset import SPLITS, CollectionPlan, Dataset, Split, atomic_write
+from pliant.condensed.equilibrium import load_step, rest_equilibrium
+from pliant.condensed.layout import Layout
+from pliant.errors import DatasetError, DivergenceError
+from pliant.model import Model
+from pliant.solvers import StaticSolver
+
+ChunkKey = tuple[str, int, int]  # split, first sample, end
+
+
+def collect(
+    plan: CollectionPlan,
+    out: str | os.PathLike,
+    *,
+    workers: int | None = None,
+    ray_address: str | None = None,
+    on_chunk: Callable[[int, int], None] | None = None,
+) -> Dataset:
+    """Solve every sample of `plan` and write the dataset to `out` (HDF5); resume a partial
+    collection of the same plan if one is there.
+
+    Args:
+        workers: local worker processes (default: one per CPU); 1 solves in this process.
+        ray_address: run the chunks on this Ray cluster instead ("auto", "ray://host:port").
+        on_chunk: called with (samples done, samples in all) after each chunk is saved.
+    """
+    out = Path(out)
+    if out.exists():
+        raise DatasetError(f"{out} already exists; remove it or write the dataset elsewhere")
+    layout = Layout.of(_build(plan.robot, json.dumps(plan.robot_kwargs, sort_keys=True)))
+    parts = _parts_folder(out, plan)
+    points = plan.points()
+    chunks = [
+        (split, start, min(start + plan.chunk_size, len(points[split])))
+        for split in SPLITS
+        for start in range(0, len(points[split]), plan.chunk_size)
+    ]
+    total = sum(len(p) for p in points.values())
+    saved = {key for key in chunks if _chunk_path(parts, key).exists()}
+    done = sum(stop - start for _, start, stop in saved)
+    jobs = [(key, points[key[0]][key[1] : key[2]]) for key in chunks if key not in saved]
+    results = (
+        _ray_chunks(plan, jobs, ray_address)
+        if ray_address is not None
+        else _local_chunks(plan, jobs, workers)
+    )
+    with closing(results):
+        for key, split in results:
+            _save_chunk(_chunk_path(parts, key), split)
+            done += key[2] - key[1]
+            if on_chunk is not None:
+                on_chunk(done, total)
+    splits = {
+        name: Split.concatenate(
+            [_load_chunk(_chunk_path(parts, k)) for k in chunks if k[0] == name]
+        )
+        for name in SPLITS
+    }
+    dataset = Dataset(plan, layout, splits["train"], splits["test"])
+    dataset.save(out)
+    shutil.rmtree(parts)
+    return dataset
+
+
+def solve_chunk(plan: CollectionPlan, points: np.ndarray) -> Split:
+    """Equilibria at consecutive samples (rows: actuator commands, then design parameters)."""
+    n_act = len(plan.actuator_bounds)
+    rows: list[dict[str, np.ndarray]] = []
+    design = None
+    for point in np.atleast_2d(points):
+        command, params = point[:n_act], point[n_act:]
+        if design is None or not np.array_equal(params, design):
+            design = params
+            kwargs = {
+                **plan.robot_kwargs,
+                **dict(zip(plan.design_names, params.tolist(), strict=True)),
+            }
+            model = _build(plan.robot, json.dumps(kwargs, sort_keys=True))
+            layout = Layout.of(model)
+            solver = StaticSolver(model)
+            rest = rest_equilibrium(model, solver)
+            w0, free0 = layout.pack(solver.condense(rest))
+            state = rest
+        try:
+            state = load_step(model, solver, state, command, plan.max_increment)
+        except DivergenceError:
+            try:  # from rest, in finer steps
+                state = load_step(model, solver, rest, command, plan.max_increment / 4)
+            except DivergenceError:
+                state = rest
+                rows.append(_failed(command, params, layout))
+                continue
+        w, free = layout.pack(solver.condense(state))
+        rows.append(
+            {
+                "command": command,
+                "design": params,
+                "delta_a": state.displacement,
+                "delta_c": np.zeros(layout.counts["contact"]),
+                "w_triangle": w,
+                "free_distance": free,
+                "w0_triangle": w0,
+                "free_distance0": free0,
+                "converged": np.array(True),
+            }
+        )
+    return Split(**{f.name: np.array([r[f.name] for r in rows]) for f in fields(Split)})
+
+
+def _failed(command: np.ndarray, params: np.ndarray, layout: Layout) -> dict[str, np.ndarray]:
+    nan = {
+        "delta_a": layout.counts["actuator"],
+        "delta_c": layout.counts["contact"],
+        "w_triangle": layout.n_triangle,
+        "free_distance": layout.n_rows,
+        "w0_triangle": layout.n_triangle,
+        "free_distance0": layout.n_rows,
+    }
+    row = {key: np.full(n, np.nan) for key, n in nan.items()}
+    return {**row, "command": command, "design": params, "converged": np.array(False)}
+
+
+@functools.lru_cache(maxsize=1)
+def _build(robot: str, kwargs_json: str) -> Model:
+    """The robot, built once per process and design (meshing is the costly part)."""
+    return robots.build(robot, **json.loads(kwargs_json))
+
+
+def _local_chunks(
+    plan: CollectionPlan, jobs: list[tuple[ChunkKey, np.ndarray]], workers: int | None
+) -> Iterator[tuple[ChunkKey, Split]]:
+    workers = min(workers or os.cpu_count() or 1, max(1, len(jobs)))
+    if workers == 1:
+        for key, points in jobs:
+            yield key, solve_chunk(plan, points)
+        return
+    # spawn, not fork: gmsh and the BLAS threads of the parent must not be inherited
+    pool = ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("spawn"))
+    try:
+        futures = {pool.submit(solve_chunk, plan, points): key for key, points in jobs}
+        for future in as_completed(futures):
+            yield futures[future], future.result()
+    finally:
+        pool.shutdown(wait=True, cancel_futures=True)
+
+
+def _ray_chunks(
+    plan: CollectionPlan, jobs: list[tuple[ChunkKey, np.ndarray]], address: str
+) -> Iterator[tuple[ChunkKey, Split]]:
+    try:
+        import ray
+    except ImportError as exc:
+        raise ImportError(
+            "collecting on Ray needs the 'ray' package: pip install 'pliant[ray]'"
+        ) from exc
+    ray.init(address=address, ignore_reinit_error=True, log_to_driver=False)
+    remote = ray.remote(solve_chunk)
+    pending = {remote.remote(plan, points): key for key, points in jobs}
+    try:
+        while pending:
+            (ready,), _ = ray.wait(list(pending), num_returns=1)
+            yield pending.pop(ready), ray.get(ready)
+    finally:
+        for ref in pending:
+            ray.cancel(ref)
+
+
+def _parts_folder(out: Path, plan: CollectionPlan) -> Path:
+    """OUT.parts/, holding plan.json and the finished chunks; refuses another plan's."""
+    parts = out.with_name(out.name + ".parts")
+    parts.mkdir(parents=True, exist_ok=True)
+    plan_file = parts / "plan.json"
+    wanted = json.loads(json.dumps(plan.to_dict()))
+    if plan_file.exists():
+        try:
+            found = json.loads(plan_file.read_text())
+        except ValueError as exc:
+            raise DatasetError(f"{plan_file} is corrupt: {exc}") from exc
+        if found != wanted:
+            differs = sorted(
+                k for k in wanted.keys() | found.keys() if wanted.get(k) != found.get(k)
+            )
+            raise DatasetError(
+                f"the partial collection in {parts} was started with another plan (differs in"
+                f" {differs}); collect with the same settings or delete that folder"
+            )
+    else:
+        atomic_write(plan_file, lambda tmp: Path(tmp).write_text(json.dumps(wanted, indent=1)))
+    return parts
+
+
+def _chunk_path(parts: Path, key: ChunkKey) -> Path:
+    split, start, stop = key
+    return parts / f"{split}-{start:07d}-{stop:07d}.npz"
+
+
+def _save_chunk(path: Path, split: Split) -> None:
+    atomic_write(
+        path, lambda tmp: np.savez(tmp, **{f.name: getattr(split, f.name) for f in fields(Split)})
+    )
+
+
+def _load_chunk(path: Path) -> Split:
+    try:
+        with np.load(path) as data:
+            return Split(**{f.name: data[f.name] for f in fields(Split)})
+    except (OSError, KeyError, ValueError) as exc:
+        raise DatasetError(f"the saved chunk {path} is unreadable ({exc}); delete it") from exc

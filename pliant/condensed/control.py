@@ -1,0 +1,264 @@
+"""Inverse control from a condensed model, learned or exact (thesis §5.1.2-5.1.5).
+
+Every controller here does the same four things: get W and delta_free (from the network, or
+the FEM for reference), move the effector goals (Eq. 5.6), solve the inverse QP of Eq. 2.15
+for the actuator forces (ProxQP), and turn them into actuator displacements
+delta_a = W_aa lambda_a + delta_a_free. The robot is then driven in displacement:
+
+* `follow_trajectory`: the FEM robot as the plant, open loop or with the PID goal correction
+  of Eq. 5.14 (thesis Fig. 5.4: learned against exact matrices);
+* `EmbeddedController`: Algorithm 2, the network and the QP alone, no FEM in the loop.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import time
+from dataclasses import dataclass, field
+from typing import Protocol
+
+import numpy as np
+
+from pliant.condensed.equilibrium import load_step, rest_equilibrium
+from pliant.condensed.layout import ActuatorBounds, Layout
+from pliant.condensed.learned import LearnedCondensedModel
+from pliant.condensed.sampling import Box
+from pliant.constraints.condensed import CondensedProblem
+from pliant.constraints.inverse import InverseSolution, solve_inverse
+from pliant.errors import LearnedModelError
+from pliant.model import Model, State
+from pliant.solvers import StaticSolver
+
+
+class CondensedSource(Protocol):
+    """Where W and delta_free come from: the layout, and the problem at a state."""
+
+    layout: Layout
+
+    def problem(self, state: State) -> CondensedProblem: ...
+
+
+class ExactCondensed:
+    """W = H K^-1 H^T and delta_free computed by the FEM at each state (the reference)."""
+
+    def __init__(self, model: Model, solver: StaticSolver) -> None:
+        self.layout = Layout.of(model)
+        self.solver = solver
+
+    def problem(self, state: State) -> CondensedProblem:
+        return self.solver.condense(state)
+
+
+def shift_goals(
+    problem: CondensedProblem, layout: Layout, goal_rows: np.ndarray
+) -> CondensedProblem:
+    """Eq. 5.6: delta_e_free + p_goal^train - p_goal, the effectors moved to new goals (rows)."""
+    free = problem.free_distance.copy()
+    free[layout.slices["effector"]] += layout.training_goal_rows - goal_rows
+    return CondensedProblem(problem.compliance, free, problem.slices)
+
+
+def within(actuators: tuple[ActuatorBounds, ...], box: Box | None) -> list[ActuatorBounds]:
+    """The actuators with their course narrowed to a box of displacements (e.g. the region a
+    learned model covers), so that control stays where the model is valid."""
+    if box is None:
+        return list(actuators)
+    n = len(actuators)  # the box may go on with contact rows
+    return [
+        dataclasses.replace(
+            a,
+            min_displacement=max(a.min_displacement, float(lo)),
+            max_displacement=min(a.max_displacement, float(hi)),
+        )
+        for a, lo, hi in zip(actuators, box.low[:n], box.high[:n], strict=True)
+    ]
+
+
+def inverse_step(
+    problem: CondensedProblem,
+    layout: Layout,
+    goal_rows: np.ndarray,
+    actuators: list[ActuatorBounds],
+    displacement: np.ndarray,
+    *,
+    regularisation: float = 1e-3,
+) -> tuple[InverseSolution, np.ndarray]:
+    """Forces of the inverse QP (Eq. 2.15) for goals moved by Eq. 5.6, and the actuator
+    displacements they give, delta_a = W_aa lambda_a + delta_a_free."""
+    shifted = shift_goals(problem, layout, goal_rows)
+    solution = solve_inverse(
+        shifted, actuators, displacement, regularisation=regularisation, course="soft"
+    )
+    sa = problem.slices["actuator"]
+    return solution, problem.compliance[sa, sa] @ solution.actuation + problem.free_distance[sa]
+
+
+@dataclass
+class PID:
+    """Goal correction of Eq. 5.14: p_corrected = p_goal + K e_t + I sum e + D (e_t - e_t-1),
+    e_t = p_goal - p_effector, with unit steps for the sum and the difference."""
+
+    proportional: float = 0.0
+    integral: float = 0.0
+    derivative: float = 0.0
+    _sum: np.ndarray | None = field(default=None, init=False, repr=False)
+    _previous: np.ndarray | None = field(default=None, init=False, repr=False)
+
+    def correct(self, goal: np.ndarray, measured: np.ndarray) -> np.ndarray:
+        error = goal - measured
+        self._sum = error if self._sum is None else self._sum + error
+        change = error - self._previous if self._previous is not None else np.zeros_like(error)
+        self._previous = error
+        return (
+            goal + self.proportional * error + self.integral * self._sum + self.derivative * change
+        )
+
+    def reset(self) -> None:
+        self._sum = self._previous = None
+
+
+@dataclass
+class TrajectoryResult:
+    """Goals and the effector positions the FEM robot reached, one row per goal."""
+
+    goals: np.ndarray
+    reached: np.ndarray
+    displacements: np.ndarray
+
+    @property
+    def errors(self) -> np.ndarray:
+        """Euclidean distance between goal and reached effector position, per goal."""
+        return np.linalg.norm(self.reached - self.goals, axis=-1).max(axis=1)
+
+
+def effector_positions(model: Model, state: State) -> np.ndarray:
+    """Every effector point's position, (points, 3) in effector order."""
+    return np.vstack([e.position(state.positions) for e in model.effectors])
+
+
+def follow_trajectory(
+    model: Model,
+    goals: np.ndarray,
+    source: CondensedSource,
+    *,
+    iterations: int = 5,
+    pid: PID | None = None,
+    course: Box | None = None,
+    max_increment: float = 1.0,
+    regularisation: float = 1e-3,
+) -> TrajectoryResult:
+    """Drive the FEM robot through `goals` with condensed matrices from `source`.
+
+    For each goal, `iterations` times: W and delta_free at the robot's state, the goal moved
+    by Eq. 5.6 (corrected by `pid` from the measured effector, Eq. 5.14, if given), the QP,
+    and the resulting actuator displacements imposed on the FEM robot (load stepped).
+
+    Args:
+        goals: (n, 3) for a single effector point, or (n, points, 3).
+        course: a box of actuator displacements the controller keeps to.
+    """
+    layout = source.layout
+    layout.check(model)
+    goals = np.asarray(goals, dtype=float)
+    goals = goals.reshape(len(goals), -1, 3)
+    solver = StaticSolver(model)
+    state = rest_equilibrium(model, solver)
+    actuators = within(layout.actuators, course)
+    reached, displacements = [], []
+    for goal in goals:
+        goal_rows = layout.effector_rows(goal)
+        for _ in range(iterations):
+            target = goal_rows
+            if pid is not None:
+                target = pid.correct(
+                    goal_rows, layout.effector_rows(effector_positions(model, state))
+                )
+            _, displacement = inverse_step(
+                source.problem(state),
+                layout,
+                target,
+                actuators,
+                state.displacement,
+                regularisation=regularisation,
+            )
+            state = load_step(model, solver, state, displacement, max_increment)
+        reached.append(effector_positions(model, state))
+        displacements.append(state.displacement)
+    return TrajectoryResult(goals, np.array(reached), np.array(displacements))
+
+
+class EmbeddedController:
+    """Algorithm 2: closed-loop control from the learned model and a QP alone, no FEM.
+
+    Starts at lambda_a = 0, delta_a = delta_a_free of the rest values. Each `step`: correct
+    the goal from the measured effector (PID, Eq. 5.14, if given), predict W and delta_free
+    at delta_a, solve the QP for lambda_a, update delta_a = W_aa lambda_a + delta_a_free.
+    Without a sensor, the model's own prediction of the effector stands for it.
+    """
+
+    def __init__(
+        self,
+        learned: LearnedCondensedModel,
+        *,
+        pid: PID | None = None,
+        regularisation: float = 1e-3,
+        course: Box | None = None,
+    ) -> None:
+        self.learned = learned
+        self.layout = learned.layout
+        self.pid = pid
+        self.regularisation = regularisation
+        self.actuators = within(
+            self.layout.actuators, learned.input_box if course is None else course
+        )
+        rest = learned.layout.unpack(*learned.rest)
+        self.displacement = rest.free("actuator").copy()
+        self.actuation = np.zeros(self.layout.counts["actuator"])
+        self.effector_rows = rest.free("effector") + self.layout.training_goal_rows
+
+    def step(self, goal: np.ndarray, measured: np.ndarray | None = None) -> np.ndarray:
+        """One loop iteration for an effector goal (points, 3) and, optionally, the measured
+        effector positions; returns the actuator displacements to apply."""
+        measured_rows = None if measured is None else self.layout.effector_rows(measured)
+        return self.step_rows(self.layout.effector_rows(goal), measured_rows)
+
+    def step_rows(
+        self, goal_rows: np.ndarray, measured_rows: np.ndarray | None = None
+    ) -> np.ndarray:
+        """`step` with goals and measurements already in effector rows."""
+        if self.pid is not None:
+            seen = self.effector_rows if measured_rows is None else measured_rows
+            goal_rows = self.pid.correct(goal_rows, seen)
+        problem = self.learned.predict(self.displacement)
+        solution, self.displacement = inverse_step(
+            problem,
+            self.layout,
+            goal_rows,
+            self.actuators,
+            self.displacement,
+            regularisation=self.regularisation,
+        )
+        self.actuation = solution.actuation
+        se = problem.slices["effector"]
+        self.effector_rows = (
+            problem.compliance[se, problem.slices["actuator"]] @ self.actuation
+            + problem.free_distance[se]
+            + self.layout.training_goal_rows
+        )
+        return self.displacement
+
+
+def loop_frequency(
+    controller: EmbeddedController, goals: np.ndarray, iterations: int = 1000
+) -> float:
+    """Loop iterations per second of the embedded controller cycling through `goals`."""
+    if iterations < 1:
+        raise LearnedModelError(f"iterations must be >= 1, got {iterations}")
+    rows = [
+        controller.layout.effector_rows(g)
+        for g in np.asarray(goals, dtype=float).reshape(len(goals), -1, 3)
+    ]
+    start = time.perf_counter()
+    for k in range(iterations):
+        controller.step_rows(rows[k % len(rows)])
+    return iterations / (time.perf_counter() - start)

@@ -1,0 +1,290 @@
+"""The condensed-model dataset: how it was made (the plan), what it holds, and its HDF5 file.
+
+One sample is an equilibrium of the robot for imposed actuator displacements (thesis §5.1.2):
+the reached delta_a (and delta_c), W's upper triangle and delta_free there, the rest values
+W0 and delta0_free of its design (at lambda = 0), the design parameters and the command.
+
+File layout (format_version 1): root attributes `format` and `format_version` and `metadata`
+(JSON: the collection plan, the constraint layout, the software version); groups `train` and
+`test` with one dataset per field of :class:`Split`, one row per sample. Samples whose static
+solve failed are kept, NaN-filled, with `converged` false, so that a plan always gives the same
+rows; learning uses the converged ones.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import tempfile
+from collections.abc import Callable
+from dataclasses import asdict, dataclass, field, fields
+from pathlib import Path
+
+import h5py
+import numpy as np
+
+import pliant
+from pliant.condensed.layout import Layout
+from pliant.condensed.sampling import Box, train_test_points
+from pliant.errors import DatasetError, LearnedModelError
+
+FORMAT = "pliant-condensed-dataset"
+FORMAT_VERSION = 1
+SPLITS = ("train", "test")
+
+
+@dataclass(frozen=True)
+class CollectionPlan:
+    """What to sample and how to solve it; a plan gives the same dataset on any number of
+    workers and across resumes.
+
+    Args:
+        robot: registered robot name (pliant.robots.build).
+        actuator_bounds: (low, high) of each actuator's imposed displacement.
+        n_train: training samples (scrambled Halton); the test set has
+            round(test_fraction * n_train) random samples.
+        robot_kwargs: builder keywords held fixed.
+        design_bounds: builder keyword -> (low, high) of design parameters sampled with the
+            displacements (e.g. {"poisson_ratio": (0.40, 0.499)}); empty for one design.
+        seed: seed of both point sets.
+        max_increment: largest change of an actuator command in one static step (load
+            stepping from the previous sample's equilibrium).
+        chunk_size: samples solved in a row by one worker and saved together; each chunk starts
+            from the rest equilibrium, which makes chunks independent.
+        units: the scene's units, recorded in the file.
+    """
+
+    robot: str
+    actuator_bounds: tuple[tuple[float, float], ...]
+    n_train: int
+    robot_kwargs: dict = field(default_factory=dict)
+    design_bounds: dict[str, tuple[float, float]] = field(default_factory=dict)
+    test_fraction: float = 0.25
+    seed: int = 0
+    max_increment: float = 1.0
+    chunk_size: int = 16
+    units: str = "mm, kg, s (forces in mN, W in mm/mN)"
+
+    def __post_init__(self) -> None:
+        if self.n_train < 1 or self.chunk_size < 1:
+            raise DatasetError(
+                f"n_train and chunk_size must be >= 1, got {self.n_train}, {self.chunk_size}"
+            )
+        if not self.max_increment > 0:
+            raise DatasetError(f"max_increment must be > 0, got {self.max_increment}")
+        if not self.test_fraction >= 0.0:
+            raise DatasetError(f"test_fraction must be >= 0, got {self.test_fraction}")
+        _ = self.box  # Box checks the bounds
+
+    @property
+    def n_test(self) -> int:
+        return round(self.test_fraction * self.n_train)
+
+    @property
+    def design_names(self) -> tuple[str, ...]:
+        return tuple(self.design_bounds)
+
+    @property
+    def box(self) -> Box:
+        """The sampled box: actuator displacements, then design parameters."""
+        bounds = [*self.actuator_bounds, *self.design_bounds.values()]
+        return Box([lo for lo, _ in bounds], [hi for _, hi in bounds])
+
+    @property
+    def actuator_box(self) -> Box:
+        return Box([lo for lo, _ in self.actuator_bounds], [hi for _, hi in self.actuator_bounds])
+
+    def points(self) -> dict[str, np.ndarray]:
+        """Per split, one row per sample: actuator commands then design parameters."""
+        return train_test_points(self.box, self.n_train, self.n_test, seed=self.seed)
+
+    def to_dict(self) -> dict:
+        data = asdict(self)
+        data["actuator_bounds"] = [list(b) for b in self.actuator_bounds]
+        data["design_bounds"] = {k: list(v) for k, v in self.design_bounds.items()}
+        return data
+
+    @classmethod
+    def from_dict(cls, data: dict) -> CollectionPlan:
+        data = dict(data)
+        data["actuator_bounds"] = tuple(tuple(b) for b in data["actuator_bounds"])
+        data["design_bounds"] = {k: tuple(v) for k, v in data["design_bounds"].items()}
+        return cls(**data)
+
+
+@dataclass
+class Split:
+    """The samples of one split, one row each.
+
+    Attributes:
+        command: imposed actuator displacements (n, n_actuators).
+        design: design parameters (n, n_design).
+        delta_a, delta_c: reached actuator and contact distances (n, rows).
+        w_triangle, free_distance: W's upper triangle and delta_free at the equilibrium.
+        w0_triangle, free_distance0: the same at the rest equilibrium of the sample's design.
+        converged: whether the static solve converged (other fields NaN where not).
+    """
+
+    command: np.ndarray
+    design: np.ndarray
+    delta_a: np.ndarray
+    delta_c: np.ndarray
+    w_triangle: np.ndarray
+    free_distance: np.ndarray
+    w0_triangle: np.ndarray
+    free_distance0: np.ndarray
+    converged: np.ndarray
+
+    def __len__(self) -> int:
+        return len(self.converged)
+
+    @classmethod
+    def concatenate(cls, parts: list[Split]) -> Split:
+        return cls(
+            **{f.name: np.concatenate([getattr(p, f.name) for p in parts]) for f in fields(cls)}
+        )
+
+    def converged_only(self) -> Split:
+        keep = self.converged.astype(bool)
+        return Split(**{f.name: getattr(self, f.name)[keep] for f in fields(self)})
+
+    def inputs(self) -> np.ndarray:
+        """Inputs of F (Eq. 5.2): (delta_a, delta_c, W0 triangle, delta0_free)."""
+        return np.hstack([self.delta_a, self.delta_c, self.w0_triangle, self.free_distance0])
+
+    def outputs(self) -> np.ndarray:
+        """Outputs of F: (W triangle, delta_free)."""
+        return np.hstack([self.w_triangle, self.free_distance])
+
+    def widths(self, plan: CollectionPlan, layout: Layout) -> dict[str, int]:
+        """Expected number of columns of each field."""
+        counts = layout.counts
+        return {
+            "command": counts["actuator"],
+            "design": len(plan.design_names),
+            "delta_a": counts["actuator"],
+            "delta_c": counts["contact"],
+            "w_triangle": layout.n_triangle,
+            "free_distance": layout.n_rows,
+            "w0_triangle": layout.n_triangle,
+            "free_distance0": layout.n_rows,
+        }
+
+
+@dataclass
+class Dataset:
+    """A collected dataset: its plan, the robot's constraint layout and the two splits."""
+
+    plan: CollectionPlan
+    layout: Layout
+    train: Split
+    test: Split
+    software_version: str = pliant.__version__
+
+    def split(self, name: str) -> Split:
+        if name not in SPLITS:
+            raise DatasetError(f"split must be one of {SPLITS}, got {name!r}")
+        return self.train if name == "train" else self.test
+
+    def metadata(self) -> dict:
+        return {
+            "plan": self.plan.to_dict(),
+            "layout": self.layout.to_dict(),
+            "software_version": self.software_version,
+        }
+
+    def save(self, path: str | os.PathLike) -> Path:
+        """Write the HDF5 file atomically: a temporary file in the same folder, then rename."""
+        self.validate("the dataset to save")
+        path = Path(path)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        atomic_write(path, self._write)
+        return path
+
+    def _write(self, filename: str) -> None:
+        with h5py.File(filename, "w") as f:
+            f.attrs["format"] = FORMAT
+            f.attrs["format_version"] = FORMAT_VERSION
+            f.attrs["metadata"] = json.dumps(self.metadata())
+            for name in SPLITS:
+                group = f.create_group(name)
+                for fld in fields(Split):
+                    group.create_dataset(fld.name, data=getattr(self.split(name), fld.name))
+
+    @classmethod
+    def load(cls, path: str | os.PathLike) -> Dataset:
+        """Read and validate a dataset file; DatasetError names what is wrong."""
+        path = Path(path)
+        if not path.is_file():
+            raise DatasetError(f"no dataset file at {path}")
+        try:
+            f = h5py.File(path, "r")
+        except OSError as exc:
+            raise DatasetError(f"{path} is not a readable HDF5 file (corrupt?): {exc}") from exc
+        with f:
+            fmt = f.attrs.get("format")
+            if fmt != FORMAT:
+                raise DatasetError(f"{path} is not a Pliant condensed dataset (format {fmt!r})")
+            version = int(f.attrs.get("format_version", -1))
+            if version != FORMAT_VERSION:
+                raise DatasetError(
+                    f"{path} has dataset format version {version}; this Pliant reads version"
+                    f" {FORMAT_VERSION}"
+                )
+            try:
+                meta = json.loads(f.attrs["metadata"])
+                plan = CollectionPlan.from_dict(meta["plan"])
+                layout = Layout.from_dict(meta["layout"])
+                version_made = meta["software_version"]
+            except (KeyError, TypeError, ValueError, LearnedModelError) as exc:
+                raise DatasetError(f"{path} has malformed metadata: {exc}") from exc
+            splits = {}
+            for name in SPLITS:
+                if name not in f:
+                    raise DatasetError(f"{path} has no '{name}' group")
+                missing = [fld.name for fld in fields(Split) if fld.name not in f[name]]
+                if missing:
+                    raise DatasetError(f"{path}: the '{name}' group lacks {missing}")
+                try:
+                    splits[name] = Split(
+                        **{fld.name: f[name][fld.name][()] for fld in fields(Split)}
+                    )
+                except OSError as exc:
+                    raise DatasetError(f"{path}: cannot read '{name}' (corrupt?): {exc}") from exc
+        dataset = cls(plan, layout, splits["train"], splits["test"], version_made)
+        dataset.validate(str(path))
+        return dataset
+
+    def validate(self, what: str) -> None:
+        """Raise DatasetError unless every field has the plan's rows and the layout's columns
+        and the converged samples are finite."""
+        expected_rows = {"train": self.plan.n_train, "test": self.plan.n_test}
+        for name in SPLITS:
+            split = self.split(name)
+            if len(split) != expected_rows[name]:
+                raise DatasetError(
+                    f"{what}: '{name}' has {len(split)} samples, its plan {expected_rows[name]}"
+                )
+            for key, width in split.widths(self.plan, self.layout).items():
+                shape = getattr(split, key).shape
+                if shape != (len(split), width):
+                    raise DatasetError(
+                        f"{what}: '{name}/{key}' has shape {shape}, expected"
+                        f" {(len(split), width)} for this robot's constraint layout"
+                    )
+            good = split.converged_only()
+            if not all(np.all(np.isfinite(getattr(good, f.name))) for f in fields(Split)):
+                raise DatasetError(f"{what}: '{name}' has non-finite values in converged samples")
+
+
+def atomic_write(path: Path, write: Callable[[str], object]) -> None:
+    """write(tmp) into a temporary file beside `path`, then rename it to `path`: readers see
+    the old file or the whole new one, never a part."""
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=path.suffix)
+    os.close(fd)
+    try:
+        write(tmp)
+        os.replace(tmp, path)
+    finally:
+        if os.path.exists(tmp):
+            os.remove(tmp)

@@ -1,0 +1,120 @@
+"""The networks of the learned condensed model (thesis §5.1.2, Fig. 5.3).
+
+F maps (delta_a, delta_c, W0 triangle, delta0_free) to (W triangle, delta_free) (Eq. 5.2); G
+maps design parameters P to (W0 triangle, delta0_free) (Eq. 5.7); F(delta_a, delta_c, G(P)) is
+their composition (Eq. 5.8). Both are MLPs on element-wise standardised data (Eq. 5.4), the
+standardisation stored inside the network so that a saved network is self-contained.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import torch
+from torch import Tensor, nn
+
+
+class Standardiser(nn.Module):
+    """X -> (X - X_mean) / (X_std + eps), element-wise, statistics of the training set (Eq. 5.4).
+
+    eps is relative to each element (eps = relative_eps * |X_mean| + tiny): the scaling does not
+    depend on the scene's units, and an element constant in the training set (W0 of a single
+    design) does not blow a new input's rounding differences up into large inputs.
+    """
+
+    def __init__(self, data: Tensor, *, relative_eps: float = 1e-3) -> None:
+        super().__init__()
+        mean = data.mean(dim=0)
+        std = data.std(dim=0, correction=0) if data.shape[0] > 1 else torch.zeros_like(mean)
+        eps = relative_eps * mean.abs() + torch.finfo(data.dtype).tiny
+        self.register_buffer("mean", mean)
+        self.register_buffer("scale", std + eps)
+
+    def forward(self, x: Tensor) -> Tensor:
+        return (x - self.mean) / self.scale
+
+    def inverse(self, z: Tensor) -> Tensor:
+        return z * self.scale + self.mean
+
+
+def mlp(n_in: int, n_out: int, hidden: Sequence[int], dropout: float = 0.0) -> nn.Sequential:
+    """Fully connected ReLU network; dropout after each hidden layer when > 0."""
+    layers: list[nn.Module] = []
+    for width in hidden:
+        layers += [nn.Linear(n_in, width), nn.ReLU()]
+        if dropout > 0:
+            layers.append(nn.Dropout(dropout))
+        n_in = width
+    layers.append(nn.Linear(n_in, n_out))
+    return nn.Sequential(*layers)
+
+
+class StandardisedMLP(nn.Module):
+    """An MLP between standardised inputs and outputs (Eq. 5.4).
+
+    `forward` maps raw inputs to *standardised* outputs, what the loss of Eq. 5.5 compares;
+    `predict` maps raw inputs to raw outputs.
+    """
+
+    def __init__(
+        self,
+        inputs: Tensor,
+        outputs: Tensor,
+        *,
+        hidden: Sequence[int] = (450, 450, 450),
+        dropout: float = 0.0,
+    ) -> None:
+        super().__init__()
+        self.hidden = tuple(int(h) for h in hidden)
+        self.dropout = float(dropout)
+        self.input_scale = Standardiser(inputs)
+        self.output_scale = Standardiser(outputs)
+        self.net = mlp(inputs.shape[1], outputs.shape[1], self.hidden, self.dropout)
+
+    @property
+    def n_inputs(self) -> int:
+        return self.input_scale.mean.numel()
+
+    @property
+    def n_outputs(self) -> int:
+        return self.output_scale.mean.numel()
+
+    def forward(self, x: Tensor) -> Tensor:
+        return self.net(self.input_scale(x))
+
+    def predict(self, x: Tensor) -> Tensor:
+        return self.output_scale.inverse(self(x))
+
+    def config(self) -> dict:
+        """What rebuilds this network's shape (with `from_config`), beside its state_dict."""
+        return {
+            "n_inputs": self.n_inputs,
+            "n_outputs": self.n_outputs,
+            "hidden": list(self.hidden),
+            "dropout": self.dropout,
+        }
+
+    @classmethod
+    def from_config(cls, config: dict) -> StandardisedMLP:
+        """An untrained network of this shape, to load a state_dict into."""
+        return cls(
+            torch.zeros(1, config["n_inputs"]),
+            torch.zeros(1, config["n_outputs"]),
+            hidden=config["hidden"],
+            dropout=config["dropout"],
+        )
+
+
+class ComposedNetwork(nn.Module):
+    """F(delta_a, delta_c, G(P)) (Eq. 5.8): a differentiable map from design parameters and
+    active-constraint displacements to (W triangle, delta_free), raw units."""
+
+    def __init__(self, condensed: StandardisedMLP, design: StandardisedMLP) -> None:
+        super().__init__()
+        self.condensed = condensed
+        self.design = design
+
+    def forward(self, displacements: Tensor, design: Tensor) -> Tensor:
+        """displacements: (n, delta_a + delta_c); design: (n, P) or (P,) for all rows."""
+        rest = self.design.predict(design.expand(displacements.shape[0], -1))
+        return self.condensed.predict(torch.cat([displacements, rest], dim=1))

@@ -1,0 +1,245 @@
+"""Training of F and G (thesis §5.1.2): the loss of Eq. 5.5 on standardised data (Eq. 5.4),
+Adam with a learning rate reduced on plateaus, the best epoch kept.
+
+The loss is Eq. 5.5 averaged over samples and output elements (a mean squared error), so that
+its values compare across dataset sizes and robots, as the thesis' Tables 5.1-5.2 do. The best
+epoch is the one with the lowest test loss, the network the thesis keeps; the learning-rate
+schedule follows the training loss. A checkpoint written every few epochs lets an interrupted
+training go on where it stopped.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import torch
+from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
+from torch import Tensor
+
+from pliant.condensed.dataset import Dataset, Split, atomic_write
+from pliant.condensed.learned import LearnedCondensedModel
+from pliant.condensed.networks import StandardisedMLP
+from pliant.errors import DatasetError
+
+
+@dataclass
+class TrainConfig:
+    """Hyper-parameters and bookkeeping of a training run (thesis defaults: 3 x 450, 1e-4).
+
+    Args:
+        lr_factor, lr_patience: ReduceLROnPlateau's factor and patience (epochs).
+        log_dir: TensorBoard folder (None: no logs).
+        checkpoint: file to save to every `checkpoint_every` epochs and to resume from.
+    """
+
+    epochs: int = 1000
+    batch_size: int = 256
+    learning_rate: float = 1e-4
+    hidden: tuple[int, ...] = (450, 450, 450)
+    dropout: float = 0.0
+    lr_factor: float = 0.5
+    lr_patience: int = 50
+    seed: int = 0
+    log_dir: Path | None = None
+    checkpoint: Path | None = None
+    checkpoint_every: int = 50
+    progress: bool = True
+
+
+@dataclass
+class FitResult:
+    """The network at its best epoch, and the history of every epoch."""
+
+    network: StandardisedMLP
+    best_epoch: int
+    best_test_loss: float
+    history: list[dict] = field(default_factory=list)
+
+
+def standardised_loss(network: StandardisedMLP, x: Tensor, y: Tensor) -> Tensor:
+    """Eq. 5.5, mean over samples and elements, in the network's output standardisation."""
+    return torch.mean((network(x) - network.output_scale(y)) ** 2)
+
+
+def fit(
+    network: StandardisedMLP,
+    train: tuple[Tensor, Tensor],
+    test: tuple[Tensor, Tensor],
+    config: TrainConfig,
+) -> FitResult:
+    """Train `network` on (inputs, outputs) pairs; resume from config.checkpoint if present."""
+    generator = torch.Generator().manual_seed(config.seed)
+    optimiser = torch.optim.Adam(network.parameters(), lr=config.learning_rate)
+    scheduler = torch.optim.lr_scheduler.ReduceLROnPlateau(
+        optimiser, factor=config.lr_factor, patience=config.lr_patience
+    )
+    best = {"epoch": 0, "loss": float("inf"), "state": _copy_state(network)}
+    history: list[dict] = []
+    first = 1
+    if config.checkpoint is not None and Path(config.checkpoint).exists():
+        first, best, history = _resume(config.checkpoint, network, optimiser, scheduler, generator)
+    writer = _tensorboard(config.log_dir)
+    x_train, y_train = train
+    with _progress(config.progress) as bar:
+        task = bar.add_task("training", total=config.epochs, completed=first - 1, status="")
+        for epoch in range(first, config.epochs + 1):
+            network.train()
+            total = 0.0
+            for batch in torch.randperm(len(x_train), generator=generator).split(config.batch_size):
+                optimiser.zero_grad()
+                loss = standardised_loss(network, x_train[batch], y_train[batch])
+                loss.backward()
+                optimiser.step()
+                total += loss.item() * len(batch)
+            train_loss = total / len(x_train)
+            scheduler.step(train_loss)
+            test_loss = evaluate_loss(network, *test)
+            lr = optimiser.param_groups[0]["lr"]
+            history.append({"epoch": epoch, "train": train_loss, "test": test_loss, "lr": lr})
+            if test_loss < best["loss"]:
+                best = {"epoch": epoch, "loss": test_loss, "state": _copy_state(network)}
+            if writer is not None:
+                writer.add_scalars("loss", {"train": train_loss, "test": test_loss}, epoch)
+                writer.add_scalar("learning_rate", lr, epoch)
+            bar.update(
+                task,
+                advance=1,
+                status=f"train {train_loss:.3g}  test {test_loss:.3g}  best {best['loss']:.3g}",
+            )
+            last = epoch == config.epochs
+            if config.checkpoint is not None and (epoch % config.checkpoint_every == 0 or last):
+                _save_checkpoint(
+                    config.checkpoint,
+                    epoch,
+                    network,
+                    optimiser,
+                    scheduler,
+                    generator,
+                    best,
+                    history,
+                )
+    if writer is not None:
+        writer.close()
+    network.load_state_dict(best["state"])
+    network.eval()
+    return FitResult(network, best["epoch"], best["loss"], history)
+
+
+def evaluate_loss(network: StandardisedMLP, x: Tensor, y: Tensor) -> float:
+    """The standardised loss (Eq. 5.5) of `network` on (x, y), in evaluation mode."""
+    network.eval()
+    with torch.no_grad():
+        return float(standardised_loss(network, x, y)) if len(x) else float("nan")
+
+
+def train_condensed(
+    dataset: Dataset, config: TrainConfig | None = None
+) -> tuple[LearnedCondensedModel, FitResult]:
+    """Train F (Eq. 5.2) on the converged samples of `dataset`."""
+    config = config or TrainConfig()
+    train, test = dataset.train.converged_only(), dataset.test.converged_only()
+    if len(train) < 2:
+        raise DatasetError(f"F needs at least 2 converged training samples, got {len(train)}")
+    x_train, y_train = _tensor(train.inputs()), _tensor(train.outputs())
+    torch.manual_seed(config.seed)
+    network = StandardisedMLP(x_train, y_train, hidden=config.hidden, dropout=config.dropout)
+    result = fit(
+        network, (x_train, y_train), (_tensor(test.inputs()), _tensor(test.outputs())), config
+    )
+    training = {"best_epoch": result.best_epoch, "test_loss": result.best_test_loss}
+    return LearnedCondensedModel.from_dataset(result.network, dataset, training), result
+
+
+def train_design(dataset: Dataset, config: TrainConfig | None = None) -> FitResult:
+    """Train G (Eq. 5.7): design parameters -> (W0 triangle, delta0_free)."""
+    config = config or TrainConfig()
+    if not dataset.plan.design_names:
+        raise DatasetError("the dataset has no design parameters: G has nothing to learn from")
+
+    def pairs(split: Split) -> tuple[Tensor, Tensor]:
+        good = split.converged_only()
+        return _tensor(good.design), _tensor(np.hstack([good.w0_triangle, good.free_distance0]))
+
+    train = pairs(dataset.train)
+    torch.manual_seed(config.seed)
+    network = StandardisedMLP(*train, hidden=config.hidden, dropout=config.dropout)
+    return fit(network, train, pairs(dataset.test), config)
+
+
+def evaluate(learned: LearnedCondensedModel, split: Split) -> dict[str, float]:
+    """Standardised test loss of F on a split, beside the constant-rest baseline that predicts
+    W = W0 and delta_free = delta0_free for every sample (in F's standardisation)."""
+    good = split.converged_only()
+    x, y = _tensor(good.inputs()), _tensor(good.outputs())
+    baseline = _tensor(np.hstack([good.w0_triangle, good.free_distance0]))
+    scale = learned.network.output_scale
+    return {
+        "loss": evaluate_loss(learned.network, x, y),
+        "baseline_loss": float(torch.mean((scale(baseline) - scale(y)) ** 2)),
+        "samples": len(good),
+    }
+
+
+def _tensor(array: np.ndarray) -> Tensor:
+    return torch.from_numpy(np.ascontiguousarray(array, dtype=np.float32))
+
+
+def _copy_state(network: StandardisedMLP) -> dict[str, Tensor]:
+    return {k: v.detach().clone() for k, v in network.state_dict().items()}
+
+
+def _progress(enabled: bool) -> Progress:
+    return Progress(
+        TextColumn("[progress.description]{task.description}"),
+        BarColumn(),
+        TextColumn("{task.completed}/{task.total} epochs"),
+        TimeRemainingColumn(),
+        TextColumn("{task.fields[status]}"),
+        disable=not enabled,
+    )
+
+
+def _tensorboard(log_dir: Path | None):
+    if log_dir is None:
+        return None
+    from torch.utils.tensorboard import SummaryWriter
+
+    return SummaryWriter(log_dir=str(log_dir))
+
+
+def _save_checkpoint(path, epoch, network, optimiser, scheduler, generator, best, history):
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    state = {
+        "epoch": epoch,
+        "network": network.state_dict(),
+        "optimiser": optimiser.state_dict(),
+        "scheduler": scheduler.state_dict(),
+        "generator": generator.get_state(),
+        "best": best,
+        "history": history,
+    }
+    atomic_write(path, lambda tmp: torch.save(state, tmp))
+
+
+def _resume(path, network, optimiser, scheduler, generator):
+    """Load a checkpoint into the run's objects; refuse one made from other data."""
+    try:
+        state = torch.load(path, weights_only=True)
+    except Exception as exc:  # torch raises many types for a corrupt file
+        raise DatasetError(f"the checkpoint {path} is unreadable: {exc}; delete it") from exc
+    saved = state["network"]
+    for key in ("input_scale.mean", "input_scale.scale", "output_scale.mean"):
+        mine = network.state_dict()[key]
+        if saved[key].shape != mine.shape or not torch.allclose(saved[key], mine):
+            raise DatasetError(
+                f"the checkpoint {path} was trained on other data (its {key} differs); delete it"
+                " or train on the same dataset"
+            )
+    network.load_state_dict(saved)
+    optimiser.load_state_dict(state["optimiser"])
+    scheduler.load_state_dict(state["scheduler"])
+    generator.set_state(state["generator"])
+    return state["epoch"] + 1, state["best"], state["history"]
