@@ -42,6 +42,14 @@ class ConstraintError(PliantError, ValueError):
     """Invalid constraint definition or bounds."""
 
 
+class ContactError(PliantError, ValueError):
+    """Invalid contact input: collision shape, friction coefficient, contact problem."""
+
+
+class ContactConvergenceWarning(UserWarning):
+    """The frictional contact solver stopped at max_iterations above its tolerance."""
+
+
 class InfeasibleProblemError(PliantError):
     """The bounds of a direct or inverse problem admit no solution."""
 
@@ -69,3 +77,13 @@ class UnknownRobotError(PliantError, KeyError):
 
     def __str__(self) -> str:  # KeyError quotes its argument; keep the sentence readable
         return str(self.args[0]) if self.args else ""
+
+
+class DatasetError(PliantError, ValueError):
+    """A condensed-model dataset is corrupt, incomplete or incompatible with what uses it, or a
+    partial collection was started with other settings."""
+
+
+class LearnedModelError(PliantError, ValueError):
+    """A learned condensed model cannot be used: unreadable file, or a robot whose constraint
+    layout (actuators, effectors, contacts and their rows) differs from the one it learned."""
