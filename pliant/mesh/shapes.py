@@ -286,21 +286,23 @@ def soft_finger(
     thesis are `length` (one phalanx, 38-42 mm), `height` (20-22 mm) and `joint_height`
     (5-8 mm), Section 5.1.6.
 
-    Two cables run along the finger through the joint bars, `cable_offset` below (cable 0,
-    closes the finger towards -z) and above (cable 1) the mid-height.
+    Two cables run along the finger, `cable_offset` below (cable 0, closes the finger towards
+    -z) and above (cable 1) the mid-height, held in each phalanx near both of its faces and
+    crossing the joints freely (in a channel), as tendons do: their lever arm about the joint
+    bars is the offset itself, so that a pull bends the joints rather than compressing them.
 
     Args:
         length, height, width: size of one phalanx.
         joint_height, joint_length: size of the bar that forms each joint.
         n_folds, fold_thickness: folds of each accordion joint.
-        cable_offset: distance of the cables from the mid-height, within the joint bar;
-            0.3 * joint_height by default.
+        cable_offset: distance of the cables from the mid-height, 0.4 * height by default
+            (less than half the height less 1 mm).
         resolution: 'coarse', 'fine' or 'superfine', giving about 1.5k, 9k and 18k tetrahedra
             at the default dimensions, like the thesis' three meshes.
         mesh_size: largest element edge; overrides `resolution`.
 
-    Landmarks: 'cable_points_0/1' (6, 3) at the centre of every phalanx and joint and 1 mm
-    before the fingertip; 'pull_points_0/1' (1, 3) where the cables leave the base face;
+    Landmarks: 'cable_points_0/1' (6, 3) 1 mm inside both end faces of every phalanx (the
+    last one 1 mm before the fingertip); 'pull_points_0/1' (1, 3) where the cables leave the base face;
     'effector' (1, 3) 1 mm inside the fingertip face; 'contact_points' (3, 3) on the underside
     of the last phalanx; 'fixed_box' (2, 3) around the base face.
     """
@@ -311,7 +313,7 @@ def soft_finger(
             )
         mesh_size = FINGER_MESH_SIZES[resolution]
     if cable_offset is None:
-        cable_offset = 0.3 * joint_height
+        cable_offset = 0.4 * height
     _require_positive(
         length=length,
         height=height,
@@ -324,8 +326,8 @@ def soft_finger(
     )
     if not joint_height < 0.8 * height:
         raise ModelError(f"joint_height {joint_height} must be below 80 % of height {height}")
-    if not cable_offset < joint_height / 2:
-        raise ModelError(f"cable_offset {cable_offset} must lie within joint_height / 2")
+    if not cable_offset < height / 2 - 1.0:
+        raise ModelError(f"cable_offset {cable_offset} must lie 1 mm inside height / 2")
     if int(n_folds) != n_folds or n_folds < 0 or n_folds * fold_thickness >= joint_length:
         raise ModelError(f"{n_folds} folds of {fold_thickness} mm do not fit in the joint")
 
@@ -355,12 +357,7 @@ def soft_finger(
         _fuse_all(volumes)
         points, tets = mesh_volumes(mesh_size)
 
-    centres = np.sort(
-        np.concatenate(
-            [np.arange(3) * pitch + length / 2, np.arange(2) * pitch + length + joint_length / 2]
-        )
-    )
-    x_path = np.append(centres, total - 1.0)
+    x_path = (np.arange(3)[:, None] * pitch + np.array([1.0, length - 1.0])).ravel()
     landmarks: dict[str, np.ndarray] = {}
     for n, z in enumerate((mid - cable_offset, mid + cable_offset)):
         landmarks[f"cable_points_{n}"] = np.column_stack(
