@@ -50,6 +50,11 @@ class ContactConvergenceWarning(UserWarning):
     """The frictional contact solver stopped at max_iterations above its tolerance."""
 
 
+class ContactMarginWarning(UserWarning):
+    """A colliding point moved further than the contact margin in one step: contacts with
+    obstacles it was not given rows for may have been missed."""
+
+
 class InfeasibleProblemError(PliantError):
     """The bounds of a direct or inverse problem admit no solution."""
 

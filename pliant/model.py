@@ -14,6 +14,8 @@ from pathlib import Path
 import numpy as np
 
 from pliant.constraints.base import Actuator, Constraint
+from pliant.constraints.contact import Contacts
+from pliant.constraints.friction import ContactForces
 from pliant.errors import ModelError
 from pliant.fem.body import TetBody
 
@@ -28,6 +30,8 @@ class State:
         step: number of steps taken.
         actuation: (n_actuators,) actuator forces lambda_a of the last step.
         displacement: (n_actuators,) actuator distances delta_a at the end of the last step.
+        contact_forces: the last step's contact forces by contact identity (the next step's
+            warm start, so that a restored state replays exactly).
     """
 
     positions: np.ndarray
@@ -36,6 +40,7 @@ class State:
     step: int = 0
     actuation: np.ndarray = field(default_factory=lambda: np.zeros(0))
     displacement: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    contact_forces: ContactForces = field(default_factory=ContactForces.empty)
 
     def copy(self) -> State:
         return State(
@@ -45,6 +50,7 @@ class State:
             self.step,
             self.actuation.copy(),
             self.displacement.copy(),
+            self.contact_forces.copy(),
         )
 
     def allclose(self, other: State, *, atol: float = 0.0) -> bool:
@@ -67,6 +73,8 @@ class State:
             step=self.step,
             actuation=self.actuation,
             displacement=self.displacement,
+            contact_keys=self.contact_forces.keys,
+            contact_forces=self.contact_forces.forces,
         )
         os.replace(tmp, path)
 
@@ -80,6 +88,7 @@ class State:
                 int(d["step"]),
                 d["actuation"],
                 d["displacement"],
+                ContactForces(d["contact_keys"], d["contact_forces"]),
             )
 
 
@@ -105,6 +114,7 @@ class Model:
         body: the deformable body.
         actuators: cables, cavities, ... in the order of the actuation vector.
         effectors: position effectors, used by inverse control.
+        contacts: obstacles the body touches and the contact law (friction, margin).
     """
 
     def __init__(
@@ -113,12 +123,16 @@ class Model:
         *,
         actuators: list[Actuator] | tuple = (),
         effectors: list[Constraint] | tuple = (),
+        contacts: Contacts | None = None,
         name: str = "robot",
     ) -> None:
         self.body = body
         self.actuators = list(actuators)
         self.effectors = list(effectors)
         self.name = name
+        self.contacts = contacts
+        if contacts is not None:
+            contacts.attach(body)
         for c in self.actuators:
             if c.role != "actuator":
                 raise ModelError(f"{c.name} is a {c.role}, not an actuator")
@@ -189,16 +203,19 @@ class Model:
         constraints: list[Constraint] | None = None,
         *,
         roles: tuple[str, ...] | None = None,
+        extra: tuple[Constraint, ...] = (),
         with_distance: bool = True,
     ) -> ConstraintSpace:
         """Jacobians (and distances) of the constraints (default: actuators then effectors).
 
         `roles` keeps only the constraints of those roles (a direct step needs no effector
-        rows); `with_distance=False` skips the distances (then all zeros).
+        rows); `extra` are appended (the contacts detected for a step); `with_distance=False`
+        skips the distances (then all zeros).
         """
         cons = self._groups if constraints is None else constraints
         if roles is not None:
             cons = [c for c in cons if c.role in roles]
+        cons = [*cons, *extra]
         body = self.body
         rows = sum(c.n_rows for c in cons)
         delta = np.zeros(rows)

@@ -8,6 +8,13 @@ import numpy as np
 
 from pliant.constraints.condensed import CondensedProblem
 from pliant.constraints.direct import solve_direct
+from pliant.constraints.friction import (
+    ContactConstraint,
+    ContactForces,
+    ContactReport,
+    ContactSolution,
+    solve_contact,
+)
 from pliant.constraints.inverse import solve_inverse
 from pliant.errors import ModelError
 
@@ -28,6 +35,26 @@ class DirectControl:
         """Actuator forces for this step; `state` is the state the step starts from."""
         return solve_direct(
             problem, model.actuators, state.displacement, previous_actuation=state.actuation
+        )
+
+    def actuation_with_contacts(
+        self, problem: CondensedProblem, model, state, contact: ContactConstraint
+    ) -> ContactSolution:
+        """Actuator and contact forces together (Signorini-Coulomb, Gauss-Seidel), warm-started
+        from the previous step's forces."""
+        initial = np.zeros(problem.free_distance.size)
+        sa, sc = problem.slices["actuator"], problem.slices["contact"]
+        if state.actuation.size == sa.stop - sa.start:
+            initial[sa] = state.actuation
+        initial[sc] = state.contact_forces.warm_start(contact.contacts)
+        return solve_contact(
+            problem,
+            contact.friction,
+            actuators=model.actuators,
+            previous_displacement=state.displacement,
+            initial=initial,
+            tolerance=model.contacts.tolerance,
+            max_iterations=model.contacts.max_iterations,
         )
 
 
@@ -76,3 +103,23 @@ def as_control(control):
     if hasattr(control, "actuation") and hasattr(control, "prepare"):
         return control
     return DirectControl(np.asarray(control, dtype=float))
+
+
+def constraint_forces(
+    control, problem: CondensedProblem, model, state, contact: ContactConstraint | None
+) -> tuple[np.ndarray, ContactReport | None, ContactForces]:
+    """lambda for every row of `problem` (effectors passive), the contact solver's report and
+    the contact forces by identity (None and empty without contact rows)."""
+    lam = np.zeros(problem.free_distance.size)
+    if contact is None:
+        lam[problem.slices["actuator"]] = control.actuation(problem, model, state)
+        return lam, None, ContactForces.empty()
+    solve = getattr(control, "actuation_with_contacts", None)
+    if solve is None:
+        raise ModelError(
+            f"{type(control).__name__} does not handle contacts, and {model.name} touches an"
+            " obstacle at this step; use DirectControl (commands) with contacts"
+        )
+    solution = solve(problem, model, state, contact)
+    forces = ContactForces.from_multipliers(contact.contacts, solution.contact_forces)
+    return solution.forces, solution.report, forces

@@ -302,7 +302,8 @@ def soft_finger(
         mesh_size: largest element edge; overrides `resolution`.
 
     Landmarks: 'cable_points_0/1' (6, 3) 1 mm inside both end faces of every phalanx (the
-    last one 1 mm before the fingertip); 'pull_points_0/1' (1, 3) where the cables leave the base face;
+    last one 1 mm before the fingertip); 'pull_points_0/1' (1, 3) where the cables leave the
+    base face;
     'effector' (1, 3) 1 mm inside the fingertip face; 'contact_points' (3, 3) on the underside
     of the last phalanx; 'fixed_box' (2, 3) around the base face.
     """

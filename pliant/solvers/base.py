@@ -7,6 +7,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from pliant.constraints.condensed import CondensedProblem
+from pliant.constraints.friction import ContactReport
 from pliant.errors import DivergenceError
 from pliant.fem.body import Linearisation
 
@@ -20,6 +21,7 @@ class StepReport:
     linear_iterations: int = 0
     factorisations: int = 0
     newton_iterations: int = 0
+    contact: ContactReport | None = None  # None: no contact rows at this step
 
 
 def check_linearisation(lin: Linearisation, step: int, dt: float | None) -> None:

@@ -18,7 +18,8 @@ from __future__ import annotations
 import numpy as np
 
 from pliant.constraints.condensed import CondensedProblem
-from pliant.constraints.control import as_control
+from pliant.constraints.control import as_control, constraint_forces
+from pliant.constraints.friction import ContactReport, ContactSolution
 from pliant.errors import DivergenceError, SolverError
 from pliant.model import Model, State
 from pliant.solvers.base import StepReport, check_linearisation, check_motion
@@ -66,9 +67,14 @@ class ImplicitEuler:
         lin = body.linearise(state.positions, state.velocities)
         check_linearisation(lin, step, h)
         a_m, a_k = self._coefficients()
+        contact = model.contacts.constraint(state.positions, h) if model.contacts else None
         try:
             self.system.prepare(lin, a_m, a_k)
-            space = model.constraint_space(state.positions, roles=getattr(ctrl, "roles", None))
+            space = model.constraint_space(
+                state.positions,
+                roles=getattr(ctrl, "roles", None),
+                extra=(contact,) if contact is not None else (),
+            )
             v = body.gather(state.velocities)
             rhs = h * body.gather(lin.forces + self._gravity)
             rhs -= a_k * body.gather(lin.stiffness_velocity)
@@ -83,12 +89,13 @@ class ImplicitEuler:
         delta_free = space.distance + h * (space.jacobian_t.T @ (v + dv_free))
         w = h * h * (space.jacobian_t.T @ a_inv_ht)
         problem = CondensedProblem(0.5 * (w + w.T), delta_free, space.slices)
-        lam_a = ctrl.actuation(problem, model, state)
-        sa = space.slices["actuator"]
-        dv = dv_free + h * (a_inv_ht[:, sa] @ lam_a)
-        v_new = v + dv
+        lam, contact_report, contact_forces = constraint_forces(
+            ctrl, problem, model, state, contact
+        )
+        v_new = v + dv_free + h * (a_inv_ht @ lam)
         dq = body.scatter(h * v_new)
         positions = state.positions + dq
+        lam_a = lam[space.slices["actuator"]]
         new = State(
             positions,
             body.scatter(v_new),
@@ -96,10 +103,17 @@ class ImplicitEuler:
             step,
             lam_a,
             model.actuator_distances(positions),
+            contact_forces,
         )
         check_motion(new.positions, new.velocities, dq, self._size, step, h)
+        if model.contacts is not None:
+            model.contacts.check_travel(dq, step)
         self.last_report = StepReport(
-            problem, lam_a, self.system.last_iterations, self.system.factorisations
+            problem,
+            lam_a,
+            self.system.last_iterations,
+            self.system.factorisations,
+            contact=contact_report,
         )
         return new
 
@@ -122,3 +136,11 @@ class _Passive:
 
     def actuation(self, problem, model, state):
         return np.zeros(problem.n_actuators)
+
+    def actuation_with_contacts(self, problem, model, state, contact) -> ContactSolution:
+        return ContactSolution(
+            np.zeros(problem.free_distance.size),
+            problem.free_distance.copy(),
+            ContactReport(),
+            problem.slices,
+        )

@@ -11,7 +11,8 @@ from __future__ import annotations
 import numpy as np
 
 from pliant.constraints.condensed import CondensedProblem
-from pliant.constraints.control import as_control
+from pliant.constraints.control import as_control, constraint_forces
+from pliant.constraints.friction import ContactConstraint
 from pliant.errors import DivergenceError, SolverError
 from pliant.model import Model, State
 from pliant.solvers.base import StepReport, check_linearisation, check_motion
@@ -45,12 +46,20 @@ class StaticSolver:
         self.dt = None
         self.last_report = StepReport()
 
-    def _condense(self, q: np.ndarray, step: int, roles: tuple[str, ...] | None = None):
+    def _condense(
+        self,
+        q: np.ndarray,
+        step: int,
+        roles: tuple[str, ...] | None = None,
+        contact: ContactConstraint | None = None,
+    ):
         model, body = self.model, self.model.body
         lin = body.linearise(q)
         check_linearisation(lin, step, None)
         self.system.prepare(lin, 0.0, 1.0)
-        space = model.constraint_space(q, roles=roles)
+        space = model.constraint_space(
+            q, roles=roles, extra=(contact,) if contact is not None else ()
+        )
         residual = body.gather(lin.forces + self._gravity)
         cols = self.system.solve(np.column_stack([residual, space.jacobian_t]))
         dq_free, k_inv_ht = cols[:, 0], cols[:, 1:]
@@ -64,17 +73,36 @@ class StaticSolver:
         ctrl.prepare(model)
         step = state.step + 1
         q = state.positions.copy()
+        # Each iteration chooses the total constraint forces; the previous iterate's warm-start
+        # the next (course bounds still refer to the state the step starts from).
+        guide = state.copy()
         for it in range(1, self.max_iterations + 1):  # noqa: B007 (reported after the loop)
+            contact = model.contacts.constraint(q, None) if model.contacts else None
             try:
-                problem, dq_free, k_inv_ht = self._condense(q, step, getattr(ctrl, "roles", None))
+                problem, dq_free, k_inv_ht = self._condense(
+                    q, step, getattr(ctrl, "roles", None), contact
+                )
             except SolverError as exc:
                 raise DivergenceError(f"step {step}: {exc}", step=step, cause="solver") from exc
-            lam_a = ctrl.actuation(problem, model, state)
-            sa = problem.slices["actuator"]
-            dq = body.scatter(dq_free + k_inv_ht[:, sa] @ lam_a)
+            lam, contact_report, contact_forces = constraint_forces(
+                ctrl, problem, model, guide, contact
+            )
+            lam_a = lam[problem.slices["actuator"]]
+            guide.actuation, guide.contact_forces = lam_a, contact_forces
+            dq = body.scatter(dq_free + k_inv_ht @ lam)
+            if model.contacts is not None:
+                # No colliding point may move further than the detection margin in one update:
+                # it could pass through an obstacle it has no contact row for.
+                travel = np.linalg.norm(model.contacts.points.positions(dq), axis=1).max()
+                if travel > model.contacts.margin:
+                    dq *= model.contacts.margin / travel
             check_motion(q + dq, np.zeros_like(q), dq, self._size, step, None)
             q += dq
-            if np.max(np.abs(dq)) <= self.tolerance * self._size:
+            limit = self.tolerance * self._size
+            if contact is not None:
+                # Updates below the contact solver's tolerance are its own noise.
+                limit = max(limit, model.contacts.tolerance)
+            if np.max(np.abs(dq)) <= limit:
                 break
         else:
             raise DivergenceError(
@@ -85,11 +113,27 @@ class StaticSolver:
                 cause="solver",
             )
         self.last_report = StepReport(
-            problem, lam_a, self.system.last_iterations, self.system.factorisations, it
+            problem,
+            lam_a,
+            self.system.last_iterations,
+            self.system.factorisations,
+            it,
+            contact_report,
         )
-        return State(q, np.zeros_like(q), state.time, step, lam_a, model.actuator_distances(q))
+        return State(
+            q,
+            np.zeros_like(q),
+            state.time,
+            step,
+            lam_a,
+            model.actuator_distances(q),
+            contact_forces,
+        )
 
     def condense(self, state: State) -> CondensedProblem:
-        """Exact W = H K^-1 H^T and delta_free at `state`."""
-        problem, _, _ = self._condense(state.positions, state.step)
+        """Exact W = H K^-1 H^T and delta_free at `state` (with the contact rows detected
+        there, if the model has obstacles)."""
+        model = self.model
+        contact = model.contacts.constraint(state.positions, None) if model.contacts else None
+        problem, _, _ = self._condense(state.positions, state.step, None, contact)
         return problem

@@ -1,0 +1,609 @@
+"""Collision shapes with signed distances, and the detection of contacts.
+
+Every shape answers the signed-distance query phi(p) (< 0 inside), the outward normal n(p) and
+the closest surface point c(p), so that p = c + phi n. Queries are made in the shape's frame:
+a shape has a pose (position x, rotation R: shape frame -> world) and a twist (linear and
+angular velocity) that kinematic obstacles and rigid bodies update every step.
+
+Detection (`detect`) gives every query point within `margin` of a shape as one contact: the
+gap phi, the normal n (out of the shape, towards the point), a tangent frame (t1, t2) with
+t2 = n x t1, and the contact point on the shape. Rigid-rigid pairs (`collide`) reuse the same
+query: a sphere's centre, or a capsule's end centres, or the corners of a box, or the vertices
+of a mesh, are queried against the other shape's distance, less their radius.
+
+Broad phase: each bounded shape keeps only the query points inside its bounding box grown by
+the margin, found either by a boolean mask over all points or by a ball query in a k-d tree
+(scipy.spatial.cKDTree) of the points. The mask costs O(points) per shape, the tree
+O(points log points) once and then O(hits) per shape; "auto" picks the tree from
+`_TREE_MIN_SHAPES` bounded shapes on. Measured on 10k points spread in a 100 mm cube with
+primitives and meshes of 1-6 mm (times per call, mask / tree): 8 shapes 6.7 / 8.2 ms,
+16 shapes 9.5 / 8.4 ms, 64 shapes 43 / 15 ms, 256 shapes 131 / 69 ms.
+
+Triangle meshes: exact closest point over a bounding-volume hierarchy compiled with numba, the
+sign from the angle-weighted pseudo-normal of the closest feature (face, edge or vertex;
+Baerentzen and Aanaes, IEEE TVCG 11(3), 2005), which is exact for closed oriented meshes. It is
+used rather than trimesh.proximity.signed_distance: for 10k points against a 1280-triangle
+sphere it takes 12 ms (points near the surface, the contact case; 30 ms for points spread
+through the bounding box) against 0.95 s for trimesh, whose sign needs ray tests; and it adds
+no dependency.
+"""
+
+from __future__ import annotations
+
+import math
+from abc import ABC, abstractmethod
+from dataclasses import dataclass, replace
+from dataclasses import fields as dataclass_fields
+from functools import cached_property
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from pliant.constraints import contact_kernels as kernels
+from pliant.errors import ContactError
+from pliant.fem.rotation import check_rotation
+
+_TREE_MIN_SHAPES = 12
+
+
+def _vector(value, name: str) -> np.ndarray:
+    v = np.asarray(value, dtype=float).reshape(-1)
+    if v.shape != (3,) or not np.all(np.isfinite(v)):
+        raise ContactError(f"{name} must be a finite 3-vector, got {np.asarray(value).tolist()}")
+    return v
+
+
+def _positive(value: float, name: str) -> float:
+    v = float(value)
+    if not (np.isfinite(v) and v > 0.0):
+        raise ContactError(f"{name} must be finite and > 0, got {value!r}")
+    return v
+
+
+def _query_points(points: np.ndarray) -> np.ndarray:
+    p = np.asarray(points, dtype=float)
+    if p.ndim != 2 or p.shape[1] != 3:
+        raise ContactError(f"query points must be a (k, 3) array, got shape {p.shape}")
+    if not np.all(np.isfinite(p)):
+        raise ContactError("query points must be finite")
+    return p
+
+
+def _rotate(vectors: np.ndarray, rotation: np.ndarray) -> np.ndarray:
+    """rotation @ v for each row v, written out so that each result depends on its own row
+    only (a BLAS product may round a row differently depending on the batch it is in)."""
+    x, y, z = vectors[:, 0:1], vectors[:, 1:2], vectors[:, 2:3]
+    return x * rotation[:, 0] + y * rotation[:, 1] + z * rotation[:, 2]
+
+
+def _box_corners(lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+    """The 8 corners of the box [lo, hi]."""
+    return np.array(
+        [[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])]
+    )
+
+
+def cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Row-wise a x b of (k, 3) arrays (np.cross costs ~40 us of overhead per call)."""
+    return np.column_stack(
+        [
+            a[:, 1] * b[:, 2] - a[:, 2] * b[:, 1],
+            a[:, 2] * b[:, 0] - a[:, 0] * b[:, 2],
+            a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0],
+        ]
+    )
+
+
+def tangent_frame(normals: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Unit tangents t1, t2 with (n, t1, t2) orthonormal and t2 = n x t1.
+
+    t1 is n x e normalised, e the world axis least aligned with n, so the frame varies smoothly
+    with n away from the ties where that axis changes.
+    """
+    n = np.asarray(normals, dtype=float).reshape(-1, 3)
+    axis = np.argmin(np.abs(n), axis=1)
+    e = np.zeros_like(n)
+    e[np.arange(n.shape[0]), axis] = 1.0
+    t1 = cross(n, e)
+    t1 /= np.sqrt(np.einsum("ij,ij->i", t1, t1))[:, None]
+    return t1, cross(n, t1)
+
+
+@dataclass(frozen=True)
+class SignedDistance:
+    """Answer of a distance query for k points: p = closest + gap * normal."""
+
+    gap: np.ndarray  # (k,) signed distance, < 0 inside
+    normal: np.ndarray  # (k, 3) outward unit normal
+    closest: np.ndarray  # (k, 3) closest point on the surface
+
+
+class Shape(ABC):
+    """A collision shape placed in the world by a pose and moving with a twist.
+
+    Args:
+        position: x, the origin of the shape frame in the world.
+        rotation: R, shape frame -> world (default identity).
+    """
+
+    def __init__(self, position=(0.0, 0.0, 0.0), rotation: np.ndarray | None = None) -> None:
+        self.set_pose(position, np.eye(3) if rotation is None else rotation)
+        self.set_twist(np.zeros(3), np.zeros(3))
+
+    def set_pose(self, position, rotation: np.ndarray) -> None:
+        """Place the shape: world point = position + rotation @ shape point."""
+        self.position = _vector(position, f"{type(self).__name__} position")
+        self.rotation = check_rotation(
+            rotation, name=f"{type(self).__name__} rotation", error=ContactError
+        )
+
+    def set_twist(self, linear_velocity, angular_velocity) -> None:
+        """Velocity of the shape frame's origin and angular velocity, both in the world."""
+        self.linear_velocity = _vector(linear_velocity, "linear velocity")
+        self.angular_velocity = _vector(angular_velocity, "angular velocity")
+
+    def point_velocity(self, points: np.ndarray) -> np.ndarray:
+        """Velocity of the shape's material points at world `points`: v + w x (p - x)."""
+        w = np.broadcast_to(self.angular_velocity, points.shape)
+        return self.linear_velocity + cross(w, points - self.position)
+
+    def signed_distance(self, points: np.ndarray) -> SignedDistance:
+        """phi, n and the closest point for world points (k, 3)."""
+        p = _query_points(points)
+        local = _rotate(p - self.position, self.rotation.T)
+        gap, normal, closest = self._local_distance(local)
+        return SignedDistance(
+            gap, _rotate(normal, self.rotation), _rotate(closest, self.rotation) + self.position
+        )
+
+    @abstractmethod
+    def _local_distance(self, p: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(phi, n, closest) for points in the shape frame."""
+
+    def bounds(self) -> tuple[np.ndarray, np.ndarray] | None:
+        """World axis-aligned bounding box (lower, upper), None for an unbounded shape."""
+        box = self._local_box()
+        if box is None:
+            return None
+        world = _rotate(_box_corners(*box), self.rotation) + self.position
+        return world.min(axis=0), world.max(axis=0)
+
+    def bounding_radius(self) -> float:
+        """Radius of a ball about the shape's origin that holds the shape (inf: unbounded)."""
+        box = self._local_box()
+        return math.inf if box is None else float(np.linalg.norm(_box_corners(*box), axis=1).max())
+
+    @abstractmethod
+    def _local_box(self) -> tuple[np.ndarray, np.ndarray] | None:
+        """Bounding box in the shape frame (None: unbounded)."""
+
+    def samples(self) -> tuple[np.ndarray, float]:
+        """Points (world) and a radius: the shape is covered, near its deepest possible contact,
+        by spheres of that radius at those points (used for rigid-rigid contacts)."""
+        return np.empty((0, 3)), 0.0
+
+
+class Plane(Shape):
+    """The half-space below a plane: phi(p) = n . (p - point) (n its outward normal, the shape
+    frame's z axis).
+
+    Args:
+        normal: outward normal (any non-zero length).
+        point: a point of the plane.
+    """
+
+    def __init__(self, normal=(0.0, 0.0, 1.0), point=(0.0, 0.0, 0.0)) -> None:
+        n = _vector(normal, "plane normal")
+        length = float(np.linalg.norm(n))
+        if length == 0.0:
+            raise ContactError("the plane normal must be non-zero")
+        n = n / length
+        t1, t2 = tangent_frame(n)
+        super().__init__(point, np.column_stack([t1[0], t2[0], n]))
+
+    @property
+    def normal(self) -> np.ndarray:
+        return self.rotation[:, 2].copy()
+
+    def _local_distance(self, p):
+        normal = np.zeros_like(p)
+        normal[:, 2] = 1.0
+        closest = p.copy()
+        closest[:, 2] = 0.0
+        return p[:, 2].copy(), normal, closest
+
+    def _local_box(self):
+        return None
+
+
+class Sphere(Shape):
+    """phi(p) = |p - x| - r."""
+
+    def __init__(self, radius: float, position=(0.0, 0.0, 0.0), rotation=None) -> None:
+        self.radius = _positive(radius, "sphere radius")
+        super().__init__(position, rotation)
+
+    def _local_distance(self, p):
+        length = np.linalg.norm(p, axis=1)
+        normal = np.zeros_like(p)
+        normal[:, 2] = 1.0  # the centre itself: any direction is a closest one
+        off_centre = length > 0.0
+        normal[off_centre] = p[off_centre] / length[off_centre, None]
+        return length - self.radius, normal, self.radius * normal
+
+    def _local_box(self):
+        return -np.full(3, self.radius), np.full(3, self.radius)
+
+    def samples(self):
+        return self.position[None, :].copy(), self.radius
+
+
+class Box(Shape):
+    """An oriented box of half extents h: with q = |p| - h (shape frame),
+    phi = |max(q, 0)| outside and max_i q_i inside (the exact Euclidean signed distance)."""
+
+    def __init__(self, half_extents, position=(0.0, 0.0, 0.0), rotation=None) -> None:
+        h = _vector(half_extents, "box half extents")
+        if np.any(h <= 0.0):
+            raise ContactError(f"box half extents must be > 0, got {h.tolist()}")
+        self.half_extents = h
+        super().__init__(position, rotation)
+
+    def _local_distance(self, p):
+        h = self.half_extents
+        q = np.abs(p) - h
+        outside_part = np.maximum(q, 0.0)
+        outside_length = np.linalg.norm(outside_part, axis=1)
+        outside = outside_length > 0.0
+        gap = np.where(outside, outside_length, q.max(axis=1))
+        closest = np.clip(p, -h, h)
+        normal = np.zeros_like(p)
+        normal[outside] = (p[outside] - closest[outside]) / outside_length[outside, None]
+        # Inside (or on the surface): the nearest face is the one of largest q.
+        rows = np.flatnonzero(~outside)
+        axis = np.argmax(q[rows], axis=1)
+        side = np.where(p[rows, axis] < 0.0, -1.0, 1.0)
+        normal[rows, axis] = side
+        closest[rows, axis] = side * h[axis]
+        return gap, normal, closest
+
+    def _local_box(self):
+        return -self.half_extents, self.half_extents.copy()
+
+    def samples(self):
+        corners = _box_corners(-self.half_extents, self.half_extents)
+        return _rotate(corners, self.rotation) + self.position, 0.0
+
+
+class Capsule(Shape):
+    """A segment of half length L along the shape's z axis, swept by a sphere of radius r:
+    phi(p) = |p - s(p)| - r with s(p) = (0, 0, clamp(p_z, -L, L))."""
+
+    def __init__(
+        self, radius: float, half_length: float, position=(0.0, 0.0, 0.0), rotation=None
+    ) -> None:
+        self.radius = _positive(radius, "capsule radius")
+        self.half_length = _positive(half_length, "capsule half length")
+        super().__init__(position, rotation)
+
+    def _local_distance(self, p):
+        axis_point = np.zeros_like(p)
+        axis_point[:, 2] = np.clip(p[:, 2], -self.half_length, self.half_length)
+        d = p - axis_point
+        length = np.linalg.norm(d, axis=1)
+        normal = np.zeros_like(p)
+        normal[:, 0] = 1.0  # on the axis: any direction across it is a closest one
+        off_axis = length > 0.0
+        normal[off_axis] = d[off_axis] / length[off_axis, None]
+        return length - self.radius, normal, axis_point + self.radius * normal
+
+    def _local_box(self):
+        extent = np.array([self.radius, self.radius, self.radius + self.half_length])
+        return -extent, extent
+
+    def samples(self):
+        ends = np.array([[0.0, 0.0, -self.half_length], [0.0, 0.0, self.half_length]])
+        return _rotate(ends, self.rotation) + self.position, self.radius
+
+
+class TriangleMesh(Shape):
+    """A closed, outward-oriented triangle mesh (vertices in the shape frame).
+
+    Raises ContactError if an edge is not shared by exactly two faces of opposite orientation
+    (the mesh is not closed), or if the enclosed volume is not positive (normals inwards).
+    """
+
+    def __init__(self, vertices, faces, position=(0.0, 0.0, 0.0), rotation=None) -> None:
+        v = np.asarray(vertices, dtype=float)
+        f = np.asarray(faces)
+        if v.ndim != 2 or v.shape[1] != 3 or f.ndim != 2 or f.shape[1] != 3 or len(f) < 4:
+            raise ContactError(
+                f"a triangle mesh needs (n, 3) vertices and (m >= 4, 3) faces,"
+                f" got {v.shape} and {f.shape}"
+            )
+        if not np.all(np.isfinite(v)):
+            raise ContactError("mesh vertices must be finite")
+        if not np.issubdtype(f.dtype, np.integer) or f.min() < 0 or f.max() >= len(v):
+            raise ContactError(f"faces must index the {len(v)} vertices")
+        f = f.astype(np.int64)
+        self.vertices, self.faces = v.copy(), f
+        self._check_closed()
+        tri = v[f]
+        volume = float(np.einsum("ij,ij->i", tri[:, 0], np.cross(tri[:, 1], tri[:, 2])).sum()) / 6
+        if not volume > 0.0:
+            raise ContactError(
+                f"the mesh encloses a volume of {volume:.6g} <= 0: its faces are oriented"
+                " inwards (or it is flat); reverse their vertex order"
+            )
+        self.volume = volume
+        self._size = float(np.linalg.norm(np.ptp(v, axis=0)))
+        self._triangles = np.ascontiguousarray(tri)
+        self._bvh = kernels.build_bvh(self._triangles)
+        self._pseudo_normals()
+        super().__init__(position, rotation)
+
+    def _check_closed(self) -> None:
+        f = self.faces
+        n = len(self.vertices)
+        edges = np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]])
+        keys = edges[:, 0] * n + edges[:, 1]
+        unique, counts = np.unique(keys, return_counts=True)
+        if np.any(counts > 1):
+            a, b = divmod(int(unique[np.argmax(counts > 1)]), n)
+            raise ContactError(
+                f"the mesh is not a closed oriented surface: edge ({a}, {b}) is used twice in"
+                " the same direction (inconsistent orientation or a non-manifold edge)"
+            )
+        reverse = edges[:, 1] * n + edges[:, 0]
+        missing = ~np.isin(reverse, unique)
+        if np.any(missing):
+            a, b = edges[np.argmax(missing)]
+            raise ContactError(
+                f"the mesh is not closed: edge ({a}, {b}) has no opposite face (a hole)"
+            )
+
+    def _pseudo_normals(self) -> None:
+        """Angle-weighted pseudo-normals: faces, edges (sum of the two faces), vertices (sum
+        of the incident faces weighted by their angle at the vertex)."""
+        tri, f = self._triangles, self.faces
+        face = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+        area2 = np.linalg.norm(face, axis=1)
+        if np.any(area2 <= 1e-14 * area2.max()):
+            raise ContactError(
+                f"the mesh has {int(np.sum(area2 <= 1e-14 * area2.max()))} degenerate"
+                " (zero-area) faces"
+            )
+        face /= area2[:, None]
+        vertex = np.zeros_like(self.vertices)
+        for k in range(3):
+            e1 = tri[:, (k + 1) % 3] - tri[:, k]
+            e2 = tri[:, (k + 2) % 3] - tri[:, k]
+            cos = np.einsum("ij,ij->i", e1, e2) / (
+                np.linalg.norm(e1, axis=1) * np.linalg.norm(e2, axis=1)
+            )
+            np.add.at(vertex, f[:, k], np.arccos(np.clip(cos, -1.0, 1.0))[:, None] * face)
+        n = len(self.vertices)
+        # Edge k of a face joins its corners k and k + 1 (ab, bc, ca as in the kernel).
+        directed = np.stack([f, np.roll(f, -1, axis=1)], axis=2).reshape(-1, 2)
+        order = np.argsort(directed[:, 0] * n + directed[:, 1])
+        twin_keys = directed[:, 1] * n + directed[:, 0]
+        twin = order[np.searchsorted(directed[order, 0] * n + directed[order, 1], twin_keys)]
+        edge = face.repeat(3, axis=0) + face[twin // 3]
+        self._face_normals = face
+        self._edge_normals = edge.reshape(-1, 3, 3)
+        self._vertex_normals = vertex
+
+    def _local_distance(self, p):
+        dist2, closest, tri, feature = kernels.closest_points(
+            np.ascontiguousarray(p), self._triangles, *self._bvh
+        )
+        pseudo = self._face_normals[tri].copy()
+        on_vertex = feature <= kernels.VERTEX_C
+        pseudo[on_vertex] = self._vertex_normals[self.faces[tri[on_vertex], feature[on_vertex]]]
+        on_edge = (feature >= kernels.EDGE_AB) & (feature <= kernels.EDGE_CA)
+        pseudo[on_edge] = self._edge_normals[tri[on_edge], feature[on_edge] - kernels.EDGE_AB]
+        d = p - closest
+        sign = np.where(np.einsum("ij,ij->i", d, pseudo) < 0.0, -1.0, 1.0)
+        length = np.sqrt(dist2)
+        gap = sign * length
+        normal = pseudo / np.linalg.norm(pseudo, axis=1, keepdims=True)
+        off = length > 1e-12 * self._size
+        normal[off] = d[off] / gap[off, None]
+        return gap, normal, closest
+
+    def _local_box(self):
+        return self.vertices.min(axis=0), self.vertices.max(axis=0)
+
+    def samples(self):
+        return _rotate(self.vertices, self.rotation) + self.position, 0.0
+
+
+@dataclass(frozen=True)
+class ContactSet:
+    """k contacts between a side a (query points, or a first body) and a side b (a shape).
+
+    Attributes:
+        index_a: (k,) the query point (detect) or the first collider (collide).
+        index_b: (k,) the shape or second collider.
+        feature: (k,) 2 s if the sample s of a (query point, box corner, mesh vertex, ...)
+            made the contact, 2 s + 1 if the sample s of b did; with index_a and index_b it
+            identifies a contact across steps (warm start).
+        gap: (k,) phi = n . (point_a - point_b), < 0 for a penetration.
+        normal: (k, 3) unit normal out of b towards a; the tangents follow from it
+            (`tangent_frame`), so that both sides of a contact agree on its frame.
+        point_a: (k, 3) the contact point on a (the query point itself for detect).
+        point_b: (k, 3) the contact point on b's surface.
+    """
+
+    index_a: np.ndarray
+    index_b: np.ndarray
+    feature: np.ndarray
+    gap: np.ndarray
+    normal: np.ndarray
+    point_a: np.ndarray
+    point_b: np.ndarray
+
+    def __len__(self) -> int:
+        return int(self.gap.shape[0])
+
+    @property
+    def keys(self) -> np.ndarray:
+        """(k, 3) int64 identities (index_a, index_b, feature)."""
+        return np.column_stack([self.index_a, self.index_b, self.feature]).astype(np.int64)
+
+    @cached_property
+    def frames(self) -> np.ndarray:
+        """(k, 3, 3): rows n, t1, t2 of each contact, orthonormal with t2 = n x t1."""
+        t1, t2 = tangent_frame(self.normal)
+        return np.stack([self.normal, t1, t2], axis=1)
+
+    @property
+    def tangent1(self) -> np.ndarray:
+        return self.frames[:, 1]
+
+    @property
+    def tangent2(self) -> np.ndarray:
+        return self.frames[:, 2]
+
+    @classmethod
+    def empty(cls) -> ContactSet:
+        i, v, f = np.zeros(0, dtype=np.int64), np.zeros((0, 3)), np.zeros(0)
+        return cls(i, i.copy(), i.copy(), f, v, v.copy(), v.copy())
+
+    @classmethod
+    def concatenate(cls, sets: list[ContactSet]) -> ContactSet:
+        if not sets:
+            return cls.empty()
+        return cls(
+            *(
+                np.concatenate([getattr(s, name) for s in sets])
+                for name in (f.name for f in dataclass_fields(cls))
+            )
+        )
+
+    def swapped(self) -> ContactSet:
+        """The same contacts seen from b: a and b exchanged, the normal reversed, features
+        marked as b's (odd)."""
+        return ContactSet(
+            self.index_b,
+            self.index_a,
+            2 * (self.feature // 2) + 1 - self.feature % 2,
+            self.gap,
+            -self.normal,
+            self.point_b,
+            self.point_a,
+        )
+
+
+def _contacts_with_shape(
+    points: np.ndarray,
+    candidates: np.ndarray,
+    shape: Shape,
+    shape_index: int,
+    margin: float,
+    radius: float = 0.0,
+) -> ContactSet:
+    """Contacts of the candidate points (spheres of `radius` around them) with one shape."""
+    query = shape.signed_distance(points[candidates])
+    gap = query.gap - radius
+    keep = gap < margin
+    k = int(np.count_nonzero(keep))
+    normal = query.normal[keep]
+    return ContactSet(
+        candidates[keep].astype(np.int64),
+        np.full(k, shape_index, dtype=np.int64),
+        2 * candidates[keep].astype(np.int64),
+        gap[keep],
+        normal,
+        points[candidates[keep]] - radius * normal,
+        query.closest[keep],
+    )
+
+
+def detect(
+    points: np.ndarray,
+    shapes: list[Shape],
+    margin: float,
+    *,
+    broad_phase: str = "auto",
+) -> ContactSet:
+    """Contacts of query points (e.g. surface nodes of a deformable body) with shapes.
+
+    Every (point, shape) pair with phi < margin is one contact, sorted by shape then point;
+    feature is 2 x point index. `broad_phase`: "mask" (bounding-box mask per shape), "tree"
+    (k-d tree of the points, ball query per shape) or "auto" (see the module docstring).
+    """
+    p = _query_points(points)
+    margin = float(margin)
+    if not (np.isfinite(margin) and margin >= 0.0):
+        raise ContactError(f"the margin must be finite and >= 0, got {margin!r}")
+    if broad_phase not in ("auto", "mask", "tree"):
+        raise ContactError(f"broad_phase must be 'auto', 'mask' or 'tree', got {broad_phase!r}")
+    if len(p) == 0:
+        return ContactSet.empty()
+    boxes = [shape.bounds() for shape in shapes]
+    n_bounded = sum(b is not None for b in boxes)
+    use_tree = broad_phase == "tree" or (broad_phase == "auto" and n_bounded >= _TREE_MIN_SHAPES)
+    tree = cKDTree(p) if use_tree and n_bounded else None
+    cloud_lo, cloud_hi = p.min(axis=0), p.max(axis=0)
+    found = []
+    for j, (shape, box) in enumerate(zip(shapes, boxes, strict=True)):
+        if box is None:
+            candidates = np.arange(len(p))
+        else:
+            lo, hi = box[0] - margin, box[1] + margin
+            if np.any(lo > cloud_hi) or np.any(hi < cloud_lo):
+                continue
+            if tree is not None:
+                near = tree.query_ball_point(0.5 * (lo + hi), 0.5 * np.linalg.norm(hi - lo))
+                near = np.sort(np.asarray(near, dtype=np.int64))
+                inside = np.all((p[near] >= lo) & (p[near] <= hi), axis=1)
+                candidates = near[inside]
+            else:
+                candidates = np.flatnonzero(np.all((p >= lo) & (p <= hi), axis=1))
+        if candidates.size:
+            found.append(_contacts_with_shape(p, candidates, shape, j, margin))
+    return ContactSet.concatenate(found)
+
+
+def collide(shape_a: Shape, shape_b: Shape, margin: float) -> ContactSet:
+    """Contacts between two shapes (index_a = index_b = 0; the caller sets the colliders).
+
+    A sphere is exact against every shape: its centre is queried against the other one, less
+    its radius (sphere-plane, sphere-sphere, sphere-box, sphere-capsule, sphere-mesh). Other
+    pairs query the samples of each shape against the other: box corners (box-plane exact;
+    box-box and box-mesh miss edge-edge contacts), capsule end spheres (exact on a plane), mesh
+    vertices.
+    """
+    if isinstance(shape_b, Sphere) and not isinstance(shape_a, Sphere):
+        return collide(shape_b, shape_a, margin).swapped()
+    sides = [(shape_a, shape_b, False)]
+    if not isinstance(shape_a, Sphere):
+        sides.append((shape_b, shape_a, True))
+    found = []
+    for first, second, swap in sides:
+        samples, radius = first.samples()
+        box = second.bounds()
+        candidates = np.arange(len(samples))
+        if box is not None:
+            lo, hi = box[0] - margin - radius, box[1] + margin + radius
+            candidates = np.flatnonzero(np.all((samples >= lo) & (samples <= hi), axis=1))
+        if candidates.size == 0:
+            continue
+        contacts = _contacts_with_shape(samples, candidates, second, 0, margin, radius)
+        contacts = replace(contacts, index_a=np.zeros(len(contacts), dtype=np.int64))
+        found.append(contacts.swapped() if swap else contacts)
+    return ContactSet.concatenate(found)
+
+
+def shape_velocities(contacts: ContactSet, shapes: list[Shape]) -> np.ndarray:
+    """(k, 3) velocity of each contact point on its shape (moving obstacles).
+
+    Times the step h it is the obstacle's displacement over the step, to give
+    ContactConstraint(obstacle_displacement=...).
+    """
+    velocity = np.zeros((len(contacts), 3))
+    for j in np.unique(contacts.index_b):
+        rows = contacts.index_b == j
+        velocity[rows] = shapes[int(j)].point_velocity(contacts.point_b[rows])
+    return velocity

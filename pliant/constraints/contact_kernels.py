@@ -1,0 +1,299 @@
+"""Compiled kernels of the contact pipeline: the triangle-mesh distance query and the projected
+block Gauss-Seidel sweep. The modules collision.py and friction.py hold the readable
+definitions and the validation; the tests compare these kernels with plain references.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+# Closest-point features of a triangle (a, b, c): its vertices, its edges ab, bc, ca, its face.
+VERTEX_A, VERTEX_B, VERTEX_C, EDGE_AB, EDGE_BC, EDGE_CA, FACE = range(7)
+
+_LEAF_SIZE = 4
+
+
+def build_bvh(
+    triangles: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Bounding-volume hierarchy of axis-aligned boxes over triangles (m, 3, 3).
+
+    Top-down median split of the triangle centroids along their longest spread, leaves of at
+    most 4 triangles. Returns (box_min, box_max, child, spans, order): node i bounds the
+    triangles order[spans[i, 0]:spans[i, 1]]; its children are child[i] and child[i] + 1, or
+    child[i] = -1 at a leaf. Node 0 is the root.
+    """
+    m = triangles.shape[0]
+    lo_tri, hi_tri = triangles.min(axis=1), triangles.max(axis=1)
+    centroid = triangles.mean(axis=1)
+    order = np.arange(m, dtype=np.int64)
+    child, spans = [-1], [(0, m)]
+    pending = [0]
+    while pending:
+        node = pending.pop()
+        start, stop = spans[node]
+        if stop - start <= _LEAF_SIZE:
+            continue
+        ids = order[start:stop]
+        c = centroid[ids]
+        half = (stop - start) // 2
+        order[start:stop] = ids[np.argpartition(c[:, int(np.argmax(np.ptp(c, axis=0)))], half)]
+        child[node] = len(child)
+        for span in ((start, start + half), (start + half, stop)):
+            pending.append(len(child))
+            child.append(-1)
+            spans.append(span)
+    spans_array = np.array(spans, dtype=np.int64)
+    box_min = np.array([lo_tri[order[a:b]].min(axis=0) for a, b in spans])
+    box_max = np.array([hi_tri[order[a:b]].max(axis=0) for a, b in spans])
+    return box_min, box_max, np.array(child, dtype=np.int64), spans_array, order
+
+
+@njit(cache=True)
+def _dot(x0, x1, x2, y0, y1, y2):
+    return x0 * y0 + x1 * y1 + x2 * y2
+
+
+@njit(cache=True)
+def _closest_on_triangle(p, tri):
+    """Closest point of the triangle tri = (a, b, c) to p and its feature (Ericson, Real-Time
+    Collision Detection, 5.1.5: Voronoi regions of the vertices, the edges, then the face).
+    Scalar arithmetic: no temporary arrays in the innermost loop."""
+    ax, ay, az = tri[0, 0], tri[0, 1], tri[0, 2]
+    abx, aby, abz = tri[1, 0] - ax, tri[1, 1] - ay, tri[1, 2] - az
+    acx, acy, acz = tri[2, 0] - ax, tri[2, 1] - ay, tri[2, 2] - az
+    apx, apy, apz = p[0] - ax, p[1] - ay, p[2] - az
+    d1, d2 = _dot(abx, aby, abz, apx, apy, apz), _dot(acx, acy, acz, apx, apy, apz)
+    if d1 <= 0.0 and d2 <= 0.0:
+        return 0.0, 0.0, VERTEX_A
+    bpx, bpy, bpz = apx - abx, apy - aby, apz - abz
+    d3, d4 = _dot(abx, aby, abz, bpx, bpy, bpz), _dot(acx, acy, acz, bpx, bpy, bpz)
+    if d3 >= 0.0 and d4 <= d3:
+        return 1.0, 0.0, VERTEX_B
+    vc = d1 * d4 - d3 * d2
+    if vc <= 0.0 and d1 >= 0.0 and d3 <= 0.0:
+        return d1 / (d1 - d3), 0.0, EDGE_AB
+    cpx, cpy, cpz = apx - acx, apy - acy, apz - acz
+    d5, d6 = _dot(abx, aby, abz, cpx, cpy, cpz), _dot(acx, acy, acz, cpx, cpy, cpz)
+    if d6 >= 0.0 and d5 <= d6:
+        return 0.0, 1.0, VERTEX_C
+    vb = d5 * d2 - d1 * d6
+    if vb <= 0.0 and d2 >= 0.0 and d6 <= 0.0:
+        return 0.0, d2 / (d2 - d6), EDGE_CA
+    va = d3 * d6 - d5 * d4
+    if va <= 0.0 and d4 - d3 >= 0.0 and d5 - d6 >= 0.0:
+        w = (d4 - d3) / ((d4 - d3) + (d5 - d6))
+        return 1.0 - w, w, EDGE_BC
+    denom = 1.0 / (va + vb + vc)
+    return vb * denom, vc * denom, FACE
+
+
+@njit(cache=True)
+def _box_distance2(p, lo, hi):
+    d2 = 0.0
+    for k in range(3):
+        if p[k] < lo[k]:
+            d2 += (lo[k] - p[k]) ** 2
+        elif p[k] > hi[k]:
+            d2 += (p[k] - hi[k]) ** 2
+    return d2
+
+
+@njit(cache=True)
+def closest_points(points, triangles, box_min, box_max, child, spans, order):
+    """For each point: squared distance to the mesh, closest point, triangle and feature.
+
+    Depth-first traversal nearest child first, pruning boxes farther than the best distance.
+    """
+    n = points.shape[0]
+    dist2 = np.empty(n)
+    closest = np.empty((n, 3))
+    triangle = np.empty(n, dtype=np.int64)
+    feature = np.empty(n, dtype=np.int64)
+    stack = np.empty(128, dtype=np.int64)
+    best_point = np.zeros(3)
+    for i in range(n):
+        p = points[i]
+        best, best_tri, best_feature = np.inf, -1, FACE
+        stack[0] = 0  # the root
+        top = 1
+        while top > 0:
+            top -= 1
+            node = stack[top]
+            if _box_distance2(p, box_min[node], box_max[node]) >= best:
+                continue
+            first = child[node]
+            if first < 0:
+                for s in range(spans[node, 0], spans[node, 1]):
+                    t = order[s]
+                    tri = triangles[t]
+                    # The closest point is a + v (b - a) + w (c - a).
+                    v, w, f = _closest_on_triangle(p, tri)
+                    qx = tri[0, 0] + v * (tri[1, 0] - tri[0, 0]) + w * (tri[2, 0] - tri[0, 0])
+                    qy = tri[0, 1] + v * (tri[1, 1] - tri[0, 1]) + w * (tri[2, 1] - tri[0, 1])
+                    qz = tri[0, 2] + v * (tri[1, 2] - tri[0, 2]) + w * (tri[2, 2] - tri[0, 2])
+                    d2 = (p[0] - qx) ** 2 + (p[1] - qy) ** 2 + (p[2] - qz) ** 2
+                    if d2 < best:
+                        best, best_tri, best_feature = d2, t, f
+                        best_point[0], best_point[1], best_point[2] = qx, qy, qz
+                continue
+            near = _box_distance2(p, box_min[first], box_max[first])
+            far = _box_distance2(p, box_min[first + 1], box_max[first + 1])
+            if near <= far:
+                stack[top], stack[top + 1] = first + 1, first
+            else:
+                stack[top], stack[top + 1] = first, first + 1
+            top += 2
+        dist2[i], closest[i], triangle[i], feature[i] = best, best_point, best_tri, best_feature
+    return dist2, closest, triangle, feature
+
+
+@njit(cache=True)
+def _disk_qp(a, b, c, g1, g2, radius):
+    """argmin 1/2 x^T T x + g^T x subject to |x| <= radius, T = [[a, b], [b, c]] PSD.
+
+    Interior: T x = -g. Boundary: (T + nu I) x = -g with |x| = radius, nu >= 0 (the 2D trust-
+    region subproblem), found in T's eigenbasis by safeguarded Newton on the secular equation
+    1/|x(nu)| - 1/radius = 0, which is nearly linear in nu (More and Sorensen, 1983).
+    """
+    if radius <= 0.0:
+        return 0.0, 0.0
+    # Eigen-decomposition of the symmetric 2x2 T: e1 <= e2, unit eigenvectors u (e1), v (e2).
+    mean, diff = 0.5 * (a + c), 0.5 * (a - c)
+    root = math.sqrt(diff * diff + b * b)
+    e1, e2 = mean - root, mean + root
+    v1, v2 = 1.0, 0.0
+    if root > 0.0:
+        # Two expressions of e2's eigenvector; take the better conditioned one.
+        p1, p2, q1, q2 = b, e2 - a, e2 - c, b
+        if math.hypot(p1, p2) < math.hypot(q1, q2):
+            p1, p2 = q1, q2
+        norm = math.hypot(p1, p2)
+        v1, v2 = p1 / norm, p2 / norm
+    u1, u2 = -v2, v1
+    h1, h2 = u1 * g1 + u2 * g2, v1 * g1 + v2 * g2  # g in the eigenbasis
+    scale = max(abs(e2), 1e-300)
+    tiny = 1e-14 * scale
+    # Minimum-norm stationary point at nu = 0 (directions of zero curvature with zero slope
+    # leave the objective flat: the shortest minimiser is inside whenever any one is).
+    x1 = 0.0 if abs(e1) <= tiny and h1 == 0.0 else (-h1 / e1 if e1 > tiny else math.inf)
+    x2 = 0.0 if abs(e2) <= tiny and h2 == 0.0 else (-h2 / e2 if e2 > tiny else math.inf)
+    if x1 * x1 + x2 * x2 <= radius * radius:
+        return u1 * x1 + v1 * x2, u2 * x1 + v2 * x2
+    lo, hi = 0.0, math.hypot(h1, h2) / radius  # |x(hi)| <= |g| / hi = radius
+    nu = lo if e1 > tiny else hi
+    y1 = y2 = 0.0
+    for _ in range(100):
+        y1, y2 = -h1 / (max(e1, 0.0) + nu), -h2 / (max(e2, 0.0) + nu)
+        norm = math.hypot(y1, y2)
+        residual = 1.0 / norm - 1.0 / radius
+        if abs(residual) * radius <= 1e-15:
+            break
+        if residual < 0.0:
+            lo = nu
+        else:
+            hi = nu
+        slope = (y1 * y1 / (max(e1, 0.0) + nu) + y2 * y2 / (max(e2, 0.0) + nu)) / (
+            norm * norm * norm
+        )
+        step = nu - residual / slope
+        nu = step if lo < step < hi else 0.5 * (lo + hi)
+    scale_to_disk = radius / math.hypot(y1, y2)
+    y1, y2 = y1 * scale_to_disk, y2 * scale_to_disk
+    return u1 * y1 + v1 * y2, u2 * y1 + v2 * y2
+
+
+@njit(cache=True)
+def _add_column(delta, w, row, change):
+    """delta += W[:, row] * change, reading the symmetric W by (contiguous) rows."""
+    if change != 0.0:
+        for j in range(delta.shape[0]):
+            delta[j] += w[row, j] * change
+
+
+@njit(cache=True)
+def gauss_seidel(
+    w,
+    delta_free,
+    lam,
+    actuator_rows,
+    displacement_mode,
+    command,
+    force_lo,
+    force_hi,
+    course_lo,
+    course_hi,
+    contact_start,
+    friction,
+    tolerance,
+    max_iterations,
+):
+    """Projected block Gauss-Seidel on delta = W lambda + delta_free; `lam` is updated in place.
+
+    One sweep visits each actuator row, then each contact block (normal, t1, t2), and replaces
+    its lambda by the exact solution of its own law with the other lambdas fixed. Returns the
+    number of sweeps and the residual of the last one: the largest displacement correction
+    |W_bb (lambda_b_new - lambda_b_old)|_inf that a block received.
+    """
+    delta = w @ lam + delta_free
+    n_contacts = friction.shape[0]
+    tiny = 0.0
+    for i in range(w.shape[0]):
+        tiny = max(tiny, 1e-14 * abs(w[i, i]))
+    residual = np.inf
+    for sweep in range(max_iterations):
+        residual = 0.0
+        for j in range(actuator_rows.shape[0]):
+            i = actuator_rows[j]
+            wii = w[i, i]
+            if wii <= tiny:
+                continue
+            rest = delta[i] - wii * lam[i]  # delta_i with this row's own force removed
+            if displacement_mode[j]:
+                target = min(max(command[j], course_lo[j]), course_hi[j])
+                new = min(max((target - rest) / wii, force_lo[j]), force_hi[j])
+            else:
+                # The commanded force, unless it drives delta out of its course: then the
+                # force that holds delta on that bound, no further from the command.
+                new = min(max(command[j], force_lo[j]), force_hi[j])
+                reached = wii * new + rest
+                if reached > course_hi[j]:
+                    new = min(max((course_hi[j] - rest) / wii, force_lo[j]), new)
+                elif reached < course_lo[j]:
+                    new = max(min((course_lo[j] - rest) / wii, force_hi[j]), new)
+            change = new - lam[i]
+            lam[i] = new
+            _add_column(delta, w, i, change)
+            residual = max(residual, abs(wii * change))
+        for k in range(n_contacts):
+            n = contact_start + 3 * k
+            t1, t2 = n + 1, n + 2
+            wnn = w[n, n]
+            if wnn <= tiny:
+                continue  # a row that no force can move (e.g. a contact on a fixed node)
+            before_n, before_1, before_2 = delta[n], delta[t1], delta[t2]
+            # Signorini: 0 <= delta_n  _|_  lambda_n >= 0.
+            new_n = max(0.0, lam[n] - delta[n] / wnn)
+            _add_column(delta, w, n, new_n - lam[n])
+            lam[n] = new_n
+            # Coulomb: lambda_t minimises the block's energy in the disk |lambda_t| <= mu lambda_n,
+            # so delta_t = 0 inside (stick) or delta_t = -nu lambda_t on the rim (slip).
+            a, b, c = w[t1, t1], w[t1, t2], w[t2, t2]
+            g1 = delta[t1] - a * lam[t1] - b * lam[t2]
+            g2 = delta[t2] - b * lam[t1] - c * lam[t2]
+            new_1, new_2 = _disk_qp(a, b, c, g1, g2, friction[k] * new_n)
+            _add_column(delta, w, t1, new_1 - lam[t1])
+            _add_column(delta, w, t2, new_2 - lam[t2])
+            lam[t1], lam[t2] = new_1, new_2
+            residual = max(
+                residual,
+                abs(delta[n] - before_n),
+                abs(delta[t1] - before_1),
+                abs(delta[t2] - before_2),
+            )
+        if residual <= tolerance:
+            return sweep + 1, residual
+    return max_iterations, residual

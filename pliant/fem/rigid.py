@@ -1,0 +1,512 @@
+"""Rigid bodies, kinematic bodies, points attached to a rigid frame, and a rigid-body world
+stepped with frictional contact in the constraint space.
+
+A rigid body has 6 DoF: the position x of its frame origin (the centre of mass), its rotation R
+(body -> world), and the twist u = (v, w): linear and angular velocity, both in the world.
+A point fixed in the body at r (body frame) is at p = x + R r and moves at
+v + w x (p - x) = J(p) u with J(p) = [I, -[p - x]x] (`twist_jacobian`).
+
+The step is the velocity-level time stepping of Stewart and Trinkle (IJNME 39, 1996) and
+Anitescu and Potra (1997), written in the same compliance form as the deformable step
+(pliant.solvers.implicit_euler) so that one contact solver serves both. With h the step,
+M = diag(m I, R I_body R^T) and J the contact Jacobian (rows n, t1, t2 of each contact):
+
+    free motion   v_free = v + h g,   w_free = w - h I^-1 (w x I w)  (implicit gyroscopic term,
+                  one Newton step in the body frame; Catto, GDC 2015),
+    constraints   delta = W lambda + delta_free,  W = h^2 J M^-1 J^T,
+                  delta_free = (phi, 0, 0) + h J u_free - h (relative obstacle motion),
+    correction    u = u_free + h M^-1 J^T lambda,
+    positions     x += h v,   R = exp(h [w]x) R  (symplectic Euler on the exponential map),
+
+with lambda a force held over the step (impulse h lambda) obeying Signorini and Coulomb
+(pliant.constraints.friction). delta_n = phi + h n . (relative velocity) is the gap at the end
+of the step: contacts are inelastic and speculative (detected within a margin that grows with
+the speeds, they act only if the gap would close within the step).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from pliant.constraints.collision import Box, Capsule, ContactSet, Shape, Sphere, collide
+from pliant.constraints.condensed import CondensedProblem
+from pliant.constraints.friction import (
+    ContactForces,
+    ContactReport,
+    check_friction,
+    solve_contact,
+)
+from pliant.errors import DivergenceError, ModelError
+from pliant.fem.rotation import axis_angle, check_rotation, exp_map, log_map, skew
+
+Trajectory = Callable[[float], tuple[np.ndarray, np.ndarray]]
+
+
+def sphere_inertia(mass: float, radius: float) -> np.ndarray:
+    """Solid sphere about its centre: 2/5 m r^2 I."""
+    return 0.4 * mass * radius**2 * np.eye(3)
+
+
+def box_inertia(mass: float, half_extents) -> np.ndarray:
+    """Solid box about its centre, half extents (a, b, c): m/3 diag(b^2+c^2, a^2+c^2, a^2+b^2)."""
+    a2, b2, c2 = np.asarray(half_extents, dtype=float) ** 2
+    return mass / 3.0 * np.diag([b2 + c2, a2 + c2, a2 + b2])
+
+
+def cylinder_inertia(mass: float, radius: float, half_length: float, axis: int = 2) -> np.ndarray:
+    """Solid cylinder about its centre: m r^2 / 2 about its axis, m (3 r^2 + (2L)^2) / 12 across."""
+    across = mass * (3.0 * radius**2 + 4.0 * half_length**2) / 12.0
+    inertia = np.full(3, across)
+    inertia[axis] = 0.5 * mass * radius**2
+    return np.diag(inertia)
+
+
+def capsule_inertia(mass: float, radius: float, half_length: float) -> np.ndarray:
+    """Solid capsule along z (cylinder of height H = 2L capped by hemispheres), uniform density:
+    with m_c, m_h the masses of the cylinder and of one hemisphere,
+    I_z = m_c r^2 / 2 + 4/5 m_h r^2 and, across, m_c (H^2/12 + r^2/4)
+    + 2 m_h (2/5 r^2 + H^2/4 + 3 H r / 8) (each hemisphere moved from its centroid, 3r/8
+    from its flat face, to the capsule's centre)."""
+    height = 2.0 * half_length
+    cylinder, hemisphere = np.pi * radius**2 * height, 2.0 / 3.0 * np.pi * radius**3
+    scale = mass / (cylinder + 2.0 * hemisphere)
+    m_c, m_h = scale * cylinder, scale * hemisphere
+    axial = 0.5 * m_c * radius**2 + 0.8 * m_h * radius**2
+    across = m_c * (height**2 / 12.0 + radius**2 / 4.0) + 2.0 * m_h * (
+        0.4 * radius**2 + height**2 / 4.0 + 3.0 * height * radius / 8.0
+    )
+    return np.diag([across, across, axial])
+
+
+def twist_jacobian(arms: np.ndarray) -> np.ndarray:
+    """(k, 3, 6) d(point velocity)/d(v, w) = [I, -[arm]x] for arms p - x (k, 3)."""
+    arms = np.asarray(arms, dtype=float).reshape(-1, 3)
+    jac = np.zeros((arms.shape[0], 3, 6))
+    jac[:, :, :3] = np.eye(3)
+    jac[:, :, 3:] = -np.array([skew(a) for a in arms]).reshape(-1, 3, 3)
+    return jac
+
+
+class AttachedPoints:
+    """Points fixed in a rigid frame, at `local_points` (k, 3) in that frame: p = x + R r."""
+
+    def __init__(self, local_points: np.ndarray) -> None:
+        r = np.asarray(local_points, dtype=float)
+        if r.ndim != 2 or r.shape[1] != 3 or not np.all(np.isfinite(r)):
+            raise ModelError(f"attached points must be a finite (k, 3) array, got {r.shape}")
+        self.local_points = r.copy()
+
+    def positions(self, position: np.ndarray, rotation: np.ndarray) -> np.ndarray:
+        return position + self.local_points @ rotation.T
+
+    def velocities(self, rotation: np.ndarray, velocity, angular_velocity) -> np.ndarray:
+        """v + w x (R r)."""
+        return velocity + np.cross(angular_velocity, self.local_points @ rotation.T)
+
+    def jacobian(self, rotation: np.ndarray) -> np.ndarray:
+        """(k, 3, 6) derivative of the velocities with respect to the twist (v, w)."""
+        return twist_jacobian(self.local_points @ rotation.T)
+
+
+def _check_friction(friction: float, name: str) -> float:
+    if not np.isscalar(friction):
+        raise ModelError(f"{name}: the friction coefficient must be one number")
+    return float(check_friction(friction, 1)[0])
+
+
+def _speed_bound(shape: Shape, velocity: np.ndarray, angular_velocity: np.ndarray) -> float:
+    """Largest speed of a point of the shape: |v| + |w| (bounding radius about its origin)."""
+    return float(
+        np.linalg.norm(velocity) + np.linalg.norm(angular_velocity) * shape.bounding_radius()
+    )
+
+
+class RigidBody:
+    """A rigid body carrying a bounded collision shape; its frame origin is its centre of mass.
+
+    Args:
+        shape: collision shape, defined in the body frame's coordinates (its pose is set from
+            the state every step).
+        mass: m > 0.
+        inertia: (3, 3) symmetric positive definite inertia about the centre of mass, body
+            frame; default from the shape for a Sphere, a Box or a Capsule (solid, uniform
+            density).
+        friction: Coulomb coefficient; a contact uses sqrt(mu_a mu_b) (as Box2D and Bullet).
+        position, rotation, velocity, angular_velocity: the initial state (default: the
+            shape's pose, at rest).
+    """
+
+    def __init__(
+        self,
+        shape: Shape,
+        mass: float,
+        inertia: np.ndarray | None = None,
+        *,
+        friction: float = 0.5,
+        position=None,
+        rotation: np.ndarray | None = None,
+        velocity=(0.0, 0.0, 0.0),
+        angular_velocity=(0.0, 0.0, 0.0),
+        name: str = "body",
+    ) -> None:
+        self.name = name
+        if shape.bounds() is None:
+            raise ModelError(
+                f"{name}: a rigid body needs a bounded shape, got a {type(shape).__name__}"
+            )
+        if not (math.isfinite(mass) and mass > 0.0):
+            raise ModelError(f"{name}: the mass must be finite and > 0, got {mass!r}")
+        if inertia is None:
+            if isinstance(shape, Sphere):
+                inertia = sphere_inertia(mass, shape.radius)
+            elif isinstance(shape, Box):
+                inertia = box_inertia(mass, shape.half_extents)
+            elif isinstance(shape, Capsule):
+                inertia = capsule_inertia(mass, shape.radius, shape.half_length)
+            else:
+                raise ModelError(f"{name}: give the inertia of a {type(shape).__name__}")
+        inertia = np.asarray(inertia, dtype=float)
+        if inertia.shape != (3, 3) or not np.all(np.isfinite(inertia)):
+            raise ModelError(f"{name}: the inertia must be a finite 3x3 matrix")
+        if np.abs(inertia - inertia.T).max() > 1e-12 * np.abs(inertia).max():
+            raise ModelError(f"{name}: the inertia tensor must be symmetric")
+        smallest = float(np.linalg.eigvalsh(inertia).min())
+        if not smallest > 0.0:
+            raise ModelError(
+                f"{name}: the inertia tensor must be positive definite (smallest principal"
+                f" moment {smallest:.3g})"
+            )
+        self.shape = shape
+        self.mass = float(mass)
+        self.inertia = inertia.copy()
+        self.friction = _check_friction(friction, name)
+        self.position = np.array(shape.position if position is None else position, dtype=float)
+        self.rotation = check_rotation(shape.rotation if rotation is None else rotation)
+        self.velocity = np.asarray(velocity, dtype=float).reshape(3)
+        self.angular_velocity = np.asarray(angular_velocity, dtype=float).reshape(3)
+        for label, v in (("position", self.position), ("velocity", self.velocity)):
+            if v.shape != (3,) or not np.all(np.isfinite(v)):
+                raise ModelError(f"{name}: the initial {label} must be a finite 3-vector")
+        if not np.all(np.isfinite(self.angular_velocity)):
+            raise ModelError(f"{name}: the initial angular velocity must be finite")
+
+
+class KinematicBody:
+    """A shape whose pose is prescribed: fixed (trajectory None) or a function of time
+    t -> (position, rotation), e.g. `rail(...)` for a cart, `servo(...)` for a servo horn.
+
+    Its twist over a step [t, t + h] is the one carrying pose(t) to pose(t + h):
+    v = (x(t+h) - x(t)) / h, w = log(R(t+h) R(t)^T) / h.
+    """
+
+    def __init__(
+        self,
+        shape: Shape,
+        trajectory: Trajectory | None = None,
+        *,
+        friction: float = 0.5,
+        name: str = "obstacle",
+    ) -> None:
+        self.shape = shape
+        self.name = name
+        self.friction = _check_friction(friction, name)
+        fixed = (shape.position.copy(), shape.rotation.copy())
+        self.trajectory = trajectory if trajectory is not None else (lambda t: fixed)
+
+    def pose(self, t: float) -> tuple[np.ndarray, np.ndarray]:
+        position, rotation = self.trajectory(t)
+        position = np.asarray(position, dtype=float).reshape(3)
+        if not np.all(np.isfinite(position)):
+            raise ModelError(f"{self.name}: the trajectory gave a non-finite position at t={t}")
+        return position, check_rotation(rotation, name=f"{self.name} rotation at t={t}")
+
+    def twist(self, t: float, dt: float) -> tuple[np.ndarray, np.ndarray]:
+        x0, r0 = self.pose(t)
+        x1, r1 = self.pose(t + dt)
+        return (x1 - x0) / dt, log_map(r1 @ r0.T) / dt
+
+    def place(self, t: float, dt: float) -> None:
+        """Pose the shape at t and give it the twist of the step [t, t + dt]."""
+        self.shape.set_pose(*self.pose(t))
+        self.shape.set_twist(*self.twist(t, dt))
+
+
+def rail(
+    origin, axis, displacement: Callable[[float], float], rotation: np.ndarray | None = None
+) -> Trajectory:
+    """A cart on a straight rail: x(t) = origin + s(t) axis / |axis|, constant rotation."""
+    o = np.asarray(origin, dtype=float).reshape(3)
+    a = np.asarray(axis, dtype=float).reshape(3)
+    a = a / np.linalg.norm(a)
+    r = np.eye(3) if rotation is None else check_rotation(rotation)
+    return lambda t: (o + float(displacement(t)) * a, r)
+
+
+def servo(
+    pivot, axis, angle: Callable[[float], float], position, rotation: np.ndarray | None = None
+) -> Trajectory:
+    """A part turned by a servo about `axis` through `pivot`: at angle 0 its frame is at
+    (position, rotation); at angle a it is rotated by Rot(axis, a) about the pivot."""
+    c = np.asarray(pivot, dtype=float).reshape(3)
+    x0 = np.asarray(position, dtype=float).reshape(3)
+    r0 = np.eye(3) if rotation is None else check_rotation(rotation)
+
+    def pose(t: float) -> tuple[np.ndarray, np.ndarray]:
+        turn = axis_angle(axis, float(angle(t)))
+        return c + turn @ (x0 - c), turn @ r0
+
+    return pose
+
+
+@dataclass
+class RigidState:
+    """Poses and twists of the dynamic bodies, time, step count and the last contact forces
+    (kept so that a restored state warm-starts exactly as it did the first time)."""
+
+    positions: np.ndarray  # (n, 3)
+    rotations: np.ndarray  # (n, 3, 3)
+    velocities: np.ndarray  # (n, 3)
+    angular_velocities: np.ndarray  # (n, 3)
+    time: float = 0.0
+    step: int = 0
+    contacts: ContactForces = field(default_factory=ContactForces.empty)
+
+    def copy(self) -> RigidState:
+        return RigidState(
+            self.positions.copy(),
+            self.rotations.copy(),
+            self.velocities.copy(),
+            self.angular_velocities.copy(),
+            self.time,
+            self.step,
+            self.contacts.copy(),
+        )
+
+    def allclose(self, other: RigidState, *, atol: float = 0.0) -> bool:
+        pairs = (
+            (self.positions, other.positions),
+            (self.rotations, other.rotations),
+            (self.velocities, other.velocities),
+            (self.angular_velocities, other.angular_velocities),
+        )
+        return self.step == other.step and all(
+            np.allclose(a, b, rtol=0.0, atol=atol) for a, b in pairs
+        )
+
+
+class RigidWorld:
+    """Dynamic rigid bodies, obstacles (kinematic bodies, or plain shapes held still) and
+    gravity. The model: built once; what changes lives in RigidState."""
+
+    def __init__(
+        self,
+        bodies: list[RigidBody],
+        obstacles: list[KinematicBody | Shape] = (),
+        *,
+        gravity=(0.0, 0.0, -9.81),
+    ) -> None:
+        self.bodies = list(bodies)
+        self.obstacles = [
+            o if isinstance(o, KinematicBody) else KinematicBody(o) for o in obstacles
+        ]
+        self.gravity = np.asarray(gravity, dtype=float).reshape(3)
+        if not np.all(np.isfinite(self.gravity)):
+            raise ModelError("gravity must be finite")
+        shapes = [c.shape for c in self.colliders]
+        if len({id(s) for s in shapes}) != len(shapes):
+            raise ModelError("each body and obstacle needs its own shape object")
+
+    @property
+    def colliders(self) -> list[RigidBody | KinematicBody]:
+        """Bodies then obstacles: a contact's index_a / index_b index this list."""
+        return [*self.bodies, *self.obstacles]
+
+    def initial_state(self) -> RigidState:
+        b = self.bodies
+        return RigidState(
+            np.array([x.position for x in b]).reshape(-1, 3),
+            np.array([x.rotation for x in b]).reshape(-1, 3, 3),
+            np.array([x.velocity for x in b]).reshape(-1, 3),
+            np.array([x.angular_velocity for x in b]).reshape(-1, 3),
+        )
+
+    def inverse_inertias(self, state: RigidState) -> np.ndarray:
+        """(n, 3, 3) world inverse inertia R I^-1 R^T of each body."""
+        inv = np.array([np.linalg.inv(b.inertia) for b in self.bodies]).reshape(-1, 3, 3)
+        return state.rotations @ inv @ state.rotations.transpose(0, 2, 1)
+
+    def energy(self, state: RigidState) -> float:
+        """Kinetic plus gravitational potential energy: sum 1/2 m v^2 + 1/2 w.I w - m g.x."""
+        total = 0.0
+        for i, b in enumerate(self.bodies):
+            w = state.rotations[i].T @ state.angular_velocities[i]
+            total += 0.5 * b.mass * state.velocities[i] @ state.velocities[i]
+            total += 0.5 * w @ b.inertia @ w - b.mass * self.gravity @ state.positions[i]
+        return float(total)
+
+
+class RigidSolver:
+    """Steps a RigidWorld (see the module docstring for the scheme).
+
+    Args:
+        world: the bodies and obstacles.
+        dt: time step h.
+        margin: contacts are detected up to this gap plus the distance the fastest bodies can
+            travel in the step (speculative contacts).
+        tolerance, max_iterations: of the contact solver (tolerance in length units).
+    """
+
+    def __init__(
+        self,
+        world: RigidWorld,
+        dt: float = 1e-3,
+        *,
+        margin: float = 0.0,
+        tolerance: float = 1e-10,
+        max_iterations: int = 1000,
+    ) -> None:
+        if not (math.isfinite(dt) and dt > 0.0):
+            raise ModelError(f"the time step must be finite and > 0, got {dt!r}")
+        if not (math.isfinite(margin) and margin >= 0.0):
+            raise ModelError(f"the margin must be finite and >= 0, got {margin!r}")
+        self.world = world
+        self.dt = float(dt)
+        self.margin = float(margin)
+        self.tolerance = tolerance
+        self.max_iterations = max_iterations
+        self.last_report = ContactReport()
+        self.last_contacts = ContactSet.empty()
+
+    def _free_angular_velocity(self, body: RigidBody, rotation, angular_velocity) -> np.ndarray:
+        """One Newton step on I (w - w0) + h w x I w = 0 in the body frame (Catto 2015)."""
+        inertia, h = body.inertia, self.dt
+        w0 = rotation.T @ angular_velocity
+        jac = inertia + h * (skew(w0) @ inertia - skew(inertia @ w0))
+        return rotation @ (w0 - np.linalg.solve(jac, h * np.cross(w0, inertia @ w0)))
+
+    def _detect(self, state: RigidState, speed: float) -> ContactSet:
+        """Pose every shape, then collide each body with the later colliders whose boxes,
+        grown by the margin, overlap its own."""
+        world, h = self.world, self.dt
+        colliders = world.colliders
+        for i, b in enumerate(world.bodies):
+            b.shape.set_pose(state.positions[i], state.rotations[i])
+            b.shape.set_twist(state.velocities[i], state.angular_velocities[i])
+        for o in world.obstacles:
+            o.place(state.time, h)
+            if o.shape.bounds() is not None:
+                speed = max(
+                    speed, _speed_bound(o.shape, o.shape.linear_velocity, o.shape.angular_velocity)
+                )
+        # Two bodies approach each other at most at the sum of their largest point speeds.
+        margin = self.margin + 2.0 * h * speed
+        boxes = [c.shape.bounds() for c in colliders]
+        found = []
+        for i in range(len(world.bodies)):
+            for j in range(i + 1, len(colliders)):
+                a, b = boxes[i], boxes[j]
+                if b is not None and (np.any(a[0] > b[1] + margin) or np.any(b[0] > a[1] + margin)):
+                    continue
+                pair = collide(colliders[i].shape, colliders[j].shape, margin)
+                k = len(pair)
+                found.append(replace(pair, index_a=np.full(k, i), index_b=np.full(k, j)))
+        return ContactSet.concatenate(found)
+
+    def _contact_jacobian(
+        self, state: RigidState, contacts: ContactSet
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """J (3k, 6n) with J u the velocity of a's contact point relative to b's in each
+        contact frame, and the part of that relative velocity due to obstacles (k, 3)."""
+        n, k = len(self.world.bodies), len(contacts)
+        colliders = self.world.colliders
+        frames = contacts.frames
+        jac = np.zeros((k, 3, n, 6))
+        obstacle_velocity = np.zeros((k, 3))
+        sides = (
+            (contacts.index_a, contacts.point_a, 1.0),
+            (contacts.index_b, contacts.point_b, -1.0),
+        )
+        for index, points, sign in sides:
+            for c in range(k):
+                i = int(index[c])
+                if i < n:
+                    arm = points[c] - state.positions[i]
+                    jac[c, :, i] += sign * frames[c] @ twist_jacobian(arm)[0]
+                else:
+                    velocity = colliders[i].shape.point_velocity(points[c][None])[0]
+                    obstacle_velocity[c] += sign * frames[c] @ velocity
+        return jac.reshape(3 * k, 6 * n), obstacle_velocity
+
+    def step(self, state: RigidState) -> RigidState:
+        """The state one step h later (see the module docstring); raises DivergenceError if
+        it is not finite."""
+        world, h = self.world, self.dt
+        bodies = world.bodies
+        n = len(bodies)
+        v_free = state.velocities + h * world.gravity
+        w_free = np.array(
+            [
+                self._free_angular_velocity(b, state.rotations[i], state.angular_velocities[i])
+                for i, b in enumerate(bodies)
+            ]
+        ).reshape(-1, 3)
+        speed = max(
+            (_speed_bound(b.shape, v, w) for b, v, w in zip(bodies, v_free, w_free, strict=True)),
+            default=0.0,
+        )
+        contacts = self._detect(state, speed)
+        k = len(contacts)
+        u_free = np.concatenate([v_free, w_free], axis=1).reshape(-1)
+        m_inv = np.zeros((n, 6, n, 6))
+        inv_inertia = world.inverse_inertias(state)
+        for i, b in enumerate(bodies):
+            m_inv[i, :3, i, :3] = np.eye(3) / b.mass
+            m_inv[i, 3:, i, 3:] = inv_inertia[i]
+        m_inv = m_inv.reshape(6 * n, 6 * n)
+        jac, obstacle_velocity = self._contact_jacobian(state, contacts)
+        delta_free = h * (jac @ u_free + obstacle_velocity.reshape(-1))
+        delta_free[0::3] += contacts.gap
+        compliance = h * h * (jac @ m_inv @ jac.T)
+        colliders = world.colliders
+        mu = np.sqrt(
+            np.array([colliders[i].friction for i in contacts.index_a])
+            * np.array([colliders[j].friction for j in contacts.index_b])
+        )
+        empty = slice(0, 0)
+        problem = CondensedProblem(
+            0.5 * (compliance + compliance.T),
+            delta_free,
+            {"actuator": empty, "effector": empty, "contact": slice(0, 3 * k)},
+        )
+        solution = solve_contact(
+            problem,
+            mu,
+            initial=state.contacts.warm_start(contacts),
+            tolerance=self.tolerance,
+            max_iterations=self.max_iterations,
+        )
+        u = (u_free + h * (m_inv @ (jac.T @ solution.forces))).reshape(-1, 6)
+        if not np.all(np.isfinite(u)):
+            raise DivergenceError(
+                f"step {state.step + 1}: the rigid bodies' velocities became non-finite;"
+                f" reduce the time step (now {h})",
+                step=state.step + 1,
+                cause="non-finite",
+            )
+        velocities, angular = u[:, :3].copy(), u[:, 3:].copy()
+        rotations = np.array([exp_map(h * angular[i]) @ state.rotations[i] for i in range(n)])
+        self.last_report = solution.report
+        self.last_contacts = contacts
+        return RigidState(
+            state.positions + h * velocities,
+            rotations.reshape(-1, 3, 3),
+            velocities,
+            angular,
+            state.time + h,
+            state.step + 1,
+            ContactForces.from_multipliers(contacts, solution.contact_forces),
+        )

@@ -1,0 +1,195 @@
+"""Deformable bodies in contact: the step's Signorini-Coulomb rows against closed forms and an
+independent solve without contact."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from conftest import clamped_body
+
+from pliant.constraints.base import Actuator, EmbeddedPoints, JacobianRows
+from pliant.constraints.collision import Box, Plane
+from pliant.constraints.contact import Contacts
+from pliant.constraints.control import InverseControl
+from pliant.constraints.effector import PositionEffector
+from pliant.errors import ContactError, ModelError
+from pliant.fem.body import TetBody
+from pliant.fem.material import Corotational
+from pliant.mesh import TetMesh, box_beam
+from pliant.model import Model, State
+from pliant.solvers import ImplicitEuler, StaticSolver
+
+G = 9810.0  # mm/s^2
+
+
+def _cube(lift: float = 0.2, friction: float = 0.5, **contact) -> Model:
+    """A 20 mm soft cube (E = 100 kPa, 8 g) held `lift` mm above the floor z = 0."""
+    mesh = box_beam(20.0, 20.0, 20.0, nx=3, ny=3, nz=3)
+    mesh = TetMesh(mesh.points + [0.0, 0.0, lift], mesh.tets)
+    body = TetBody(
+        mesh,
+        Corotational(100.0, 0.3),
+        density=1e-6,
+        gravity=(0.0, 0.0, -G),
+        rayleigh_mass=5.0,
+    )
+    return Model(body, contacts=Contacts([Plane()], friction=friction, margin=1.0, **contact))
+
+
+def test_cube_resting_on_the_floor_carries_its_weight() -> None:
+    """At rest the normal contact forces add up to m g (equilibrium of the whole body) and no
+    node is below the floor by more than the solver tolerance."""
+    model = _cube()
+    solver = ImplicitEuler(model, 0.01)
+    state = model.rest_state()
+    for _ in range(150):
+        state = solver.step(state)
+    weight = model.body.total_mass * G
+    forces = state.contact_forces.forces
+    assert len(forces) == 16  # the nodes of the bottom face (4 x 4)
+    assert abs(forces[:, 2].sum() - weight) < 1e-6 * weight
+    # Friction holds the bottom face against its Poisson bulge: tangential forces within the
+    # cones, and no net sideways force.
+    assert np.abs(forces[:, :2].sum(axis=0)).max() < 1e-6 * weight
+    assert np.all(np.linalg.norm(forces[:, :2], axis=1) <= 0.5 * forces[:, 2] + 1e-9)
+    assert state.positions[:, 2].min() > -model.contacts.tolerance
+    assert np.abs(state.velocities).max() < 1e-6
+    report = solver.last_report.contact
+    assert report is not None and report.converged
+
+
+def test_cube_dropped_on_the_floor_loses_energy_and_comes_to_rest() -> None:
+    """Released 2 mm above the floor: kinetic + gravitational + elastic energy never grows
+    (contacts and implicit Euler only dissipate) and the cube ends at rest on the floor."""
+    model = _cube(lift=2.0, friction=0.3)
+    model.contacts.margin = 2.5
+    solver = ImplicitEuler(model, 0.005)
+    state = model.rest_state()
+    body = model.body
+    masses = body.node_masses
+
+    def energy(s: State) -> float:
+        kinetic = 0.5 * float(np.sum(masses[:, None] * s.velocities**2))
+        potential = float(np.sum(masses * G * s.positions[:, 2]))
+        return kinetic + potential + body.linearise(s.positions).energy
+
+    energies = [energy(state)]
+    for _ in range(200):
+        state = solver.step(state)
+        energies.append(energy(state))
+    # Energy can only appear through the contact solver's residual: each contact force (at
+    # most the weight) may work over at most the solver tolerance per step.
+    allowance = model.body.total_mass * G * model.contacts.tolerance * 16
+    increase = np.diff(energies).max()
+    assert increase <= allowance, f"energy grew by {increase:.3g} > {allowance:.3g}"
+    assert abs(state.positions[:, 2].min()) < 1e-4
+    assert np.abs(state.velocities).max() < 1e-2
+
+
+class _NormalDisplacement(Actuator):
+    """Imposes z(node) - z_rest(node) = value: the wall's push on one node, without contact."""
+
+    def __init__(self, node: int, rest_z: float) -> None:
+        super().__init__(name=f"push_{node}", mode="displacement", min_force=-np.inf)
+        self.node, self.rest_z = node, rest_z
+
+    def distance(self, x: np.ndarray) -> np.ndarray:
+        return np.array([x[self.node, 2] - self.rest_z])
+
+    def jacobian(self, x: np.ndarray) -> JacobianRows:
+        return JacobianRows(np.array([[self.node]]), np.array([[[0.0, 0.0, 1.0]]]))
+
+
+def test_cantilever_pressed_on_a_wall_matches_imposed_displacements() -> None:
+    """A cantilever sags under gravity onto a frictionless block under its tip. The contact
+    forces equal the reactions of a static solve without contact that imposes, on the nodes
+    found in contact, their final height (an independent path: the direct solve on actuator
+    rows instead of the Gauss-Seidel contact solver)."""
+    mesh = box_beam(60.0, 8.0, 8.0, nx=12, ny=2, nz=2)
+    material = Corotational(300.0, 0.3)
+    wall = Box([4.0, 10.0, 5.0], position=[56.0, 4.0, -5.0 - 1.5])  # top face at z = -1.5
+    body = clamped_body(mesh, material, density=1e-6, gravity=(0.0, 0.0, -G))
+    free_sag = StaticSolver(Model(body)).step(Model(body).rest_state()).positions[:, 2].min()
+    assert free_sag < -2.0, "the beam must reach the block"
+
+    model = Model(body, contacts=Contacts([wall], friction=0.0, margin=0.5))
+    contact_state = StaticSolver(model).step(model.rest_state())
+    forces = contact_state.contact_forces
+    touching = forces.forces[:, 2] > 1e-9
+    nodes = forces.keys[touching, 0]
+    nodes = model.contacts.points.nodes[nodes, 0]
+    assert nodes.size >= 2
+    assert contact_state.positions[:, 2].min() > -1.5 - 1e-6
+
+    pushes = [_NormalDisplacement(int(n), body.rest_positions[n, 2]) for n in nodes]
+    reference = Model(
+        clamped_body(mesh, material, density=1e-6, gravity=(0.0, 0.0, -G)), actuators=pushes
+    )
+    reference.set_actuation(contact_state.positions[nodes, 2] - body.rest_positions[nodes, 2])
+    imposed = StaticSolver(reference).step(reference.rest_state())
+    reactions = imposed.actuation
+    assert np.all(reactions > 0.0)  # the wall only pushes
+    np.testing.assert_allclose(forces.forces[touching, 2], reactions, rtol=1e-5)
+    np.testing.assert_allclose(contact_state.positions, imposed.positions, atol=1e-6)
+
+
+def test_contact_state_round_trip_replays_exactly(tmp_path) -> None:
+    """Contact forces are part of the state (the warm start): a saved and restored state
+    replays the same steps bit for bit."""
+    model = _cube(lift=1.0)
+    solver = ImplicitEuler(model, 0.01)
+    state = model.rest_state()
+    for _ in range(15):
+        state = solver.step(state)
+    assert len(state.contact_forces.keys)
+    state.save(tmp_path / "s.npz")
+    restored = State.load(tmp_path / "s.npz")
+    a, b = state, restored
+    for _ in range(5):
+        solver.system.invalidate()
+        a = solver.step(a)
+    other = ImplicitEuler(model, 0.01)
+    for _ in range(5):
+        other.system.invalidate()
+        b = other.step(b)
+    assert np.array_equal(a.positions, b.positions)
+    assert np.array_equal(a.contact_forces.forces, b.contact_forces.forces)
+
+
+def test_contact_solver_that_does_not_converge_warns_with_its_residual() -> None:
+    model = _cube(lift=0.0, max_iterations=2)
+    with pytest.warns(Warning, match="residual"):
+        ImplicitEuler(model, 0.01).step(model.rest_state())
+
+
+def test_bad_contact_input_raises() -> None:
+    with pytest.raises(ContactError, match="overlaps"):
+        _cube(lift=-3.0)
+    with pytest.raises(ContactError, match="friction"):
+        _cube(friction=-0.1)
+    with pytest.raises(ContactError, match="margin"):
+        Contacts([Plane()], margin=0.0)
+    with pytest.raises(ContactError, match="at least one shape"):
+        Contacts([])
+
+
+def test_inverse_control_with_contacts_is_refused_clearly() -> None:
+    model = _cube(lift=0.0)
+    mesh = model.body.mesh
+    eff = PositionEffector(EmbeddedPoints(mesh, [[10.0, 10.0, 20.0]]), mesh.points)
+    model = Model(model.body, effectors=[eff], contacts=Contacts([Plane()], margin=1.0))
+    with pytest.raises(ModelError, match="does not handle contacts"):
+        ImplicitEuler(model, 0.01).step(
+            model.rest_state(), InverseControl(goals=[np.zeros((1, 3))])
+        )
+
+
+def test_a_step_longer_than_the_margin_warns() -> None:
+    from pliant.errors import ContactMarginWarning
+
+    model = _cube(lift=0.5)
+    model.contacts.margin = 1e-3
+    state = model.rest_state()
+    state.velocities[:] = [0.0, 0.0, -200.0]  # 2 mm in one step of 0.01 s
+    with pytest.warns(ContactMarginWarning, match="more than the contact margin"):
+        ImplicitEuler(model, 0.01).step(state)
