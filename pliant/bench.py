@@ -97,6 +97,38 @@ def multigait(meshes: Path) -> Model:
     return Model(body, name="multigait")
 
 
+def multigait_on_floor(meshes: Path) -> Model:
+    """The Multigait scene: reference mesh, its five chambers (walls found from the scene's
+    cavity surfaces), the floor touched by the scene's collision-surface vertices."""
+    import warnings
+
+    import meshio
+
+    from pliant.mesh.multigait import reference_cavity_surfaces
+    from pliant.robots.multigait import multigait as multigait_robot
+
+    stems = {
+        "centre": "Center",
+        "front_left": "Front-Left",
+        "front_right": "Front-Right",
+        "rear_left": "Rear-Left",
+        "rear_right": "Rear-Right",
+    }
+    mesh = load_mesh(meshes / "MultiGaitRobot_full_quadriped_fine.vtk")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # meshio's binary-STL size check overflows
+        surfaces = {
+            name: meshio.read(meshes / f"MultiGaitRobot_quadriped_{stem}-cavity_finer.stl")
+            for name, stem in stems.items()
+        }
+        collision = meshio.read(meshes / "MultiGaitRobot_quadriped_collision.stl").points
+    walls = reference_cavity_surfaces(
+        mesh, {k: (v.points, v.cells_dict["triangle"]) for k, v in surfaces.items()}
+    )
+    mesh = TetMesh(mesh.points, mesh.tets, surfaces={f"cavity_{k}": v for k, v in walls.items()})
+    return multigait_robot(mesh=mesh, collision_points=collision)
+
+
 @dataclass
 class Measurement:
     scene: str
@@ -148,6 +180,7 @@ def run_benchmarks(
         model: Model,
         *,
         cables: np.ndarray | None = None,
+        control=None,
         policies=("pcg", "lagged", "fresh"),
         n_steps: int = steps,
         warmup: int = 10,
@@ -160,7 +193,7 @@ def run_benchmarks(
             rates, facts = time_steps(
                 lambda p=policy: ImplicitEuler(model, 0.01, tangent=p),
                 model.rest_state(),
-                lambda s: None,
+                lambda s: control,
                 n_steps,
                 repeats,
                 warmup,
@@ -225,6 +258,24 @@ def run_benchmarks(
             n_steps=5,
             warmup=3,
         )
+    if meshes is not None and not quick:
+        import warnings
+
+        from pliant.errors import ContactConvergenceWarning
+
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", ContactConvergenceWarning)
+            scene = multigait_on_floor(meshes)
+            measure(
+                "multigait+cavities+floor",
+                scene,
+                control=np.array([0.0, 0.0, 0.0, 3.0, 3.0]),  # rear legs at 3 kPa
+                sofa=SOFA_STEPS_PER_S["multigait"],
+                policies=("lagged",),
+                n_steps=3,
+                warmup=2,
+                contact_points=len(scene.contacts.points),
+            )
     for res in ("coarse",) if quick else ("coarse", "fine", "superfine"):
         finger = robots.soft_finger(resolution=res)
         measure(

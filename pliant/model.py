@@ -1,7 +1,9 @@
 """Model (built once) and State (what changes every step).
 
-The model owns the body and its constraints; the state is a small value that can be copied,
-saved, restored and compared, which planning, RL resets and trajectory optimisation rely on.
+The model owns the deformable body, its constraints, the drivers that carry some of its held
+nodes (a cart, a translating base) and the rigid bodies it touches; the state is a small value
+that can be copied, saved, restored and compared, which planning, RL resets and trajectory
+optimisation rely on.
 """
 
 from __future__ import annotations
@@ -18,6 +20,7 @@ from pliant.constraints.contact import Contacts
 from pliant.constraints.friction import ContactForces
 from pliant.errors import ModelError
 from pliant.fem.body import TetBody
+from pliant.fem.rigid import DrivenNodes, RigidBody
 
 
 @dataclass
@@ -32,6 +35,12 @@ class State:
         displacement: (n_actuators,) actuator distances delta_a at the end of the last step.
         contact_forces: the last step's contact forces by contact identity (the next step's
             warm start, so that a restored state replays exactly).
+        rigid_positions, rigid_rotations, rigid_velocities, rigid_angular_velocities: the
+            model's rigid bodies: centres of mass (b, 3), rotations body -> world (b, 3, 3),
+            linear and angular velocities in the world (b, 3); empty without rigid bodies.
+
+    The nodes carried by drivers are part of positions and velocities (their velocity is the
+    one of the last step, (p(t) - p(t - h)) / h), so that a restored state replays exactly.
     """
 
     positions: np.ndarray
@@ -41,6 +50,12 @@ class State:
     actuation: np.ndarray = field(default_factory=lambda: np.zeros(0))
     displacement: np.ndarray = field(default_factory=lambda: np.zeros(0))
     contact_forces: ContactForces = field(default_factory=ContactForces.empty)
+    rigid_positions: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
+    rigid_rotations: np.ndarray = field(default_factory=lambda: np.zeros((0, 3, 3)))
+    rigid_velocities: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
+    rigid_angular_velocities: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
+
+    _RIGID = ("rigid_positions", "rigid_rotations", "rigid_velocities", "rigid_angular_velocities")
 
     def copy(self) -> State:
         return State(
@@ -51,13 +66,14 @@ class State:
             self.actuation.copy(),
             self.displacement.copy(),
             self.contact_forces.copy(),
+            *(getattr(self, name).copy() for name in self._RIGID),
         )
 
     def allclose(self, other: State, *, atol: float = 0.0) -> bool:
-        return (
-            self.step == other.step
-            and np.allclose(self.positions, other.positions, rtol=0, atol=atol)
-            and np.allclose(self.velocities, other.velocities, rtol=0, atol=atol)
+        pairs = [(self.positions, other.positions), (self.velocities, other.velocities)]
+        pairs += [(getattr(self, name), getattr(other, name)) for name in self._RIGID]
+        return self.step == other.step and all(
+            a.shape == b.shape and np.allclose(a, b, rtol=0, atol=atol) for a, b in pairs
         )
 
     def save(self, path: str | os.PathLike) -> None:
@@ -75,6 +91,7 @@ class State:
             displacement=self.displacement,
             contact_keys=self.contact_forces.keys,
             contact_forces=self.contact_forces.forces,
+            **{name: getattr(self, name) for name in self._RIGID},
         )
         os.replace(tmp, path)
 
@@ -89,6 +106,8 @@ class State:
                 d["actuation"],
                 d["displacement"],
                 ContactForces(d["contact_keys"], d["contact_forces"]),
+                # States saved before rigid bodies existed have none.
+                **{name: d[name] for name in cls._RIGID if name in d.files},
             )
 
 
@@ -108,13 +127,17 @@ class ConstraintSpace:
 
 
 class Model:
-    """A simulated robot: one deformable body and its constraints.
+    """A simulated robot: one deformable body, its constraints, and what it is coupled to.
 
     Args:
         body: the deformable body.
         actuators: cables, cavities, ... in the order of the actuation vector.
         effectors: position effectors, used by inverse control.
         contacts: obstacles the body touches and the contact law (friction, margin).
+        drivers: held nodes carried by kinematic bodies (a cart, a translating base); each
+            node is one of the body's fixed nodes and belongs to one driver at most.
+        rigid_bodies: dynamic rigid bodies the body touches (and that touch the obstacles of
+            `contacts` and each other); they need `contacts`, which detects them.
     """
 
     def __init__(
@@ -124,6 +147,8 @@ class Model:
         actuators: list[Actuator] | tuple = (),
         effectors: list[Constraint] | tuple = (),
         contacts: Contacts | None = None,
+        drivers: list[DrivenNodes] | tuple = (),
+        rigid_bodies: list[RigidBody] | tuple = (),
         name: str = "robot",
     ) -> None:
         self.body = body
@@ -131,8 +156,16 @@ class Model:
         self.effectors = list(effectors)
         self.name = name
         self.contacts = contacts
+        self.drivers = list(drivers)
+        self.rigid_bodies = list(rigid_bodies)
+        self._check_drivers()
+        if self.rigid_bodies and contacts is None:
+            raise ModelError(
+                f"{name}: rigid bodies interact with the body only by contact; give"
+                " contacts=Contacts(...) (its shapes may be just the floor)"
+            )
         if contacts is not None:
-            contacts.attach(body)
+            contacts.attach(body, self.rigid_bodies)
         for c in self.actuators:
             if c.role != "actuator":
                 raise ModelError(f"{c.name} is a {c.role}, not an actuator")
@@ -144,6 +177,42 @@ class Model:
         names = [c.name for c in self.actuators + self.effectors]
         if len(set(names)) != len(names):
             raise ModelError(f"constraint names must be unique, got {names}")
+
+    def _check_drivers(self) -> None:
+        body = self.body
+        seen = np.zeros(body.n_nodes, dtype=bool)
+        for driver in self.drivers:
+            driver.attach(body.rest_positions)
+            loose = np.setdiff1d(driver.nodes, body.fixed_nodes)
+            if loose.size:
+                raise ModelError(
+                    f"{driver.name}: driven nodes must be fixed nodes of the body (held, not"
+                    f" free DoFs); nodes {loose[:5].tolist()} are free"
+                )
+            if np.any(seen[driver.nodes]):
+                raise ModelError(f"{driver.name}: a node is carried by two drivers")
+            seen[driver.nodes] = True
+        if self.drivers and body.mass_type == "consistent":
+            raise ModelError(
+                "driven nodes need a diagonal mass ('lumped' or 'uniform'): with a consistent"
+                " mass their acceleration would load the free nodes through M_fp"
+            )
+
+    def drive(self, positions: np.ndarray, t: float) -> np.ndarray:
+        """A copy of `positions` with every driven node at its prescribed position at t."""
+        out = positions.copy()
+        for driver in self.drivers:
+            out[driver.nodes] = driver.positions(t)
+        return out
+
+    def drive_velocities(self, state: State, dt: float) -> np.ndarray:
+        """(n, 3) velocity of each driven node over the step [t, t + h] from `state`,
+        (p(t + h) - q) / h; zero on the other nodes."""
+        velocities = np.zeros_like(state.positions)
+        for driver in self.drivers:
+            moved = driver.positions(state.time + dt) - state.positions[driver.nodes]
+            velocities[driver.nodes] = moved / dt
+        return velocities
 
     @staticmethod
     def _group(constraints: list[Constraint]) -> list:
@@ -174,12 +243,19 @@ class Model:
         return len(self.actuators)
 
     def rest_state(self) -> State:
-        q = self.body.rest_positions.copy()
+        """The body at rest (driven nodes at their t = 0 positions), rigid bodies at their
+        initial poses and velocities."""
+        q = self.drive(self.body.rest_positions, 0.0)
+        b = self.rigid_bodies
         return State(
             q,
             np.zeros_like(q),
             actuation=np.zeros(self.n_actuators),
             displacement=np.zeros(self.n_actuators),
+            rigid_positions=np.array([x.position for x in b]).reshape(-1, 3),
+            rigid_rotations=np.array([x.rotation for x in b]).reshape(-1, 3, 3),
+            rigid_velocities=np.array([x.velocity for x in b]).reshape(-1, 3),
+            rigid_angular_velocities=np.array([x.angular_velocity for x in b]).reshape(-1, 3),
         )
 
     def set_actuation(self, values: np.ndarray | list[float], mode: str | None = None) -> None:

@@ -106,15 +106,17 @@ def solve_chunk(plan: CollectionPlan, points: np.ndarray) -> Split:
             }
             model = _build(plan.robot, json.dumps(kwargs, sort_keys=True))
             layout = Layout.of(model)
-            solver = StaticSolver(model)
+            solver = StaticSolver(
+                model, tolerance=plan.tolerance, max_iterations=plan.newton_iterations
+            )
             rest = rest_equilibrium(model, solver)
             w0, free0 = layout.pack(solver.condense(rest))
             state = rest
         try:
             state = load_step(model, solver, state, command, plan.max_increment)
         except DivergenceError:
-            try:  # from rest, in finer steps
-                state = load_step(model, solver, rest, command, plan.max_increment / 4)
+            try:  # the previous equilibrium may be a poor start: from rest
+                state = load_step(model, solver, rest, command, plan.max_increment)
             except DivergenceError:
                 state = rest
                 rows.append(_failed(command, params, layout))

@@ -47,8 +47,11 @@ class CollectionPlan:
         design_bounds: builder keyword -> (low, high) of design parameters sampled with the
             displacements (e.g. {"poisson_ratio": (0.40, 0.499)}); empty for one design.
         seed: seed of both point sets.
-        max_increment: largest change of an actuator command in one static step (load
-            stepping from the previous sample's equilibrium).
+        max_increment: largest change of an actuator command in one static step (adaptive
+            load stepping from the previous sample's equilibrium, halved where Newton fails).
+        tolerance: Newton's convergence threshold, relative to the body size (the solver's
+            1e-10 costs iterations of its linear tail without changing W or delta_free).
+        newton_iterations: Newton iterations before a load step is halved.
         chunk_size: samples solved in a row by one worker and saved together; each chunk starts
             from the rest equilibrium, which makes chunks independent.
         units: the scene's units, recorded in the file.
@@ -61,7 +64,9 @@ class CollectionPlan:
     design_bounds: dict[str, tuple[float, float]] = field(default_factory=dict)
     test_fraction: float = 0.25
     seed: int = 0
-    max_increment: float = 1.0
+    max_increment: float = 8.0
+    tolerance: float = 1e-8
+    newton_iterations: int = 60
     chunk_size: int = 16
     units: str = "mm, kg, s (forces in mN, W in mm/mN)"
 
@@ -70,8 +75,11 @@ class CollectionPlan:
             raise DatasetError(
                 f"n_train and chunk_size must be >= 1, got {self.n_train}, {self.chunk_size}"
             )
-        if not self.max_increment > 0:
-            raise DatasetError(f"max_increment must be > 0, got {self.max_increment}")
+        if not (self.max_increment > 0 and self.tolerance > 0 and self.newton_iterations >= 1):
+            raise DatasetError(
+                "max_increment and tolerance must be > 0 and newton_iterations >= 1, got"
+                f" {self.max_increment}, {self.tolerance}, {self.newton_iterations}"
+            )
         if not self.test_fraction >= 0.0:
             raise DatasetError(f"test_fraction must be >= 0, got {self.test_fraction}")
         _ = self.box  # Box checks the bounds

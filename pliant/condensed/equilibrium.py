@@ -1,11 +1,16 @@
-"""Quasi-static equilibria for imposed actuator displacements, reached by load stepping."""
+"""Quasi-static equilibria for imposed actuator displacements, reached by adaptive load stepping.
+
+Newton's cost grows slowly with the size of a load step (the cables' geometric stiffness is
+not in the tangent, so it converges linearly, at much the same rate for a large step as for a
+small one), while every step pays the same ~10 iterations of that linear tail. So the stepper
+tries the whole change of command at once, and halves a step only where Newton fails.
+"""
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 
+from pliant.errors import DivergenceError
 from pliant.model import Model, State
 from pliant.solvers import StaticSolver
 
@@ -17,14 +22,48 @@ def rest_equilibrium(model: Model, solver: StaticSolver) -> State:
 
 
 def load_step(
-    model: Model, solver: StaticSolver, state: State, target: np.ndarray, max_increment: float
+    model: Model,
+    solver: StaticSolver,
+    state: State,
+    target: np.ndarray,
+    max_increment: float,
+    *,
+    min_increment: float | None = None,
 ) -> State:
-    """Equilibrium for the imposed actuator displacements `target`, reached from `state` in
-    static steps that change no command by more than `max_increment` (Newton converges from a
-    nearby equilibrium where a jump would not). Raises DivergenceError if a step fails."""
-    start = state.displacement
-    n = max(1, math.ceil(float(np.max(np.abs(target - start), initial=0.0)) / max_increment))
-    for k in range(1, n + 1):
-        model.set_actuation(start + (target - start) * k / n, mode="displacement")
-        state = solver.step(state)
-    return state
+    """Equilibrium for the imposed actuator displacements `target`, reached from `state`.
+
+    Static steps change no command by more than `max_increment`; where a step's Newton solve
+    fails, it and the steps after it are halved, down to `min_increment` (default
+    max_increment / 16).
+    Raises DivergenceError, naming the command where it stopped, if a smallest step fails.
+    """
+    smallest = max_increment / 16 if min_increment is None else min_increment
+    if not 0 < smallest <= max_increment:
+        raise ValueError(
+            f"need 0 < min_increment <= max_increment, got {smallest}, {max_increment}"
+        )
+    target = np.asarray(target, dtype=float)
+    reached = state.displacement.copy()
+    increment = max_increment
+    while True:
+        change = target - reached
+        size = float(np.max(np.abs(change), initial=0.0))
+        if size == 0.0:
+            return state
+        fraction = min(1.0, increment / size)
+        command = target if fraction == 1.0 else reached + fraction * change
+        model.set_actuation(command, mode="displacement")
+        try:
+            state = solver.step(state)
+        except DivergenceError as exc:
+            if increment / 2 < smallest:
+                raise DivergenceError(
+                    f"no equilibrium reached for the commands {np.round(command, 4).tolist()}"
+                    f" from {np.round(reached, 4).tolist()}, even in steps of {increment:.3g}:"
+                    f" {exc}",
+                    step=state.step,
+                    cause="solver",
+                ) from exc
+            increment = min(increment, size) / 2
+            continue
+        reached = command

@@ -10,6 +10,18 @@ constraint space; the step's contact problem is then solved with the actuators
 The margin is SOFA's alarm distance: a point is given a contact row before it touches, so that
 a step cannot jump through a surface it was not told about. It must exceed the largest
 distance a surface point travels towards an obstacle in one step.
+
+Rigid bodies of the model (:class:`pliant.fem.rigid.RigidBody`) are detected too, posed at the
+step's start: the body's points against their shapes, and each rigid body against the
+obstacles and the later rigid bodies (:func:`pliant.constraints.collision.collide`, with a
+margin grown by the distance the bodies can travel in the step). These rows also move the
+rigid bodies: with u their twists and G (3 rows per contact, `CoupledContact.rigid_jacobian`)
+the velocity of the contact point of side a relative to side b due to them,
+
+    delta = H (x-part, as above) + h G u,   u = u_free + h M^-1 G^T lambda,
+
+so that the step's compliance gains h^2 G M^-1 G^T and its free distance h G u_free
+(pliant.solvers.implicit_euler), and lambda acts on both sides of each contact.
 """
 
 from __future__ import annotations
@@ -17,13 +29,15 @@ from __future__ import annotations
 import math
 import warnings
 from collections.abc import Sequence
+from dataclasses import replace
 
 import numpy as np
 
-from pliant.constraints.base import EmbeddedPoints
-from pliant.constraints.collision import Shape, detect, shape_velocities
+from pliant.constraints.base import Constraint, EmbeddedPoints, JacobianRows
+from pliant.constraints.collision import ContactSet, Shape, collide, detect, shape_velocities
 from pliant.constraints.friction import ContactConstraint, check_friction
 from pliant.errors import ContactError, ContactMarginWarning
+from pliant.fem.rigid import RigidBody, RigidStep, contact_twist_jacobian
 
 
 class Contacts:
@@ -67,9 +81,15 @@ class Contacts:
         self.points = points
         self.tolerance = float(tolerance)
         self.max_iterations = int(max_iterations)
+        self.bodies: list[RigidBody] = []
 
-    def attach(self, body) -> None:
-        """Resolve the defaults against the body (called once by the Model)."""
+    def attach(self, body, rigid_bodies: Sequence[RigidBody] = ()) -> None:
+        """Resolve the defaults against the body and take the model's rigid bodies (called
+        once by the Model)."""
+        self.bodies = list(rigid_bodies)
+        shapes = [*self.shapes, *(b.shape for b in self.bodies)]
+        if len({id(s) for s in shapes}) != len(shapes):
+            raise ContactError("each obstacle and rigid body needs its own shape object")
         if self.points is None:
             surface = np.unique(body.mesh.boundary_triangles())
             moving = np.setdiff1d(surface, body.fixed_nodes)
@@ -101,18 +121,163 @@ class Contacts:
                 stacklevel=3,
             )
 
-    def constraint(self, positions: np.ndarray, dt: float | None) -> ContactConstraint | None:
+    def constraint(
+        self, positions: np.ndarray, dt: float | None, rigid: RigidStep | None = None
+    ) -> ContactConstraint | CoupledContact | None:
         """The contact rows at `positions`, or None when no point is within the margin.
 
         `dt`: the step, to carry moving obstacles' displacement (None: static solve).
+        `rigid`: the rigid bodies' step (required when the model has rigid bodies); then the
+        rows are a :class:`CoupledContact`.
         """
-        found = detect(self.points.positions(positions), self.shapes, self.margin)
-        if len(found) == 0:
-            return None
-        motion = None if dt is None else dt * shape_velocities(found, self.shapes)
-        return ContactConstraint(
-            found,
+        points = self.points.positions(positions)
+        found = detect(points, self.shapes, self.margin)
+        if not self.bodies:
+            if len(found) == 0:
+                return None
+            motion = None if dt is None else dt * shape_velocities(found, self.shapes)
+            return ContactConstraint(
+                found,
+                self.points,
+                friction=self.friction[found.index_b],
+                obstacle_displacement=motion,
+            )
+        if rigid is None or dt is None:
+            raise ContactError("contacts with rigid bodies need a dynamic step (ImplicitEuler)")
+        return self._coupled(points, found, dt, rigid)
+
+    def _coupled(
+        self, points: np.ndarray, found: ContactSet, dt: float, rigid: RigidStep
+    ) -> CoupledContact | None:
+        """Rows of the body's points against obstacles and rigid bodies, then of rigid bodies
+        against obstacles and each other (see the module docstring)."""
+        bodies, shapes, n = self.bodies, self.shapes, len(self.bodies)
+        for i, b in enumerate(bodies):
+            b.shape.set_pose(rigid.positions[i], rigid.rotations[i])
+        # A body may close a gap by the distance its points travel in the step.
+        reach = dt * rigid.speeds(bodies)
+        on_bodies = [
+            replace(c, index_b=c.index_b + len(shapes) + i)
+            for i, b in enumerate(bodies)
+            if len(c := detect(points, [b.shape], self.margin + reach[i]))
+        ]
+        deformable = ContactSet.concatenate([found, *on_bodies])
+        motion = dt * shape_velocities(deformable, shapes + [b.shape for b in bodies])
+        on_body = deformable.index_b >= len(shapes)
+        motion[on_body] = 0.0  # a rigid body's motion enters through G u
+        mu = np.concatenate([self.friction, [b.friction for b in bodies]])
+        rows = ContactConstraint(
+            deformable,
             self.points,
-            friction=self.friction[found.index_b],
+            friction=mu[deformable.index_b],
             obstacle_displacement=motion,
+        )
+        # Side b of the body's contacts: minus the velocity of the rigid body's point.
+        jacobian = -contact_twist_jacobian(
+            deformable.frames,
+            deformable.point_b,
+            deformable.index_b - len(shapes),
+            rigid.positions,
+            n,
+        )
+        pairs = self._rigid_pairs(reach)
+        if len(deformable) + len(pairs) == 0:
+            return None
+        # Rigid-rigid pairs: side b is an obstacle (index < len(shapes)) or another body.
+        pair_jacobian = contact_twist_jacobian(
+            pairs.frames, pairs.point_a, pairs.index_a, rigid.positions, n
+        ) - contact_twist_jacobian(
+            pairs.frames, pairs.point_b, pairs.index_b - len(shapes), rigid.positions, n
+        )
+        obstacle = pairs.index_b < len(shapes)
+        obstacle_motion = np.zeros((len(pairs), 3))
+        obstacle_motion[obstacle] = (
+            dt
+            * shape_velocities(
+                replace(pairs, index_b=np.where(obstacle, pairs.index_b, 0)), shapes
+            )[obstacle]
+        )
+        pair_distance = -np.einsum("krj,kj->kr", pairs.frames, obstacle_motion)
+        pair_distance[:, 0] += pairs.gap
+        mu_a = np.array([bodies[i].friction for i in pairs.index_a])
+        pair_friction = np.sqrt(mu_a * mu[pairs.index_b])
+        return CoupledContact(
+            rows,
+            pairs,
+            pair_distance.reshape(-1),
+            pair_friction,
+            np.vstack([jacobian, pair_jacobian]),
+            len(self.points),
+        )
+
+    def _rigid_pairs(self, reach: np.ndarray) -> ContactSet:
+        """Contacts of each rigid body (side a, index = body) with the obstacles and the later
+        bodies (side b, index = obstacle, or len(shapes) + body)."""
+        bodies, shapes = self.bodies, self.shapes
+        colliders = [*shapes, *(b.shape for b in bodies)]
+        found = []
+        for i, body in enumerate(bodies):
+            box = body.shape.bounds()
+            for j in [*range(len(shapes)), *range(len(shapes) + i + 1, len(colliders))]:
+                other = j - len(shapes)
+                margin = self.margin + reach[i] + (reach[other] if other >= 0 else 0.0)
+                bounds = colliders[j].bounds()
+                if bounds is not None and (
+                    np.any(box[0] > bounds[1] + margin) or np.any(bounds[0] > box[1] + margin)
+                ):
+                    continue
+                pair = collide(body.shape, colliders[j], margin)
+                k = len(pair)
+                found.append(replace(pair, index_a=np.full(k, i), index_b=np.full(k, j)))
+        return ContactSet.concatenate(found)
+
+
+class CoupledContact(Constraint):
+    """The contact rows of a step of a model with rigid bodies: the body's points against
+    obstacles and rigid bodies (a ContactConstraint), then rigid bodies against obstacles and
+    each other (rows with no deformable part), three rows (n, t1, t2) per contact.
+
+    Attributes:
+        contacts: all contacts; those of rigid pairs have index_a = n_points + body, so that
+            contact identities (warm start) stay unique.
+        friction: mu per contact.
+        rigid_jacobian: G (3k, 6 n_bodies), the rows' dependence on the bodies' twists.
+    """
+
+    role = "contact"
+
+    def __init__(
+        self,
+        rows: ContactConstraint,
+        pairs: ContactSet,
+        pair_distance: np.ndarray,
+        pair_friction: np.ndarray,
+        rigid_jacobian: np.ndarray,
+        n_points: int,
+        name: str = "contacts",
+    ) -> None:
+        self.name = name
+        self.rows = rows
+        self.contacts = ContactSet.concatenate(
+            [rows.contacts, replace(pairs, index_a=pairs.index_a + n_points)]
+        )
+        self.friction = np.concatenate([rows.friction, pair_friction])
+        self.rigid_jacobian = rigid_jacobian
+        self._pair_distance = pair_distance
+
+    @property
+    def n_rows(self) -> int:
+        return 3 * len(self.contacts)
+
+    def distance(self, x: np.ndarray) -> np.ndarray:
+        """delta at the start of the step with the rigid bodies still (their motion: G u)."""
+        return np.concatenate([self.rows.distance(x), self._pair_distance])
+
+    def jacobian(self, x: np.ndarray) -> JacobianRows:
+        """H of the deformable part; rigid pairs' rows are zero (node 0, weight 0)."""
+        rows = self.rows.jacobian(x)
+        r, m = self._pair_distance.size, rows.nodes.shape[1]
+        return JacobianRows(
+            np.vstack([rows.nodes, np.zeros((r, m), dtype=np.int64)]),
+            np.concatenate([rows.values, np.zeros((r, m, 3))]),
         )

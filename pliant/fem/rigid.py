@@ -1,5 +1,8 @@
-"""Rigid bodies, kinematic bodies, points attached to a rigid frame, and a rigid-body world
-stepped with frictional contact in the constraint space.
+"""Rigid bodies, kinematic bodies, points attached to a rigid frame, deformable nodes driven by
+a kinematic body (`DrivenNodes`), and a rigid-body world stepped with frictional contact in the
+constraint space. The free motion, M^-1 and contact Jacobian pieces (`RigidStep`,
+`contact_twist_jacobian`) also serve rigid bodies coupled to a deformable body by contact
+(pliant.constraints.contact, pliant.solvers.implicit_euler).
 
 A rigid body has 6 DoF: the position x of its frame origin (the centre of mass), its rotation R
 (body -> world), and the twist u = (v, w): linear and angular velocity, both in the world.
@@ -262,6 +265,157 @@ def servo(
     return pose
 
 
+class DrivenNodes:
+    """Held nodes of a deformable body carried by a kinematic body (a cart on a rail, a
+    gripper's translating base): a rigid attachment of the nodes to the carrier's frame.
+
+    Each node keeps its coordinates r_i = R(0)^T (X_i - x(0)) in the carrier's frame at t = 0
+    (X_i its rest position), so that it is at p_i(t) = x(t) + R(t) r_i: at rest at t = 0.
+    The nodes must be fixed nodes of the body (held, not free DoFs); the dynamic step moves
+    them to p_i(t + h) and lets the free DoFs feel that motion within the same implicit step
+    (through the coupling stiffness K_fp, see pliant.solvers.implicit_euler).
+
+    Args:
+        nodes: indices of the carried nodes (a subset of the body's fixed nodes).
+        carrier: the kinematic body whose prescribed pose carries them.
+    """
+
+    def __init__(self, nodes: np.ndarray, carrier: KinematicBody, *, name: str = "driven") -> None:
+        self.nodes = np.unique(np.asarray(nodes, dtype=np.int64).reshape(-1))
+        if self.nodes.size == 0:
+            raise ModelError(f"{name}: no node to drive")
+        self.carrier = carrier
+        self.name = name
+        self.local_points: np.ndarray | None = None
+
+    def attach(self, rest_positions: np.ndarray) -> None:
+        """Fix the nodes' coordinates in the carrier's frame (called once by the Model)."""
+        if self.nodes.max() >= rest_positions.shape[0] or self.nodes.min() < 0:
+            raise ModelError(
+                f"{self.name}: node indices must lie in [0, {rest_positions.shape[0]})"
+            )
+        position, rotation = self.carrier.pose(0.0)
+        self.local_points = (rest_positions[self.nodes] - position) @ rotation
+
+    def positions(self, t: float) -> np.ndarray:
+        """(k, 3) world positions of the nodes at time t: x(t) + R(t) r_i."""
+        if self.local_points is None:
+            raise ModelError(f"{self.name}: not attached to a body (give it to a Model)")
+        position, rotation = self.carrier.pose(t)
+        return position + self.local_points @ rotation.T
+
+
+def free_angular_velocity(
+    inertia: np.ndarray, rotation: np.ndarray, angular_velocity: np.ndarray, dt: float
+) -> np.ndarray:
+    """One Newton step on I (w - w0) + h w x I w = 0 in the body frame (Catto 2015)."""
+    w0 = rotation.T @ angular_velocity
+    jac = inertia + dt * (skew(w0) @ inertia - skew(inertia @ w0))
+    return rotation @ (w0 - np.linalg.solve(jac, dt * np.cross(w0, inertia @ w0)))
+
+
+def free_twists(
+    bodies: list[RigidBody],
+    rotations: np.ndarray,
+    velocities: np.ndarray,
+    angular_velocities: np.ndarray,
+    gravity: np.ndarray,
+    dt: float,
+) -> np.ndarray:
+    """(n, 6) twists u_free = (v + h g, w_free) after a step without contact (module
+    docstring)."""
+    twists = np.zeros((len(bodies), 6))
+    for i, b in enumerate(bodies):
+        twists[i, :3] = velocities[i] + dt * np.asarray(gravity)
+        twists[i, 3:] = free_angular_velocity(b.inertia, rotations[i], angular_velocities[i], dt)
+    return twists
+
+
+def inverse_mass(bodies: list[RigidBody], rotations: np.ndarray) -> np.ndarray:
+    """(6n, 6n) block-diagonal M^-1 = diag(I / m, R I^-1 R^T) of the bodies (world frame)."""
+    n = len(bodies)
+    m_inv = np.zeros((n, 6, n, 6))
+    for i, b in enumerate(bodies):
+        m_inv[i, :3, i, :3] = np.eye(3) / b.mass
+        m_inv[i, 3:, i, 3:] = rotations[i] @ np.linalg.inv(b.inertia) @ rotations[i].T
+    return m_inv.reshape(6 * n, 6 * n)
+
+
+def integrate_poses(
+    positions: np.ndarray, rotations: np.ndarray, twists: np.ndarray, dt: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """x + h v and exp(h [w]x) R for each body (symplectic Euler on the exponential map)."""
+    twists = twists.reshape(-1, 6)
+    new_rotations = np.array(
+        [exp_map(dt * twists[i, 3:]) @ rotations[i] for i in range(len(twists))]
+    ).reshape(-1, 3, 3)
+    return positions + dt * twists[:, :3], new_rotations
+
+
+@dataclass(frozen=True)
+class RigidStep:
+    """Rigid bodies over one step of a coupled model, before contact: their poses at the start,
+    their free twists u_free (module docstring) and M^-1. The contact forces lambda then give
+    u = u_free + h M^-1 G^T lambda, G the contact rows' twist Jacobian."""
+
+    positions: np.ndarray  # (n, 3)
+    rotations: np.ndarray  # (n, 3, 3)
+    twists_free: np.ndarray  # (n, 6)
+    inverse_mass: np.ndarray  # (6n, 6n)
+
+    @classmethod
+    def free(
+        cls,
+        bodies: list[RigidBody],
+        positions: np.ndarray,
+        rotations: np.ndarray,
+        velocities: np.ndarray,
+        angular_velocities: np.ndarray,
+        gravity: np.ndarray,
+        dt: float,
+    ) -> RigidStep:
+        twists = free_twists(bodies, rotations, velocities, angular_velocities, gravity, dt)
+        return cls(positions, rotations, twists, inverse_mass(bodies, rotations))
+
+    def speeds(self, bodies: list[RigidBody]) -> np.ndarray:
+        """Largest speed of a point of each body's shape over the step (free motion)."""
+        return np.array(
+            [
+                _speed_bound(b.shape, u[:3], u[3:])
+                for b, u in zip(bodies, self.twists_free, strict=True)
+            ]
+        )
+
+    def twists(
+        self, rigid_jacobian: np.ndarray, forces: np.ndarray, dt: float, step: int
+    ) -> np.ndarray:
+        """(n, 6) u = u_free + h M^-1 G^T lambda; DivergenceError if not finite."""
+        u = self.twists_free.reshape(-1) + dt * (self.inverse_mass @ (rigid_jacobian.T @ forces))
+        if not np.all(np.isfinite(u)):
+            raise DivergenceError(
+                f"step {step}: the rigid bodies' velocities became non-finite; reduce the time"
+                f" step (now {dt})",
+                step=step,
+                cause="non-finite",
+            )
+        return u.reshape(-1, 6)
+
+
+def contact_twist_jacobian(
+    frames: np.ndarray, points: np.ndarray, bodies: np.ndarray, centres: np.ndarray, n: int
+) -> np.ndarray:
+    """(3k, 6n) rows (n, t1, t2) . J(p) of the velocity of each contact point `points[c]`
+    carried by body `bodies[c]` (centre of mass `centres[bodies[c]]`); rows of contacts whose
+    body index is outside [0, n) are zero."""
+    k = len(points)
+    jac = np.zeros((k, 3, n, 6))
+    for c in range(k):
+        i = int(bodies[c])
+        if 0 <= i < n:
+            jac[c, :, i] = frames[c] @ twist_jacobian(points[c] - centres[i])[0]
+    return jac.reshape(3 * k, 6 * n)
+
+
 @dataclass
 class RigidState:
     """Poses and twists of the dynamic bodies, time, step count and the last contact forces
@@ -381,13 +535,6 @@ class RigidSolver:
         self.last_report = ContactReport()
         self.last_contacts = ContactSet.empty()
 
-    def _free_angular_velocity(self, body: RigidBody, rotation, angular_velocity) -> np.ndarray:
-        """One Newton step on I (w - w0) + h w x I w = 0 in the body frame (Catto 2015)."""
-        inertia, h = body.inertia, self.dt
-        w0 = rotation.T @ angular_velocity
-        jac = inertia + h * (skew(w0) @ inertia - skew(inertia @ w0))
-        return rotation @ (w0 - np.linalg.solve(jac, h * np.cross(w0, inertia @ w0)))
-
     def _detect(self, state: RigidState, speed: float) -> ContactSet:
         """Pose every shape, then collide each body with the later colliders whose boxes,
         grown by the margin, overlap its own."""
@@ -424,49 +571,41 @@ class RigidSolver:
         n, k = len(self.world.bodies), len(contacts)
         colliders = self.world.colliders
         frames = contacts.frames
-        jac = np.zeros((k, 3, n, 6))
+        jac = contact_twist_jacobian(
+            frames, contacts.point_a, contacts.index_a, state.positions, n
+        ) - contact_twist_jacobian(frames, contacts.point_b, contacts.index_b, state.positions, n)
         obstacle_velocity = np.zeros((k, 3))
-        sides = (
-            (contacts.index_a, contacts.point_a, 1.0),
-            (contacts.index_b, contacts.point_b, -1.0),
-        )
-        for index, points, sign in sides:
-            for c in range(k):
-                i = int(index[c])
-                if i < n:
-                    arm = points[c] - state.positions[i]
-                    jac[c, :, i] += sign * frames[c] @ twist_jacobian(arm)[0]
-                else:
-                    velocity = colliders[i].shape.point_velocity(points[c][None])[0]
+        for c in range(k):
+            for i, point, sign in (
+                (int(contacts.index_a[c]), contacts.point_a[c], 1.0),
+                (int(contacts.index_b[c]), contacts.point_b[c], -1.0),
+            ):
+                if i >= n:
+                    velocity = colliders[i].shape.point_velocity(point[None])[0]
                     obstacle_velocity[c] += sign * frames[c] @ velocity
-        return jac.reshape(3 * k, 6 * n), obstacle_velocity
+        return jac, obstacle_velocity
 
     def step(self, state: RigidState) -> RigidState:
         """The state one step h later (see the module docstring); raises DivergenceError if
         it is not finite."""
         world, h = self.world, self.dt
         bodies = world.bodies
-        n = len(bodies)
-        v_free = state.velocities + h * world.gravity
-        w_free = np.array(
-            [
-                self._free_angular_velocity(b, state.rotations[i], state.angular_velocities[i])
-                for i, b in enumerate(bodies)
-            ]
-        ).reshape(-1, 3)
+        twists_free = free_twists(
+            bodies,
+            state.rotations,
+            state.velocities,
+            state.angular_velocities,
+            world.gravity,
+            h,
+        )
         speed = max(
-            (_speed_bound(b.shape, v, w) for b, v, w in zip(bodies, v_free, w_free, strict=True)),
+            (_speed_bound(b.shape, u[:3], u[3:]) for b, u in zip(bodies, twists_free, strict=True)),
             default=0.0,
         )
         contacts = self._detect(state, speed)
         k = len(contacts)
-        u_free = np.concatenate([v_free, w_free], axis=1).reshape(-1)
-        m_inv = np.zeros((n, 6, n, 6))
-        inv_inertia = world.inverse_inertias(state)
-        for i, b in enumerate(bodies):
-            m_inv[i, :3, i, :3] = np.eye(3) / b.mass
-            m_inv[i, 3:, i, 3:] = inv_inertia[i]
-        m_inv = m_inv.reshape(6 * n, 6 * n)
+        u_free = twists_free.reshape(-1)
+        m_inv = inverse_mass(bodies, state.rotations)
         jac, obstacle_velocity = self._contact_jacobian(state, contacts)
         delta_free = h * (jac @ u_free + obstacle_velocity.reshape(-1))
         delta_free[0::3] += contacts.gap
@@ -497,15 +636,14 @@ class RigidSolver:
                 step=state.step + 1,
                 cause="non-finite",
             )
-        velocities, angular = u[:, :3].copy(), u[:, 3:].copy()
-        rotations = np.array([exp_map(h * angular[i]) @ state.rotations[i] for i in range(n)])
+        positions, rotations = integrate_poses(state.positions, state.rotations, u, h)
         self.last_report = solution.report
         self.last_contacts = contacts
         return RigidState(
-            state.positions + h * velocities,
-            rotations.reshape(-1, 3, 3),
-            velocities,
-            angular,
+            positions,
+            rotations,
+            u[:, :3].copy(),
+            u[:, 3:].copy(),
             state.time + h,
             state.step + 1,
             ContactForces.from_multipliers(contacts, solution.contact_forces),

@@ -14,12 +14,17 @@ import numpy as np
 
 from pliant.errors import UnknownRobotError
 from pliant.model import Model
+from pliant.robots import cartstem as _cartstem
 from pliant.robots import diamond as _diamond
 from pliant.robots import finger as _finger
+from pliant.robots import gripper as _gripper
+from pliant.robots import multigait as _multigait
 from pliant.robots import pneunet as _pneunet
 from pliant.robots import trunk as _trunk
+from pliant.robots import trunk_cube as _trunk_cube
 from pliant.robots.diamond import diamond
 from pliant.robots.finger import soft_finger
+from pliant.robots.multigait import multigait
 from pliant.robots.pneunet import pneunet
 from pliant.robots.trunk import trunk
 
@@ -45,6 +50,12 @@ ROBOTS: dict[str, RobotEntry] = {
     "pneunet": RobotEntry(
         pneunet, _pneunet.demo_actuation, {"bending": _pneunet.bending}, (10.0, -80.0)
     ),
+    "multigait": RobotEntry(multigait, _multigait.demo_actuation, {}, (35.0, -60.0)),
+    "cartstem_contact": RobotEntry(
+        _cartstem.cartstem_contact, _cartstem.demo_actuation, {}, (5.0, -90.0)
+    ),
+    "gripper": RobotEntry(_gripper.soft_gripper, _gripper.demo_actuation, {}, (15.0, -70.0)),
+    "trunk_cube": RobotEntry(_trunk_cube.trunk_cube, _trunk_cube.demo_actuation, {}, (35.0, -60.0)),
 }
 
 
@@ -62,4 +73,14 @@ def build(name: str, **kwargs) -> Model:
     return entry(name).build(**kwargs)
 
 
-__all__ = ["ROBOTS", "RobotEntry", "build", "diamond", "entry", "pneunet", "soft_finger", "trunk"]
+__all__ = [
+    "ROBOTS",
+    "RobotEntry",
+    "build",
+    "diamond",
+    "entry",
+    "multigait",
+    "pneunet",
+    "soft_finger",
+    "trunk",
+]

@@ -11,6 +11,22 @@ delta = W lambda + delta_free with W = h^2 H A^-1 H^T and delta_free = delta(q) 
 all linearised at the start of the step (delta itself is re-evaluated exactly every step).
 One factorisation (or one preconditioned block CG) serves the free motion and every constraint
 column.
+
+Driven nodes (held nodes carried by a kinematic body, :class:`pliant.fem.rigid.DrivenNodes`)
+move to their prescribed positions p(t + h) over the step, at v_p = (p(t + h) - q_p) / h. The
+free rows of the same implicit step then read, with K_fp the coupling of free and driven DoFs
+(a diagonal mass has no such coupling),
+
+    A_ff dv_f = h f_f(q) - h alpha M_ff v_f - (h beta + h^2) (K_ff v_f + K_fp v_p) + ...,
+
+so that K_s v is evaluated with the driven nodes at v_p: the free DoFs feel the driven motion
+within the step, not one step late. The constraints are evaluated with the driven nodes at
+p(t + h), so that delta_free holds their motion too.
+
+Rigid bodies coupled by contact (:class:`pliant.constraints.contact.CoupledContact`) add
+h^2 G M_r^-1 G^T to the contact block of W and h G u_free to its delta_free (u_free: their
+free twists under gravity); lambda then also gives their twists u = u_free + h M_r^-1 G^T
+lambda_c (pliant.fem.rigid).
 """
 
 from __future__ import annotations
@@ -18,9 +34,11 @@ from __future__ import annotations
 import numpy as np
 
 from pliant.constraints.condensed import CondensedProblem
+from pliant.constraints.contact import CoupledContact
 from pliant.constraints.control import as_control, constraint_forces
 from pliant.constraints.friction import ContactReport, ContactSolution
 from pliant.errors import DivergenceError, SolverError
+from pliant.fem.rigid import RigidStep, integrate_poses
 from pliant.model import Model, State
 from pliant.solvers.base import StepReport, check_linearisation, check_motion
 from pliant.solvers.system import LinearisedSystem, TangentPolicy
@@ -64,14 +82,20 @@ class ImplicitEuler:
         ctrl = as_control(control)
         ctrl.prepare(model)
         step = state.step + 1
-        lin = body.linearise(state.positions, state.velocities)
+        velocities, at = state.velocities, state.positions
+        if model.drivers:
+            drive = model.drive_velocities(state, h)
+            velocities = body.scatter(body.gather(state.velocities)) + drive
+            at = model.drive(state.positions, state.time + h)
+        lin = body.linearise(state.positions, velocities)
         check_linearisation(lin, step, h)
         a_m, a_k = self._coefficients()
-        contact = model.contacts.constraint(state.positions, h) if model.contacts else None
+        rigid = self._rigid_step(state)
+        contact = model.contacts.constraint(state.positions, h, rigid) if model.contacts else None
         try:
             self.system.prepare(lin, a_m, a_k)
             space = model.constraint_space(
-                state.positions,
+                at,
                 roles=getattr(ctrl, "roles", None),
                 extra=(contact,) if contact is not None else (),
             )
@@ -88,6 +112,11 @@ class ImplicitEuler:
         # met exactly (evaluating delta at q_free instead leaves an O(h^2) steady-state bias).
         delta_free = space.distance + h * (space.jacobian_t.T @ (v + dv_free))
         w = h * h * (space.jacobian_t.T @ a_inv_ht)
+        coupled = isinstance(contact, CoupledContact)
+        if coupled:
+            g, sc = contact.rigid_jacobian, space.slices["contact"]
+            w[sc, sc] += h * h * (g @ rigid.inverse_mass @ g.T)
+            delta_free[sc] += h * (g @ rigid.twists_free.reshape(-1))
         problem = CondensedProblem(0.5 * (w + w.T), delta_free, space.slices)
         lam, contact_report, contact_forces = constraint_forces(
             ctrl, problem, model, state, contact
@@ -95,16 +124,31 @@ class ImplicitEuler:
         v_new = v + dv_free + h * (a_inv_ht @ lam)
         dq = body.scatter(h * v_new)
         positions = state.positions + dq
+        new_velocities = body.scatter(v_new)
+        if model.drivers:
+            positions = model.drive(positions, state.time + h)
+            new_velocities += drive
         lam_a = lam[space.slices["actuator"]]
         new = State(
             positions,
-            body.scatter(v_new),
+            new_velocities,
             state.time + h,
             step,
             lam_a,
             model.actuator_distances(positions),
             contact_forces,
         )
+        if rigid is not None:
+            twists = (
+                rigid.twists(contact.rigid_jacobian, lam[space.slices["contact"]], h, step)
+                if coupled
+                else rigid.twists_free
+            )
+            new.rigid_positions, new.rigid_rotations = integrate_poses(
+                rigid.positions, rigid.rotations, twists, h
+            )
+            new.rigid_velocities = twists[:, :3].copy()
+            new.rigid_angular_velocities = twists[:, 3:].copy()
         check_motion(new.positions, new.velocities, dq, self._size, step, h)
         if model.contacts is not None:
             model.contacts.check_travel(dq, step)
@@ -116,6 +160,21 @@ class ImplicitEuler:
             contact=contact_report,
         )
         return new
+
+    def _rigid_step(self, state: State) -> RigidStep | None:
+        """The rigid bodies' free motion over the step (None without rigid bodies)."""
+        model = self.model
+        if not model.rigid_bodies:
+            return None
+        return RigidStep.free(
+            model.rigid_bodies,
+            state.rigid_positions,
+            state.rigid_rotations,
+            state.rigid_velocities,
+            state.rigid_angular_velocities,
+            model.body.gravity,
+            self.dt,
+        )
 
     def condense(self, state: State) -> CondensedProblem:
         """Exact W and delta_free of the next step from `state` (fresh factorisation)."""

@@ -4,6 +4,11 @@ K_s(q) dq = f_ext + f(q) + H^T lambda, with lambda the *total* constraint forces
 iteration from the condensed problem delta = W lambda + delta_free, W = H K_s^-1 H^T,
 delta_free = delta(q) + H K_s^-1 (f_ext + f(q)). At convergence the residual vanishes and the
 constraints hold exactly.
+
+Driven nodes (:class:`pliant.fem.rigid.DrivenNodes`) are held where their carrier puts them at
+the state's time: the step solves the equilibrium of the free nodes around them. Rigid bodies
+have no static equilibrium of their own here (a body resting on contacts is singular without
+inertia): models with rigid bodies use the dynamic step.
 """
 
 from __future__ import annotations
@@ -13,7 +18,7 @@ import numpy as np
 from pliant.constraints.condensed import CondensedProblem
 from pliant.constraints.control import as_control, constraint_forces
 from pliant.constraints.friction import ContactConstraint
-from pliant.errors import DivergenceError, SolverError
+from pliant.errors import DivergenceError, ModelError, SolverError
 from pliant.model import Model, State
 from pliant.solvers.base import StepReport, check_linearisation, check_motion
 from pliant.solvers.system import LinearisedSystem, TangentPolicy
@@ -37,6 +42,11 @@ class StaticSolver:
         max_iterations: int = 100,
         tangent: TangentPolicy = "fresh",
     ) -> None:
+        if model.rigid_bodies:
+            raise ModelError(
+                f"{model.name} has rigid bodies: the static solver cannot balance them (a body on"
+                " contacts is singular without inertia); use ImplicitEuler"
+            )
         self.model = model
         self.tolerance = tolerance
         self.max_iterations = max_iterations
@@ -72,7 +82,7 @@ class StaticSolver:
         ctrl = as_control(control)
         ctrl.prepare(model)
         step = state.step + 1
-        q = state.positions.copy()
+        q = model.drive(state.positions, state.time)
         # Each iteration chooses the total constraint forces; the previous iterate's warm-start
         # the next (course bounds still refer to the state the step starts from).
         guide = state.copy()

@@ -1,0 +1,126 @@
+"""CartStemContact: a vertical beam on a cart between two obstacles (thesis §3.1.2, §3.3.2,
+§4.2.2; SofaGym cartstemcontact-v0).
+
+The cart translates along x and carries the beam's base (driven nodes); two boxes, one on
+each side and above the cart, stop the beam. The task is to bring the tip to an abscissa
+behind an obstacle: moving the cart towards that obstacle presses the beam on it and swings
+the tip back, away from the goal (the local minimum of a QP started without contact); the tip
+gets there only by first bending the beam over the opposite obstacle (Fig. 3.11).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+
+import numpy as np
+
+from pliant.constraints.collision import Box
+from pliant.constraints.contact import Contacts
+from pliant.errors import ModelError
+from pliant.fem.body import TetBody
+from pliant.fem.rigid import DrivenNodes, KinematicBody, rail
+from pliant.mesh import box_beam
+from pliant.mesh.tetmesh import TetMesh
+from pliant.model import Model
+from pliant.robots.common import MaterialName, effector, fixed_by_box, landmark, make_material
+
+
+def demo_cart_motion(t: float) -> float:
+    """The scripted solution for a goal behind the right obstacle: the cart slides left (a
+    smooth 2 s ramp to -24 mm), bending the beam over the left obstacle so that its tip swings
+    right, over the right one."""
+    ramp = min(max(t / 2.0, 0.0), 1.0)
+    return -24.0 * ramp * ramp * (3.0 - 2.0 * ramp)
+
+
+def stem_mesh(length: float, width: float, cells: int) -> TetMesh:
+    """A vertical square beam standing on z = 0, centred on the z axis: `cells` hexahedra along
+    it, 2 x 2 across, 6 tetrahedra each (box_beam turned from +x to +z)."""
+    beam = box_beam(length, width, width, nx=cells, ny=2, nz=2)
+    # (x, y, z) -> (y, z, x) is a cyclic permutation: orientations are kept.
+    points = beam.points[:, [1, 2, 0]] - [width / 2, width / 2, 0.0]
+    half = width / 2 + 1e-3 * width
+    landmarks = {
+        "fixed_box": np.array([[-half, -half, -1e-3 * width], [half, half, 1e-3 * width]]),
+        "effector": np.array([[0.0, 0.0, length]]),
+    }
+    return TetMesh(points, beam.tets, landmarks=landmarks)
+
+
+def cartstem_contact(
+    *,
+    mesh: TetMesh | None = None,
+    length: float = 100.0,
+    width: float = 10.0,
+    cells: int = 10,
+    young_modulus: float = 2000.0,
+    poisson_ratio: float = 0.3,
+    density: float = 1.0e-6,
+    material: MaterialName = "corotational",
+    gravity: tuple[float, float, float] = (0.0, 0.0, -9810.0),
+    rayleigh_mass: float = 1.0,
+    rayleigh_stiffness: float = 0.01,
+    obstacle_spacing: float = 40.0,
+    obstacle_size: tuple[float, float, float] = (10.0, 20.0, 20.0),
+    obstacle_height: float = 10.0,
+    friction: float = 0.0,
+    contact_margin: float = 3.0,
+    cart_motion: Callable[[float], float] = demo_cart_motion,
+) -> Model:
+    """The beam on its cart between the two obstacles.
+
+    Args:
+        mesh: replaces the beam mesh (vertical, base on z = 0); default `stem_mesh`.
+        length, width, cells: the beam (mm), square section, hexahedra along it.
+        young_modulus, poisson_ratio, density, material: the beam's material (kPa, kg/mm^3).
+        rayleigh_mass, rayleigh_stiffness: damping of the beam.
+        obstacle_spacing: distance between the obstacles' inner faces, centred on x = 0.
+        obstacle_size: (x, y, z) size of each box obstacle.
+        obstacle_height: height of the obstacles' lower faces above the cart.
+        friction: Coulomb coefficient of the beam on the obstacles.
+        contact_margin: detection distance (mm); the beam's points move up to about 1 mm per
+            0.01 s step (2 mm at most in the tests) when the cart drags it over an obstacle.
+        cart_motion: the cart's displacement along x (mm) as a function of time (s).
+    """
+    if not (math.isfinite(obstacle_spacing) and obstacle_spacing > width):
+        raise ModelError(
+            f"the obstacles must be further apart than the beam is wide ({width} mm), got"
+            f" obstacle_spacing={obstacle_spacing!r}"
+        )
+    mesh = mesh if mesh is not None else stem_mesh(length, width, cells)
+    base = fixed_by_box(mesh, landmark(mesh, "fixed_box", [[-width, -width, -0.01], [width] * 3]))
+    body = TetBody(
+        mesh,
+        make_material(material, young_modulus, poisson_ratio),
+        density=density,
+        fixed_nodes=base,
+        gravity=gravity,
+        rayleigh_mass=rayleigh_mass,
+        rayleigh_stiffness=rayleigh_stiffness,
+    )
+    half = np.asarray(obstacle_size, dtype=float) / 2
+    centre_z = obstacle_height + half[2]
+    obstacles = [
+        Box(half, position=[side * (obstacle_spacing / 2 + half[0]), 0.0, centre_z])
+        for side in (-1.0, 1.0)
+    ]
+    cart = KinematicBody(
+        Box([2.0 * width, width, 2.0], position=[0.0, 0.0, -2.0]),
+        rail([0.0, 0.0, -2.0], [1.0, 0.0, 0.0], cart_motion),
+        name="cart",
+    )
+    contacts = Contacts(obstacles, friction=friction, margin=contact_margin)
+    tip = effector(mesh, body, landmark(mesh, "effector", [0.0, 0.0, length]))
+    return Model(
+        body,
+        effectors=[tip],
+        contacts=contacts,
+        drivers=[DrivenNodes(base, cart, name="cart")],
+        name="cartstem_contact",
+    )
+
+
+def demo_actuation(t: float) -> np.ndarray:
+    """No actuator: the cart follows the model's own scripted motion (`cart_motion`)."""
+    return np.zeros(0)
