@@ -152,21 +152,24 @@ def time_steps(
     steps: int,
     repeats: int,
     warmup: int,
-) -> tuple[list[float], float]:
-    """steps/s of `repeats` runs of `steps` steps, each from the state after the warm-up."""
+) -> tuple[list[float], float, float]:
+    """steps/s of `repeats` runs of `steps` steps, each from the state after the warm-up; the
+    median factorisations per step and the mean contact-solver sweeps per step (0: none)."""
     solver = make_solver()
     for _ in range(warmup):
         state = solver.step(state, control(state))
-    rates, facts = [], []
+    rates, facts, sweeps = [], [], []
     for _ in range(repeats):
         s = state.copy()
         f0 = solver.system.factorisations
         t0 = time.perf_counter()
         for _ in range(steps):
             s = solver.step(s, control(s))
+            report = solver.last_report.contact
+            sweeps.append(report.iterations if report is not None else 0)
         rates.append(steps / (time.perf_counter() - t0))
         facts.append((solver.system.factorisations - f0) / steps)
-    return rates, statistics.median(facts)
+    return rates, statistics.median(facts), float(np.mean(sweeps))
 
 
 def run_benchmarks(
@@ -190,14 +193,17 @@ def run_benchmarks(
         for policy in policies:
             if cables is not None:
                 model.set_actuation(cables, mode="displacement")
-            rates, facts = time_steps(
+            rates, facts, sweeps = time_steps(
                 lambda p=policy: ImplicitEuler(model, 0.01, tangent=p),
                 model.rest_state(),
-                lambda s: control,
+                control if callable(control) else (lambda s: control),
                 n_steps,
                 repeats,
                 warmup,
             )
+            details = dict(extra)
+            if model.contacts is not None:
+                details["contact_sweeps_per_step"] = sweeps
             m = Measurement(
                 scene,
                 model.body.mesh.n_tets,
@@ -206,13 +212,14 @@ def run_benchmarks(
                 rates,
                 facts,
                 sofa,
-                dict(extra),
+                details,
             )
             results.append(m)
             ratio = f"{m.speedup:.1f}x SOFA" if m.speedup else ""
+            contact = f", {sweeps:.0f} contact sweeps/step" if model.contacts else ""
             console.print(
                 f"  {scene:<22} {policy:<6} {m.steps_per_s:9.2f} steps/s"
-                f"  ({facts:.3f} factorisations/step) {ratio}"
+                f"  ({facts:.3f} factorisations/step{contact}) {ratio}"
             )
 
     console.print(f"[bold]pliant bench[/bold] {__version__}; reference meshes: {meshes}")
@@ -276,6 +283,29 @@ def run_benchmarks(
                 warmup=2,
                 contact_points=len(scene.contacts.points),
             )
+    if not quick:
+        import warnings
+
+        from pliant.errors import ContactConvergenceWarning
+
+        # Contact scenes under their scripted actuation, timed once contact is made.
+        for name, warmup in (
+            ("gripper", 80),
+            ("multigait", 20),
+            ("cartstem_contact", 100),
+            ("trunk_cube", 100),
+        ):
+            entry = robots.entry(name)
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore", ContactConvergenceWarning)
+                measure(
+                    name,
+                    entry.build(),
+                    control=lambda s, e=entry: e.demo_actuation(s.time),
+                    policies=("lagged",),
+                    n_steps=max(10, steps // 5),
+                    warmup=warmup,
+                )
     for res in ("coarse",) if quick else ("coarse", "fine", "superfine"):
         finger = robots.soft_finger(resolution=res)
         measure(
@@ -300,7 +330,7 @@ def run_benchmarks(
         f" {statistics.median(static_times) * 1e3:.1f} ms"
     )
     goal = dia.effectors[0].position(st.positions) + np.array([[5.0, 0.0, 0.0]])
-    rates, _ = time_steps(
+    rates, _, _ = time_steps(
         lambda: ImplicitEuler(dia, 0.01),
         dia.rest_state(),
         lambda s: InverseControl(goals=[goal]),

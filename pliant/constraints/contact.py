@@ -50,7 +50,7 @@ class Contacts:
             diagonal.
         points: the colliding points of the body; None: its surface nodes that are not fixed.
         tolerance: contact solver tolerance: the largest correction of a contact's displacement
-            in a last Gauss-Seidel sweep (model length unit; 1e-7 mm by default).
+            in a last Gauss-Seidel sweep (model length unit; 1e-5 mm by default).
         max_iterations: contact solver sweeps before a ContactConvergenceWarning.
     """
 
@@ -61,7 +61,7 @@ class Contacts:
         friction: float | Sequence[float] = 0.0,
         margin: float | None = None,
         points: EmbeddedPoints | None = None,
-        tolerance: float = 1e-7,
+        tolerance: float = 1e-5,
         max_iterations: int = 1000,
     ) -> None:
         self.shapes = list(shapes)
