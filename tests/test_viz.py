@@ -287,3 +287,23 @@ def test_convergence_order_recovers_a_power_law():
     assert convergence_order(hs, 7.0 * hs**1.5) == pytest.approx(1.5)
     with pytest.raises(ValueError, match="positive"):
         convergence_order(hs, np.array([1.0, 0.0, 0.1]))
+
+
+def test_shape_surfaces_enclose_their_shapes() -> None:
+    """Drawn solids are closed and outward: their enclosed volume is the shape's (a UV sphere
+    of 12 rings is inscribed, a few % smaller), at the pose given."""
+    from pliant.constraints.cavity import enclosed_volume
+    from pliant.constraints.collision import Box, Capsule, Plane, Sphere
+    from pliant.viz.shapes import shape_surface
+
+    rot = np.array([[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])
+    pts, tris = shape_surface(Box([1.0, 2.0, 3.0]), position=[5.0, 0.0, 0.0], rotation=rot)
+    assert enclosed_volume(pts, tris) == pytest.approx(48.0, rel=1e-12)
+    assert np.allclose(pts.mean(axis=0), [5.0, 0.0, 0.0])
+    pts, tris = shape_surface(Sphere(2.0))
+    assert 0.95 < enclosed_volume(pts, tris) / (4 / 3 * np.pi * 8.0) < 1.0
+    pts, tris = shape_surface(Capsule(1.0, 2.0))
+    exact = np.pi * 4.0 + 4 / 3 * np.pi
+    assert 0.95 < enclosed_volume(pts, tris) / exact < 1.0
+    pts, _ = shape_surface(Plane(point=(0.0, 0.0, -1.0)), extent=10.0, centre=[3.0, 4.0, 7.0])
+    assert np.allclose(pts[:, 2], -1.0) and np.allclose(pts.mean(axis=0)[:2], [3.0, 4.0])

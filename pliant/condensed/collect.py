@@ -2,10 +2,11 @@
 
 The samples are cut into chunks of `plan.chunk_size`. A worker solves a chunk in a row, each
 sample load-stepped from the previous one's equilibrium (Newton converges where a jump from rest
-would not), the first from the rest equilibrium; so a chunk's result does not depend on which
-worker solves it, nor when. Every finished chunk is written at once, atomically, next to the
-output file (`OUT.parts/`): an interrupted collection loses nothing already computed, and the
-next call with the same plan solves only the missing chunks and gives the same dataset.
+would not), the first of each design from its rest equilibrium; so a chunk's result does not
+depend on which worker solves it, nor when. Every finished chunk is written at once, atomically,
+next to the output file (`OUT.parts/`): an interrupted collection loses nothing already
+computed, and the next call with the same plan solves only the missing chunks and gives the
+same dataset.
 
 Chunks run on local processes (default), in this process (`workers=1`), or on a Ray cluster
 (`ray_address`, e.g. "auto" for the cluster this machine belongs to).
@@ -92,8 +93,14 @@ def collect(
 
 
 def solve_chunk(plan: CollectionPlan, points: np.ndarray) -> Split:
-    """Equilibria at consecutive samples (rows: actuator commands, then design parameters)."""
+    """Equilibria at consecutive samples (rows: actuator commands, then design parameters).
+
+    Every design's effectors get the goals of the plan's base design (`robot_kwargs`), so that
+    delta_e measures effector positions from the same point whatever the design.
+    """
     n_act = len(plan.actuator_bounds)
+    base_json = json.dumps(plan.robot_kwargs, sort_keys=True)
+    goals = _training_goals(plan.robot, base_json) if plan.design_names else None
     rows: list[dict[str, np.ndarray]] = []
     design = None
     for point in np.atleast_2d(points):
@@ -105,22 +112,20 @@ def solve_chunk(plan: CollectionPlan, points: np.ndarray) -> Split:
                 **dict(zip(plan.design_names, params.tolist(), strict=True)),
             }
             model = _build(plan.robot, json.dumps(kwargs, sort_keys=True))
+            if goals is not None:
+                for effector, goal in zip(model.effectors, goals, strict=True):
+                    effector.goals = goal
             layout = Layout.of(model)
             solver = StaticSolver(
                 model, tolerance=plan.tolerance, max_iterations=plan.newton_iterations
             )
-            rest = rest_equilibrium(model, solver)
-            w0, free0 = layout.pack(solver.condense(rest))
-            state = rest
+            state = rest_equilibrium(model, solver)
+            w0, free0 = layout.pack(solver.condense(state))
         try:
             state = load_step(model, solver, state, command, plan.max_increment)
-        except DivergenceError:
-            try:  # the previous equilibrium may be a poor start: from rest
-                state = load_step(model, solver, rest, command, plan.max_increment)
-            except DivergenceError:
-                state = rest
-                rows.append(_failed(command, params, layout))
-                continue
+        except DivergenceError:  # kept NaN; the next sample starts from the last equilibrium
+            rows.append(_failed(command, params, layout))
+            continue
         w, free = layout.pack(solver.condense(state))
         rows.append(
             {
@@ -149,6 +154,12 @@ def _failed(command: np.ndarray, params: np.ndarray, layout: Layout) -> dict[str
     }
     row = {key: np.full(n, np.nan) for key, n in nan.items()}
     return {**row, "command": command, "design": params, "converged": np.array(False)}
+
+
+@functools.lru_cache(maxsize=1)
+def _training_goals(robot: str, kwargs_json: str) -> tuple[np.ndarray, ...]:
+    """The effector goals of the base design (its effectors' rest positions by default)."""
+    return tuple(e.goals.copy() for e in _build(robot, kwargs_json).effectors)
 
 
 @functools.lru_cache(maxsize=1)

@@ -25,7 +25,7 @@ import numpy as np
 
 import pliant
 from pliant.condensed.layout import Layout
-from pliant.condensed.sampling import Box, train_test_points
+from pliant.condensed.sampling import Box, grouped_train_test_points, train_test_points
 from pliant.errors import DatasetError, LearnedModelError
 
 FORMAT = "pliant-condensed-dataset"
@@ -46,6 +46,9 @@ class CollectionPlan:
         robot_kwargs: builder keywords held fixed.
         design_bounds: builder keyword -> (low, high) of design parameters sampled with the
             displacements (e.g. {"poisson_ratio": (0.40, 0.499)}); empty for one design.
+        samples_per_design: consecutive samples that share a design (1: one Halton sequence
+            fills the joint box of displacements and designs; more: designs and displacements
+            are drawn apart, and each design is built and meshed once for that many samples).
         seed: seed of both point sets.
         max_increment: largest change of an actuator command in one static step (adaptive
             load stepping from the previous sample's equilibrium, halved where Newton fails).
@@ -67,6 +70,7 @@ class CollectionPlan:
     max_increment: float = 8.0
     tolerance: float = 1e-8
     newton_iterations: int = 60
+    samples_per_design: int = 1
     chunk_size: int = 16
     units: str = "mm, kg, s (forces in mN, W in mm/mN)"
 
@@ -82,6 +86,11 @@ class CollectionPlan:
             )
         if not self.test_fraction >= 0.0:
             raise DatasetError(f"test_fraction must be >= 0, got {self.test_fraction}")
+        if self.samples_per_design < 1 or self.chunk_size % self.samples_per_design:
+            raise DatasetError(
+                f"chunk_size ({self.chunk_size}) must be a multiple of samples_per_design"
+                f" ({self.samples_per_design}): a design split between chunks is built twice"
+            )
         _ = self.box  # Box checks the bounds
 
     @property
@@ -102,9 +111,23 @@ class CollectionPlan:
     def actuator_box(self) -> Box:
         return Box([lo for lo, _ in self.actuator_bounds], [hi for _, hi in self.actuator_bounds])
 
+    @property
+    def design_box(self) -> Box:
+        bounds = self.design_bounds.values()
+        return Box([lo for lo, _ in bounds], [hi for _, hi in bounds])
+
     def points(self) -> dict[str, np.ndarray]:
         """Per split, one row per sample: actuator commands then design parameters."""
-        return train_test_points(self.box, self.n_train, self.n_test, seed=self.seed)
+        if self.samples_per_design == 1:
+            return train_test_points(self.box, self.n_train, self.n_test, seed=self.seed)
+        return grouped_train_test_points(
+            self.actuator_box,
+            self.design_box,
+            self.n_train,
+            self.n_test,
+            self.samples_per_design,
+            seed=self.seed,
+        )
 
     def to_dict(self) -> dict:
         data = asdict(self)

@@ -7,6 +7,7 @@ test set, 25 % of the training size, is drawn uniformly at random in the same bo
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -58,7 +59,7 @@ def uniform(box: Box, n: int, rng: np.random.Generator) -> np.ndarray:
 
 
 def train_test_points(
-    box: Box, n_train: int, n_test: int, *, seed: int = 0
+    box: Box, n_train: int, n_test: int, *, seed: int | Sequence[int] = 0
 ) -> dict[str, np.ndarray]:
     """{"train": n_train Halton points, "test": n_test random points}; the two streams come
     from independent children of `seed`."""
@@ -66,4 +67,26 @@ def train_test_points(
     return {
         "train": halton(box, n_train, train_rng),
         "test": uniform(box, n_test, test_rng),
+    }
+
+
+def grouped_train_test_points(
+    actuator_box: Box,
+    design_box: Box,
+    n_train: int,
+    n_test: int,
+    per_design: int,
+    *,
+    seed: int = 0,
+) -> dict[str, np.ndarray]:
+    """`train_test_points` with `per_design` consecutive samples sharing one design: rows
+    (actuator point, design point), the actuator points and the designs each drawn as their
+    own point set (a design is meshed once for several actuations)."""
+    actuations = train_test_points(actuator_box, n_train, n_test, seed=seed)
+    designs = train_test_points(
+        design_box, -(-n_train // per_design), -(-n_test // per_design), seed=(seed, 1)
+    )
+    return {
+        split: np.hstack([points, np.repeat(designs[split], per_design, axis=0)[: len(points)]])
+        for split, points in actuations.items()
     }

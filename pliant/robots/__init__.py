@@ -55,7 +55,7 @@ ROBOTS: dict[str, RobotEntry] = {
         _cartstem.cartstem_contact, _cartstem.demo_actuation, {}, (5.0, -90.0)
     ),
     "gripper": RobotEntry(_gripper.soft_gripper, _gripper.demo_actuation, {}, (15.0, -70.0)),
-    "trunk_cube": RobotEntry(_trunk_cube.trunk_cube, _trunk_cube.demo_actuation, {}, (35.0, -60.0)),
+    "trunk_cube": RobotEntry(_trunk_cube.trunk_cube, _trunk_cube.demo_actuation, {}, (20.0, 60.0)),
 }
 
 

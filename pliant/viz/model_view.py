@@ -1,4 +1,5 @@
-"""Frames of a simulated robot: its surface, cables, effectors and goals."""
+"""Frames of a simulated robot: its surface, cables, effectors, goals, obstacles and rigid
+bodies."""
 
 from __future__ import annotations
 
@@ -6,7 +7,11 @@ import numpy as np
 
 from pliant.constraints.cable import CableActuator
 from pliant.model import Model, State
-from pliant.viz.render import render_frame
+from pliant.viz.render import BODY_COLOR, render_scene
+from pliant.viz.shapes import shape_surface
+
+OBSTACLE_COLOR = "#b0b0b0"
+RIGID_COLOR = "#e0944a"
 
 
 class RobotCamera:
@@ -26,8 +31,29 @@ class RobotCamera:
         self.triangles = model.body.mesh.boundary_triangles()
         rest = model.body.rest_positions
         lo, hi = rest.min(axis=0), rest.max(axis=0)
+        self._centre = 0.5 * (lo + hi)
+        self._floor = 0.6 * float(np.linalg.norm(hi - lo))
+        for body in getattr(model, "rigid_bodies", ()):
+            box = body.shape.bounds()
+            lo, hi = np.minimum(lo, box[0]), np.maximum(hi, box[1])
         pad = margin * float(np.max(hi - lo))
         self.bounds = np.array([lo - pad, hi + pad])
+
+    def _solids(self, state: State) -> list:
+        """Obstacles (grey) and rigid bodies (orange) as (points, triangles, colour)."""
+        solids = []
+        if self.model.contacts is not None:
+            for shape in self.model.contacts.shapes:
+                pts, tris = shape_surface(shape, extent=self._floor, centre=self._centre)
+                solids.append((pts, tris, OBSTACLE_COLOR))
+        for i, body in enumerate(getattr(self.model, "rigid_bodies", ())):
+            pts, tris = shape_surface(
+                body.shape,
+                position=state.rigid_positions[i],
+                rotation=state.rigid_rotations[i],
+            )
+            solids.append((pts, tris, RIGID_COLOR))
+        return solids
 
     def frame(
         self, state: State, *, title: str | None = None, goals: np.ndarray | None = None
@@ -46,9 +72,8 @@ class RobotCamera:
             )
         if goals is not None:
             markers["goal"] = (np.atleast_2d(goals), "tab:green")
-        return render_frame(
-            x,
-            self.triangles,
+        return render_scene(
+            [(x, self.triangles, BODY_COLOR), *self._solids(state)],
             title=title,
             markers=markers or None,
             lines=lines or None,

@@ -1,0 +1,216 @@
+"""The condensed model over designs, F(delta_a, delta_c, G(P)) (thesis Eq. 5.7-5.8, Fig. 5.3).
+
+G maps design parameters P (geometry, material) to the rest values (W0, delta0_free); F maps
+them and the actuator state to (W, delta_free). Their composition is a differentiable map from
+the design to the robot's mechanics, which calibration (Eq. 5.15-5.16) and design optimisation
+(Eq. 5.17-5.20) descend. Computations run in float64: the objectives difference predictions.
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Protocol
+
+import numpy as np
+import torch
+from torch import Tensor
+
+import pliant
+from pliant.condensed.dataset import CollectionPlan, Dataset
+from pliant.condensed.layout import Layout
+from pliant.condensed.mechanics import effector_displacement, symmetric
+from pliant.condensed.networks import ComposedNetwork, StandardisedMLP
+from pliant.condensed.sampling import Box
+from pliant.condensed.train import FitResult, TrainConfig, train_condensed, train_design
+from pliant.errors import DatasetError, LearnedModelError
+
+FORMAT = "pliant-parametric-condensed"
+FORMAT_VERSION = 1
+
+
+class DesignMechanics(Protocol):
+    """What calibration and design read of a condensed model over designs: its layout, the
+    names and box of its design parameters, and W, delta_free at (delta_a, P), differentiably.
+    :class:`ParametricCondensedModel` is one; an analytic model can stand for it in tests."""
+
+    layout: Layout
+    design_names: tuple[str, ...]
+    design_box: Box
+
+    def matrices(self, delta_a: Tensor, design: Tensor) -> tuple[Tensor, Tensor]:
+        """(W (n, rows, rows), delta_free (n, rows)) for delta_a (n, a) and design (n, P)."""
+        ...
+
+    def rest(self, design: Tensor) -> tuple[Tensor, Tensor]:
+        """(W0, delta0_free) of each design (n, P), at lambda = 0."""
+        ...
+
+
+def effector_rows(model: DesignMechanics, delta_a: Tensor, design: Tensor) -> Tensor:
+    """Eq. 5.16 with the model's matrices: the effector rows reached for delta_a (n, a)."""
+    w, free = model.matrices(delta_a, design)
+    slices = model.layout.slices
+    return effector_displacement(w, free, delta_a, slices["actuator"], slices["effector"])
+
+
+@dataclass
+class ParametricFit:
+    """The two trainings behind a parametric model."""
+
+    condensed: FitResult
+    design: FitResult
+
+
+class ParametricCondensedModel:
+    """F and G with the layout and design space they learned (float64, evaluation mode).
+
+    Args:
+        condensed: F, raw (delta_a, delta_c, W0 triangle, delta0_free) -> (W triangle,
+            delta_free).
+        design: G, raw P -> (W0 triangle, delta0_free).
+        plan: how the dataset was collected; its design bounds are the design box.
+        input_box: region of actuator (and contact) displacements in the training data.
+        training: what the trainings reported, kept with the model.
+    """
+
+    def __init__(
+        self,
+        condensed: StandardisedMLP,
+        design: StandardisedMLP,
+        layout: Layout,
+        plan: CollectionPlan,
+        input_box: Box,
+        training: dict | None = None,
+    ) -> None:
+        if not plan.design_names:
+            raise LearnedModelError("a parametric model needs a dataset over design parameters")
+        n_rest = layout.n_triangle + layout.n_rows
+        expected = {
+            "F": (condensed, input_box.dim + n_rest, n_rest),
+            "G": (design, len(plan.design_names), n_rest),
+        }
+        for name, (network, n_in, n_out) in expected.items():
+            if (network.n_inputs, network.n_outputs) != (n_in, n_out):
+                raise LearnedModelError(
+                    f"{name} maps {network.n_inputs} -> {network.n_outputs} values; the layout"
+                    f" and design need {n_in} -> {n_out}"
+                )
+        self.network = ComposedNetwork(condensed, design).to(torch.float64).eval()
+        self.layout = layout
+        self.plan = plan
+        self.design_names = plan.design_names
+        self.design_box = plan.design_box
+        self.input_box = input_box
+        self.training = dict(training or {})
+
+    def _split(self, y: Tensor) -> tuple[Tensor, Tensor]:
+        n = self.layout.n_triangle
+        return symmetric(y[..., :n], self.layout.n_rows), y[..., n:]
+
+    def rest(self, design: Tensor) -> tuple[Tensor, Tensor]:
+        return self._split(self.network.design.predict(design))
+
+    def matrices(self, delta_a: Tensor, design: Tensor) -> tuple[Tensor, Tensor]:
+        n_contact = self.input_box.dim - delta_a.shape[-1]
+        displacements = torch.cat([delta_a, delta_a.new_zeros(delta_a.shape[0], n_contact)], 1)
+        return self._split(self.network(displacements, design))
+
+    def design_tensor(self, **values: float) -> Tensor:
+        """P as a (1, P) tensor from keyword values; the plan's base design fills the rest."""
+        unknown = set(values) - set(self.design_names)
+        if unknown:
+            raise LearnedModelError(
+                f"unknown design parameters {sorted(unknown)}; this model has"
+                f" {list(self.design_names)}"
+            )
+        centre = 0.5 * (self.design_box.low + self.design_box.high)
+        base = [
+            values.get(k, self.plan.robot_kwargs.get(k, centre[i]))
+            for i, k in enumerate(self.design_names)
+        ]
+        return torch.tensor([base], dtype=torch.float64)
+
+    def save(self, path: str | os.PathLike) -> Path:
+        path = Path(path)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        torch.save(
+            {
+                "format": FORMAT,
+                "format_version": FORMAT_VERSION,
+                "software_version": pliant.__version__,
+                "networks": {
+                    name: {"config": net.config(), "state": net.state_dict()}
+                    for name, net in (
+                        ("condensed", self.network.condensed),
+                        ("design", self.network.design),
+                    )
+                },
+                "layout": self.layout.to_dict(),
+                "plan": self.plan.to_dict(),
+                "input_box": [self.input_box.low.tolist(), self.input_box.high.tolist()],
+                "training": self.training,
+            },
+            path,
+        )
+        return path
+
+    @classmethod
+    def load(cls, path: str | os.PathLike) -> ParametricCondensedModel:
+        path = Path(path)
+        if not path.is_file():
+            raise LearnedModelError(f"no parametric condensed model at {path}")
+        try:
+            data = torch.load(path, weights_only=True)
+        except Exception as exc:  # torch raises many types for a corrupt or foreign file
+            raise LearnedModelError(f"{path} is not a readable model file: {exc}") from exc
+        if not isinstance(data, dict) or data.get("format") != FORMAT:
+            raise LearnedModelError(f"{path} is not a Pliant parametric condensed model")
+        if data.get("format_version") != FORMAT_VERSION:
+            raise LearnedModelError(
+                f"{path} has model format version {data.get('format_version')}; this Pliant"
+                f" reads version {FORMAT_VERSION}"
+            )
+        try:
+            networks = {}
+            for name, saved in data["networks"].items():
+                networks[name] = StandardisedMLP.from_config(saved["config"])
+                networks[name].load_state_dict(saved["state"])
+            return cls(
+                networks["condensed"],
+                networks["design"],
+                Layout.from_dict(data["layout"]),
+                CollectionPlan.from_dict(data["plan"]),
+                Box(*data["input_box"]),
+                data["training"],
+            )
+        except (KeyError, TypeError, ValueError, RuntimeError) as exc:
+            raise LearnedModelError(f"{path} is incomplete or inconsistent: {exc}") from exc
+
+
+def train_parametric(
+    dataset: Dataset,
+    condensed: TrainConfig | None = None,
+    design: TrainConfig | None = None,
+) -> tuple[ParametricCondensedModel, ParametricFit]:
+    """Train G (Eq. 5.7) and F (Eq. 5.2) on a dataset over designs, apart, as the thesis does
+    (F learns from the FEM's W0 and delta0_free; it is used on G's)."""
+    if not dataset.plan.design_names:
+        raise DatasetError("the dataset has no design parameters: collect it with design_bounds")
+    learned, fit_f = train_condensed(dataset, condensed)
+    fit_g = train_design(dataset, design)
+    training = {
+        "condensed": {"best_epoch": fit_f.best_epoch, "test_loss": fit_f.best_test_loss},
+        "design": {"best_epoch": fit_g.best_epoch, "test_loss": fit_g.best_test_loss},
+    }
+    model = ParametricCondensedModel(
+        learned.network, fit_g.network, dataset.layout, dataset.plan, learned.input_box, training
+    )
+    return model, ParametricFit(fit_f, fit_g)
+
+
+def as_tensor(values: np.ndarray | Tensor) -> Tensor:
+    """A float64 tensor, rows kept (a vector becomes one row)."""
+    t = torch.as_tensor(np.asarray(values, dtype=float) if not torch.is_tensor(values) else values)
+    return torch.atleast_2d(t.to(torch.float64))
