@@ -3,6 +3,8 @@ independent solve without contact."""
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 import pytest
 from conftest import clamped_body
@@ -12,7 +14,7 @@ from pliant.constraints.collision import Box, Plane
 from pliant.constraints.contact import Contacts
 from pliant.constraints.control import InverseControl
 from pliant.constraints.effector import PositionEffector
-from pliant.errors import ContactError, ModelError
+from pliant.errors import ContactError, ContactMarginWarning
 from pliant.fem.body import TetBody
 from pliant.fem.material import Corotational
 from pliant.mesh import TetMesh, box_beam
@@ -173,15 +175,69 @@ def test_bad_contact_input_raises() -> None:
         Contacts([])
 
 
-def test_inverse_control_with_contacts_is_refused_clearly() -> None:
-    model = _cube(lift=0.0)
-    mesh = model.body.mesh
-    eff = PositionEffector(EmbeddedPoints(mesh, [[10.0, 10.0, 20.0]]), mesh.points)
-    model = Model(model.body, effectors=[eff], contacts=Contacts([Plane()], margin=1.0))
-    with pytest.raises(ModelError, match="does not handle contacts"):
-        ImplicitEuler(model, 0.01).step(
-            model.rest_state(), InverseControl(goals=[np.zeros((1, 3))])
+def _cable_beam_under_a_wall(with_wall: bool) -> Model:
+    """A clamped 60 mm beam, cables along its top (0) and bottom (1) edges, an effector at the
+    tip; optionally a block above the tip whose underside is 4 mm over the beam (z = 14)."""
+    from pliant.constraints.cable import CableActuator
+
+    mesh = box_beam(60.0, 10.0, 10.0, 12, 2, 2)
+    x = mesh.points
+    cables = [
+        CableActuator(
+            EmbeddedPoints(mesh, [[20.0, 5.0, z], [40.0, 5.0, z], [59.0, 5.0, z]]),
+            x,
+            pull_point=[-10.0, 5.0, z],
+            name=f"cable_{i}",
+            max_displacement=8.0,
         )
+        for i, z in enumerate((8.0, 2.0))
+    ]
+    eff = PositionEffector(EmbeddedPoints(mesh, [[60.0, 5.0, 5.0]]), x)
+    wall = Box([6.0, 10.0, 5.0], position=[55.0, 5.0, 19.0])
+    contacts = Contacts([wall], friction=0.3, margin=5.0) if with_wall else None
+    body = clamped_body(mesh, Corotational(100.0, 0.3), density=1e-6)
+    return Model(body, actuators=cables, effectors=[eff], contacts=contacts)
+
+
+def _inverse_run(model: Model, goal: np.ndarray, steps: int = 60) -> tuple[State, ImplicitEuler]:
+    solver, state = ImplicitEuler(model, 0.02), model.rest_state()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ContactMarginWarning)  # the first, free, step is long
+        for _ in range(steps):
+            state = solver.step(state, InverseControl(goals=[goal]))
+    return state, solver
+
+
+def test_inverse_control_with_contacts_presses_on_the_wall_instead_of_crossing_it() -> None:
+    """Eq. 2.15 with complementarity: the goal lies past a wall; without it the tip reaches the
+    goal, with it the beam stops on the wall (no point beyond it), pushed by the wall, and the
+    QP settles on the closest reachable configuration."""
+    goal = np.array([[56.0, 5.0, 14.0]])
+    free, _ = _inverse_run(_cable_beam_under_a_wall(False), goal)
+    model = _cable_beam_under_a_wall(True)
+    blocked, solver = _inverse_run(model, goal)
+    # The cables bend the beam in z (it also twists a little in y): compare heights.
+    free_error = abs(model.effectors[0].position(free.positions)[0, 2] - goal[0, 2])
+    blocked_error = abs(model.effectors[0].position(blocked.positions)[0, 2] - goal[0, 2])
+    assert free.positions[:, 2].max() > 16.0  # without the wall the beam passes z = 14
+    assert free_error < 0.5
+    assert blocked.positions[:, 2].max() < 14.0 + 1e-6
+    assert blocked_error > 2.0
+    forces = blocked.contact_forces.forces
+    assert forces[:, 2].sum() < 0.0 and np.all(forces[:, 2] <= 1e-9)  # the wall only pushes
+    assert np.all(blocked.actuation >= 0.0)
+    assert np.all(blocked.displacement <= 8.0 + 1e-6)
+    assert solver.last_report.contact.converged
+
+
+def test_inverse_control_away_from_obstacles_ignores_them() -> None:
+    """A goal away from the wall (bending down, its contact rows open all along): the same
+    steps as with no obstacle at all."""
+    goal = np.array([[57.0, 5.0, 0.0]])
+    free, _ = _inverse_run(_cable_beam_under_a_wall(False), goal, steps=30)
+    near, _ = _inverse_run(_cable_beam_under_a_wall(True), goal, steps=30)
+    assert near.positions[:, 2].max() < 14.0
+    np.testing.assert_allclose(near.positions, free.positions, atol=1e-6)
 
 
 def test_a_step_longer_than_the_margin_warns() -> None:

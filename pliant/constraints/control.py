@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass
 
 import numpy as np
@@ -15,8 +16,8 @@ from pliant.constraints.friction import (
     ContactSolution,
     solve_contact,
 )
-from pliant.constraints.inverse import solve_inverse
-from pliant.errors import ModelError
+from pliant.constraints.inverse import solve_inverse, solve_inverse_with_contacts
+from pliant.errors import ContactConvergenceWarning, ModelError
 
 
 @dataclass
@@ -82,6 +83,34 @@ class InverseControl:
             )
         for eff, g in zip(model.effectors, goals, strict=True):
             eff.goals = g
+
+    def actuation_with_contacts(
+        self, problem: CondensedProblem, model, state, contact: ContactConstraint
+    ) -> ContactSolution:
+        """Actuator and contact forces of the QP with complementarity (Eq. 2.15 with contacts),
+        the contacts seeded closed where they carried a force at the previous step."""
+        previous = state.contact_forces.warm_start(contact.contacts).reshape(-1, 3)
+        touching = contact.contacts.gap <= model.contacts.tolerance
+        closed = touching & (previous[:, 0] > 0.0) | (contact.contacts.gap <= 0.0)
+        sol = solve_inverse_with_contacts(
+            problem,
+            model.actuators,
+            state.displacement,
+            contact.friction,
+            regularisation=self.regularisation,
+            initial_active=closed,
+        )
+        residual = 0.0 if sol.settled else float("inf")
+        report = ContactReport(sol.rounds, residual, sol.settled)
+        if not sol.settled:
+            warnings.warn(
+                f"the contact states of the inverse problem did not settle in {sol.rounds}"
+                " rounds; the last round's forces are applied",
+                ContactConvergenceWarning,
+                stacklevel=3,
+            )
+        w, d = problem.compliance, problem.free_distance
+        return ContactSolution(sol.forces, w @ sol.forces + d, report, problem.slices)
 
     def actuation(self, problem: CondensedProblem, model, state) -> np.ndarray:
         sol = solve_inverse(

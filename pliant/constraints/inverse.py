@@ -174,3 +174,156 @@ def _proxqp(hess, grad, c_mat, lower, upper, lo_box, hi_box, tolerance, max_iter
     qp.solve()
     res = qp.results
     return res.x.copy(), res.z.copy(), res.info.status, int(res.info.iter)
+
+
+@dataclass
+class ContactInverseSolution:
+    """lambda for every row (actuators, effectors = 0, contacts), the rounds of the contact
+    active set and whether it settled."""
+
+    forces: np.ndarray
+    rounds: int
+    settled: bool
+
+
+def solve_inverse_with_contacts(
+    problem: CondensedProblem,
+    actuators: list[Actuator],
+    previous_displacement: np.ndarray,
+    friction: np.ndarray,
+    *,
+    regularisation: float = 1e-3,
+    tolerance: float = 1e-9,
+    max_iterations: int = 1000,
+    max_rounds: int = 30,
+    initial_active: np.ndarray | None = None,
+) -> ContactInverseSolution:
+    """Eq. 2.15 with contacts (a QP with complementarity constraints, QPCC).
+
+    The unknowns are the actuator forces and the contact forces (normal, two tangents). The
+    complementarity 0 <= delta_n _|_ lambda_n >= 0 and Coulomb's law are met by an active set
+    over the contacts, one QP (ProxQP) per round, as in SoftRobots.Inverse (Coevoet et al.,
+    RA-L 2017):
+
+    * a closed contact keeps delta_n = 0 with lambda_n >= 0; it sticks (delta_t = 0) with its
+      force inside the friction pyramid |lambda_ti| <= mu / sqrt(2) lambda_n, or, once the
+      pyramid binds, slides (delta_t free, force on the pyramid);
+    * an open contact has lambda = 0 and delta_n >= 0.
+
+    A closed contact whose normal force the QP drives to zero opens; an open one whose gap the
+    QP closes (its delta_n >= 0 constraint active) closes; a sticking one whose pyramid binds
+    slides. The rounds stop when no contact changes.
+    """
+    sa, se, sc = (problem.slices[r] for r in ("actuator", "effector", "contact"))
+    na, nc = sa.stop - sa.start, (sc.stop - sc.start) // 3
+    if na == 0 or se.stop == se.start:
+        raise InfeasibleProblemError("inverse control needs actuators and effectors")
+    rows = np.r_[sa, sc]  # the unknowns' rows
+    w = problem.compliance
+    d = problem.free_distance
+    w_ex, w_xx = w[se][:, rows], w[np.ix_(rows, rows)]
+    lo, hi, dmin, dmax = actuator_bounds(actuators, previous_displacement)
+    c = float(np.mean(np.abs(np.diag(w[sa, sa]))))
+    if not c > 0:
+        raise SolverError("the actuators have zero compliance: they cannot move the robot")
+    hess = w_ex.T @ w_ex
+    # The regularisation of solve_inverse, so that open contacts change nothing.
+    w_ea, w_aa = w[se, sa], w[sa, sa]
+    eps = regularisation * np.linalg.norm(w_ea.T @ w_ea) / max(np.linalg.norm(w_aa), 1e-300)
+    hess = (hess + eps * 0.5 * (w_xx + w_xx.T)) / c**2
+    grad = (w_ex.T @ d[se]) / c
+    n = na + 3 * nc
+    normal = na + 3 * np.arange(nc)
+    w_rows = w[rows][:, rows] / c  # delta of the unknowns' rows = w_rows mu + d[rows]
+    d_rows = d[rows]
+    pyramid = np.asarray(friction, dtype=float) / np.sqrt(2.0)
+    # contact states: 0 open, 1 sticking, 2 sliding
+    state = (
+        np.ones(nc, dtype=int)
+        if initial_active is None
+        else np.where(np.asarray(initial_active, dtype=bool), 1, 0)
+    )
+    big = 1e20
+    for rounds in range(1, max_rounds + 1):
+        eq_rows, eq_rhs, in_rows, in_lo, in_hi = [], [], [], [], []
+        box_lo, box_hi = np.full(n, -big), np.full(n, big)
+        box_lo[:na], box_hi[:na] = np.clip(lo * c, -big, big), np.clip(hi * c, -big, big)
+        for i in range(na):  # course bounds on the actuators' displacement
+            in_rows.append(w_rows[i])
+            in_lo.append(max(dmin[i] - d_rows[i], -big))
+            in_hi.append(min(dmax[i] - d_rows[i], big))
+        for k in range(nc):
+            j = normal[k]
+            if state[k] == 0:
+                box_lo[j : j + 3] = box_hi[j : j + 3] = 0.0
+                in_rows.append(w_rows[j])
+                in_lo.append(-d_rows[j])
+                in_hi.append(big)
+                continue
+            eq_rows.append(w_rows[j])
+            eq_rhs.append(-d_rows[j])
+            box_lo[j] = 0.0
+            if state[k] == 1:
+                for t in (1, 2):
+                    eq_rows.append(w_rows[j + t])
+                    eq_rhs.append(-d_rows[j + t])
+            for t in (1, 2):  # -p lambda_n <= lambda_t <= p lambda_n
+                for sign in (1.0, -1.0):
+                    row = np.zeros(n)
+                    row[j + t], row[j] = sign, -pyramid[k]
+                    in_rows.append(row)
+                    in_lo.append(-big)
+                    in_hi.append(0.0)
+        qp = proxqp.dense.QP(n, len(eq_rows), len(in_rows), True)
+        qp.settings.eps_abs = tolerance
+        qp.settings.eps_rel = 0.0
+        qp.settings.max_iter = max_iterations
+        qp.init(
+            hess,
+            grad,
+            np.array(eq_rows) if eq_rows else None,
+            np.array(eq_rhs) if eq_rows else None,
+            np.array(in_rows),
+            np.array(in_lo),
+            np.array(in_hi),
+            box_lo,
+            box_hi,
+        )
+        qp.solve()
+        if qp.results.info.status != proxqp.QPSolverOutput.PROXQP_SOLVED:
+            if np.any(state == 1):
+                # Sticking everywhere needs more friction than the pyramids allow: let the
+                # closed contacts slide and try again.
+                state = np.where(state == 1, 2, state)
+                continue
+            if np.any(state > 0):
+                # A pushing contact cannot hold a point that the motion carries away: open
+                # the closed contact whose free motion leaves the obstacle most.
+                closed = np.flatnonzero(state > 0)
+                state[closed[np.argmax(d_rows[normal[closed]])]] = 0
+                continue
+            raise InfeasibleProblemError(
+                f"the inverse problem with {nc} contacts has no solution for the contact states"
+                f" of round {rounds} (ProxQP: {qp.results.info.status})"
+            )
+        mu = qp.results.x
+        delta = w_rows @ mu + d_rows
+        scale = tolerance * max(1.0, float(np.abs(delta).max()))
+        new = state.copy()
+        for k in range(nc):
+            j = normal[k]
+            if state[k] > 0 and mu[j] <= scale * c:
+                new[k] = 0  # the QP pulls on it: it opens
+            elif state[k] == 0 and delta[j] <= scale:
+                new[k] = 1  # the QP pushes it into the obstacle: it closes
+            elif state[k] == 1:
+                tangential = np.abs(mu[j + 1 : j + 3]).max()
+                if tangential >= pyramid[k] * mu[j] * (1.0 - 1e-9) and mu[j] > 0:
+                    new[k] = 2
+        if np.array_equal(new, state):
+            break
+        state = new
+    forces = np.zeros(d.size)
+    forces[rows] = mu / c
+    forces[sa] = np.clip(forces[sa], lo, hi)
+    return ContactInverseSolution(forces, rounds, np.array_equal(new, state))
