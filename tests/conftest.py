@@ -71,3 +71,27 @@ def distorted_box(rng: np.random.Generator, cells: int = 3, size: float = 30.0) 
 @pytest.fixture
 def distorted_mesh(rng) -> TetMesh:
     return distorted_box(rng)
+
+
+def two_cable_beam(*, max_displacement: float = 1.0, effector_goal=None, **model_kwargs) -> Model:
+    """A clamped 60 x 10 x 10 mm beam (E = 100 kPa), cables along its top (z = 8, cable 0) and
+    bottom (z = 2) edges pulled from x = -10, a tip effector at (60, 5, 5)."""
+    from pliant.constraints.base import EmbeddedPoints
+    from pliant.constraints.cable import CableActuator
+    from pliant.constraints.effector import PositionEffector
+
+    mesh = box_beam(60.0, 10.0, 10.0, 12, 2, 2)
+    x = mesh.points
+    cables = [
+        CableActuator(
+            EmbeddedPoints(mesh, [[20.0, 5.0, z], [40.0, 5.0, z], [59.0, 5.0, z]]),
+            x,
+            pull_point=[-10.0, 5.0, z],
+            name=f"cable_{i}",
+            max_displacement=max_displacement,
+        )
+        for i, z in enumerate((8.0, 2.0))
+    ]
+    eff = PositionEffector(EmbeddedPoints(mesh, [[60.0, 5.0, 5.0]]), x, goals=effector_goal)
+    body = clamped_body(mesh, Corotational(100.0, 0.3), density=1e-6)
+    return Model(body, actuators=cables, effectors=[eff], **model_kwargs)

@@ -10,7 +10,7 @@ import math
 import numpy as np
 import pytest
 import scipy.sparse.linalg as spla
-from conftest import MATERIALS, clamped_body
+from conftest import MATERIALS, clamped_body, two_cable_beam
 from proxsuite import proxqp
 
 from pliant.constraints.base import EmbeddedPoints
@@ -627,22 +627,7 @@ def test_inverse_qp_equals_enumerated_optimum_on_random_problems(rng) -> None:
 def test_inverse_qp_on_a_beam_equals_enumerated_optimum() -> None:
     """Two cables (top and bottom) and a tip effector: the condensed problem of a dynamic step
     with a goal above the tip, solved by ProxQP and by enumeration."""
-    mesh = box_beam(60.0, 10.0, 10.0, 12, 2, 2)
-    x = mesh.points
-    cables = [
-        CableActuator(
-            EmbeddedPoints(mesh, [[20.0, 5.0, z], [40.0, 5.0, z], [59.0, 5.0, z]]),
-            x,
-            pull_point=[-10.0, 5.0, z],
-            name=f"cable_{i}",
-            max_displacement=1.0,
-        )
-        for i, z in enumerate((8.0, 2.0))
-    ]
-    eff = PositionEffector(EmbeddedPoints(mesh, [[60.0, 5.0, 5.0]]), x, goals=[[58.0, 5.0, 15.0]])
-    model = Model(
-        clamped_body(mesh, MATERIALS["corotational"](100.0, 0.3)), actuators=cables, effectors=[eff]
-    )
+    model = two_cable_beam(effector_goal=[[58.0, 5.0, 15.0]])
     problem = ImplicitEuler(model, 0.05, tangent="fresh").condense(model.rest_state())
     reference = _inverse_reference(problem, model.actuators, np.zeros(2))
     solution = solve_inverse(problem, model.actuators, np.zeros(2))

@@ -7,13 +7,12 @@ import warnings
 
 import numpy as np
 import pytest
-from conftest import clamped_body
+from conftest import clamped_body, two_cable_beam
 
-from pliant.constraints.base import Actuator, EmbeddedPoints, JacobianRows
+from pliant.constraints.base import Actuator, JacobianRows
 from pliant.constraints.collision import Box, Plane
 from pliant.constraints.contact import Contacts
 from pliant.constraints.control import InverseControl
-from pliant.constraints.effector import PositionEffector
 from pliant.errors import ContactError, ContactMarginWarning
 from pliant.fem.body import TetBody
 from pliant.fem.material import Corotational
@@ -176,27 +175,11 @@ def test_bad_contact_input_raises() -> None:
 
 
 def _cable_beam_under_a_wall(with_wall: bool) -> Model:
-    """A clamped 60 mm beam, cables along its top (0) and bottom (1) edges, an effector at the
-    tip; optionally a block above the tip whose underside is 4 mm over the beam (z = 14)."""
-    from pliant.constraints.cable import CableActuator
-
-    mesh = box_beam(60.0, 10.0, 10.0, 12, 2, 2)
-    x = mesh.points
-    cables = [
-        CableActuator(
-            EmbeddedPoints(mesh, [[20.0, 5.0, z], [40.0, 5.0, z], [59.0, 5.0, z]]),
-            x,
-            pull_point=[-10.0, 5.0, z],
-            name=f"cable_{i}",
-            max_displacement=8.0,
-        )
-        for i, z in enumerate((8.0, 2.0))
-    ]
-    eff = PositionEffector(EmbeddedPoints(mesh, [[60.0, 5.0, 5.0]]), x)
+    """The two-cable beam (courses 8 mm); optionally a block above the tip whose underside is
+    4 mm over the beam (z = 14)."""
     wall = Box([6.0, 10.0, 5.0], position=[55.0, 5.0, 19.0])
     contacts = Contacts([wall], friction=0.3, margin=5.0) if with_wall else None
-    body = clamped_body(mesh, Corotational(100.0, 0.3), density=1e-6)
-    return Model(body, actuators=cables, effectors=[eff], contacts=contacts)
+    return two_cable_beam(max_displacement=8.0, contacts=contacts)
 
 
 def _inverse_run(model: Model, goal: np.ndarray, steps: int = 60) -> tuple[State, ImplicitEuler]:

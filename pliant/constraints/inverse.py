@@ -152,14 +152,19 @@ def solve_inverse(
     return InverseSolution(lam, w_ea @ lam + de_free, iterations)
 
 
-def _proxqp(hess, grad, c_mat, lower, upper, lo_box, hi_box, tolerance, max_iterations):
-    # proxsuite wants finite bounds: replace infinities by a bound far outside the solution.
-    big = 1e20
-    n = grad.size
-    qp = proxqp.dense.QP(n, 0, c_mat.shape[0], True)
+def _dense_qp(n: int, n_eq: int, n_in: int, tolerance: float, max_iterations: int):
+    """A ProxQP dense QP with box constraints, absolute tolerance only."""
+    qp = proxqp.dense.QP(n, n_eq, n_in, True)
     qp.settings.eps_abs = tolerance
     qp.settings.eps_rel = 0.0
     qp.settings.max_iter = max_iterations
+    return qp
+
+
+def _proxqp(hess, grad, c_mat, lower, upper, lo_box, hi_box, tolerance, max_iterations):
+    # proxsuite wants finite bounds: replace infinities by a bound far outside the solution.
+    big = 1e20
+    qp = _dense_qp(grad.size, 0, c_mat.shape[0], tolerance, max_iterations)
     qp.init(
         hess,
         grad,
@@ -274,10 +279,7 @@ def solve_inverse_with_contacts(
                     in_rows.append(row)
                     in_lo.append(-big)
                     in_hi.append(0.0)
-        qp = proxqp.dense.QP(n, len(eq_rows), len(in_rows), True)
-        qp.settings.eps_abs = tolerance
-        qp.settings.eps_rel = 0.0
-        qp.settings.max_iter = max_iterations
+        qp = _dense_qp(n, len(eq_rows), len(in_rows), tolerance, max_iterations)
         qp.init(
             hess,
             grad,
