@@ -15,13 +15,16 @@ import numpy as np
 from pliant.errors import UnknownRobotError
 from pliant.model import Model
 from pliant.robots import cartstem as _cartstem
+from pliant.robots import catch_object as _catch_object
 from pliant.robots import diamond as _diamond
 from pliant.robots import finger as _finger
 from pliant.robots import gripper as _gripper
 from pliant.robots import multigait as _multigait
 from pliant.robots import pneunet as _pneunet
+from pliant.robots import rod_manipulator as _rod_manipulator
 from pliant.robots import trunk as _trunk
 from pliant.robots import trunk_cube as _trunk_cube
+from pliant.robots import trunk_cup as _trunk_cup
 from pliant.robots.diamond import diamond
 from pliant.robots.finger import soft_finger
 from pliant.robots.multigait import multigait
@@ -56,6 +59,13 @@ ROBOTS: dict[str, RobotEntry] = {
     ),
     "gripper": RobotEntry(_gripper.soft_gripper, _gripper.demo_actuation, {}, (15.0, -70.0)),
     "trunk_cube": RobotEntry(_trunk_cube.trunk_cube, _trunk_cube.demo_actuation, {}, (20.0, 60.0)),
+    "trunk_cup": RobotEntry(_trunk_cup.trunk_cup, _trunk_cup.demo_actuation, {}, (20.0, 150.0)),
+    "catch_object": RobotEntry(
+        _catch_object.catch_object, _catch_object.demo_actuation, {}, (10.0, -80.0)
+    ),
+    "rod_manipulator": RobotEntry(
+        _rod_manipulator.rod_manipulator, _rod_manipulator.demo_actuation, {}, (45.0, -30.0)
+    ),
 }
 
 
