@@ -15,23 +15,37 @@ pytest.importorskip("torch")
 pytest.importorskip("h5py")
 
 import h5py  # noqa: E402
+import torch  # noqa: E402
 
 from pliant import robots  # noqa: E402
+from pliant.condensed.calibration import calibrate  # noqa: E402
 from pliant.condensed.collect import collect  # noqa: E402
 from pliant.condensed.control import (  # noqa: E402
     PID,
     EmbeddedController,
     ExactCondensed,
+    WarmInverse,
     effector_positions,
     follow_trajectory,
     loop_frequency,
     shift_goals,
 )
 from pliant.condensed.dataset import CollectionPlan, Dataset, Split  # noqa: E402
+from pliant.condensed.design import FingerObjectives, pareto_front, refine  # noqa: E402
 from pliant.condensed.equilibrium import load_step, rest_equilibrium  # noqa: E402
-from pliant.condensed.layout import Layout  # noqa: E402
+from pliant.condensed.layout import ActuatorBounds, EffectorRows, Layout  # noqa: E402
 from pliant.condensed.learned import LearnedCondensedModel, OutOfBoundsWarning  # noqa: E402
+from pliant.condensed.mechanics import blocked_force  # noqa: E402
+from pliant.condensed.networks import StandardisedMLP  # noqa: E402
+from pliant.condensed.parametric import (  # noqa: E402
+    ParametricCondensedModel,
+    effector_rows,
+    train_parametric,
+)
+from pliant.condensed.sampling import Box  # noqa: E402
 from pliant.condensed.train import TrainConfig, evaluate, train_condensed  # noqa: E402
+from pliant.constraints.condensed import CondensedProblem  # noqa: E402
+from pliant.constraints.inverse import solve_inverse  # noqa: E402
 from pliant.errors import DatasetError, LearnedModelError  # noqa: E402
 from pliant.model import Model  # noqa: E402
 from pliant.solvers import StaticSolver  # noqa: E402
@@ -146,8 +160,6 @@ def test_network_beats_the_constant_w0_baseline_on_held_out_samples(learned, dat
 
 
 def test_saved_model_predicts_as_the_trained_one(learned, dataset, tmp_path) -> None:
-    import torch
-
     """The NumPy forward pass of a loaded model against torch's, in standardised units (torch
     rounds the inputs to float32 before standardising them)."""
     loaded = LearnedCondensedModel.load(learned.save(tmp_path / "f.pt"))
@@ -311,3 +323,207 @@ def test_corrupt_model_file_raises_learned_model_error(tmp_path) -> None:
     bad.write_bytes(b"\x00garbage")
     with pytest.raises(LearnedModelError, match="not a readable model file"):
         LearnedCondensedModel.load(bad)
+
+
+# ---------------------------------------------------------------------------------------------
+# Mechanics from predicted matrices, calibration and design (Eq. 5.15-5.20)
+
+FINGER_DESIGN = {"length": (38.0, 42.0), "height": (20.0, 22.0), "joint_height": (5.0, 8.0)}
+TIP = EffectorRows("effector", (0, 1, 2), 1.0, ((143.0, 0.0, 10.0),))
+TWO_CABLES = Layout((ActuatorBounds("cable_0"), ActuatorBounds("cable_1")), (TIP,))
+
+
+def _random_parametric(seed: int = 0) -> ParametricCondensedModel:
+    """F and G of random weights (untrained) on the Finger's layout and design box: the chain
+    rule through them is what the finite-difference checks test."""
+    torch.manual_seed(seed)
+    plan = CollectionPlan("finger", ((0.0, 10.0), (0.0, 0.0)), 8, design_bounds=FINGER_DESIGN)
+    n_rest = TWO_CABLES.n_triangle + TWO_CABLES.n_rows
+    design = torch.rand(32, 3) * torch.tensor([4.0, 2.0, 3.0]) + torch.tensor([38.0, 20.0, 5.0])
+    rest = torch.randn(32, n_rest)
+    g = StandardisedMLP(design, rest, hidden=(16,))
+    f = StandardisedMLP(torch.cat([torch.rand(32, 2) * 10, rest], 1), rest, hidden=(16,))
+    return ParametricCondensedModel(f, g, TWO_CABLES, plan, Box([0.0, 0.0], [10.0, 0.0]))
+
+
+class AnalyticBeam:
+    """A condensed model in closed form (one cable, a fingertip), standing for F and G: W is
+    S(nu, delta_a) / E with S symmetric positive definite, so that E cancels out of Eq. 5.16
+    as it does for a robot driven in displacement (§5.1.6), and nu bends the tip's path."""
+
+    layout = Layout((ActuatorBounds("cable"),), (TIP,))
+    design_names = ("young_modulus", "poisson_ratio")
+    design_box = Box([1000.0, 0.40], [10000.0, 0.499])
+
+    def matrices(self, delta_a, design):
+        e, nu = design[:, 0:1], design[:, 1:2]
+        a = delta_a[:, :1] / 10.0
+        # columns: the cable row and the tip's x, y, z rows
+        lever = torch.cat([torch.ones_like(nu), -0.3 * a, 0.05 * nu, -(1.0 + 2.0 * nu)], 1)
+        shear = torch.cat([0.0 * nu, 1.0 + nu, 0.2 * a, 0.5 * nu * a], 1)
+        s = lever[:, :, None] * lever[:, None, :] + shear[:, :, None] * shear[:, None, :]
+        s = s + 0.5 * torch.eye(4, dtype=design.dtype)
+        free = torch.cat([0.5 - nu, 2.0 * nu * a, 0.0 * a, 1.0 + nu**2], 1)
+        return 3000.0 * s / e[:, :, None], free
+
+    def rest(self, design):
+        return self.matrices(design.new_zeros(design.shape[0], 1), design)
+
+
+def _fd_jacobian(fun, x: torch.Tensor, h: float) -> torch.Tensor:
+    """Central differences of fun at x, one column per element of x's last axis."""
+    columns = []
+    with torch.no_grad():
+        for k in range(x.shape[-1]):
+            step = torch.zeros_like(x)
+            step[..., k] = h
+            columns.append((fun(x + step) - fun(x - step)) / (2 * h))
+    return torch.stack(columns, dim=-1)
+
+
+def test_effector_displacement_is_eq_5_16_and_its_design_gradient_matches_fd() -> None:
+    """delta_e of Eq. 5.16 solves the condensed system for imposed actuator displacements,
+    and its gradient through G and F matches central differences."""
+    model = _random_parametric()
+    design = torch.tensor([[40.0, 21.0, 6.5]], dtype=torch.float64)
+    delta_a = torch.tensor([[6.0, 0.0]], dtype=torch.float64)
+    w, free = (t[0].detach().numpy() for t in model.matrices(delta_a, design))
+    sa, se = TWO_CABLES.slices["actuator"], TWO_CABLES.slices["effector"]
+    lam = np.linalg.solve(w[sa, sa], delta_a[0].numpy() - free[sa])  # delta_a = W_aa l + free
+    np.testing.assert_allclose(
+        effector_rows(model, delta_a, design)[0].detach().numpy(),
+        w[se, sa] @ lam + free[se],
+        rtol=1e-10,
+    )
+
+    def tip(p: torch.Tensor) -> torch.Tensor:
+        return effector_rows(model, delta_a, p)[0]
+
+    exact = torch.autograd.functional.jacobian(tip, design)[:, 0]
+    np.testing.assert_allclose(exact, _fd_jacobian(tip, design, 1e-6), rtol=1e-5, atol=1e-8)
+
+
+def test_blocked_force_holds_the_contact_and_the_actuators_eq_5_18() -> None:
+    rng = np.random.default_rng(1)
+    a = rng.normal(size=(5, 5))
+    w = torch.as_tensor(a @ a.T + 5 * np.eye(5))[None]
+    free = torch.as_tensor(rng.normal(size=5))[None]
+    delta_a, held = torch.tensor([[2.0, -1.0]], dtype=torch.float64), free[:, 2:] + 0.3
+    sa, sc = slice(0, 2), slice(2, 5)
+    lam_c = blocked_force(w, free, delta_a, sa, sc, held)
+    lam_a = torch.linalg.solve(w[0, sa, sa], delta_a[0] - free[0, sa] - w[0, sa, sc] @ lam_c[0])
+    reached = w[0] @ torch.cat([lam_a, lam_c[0]]) + free[0]  # Eq. 2.14
+    np.testing.assert_allclose(reached[sa], delta_a[0], atol=1e-12)
+    np.testing.assert_allclose(reached[sc], held[0], atol=1e-12)
+
+
+def test_calibration_recovers_a_planted_poisson_ratio_from_three_starts() -> None:
+    """Fig. 5.13 on a closed-form model: the tip observed at cable pulls of 0, 5 and 10 mm
+    for nu = 0.47 (E = 3000) gives nu back from 0.45, 0.47 and 0.49, E held."""
+    model = AnalyticBeam()
+    delta_a = np.array([[0.0], [5.0], [10.0]])
+    planted = torch.tensor([[3000.0, 0.47]], dtype=torch.float64).expand(3, -1)
+    observed = effector_rows(model, torch.as_tensor(delta_a), planted).numpy()
+    for start in (0.45, 0.47, 0.49):
+        result = calibrate(
+            model,
+            delta_a,
+            observed,
+            {"young_modulus": 3000.0, "poisson_ratio": start},
+            iterations=60,
+        )
+        assert abs(result.parameters["poisson_ratio"] - 0.47) < 1e-3, (start, result.parameters)
+        assert result.parameters["young_modulus"] == 3000.0
+        assert result.objective < 1e-2 * result.history[0]["objective"] + 1e-9
+    with pytest.raises(LearnedModelError, match="design parameters"):
+        calibrate(model, delta_a, observed, {"poisson_ratio": 0.45})
+
+
+def test_design_objectives_are_differentiable_through_g_and_f() -> None:
+    model = _random_parametric(seed=2)
+    design = torch.tensor([[39.0, 20.5, 7.0]], dtype=torch.float64)
+    objectives = FingerObjectives(command=(6.0, 0.0))
+    for measure in (objectives.bending_angle, objectives.tip_force):
+
+        def value(p: torch.Tensor, measure=measure) -> torch.Tensor:
+            return measure(model, p)
+
+        exact = torch.autograd.functional.jacobian(value, design)[0, 0]
+        np.testing.assert_allclose(exact, _fd_jacobian(value, design, 1e-6)[0], rtol=1e-4)
+
+
+def test_refinement_finds_a_known_optimum_in_and_on_the_design_box() -> None:
+    model = _random_parametric()
+    for target, expected in (
+        ([39.0, 21.5, 6.0], [39.0, 21.5, 6.0]),
+        ([45.0, 21.0, 4.0], [42.0, 21.0, 5.0]),
+    ):
+        goal = torch.tensor(target, dtype=torch.float64)
+
+        def distance(_, p: torch.Tensor, goal=goal) -> torch.Tensor:
+            return ((p - goal) ** 2).sum(dim=1)
+
+        result = refine(
+            model, distance, np.array([40.0, 20.0, 7.0]), learning_rate=0.05, iterations=300
+        )
+        np.testing.assert_allclose(result.design, expected, atol=2e-3)
+
+
+def test_pareto_front_keeps_the_non_dominated_designs() -> None:
+    values = np.array([[0.0, 1.0], [0.5, 0.5], [1.0, 0.0], [0.6, 0.6], [0.5, 0.7], [1.0, 1.0]])
+    np.testing.assert_array_equal(pareto_front(values), [1, 1, 1, 0, 0, 0])
+
+
+def test_warm_started_qp_solves_as_solve_inverse() -> None:
+    """The persistent ProxQP of the embedded loop against a fresh solve, along a sequence of
+    problems that moves the optimum onto and off the force and course bounds."""
+    rng = np.random.default_rng(4)
+    layout = Layout((ActuatorBounds("a0"), ActuatorBounds("a1", max_displacement=3.0)), (TIP,))
+    actuators = list(layout.actuators)
+    warm = WarmInverse(actuators)
+    base = rng.normal(size=(5, 5))
+    for k in range(12):
+        w = base @ base.T + np.eye(5) + 0.1 * k * np.diag(rng.random(5))
+        free = rng.normal(size=5) * 3
+        problem = CondensedProblem(w, free, layout.slices)
+        previous = rng.normal(size=2)
+        expected = solve_inverse(problem, actuators, previous, course="soft").actuation
+        np.testing.assert_allclose(warm.solve(problem, previous), expected, atol=1e-6)
+
+
+def test_dataset_over_designs_shares_designs_and_goals_and_trains_g_and_f(tmp_path) -> None:
+    """samples_per_design consecutive samples share a design (and its W0); every design's
+    effector is measured from the base design's goal; a parametric model saves and loads."""
+    plan = CollectionPlan(
+        "finger",
+        ((0.0, 3.0), (0.0, 0.0)),
+        4,
+        design_bounds={"poisson_ratio": (0.42, 0.48)},
+        samples_per_design=2,
+        chunk_size=2,
+        test_fraction=0.5,
+    )
+    data = collect(plan, tmp_path / "designs.h5", workers=1)
+    train = data.train
+    assert train.converged.all()
+    np.testing.assert_array_equal(train.design[0], train.design[1])
+    assert train.design[0, 0] != train.design[2, 0]
+    np.testing.assert_array_equal(train.w0_triangle[0], train.w0_triangle[1])
+    # the rest tip of another design, measured from the base design's goal
+    base_goal = np.array(data.layout.effectors[0].goals[0])
+    design = robots.build("finger", poisson_ratio=float(train.design[2, 0]))
+    solver = StaticSolver(design)
+    rest = effector_positions(design, rest_equilibrium(design, solver))[0]
+    se = data.layout.slices["effector"]
+    np.testing.assert_allclose(train.free_distance0[2, se], rest - base_goal, atol=1e-4)
+
+    config = TrainConfig(epochs=5, batch_size=4, hidden=(8,), progress=False)
+    model, _ = train_parametric(data, config, config)
+    loaded = ParametricCondensedModel.load(model.save(tmp_path / "p.pt"))
+    delta_a = torch.tensor([[1.0, 0.0]], dtype=torch.float64)
+    p = loaded.design_tensor(poisson_ratio=0.45)
+    np.testing.assert_allclose(
+        effector_rows(loaded, delta_a, p).detach(), effector_rows(model, delta_a, p).detach()
+    )
+    with pytest.raises(LearnedModelError, match="unknown design parameters"):
+        loaded.design_tensor(height=20.0)

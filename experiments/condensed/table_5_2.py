@@ -1,28 +1,34 @@
 """Table 5.2 analogue: F's test loss and the embedded control-loop rate for the three Finger
-meshes (coarse ~1.5k, fine ~9k, superfine ~18k tetrahedra).
+meshes (coarse ~1.6k, fine ~9k, superfine ~18k tetrahedra).
 
-Thesis: losses 3.79e-6 / 4.26e-6 / 3.60e-6 and ~300 FPS with the learned model whatever the
-mesh. Target here: >= 3000 loop iterations/s (network + QP, Algorithm 2), independent of the
-mesh, since the network's size does not depend on it.
+Thesis: 6500 samples and 9000 epochs each, losses 3.79e-6 / 4.26e-6 / 3.60e-6 and ~300 FPS
+with the learned model whatever the mesh. Target here: >= 3000 loop iterations/s (network + QP,
+Algorithm 2, on a warm-started ProxQP model), independent of the mesh, since neither the
+network nor the QP depends on it. The loss is measured on small datasets (the fine meshes'
+static solves cost seconds each on a shared core), the same size for the three meshes:
 
-    python experiments/condensed/table_5_2.py --samples 6500 --epochs 9000
-    python experiments/condensed/table_5_2.py --samples 32 --epochs 100 --bound 4 \
-        --resolutions coarse
+    OPENBLAS_NUM_THREADS=1 python experiments/condensed/table_5_2.py --samples 64 --epochs 1000
+
+Cables -10..10 mm as in table_5_1.py. The rate is timed over --iterations loop iterations
+cycling through the 25 goals of the closing trajectory, after a warm-up; the network's own
+share is timed apart.
 """
 
 from __future__ import annotations
 
 import json
+import time
 import warnings
 from pathlib import Path
 from typing import Annotated
 
+import numpy as np
 import typer
 
 from pliant import robots
-from pliant.condensed.collect import collect
+from pliant.condensed.collect import load_or_collect
 from pliant.condensed.control import EmbeddedController, loop_frequency
-from pliant.condensed.dataset import CollectionPlan, Dataset
+from pliant.condensed.dataset import CollectionPlan
 from pliant.condensed.learned import OutOfBoundsWarning
 from pliant.condensed.train import TrainConfig, evaluate, train_condensed
 
@@ -30,39 +36,64 @@ THESIS = {"coarse": (3.79e-6, 308.6), "fine": (4.26e-6, 334.4), "superfine": (3.
 
 
 def main(
-    samples: Annotated[int, typer.Option()] = 6500,
-    epochs: Annotated[int, typer.Option()] = 9000,
-    bound: Annotated[float, typer.Option(help="cables 0..this mm")] = 20.0,
+    samples: Annotated[int, typer.Option()] = 64,
+    epochs: Annotated[int, typer.Option()] = 1000,
+    learning_rate: Annotated[float, typer.Option()] = 1e-3,
     resolutions: Annotated[str, typer.Option()] = "coarse,fine,superfine",
     iterations: Annotated[int, typer.Option(help="timed loop iterations")] = 5000,
     workers: Annotated[int, typer.Option()] = 1,
-    out: Annotated[Path, typer.Option()] = Path("experiments/condensed/results"),
+    work: Annotated[Path, typer.Option(help="datasets, checkpoints, models")] = Path(
+        "out/condensed"
+    ),
+    out: Annotated[Path, typer.Option(help="results")] = Path("experiments/results/condensed"),
 ) -> None:
+    out.mkdir(parents=True, exist_ok=True)
     rows = {}
     goals = robots.entry("finger").trajectories["closing"](25)
     for resolution in resolutions.split(","):
         plan = CollectionPlan(
-            "finger", ((0.0, bound),) * 2, samples, robot_kwargs={"resolution": resolution}
+            "finger", ((-10.0, 10.0),) * 2, samples, robot_kwargs={"resolution": resolution}
         )
-        path = out / f"finger_{resolution}_{samples}.h5"
-        dataset = Dataset.load(path) if path.exists() else collect(plan, path, workers=workers)
-        learned, result = train_condensed(
-            dataset, TrainConfig(epochs=epochs, checkpoint=path.with_suffix(".ckpt"))
+        path = work / f"finger_{resolution}_{samples}.h5"
+        dataset = load_or_collect(plan, path, workers=workers)
+        config = TrainConfig(
+            epochs=epochs,
+            learning_rate=learning_rate,
+            batch_size=16,
+            checkpoint=path.with_suffix(".ckpt"),
+            progress=False,
         )
+        learned, result = train_condensed(dataset, config)
         learned.save(path.with_suffix(".pt"))
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", OutOfBoundsWarning)
-            rate = loop_frequency(EmbeddedController(learned), goals, iterations)
+            controller = EmbeddedController(learned)
+            loop_frequency(controller, goals, 500)  # warm-up
+            rate = loop_frequency(controller, goals, iterations)
+            inside = 0.5 * (learned.input_box.low + learned.input_box.high)
+            start = time.perf_counter()
+            for _ in range(iterations):
+                learned.predict(inside)
+            network_us = 1e6 * (time.perf_counter() - start) / iterations
         rows[resolution] = {
             "tetrahedra": robots.build("finger", resolution=resolution).body.mesh.n_tets,
+            "samples": samples,
+            "failed_samples": int(np.sum(~dataset.train.converged.astype(bool))),
             "test_loss": evaluate(learned, dataset.test)["loss"],
             "best_epoch": result.best_epoch,
+            "epochs": epochs,
             "loop_hz": rate,
+            "network_us_per_call": network_us,
             "thesis_test_loss": THESIS[resolution][0],
             "thesis_fps": THESIS[resolution][1],
         }
         print(resolution, json.dumps(rows[resolution]))
-    (out / f"table_5_2_{samples}.json").write_text(json.dumps(rows, indent=1))
+    rows["note"] = (
+        f"{samples} samples per mesh (thesis 6500) and {epochs} epochs (thesis 9000): the"
+        " fine meshes' static solves take seconds each on a shared core. loop_hz: Algorithm 2"
+        " (network in NumPy + warm-started ProxQP), single thread, no FEM in the loop."
+    )
+    (out / "table_5_2.json").write_text(json.dumps(rows, indent=1))
 
 
 if __name__ == "__main__":

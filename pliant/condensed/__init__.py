@@ -1,11 +1,13 @@
 """Learned condensed FEM model (thesis §5.1): W and delta_free of a robot predicted by a
 network from its actuator (and contact) state, for control, calibration and design.
 
-Data flow: :mod:`~pliant.condensed.collect` solves the robot at sampled displacements into a
-:class:`~pliant.condensed.dataset.Dataset`; :mod:`~pliant.condensed.train` fits the network F
-on it; :class:`~pliant.condensed.learned.LearnedCondensedModel` predicts condensed problems;
-:mod:`~pliant.condensed.control` controls with them. torch and h5py are needed
-(``pip install 'pliant[learn]'``).
+Data flow: :mod:`~pliant.condensed.collect` solves the robot at sampled displacements (and
+designs) into a :class:`~pliant.condensed.dataset.Dataset`; :mod:`~pliant.condensed.train` fits
+the networks F and G on it; :class:`~pliant.condensed.learned.LearnedCondensedModel` predicts
+condensed problems, :mod:`~pliant.condensed.control` controls with them;
+:class:`~pliant.condensed.parametric.ParametricCondensedModel` (F after G) is differentiated by
+:mod:`~pliant.condensed.calibration` and :mod:`~pliant.condensed.design`. torch and h5py are
+needed (``pip install 'pliant[learn]'``).
 """
 
 from importlib import import_module
@@ -14,6 +16,15 @@ from importlib import import_module
 # torch and h5py until a condensed model is actually used.
 _WHERE = {
     "collect": "collect",
+    "load_or_collect": "collect",
+    "calibrate": "calibration",
+    "observe": "calibration",
+    "CalibrationResult": "calibration",
+    "ParametricCondensedModel": "parametric",
+    "train_parametric": "parametric",
+    "FingerObjectives": "design",
+    "design_study": "design",
+    "WarmInverse": "control",
     "CollectionPlan": "dataset",
     "Dataset": "dataset",
     "Layout": "layout",

@@ -22,8 +22,13 @@ import numpy as np
 import torch
 from torch import Tensor
 
+from pliant import robots
+from pliant.condensed.dataset import CollectionPlan
+from pliant.condensed.equilibrium import load_step, rest_equilibrium
+from pliant.condensed.layout import Layout
 from pliant.condensed.parametric import DesignMechanics, effector_rows
 from pliant.errors import LearnedModelError
+from pliant.solvers import StaticSolver
 
 
 @dataclass
@@ -33,6 +38,29 @@ class CalibrationResult:
     parameters: dict[str, float]
     objective: float
     history: list[dict] = field(default_factory=list)
+
+
+def observe(
+    plan: CollectionPlan, design: Mapping[str, float], commands: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """The robot of `plan` with the design `design`, simulated as the physical robot stands
+    for it in §5.1.6: (reached actuator displacements (n, a), effector rows (n, e)) at each
+    command (n, a), its effectors measured from the plan's base-design goals, as in the data.
+    """
+    base = robots.build(plan.robot, **plan.robot_kwargs)
+    model = robots.build(plan.robot, **{**plan.robot_kwargs, **design})
+    for effector, reference in zip(model.effectors, base.effectors, strict=True):
+        effector.goals = reference.goals
+    layout = Layout.of(model)
+    solver = StaticSolver(model, tolerance=plan.tolerance, max_iterations=plan.newton_iterations)
+    state = rest_equilibrium(model, solver)
+    reached, rows = [], []
+    for command in np.atleast_2d(commands):
+        state = load_step(model, solver, state, command, plan.max_increment)
+        reached.append(state.displacement)
+        positions = np.vstack([e.position(state.positions) for e in model.effectors])
+        rows.append(layout.effector_rows(positions) - layout.training_goal_rows)
+    return np.array(reached), np.array(rows)
 
 
 def calibration_objective(
@@ -100,9 +128,9 @@ def calibrate(
         history.append(
             {
                 "iteration": iteration,
-                "objective": float(objective),
+                "objective": float(objective.detach()),
                 "learning_rate": lr,
-                **{k: float(v) for k, v in zip(names, design[0], strict=True)},
+                **{k: float(v) for k, v in zip(names, design[0].detach(), strict=True)},
             }
         )
         if iteration == iterations or lr < min_learning_rate:
@@ -111,7 +139,7 @@ def calibrate(
         objective.backward()
         unit.grad[~free] = 0.0
         optimiser.step()
-        scheduler.step(float(objective))
+        scheduler.step(float(objective.detach()))
         with torch.no_grad():
             unit.clamp_(0.0, 1.0)
     best = min(history, key=lambda h: h["objective"])

@@ -1,7 +1,9 @@
-"""``pliant condensed``: collect a dataset, train F, evaluate it, control with it."""
+"""``pliant condensed``: collect a dataset, train F (and G), evaluate, control, calibrate,
+design."""
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import warnings
 from pathlib import Path
@@ -19,7 +21,10 @@ from pliant.errors import PliantError
 app = typer.Typer(
     add_completion=False,
     no_args_is_help=True,
-    help="Learned condensed FEM model (thesis §5.1): data, training, evaluation, control.",
+    help=(
+        "Learned condensed FEM model (thesis §5.1): data, training, evaluation, control,"
+        " calibration and design."
+    ),
 )
 console = Console()
 
@@ -74,9 +79,12 @@ def collect(
     design: Annotated[
         list[str] | None, typer.Option(help="design parameter NAME=LOW:HIGH sampled with the rest")
     ] = None,
+    samples_per_design: Annotated[
+        int, typer.Option(help="consecutive samples sharing one design (meshed once)")
+    ] = 1,
     max_increment: Annotated[
-        float, typer.Option(help="largest command change per static step")
-    ] = 1.0,
+        float, typer.Option(help="largest command change per static step (halved on failure)")
+    ] = 8.0,
     chunk_size: Annotated[int, typer.Option(help="samples per saved chunk")] = 16,
     workers: Annotated[
         int | None, typer.Option(help="local processes (default: one per CPU)")
@@ -107,6 +115,7 @@ def collect(
             test_fraction=test_fraction,
             seed=seed,
             max_increment=max_increment,
+            samples_per_design=samples_per_design,
             chunk_size=chunk_size,
         )
         with Progress(console=console) as bar:
@@ -144,8 +153,13 @@ def train(
         Path | None, typer.Option(help="checkpoint file, resumed from if it exists")
     ] = None,
 ) -> None:
-    """Train F (3 x 450 ReLU MLP by default) on DATASET; keep the best epoch."""
+    """Train F (3 x 450 ReLU MLP by default) on DATASET; keep the best epoch.
+
+    A dataset over design parameters also trains G (Eq. 5.7), with the same settings, and
+    writes the parametric model F(delta_a, G(P)) that `calibrate` and `design` use.
+    """
     from pliant.condensed.dataset import Dataset
+    from pliant.condensed.parametric import train_parametric
     from pliant.condensed.train import TrainConfig, evaluate, train_condensed
 
     try:
@@ -160,6 +174,22 @@ def train(
             log_dir=log_dir,
             checkpoint=checkpoint,
         )
+        if data.plan.design_names:
+            design_config = dataclasses.replace(
+                config,
+                log_dir=None if log_dir is None else log_dir / "design",
+                checkpoint=None if checkpoint is None else checkpoint.with_suffix(".g.ckpt"),
+            )
+            parametric, _ = train_parametric(data, config, design_config)
+            parametric.save(out)
+            losses = parametric.training
+            console.print(
+                f"saved {out}: F test loss {losses['condensed']['test_loss']:.3g} (best epoch"
+                f" {losses['condensed']['best_epoch']}), G test loss"
+                f" {losses['design']['test_loss']:.3g} (best epoch"
+                f" {losses['design']['best_epoch']})"
+            )
+            return
         learned, result = train_condensed(data, config)
         learned.save(out)
         scores = evaluate(learned, data.test)
@@ -297,3 +327,123 @@ def control(
     if rate is not None:
         console.print(f"embedded loop (network + QP): {rate:.0f} iterations/s")
     console.print(f"saved {plot} and {folder / 'report.json'}")
+
+
+def _floats(text: str, what: str) -> list[float]:
+    try:
+        return [float(v) for v in text.split(",")]
+    except ValueError:
+        raise typer.BadParameter(
+            f"{what}: expected comma-separated numbers, got {text!r}"
+        ) from None
+
+
+@app.command()
+def calibrate(
+    model: Annotated[
+        Path, typer.Argument(help="parametric model file (train on a design dataset)")
+    ],
+    truth: Annotated[
+        list[str],
+        typer.Option(help="NAME=VALUE of the simulated robot observed, e.g. poisson_ratio=0.47"),
+    ],
+    start: Annotated[list[str], typer.Option(help="NAME=VALUE initial guesses")],
+    fit: Annotated[str, typer.Option(help="parameters fitted, comma separated")] = "poisson_ratio",
+    commands: Annotated[
+        str, typer.Option(help="displacements of the first actuator observed, comma separated")
+    ] = "0,5,10",
+    learning_rate: Annotated[float, typer.Option()] = 0.01,
+    iterations: Annotated[int, typer.Option()] = 300,
+    out: Annotated[Path, typer.Option(help="output folder")] = Path("out"),
+) -> None:
+    """Calibrate MODEL to the FEM robot built with TRUTH (Eq. 5.15-5.16, Fig. 5.13).
+
+    The robot's effector is observed at the commands; the parameters FIT descend O_cal from
+    START. Writes the history (JSON) and its plot to OUT.
+    """
+    from pliant.condensed.calibration import calibrate as run_calibration
+    from pliant.condensed.calibration import observe
+    from pliant.condensed.parametric import ParametricCondensedModel
+    from pliant.condensed.plots import plot_calibration
+
+    try:
+        parametric = ParametricCondensedModel.load(model)
+        plan = parametric.plan
+        design = {k: float(v) for k, v in _assignments(truth).items()}
+        pulls = np.zeros((len(_floats(commands, "commands")), len(plan.actuator_bounds)))
+        pulls[:, 0] = _floats(commands, "commands")
+        delta_a, observed = observe(plan, design, pulls)
+        initial = {k: float(v) for k, v in _assignments(start).items()}
+        result = run_calibration(
+            parametric,
+            delta_a,
+            observed,
+            {**design, **initial},
+            fit=fit.split(","),
+            learning_rate=learning_rate,
+            iterations=iterations,
+        )
+    except PliantError as exc:
+        raise _fail(exc) from exc
+    out.mkdir(parents=True, exist_ok=True)
+    report = {"truth": design, "start": initial, **dataclasses.asdict(result)}
+    (out / "calibration.json").write_text(json.dumps(report, indent=1))
+    plot_calibration(
+        {"start " + ", ".join(f"{k}={v:g}" for k, v in initial.items()): result.history},
+        fit.split(",")[0],
+        out / "calibration.png",
+        truth=design.get(fit.split(",")[0]),
+    )
+    fitted = ", ".join(f"{k} = {result.parameters[k]:.4g}" for k in fit.split(","))
+    console.print(f"calibrated {fitted} (O_cal {result.objective:.3g}); saved {out}")
+
+
+@app.command()
+def design(
+    model: Annotated[
+        Path, typer.Argument(help="parametric Finger model (length, height, joint_height)")
+    ],
+    grid: Annotated[str, typer.Option(help="grid values per design parameter")] = "10,6,10",
+    command: Annotated[str, typer.Option(help="actuator displacements of the pull")] = "10,0",
+    weights: Annotated[str, typer.Option(help="gamma_1,gamma_2 of Eq. 5.20")] = "0.5,0.5",
+    iterations: Annotated[int, typer.Option(help="gradient steps per refinement")] = 200,
+    learning_rate: Annotated[float, typer.Option()] = 0.01,
+    out: Annotated[Path, typer.Option(help="output folder")] = Path("out/design"),
+) -> None:
+    """Design the parametric Soft Finger with MODEL (Eq. 5.17-5.20, Fig. 5.15-5.17).
+
+    Grid search, gradient refinement of dexterity, strength and their weighted sum,
+    landscapes and Pareto front; writes design.json and the plots to OUT.
+    """
+    from pliant.condensed.design import FingerObjectives, design_study
+    from pliant.condensed.parametric import ParametricCondensedModel
+    from pliant.condensed.plots import plot_design_study
+
+    try:
+        parametric = ParametricCondensedModel.load(model)
+        gamma = _floats(weights, "weights")
+        if len(gamma) != 2:
+            raise typer.BadParameter(f"two weights (dexterity, strength), got {weights!r}")
+        with Progress(console=console, transient=True) as bar:
+            bar.add_task("grid search and refinements", total=None)
+            study = design_study(
+                parametric,
+                FingerObjectives(command=tuple(_floats(command, "command"))),
+                counts=[int(v) for v in grid.split(",")],
+                weights=(gamma[0], gamma[1]),
+                iterations=iterations,
+                learning_rate=learning_rate,
+            )
+    except PliantError as exc:
+        raise _fail(exc) from exc
+    summary = study.summary()
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "design.json").write_text(json.dumps(summary, indent=1))
+    plots = plot_design_study(study, out)
+    table = Table(title=f"{len(study.grid)} designs, {int(study.pareto.sum())} on the Pareto front")
+    for col in ("objective", *study.names, "value"):
+        table.add_column(col)
+    for name, r in summary["refined"].items():
+        table.add_row(name, *(f"{v:.2f}" for v in r["design"].values()), f"{r['objective']:.4g}")
+    console.print(table)
+    console.print(f"saved {out / 'design.json'} and {', '.join(p.name for p in plots)}")

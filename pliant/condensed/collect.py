@@ -92,6 +92,29 @@ def collect(
     return dataset
 
 
+def load_or_collect(
+    plan: CollectionPlan,
+    out: str | os.PathLike,
+    *,
+    workers: int | None = None,
+    ray_address: str | None = None,
+    on_chunk: Callable[[int, int], None] | None = None,
+) -> Dataset:
+    """The dataset at `out` if it was collected with `plan`, else `collect` it there (resuming
+    a partial collection); DatasetError if `out` holds another plan's dataset."""
+    out = Path(out)
+    if not out.exists():
+        return collect(plan, out, workers=workers, ray_address=ray_address, on_chunk=on_chunk)
+    dataset = Dataset.load(out)
+    if dataset.plan != plan:
+        differs = sorted(k for k, v in plan.to_dict().items() if dataset.plan.to_dict().get(k) != v)
+        raise DatasetError(
+            f"{out} was collected with another plan (differs in {differs}); delete it or"
+            " write the dataset elsewhere"
+        )
+    return dataset
+
+
 def solve_chunk(plan: CollectionPlan, points: np.ndarray) -> Split:
     """Equilibria at consecutive samples (rows: actuator commands, then design parameters).
 

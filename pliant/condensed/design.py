@@ -8,8 +8,10 @@ Two objectives are built from the predicted matrices at a fixed pull of the cabl
   arccos(delta_e^z / |delta_e(0)|) for a finger along z whose chord keeps its length; the
   angle between the chords is the same angle without that assumption.)
 * strength, O_str = |beta_max - beta| (Eq. 5.19): beta is the force the fingertip exerts,
-  across the finger, on an object that holds it at its rest position (Eq. 5.18, the effector
-  rows standing for the contact rows).
+  across the finger, on an object that holds it at its rest position (Eq. 5.18, the effector's
+  row on that axis standing for the contact row). The object holds the tip across the finger
+  only: held on all three axes, the tip of a pulled finger would have to be stretched back
+  along the finger, against the held cables, and the force would measure that stretch.
 
 Both are minimised: a grid search over the design box picks the start (the objectives are not
 convex), then gradient descent through G and F refines it (Adam, kept in the box). The
@@ -102,15 +104,22 @@ class FingerObjectives:
         return torch.arccos(cosine.clamp(-1.0, 1.0 - 1e-12))
 
     def tip_force(self, model: DesignMechanics, design: Tensor) -> Tensor:
-        """beta of Eq. 5.19, |lambda_c| on `force_axis` (Eq. 5.18), per design."""
-        tip = _tip_rows(model)
+        """beta of Eq. 5.19, |lambda_c| of the tip held on `force_axis` (Eq. 5.18), per
+        design."""
+        row = _tip_rows(model).start + self.force_axis
+        contact = slice(row, row + 1)
         w, free = model.matrices(self._pull(design), design)
         _, rest_free = model.rest(design)
         force = blocked_force(
-            w, free, self._pull(design), model.layout.slices["actuator"], tip, rest_free[:, tip]
+            w,
+            free,
+            self._pull(design),
+            model.layout.slices["actuator"],
+            contact,
+            rest_free[:, contact],
         )
         # a row weighted w has Jacobian w dp/dq: the force on the point is w lambda
-        return force[:, self.force_axis].abs() * model.layout.effectors[0].weight
+        return force[:, 0].abs() * model.layout.effectors[0].weight
 
     def dexterity(self, model: DesignMechanics, design: Tensor) -> Tensor:
         """O_dext = |alpha_max - alpha| (Eq. 5.17)."""
@@ -187,8 +196,10 @@ def refine(
         history.append(
             {
                 "iteration": iteration,
-                "objective": float(value),
-                **{k: float(v) for k, v in zip(model.design_names, design[0], strict=True)},
+                "objective": float(value.detach()),
+                **{
+                    k: float(v) for k, v in zip(model.design_names, design[0].detach(), strict=True)
+                },
             }
         )
         if iteration == iterations:
@@ -196,13 +207,11 @@ def refine(
         optimiser.zero_grad()
         value.backward()
         optimiser.step()
-        scheduler.step(float(value))
+        scheduler.step(float(value.detach()))
         with torch.no_grad():
             unit.clamp_(0.0, 1.0)
     best = min(history, key=lambda h: h["objective"])
-    return Refinement(
-        np.array([best[k] for k in model.design_names]), best["objective"], history
-    )
+    return Refinement(np.array([best[k] for k in model.design_names]), best["objective"], history)
 
 
 def landscape(
@@ -232,3 +241,127 @@ def pareto_front(objectives: np.ndarray) -> np.ndarray:
     for k, row in enumerate(values):
         dominated[k] = np.any(np.all(values <= row, axis=1) & np.any(values < row, axis=1))
     return ~dominated
+
+
+@dataclass
+class DesignStudy:
+    """Grid search, refinements, landscapes and Pareto front of the two objectives
+    (Fig. 5.15-5.17).
+
+    Attributes:
+        grid: the designs searched (n, P); angle [rad] and force [mN] are alpha and beta there.
+        refined: "dexterity", "strength" and "combined" (Eq. 5.20) refinements, each started
+            from the best design of the grid.
+        landscapes: objective -> [(pair of parameter indices, values of the first, values of
+            the second, objective (n, n))] around that objective's start.
+        pareto: mask of the grid designs on the Pareto front of (O_dext, O_str).
+    """
+
+    names: tuple[str, ...]
+    objectives: FingerObjectives
+    weights: tuple[float, float]
+    grid: np.ndarray
+    angle: np.ndarray
+    force: np.ndarray
+    dexterity: np.ndarray
+    strength: np.ndarray
+    pareto: np.ndarray
+    refined: dict[str, Refinement]
+    landscapes: dict[str, list[tuple[tuple[int, int], np.ndarray, np.ndarray, np.ndarray]]]
+
+    def summary(self) -> dict:
+        """The results as JSON-ready values (no landscapes)."""
+
+        def design(values: np.ndarray) -> dict[str, float]:
+            return {k: float(v) for k, v in zip(self.names, values, strict=True)}
+
+        return {
+            "command": list(self.objectives.command),
+            "weights": list(self.weights),
+            "grid_designs": len(self.grid),
+            "pareto_designs": [design(d) for d in self.grid[self.pareto]],
+            "refined": {
+                name: {
+                    "start": design(np.array([r.history[0][k] for k in self.names])),
+                    "start_objective": r.history[0]["objective"],
+                    "design": design(r.design),
+                    "objective": r.objective,
+                    "iterations": len(r.history) - 1,
+                }
+                for name, r in self.refined.items()
+            },
+            "grid_range": {
+                "angle_rad": [float(self.angle.min()), float(self.angle.max())],
+                "force_mN": [float(self.force.min()), float(self.force.max())],
+            },
+        }
+
+
+def design_study(
+    model: DesignMechanics,
+    objectives: FingerObjectives | None = None,
+    *,
+    counts: Sequence[int] = (10, 6, 10),
+    weights: tuple[float, float] = (0.5, 0.5),
+    iterations: int = 200,
+    learning_rate: float = 0.01,
+    landscape_points: int = 25,
+) -> DesignStudy:
+    """Grid search of the design box (`counts` values per parameter, the thesis' 600
+    designs by default), gradient refinement of each objective and of their weighted sum
+    (Eq. 5.20, normalised by the grid's extremes) from the grid's best, and the landscapes
+    around the single-objective starts."""
+    objectives = objectives or FingerObjectives()
+    grid = design_grid(model, counts)
+    dexterity = evaluate(model, objectives.dexterity, grid)
+    strength = evaluate(model, objectives.strength, grid)
+    combined = weighted(
+        [
+            normalised(objectives.dexterity, dexterity.min(), dexterity.max()),
+            normalised(objectives.strength, strength.min(), strength.max()),
+        ],
+        weights,
+    )
+    single = {"dexterity": objectives.dexterity, "strength": objectives.strength}
+    grid_values = {"dexterity": dexterity, "strength": strength}
+    grid_values["combined"] = evaluate(model, combined, grid)
+    refined = {
+        name: refine(
+            model,
+            objective,
+            grid[int(np.argmin(grid_values[name]))],
+            learning_rate=learning_rate,
+            iterations=iterations,
+        )
+        for name, objective in {**single, "combined": combined}.items()
+    }
+    pairs = list(itertools.combinations(range(len(model.design_names)), 2))
+    landscapes = {
+        name: [
+            (
+                pair,
+                *landscape(
+                    model,
+                    objective,
+                    grid[int(np.argmin(grid_values[name]))],
+                    pair,
+                    landscape_points,
+                ),
+            )
+            for pair in pairs
+        ]
+        for name, objective in single.items()
+    }
+    return DesignStudy(
+        model.design_names,
+        objectives,
+        weights,
+        grid,
+        evaluate(model, objectives.bending_angle, grid),
+        evaluate(model, objectives.tip_force, grid),
+        dexterity,
+        strength,
+        pareto_front(np.column_stack([dexterity, strength])),
+        refined,
+        landscapes,
+    )

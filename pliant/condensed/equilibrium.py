@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from pliant.errors import DivergenceError
+from pliant.errors import DivergenceError, SolverError
 from pliant.model import Model, State
 from pliant.solvers import StaticSolver
 
@@ -32,9 +32,9 @@ def load_step(
 ) -> State:
     """Equilibrium for the imposed actuator displacements `target`, reached from `state`.
 
-    Static steps change no command by more than `max_increment`; where a step's Newton solve
-    fails, it and the steps after it are halved, down to `min_increment` (default
-    max_increment / 16).
+    Static steps change no command by more than `max_increment`; where a step fails (Newton
+    diverges, or the actuators' constraint QP does not converge within it), it and the steps
+    after it are halved, down to `min_increment` (default max_increment / 16).
     Raises DivergenceError, naming the command where it stopped, if a smallest step fails.
     """
     smallest = max_increment / 16 if min_increment is None else min_increment
@@ -55,7 +55,7 @@ def load_step(
         model.set_actuation(command, mode="displacement")
         try:
             state = solver.step(state)
-        except DivergenceError as exc:
+        except (DivergenceError, SolverError) as exc:
             if increment / 2 < smallest:
                 raise DivergenceError(
                     f"no equilibrium reached for the commands {np.round(command, 4).tolist()}"

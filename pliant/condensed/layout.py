@@ -124,6 +124,11 @@ class Layout:
         """Entries of W's upper triangle, diagonal included."""
         return self.n_rows * (self.n_rows + 1) // 2
 
+    @cached_property
+    def triangle(self) -> tuple[np.ndarray, np.ndarray]:
+        """Row and column indices of W's upper triangle, in packing order."""
+        return np.triu_indices(self.n_rows)
+
     def effector_rows(self, points: np.ndarray) -> np.ndarray:
         """Positions or goals of every effector point, (points, 3) in effector order, as rows."""
         pts = np.asarray(points, dtype=float).reshape(-1, 3)
@@ -143,14 +148,14 @@ class Layout:
     def pack(self, problem: CondensedProblem) -> tuple[np.ndarray, np.ndarray]:
         """(W's upper triangle, delta_free) of a condensed problem with this layout."""
         self._check_slices(problem.slices, "the condensed problem")
-        rows, cols = np.triu_indices(self.n_rows)
+        rows, cols = self.triangle
         return problem.compliance[rows, cols], problem.free_distance.copy()
 
     def unpack(self, w_triangle: np.ndarray, free_distance: np.ndarray) -> CondensedProblem:
         """The condensed problem whose symmetric W has this upper triangle."""
         n = self.n_rows
         w = np.zeros((n, n))
-        rows, cols = np.triu_indices(n)
+        rows, cols = self.triangle
         w[rows, cols] = w_triangle
         w[cols, rows] = w_triangle
         return CondensedProblem(w, np.asarray(free_distance, dtype=float), self.slices)

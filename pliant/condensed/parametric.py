@@ -13,7 +13,6 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Protocol
 
-import numpy as np
 import torch
 from torch import Tensor
 
@@ -208,9 +207,3 @@ def train_parametric(
         learned.network, fit_g.network, dataset.layout, dataset.plan, learned.input_box, training
     )
     return model, ParametricFit(fit_f, fit_g)
-
-
-def as_tensor(values: np.ndarray | Tensor) -> Tensor:
-    """A float64 tensor, rows kept (a vector becomes one row)."""
-    t = torch.as_tensor(np.asarray(values, dtype=float) if not torch.is_tensor(values) else values)
-    return torch.atleast_2d(t.to(torch.float64))

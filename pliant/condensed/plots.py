@@ -1,16 +1,21 @@
 """Figures of the learned condensed model: trajectories reached with learned and exact
-matrices (thesis Fig. 5.4), training curves."""
+matrices (thesis Fig. 5.4), training curves, calibration histories (Fig. 5.13), design
+landscapes, refinements and Pareto front (Fig. 5.15-5.17)."""
 
 from __future__ import annotations
 
 import os
 from collections.abc import Mapping
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from pliant.viz.render import offscreen_figure
 from pliant.viz.video import atomic_path
+
+if TYPE_CHECKING:
+    from pliant.condensed.design import DesignStudy
 
 _AXES = "xyz"
 
@@ -78,3 +83,105 @@ def plot_history(history: list[dict], path: str | os.PathLike, *, title: str | N
     with atomic_path(path) as tmp:
         fig.savefig(tmp, format="png", dpi=150)
     return Path(path)
+
+
+def plot_calibration(
+    runs: Mapping[str, list[dict]],
+    parameter: str,
+    path: str | os.PathLike,
+    *,
+    truth: float | None = None,
+    title: str | None = None,
+) -> Path:
+    """Calibration histories (Fig. 5.13): O_cal (Eq. 5.15) and the fitted parameter per
+    iteration, one line per start."""
+    fig = offscreen_figure(11.0, 4.2)
+    ax_obj, ax_par = fig.add_subplot(1, 2, 1), fig.add_subplot(1, 2, 2)
+    for label, history in runs.items():
+        iterations = [h["iteration"] for h in history]
+        ax_obj.semilogy(iterations, [h["objective"] for h in history], label=label)
+        ax_par.plot(iterations, [h[parameter] for h in history], label=label)
+    if truth is not None:
+        ax_par.axhline(truth, color="k", linestyle="--", linewidth=1, label=f"truth {truth:g}")
+    ax_obj.set_xlabel("iteration")
+    ax_obj.set_ylabel("O_cal [mm]")
+    ax_par.set_xlabel("iteration")
+    ax_par.set_ylabel(parameter)
+    for ax in (ax_obj, ax_par):
+        ax.grid(True, alpha=0.3)
+        ax.legend()
+    if title:
+        fig.suptitle(title)
+    fig.tight_layout()
+    with atomic_path(path) as tmp:
+        fig.savefig(tmp, format="png", dpi=150)
+    return Path(path)
+
+
+def plot_design_study(study: DesignStudy, folder: str | os.PathLike) -> list[Path]:
+    """Fig. 5.15-5.17: landscapes around the starts, refinement histories, Pareto front."""
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    names = study.names
+    paths = []
+
+    fig = offscreen_figure(13.0, 7.6)
+    for row, (objective, maps) in enumerate(study.landscapes.items()):
+        best = study.refined[objective].design
+        for col, ((i, j), a, b, values) in enumerate(maps):
+            ax = fig.add_subplot(len(study.landscapes), len(maps), row * len(maps) + col + 1)
+            image = ax.contourf(a, b, values.T, levels=20, cmap="viridis")
+            fig.colorbar(image, ax=ax)
+            ax.plot(best[i], best[j], "o", color="tab:blue", markeredgecolor="w")
+            ax.set_xlabel(f"{names[i]} [mm]")
+            ax.set_ylabel(f"{names[j]} [mm]")
+            ax.set_title(f"O_{objective}", fontsize=9)
+    fig.suptitle("objective landscapes around the grid's best (dot: refined design)")
+    fig.tight_layout()
+    paths.append(folder / "landscapes.png")
+    with atomic_path(paths[-1]) as tmp:
+        fig.savefig(tmp, format="png", dpi=130)
+
+    fig = offscreen_figure(13.0, 3.8 * len(study.refined))
+    for row, (objective, result) in enumerate(study.refined.items()):
+        iterations = [h["iteration"] for h in result.history]
+        ax = fig.add_subplot(len(study.refined), 2, 2 * row + 1)
+        ax.plot(iterations, [h["objective"] for h in result.history])
+        ax.set_ylabel(f"O_{objective}")
+        ax.grid(True, alpha=0.3)
+        ax = fig.add_subplot(len(study.refined), 2, 2 * row + 2)
+        for name in names:
+            ax.plot(iterations, [h[name] for h in result.history], label=name)
+        ax.set_ylabel("design [mm]")
+        ax.grid(True, alpha=0.3)
+        ax.legend(fontsize=8)
+    for ax in fig.axes[-2:]:
+        ax.set_xlabel("iteration")
+    fig.tight_layout()
+    paths.append(folder / "refinement.png")
+    with atomic_path(paths[-1]) as tmp:
+        fig.savefig(tmp, format="png", dpi=130)
+
+    fig = offscreen_figure(6.4, 5.0)
+    ax = fig.add_subplot(1, 1, 1)
+    dex = _normalised(study.dexterity)
+    strength = _normalised(study.strength)
+    ax.scatter(dex, strength, s=8, c="0.6", label=f"grid ({len(dex)} designs)")
+    front = study.pareto
+    order = np.argsort(dex[front])
+    ax.plot(dex[front][order], strength[front][order], "o-", color="tab:red", label="Pareto")
+    ax.set_xlabel("O_dext normalised")
+    ax.set_ylabel("O_str normalised")
+    ax.grid(True, alpha=0.3)
+    ax.legend()
+    fig.tight_layout()
+    paths.append(folder / "pareto.png")
+    with atomic_path(paths[-1]) as tmp:
+        fig.savefig(tmp, format="png", dpi=150)
+    return paths
+
+
+def _normalised(values: np.ndarray) -> np.ndarray:
+    """(O - min) / (max - min) over the grid (the normalisation of Eq. 5.20)."""
+    span = values.max() - values.min()
+    return (values - values.min()) / (span if span > 0 else 1.0)
