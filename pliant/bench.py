@@ -289,17 +289,17 @@ def run_benchmarks(
         from pliant.errors import ContactConvergenceWarning
 
         # Contact scenes under their scripted actuation, timed once contact is made.
-        for name, warmup in (
-            ("gripper", 80),
-            ("multigait", 20),
-            ("cartstem_contact", 100),
-            ("trunk_cube", 100),
+        for name, label, warmup in (
+            ("gripper", "gripper", 80),
+            ("multigait", "multigait-coarse+gait", 20),
+            ("cartstem_contact", "cartstem_contact", 100),
+            ("trunk_cube", "trunk_cube", 100),
         ):
             entry = robots.entry(name)
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore", ContactConvergenceWarning)
                 measure(
-                    name,
+                    label,
                     entry.build(),
                     control=lambda s, e=entry: e.demo_actuation(s.time),
                     policies=("lagged",),

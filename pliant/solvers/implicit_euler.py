@@ -118,9 +118,12 @@ class ImplicitEuler:
             w[sc, sc] += h * h * (g @ rigid.inverse_mass @ g.T)
             delta_free[sc] += h * (g @ rigid.twists_free.reshape(-1))
         problem = CondensedProblem(0.5 * (w + w.T), delta_free, space.slices)
-        lam, contact_report, contact_forces = constraint_forces(
-            ctrl, problem, model, state, contact
-        )
+        try:
+            lam, contact_report, contact_forces = constraint_forces(
+                ctrl, problem, model, state, contact
+            )
+        except SolverError as exc:  # a QP that fails is a step that fails, named as such
+            raise DivergenceError(f"step {step}: {exc}", step=step, cause="solver") from exc
         v_new = v + dv_free + h * (a_inv_ht @ lam)
         dq = body.scatter(h * v_new)
         positions = state.positions + dq

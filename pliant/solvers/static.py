@@ -94,9 +94,12 @@ class StaticSolver:
                 )
             except SolverError as exc:
                 raise DivergenceError(f"step {step}: {exc}", step=step, cause="solver") from exc
-            lam, contact_report, contact_forces = constraint_forces(
-                ctrl, problem, model, guide, contact
-            )
+            try:
+                lam, contact_report, contact_forces = constraint_forces(
+                    ctrl, problem, model, guide, contact
+                )
+            except SolverError as exc:  # a QP that fails is a step that fails, named as such
+                raise DivergenceError(f"step {step}: {exc}", step=step, cause="solver") from exc
             lam_a = lam[problem.slices["actuator"]]
             guide.actuation, guide.contact_forces = lam_a, contact_forces
             dq = body.scatter(dq_free + k_inv_ht @ lam)
