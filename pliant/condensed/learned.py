@@ -176,19 +176,7 @@ class LearnedCondensedModel:
     @classmethod
     def load(cls, path: str | os.PathLike) -> LearnedCondensedModel:
         path = Path(path)
-        if not path.is_file():
-            raise LearnedModelError(f"no learned condensed model at {path}")
-        try:
-            data = torch.load(path, weights_only=True)
-        except Exception as exc:  # torch raises many types for a corrupt or foreign file
-            raise LearnedModelError(f"{path} is not a readable model file: {exc}") from exc
-        if not isinstance(data, dict) or data.get("format") != FORMAT:
-            raise LearnedModelError(f"{path} is not a Pliant learned condensed model")
-        if data.get("format_version") != FORMAT_VERSION:
-            raise LearnedModelError(
-                f"{path} has model format version {data.get('format_version')}; this Pliant"
-                f" reads version {FORMAT_VERSION}"
-            )
+        data = read_model_file(path, FORMAT, FORMAT_VERSION, "learned condensed model")
         try:
             network = StandardisedMLP.from_config(data["network"])
             network.load_state_dict(data["state"])
@@ -202,3 +190,22 @@ class LearnedCondensedModel:
             )
         except (KeyError, TypeError, ValueError, RuntimeError) as exc:
             raise LearnedModelError(f"{path} is incomplete or inconsistent: {exc}") from exc
+
+
+def read_model_file(path: Path, fmt: str, version: int, kind: str) -> dict:
+    """The saved dictionary of a model file, checked: it exists, torch reads it, and its
+    format and version are `fmt` and `version` (LearnedModelError naming `kind` otherwise)."""
+    if not path.is_file():
+        raise LearnedModelError(f"no {kind} at {path}")
+    try:
+        data = torch.load(path, weights_only=True)
+    except Exception as exc:  # torch raises many types for a corrupt or foreign file
+        raise LearnedModelError(f"{path} is not a readable model file: {exc}") from exc
+    if not isinstance(data, dict) or data.get("format") != fmt:
+        raise LearnedModelError(f"{path} is not a Pliant {kind}")
+    if data.get("format_version") != version:
+        raise LearnedModelError(
+            f"{path} has model format version {data.get('format_version')}; this Pliant"
+            f" reads version {version}"
+        )
+    return data

@@ -19,6 +19,7 @@ from torch import Tensor
 import pliant
 from pliant.condensed.dataset import CollectionPlan, Dataset
 from pliant.condensed.layout import Layout
+from pliant.condensed.learned import read_model_file
 from pliant.condensed.mechanics import effector_displacement, symmetric
 from pliant.condensed.networks import ComposedNetwork, StandardisedMLP
 from pliant.condensed.sampling import Box
@@ -158,19 +159,7 @@ class ParametricCondensedModel:
     @classmethod
     def load(cls, path: str | os.PathLike) -> ParametricCondensedModel:
         path = Path(path)
-        if not path.is_file():
-            raise LearnedModelError(f"no parametric condensed model at {path}")
-        try:
-            data = torch.load(path, weights_only=True)
-        except Exception as exc:  # torch raises many types for a corrupt or foreign file
-            raise LearnedModelError(f"{path} is not a readable model file: {exc}") from exc
-        if not isinstance(data, dict) or data.get("format") != FORMAT:
-            raise LearnedModelError(f"{path} is not a Pliant parametric condensed model")
-        if data.get("format_version") != FORMAT_VERSION:
-            raise LearnedModelError(
-                f"{path} has model format version {data.get('format_version')}; this Pliant"
-                f" reads version {FORMAT_VERSION}"
-            )
+        data = read_model_file(path, FORMAT, FORMAT_VERSION, "parametric condensed model")
         try:
             networks = {}
             for name, saved in data["networks"].items():
