@@ -23,15 +23,21 @@ from pliant.fem.rigid import DrivenNodes, KinematicBody, rail
 from pliant.mesh import box_beam
 from pliant.mesh.tetmesh import TetMesh
 from pliant.model import Model
-from pliant.robots.common import MaterialName, effector, fixed_by_box, landmark, make_material
+from pliant.robots.common import (
+    MaterialName,
+    effector,
+    fixed_by_box,
+    landmark,
+    make_material,
+    smooth_ramp,
+)
 
 
 def demo_cart_motion(t: float) -> float:
     """The scripted solution for a goal behind the right obstacle: the cart slides left (a
     smooth 2 s ramp to -24 mm), bending the beam over the left obstacle so that its tip swings
     right, over the right one."""
-    ramp = min(max(t / 2.0, 0.0), 1.0)
-    return -24.0 * ramp * ramp * (3.0 - 2.0 * ramp)
+    return -24.0 * smooth_ramp(t, 0.0, 2.0)
 
 
 def stem_mesh(length: float, width: float, cells: int) -> TetMesh:

@@ -26,7 +26,7 @@ from pliant.mesh.gmsh_session import gmsh_model, mesh_volumes
 from pliant.mesh.shapes import _cavity_surfaces, _finish, _require_positive
 from pliant.mesh.tetmesh import TetMesh
 from pliant.model import Model
-from pliant.robots.common import MaterialName, effector, fixed_by_box, make_material
+from pliant.robots.common import MaterialName, effector, fixed_by_box, make_material, smooth_ramp
 
 
 def catcher_mesh(
@@ -124,8 +124,7 @@ def catcher_mesh(
 
 def demo_cart_motion(t: float) -> float:
     """Slide the cart 20 mm along +x (under the ball) in 0.12 s, a smooth ramp."""
-    ramp = min(max(t / 0.12, 0.0), 1.0)
-    return 20.0 * ramp * ramp * (3.0 - 2.0 * ramp)
+    return 20.0 * smooth_ramp(t, 0.0, 0.12)
 
 
 def catch_object(

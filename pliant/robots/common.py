@@ -71,3 +71,10 @@ def cables(
 
 def effector(mesh: TetMesh, body: TetBody, point: np.ndarray) -> PositionEffector:
     return PositionEffector(EmbeddedPoints(mesh, point), body.rest_positions, name="effector")
+
+
+def smooth_ramp(t: float, start: float, duration: float) -> float:
+    """0 before `start`, 1 after `start + duration`, the cubic smoothstep 3s^2 - 2s^3 between
+    (zero velocity at both ends): how scripted carts and bases move."""
+    s = min(max((t - start) / duration, 0.0), 1.0)
+    return s * s * (3.0 - 2.0 * s)

@@ -27,7 +27,14 @@ from pliant.fem.rigid import DrivenNodes, KinematicBody, RigidBody, rail
 from pliant.mesh.gmsh_session import gmsh_model, mesh_volumes
 from pliant.mesh.tetmesh import TetMesh
 from pliant.model import Model
-from pliant.robots.common import MaterialName, effector, fixed_by_box, landmark, make_material
+from pliant.robots.common import (
+    MaterialName,
+    effector,
+    fixed_by_box,
+    landmark,
+    make_material,
+    smooth_ramp,
+)
 
 
 def gripper_mesh(
@@ -86,8 +93,7 @@ def gripper_mesh(
 
 def demo_base_motion(t: float) -> float:
     """Hold the base while the fingers close (1.5 s), then lift by 20 mm over 1.5 s."""
-    ramp = min(max((t - 1.5) / 1.5, 0.0), 1.0)
-    return 20.0 * ramp * ramp * (3.0 - 2.0 * ramp)
+    return 20.0 * smooth_ramp(t, 1.5, 1.5)
 
 
 def soft_gripper(

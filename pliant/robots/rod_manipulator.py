@@ -28,7 +28,7 @@ from pliant.mesh.gmsh_session import gmsh_model, mesh_volumes
 from pliant.mesh.shapes import _finish, _require_positive
 from pliant.mesh.tetmesh import TetMesh
 from pliant.model import Model
-from pliant.robots.common import MaterialName, effector, fixed_by_box, make_material
+from pliant.robots.common import MaterialName, effector, fixed_by_box, make_material, smooth_ramp
 
 # Cable directions in each finger, in the order of the actuators: pulling cable k bends the
 # finger towards DIRECTIONS[k].
@@ -95,8 +95,7 @@ def fingers_mesh(
 
 def demo_base_motion(t: float) -> float:
     """Lower the fingers by 7 mm in 0.15 s: from 5 mm above the rod to pressing 2 mm on it."""
-    ramp = min(max(t / 0.15, 0.0), 1.0)
-    return -7.0 * ramp * ramp * (3.0 - 2.0 * ramp)
+    return -7.0 * smooth_ramp(t, 0.0, 0.15)
 
 
 def rod_manipulator(

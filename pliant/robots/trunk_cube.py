@@ -23,14 +23,13 @@ from pliant.constraints.contact import Contacts
 from pliant.fem.rigid import DrivenNodes, KinematicBody, RigidBody, rail
 from pliant.mesh.tetmesh import TetMesh
 from pliant.model import Model
-from pliant.robots.common import MaterialName, landmark
+from pliant.robots.common import MaterialName, landmark, smooth_ramp
 from pliant.robots.trunk import reference_cable_paths, trunk
 
 
 def demo_base_motion(t: float) -> float:
     """Advance the base by 20 mm along the trunk's axis between 1 s and 2 s."""
-    ramp = min(max(t - 1.0, 0.0), 1.0)
-    return 20.0 * ramp * ramp * (3.0 - 2.0 * ramp)
+    return 20.0 * smooth_ramp(t, 1.0, 1.0)
 
 
 def trunk_cube(

@@ -23,7 +23,7 @@ from pliant.fem.rigid import RigidBody
 from pliant.mesh.shapes import _require_positive
 from pliant.mesh.tetmesh import TetMesh
 from pliant.model import Model
-from pliant.robots.common import MaterialName
+from pliant.robots.common import MaterialName, smooth_ramp
 from pliant.robots.trunk_cube import trunk_cube
 
 # The Trunk's cables pull towards +y, -x, -y, +x (long cables 0-3, short ones 4-7).
@@ -97,8 +97,7 @@ def solid_mass_properties(
 def demo_base_motion(t: float) -> float:
     """Hold the carriage while the trunk curls over the cup (0.5 s), then move it back by
     25 mm along the trunk's axis over 1 s."""
-    ramp = min(max(t - 0.5, 0.0), 1.0)
-    return -25.0 * ramp * ramp * (3.0 - 2.0 * ramp)
+    return -25.0 * smooth_ramp(t, 0.5, 1.0)
 
 
 def trunk_cup(
