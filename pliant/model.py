@@ -16,6 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from pliant.constraints.base import Actuator, Constraint
+from pliant.constraints.cable import CableActuator, CableBundle
 from pliant.constraints.contact import Contacts
 from pliant.constraints.friction import ContactForces
 from pliant.errors import ModelError
@@ -177,6 +178,37 @@ class Model:
         names = [c.name for c in self.actuators + self.effectors]
         if len(set(names)) != len(names):
             raise ModelError(f"constraint names must be unique, got {names}")
+
+    def geometric_pattern(self) -> tuple[np.ndarray, np.ndarray] | None:
+        """Free-DoF (rows, cols) of the cables' geometric stiffness (None without cables)."""
+        if self._cables() is None:
+            return None
+        return self._geometric[0], self._geometric[1]
+
+    def geometric_stiffness(self, positions: np.ndarray, actuation: np.ndarray) -> np.ndarray:
+        """Values of the cables' geometric stiffness at `positions` under the actuator forces
+        `actuation` (cable tensions), on :meth:`geometric_pattern`."""
+        bundle, index = self._cables()
+        keep = self._geometric[2]
+        blocks = bundle.geometric_stiffness(positions, np.maximum(actuation[index], 0.0))
+        return blocks.reshape(-1)[keep]
+
+    def _cables(self):
+        """(bundle of every cable actuator, their actuator indices), or None."""
+        if not hasattr(self, "_cable_bundle"):
+            index = [i for i, a in enumerate(self.actuators) if isinstance(a, CableActuator)]
+            self._cable_bundle = None
+            if index:
+                bundle = CableBundle([self.actuators[i] for i in index])
+                ni, nj = bundle.geometric_pairs()
+                free = self.body.free_index
+                rows = free[3 * ni[:, None, None] + np.arange(3)[None, :, None]]
+                cols = free[3 * nj[:, None, None] + np.arange(3)[None, None, :]]
+                rows, cols = np.broadcast_arrays(rows, cols)
+                keep = ((rows >= 0) & (cols >= 0)).reshape(-1)
+                self._geometric = (rows.reshape(-1)[keep], cols.reshape(-1)[keep], keep)
+                self._cable_bundle = (bundle, np.array(index))
+        return self._cable_bundle
 
     def _check_drivers(self) -> None:
         body = self.body

@@ -232,3 +232,48 @@ def test_a_step_longer_than_the_margin_warns() -> None:
     state.velocities[:] = [0.0, 0.0, -200.0]  # 2 mm in one step of 0.01 s
     with pytest.warns(ContactMarginWarning, match="more than the contact margin"):
         ImplicitEuler(model, 0.01).step(state)
+
+
+@pytest.mark.parametrize("with_rigid", [False, True])
+def test_kept_point_compliance_gives_the_problem_of_solving_every_column(with_rigid) -> None:
+    """The contact columns read from the points' compliance kept for a factorisation
+    (pliant.solvers.compliance) give the W, delta_free and step of solving all columns at every
+    step, to round-off: over a fall, a bounce and rest on the floor (contacts appear and go,
+    the lagged factorisation is reused and renewed), with and without a rigid body on top."""
+    from pliant.constraints.base import EmbeddedPoints
+    from pliant.constraints.cable import CableActuator
+    from pliant.fem.rigid import RigidBody
+
+    model = _cube(lift=0.5)
+    body = model.body
+    path = EmbeddedPoints(body.mesh, [[2.0, 2.0, 10.5], [10.0, 2.0, 10.5], [18.0, 2.0, 10.5]])
+    cable = CableActuator(path, body.rest_positions, pull_point=[-5.0, 2.0, 10.5])
+    rigid = (
+        [RigidBody(Box([6.0, 6.0, 3.0], position=[10.0, 10.0, 22.5]), 0.002, friction=0.3)]
+        if with_rigid
+        else []
+    )
+    model = Model(
+        body,
+        actuators=[cable],
+        contacts=Contacts([Plane()], friction=0.5, margin=1.0),
+        rigid_bodies=rigid,
+    )
+    kept, solved = ImplicitEuler(model, 0.01), ImplicitEuler(model, 0.01, point_compliance=False)
+    state = model.rest_state()
+    checked = 0
+    for i in range(60):
+        command = np.array([min(0.05 * i, 1.0)])
+        new = kept.step(state, command)
+        reference = solved.step(state, command)
+        a, b = kept.last_report.problem, solved.last_report.problem
+        assert a.slices == b.slices
+        if a.slices["contact"].stop > a.slices["contact"].start:
+            checked += 1
+        scale = np.abs(b.compliance).max()
+        assert np.abs(a.compliance - b.compliance).max() < 1e-9 * scale
+        assert np.abs(a.free_distance - b.free_distance).max() < 1e-9
+        assert np.abs(new.positions - reference.positions).max() < 1e-7
+        state = new
+    assert checked > 30
+    assert kept.system.factorisations > 1  # columns were renewed with the factorisation

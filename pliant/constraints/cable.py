@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+from numba import njit
 
 from pliant.constraints.base import Actuator, EmbeddedPoints, JacobianRows
 from pliant.errors import ConstraintError
@@ -98,7 +99,6 @@ class CableBundle:
         # Vertices of every polyline, as indices into [embedded points; pull points].
         starts, ends, owner = [], [], []
         offset, pull_index = 0, n_points
-        self._point_owner = np.empty(n_points, dtype=np.int64)
         for i, c in enumerate(cables):
             k = len(c.points)
             verts = list(range(offset, offset + k))
@@ -108,56 +108,119 @@ class CableBundle:
             starts += verts[:-1]
             ends += verts[1:]
             owner += [i] * (len(verts) - 1)
-            self._point_owner[offset : offset + k] = i
             offset += k
-        self._starts = np.array(starts)
-        self._ends = np.array(ends)
-        self._owner = np.array(owner)
-        self._n_vertices = pull_index
+        self._starts = np.array(starts, dtype=np.int64)
+        self._ends = np.array(ends, dtype=np.int64)
+        self._owner = np.array(owner, dtype=np.int64)
         self._rest = np.array([c.rest_length for c in cables])
         width = max(4 * len(c.points) for c in cables)
-        self._rows = np.zeros((self.n_rows, width), dtype=np.int64)
         self._cols = np.zeros((self.n_rows, width), dtype=np.int64)
         self._valid = np.zeros((self.n_rows, width), dtype=bool)
         offset = 0
         for i, c in enumerate(cables):
             k = 4 * len(c.points)
-            self._rows[i, :k] = i
             self._cols[i, :k] = np.arange(4 * offset, 4 * offset + k)
             self._valid[i, :k] = True
             offset += len(c.points)
+        self._row_nodes = np.where(self._valid, self._nodes.reshape(-1)[self._cols], 0)
 
-    def _segments(self, x: np.ndarray):
+    def distance(self, x: np.ndarray) -> np.ndarray:
+        return self.distance_and_jacobian(x)[0]
+
+    def distance_and_jacobian(self, x: np.ndarray) -> tuple[np.ndarray, JacobianRows]:
+        delta, grad = _bundle_rows(
+            np.ascontiguousarray(x, dtype=np.float64),
+            self._nodes,
+            self._weights,
+            self._pulls,
+            self._starts,
+            self._ends,
+            self._owner,
+            self._rest,
+        )
+        values = np.where(self._valid[:, :, None], grad.reshape(-1, 3)[self._cols], 0.0)
+        return delta, JacobianRows(self._row_nodes, values)
+
+    def jacobian(self, x: np.ndarray) -> JacobianRows:
+        return self.distance_and_jacobian(x)[1]
+
+    def geometric_pairs(self) -> tuple[np.ndarray, np.ndarray]:
+        """Node pairs (i, j) coupled by the cables' geometric stiffness, one per entry of
+        :meth:`geometric_stiffness`: for each segment, each pair of its embedded end points
+        and each pair of their element nodes (a pull point carries no node)."""
+        self._geometry_entries()
+        return self._g_node_i, self._g_node_j
+
+    def geometric_stiffness(self, x: np.ndarray, tension: np.ndarray) -> np.ndarray:
+        """(E, 3, 3) blocks of -d(H^T lambda)/dx = sum_s lambda_s d^2 L/dx^2 at `x` for the
+        cable tensions `tension` (one per cable), on the pairs of :meth:`geometric_pairs`.
+
+        A segment of length l and direction u has d^2 l / dp^2 = (I - u u^T) / l for its
+        end-point difference; a taut cable (lambda >= 0) adds this positive semi-definite
+        stiffness, which makes a pulled cable resist sideways motion."""
+        self._geometry_entries()
         p = np.einsum("ka,kai->ki", self._weights, x[self._nodes])
         verts = np.vstack([p, self._pulls])
         seg = verts[self._ends] - verts[self._starts]
-        length = np.sqrt(np.einsum("ij,ij->i", seg, seg))
-        return seg, length
+        length = np.linalg.norm(seg, axis=1)
+        safe = np.where(length > 0, length, 1.0)
+        unit = seg / safe[:, None]
+        lam = np.asarray(tension, dtype=float)[self._owner]
+        blocks = (np.eye(3) - unit[:, :, None] * unit[:, None, :]) * np.where(
+            length > 0, lam / safe, 0.0
+        )[:, None, None]
+        return self._g_coef[:, None, None] * blocks[self._g_segment]
 
-    def distance(self, x: np.ndarray) -> np.ndarray:
-        _, length = self._segments(x)
-        return self._distance(length)
-
-    def _distance(self, length: np.ndarray) -> np.ndarray:
-        return self._rest - np.bincount(self._owner, weights=length, minlength=self.n_rows)
-
-    def distance_and_jacobian(self, x: np.ndarray) -> tuple[np.ndarray, JacobianRows]:
-        seg, length = self._segments(x)
-        return self._distance(length), self._jacobian(seg, length)
-
-    def jacobian(self, x: np.ndarray) -> JacobianRows:
-        return self._jacobian(*self._segments(x))
-
-    def _jacobian(self, seg: np.ndarray, length: np.ndarray) -> JacobianRows:
-        unit = np.divide(seg, length[:, None], out=np.zeros_like(seg), where=length[:, None] > 0)
-        dl = np.zeros((self._n_vertices, 3))
-        for axis in range(3):
-            dl[:, axis] = np.bincount(self._ends, weights=unit[:, axis], minlength=self._n_vertices)
-            dl[:, axis] -= np.bincount(
-                self._starts, weights=unit[:, axis], minlength=self._n_vertices
-            )
+    def _geometry_entries(self) -> None:
+        if hasattr(self, "_g_segment"):
+            return
         n_points = len(self._nodes)
-        grad = -dl[:n_points, None, :] * self._weights[:, :, None]  # (P, 4, 3)
-        values = np.where(self._valid[:, :, None], grad.reshape(-1, 3)[self._cols], 0.0)
-        nodes = np.where(self._valid, self._nodes.reshape(-1)[self._cols], 0)
-        return JacobianRows(nodes, values)
+        seg, coef, ni, nj = [], [], [], []
+        for s, (a, b) in enumerate(zip(self._starts, self._ends, strict=True)):
+            for va, vb, sign in ((a, a, 1.0), (b, b, 1.0), (a, b, -1.0), (b, a, -1.0)):
+                if va >= n_points or vb >= n_points:
+                    continue
+                w = sign * np.outer(self._weights[va], self._weights[vb])
+                nodes_i = np.repeat(self._nodes[va], self._nodes.shape[1])
+                nodes_j = np.tile(self._nodes[vb], self._nodes.shape[1])
+                keep = w.reshape(-1) != 0.0
+                seg.append(np.full(int(keep.sum()), s))
+                coef.append(w.reshape(-1)[keep])
+                ni.append(nodes_i[keep])
+                nj.append(nodes_j[keep])
+        empty = np.zeros(0, dtype=np.int64)
+        self._g_segment = np.concatenate(seg) if seg else empty
+        self._g_coef = np.concatenate(coef) if coef else np.zeros(0)
+        self._g_node_i = np.concatenate(ni) if ni else empty
+        self._g_node_j = np.concatenate(nj) if nj else empty
+
+
+@njit(cache=True)
+def _bundle_rows(x, nodes, weights, pulls, starts, ends, owner, rest):
+    """Shortenings L0 - L(x) of the cables and dL/dx per embedded point and node (P, 4, 3),
+    negated: the rows of H. Vertices are the embedded points, then the pull points."""
+    n_points = nodes.shape[0]
+    verts = np.empty((n_points + pulls.shape[0], 3))
+    for j in range(n_points):
+        for i in range(3):
+            acc = 0.0
+            for a in range(nodes.shape[1]):
+                acc += weights[j, a] * x[nodes[j, a], i]
+            verts[j, i] = acc
+    verts[n_points:] = pulls
+    delta = rest.copy()
+    dl = np.zeros((verts.shape[0], 3))
+    for s in range(starts.shape[0]):
+        d = verts[ends[s]] - verts[starts[s]]
+        length = np.sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2])
+        delta[owner[s]] -= length
+        if length > 0.0:
+            for i in range(3):
+                dl[ends[s], i] += d[i] / length
+                dl[starts[s], i] -= d[i] / length
+    grad = np.empty((n_points, nodes.shape[1], 3))
+    for j in range(n_points):
+        for a in range(nodes.shape[1]):
+            for i in range(3):
+                grad[j, a, i] = -dl[j, i] * weights[j, a]
+    return delta, grad

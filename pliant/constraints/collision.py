@@ -9,7 +9,8 @@ Detection (`detect`) gives every query point within `margin` of a shape as one c
 gap phi, the normal n (out of the shape, towards the point), a tangent frame (t1, t2) with
 t2 = n x t1, and the contact point on the shape. Rigid-rigid pairs (`collide`) reuse the same
 query: a sphere's centre, or a capsule's end centres, or the corners of a box, or the vertices
-of a mesh, are queried against the other shape's distance, less their radius.
+of a mesh, are queried against the other shape's distance, less their radius; a BoxUnion (a
+maze's floor and walls) is met box by box.
 
 Broad phase: each bounded shape keeps only the query points inside its bounding box grown by
 the margin, found either by a boolean mask over all points or by a ball query in a k-d tree
@@ -418,6 +419,92 @@ class TriangleMesh(Shape):
         return _rotate(self.vertices, self.rotation) + self.position, 0.0
 
 
+def _box_surface(half: np.ndarray, cell: float | None) -> tuple[np.ndarray, np.ndarray]:
+    """Vertices and outward triangles of the surface of the box [-half, half], each face split
+    into a grid of cells no longer than `cell` (None: two triangles a face)."""
+    counts = [1 if cell is None else max(1, math.ceil(2 * h / cell)) for h in half]
+    vertices, faces = [], []
+    for axis in range(3):
+        u, v = (axis + 1) % 3, (axis + 2) % 3
+        a = np.linspace(-half[u], half[u], counts[u] + 1)
+        b = np.linspace(-half[v], half[v], counts[v] + 1)
+        grid = np.stack(np.meshgrid(a, b, indexing="ij"), axis=-1).reshape(-1, 2)
+        i, j = np.meshgrid(np.arange(counts[u]), np.arange(counts[v]), indexing="ij")
+        corner = (i * (counts[v] + 1) + j).ravel()
+        cells = np.stack([corner, corner + counts[v] + 1, corner + counts[v] + 2, corner + 1], 1)
+        for side in (-1.0, 1.0):
+            points = np.zeros((len(grid), 3))
+            points[:, axis], points[:, u], points[:, v] = side * half[axis], grid[:, 0], grid[:, 1]
+            # (u, v, axis) is right-handed: the cells turn about +axis, so reverse them on -axis.
+            quads = cells if side > 0 else cells[:, ::-1]
+            offset = sum(len(p) for p in vertices)
+            vertices.append(points)
+            faces.append(offset + np.concatenate([quads[:, [0, 1, 2]], quads[:, [0, 2, 3]]]))
+    # Merge the vertices that faces share along the box's edges (equal by construction).
+    unique, index = np.unique(np.vstack(vertices), axis=0, return_inverse=True)
+    return unique, index.reshape(-1)[np.vstack(faces)]
+
+
+class BoxUnion(TriangleMesh):
+    """A rigid assembly of boxes in one frame (a maze: a base plate and its walls).
+
+    Its signed distance is the smallest of its boxes' (exact outside the union), and
+    `collide` meets the other shape box by box, so that a ball touching a floor and a wall gets
+    both contacts (a single closed mesh gives a sphere one closest point only). It is a
+    TriangleMesh whose triangles are the boxes' surfaces, so that what draws or samples meshes
+    takes it as it is; they also give its volume.
+
+    Args:
+        boxes: the boxes, posed in the union's frame; they may touch but must not overlap.
+        position, rotation: the union's pose in the world.
+        cell: the triangles' largest side (None: two triangles a face), so that a drawing's
+            painter's sort occludes well.
+    """
+
+    def __init__(
+        self, boxes, position=(0.0, 0.0, 0.0), rotation=None, *, cell: float | None = None
+    ) -> None:
+        self.boxes = list(boxes)
+        if not self.boxes or not all(isinstance(b, Box) for b in self.boxes):
+            raise ContactError("a BoxUnion needs one or more Box shapes")
+        if cell is not None:
+            cell = _positive(cell, "BoxUnion cell")
+        vertices, faces, offset = [], [], 0
+        for box in self.boxes:
+            local, triangles = _box_surface(box.half_extents, cell)
+            vertices.append(_rotate(local, box.rotation) + box.position)
+            faces.append(triangles + offset)
+            offset += len(local)
+        self._parts = [Box(b.half_extents) for b in self.boxes]
+        super().__init__(np.vstack(vertices), np.vstack(faces), position, rotation)
+
+    @property
+    def centroid(self) -> np.ndarray:
+        """Centre of the volume in the union's frame (uniform density)."""
+        volumes = np.array([np.prod(b.half_extents) for b in self.boxes])
+        return volumes @ np.array([b.position for b in self.boxes]) / volumes.sum()
+
+    def set_pose(self, position, rotation: np.ndarray) -> None:
+        super().set_pose(position, rotation)
+        for box, part in zip(self.boxes, self._parts, strict=True):
+            part.set_pose(
+                self.position + self.rotation @ box.position, self.rotation @ box.rotation
+            )
+
+    def parts(self) -> list[Box]:
+        """The boxes posed in the world (with the union's pose)."""
+        return self._parts
+
+    def _local_distance(self, p):
+        answers = [b.signed_distance(p) for b in self.boxes]
+        nearest = np.argmin(np.array([a.gap for a in answers]), axis=0)
+        rows = np.arange(len(p))
+        gap = np.array([a.gap for a in answers])[nearest, rows]
+        normal = np.array([a.normal for a in answers])[nearest, rows]
+        closest = np.array([a.closest for a in answers])[nearest, rows]
+        return gap, normal, closest
+
+
 @dataclass(frozen=True)
 class ContactSet:
     """k contacts between a side a (query points, or a first body) and a side b (a shape).
@@ -573,8 +660,12 @@ def collide(shape_a: Shape, shape_b: Shape, margin: float) -> ContactSet:
     its radius (sphere-plane, sphere-sphere, sphere-box, sphere-capsule, sphere-mesh). Other
     pairs query the samples of each shape against the other: box corners (box-plane exact;
     box-box and box-mesh miss edge-edge contacts), capsule end spheres (exact on a plane), mesh
-    vertices.
+    vertices. A BoxUnion meets the other shape box by box.
     """
+    if isinstance(shape_b, BoxUnion):
+        return _collide_parts(shape_a, shape_b, margin)
+    if isinstance(shape_a, BoxUnion):
+        return collide(shape_b, shape_a, margin).swapped()
     if isinstance(shape_b, Sphere) and not isinstance(shape_a, Sphere):
         return collide(shape_b, shape_a, margin).swapped()
     sides = [(shape_a, shape_b, False)]
@@ -593,6 +684,25 @@ def collide(shape_a: Shape, shape_b: Shape, margin: float) -> ContactSet:
         contacts = _contacts_with_shape(samples, candidates, second, 0, margin, radius)
         contacts = replace(contacts, index_a=np.zeros(len(contacts), dtype=np.int64))
         found.append(contacts.swapped() if swap else contacts)
+    return ContactSet.concatenate(found)
+
+
+def _collide_parts(shape_a: Shape, union: BoxUnion, margin: float) -> ContactSet:
+    """Contacts of a shape with each box of a union whose bounding box, grown by the margin,
+    meets the shape's; the features are renumbered so that a contact's identity names its box
+    too (sample s of box j counts as sample j * n + s, n bounding every box's and shape_a's
+    samples; the parity, a's or b's sample, is kept)."""
+    n = max(8, len(shape_a.samples()[0]))
+    reach = shape_a.bounds()
+    found = []
+    for j, part in enumerate(union.parts()):
+        if reach is not None:
+            lo, hi = part.bounds()
+            if np.any(lo - margin > reach[1]) or np.any(reach[0] - margin > hi):
+                continue
+        pair = collide(shape_a, part, margin)
+        feature = 2 * (j * n + pair.feature // 2) + pair.feature % 2
+        found.append(replace(pair, feature=feature))
     return ContactSet.concatenate(found)
 
 

@@ -26,7 +26,18 @@ def box_qp(
     n = grad.size
     if np.any(lower > upper):
         raise InfeasibleProblemError("box bounds with lower > upper admit no solution")
-    # The unconstrained minimiser is the answer whenever it is feasible (the usual case).
+    if guess is not None:
+        # The guess's active set is usually still the right one: solve on it and check.
+        x = np.clip(np.asarray(guess, dtype=float), lower, upper)
+        at_bound = ((x == lower) & np.isfinite(lower)) | ((x == upper) & np.isfinite(upper))
+        free = ~at_bound
+        if free.any():
+            x[free] = np.linalg.solve(
+                hess[np.ix_(free, free)], -(grad[free] + hess[np.ix_(free, at_bound)] @ x[at_bound])
+            )
+        if _optimal(hess, grad, lower, upper, x, at_bound):
+            return x
+    # The unconstrained minimiser is the answer whenever it is feasible.
     x = np.linalg.solve(hess, -grad)
     if np.all((x >= lower) & (x <= upper)):
         return x
@@ -66,6 +77,16 @@ def box_qp(
         release = np.flatnonzero(wrong)[np.argmax(np.abs(gradient[wrong]))]
         at_bound[release] = False
     raise SolverError("the box-constrained QP did not converge (cycling active set)")
+
+
+def _optimal(hess, grad, lower, upper, x, at_bound) -> bool:
+    """KKT conditions of the box QP at x with the bounds `at_bound` active."""
+    if np.any(x < lower) or np.any(x > upper):
+        return False
+    gradient = hess @ x + grad
+    wrong = at_bound & (lower < upper)
+    wrong &= ((x == lower) & (gradient < 0)) | ((x == upper) & (gradient > 0))
+    return not wrong.any()
 
 
 def solve_direct(

@@ -398,6 +398,11 @@ class ContactConstraint(Constraint):
     def n_rows(self) -> int:
         return 3 * len(self.contacts)
 
+    @property
+    def frames(self) -> np.ndarray:
+        """(k, 3, 3) rows (n, t1, t2) of each contact: H_c = blockdiag(frames) P."""
+        return self._frames
+
     def distance(self, x: np.ndarray) -> np.ndarray:
         p = np.einsum("ka,kai->ki", self.weights, x[self.nodes])
         delta = np.einsum("krj,kj->kr", self._frames, p - self._origin)

@@ -35,7 +35,15 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from pliant.constraints.collision import Box, Capsule, ContactSet, Shape, Sphere, collide
+from pliant.constraints.collision import (
+    Box,
+    BoxUnion,
+    Capsule,
+    ContactSet,
+    Shape,
+    Sphere,
+    collide,
+)
 from pliant.constraints.condensed import CondensedProblem
 from pliant.constraints.friction import (
     ContactForces,
@@ -83,6 +91,20 @@ def capsule_inertia(mass: float, radius: float, half_length: float) -> np.ndarra
         0.4 * radius**2 + height**2 / 4.0 + 3.0 * height * radius / 8.0
     )
     return np.diag([across, across, axial])
+
+
+def box_union_inertia(mass: float, union: BoxUnion) -> np.ndarray:
+    """Solid union of non-overlapping boxes, uniform density, about the union's frame origin:
+    each box's inertia turned into that frame, R_j I_j R_j^T, and moved from its centre d_j
+    by the parallel-axis theorem, + m_j (|d_j|^2 I - d_j d_j^T), with m_j its share of the
+    volume."""
+    volumes = np.array([np.prod(b.half_extents) for b in union.boxes])
+    total = np.zeros((3, 3))
+    for box, volume in zip(union.boxes, volumes, strict=True):
+        m, d = mass * volume / volumes.sum(), box.position
+        turned = box.rotation @ box_inertia(m, box.half_extents) @ box.rotation.T
+        total += turned + m * (d @ d * np.eye(3) - np.outer(d, d))
+    return total
 
 
 def twist_jacobian(arms: np.ndarray) -> np.ndarray:
@@ -136,8 +158,8 @@ class RigidBody:
             the state every step).
         mass: m > 0.
         inertia: (3, 3) symmetric positive definite inertia about the centre of mass, body
-            frame; default from the shape for a Sphere, a Box or a Capsule (solid, uniform
-            density).
+            frame; default from the shape for a Sphere, a Box, a Capsule or a BoxUnion (solid,
+            uniform density; a BoxUnion's boxes centred on its frame origin).
         friction: Coulomb coefficient; a contact uses sqrt(mu_a mu_b) (as Box2D and Bullet).
         position, rotation, velocity, angular_velocity: the initial state (default: the
             shape's pose, at rest).
@@ -170,6 +192,13 @@ class RigidBody:
                 inertia = box_inertia(mass, shape.half_extents)
             elif isinstance(shape, Capsule):
                 inertia = capsule_inertia(mass, shape.radius, shape.half_length)
+            elif isinstance(shape, BoxUnion):
+                if np.linalg.norm(shape.centroid) > 1e-9 * shape.bounding_radius():
+                    raise ModelError(
+                        f"{name}: a rigid body's frame origin is its centre of mass; the boxes"
+                        f" of its BoxUnion have their centroid at {shape.centroid.tolist()}"
+                    )
+                inertia = box_union_inertia(mass, shape)
             else:
                 raise ModelError(f"{name}: give the inertia of a {type(shape).__name__}")
         inertia = np.asarray(inertia, dtype=float)

@@ -22,6 +22,8 @@ from pliant.robots import gripper as _gripper
 from pliant.robots import multigait as _multigait
 from pliant.robots import pneunet as _pneunet
 from pliant.robots import rod_manipulator as _rod_manipulator
+from pliant.robots import simple_maze as _simple_maze
+from pliant.robots import tripod as _tripod
 from pliant.robots import trunk as _trunk
 from pliant.robots import trunk_cube as _trunk_cube
 from pliant.robots import trunk_cup as _trunk_cup
@@ -65,6 +67,10 @@ ROBOTS: dict[str, RobotEntry] = {
     ),
     "rod_manipulator": RobotEntry(
         _rod_manipulator.rod_manipulator, _rod_manipulator.demo_actuation, {}, (45.0, -30.0)
+    ),
+    "tripod_maze": RobotEntry(_tripod.tripod_maze, _tripod.demo_actuation, {}, (35.0, -70.0)),
+    "simple_maze": RobotEntry(
+        _simple_maze.simple_maze, _simple_maze.demo_actuation, {}, (45.0, -70.0)
     ),
 }
 

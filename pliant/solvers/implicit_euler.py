@@ -41,6 +41,7 @@ from pliant.errors import DivergenceError, SolverError
 from pliant.fem.rigid import RigidStep, integrate_poses
 from pliant.model import Model, State
 from pliant.solvers.base import StepReport, check_linearisation, check_motion
+from pliant.solvers.compliance import PointCompliance
 from pliant.solvers.system import LinearisedSystem, TangentPolicy
 
 
@@ -52,6 +53,10 @@ class ImplicitEuler:
         dt: time step h.
         tangent: factorisation policy, see :mod:`pliant.solvers.system`.
         rtol: relative tolerance of the preconditioned CG ("pcg" policy).
+        point_compliance: keep the colliding points' compliance columns for the life of a
+            factorisation (:mod:`pliant.solvers.compliance`) rather than solving three columns
+            per contact at every step; same results to round-off. Not used by "pcg", whose
+            solves are not one factorisation's.
     """
 
     def __init__(
@@ -61,12 +66,18 @@ class ImplicitEuler:
         *,
         tangent: TangentPolicy = "lagged",
         rtol: float = 1e-10,
+        point_compliance: bool = True,
     ) -> None:
         if not (np.isfinite(dt) and dt > 0):
             raise SolverError(f"the time step must be finite and > 0, got {dt!r}")
         self.model = model
         self.dt = float(dt)
         self.system = LinearisedSystem(model.body, policy=tangent, rtol=rtol)
+        self._points = (
+            PointCompliance(model.contacts.points, model.body.free_index)
+            if point_compliance and model.contacts is not None
+            else None
+        )
         body = model.body
         self._size = float(np.linalg.norm(np.ptp(body.rest_positions, axis=0)))
         self._gravity = body.gravity_forces()
@@ -92,46 +103,36 @@ class ImplicitEuler:
         a_m, a_k = self._coefficients()
         rigid = self._rigid_step(state)
         contact = model.contacts.constraint(state.positions, h, rigid) if model.contacts else None
+        v = body.gather(state.velocities)
+        rhs = h * body.gather(lin.forces + self._gravity)
+        rhs -= a_k * body.gather(lin.stiffness_velocity)
+        if a_m != 1.0:
+            rhs -= (a_m - 1.0) * body.mass_matvec(v)
+        roles = getattr(ctrl, "roles", None)
         try:
             self.system.prepare(lin, a_m, a_k)
-            space = model.constraint_space(
-                at,
-                roles=getattr(ctrl, "roles", None),
-                extra=(contact,) if contact is not None else (),
-            )
-            v = body.gather(state.velocities)
-            rhs = h * body.gather(lin.forces + self._gravity)
-            rhs -= a_k * body.gather(lin.stiffness_velocity)
-            if a_m != 1.0:
-                rhs -= (a_m - 1.0) * body.mass_matvec(v)
-            cols = self.system.solve(np.column_stack([rhs, space.jacobian_t]))
+            if contact is not None and self._points is not None and self.system.policy != "pcg":
+                problem, correction = self._condense_with_points(at, roles, contact, rhs, v, rigid)
+            else:
+                problem, correction = self._condense(at, roles, contact, rhs, v, rigid)
         except SolverError as exc:
             raise DivergenceError(f"step {step}: {exc}", step=step, cause="solver") from exc
-        dv_free, a_inv_ht = cols[:, 0], cols[:, 1:]
-        # delta_free linearised at q with the same H as W, so that a constraint met at rest stays
-        # met exactly (evaluating delta at q_free instead leaves an O(h^2) steady-state bias).
-        delta_free = space.distance + h * (space.jacobian_t.T @ (v + dv_free))
-        w = h * h * (space.jacobian_t.T @ a_inv_ht)
         coupled = isinstance(contact, CoupledContact)
-        if coupled:
-            g, sc = contact.rigid_jacobian, space.slices["contact"]
-            w[sc, sc] += h * h * (g @ rigid.inverse_mass @ g.T)
-            delta_free[sc] += h * (g @ rigid.twists_free.reshape(-1))
-        problem = CondensedProblem(0.5 * (w + w.T), delta_free, space.slices)
         try:
             lam, contact_report, contact_forces = constraint_forces(
                 ctrl, problem, model, state, contact
             )
         except SolverError as exc:  # a QP that fails is a step that fails, named as such
             raise DivergenceError(f"step {step}: {exc}", step=step, cause="solver") from exc
-        v_new = v + dv_free + h * (a_inv_ht @ lam)
+        dv_free, response = correction
+        v_new = v + dv_free + h * response(lam)
         dq = body.scatter(h * v_new)
         positions = state.positions + dq
         new_velocities = body.scatter(v_new)
         if model.drivers:
             positions = model.drive(positions, state.time + h)
             new_velocities += drive
-        lam_a = lam[space.slices["actuator"]]
+        lam_a = lam[problem.slices["actuator"]]
         new = State(
             positions,
             new_velocities,
@@ -143,7 +144,7 @@ class ImplicitEuler:
         )
         if rigid is not None:
             twists = (
-                rigid.twists(contact.rigid_jacobian, lam[space.slices["contact"]], h, step)
+                rigid.twists(contact.rigid_jacobian, lam[problem.slices["contact"]], h, step)
                 if coupled
                 else rigid.twists_free
             )
@@ -163,6 +164,71 @@ class ImplicitEuler:
             contact=contact_report,
         )
         return new
+
+    def _condense(self, at, roles, contact, rhs, v, rigid):
+        """W and delta_free with every constraint column solved (one factorisation, one block
+        solve); returns the problem and (dv_free, lambda -> A^-1 H^T lambda)."""
+        h = self.dt
+        space = self.model.constraint_space(
+            at, roles=roles, extra=(contact,) if contact is not None else ()
+        )
+        cols = self.system.solve(np.column_stack([rhs, space.jacobian_t]))
+        dv_free, a_inv_ht = cols[:, 0], cols[:, 1:]
+        # delta_free linearised at q with the same H as W, so that a constraint met at rest stays
+        # met exactly (evaluating delta at q_free instead leaves an O(h^2) steady-state bias).
+        delta_free = space.distance + h * (space.jacobian_t.T @ (v + dv_free))
+        w = h * h * (space.jacobian_t.T @ a_inv_ht)
+        if isinstance(contact, CoupledContact):
+            self._add_rigid(w, delta_free, space.slices["contact"], contact, rigid)
+        problem = CondensedProblem(0.5 * (w + w.T), delta_free, space.slices)
+        return problem, (dv_free, lambda lam: a_inv_ht @ lam)
+
+    def _condense_with_points(self, at, roles, contact, rhs, v, rigid):
+        """As `_condense`, with the contact columns read from the colliding points' compliance
+        kept for the factorisation (:mod:`pliant.solvers.compliance`): only the actuator and
+        effector columns are solved at every step."""
+        h, cache = self.dt, self._points
+        space = self.model.constraint_space(at, roles=roles)
+        cols = self.system.solve(np.column_stack([rhs, space.jacobian_t]))
+        dv_free, a_inv_ht = cols[:, 0], cols[:, 1:]
+        coupled = isinstance(contact, CoupledContact)
+        rows = contact.rows if coupled else contact
+        index, frames = rows.contacts.index_a, rows.frames
+        k, n_s, n_c = index.size, space.distance.size, contact.n_rows
+        slots = cache.columns(self.system.solve, self.system.factorisations, index)
+        # Contact rows' products, all through P (the points' displacement rows).
+        block = cache.block(index, slots).reshape(k, 3, k, 3)
+        w_cc = np.einsum("ira,iajb,jsb->irjs", frames, block, frames).reshape(3 * k, 3 * k)
+        w_ca = np.einsum("ira,iaj->irj", frames, cache.read(index, a_inv_ht)).reshape(3 * k, n_s)
+        moved = np.einsum("ira,ia->ir", frames, cache.read(index, v + dv_free)).reshape(-1)
+        w = np.zeros((n_s + n_c, n_s + n_c))
+        w[:n_s, :n_s] = space.jacobian_t.T @ a_inv_ht
+        w[n_s : n_s + 3 * k, :n_s] = w_ca
+        w[:n_s, n_s : n_s + 3 * k] = w_ca.T
+        w[n_s : n_s + 3 * k, n_s : n_s + 3 * k] = w_cc
+        w *= h * h
+        delta_free = np.concatenate(
+            [space.distance + h * (space.jacobian_t.T @ (v + dv_free)), contact.distance(at)]
+        )
+        delta_free[n_s : n_s + 3 * k] += h * moved
+        end = slice(n_s + n_c, n_s + n_c)  # where constraint_space puts an absent role
+        slices = {r: sl if sl.stop > sl.start else end for r, sl in space.slices.items()}
+        slices["contact"] = slice(n_s, n_s + n_c)
+        if coupled:
+            self._add_rigid(w, delta_free, slices["contact"], contact, rigid)
+        problem = CondensedProblem(0.5 * (w + w.T), delta_free, slices)
+
+        def response(lam: np.ndarray) -> np.ndarray:
+            forces = np.einsum("irs,ir->is", frames, lam[n_s : n_s + 3 * k].reshape(k, 3))
+            return a_inv_ht @ lam[:n_s] + cache.apply(slots, forces)
+
+        return problem, (dv_free, response)
+
+    def _add_rigid(self, w, delta_free, rows: slice, contact: CoupledContact, rigid) -> None:
+        """The rigid bodies' share of the contact rows: h^2 G M^-1 G^T and h G u_free."""
+        h, g = self.dt, contact.rigid_jacobian
+        w[rows, rows] += h * h * (g @ rigid.inverse_mass @ g.T)
+        delta_free[rows] += h * (g @ rigid.twists_free.reshape(-1))
 
     def _rigid_step(self, state: State) -> RigidStep | None:
         """The rigid bodies' free motion over the step (None without rigid bodies)."""

@@ -22,9 +22,11 @@ from __future__ import annotations
 from typing import Literal
 
 import numpy as np
+import scipy.sparse as sp
 
 from pliant.errors import SolverError
 from pliant.fem.body import Linearisation, TetBody
+from pliant.fem.sparsity import StiffnessPattern
 from pliant.solvers.linear import SparseCholesky, block_pcg, sparse_cholesky
 
 TangentPolicy = Literal["fresh", "pcg", "lagged"]
@@ -40,7 +42,15 @@ class LinearisedSystem:
         refactor_iterations: int = 6,
         lag_tolerance: float = 0.02,
         max_iterations: int = 200,
+        extra_pattern: tuple[np.ndarray, np.ndarray] | None = None,
+        exact_tangent: bool = False,
     ) -> None:
+        """`extra_pattern`: free-DoF (rows, cols) of further entries added to A at each
+        factorisation (:meth:`prepare`'s `extra` values, one per pair; duplicates add up), e.g.
+        the cables' geometric stiffness; the pattern must be symmetric.
+        `exact_tangent`: factorise the exact material tangent (the corotational one with the
+        variation of the rotation) rather than SOFA's; where that matrix is not positive
+        definite, the factorisation falls back to SOFA's tangent (`last_fallback`)."""
         if policy not in ("fresh", "pcg", "lagged"):
             raise SolverError(f"tangent policy must be 'fresh', 'pcg' or 'lagged', got {policy!r}")
         self.body = body
@@ -57,13 +67,28 @@ class LinearisedSystem:
         self._refactor_next = False
         self.factorisations = 0
         self.last_iterations = 0
+        self.extra = None
+        self.exact_tangent = exact_tangent
+        self.last_fallback = False
+        self._extra_pattern = extra_pattern
+        self._merged = None if extra_pattern is None else _merge(body.pattern, *extra_pattern)
 
     def invalidate(self) -> None:
         """Forget the factorisation (after a state restore, to stay reproducible)."""
         self._factor_valid = False
 
-    def prepare(self, lin: Linearisation, mass_coef: float, stiffness_coef: float) -> None:
-        """Set the linearisation of the next solves: A = mass_coef M + stiffness_coef K_s."""
+    def prepare(
+        self,
+        lin: Linearisation,
+        mass_coef: float,
+        stiffness_coef: float,
+        extra: np.ndarray | None = None,
+    ) -> None:
+        """Set the linearisation of the next solves: A = mass_coef M + stiffness_coef K_s
+        (+ the `extra` entries on the extra pattern, scaled by stiffness_coef)."""
+        if (extra is None) != (self._merged is None):
+            raise SolverError("extra entries need the extra pattern given to the system, and back")
+        self.extra = extra
         self.lin = lin
         self.mass_coef = mass_coef
         self.stiffness_coef = stiffness_coef
@@ -81,12 +106,15 @@ class LinearisedSystem:
             self.refactorise()
 
     def refactorise(self) -> None:
-        body = self.body
-        data = self.stiffness_coef * body.stiffness_data(self.lin) + self.mass_coef * body.mass_data
-        if self._cholesky is None:
-            self._cholesky = sparse_cholesky(body.pattern.indptr, body.pattern.indices)
         self._factor_valid = False
-        self._cholesky.factorize(data)
+        self.last_fallback = False
+        if self.exact_tangent:
+            try:
+                self._factorise(self._assemble(exact=True))
+            except SolverError:
+                self.last_fallback = True
+        if not self.exact_tangent or self.last_fallback:
+            self._factorise(self._assemble(exact=False))
         self._factor_valid = True
         self._factor_frames = self.lin.frames.copy()
         self._factor_coefs = (self.mass_coef, self.stiffness_coef)
@@ -94,9 +122,39 @@ class LinearisedSystem:
         self._refactor_next = False
         self.factorisations += 1
 
+    def _assemble(self, *, exact: bool) -> np.ndarray:
+        """Values of A on the system's pattern (the body's, merged with the extra one)."""
+        body = self.body
+        data = self.stiffness_coef * body.stiffness_data(self.lin, exact=exact)
+        data += self.mass_coef * body.mass_data
+        if self._merged is None:
+            return data
+        _, indices, body_slots, extra_slots = self._merged
+        merged = np.zeros(indices.size)
+        merged[body_slots] = data
+        merged += self.stiffness_coef * np.bincount(
+            extra_slots, weights=self.extra, minlength=indices.size
+        )
+        return merged
+
+    def _factorise(self, data: np.ndarray) -> None:
+        if self._cholesky is None:
+            pattern = self.body.pattern
+            indptr, indices = (
+                (pattern.indptr, pattern.indices) if self._merged is None else self._merged[:2]
+            )
+            self._cholesky = sparse_cholesky(indptr, indices)
+        self._cholesky.factorize(data)
+
     def apply(self, u: np.ndarray) -> np.ndarray:
         """A u with the current tangent (matrix-free)."""
-        out = self.stiffness_coef * self.body.stiffness_matvec(self.lin, u)
+        exact = self.exact_tangent and not self.last_fallback
+        out = self.stiffness_coef * self.body.stiffness_matvec(self.lin, u, exact=exact)
+        if self._merged is not None:
+            rows, cols = self._extra_pattern
+            n = self.body.n_free
+            extra = sp.csr_matrix((self.extra, (rows, cols)), shape=(n, n))
+            out += self.stiffness_coef * (extra @ u)
         if self.mass_coef:
             out += self.mass_coef * self.body.mass_matvec(u)
         return out
@@ -123,3 +181,18 @@ class LinearisedSystem:
         if not np.all(np.isfinite(x)):
             raise SolverError("the linear solve produced non-finite values")
         return x[:, 0] if rhs.ndim == 1 else x
+
+
+def _merge(pattern: StiffnessPattern, rows: np.ndarray, cols: np.ndarray):
+    """The union of a stiffness pattern and extra (row, col) entries: the merged CSR pattern
+    (indptr, indices) and the slot of each of the pattern's entries and of each extra entry."""
+    n = pattern.n_free
+    body_rows = np.repeat(np.arange(n), np.diff(pattern.indptr))
+    body_keys = body_rows.astype(np.int64) * n + pattern.indices
+    extra_keys = np.asarray(rows, dtype=np.int64) * n + np.asarray(cols, dtype=np.int64)
+    keys = np.union1d(body_keys, extra_keys)
+    indptr = np.zeros(n + 1, dtype=np.int32)
+    np.add.at(indptr, keys // n + 1, 1)
+    np.cumsum(indptr, out=indptr)
+    indices = (keys % n).astype(np.int32)
+    return indptr, indices, np.searchsorted(keys, body_keys), np.searchsorted(keys, extra_keys)

@@ -1,0 +1,111 @@
+"""Compliance of a body's contact points, kept for the life of one factorisation.
+
+A contact row is a frame direction applied to the displacement of a point carried by the body,
+p = sum_a w_a x_a, so the contact block of H is H_c = F P, with F the block diagonal of the
+contacts' frames (3 x 3 each) and P the rows that read the points (3 per point). Every product
+the step needs follows from Z_p = A^-1 P_p^T, three columns per point:
+
+    H_c A^-1 H_c^T = F (P Z) F^T,   H_c A^-1 H_a^T = F P (A^-1 H_a^T),   A^-1 H_c^T l = Z F^T l.
+
+While the factorisation of A is unchanged (the lagged tangent keeps it over many steps), Z_p is
+too; it is solved once for each point when the point first comes into contact, instead of three
+columns per contact at every step. Those are the same numbers: the results differ from solving
+all columns at every step only by round-off.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from pliant.constraints.base import EmbeddedPoints
+
+
+class PointCompliance:
+    """Columns Z_p = A^-1 P_p^T of embedded points for the current factorisation.
+
+    Args:
+        points: the points (a model's colliding points).
+        free_index: full DoF -> free DoF (-1 for a fixed DoF), the body's `free_index`.
+    """
+
+    def __init__(self, points: EmbeddedPoints, free_index: np.ndarray) -> None:
+        self.points = points
+        # Free DoF of (point, node, axis), -1 where the node is held.
+        self._dofs = free_index[3 * points.nodes[:, :, None] + np.arange(3)]
+        self._weights = np.where(self._dofs >= 0, points.weights[:, :, None], 0.0)
+        self.n_free = int(np.count_nonzero(free_index >= 0))
+        self._slot = np.full(len(points), -1, dtype=np.int64)
+        self._store = np.zeros((self.n_free, 0), order="F")
+        self._used = 0
+        self._factorisation: int | None = None
+        self.solved_points = 0
+
+    def reset(self) -> None:
+        """Forget every column (the factorisation changed)."""
+        self._slot[:] = -1
+        self._used = 0
+
+    def columns(self, solve, factorisation: int, index: np.ndarray) -> np.ndarray:
+        """Slots of the points `index` in `store`, solving the missing ones with `solve`
+        (A^-1 of the factorisation numbered `factorisation`)."""
+        if factorisation != self._factorisation:
+            self.reset()
+            self._factorisation = factorisation
+        missing = np.unique(index[self._slot[index] < 0])
+        if missing.size:
+            rhs = np.zeros((self.n_free, 3 * missing.size), order="F")
+            for axis in range(3):
+                dofs = self._dofs[missing, :, axis]  # (k, 4)
+                cols = (3 * np.arange(missing.size) + axis)[:, None]
+                keep = dofs >= 0
+                np.add.at(
+                    rhs,
+                    (dofs[keep], np.broadcast_to(cols, dofs.shape)[keep]),
+                    self._weights[missing, :, axis][keep],
+                )
+            z = solve(rhs)
+            need = self._used + missing.size
+            if 3 * need > self._store.shape[1]:
+                width = 3 * max(need, 2 * self._store.shape[1] // 3)
+                grown = np.zeros((self.n_free, width), order="F")
+                grown[:, : 3 * self._used] = self._store[:, : 3 * self._used]
+                self._store = grown
+            self._store[:, 3 * self._used : 3 * need] = z
+            self._slot[missing] = np.arange(self._used, need)
+            self._used = need
+            self.solved_points += missing.size
+        return self._slot[index]
+
+    @property
+    def store(self) -> np.ndarray:
+        """(n_free, 3 * slots) columns; slot s holds the point's three columns 3s..3s+2."""
+        return self._store[:, : 3 * self._used]
+
+    def read(self, index: np.ndarray, values: np.ndarray) -> np.ndarray:
+        """P_p values for each point of `index`: (k, 3, ...) from free-DoF values (n_free, ...)."""
+        dofs = self._dofs[index]  # (k, 4, 3)
+        gathered = values[np.where(dofs >= 0, dofs, 0)]  # (k, 4, 3, ...)
+        w = self._weights[index]
+        w = w.reshape(w.shape + (1,) * (gathered.ndim - 3))
+        return np.sum(w * gathered, axis=1)
+
+    def block(self, index: np.ndarray, slots: np.ndarray) -> np.ndarray:
+        """P A^-1 P^T between the points of `index`: (3k, 3k)."""
+        k = index.size
+        cols = (3 * slots[:, None] + np.arange(3)).reshape(-1)
+        dofs = self._dofs[index]  # (k, 4, 3)
+        rows = self._store[np.where(dofs >= 0, dofs, 0).reshape(-1)][:, cols]
+        w = self._weights[index].reshape(k, 4, 3, 1)
+        return np.sum(w * rows.reshape(k, 4, 3, 3 * k), axis=1).reshape(3 * k, 3 * k)
+
+    def apply(self, slots: np.ndarray, forces: np.ndarray) -> np.ndarray:
+        """A^-1 P^T f for point forces `forces` (k, 3) on the points held in `slots`."""
+        used, where = np.unique(slots, return_inverse=True)
+        if 2 * used.size >= self._used:  # most kept columns are in use: no copy
+            f = np.zeros((self._used, 3))
+            np.add.at(f, slots, forces)
+            return self.store @ f.reshape(-1)
+        f = np.zeros((used.size, 3))
+        np.add.at(f, where, forces)
+        cols = (3 * used[:, None] + np.arange(3)).reshape(-1)
+        return self._store[:, cols] @ f.reshape(-1)
