@@ -277,3 +277,58 @@ def test_kept_point_compliance_gives_the_problem_of_solving_every_column(with_ri
         state = new
     assert checked > 30
     assert kept.system.factorisations > 1  # columns were renewed with the factorisation
+
+
+def test_object_effector_rows_predict_the_carried_object_exactly(monkeypatch) -> None:
+    """A rigid box resting on a soft cube whose cable pulls: the rows of an effector on the box
+    in the step's condensed problem, W_e lambda + delta_e_free (coupled to the contacts by
+    h^2 J M^-1 G^T), equal the box's centre after the step, to round-off."""
+    from dataclasses import dataclass
+
+    from pliant.constraints.base import EmbeddedPoints
+    from pliant.constraints.cable import CableActuator
+    from pliant.constraints.control import DirectControl
+    from pliant.constraints.effector import RigidEffector
+    from pliant.fem.rigid import RigidBody
+    from pliant.solvers import implicit_euler
+
+    @dataclass
+    class WithObjectRows(DirectControl):
+        roles = ("actuator", "effector")  # the effector rows condensed, yet passive
+
+    chosen = []
+    forces = implicit_euler.constraint_forces
+
+    def recorded(*args):
+        out = forces(*args)
+        chosen.append(out[0])
+        return out
+
+    monkeypatch.setattr(implicit_euler, "constraint_forces", recorded)
+    body = _cube(lift=0.5).body
+    path = EmbeddedPoints(body.mesh, [[2.0, 10.0, 18.0], [18.0, 10.0, 18.0]])
+    cable = CableActuator(path, body.rest_positions, pull_point=[-5.0, 10.0, 18.0], mode="force")
+    box = RigidBody(Box([4.0, 4.0, 2.0], position=[10.0, 10.0, 22.6]), 0.002, friction=0.8)
+    goal = np.array([6.0, 9.0, 22.0])
+    target = RigidEffector(box, goal=goal, weight=2.0)
+    model = Model(
+        body,
+        actuators=[cable],
+        effectors=[target],
+        contacts=Contacts([Plane()], friction=0.5, margin=1.0),
+        rigid_bodies=[box],
+    )
+    solver = ImplicitEuler(model, 0.01)
+    state = model.rest_state()
+    coupled = 0
+    for i in range(60):
+        new = solver.step(state, WithObjectRows(np.array([min(1.0 * i, 40.0)])))
+        problem = solver.last_report.problem
+        se, sc = problem.slices["effector"], problem.slices["contact"]
+        predicted = problem.compliance[se] @ chosen[-1] + problem.free_distance[se]
+        assert np.abs(predicted - 2.0 * (new.rigid_positions[0] - goal)).max() < 1e-9
+        assert np.allclose(model.distances(new.positions)[model.n_actuators :], predicted)
+        coupled += bool(np.any(problem.compliance[se, sc]))
+        state = new
+    assert coupled > 30  # the box rested on the cube: its rows were coupled to the contacts
+    assert abs(state.rigid_positions[0, 0] - 10.0) > 0.01  # the pulled cube carried it

@@ -72,3 +72,73 @@ class PositionEffector(Constraint):
             values[:, j, :, ax] = self.weight * self.points.weights
         nodes = np.repeat(self.points.nodes[:, None, :], na, axis=1)
         return JacobianRows(nodes.reshape(k * na, 4), values.reshape(k * na, 4, 3))
+
+
+class RigidEffector(Constraint):
+    """The centre of a rigid body of the model that should reach a goal: an object that the
+    robot moves by contact (QPCC, Eq. 2.15 with complementarity).
+
+    delta_e = weight (c - c_goal) on the selected axes, c the body's centre of mass. The rows
+    have no Jacobian on the deformable body: over a step, c moves by h v, with v the body's
+    velocity u = u_free + h M^-1 G^T lambda_c, so that the dynamic step
+    (:class:`pliant.solvers.ImplicitEuler`) adds h J u_free to delta_free and the coupling
+    h^2 J M^-1 G^T with the contact rows (and h^2 J M^-1 J^T to the effector block): the
+    inverse problem sees the object move when, and only when, the robot's contacts push it.
+
+    Args:
+        body: one of the model's rigid bodies (:class:`pliant.fem.rigid.RigidBody`).
+        goal: (3,) goal of its centre (default: its initial position).
+        axes, weight: as :class:`PositionEffector`.
+    """
+
+    role = "effector"
+
+    def __init__(
+        self,
+        body,
+        *,
+        goal: np.ndarray | None = None,
+        axes: tuple[bool, bool, bool] = (True, True, True),
+        weight: float = 1.0,
+        name: str = "object",
+    ) -> None:
+        self.name = name
+        self.body = body
+        self.axes = np.flatnonzero(np.asarray(axes, dtype=bool))
+        if self.axes.size == 0 or len(axes) != 3:
+            raise ConstraintError(f"{name}: axes must select at least one of x, y, z")
+        if not (np.isfinite(weight) and weight > 0):
+            raise ConstraintError(f"{name}: weight must be finite and > 0, got {weight!r}")
+        self.weight = float(weight)
+        self.centre = np.asarray(body.position, dtype=float).copy()
+        self.goals = self.centre if goal is None else goal
+
+    @property
+    def goals(self) -> np.ndarray:
+        return self._goals
+
+    @goals.setter
+    def goals(self, goals: np.ndarray) -> None:
+        g = np.asarray(goals, dtype=float)
+        if g.size != 3 or not np.all(np.isfinite(g)):
+            raise ConstraintError(f"{self.name}: the goal must be 3 finite numbers, got {goals!r}")
+        self._goals = g.reshape(1, 3)
+
+    @property
+    def n_rows(self) -> int:
+        return int(self.axes.size)
+
+    def distance(self, x: np.ndarray) -> np.ndarray:
+        """At the body's centre last set by the solver (`centre`, the step's start)."""
+        return self.weight * (self.centre - self._goals[0])[self.axes]
+
+    def jacobian(self, x: np.ndarray) -> JacobianRows:
+        return JacobianRows(
+            np.zeros((self.n_rows, 1), dtype=np.int64), np.zeros((self.n_rows, 1, 3))
+        )
+
+    def twist_rows(self, index: int, n_bodies: int) -> np.ndarray:
+        """(rows, 6 n_bodies): d delta_e / d(h u), the rows' dependence on the twists."""
+        rows = np.zeros((self.n_rows, 6 * n_bodies))
+        rows[np.arange(self.n_rows), 6 * index + self.axes] = self.weight
+        return rows

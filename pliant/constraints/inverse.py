@@ -249,6 +249,8 @@ def solve_inverse_with_contacts(
         else np.where(np.asarray(initial_active, dtype=bool), 1, 0)
     )
     big = 1e20
+    tried_closing = np.zeros(nc, dtype=bool)
+    mu = None
     for rounds in range(1, max_rounds + 1):
         eq_rows, eq_rhs, in_rows, in_lo, in_hi = [], [], [], [], []
         box_lo, box_hi = np.full(n, -big), np.full(n, big)
@@ -279,20 +281,36 @@ def solve_inverse_with_contacts(
                     in_rows.append(row)
                     in_lo.append(-big)
                     in_hi.append(0.0)
-        qp = _dense_qp(n, len(eq_rows), len(in_rows), tolerance, max_iterations)
+        # Open contacts carry no force: their unknowns are left out of the QP (fixing them by
+        # equal box bounds stalls ProxQP), only their delta_n >= 0 rows stay.
+        keep = np.ones(n, dtype=bool)
+        for k in np.flatnonzero(state == 0):
+            keep[normal[k] : normal[k] + 3] = False
+        qp = _dense_qp(int(keep.sum()), len(eq_rows), len(in_rows), tolerance, max_iterations)
         qp.init(
-            hess,
-            grad,
-            np.array(eq_rows) if eq_rows else None,
+            hess[np.ix_(keep, keep)],
+            grad[keep],
+            np.array(eq_rows)[:, keep] if eq_rows else None,
             np.array(eq_rhs) if eq_rows else None,
-            np.array(in_rows),
+            np.array(in_rows)[:, keep],
             np.array(in_lo),
             np.array(in_hi),
-            box_lo,
-            box_hi,
+            box_lo[keep],
+            box_hi[keep],
         )
         qp.solve()
         if qp.results.info.status != proxqp.QPSolverOutput.PROXQP_SOLVED:
+            untried = (state == 0) & ~tried_closing
+            falling = untried & (d_rows[normal] < 0.0)
+            if np.any(untried):
+                # Open contacts that the motion carries into the obstacle (an object falling
+                # on the robot) and the actuators cannot keep open: close those the free
+                # motion closes, then, if that is not enough, the others (each contact once;
+                # the rounds reopen those that end up pulling).
+                closing = falling if np.any(falling) else untried
+                state[closing] = 1
+                tried_closing |= closing
+                continue
             if np.any(state == 1):
                 # Sticking everywhere needs more friction than the pyramids allow: let the
                 # closed contacts slide and try again.
@@ -308,7 +326,8 @@ def solve_inverse_with_contacts(
                 f"the inverse problem with {nc} contacts has no solution for the contact states"
                 f" of round {rounds} (ProxQP: {qp.results.info.status})"
             )
-        mu = qp.results.x
+        mu = np.zeros(n)
+        mu[keep] = qp.results.x
         delta = w_rows @ mu + d_rows
         scale = tolerance * max(1.0, float(np.abs(delta).max()))
         new = state.copy()
@@ -325,6 +344,11 @@ def solve_inverse_with_contacts(
         if np.array_equal(new, state):
             break
         state = new
+    if mu is None:
+        raise InfeasibleProblemError(
+            f"the inverse problem with {nc} contacts found no contact states with a solution in"
+            f" {max_rounds} rounds"
+        )
     forces = np.zeros(d.size)
     forces[rows] = mu / c
     forces[sa] = np.clip(forces[sa], lo, hi)

@@ -36,8 +36,9 @@ import numpy as np
 from pliant.constraints.condensed import CondensedProblem
 from pliant.constraints.contact import CoupledContact
 from pliant.constraints.control import as_control, constraint_forces
+from pliant.constraints.effector import RigidEffector
 from pliant.constraints.friction import ContactReport, ContactSolution
-from pliant.errors import DivergenceError, SolverError
+from pliant.errors import DivergenceError, ModelError, SolverError
 from pliant.fem.rigid import RigidStep, integrate_poses
 from pliant.model import Model, State
 from pliant.solvers.base import StepReport, check_linearisation, check_motion
@@ -109,6 +110,7 @@ class ImplicitEuler:
         if a_m != 1.0:
             rhs -= (a_m - 1.0) * body.mass_matvec(v)
         roles = getattr(ctrl, "roles", None)
+        self._place_objects(rigid)
         try:
             self.system.prepare(lin, a_m, a_k)
             if contact is not None and self._points is not None and self.system.policy != "pcg":
@@ -153,6 +155,7 @@ class ImplicitEuler:
             )
             new.rigid_velocities = twists[:, :3].copy()
             new.rigid_angular_velocities = twists[:, 3:].copy()
+            self._place_objects(new)
         check_motion(new.positions, new.velocities, dq, self._size, step, h)
         if model.contacts is not None:
             model.contacts.check_travel(dq, step)
@@ -180,6 +183,7 @@ class ImplicitEuler:
         w = h * h * (space.jacobian_t.T @ a_inv_ht)
         if isinstance(contact, CoupledContact):
             self._add_rigid(w, delta_free, space.slices["contact"], contact, rigid)
+        self._add_objects(w, delta_free, space.slices, contact, rigid)
         problem = CondensedProblem(0.5 * (w + w.T), delta_free, space.slices)
         return problem, (dv_free, lambda lam: a_inv_ht @ lam)
 
@@ -216,6 +220,7 @@ class ImplicitEuler:
         slices["contact"] = slice(n_s, n_s + n_c)
         if coupled:
             self._add_rigid(w, delta_free, slices["contact"], contact, rigid)
+        self._add_objects(w, delta_free, slices, contact, rigid)
         problem = CondensedProblem(0.5 * (w + w.T), delta_free, slices)
 
         def response(lam: np.ndarray) -> np.ndarray:
@@ -229,6 +234,51 @@ class ImplicitEuler:
         h, g = self.dt, contact.rigid_jacobian
         w[rows, rows] += h * h * (g @ rigid.inverse_mass @ g.T)
         delta_free[rows] += h * (g @ rigid.twists_free.reshape(-1))
+
+    def _objects(self) -> list[tuple[int, RigidEffector]]:
+        """(row offset among the effector rows, effector) of each rigid-body effector."""
+        found, row = [], 0
+        for effector in self.model.effectors:
+            if isinstance(effector, RigidEffector):
+                found.append((row, effector))
+            row += effector.n_rows
+        return found
+
+    def _place_objects(self, rigid) -> None:
+        """Give the rigid-body effectors their body's centre (`rigid`: a RigidStep or State)."""
+        if rigid is None:
+            return
+        centres = getattr(rigid, "rigid_positions", None)
+        centres = rigid.positions if centres is None else centres
+        for _, effector in self._objects():
+            effector.centre = centres[self._body_index(effector)].copy()
+
+    def _body_index(self, effector: RigidEffector) -> int:
+        for i, body in enumerate(self.model.rigid_bodies):
+            if body is effector.body:
+                return i
+        raise ModelError(f"{effector.name}: its rigid body is not one of the model's")
+
+    def _add_objects(self, w, delta_free, slices, contact, rigid) -> None:
+        """Rows of rigid-body effectors: delta_e += h J u_free; W gains h^2 J M^-1 J^T and,
+        with contacts on rigid bodies, h^2 J M^-1 G^T (see RigidEffector)."""
+        se = slices["effector"]
+        objects = self._objects() if se.stop > se.start else []
+        if not objects:
+            return
+        h, n_bodies = self.dt, len(self.model.rigid_bodies)
+        rows = np.zeros((se.stop - se.start, 6 * n_bodies))
+        for offset, effector in objects:
+            block = effector.twist_rows(self._body_index(effector), n_bodies)
+            rows[offset : offset + effector.n_rows] = block
+        m_inv = rigid.inverse_mass
+        delta_free[se] += h * (rows @ rigid.twists_free.reshape(-1))
+        w[se, se] += h * h * (rows @ m_inv @ rows.T)
+        if isinstance(contact, CoupledContact):
+            sc = slices["contact"]
+            coupling = h * h * (rows @ m_inv @ contact.rigid_jacobian.T)
+            w[se, sc] += coupling
+            w[sc, se] += coupling.T
 
     def _rigid_step(self, state: State) -> RigidStep | None:
         """The rigid bodies' free motion over the step (None without rigid bodies)."""
