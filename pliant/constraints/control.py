@@ -17,7 +17,7 @@ from pliant.constraints.friction import (
     solve_contact,
 )
 from pliant.constraints.inverse import solve_inverse, solve_inverse_with_contacts
-from pliant.errors import ContactConvergenceWarning, ModelError
+from pliant.errors import ContactConvergenceWarning, InfeasibleProblemError, ModelError
 
 
 @dataclass
@@ -87,30 +87,69 @@ class InverseControl:
     def actuation_with_contacts(
         self, problem: CondensedProblem, model, state, contact: ContactConstraint
     ) -> ContactSolution:
-        """Actuator and contact forces of the QP with complementarity (Eq. 2.15 with contacts),
-        the contacts seeded closed where they carried a force at the previous step."""
-        previous = state.contact_forces.warm_start(contact.contacts).reshape(-1, 3)
+        """Actuator forces from the QP with complementarity (Eq. 2.15 with contacts), the
+        contacts seeded closed where they carried a force at the previous step; then the
+        contact forces for those actuator forces from the Signorini-Coulomb solve, as in a
+        direct step. The QP's own contact forces are its model of the contacts' response; the
+        physics applied is the contact law's, so a QP whose contact states do not settle (or
+        find no solution: the actuators then keep the previous step's forces) warns but
+        never applies forces that pull on a contact or let it sink."""
+        sa, sc = problem.slices["actuator"], problem.slices["contact"]
+        previous = state.contact_forces.warm_start(contact.contacts)
         touching = contact.contacts.gap <= model.contacts.tolerance
-        closed = touching & (previous[:, 0] > 0.0) | (contact.contacts.gap <= 0.0)
-        sol = solve_inverse_with_contacts(
-            problem,
-            model.actuators,
-            state.displacement,
-            contact.friction,
-            regularisation=self.regularisation,
-            initial_active=closed,
-        )
-        residual = 0.0 if sol.settled else float("inf")
-        report = ContactReport(sol.rounds, residual, sol.settled)
-        if not sol.settled:
+        closed = touching & (previous.reshape(-1, 3)[:, 0] > 0.0) | (contact.contacts.gap <= 0.0)
+        try:
+            sol = solve_inverse_with_contacts(
+                problem,
+                model.actuators,
+                state.displacement,
+                contact.friction,
+                regularisation=self.regularisation,
+                initial_active=closed,
+            )
+            actuation, rounds, settled = sol.forces[sa], sol.rounds, sol.settled
+        except InfeasibleProblemError as exc:
+            if state.actuation.size != sa.stop - sa.start:
+                raise
+            actuation, rounds, settled = state.actuation.copy(), 0, False
             warnings.warn(
-                f"the contact states of the inverse problem did not settle in {sol.rounds}"
-                " rounds; the last round's forces are applied",
+                f"{exc}; the actuators keep the previous step's forces",
                 ContactConvergenceWarning,
                 stacklevel=3,
             )
+        else:
+            if not settled:
+                warnings.warn(
+                    f"the contact states of the inverse problem did not settle in {rounds}"
+                    " rounds; its last round's actuator forces are applied",
+                    ContactConvergenceWarning,
+                    stacklevel=3,
+                )
         w, d = problem.compliance, problem.free_distance
-        return ContactSolution(sol.forces, w @ sol.forces + d, report, problem.slices)
+        held = CondensedProblem(
+            w[sc, sc],
+            d[sc] + w[sc, sa] @ actuation,
+            {
+                "actuator": slice(0, 0),
+                "effector": slice(0, 0),
+                "contact": slice(0, sc.stop - sc.start),
+            },
+        )
+        response = solve_contact(
+            held,
+            contact.friction,
+            initial=previous,
+            tolerance=model.contacts.tolerance,
+            max_iterations=model.contacts.max_iterations,
+        )
+        forces = np.zeros(d.size)
+        forces[sa], forces[sc] = actuation, response.forces
+        report = ContactReport(
+            response.report.iterations,
+            response.report.residual,
+            settled and response.report.converged,
+        )
+        return ContactSolution(forces, w @ forces + d, report, problem.slices)
 
     def actuation(self, problem: CondensedProblem, model, state) -> np.ndarray:
         sol = solve_inverse(
