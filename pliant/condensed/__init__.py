@@ -5,6 +5,9 @@ Data flow: :mod:`~pliant.condensed.collect` solves the robot at sampled displace
 designs) into a :class:`~pliant.condensed.dataset.Dataset`; :mod:`~pliant.condensed.train` fits
 the networks F and G on it; :class:`~pliant.condensed.learned.LearnedCondensedModel` predicts
 condensed problems, :mod:`~pliant.condensed.control` controls with them;
+:class:`~pliant.condensed.contact.ContactRobot` holds fixed contact points (§5.1.4) and
+:mod:`~pliant.condensed.manipulation` controls objects held by them (Eq. 5.10-5.13,
+Algorithm 1);
 :class:`~pliant.condensed.parametric.ParametricCondensedModel` (F after G) is differentiated by
 :mod:`~pliant.condensed.calibration` and :mod:`~pliant.condensed.design`. torch and h5py are
 needed (``pip install 'pliant[learn]'``).
@@ -26,6 +29,11 @@ _WHERE = {
     "design_study": "design",
     "WarmInverse": "control",
     "CollectionPlan": "dataset",
+    "ContactRobot": "contact",
+    "Grasp": "manipulation",
+    "ManipulationController": "manipulation",
+    "RigidObject": "manipulation",
+    "follow_object": "manipulation",
     "Dataset": "dataset",
     "Layout": "layout",
     "LearnedCondensedModel": "learned",

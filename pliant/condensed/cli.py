@@ -34,7 +34,9 @@ def _fail(exc: Exception) -> typer.Exit:
     return typer.Exit(1)
 
 
-def _number_or_text(text: str) -> float | int | str:
+def _number_or_text(text: str) -> float | int | str | list:
+    if "," in text:  # a vector, e.g. gravity=9810,0,0
+        return [_number_or_text(part) for part in text.split(",")]
     for kind in (int, float):
         try:
             return kind(text)
@@ -86,6 +88,26 @@ def collect(
         float, typer.Option(help="largest command change per static step (halved on failure)")
     ] = 8.0,
     chunk_size: Annotated[int, typer.Option(help="samples per saved chunk")] = 16,
+    contacts: Annotated[
+        str, typer.Option(help="mesh landmark of fixed contact points (§5.1.4), held and recorded")
+    ] = "",
+    object_: Annotated[
+        list[str] | None,
+        typer.Option(
+            "--object",
+            help="LOW:HIGH of the held object's displacement: x, y, z (then rotation vector)",
+        ),
+    ] = None,
+    sampling: Annotated[
+        str, typer.Option(help="box (Halton over the bounds) or gripper (inverse control)")
+    ] = "box",
+    consistent_tangent: Annotated[
+        bool,
+        typer.Option(
+            "--consistent-tangent/--material-tangent",
+            help="W of the consistent tangent, or of SOFA's material tangent (the thesis')",
+        ),
+    ] = True,
     workers: Annotated[
         int | None, typer.Option(help="local processes (default: one per CPU)")
     ] = None,
@@ -93,6 +115,9 @@ def collect(
 ) -> None:
     """Sample ROBOT's actuator displacements (scrambled Halton), solve each, write OUT.
 
+    With --contacts, the contact points are held too, displaced rigidly by --object from where
+    the actuators put them; --sampling gripper samples only the object's displacement, a cube
+    held by three of the robot, the actuation found by inverse control (--bounds bound it).
     Rerun the same command to resume an interrupted collection.
     """
     from pliant.condensed.collect import collect as run_collection
@@ -117,9 +142,13 @@ def collect(
             max_increment=max_increment,
             samples_per_design=samples_per_design,
             chunk_size=chunk_size,
+            contacts=contacts,
+            object_bounds=tuple(_interval(b) for b in object_ or []),
+            sampling=sampling,
+            consistent_tangent=consistent_tangent,
         )
         with Progress(console=console) as bar:
-            task = bar.add_task(f"{robot}: equilibria", total=plan.n_train + plan.n_test)
+            task = bar.add_task(f"{robot}: sampled points", total=plan.n_train + plan.n_test)
             dataset = run_collection(
                 plan,
                 out,
@@ -131,7 +160,7 @@ def collect(
         raise _fail(exc) from exc
     failed = {s: int((~dataset.split(s).converged.astype(bool)).sum()) for s in ("train", "test")}
     console.print(
-        f"saved {out}: {plan.n_train} training and {plan.n_test} test samples"
+        f"saved {out}: {len(dataset.train)} training and {len(dataset.test)} test samples"
         f" ({failed['train']} and {failed['test']} did not converge)"
     )
 

@@ -28,12 +28,12 @@ from pathlib import Path
 import numpy as np
 
 from pliant import robots
+from pliant.condensed.contact import ContactRobot, contact_points, failed_row, sample_row
 from pliant.condensed.dataset import SPLITS, CollectionPlan, Dataset, Split, atomic_write
-from pliant.condensed.equilibrium import load_step, rest_equilibrium
 from pliant.condensed.layout import Layout
+from pliant.condensed.manipulation import grasp_chunk
 from pliant.errors import DatasetError, DivergenceError
 from pliant.model import Model
-from pliant.solvers import StaticSolver
 
 ChunkKey = tuple[str, int, int]  # split, first sample, end
 
@@ -57,7 +57,8 @@ def collect(
     out = Path(out)
     if out.exists():
         raise DatasetError(f"{out} already exists; remove it or write the dataset elsewhere")
-    layout = Layout.of(_build(plan.robot, json.dumps(plan.robot_kwargs, sort_keys=True)))
+    model = _build(plan.robot, json.dumps(plan.robot_kwargs, sort_keys=True))
+    layout = Layout.of(model, [contact_points(model, plan.contacts)] if plan.contacts else [])
     parts = _parts_folder(out, plan)
     points = plan.points()
     chunks = [
@@ -116,18 +117,26 @@ def load_or_collect(
 
 
 def solve_chunk(plan: CollectionPlan, points: np.ndarray) -> Split:
-    """Equilibria at consecutive samples (rows: actuator commands, then design parameters).
+    """Equilibria at consecutive samples (rows: actuator commands, the object's displacement,
+    then design parameters; `grasp_chunk` for gripper sampling). With contact points, each
+    sample first releases them at its actuator commands (no contact force), then holds them
+    displaced rigidly from there by the object's displacement: the contact forces stay of the
+    order of that displacement (held at absolute positions, contact points a millimetre away
+    from where the cables take them load the finger with tens of newtons: states no task
+    visits, the thesis' argument for sampling relevant ones).
 
     Every design's effectors get the goals of the plan's base design (`robot_kwargs`), so that
     delta_e measures effector positions from the same point whatever the design.
     """
-    n_act = len(plan.actuator_bounds)
     base_json = json.dumps(plan.robot_kwargs, sort_keys=True)
+    if plan.sampling == "gripper":
+        return grasp_chunk(plan, points, _build(plan.robot, base_json))
+    n_act, n_cmd = len(plan.actuator_bounds), plan.n_commands
     goals = _training_goals(plan.robot, base_json) if plan.design_names else None
     rows: list[dict[str, np.ndarray]] = []
     design = None
     for point in np.atleast_2d(points):
-        command, params = point[:n_act], point[n_act:]
+        command, params = point[:n_cmd], point[n_cmd:]
         if design is None or not np.array_equal(params, design):
             design = params
             kwargs = {
@@ -138,45 +147,28 @@ def solve_chunk(plan: CollectionPlan, points: np.ndarray) -> Split:
             if goals is not None:
                 for effector, goal in zip(model.effectors, goals, strict=True):
                     effector.goals = goal
-            layout = Layout.of(model)
-            solver = StaticSolver(
-                model, tolerance=plan.tolerance, max_iterations=plan.newton_iterations
+            robot = ContactRobot(
+                model,
+                plan.contacts,
+                tolerance=plan.tolerance,
+                max_iterations=plan.newton_iterations,
+                max_increment=plan.max_increment,
+                consistent=plan.consistent_tangent,
             )
-            state = rest_equilibrium(model, solver)
-            w0, free0 = layout.pack(solver.condense(state))
+            state = robot.rest()
+            w0, free0 = robot.layout.pack(robot.problem(state))
         try:
-            state = load_step(model, solver, state, command, plan.max_increment)
+            if plan.contacts:  # the object displaced from where the actuators put the points
+                state = robot.release(state, command[:n_act])
+                held = robot.object_rows(state, command[n_act:])
+                state = robot.solve(state, command[:n_act], held)
+            else:
+                state = robot.solve(state, command)
         except DivergenceError:  # kept NaN; the next sample starts from the last equilibrium
-            rows.append(_failed(command, params, layout))
+            rows.append(failed_row(command, params, robot.layout))
             continue
-        w, free = layout.pack(solver.condense(state))
-        rows.append(
-            {
-                "command": command,
-                "design": params,
-                "delta_a": state.displacement,
-                "delta_c": np.zeros(layout.counts["contact"]),
-                "w_triangle": w,
-                "free_distance": free,
-                "w0_triangle": w0,
-                "free_distance0": free0,
-                "converged": np.array(True),
-            }
-        )
+        rows.append(sample_row(robot, state, command, params, (w0, free0)))
     return Split(**{f.name: np.array([r[f.name] for r in rows]) for f in fields(Split)})
-
-
-def _failed(command: np.ndarray, params: np.ndarray, layout: Layout) -> dict[str, np.ndarray]:
-    nan = {
-        "delta_a": layout.counts["actuator"],
-        "delta_c": layout.counts["contact"],
-        "w_triangle": layout.n_triangle,
-        "free_distance": layout.n_rows,
-        "w0_triangle": layout.n_triangle,
-        "free_distance0": layout.n_rows,
-    }
-    row = {key: np.full(n, np.nan) for key, n in nan.items()}
-    return {**row, "command": command, "design": params, "converged": np.array(False)}
 
 
 @functools.lru_cache(maxsize=1)

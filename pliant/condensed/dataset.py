@@ -31,6 +31,8 @@ from pliant.errors import DatasetError, LearnedModelError
 FORMAT = "pliant-condensed-dataset"
 FORMAT_VERSION = 1
 SPLITS = ("train", "test")
+SAMPLINGS = ("box", "gripper")
+GRIPPER_FINGERS = 3  # fingers of the gripper that "gripper" sampling holds its object with
 
 
 @dataclass(frozen=True)
@@ -58,6 +60,22 @@ class CollectionPlan:
         chunk_size: samples solved in a row by one worker and saved together; each chunk starts
             from the rest equilibrium, which makes chunks independent.
         units: the scene's units, recorded in the file.
+        contacts: mesh landmark of the robot's fixed contact points (§5.1.4), whose
+            displacements delta_c are imposed with the actuators' and recorded; "" for none.
+        object_bounds: (low, high) of the displacement of the object the contact points hold,
+            a translation (3) then optionally a rotation vector (3) about their centroid:
+            sampling "box", from where the actuators alone put the contact points; "gripper",
+            from the cube's pose in the grasp.
+        sampling: "box": the actuator commands (and object displacement) fill their box;
+            "gripper": only the object's displacement is sampled, a cube held by a gripper of
+            GRIPPER_FINGERS copies of the robot, and inverse control with the exact matrices
+            finds the actuation that holds it there (the thesis' contact datasets); every
+            sampled pose gives one sample per finger, and `actuator_bounds` bound the control.
+        consistent_tangent: W of the static solver's consistent tangent (the equilibrium's
+            compliance, with the cables' geometric stiffness), or of SOFA's material tangent,
+            the thesis' W. A finger held at its tip is compressed by its cables: with their
+            geometric stiffness its W grows steeply with their tension, off the states a box
+            of (delta_a, delta_c) samples; the material tangent's W does not.
     """
 
     robot: str
@@ -73,6 +91,10 @@ class CollectionPlan:
     samples_per_design: int = 1
     chunk_size: int = 16
     units: str = "mm, kg, s (forces in mN, W in mm/mN)"
+    contacts: str = ""
+    object_bounds: tuple[tuple[float, float], ...] = ()
+    sampling: str = "box"
+    consistent_tangent: bool = True
 
     def __post_init__(self) -> None:
         if self.n_train < 1 or self.chunk_size < 1:
@@ -91,6 +113,22 @@ class CollectionPlan:
                 f"chunk_size ({self.chunk_size}) must be a multiple of samples_per_design"
                 f" ({self.samples_per_design}): a design split between chunks is built twice"
             )
+        if self.sampling not in SAMPLINGS:
+            raise DatasetError(f"sampling must be one of {SAMPLINGS}, got {self.sampling!r}")
+        if len(self.object_bounds) not in (0, 3, 6):
+            raise DatasetError(
+                "object_bounds bound a translation (3) or a translation and a rotation (6), got"
+                f" {len(self.object_bounds)} intervals"
+            )
+        if self.object_bounds and not self.contacts:
+            raise DatasetError("object_bounds move contact points: name them with `contacts`")
+        if self.sampling == "gripper" and not (self.contacts and self.object_bounds):
+            raise DatasetError(
+                "gripper sampling holds an object by contact points: it needs `contacts` and"
+                " `object_bounds`"
+            )
+        if self.sampling == "gripper" and self.design_bounds:
+            raise DatasetError("gripper sampling is for one design (no design_bounds)")
         _ = self.box  # Box checks the bounds
 
     @property
@@ -98,18 +136,35 @@ class CollectionPlan:
         return round(self.test_fraction * self.n_train)
 
     @property
+    def rows_per_point(self) -> int:
+        """Samples per sampled point: one, or one per finger of the gripper."""
+        return GRIPPER_FINGERS if self.sampling == "gripper" else 1
+
+    @property
+    def n_commands(self) -> int:
+        """Columns of `Split.command`: actuator commands, then the object's displacement."""
+        return len(self.actuator_bounds) + len(self.object_bounds)
+
+    @property
     def design_names(self) -> tuple[str, ...]:
         return tuple(self.design_bounds)
 
     @property
     def box(self) -> Box:
-        """The sampled box: actuator displacements, then design parameters."""
-        bounds = [*self.actuator_bounds, *self.design_bounds.values()]
+        """The sampled box: displacements (`actuator_box`), then design parameters."""
+        bounds = [*self._displacement_bounds, *self.design_bounds.values()]
         return Box([lo for lo, _ in bounds], [hi for _, hi in bounds])
 
     @property
     def actuator_box(self) -> Box:
-        return Box([lo for lo, _ in self.actuator_bounds], [hi for _, hi in self.actuator_bounds])
+        """The sampled displacements: actuators' (sampling "box") and the object's."""
+        bounds = self._displacement_bounds
+        return Box([lo for lo, _ in bounds], [hi for _, hi in bounds])
+
+    @property
+    def _displacement_bounds(self) -> list[tuple[float, float]]:
+        actuators = self.actuator_bounds if self.sampling == "box" else ()
+        return [*actuators, *self.object_bounds]
 
     @property
     def design_box(self) -> Box:
@@ -117,7 +172,8 @@ class CollectionPlan:
         return Box([lo for lo, _ in bounds], [hi for _, hi in bounds])
 
     def points(self) -> dict[str, np.ndarray]:
-        """Per split, one row per sample: actuator commands then design parameters."""
+        """Per split, one row per sampled point: actuator commands (sampling "box"), the
+        object's displacement, then design parameters."""
         if self.samples_per_design == 1:
             return train_test_points(self.box, self.n_train, self.n_test, seed=self.seed)
         return grouped_train_test_points(
@@ -132,6 +188,7 @@ class CollectionPlan:
     def to_dict(self) -> dict:
         data = asdict(self)
         data["actuator_bounds"] = [list(b) for b in self.actuator_bounds]
+        data["object_bounds"] = [list(b) for b in self.object_bounds]
         data["design_bounds"] = {k: list(v) for k, v in self.design_bounds.items()}
         return data
 
@@ -139,7 +196,10 @@ class CollectionPlan:
     def from_dict(cls, data: dict) -> CollectionPlan:
         data = dict(data)
         data["actuator_bounds"] = tuple(tuple(b) for b in data["actuator_bounds"])
+        data["object_bounds"] = tuple(tuple(b) for b in data.get("object_bounds", ()))
         data["design_bounds"] = {k: tuple(v) for k, v in data["design_bounds"].items()}
+        # Plans stored before the field existed were solved with SOFA's material tangent.
+        data.setdefault("consistent_tangent", False)
         return cls(**data)
 
 
@@ -148,7 +208,8 @@ class Split:
     """The samples of one split, one row each.
 
     Attributes:
-        command: imposed actuator displacements (n, n_actuators).
+        command: imposed actuator displacements, then the object's displacement (n,
+            plan.n_commands).
         design: design parameters (n, n_design).
         delta_a, delta_c: reached actuator and contact distances (n, rows).
         w_triangle, free_distance: W's upper triangle and delta_free at the equilibrium.
@@ -191,7 +252,7 @@ class Split:
         """Expected number of columns of each field."""
         counts = layout.counts
         return {
-            "command": counts["actuator"],
+            "command": plan.n_commands,
             "design": len(plan.design_names),
             "delta_a": counts["actuator"],
             "delta_c": counts["contact"],
@@ -289,7 +350,8 @@ class Dataset:
     def validate(self, what: str) -> None:
         """Raise DatasetError unless every field has the plan's rows and the layout's columns
         and the converged samples are finite."""
-        expected_rows = {"train": self.plan.n_train, "test": self.plan.n_test}
+        rows = self.plan.rows_per_point
+        expected_rows = {"train": rows * self.plan.n_train, "test": rows * self.plan.n_test}
         for name in SPLITS:
             split = self.split(name)
             if len(split) != expected_rows[name]:

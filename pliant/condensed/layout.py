@@ -10,11 +10,13 @@ weights and training goals (Eq. 5.6).
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import asdict, dataclass
 from functools import cached_property
 
 import numpy as np
 
+from pliant.constraints.base import Constraint
 from pliant.constraints.condensed import CondensedProblem
 from pliant.errors import LearnedModelError
 from pliant.model import Model
@@ -64,8 +66,9 @@ class Layout:
     cached: the embedded control loop asks for them at every iteration).
 
     Attributes:
-        contacts: (name, rows) of each fixed contact point of §5.1.4, whose displacements
-            delta_c are imposed like the actuators'; none yet (`of` gives none).
+        contacts: (name, rows) of each set of fixed contact points of §5.1.4, whose
+            displacements delta_c are imposed like the actuators'
+            (:class:`~pliant.condensed.contact.ContactRobot`).
     """
 
     actuators: tuple[ActuatorBounds, ...]
@@ -73,9 +76,10 @@ class Layout:
     contacts: tuple[tuple[str, int], ...] = ()
 
     @classmethod
-    def of(cls, model: Model) -> Layout:
-        """The layout of `model`, its effectors' current goals taken as the training goals.
-        (Detected contacts come and go with the configuration: they are not part of it.)"""
+    def of(cls, model: Model, contacts: Sequence[Constraint] = ()) -> Layout:
+        """The layout of `model` with fixed contact points `contacts`, its effectors' current
+        goals taken as the training goals. (Detected contacts come and go with the
+        configuration: they are not part of it.)"""
         actuators = tuple(
             ActuatorBounds(
                 a.name,
@@ -96,7 +100,7 @@ class Layout:
             )
             for e in model.effectors
         )
-        return cls(actuators, effectors)
+        return cls(actuators, effectors, tuple((c.name, c.n_rows) for c in contacts))
 
     @cached_property
     def counts(self) -> dict[str, int]:

@@ -150,8 +150,11 @@ class LearnedCondensedModel:
         return self.layout.unpack(y[: self._triangle], y[self._triangle :])
 
     def problem(self, state: State) -> CondensedProblem:
-        """The condensed problem at a simulated state, from its actuator distances."""
-        return self.predict(state.displacement)
+        """The condensed problem at a simulated state, from its actuator distances (and, for a
+        robot with held contact points, :class:`~pliant.condensed.contact.ContactRobot`, their
+        distances, which follow the actuators')."""
+        n_a = self.layout.counts["actuator"]
+        return self.predict(state.displacement[:n_a], state.displacement[n_a:])
 
     def save(self, path: str | os.PathLike) -> Path:
         path = Path(path)
