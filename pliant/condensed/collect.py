@@ -147,14 +147,7 @@ def solve_chunk(plan: CollectionPlan, points: np.ndarray) -> Split:
             if goals is not None:
                 for effector, goal in zip(model.effectors, goals, strict=True):
                     effector.goals = goal
-            robot = ContactRobot(
-                model,
-                plan.contacts,
-                tolerance=plan.tolerance,
-                max_iterations=plan.newton_iterations,
-                max_increment=plan.max_increment,
-                consistent=plan.consistent_tangent,
-            )
+            robot = ContactRobot.for_plan(model, plan)
             state = robot.rest()
             w0, free0 = robot.layout.pack(robot.problem(state))
         try:

@@ -88,6 +88,19 @@ class ContactRobot:
             CollectionPlan.consistent_tangent).
     """
 
+    @classmethod
+    def for_plan(cls, model: Model, plan) -> ContactRobot:
+        """The robot as a collection plan (:class:`pliant.condensed.dataset.CollectionPlan`)
+        solves it: its contact points and static-solver settings."""
+        return cls(
+            model,
+            plan.contacts,
+            tolerance=plan.tolerance,
+            max_iterations=plan.newton_iterations,
+            max_increment=plan.max_increment,
+            consistent=plan.consistent_tangent,
+        )
+
     def __init__(
         self,
         model: Model,

@@ -607,14 +607,7 @@ def grasp_chunk(plan: CollectionPlan, points: np.ndarray, model: Model) -> Split
     matrices on the exact plant; one sample per finger (its own frame) at the equilibrium
     reached: near the goal, short of it by the linearisation's error over the step and by what
     the QP's least squares trade for the cube's tilt."""
-    robot = ContactRobot(
-        model,
-        plan.contacts,
-        tolerance=plan.tolerance,
-        max_iterations=plan.newton_iterations,
-        max_increment=plan.max_increment,
-        consistent=plan.consistent_tangent,
-    )
+    robot = ContactRobot.for_plan(model, plan)
     grasp = Grasp.gripper(robot)
     rest = robot.layout.pack(robot.problem(grasp.rest_state))
     course = Box([lo for lo, _ in plan.actuator_bounds], [hi for _, hi in plan.actuator_bounds])

@@ -8,6 +8,16 @@ from pliant.constraints.base import Constraint, EmbeddedPoints, JacobianRows
 from pliant.errors import ConstraintError
 
 
+def _axes_and_weight(name: str, axes, weight: float) -> tuple[np.ndarray, float]:
+    """The selected axes' indices and the rows' weight, checked."""
+    picked = np.flatnonzero(np.asarray(axes, dtype=bool))
+    if picked.size == 0 or len(axes) != 3:
+        raise ConstraintError(f"{name}: axes must select at least one of x, y, z")
+    if not (np.isfinite(weight) and weight > 0):
+        raise ConstraintError(f"{name}: weight must be finite and > 0, got {weight!r}")
+    return picked, float(weight)
+
+
 class PositionEffector(Constraint):
     """Points of the body that should reach goals: delta_e = p - p_goal on selected axes (Eq. 2.13).
 
@@ -32,12 +42,7 @@ class PositionEffector(Constraint):
     ) -> None:
         self.name = name
         self.points = points
-        self.axes = np.flatnonzero(np.asarray(axes, dtype=bool))
-        if self.axes.size == 0 or len(axes) != 3:
-            raise ConstraintError(f"{name}: axes must select at least one of x, y, z")
-        if not (np.isfinite(weight) and weight > 0):
-            raise ConstraintError(f"{name}: weight must be finite and > 0, got {weight!r}")
-        self.weight = float(weight)
+        self.axes, self.weight = _axes_and_weight(name, axes, weight)
         self.goals = points.positions(rest_positions) if goals is None else goals
 
     @property
@@ -104,12 +109,7 @@ class RigidEffector(Constraint):
     ) -> None:
         self.name = name
         self.body = body
-        self.axes = np.flatnonzero(np.asarray(axes, dtype=bool))
-        if self.axes.size == 0 or len(axes) != 3:
-            raise ConstraintError(f"{name}: axes must select at least one of x, y, z")
-        if not (np.isfinite(weight) and weight > 0):
-            raise ConstraintError(f"{name}: weight must be finite and > 0, got {weight!r}")
-        self.weight = float(weight)
+        self.axes, self.weight = _axes_and_weight(name, axes, weight)
         self.centre = np.asarray(body.position, dtype=float).copy()
         self.goals = self.centre if goal is None else goal
 
