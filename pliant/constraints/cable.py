@@ -125,10 +125,10 @@ class CableBundle:
         self._row_nodes = np.where(self._valid, self._nodes.reshape(-1)[self._cols], 0)
 
     def distance(self, x: np.ndarray) -> np.ndarray:
-        return self.distance_and_jacobian(x)[0]
+        return self._rows(x)[0]
 
-    def distance_and_jacobian(self, x: np.ndarray) -> tuple[np.ndarray, JacobianRows]:
-        delta, grad = _bundle_rows(
+    def _rows(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        return _bundle_rows(
             np.ascontiguousarray(x, dtype=np.float64),
             self._nodes,
             self._weights,
@@ -138,6 +138,9 @@ class CableBundle:
             self._owner,
             self._rest,
         )
+
+    def distance_and_jacobian(self, x: np.ndarray) -> tuple[np.ndarray, JacobianRows]:
+        delta, grad = self._rows(x)
         values = np.where(self._valid[:, :, None], grad.reshape(-1, 3)[self._cols], 0.0)
         return delta, JacobianRows(self._row_nodes, values)
 

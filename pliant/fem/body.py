@@ -217,8 +217,11 @@ class TetBody:
             else np.ascontiguousarray(velocities, dtype=np.float64)
         )
         m = self.tets.shape[0]
-        elem_forces = np.empty((m, 4, 3))
-        elem_kv = np.empty((m if v.shape[0] else 0, 4, 3))
+        # Forces and K_s v side by side per element node: one gather (one parallel region)
+        # assembles both.
+        elem = np.empty((m, 4, 6 if v.shape[0] else 3))
+        elem_forces = elem[:, :, :3]
+        elem_kv = elem[:, :, 3:] if v.shape[0] else np.empty((0, 4, 3))
         frames = np.empty((m, 3, 3))
         dets = np.empty(m)
         energy = kernels.internal_forces(
@@ -235,12 +238,10 @@ class TetBody:
             frames,
             dets,
         )
-        forces = np.empty_like(x)
-        kernels.gather_nodal(elem_forces, self._incidence_ptr, self._incidence, forces)
-        kv = None
-        if v.shape[0]:
-            kv = np.empty_like(x)
-            kernels.gather_nodal(elem_kv, self._incidence_ptr, self._incidence, kv)
+        nodal = np.empty((x.shape[0], elem.shape[2]))
+        kernels.gather_nodal(elem, self._incidence_ptr, self._incidence, nodal)
+        forces = np.ascontiguousarray(nodal[:, :3])
+        kv = np.ascontiguousarray(nodal[:, 3:]) if v.shape[0] else None
         return Linearisation(x, forces, float(energy), frames, dets, kv)
 
     def stiffness_matvec(

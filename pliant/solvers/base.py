@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -31,6 +32,13 @@ def check_linearisation(lin: Linearisation, step: int, dt: float | None) -> None
         if dt is not None
         else "reduce the load or actuation per static step (load stepping)"
     )
+    if (
+        lin.dets.size
+        and lin.dets.min() > 0.0
+        and math.isfinite(float(lin.forces.sum()))
+        and math.isfinite(lin.energy)
+    ):
+        return  # the usual case, in two passes over the arrays
     if lin.n_inverted:
         first = int(np.flatnonzero(~(lin.dets > 0))[0])
         raise DivergenceError(
@@ -59,7 +67,11 @@ def check_motion(
         if dt is not None
         else "reduce the load or actuation per static step (load stepping)"
     )
-    if not (np.all(np.isfinite(positions)) and np.all(np.isfinite(velocities))):
+    # One pass each; a sum that overflows on finite values is told apart by the full check.
+    finite = math.isfinite(float(positions.sum()) + float(velocities.sum())) or (
+        np.all(np.isfinite(positions)) and np.all(np.isfinite(velocities))
+    )
+    if not finite:
         raise DivergenceError(
             f"step {step}: the state became non-finite; {hint}", step=step, cause="non-finite"
         )
