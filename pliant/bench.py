@@ -126,7 +126,15 @@ def multigait_on_floor(meshes: Path) -> Model:
         mesh, {k: (v.points, v.cells_dict["triangle"]) for k, v in surfaces.items()}
     )
     mesh = TetMesh(mesh.points, mesh.tets, surfaces={f"cavity_{k}": v for k, v in walls.items()})
-    return multigait_robot(mesh=mesh, collision_points=collision)
+    # The material of SPEC §5's bare-body figure (corotational, E = 70, nu = 0.45), so that
+    # the two Multigait rows differ only by the chambers and the floor.
+    return multigait_robot(
+        mesh=mesh,
+        collision_points=collision,
+        material="corotational",
+        young_modulus=70.0,
+        poisson_ratio=0.45,
+    )
 
 
 @dataclass
