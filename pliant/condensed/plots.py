@@ -58,10 +58,7 @@ def plot_reached(
     ax_err.legend()
     if title:
         fig.suptitle(title)
-    fig.tight_layout()
-    with atomic_path(path) as tmp:
-        fig.savefig(tmp, format="png", dpi=150)
-    return Path(path)
+    return _save(fig, path)
 
 
 def plot_forces(
@@ -94,10 +91,7 @@ def plot_forces(
     ax_err.legend()
     if title:
         fig.suptitle(title)
-    fig.tight_layout()
-    with atomic_path(path) as tmp:
-        fig.savefig(tmp, format="png", dpi=150)
-    return Path(path)
+    return _save(fig, path)
 
 
 def plot_history(history: list[dict], path: str | os.PathLike, *, title: str | None = None) -> Path:
@@ -115,10 +109,7 @@ def plot_history(history: list[dict], path: str | os.PathLike, *, title: str | N
     ax.legend()
     if title:
         ax.set_title(title)
-    fig.tight_layout()
-    with atomic_path(path) as tmp:
-        fig.savefig(tmp, format="png", dpi=150)
-    return Path(path)
+    return _save(fig, path)
 
 
 def plot_calibration(
@@ -148,10 +139,7 @@ def plot_calibration(
         ax.legend()
     if title:
         fig.suptitle(title)
-    fig.tight_layout()
-    with atomic_path(path) as tmp:
-        fig.savefig(tmp, format="png", dpi=150)
-    return Path(path)
+    return _save(fig, path)
 
 
 def plot_design_study(study: DesignStudy, folder: str | os.PathLike) -> list[Path]:
@@ -173,10 +161,7 @@ def plot_design_study(study: DesignStudy, folder: str | os.PathLike) -> list[Pat
             ax.set_ylabel(f"{names[j]} [mm]")
             ax.set_title(f"O_{objective}", fontsize=9)
     fig.suptitle("objective landscapes around the grid's best (dot: refined design)")
-    fig.tight_layout()
-    paths.append(folder / "landscapes.png")
-    with atomic_path(paths[-1]) as tmp:
-        fig.savefig(tmp, format="png", dpi=130)
+    paths.append(_save(fig, folder / "landscapes.png", dpi=130))
 
     fig = offscreen_figure(13.0, 3.8 * len(study.refined))
     for row, (objective, result) in enumerate(study.refined.items()):
@@ -193,10 +178,7 @@ def plot_design_study(study: DesignStudy, folder: str | os.PathLike) -> list[Pat
         ax.legend(fontsize=8)
     for ax in fig.axes[-2:]:
         ax.set_xlabel("iteration")
-    fig.tight_layout()
-    paths.append(folder / "refinement.png")
-    with atomic_path(paths[-1]) as tmp:
-        fig.savefig(tmp, format="png", dpi=130)
+    paths.append(_save(fig, folder / "refinement.png", dpi=130))
 
     fig = offscreen_figure(6.4, 5.0)
     ax = fig.add_subplot(1, 1, 1)
@@ -210,11 +192,16 @@ def plot_design_study(study: DesignStudy, folder: str | os.PathLike) -> list[Pat
     ax.set_ylabel("O_str normalised")
     ax.grid(True, alpha=0.3)
     ax.legend()
-    fig.tight_layout()
-    paths.append(folder / "pareto.png")
-    with atomic_path(paths[-1]) as tmp:
-        fig.savefig(tmp, format="png", dpi=150)
+    paths.append(_save(fig, folder / "pareto.png", dpi=150))
     return paths
+
+
+def _save(fig, path: str | os.PathLike, *, dpi: int = 150) -> Path:
+    """Lay the figure out and write it as a PNG, atomically."""
+    fig.tight_layout()
+    with atomic_path(path) as tmp:
+        fig.savefig(tmp, format="png", dpi=dpi)
+    return Path(path)
 
 
 def _normalised(values: np.ndarray) -> np.ndarray:

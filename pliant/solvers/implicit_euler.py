@@ -74,6 +74,7 @@ class ImplicitEuler:
         self.model = model
         self.dt = float(dt)
         self.system = LinearisedSystem(model.body, policy=tangent, rtol=rtol)
+        self._objects, self._object_rows = self._find_objects()
         self._points = (
             PointCompliance(model.contacts.points, model.body.free_index)
             if point_compliance and model.contacts is not None
@@ -235,14 +236,23 @@ class ImplicitEuler:
         w[rows, rows] += h * h * (g @ rigid.inverse_mass @ g.T)
         delta_free[rows] += h * (g @ rigid.twists_free.reshape(-1))
 
-    def _objects(self) -> list[tuple[int, RigidEffector]]:
-        """(row offset among the effector rows, effector) of each rigid-body effector."""
-        found, row = [], 0
-        for effector in self.model.effectors:
+    def _find_objects(self) -> tuple[list[tuple[int, RigidEffector]], np.ndarray | None]:
+        """The rigid-body effectors, each with its body's index, and their rows' dependence on
+        the twists over all effector rows (None without such effectors)."""
+        model, found, row = self.model, [], 0
+        n_bodies = len(model.rigid_bodies)
+        rows = np.zeros((sum(e.n_rows for e in model.effectors), 6 * n_bodies))
+        for effector in model.effectors:
             if isinstance(effector, RigidEffector):
-                found.append((row, effector))
+                index = next(
+                    (i for i, b in enumerate(model.rigid_bodies) if b is effector.body), None
+                )
+                if index is None:
+                    raise ModelError(f"{effector.name}: its rigid body is not one of the model's")
+                rows[row : row + effector.n_rows] = effector.twist_rows(index, n_bodies)
+                found.append((index, effector))
             row += effector.n_rows
-        return found
+        return found, (rows if found else None)
 
     def _place_objects(self, rigid) -> None:
         """Give the rigid-body effectors their body's centre (`rigid`: a RigidStep or State)."""
@@ -250,27 +260,16 @@ class ImplicitEuler:
             return
         centres = getattr(rigid, "rigid_positions", None)
         centres = rigid.positions if centres is None else centres
-        for _, effector in self._objects():
-            effector.centre = centres[self._body_index(effector)].copy()
-
-    def _body_index(self, effector: RigidEffector) -> int:
-        for i, body in enumerate(self.model.rigid_bodies):
-            if body is effector.body:
-                return i
-        raise ModelError(f"{effector.name}: its rigid body is not one of the model's")
+        for index, effector in self._objects:
+            effector.centre = centres[index].copy()
 
     def _add_objects(self, w, delta_free, slices, contact, rigid) -> None:
         """Rows of rigid-body effectors: delta_e += h J u_free; W gains h^2 J M^-1 J^T and,
         with contacts on rigid bodies, h^2 J M^-1 G^T (see RigidEffector)."""
-        se = slices["effector"]
-        objects = self._objects() if se.stop > se.start else []
-        if not objects:
+        se, rows = slices["effector"], self._object_rows
+        if rows is None or se.stop == se.start:
             return
-        h, n_bodies = self.dt, len(self.model.rigid_bodies)
-        rows = np.zeros((se.stop - se.start, 6 * n_bodies))
-        for offset, effector in objects:
-            block = effector.twist_rows(self._body_index(effector), n_bodies)
-            rows[offset : offset + effector.n_rows] = block
+        h = self.dt
         m_inv = rigid.inverse_mass
         delta_free[se] += h * (rows @ rigid.twists_free.reshape(-1))
         w[se, se] += h * h * (rows @ m_inv @ rows.T)
