@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 import warnings
 from dataclasses import dataclass
 
@@ -66,14 +67,20 @@ class InverseControl:
     goals: one (k, 3) array per effector of the model (a single array for a single effector),
     or None to keep the effectors' current goals. course="soft" widens course bounds that the
     dynamics made infeasible (with a warning) instead of stopping the loop; "hard" raises.
+    seed_gap: with contacts, contacts whose gap is at most this distance start the QPCC's
+    active set closed (with the ones that carried a force at the previous step), so that the
+    QP may choose to close them; the rounds then open those it does not push on.
     """
 
     goals: list[np.ndarray] | np.ndarray | None = None
     regularisation: float = 1e-3
     course: str = "soft"
+    seed_gap: float = 0.0
     roles = ("actuator", "effector")
 
     def prepare(self, model) -> None:
+        if not (math.isfinite(self.seed_gap) and self.seed_gap >= 0.0):
+            raise ModelError(f"seed_gap must be finite and >= 0, got {self.seed_gap!r}")
         if self.goals is None:
             return
         goals = [self.goals] if isinstance(self.goals, np.ndarray) else list(self.goals)
@@ -96,8 +103,9 @@ class InverseControl:
         never applies forces that pull on a contact or let it sink."""
         sa, sc = problem.slices["actuator"], problem.slices["contact"]
         previous = state.contact_forces.warm_start(contact.contacts)
-        touching = contact.contacts.gap <= model.contacts.tolerance
-        closed = touching & (previous.reshape(-1, 3)[:, 0] > 0.0) | (contact.contacts.gap <= 0.0)
+        gap = contact.contacts.gap
+        touching = gap <= model.contacts.tolerance
+        closed = touching & (previous.reshape(-1, 3)[:, 0] > 0.0) | (gap <= self.seed_gap)
         try:
             sol = solve_inverse_with_contacts(
                 problem,
@@ -165,7 +173,10 @@ class InverseControl:
 def as_control(control):
     """A control object from None (keep the commands), commands, or any object with
     `prepare(model)` and `actuation(problem, model, state)`; an optional `roles` attribute names
-    the constraint roles whose rows the control reads (absent or None: every row)."""
+    the constraint roles whose rows the control reads (absent or None: every row), an optional
+    `begin(model, state)` is called after `prepare` with the state the step starts from (a
+    feedback control sets its effectors' goals there), and an optional
+    `actuation_with_contacts(problem, model, state, contact)` handles steps with contacts."""
     if control is None:
         return DirectControl()
     if hasattr(control, "actuation") and hasattr(control, "prepare"):

@@ -191,6 +191,120 @@ class ContactInverseSolution:
     settled: bool
 
 
+_OPEN, _STICK, _PROBE = 0, 1, 2  # _slip of a closed contact's tangent axis: 0 sticks, +-1 slides
+
+
+def _contact_qp(
+    hess,
+    grad,
+    w_rows,
+    d_rows,
+    na,
+    normal,
+    pyramid,
+    lo,
+    hi,
+    dmin,
+    dmax,
+    closed,
+    slip,
+    tolerance,
+    max_iterations,
+):
+    """One round of the QPCC active set: the QP for given contact states, its solution (all
+    unknowns, zero for open contacts), its multipliers and the rows of each tangent axis, or
+    None where ProxQP finds no solution.
+
+    slip[k, t] is 0 (sticks: delta_t = 0, |lambda_t| <= p lambda_n), s = +-1 (slides:
+    lambda_t = s p lambda_n, s delta_t <= 0) or 2 (probe: delta_t free, |lambda_t| <= p
+    lambda_n; used once to learn which way the QP wants an axis to slip)."""
+    n = hess.shape[0]
+    big = 1e20
+    eq_rows, eq_rhs, in_rows, in_lo, in_hi = [], [], [], [], []
+    stick_rows, slide_rows, gap_rows = {}, {}, {}
+    box_lo, box_hi = np.full(n, -big), np.full(n, big)
+    box_lo[:na], box_hi[:na] = np.clip(lo, -big, big), np.clip(hi, -big, big)
+    for i in range(na):  # course bounds on the actuators' displacement
+        in_rows.append(w_rows[i])
+        in_lo.append(max(dmin[i] - d_rows[i], -big))
+        in_hi.append(min(dmax[i] - d_rows[i], big))
+
+    def pyramid_rows(j, t, k):
+        for sign in (1.0, -1.0):
+            row = np.zeros(n)
+            row[j + t], row[j] = sign, -pyramid[k]
+            in_rows.append(row)
+            in_lo.append(-big)
+            in_hi.append(0.0)
+
+    for k, j in enumerate(normal):
+        if not closed[k]:
+            gap_rows[k] = len(in_rows)
+            in_rows.append(w_rows[j])  # delta_n >= 0
+            in_lo.append(-d_rows[j])
+            in_hi.append(big)
+            continue
+        eq_rows.append(w_rows[j])  # delta_n = 0, lambda_n >= 0
+        eq_rhs.append(-d_rows[j])
+        box_lo[j] = 0.0
+        if pyramid[k] == 0.0:  # frictionless: lambda_t = 0, delta_t free
+            for t in (1, 2):
+                row = np.zeros(n)
+                row[j + t] = 1.0
+                eq_rows.append(row)
+                eq_rhs.append(0.0)
+            continue
+        for t in (1, 2):
+            s = slip[k, t - 1]
+            if s == 0:
+                stick_rows[k, t] = len(eq_rows)
+                eq_rows.append(w_rows[j + t])
+                eq_rhs.append(-d_rows[j + t])
+                pyramid_rows(j, t, k)
+            elif s == _PROBE:
+                pyramid_rows(j, t, k)
+            else:
+                row = np.zeros(n)
+                row[j + t], row[j] = 1.0, -s * pyramid[k]
+                eq_rows.append(row)
+                eq_rhs.append(0.0)
+                slide_rows[k, t] = len(in_rows)
+                in_rows.append(s * w_rows[j + t])
+                in_lo.append(-big)
+                in_hi.append(-s * d_rows[j + t])
+    # Open contacts carry no force: their unknowns are left out of the QP (fixing them by
+    # equal box bounds stalls ProxQP), only their delta_n >= 0 rows stay.
+    keep = np.ones(n, dtype=bool)
+    for k in np.flatnonzero(~closed):
+        keep[normal[k] : normal[k] + 3] = False
+    qp = _dense_qp(int(keep.sum()), len(eq_rows), len(in_rows), tolerance, max_iterations)
+    qp.init(
+        hess[np.ix_(keep, keep)],
+        grad[keep],
+        np.array(eq_rows)[:, keep] if eq_rows else None,
+        np.array(eq_rhs) if eq_rows else None,
+        np.array(in_rows)[:, keep],
+        np.array(in_lo),
+        np.array(in_hi),
+        box_lo[keep],
+        box_hi[keep],
+    )
+    qp.solve()
+    if qp.results.info.status != proxqp.QPSolverOutput.PROXQP_SOLVED:
+        return None
+    mu = np.zeros(n)
+    mu[keep] = qp.results.x
+    return mu, qp.results.y.copy(), qp.results.z.copy(), stick_rows, slide_rows, gap_rows
+
+
+def _slip_against(slip_displacement: float, scale: float) -> int:
+    """The state of a tangent axis whose slip over the step is `slip_displacement`: sticks
+    (0) if it does not slip, else slides with the friction against the slip."""
+    if abs(slip_displacement) <= scale:
+        return 0
+    return -1 if slip_displacement > 0 else 1
+
+
 def solve_inverse_with_contacts(
     problem: CondensedProblem,
     actuators: list[Actuator],
@@ -206,18 +320,25 @@ def solve_inverse_with_contacts(
     """Eq. 2.15 with contacts (a QP with complementarity constraints, QPCC).
 
     The unknowns are the actuator forces and the contact forces (normal, two tangents). The
-    complementarity 0 <= delta_n _|_ lambda_n >= 0 and Coulomb's law are met by an active set
-    over the contacts, one QP (ProxQP) per round, as in SoftRobots.Inverse (Coevoet et al.,
+    complementarity 0 <= delta_n _|_ lambda_n >= 0 and Coulomb's law (pyramid
+    |lambda_ti| <= mu / sqrt(2) lambda_n, each tangent axis on its own) are met by an active
+    set over the contacts, one QP (ProxQP) per round, as in SoftRobots.Inverse (Coevoet et al.,
     RA-L 2017):
 
-    * a closed contact keeps delta_n = 0 with lambda_n >= 0; it sticks (delta_t = 0) with its
-      force inside the friction pyramid |lambda_ti| <= mu / sqrt(2) lambda_n, or, once the
-      pyramid binds, slides (delta_t free, force on the pyramid);
-    * an open contact has lambda = 0 and delta_n >= 0.
+    * an open contact has lambda = 0 and delta_n >= 0;
+    * a closed contact keeps delta_n = 0 with lambda_n >= 0; on each tangent axis it sticks
+      (delta_t = 0, force inside the pyramid) or slides with the friction force on the pyramid
+      and against the slip, lambda_t = s p lambda_n with s delta_t <= 0 (without that sign the
+      QP would use friction as a free propulsive force).
 
-    A closed contact whose normal force the QP drives to zero opens; an open one whose gap the
-    QP closes (its delta_n >= 0 constraint active) closes; a sticking one whose pyramid binds
-    slides. The rounds stop when no contact changes.
+    From a solved round: a closed contact whose normal force the QP drives to zero opens; an
+    open one whose gap the QP closes closes; a sticking axis whose pyramid binds slides; a
+    sticking axis on which the objective pulls (non-zero multiplier of delta_t = 0) is probed
+    once with its slip free, and then slides against the slip the QP chose; a sliding axis whose
+    slip the QP holds back (active s delta_t <= 0) sticks. A change that makes the QP
+    infeasible is undone and not tried again. The rounds stop when no change is left; the
+    solution is then a local one (a QPCC is not convex: a contact that the QP has no reason to
+    close stays open, see thesis §3.3.2).
     """
     sa, se, sc = (problem.slices[r] for r in ("actuator", "effector", "contact"))
     na, nc = sa.stop - sa.start, (sc.stop - sc.start) // 3
@@ -232,124 +353,174 @@ def solve_inverse_with_contacts(
     if not c > 0:
         raise SolverError("the actuators have zero compliance: they cannot move the robot")
     hess = w_ex.T @ w_ex
-    # The regularisation of solve_inverse, so that open contacts change nothing.
-    w_ea, w_aa = w[se, sa], w[sa, sa]
-    eps = regularisation * np.linalg.norm(w_ea.T @ w_ea) / max(np.linalg.norm(w_aa), 1e-300)
+    # The regularisation of solve_inverse, scaled on the unknowns that start active (the
+    # actuators and the contacts seeded closed), so that open contacts change nothing, and an
+    # effector that only the contacts move (an object, W_ea = 0) still regularises the
+    # actuators' pull (antagonistic cables would grow without bound).
+    closed0 = (
+        np.ones(nc, dtype=bool)
+        if initial_active is None
+        else np.asarray(initial_active, dtype=bool)
+    )
+    active = np.r_[
+        np.arange(na), (na + 3 * np.flatnonzero(closed0)[:, None] + np.arange(3)).ravel()
+    ]
+    eps = regularisation * np.linalg.norm(hess[np.ix_(active, active)])
+    eps /= max(np.linalg.norm(w_xx[np.ix_(active, active)]), 1e-300)
     hess = (hess + eps * 0.5 * (w_xx + w_xx.T)) / c**2
     grad = (w_ex.T @ d[se]) / c
-    n = na + 3 * nc
     normal = na + 3 * np.arange(nc)
-    w_rows = w[rows][:, rows] / c  # delta of the unknowns' rows = w_rows mu + d[rows]
+    w_rows = w[rows][:, rows] / c  # delta of the unknowns' rows = w_rows mu + d_rows
     d_rows = d[rows]
     pyramid = np.asarray(friction, dtype=float) / np.sqrt(2.0)
-    # contact states: 0 open, 1 sticking, 2 sliding
-    state = (
-        np.ones(nc, dtype=int)
+    closed = (
+        np.ones(nc, dtype=bool)
         if initial_active is None
-        else np.where(np.asarray(initial_active, dtype=bool), 1, 0)
+        else np.asarray(initial_active, dtype=bool).copy()
     )
-    big = 1e20
-    tried_closing = np.zeros(nc, dtype=bool)
-    mu = None
-    for rounds in range(1, max_rounds + 1):
-        eq_rows, eq_rhs, in_rows, in_lo, in_hi = [], [], [], [], []
-        box_lo, box_hi = np.full(n, -big), np.full(n, big)
-        box_lo[:na], box_hi[:na] = np.clip(lo * c, -big, big), np.clip(hi * c, -big, big)
-        for i in range(na):  # course bounds on the actuators' displacement
-            in_rows.append(w_rows[i])
-            in_lo.append(max(dmin[i] - d_rows[i], -big))
-            in_hi.append(min(dmax[i] - d_rows[i], big))
-        for k in range(nc):
-            j = normal[k]
-            if state[k] == 0:
-                box_lo[j : j + 3] = box_hi[j : j + 3] = 0.0
-                in_rows.append(w_rows[j])
-                in_lo.append(-d_rows[j])
-                in_hi.append(big)
-                continue
-            eq_rows.append(w_rows[j])
-            eq_rhs.append(-d_rows[j])
-            box_lo[j] = 0.0
-            if state[k] == 1:
-                for t in (1, 2):
-                    eq_rows.append(w_rows[j + t])
-                    eq_rhs.append(-d_rows[j + t])
-            for t in (1, 2):  # -p lambda_n <= lambda_t <= p lambda_n
-                for sign in (1.0, -1.0):
-                    row = np.zeros(n)
-                    row[j + t], row[j] = sign, -pyramid[k]
-                    in_rows.append(row)
-                    in_lo.append(-big)
-                    in_hi.append(0.0)
-        # Open contacts carry no force: their unknowns are left out of the QP (fixing them by
-        # equal box bounds stalls ProxQP), only their delta_n >= 0 rows stay.
-        keep = np.ones(n, dtype=bool)
-        for k in np.flatnonzero(state == 0):
-            keep[normal[k] : normal[k] + 3] = False
-        qp = _dense_qp(int(keep.sum()), len(eq_rows), len(in_rows), tolerance, max_iterations)
-        qp.init(
-            hess[np.ix_(keep, keep)],
-            grad[keep],
-            np.array(eq_rows)[:, keep] if eq_rows else None,
-            np.array(eq_rhs) if eq_rows else None,
-            np.array(in_rows)[:, keep],
-            np.array(in_lo),
-            np.array(in_hi),
-            box_lo[keep],
-            box_hi[keep],
+    slip = np.zeros((nc, 2), dtype=int)
+
+    def solve(closed, slip):
+        return _contact_qp(
+            hess,
+            grad,
+            w_rows,
+            d_rows,
+            na,
+            normal,
+            pyramid,
+            lo * c,
+            hi * c,
+            dmin,
+            dmax,
+            closed,
+            slip,
+            tolerance,
+            max_iterations,
         )
-        qp.solve()
-        if qp.results.info.status != proxqp.QPSolverOutput.PROXQP_SOLVED:
-            untried = (state == 0) & ~tried_closing
-            falling = untried & (d_rows[normal] < 0.0)
-            if np.any(untried):
-                # Open contacts that the motion carries into the obstacle (an object falling
-                # on the robot) and the actuators cannot keep open: close those the free
-                # motion closes, then, if that is not enough, the others (each contact once;
-                # the rounds reopen those that end up pulling).
-                closing = falling if np.any(falling) else untried
-                state[closing] = 1
-                tried_closing |= closing
-                continue
-            if np.any(state == 1):
-                # Sticking everywhere needs more friction than the pyramids allow: let the
-                # closed contacts slide and try again.
-                state = np.where(state == 1, 2, state)
-                continue
-            if np.any(state > 0):
-                # A pushing contact cannot hold a point that the motion carries away: open
-                # the closed contact whose free motion leaves the obstacle most.
-                closed = np.flatnonzero(state > 0)
-                state[closed[np.argmax(d_rows[normal[closed]])]] = 0
-                continue
-            raise InfeasibleProblemError(
-                f"the inverse problem with {nc} contacts has no solution for the contact states"
-                f" of round {rounds} (ProxQP: {qp.results.info.status})"
-            )
-        mu = np.zeros(n)
-        mu[keep] = qp.results.x
-        delta = w_rows @ mu + d_rows
-        scale = tolerance * max(1.0, float(np.abs(delta).max()))
-        new = state.copy()
-        for k in range(nc):
-            j = normal[k]
-            if state[k] > 0 and mu[j] <= scale * c:
-                new[k] = 0  # the QP pulls on it: it opens
-            elif state[k] == 0 and delta[j] <= scale:
-                new[k] = 1  # the QP pushes it into the obstacle: it closes
-            elif state[k] == 1:
-                tangential = np.abs(mu[j + 1 : j + 3]).max()
-                if tangential >= pyramid[k] * mu[j] * (1.0 - 1e-9) and mu[j] > 0:
-                    new[k] = 2
-        if np.array_equal(new, state):
+
+    # A first feasible state. Closed contacts start with their slip free (probed: the rounds
+    # then make each axis stick or slide against the slip); while the QP has no solution,
+    # free the slip of sticking axes, open the closed contacts that the free motion opens
+    # (farthest first), close those it carries into their obstacle, and as a last resort open
+    # contacts one by one.
+    frictional = pyramid > 0.0
+    slip[closed & frictional] = _PROBE
+    result = solve(closed, slip)
+    rounds = 1
+    tried_closing = np.zeros(nc, dtype=bool)
+    while result is None and rounds < max_rounds:
+        leaving = closed & (d_rows[normal] > 0.0)
+        falling = ~closed & ~tried_closing & (d_rows[normal] < 0.0)
+        sticking = (closed & frictional)[:, None] & (slip != _PROBE)
+        if np.any(sticking):
+            slip[sticking] = _PROBE
+        elif np.any(leaving):
+            ids = np.flatnonzero(leaving)
+            closed[ids[np.argmax(d_rows[normal[ids]])]] = False
+        elif np.any(falling):
+            closed[falling] = True
+            slip[falling & frictional] = _PROBE
+            tried_closing |= falling
+        elif np.any(closed):
+            ids = np.flatnonzero(closed)
+            closed[ids[np.argmax(d_rows[normal[ids]])]] = False
+        else:
             break
-        state = new
-    if mu is None:
+        result = solve(closed, slip)
+        rounds += 1
+    if result is None:
         raise InfeasibleProblemError(
             f"the inverse problem with {nc} contacts found no contact states with a solution in"
-            f" {max_rounds} rounds"
+            f" {rounds} rounds"
         )
+    rejected: set[tuple] = set()
+    probed: set[tuple[int, int]] = set()
+    visited = {(closed.tobytes(), slip.tobytes())}
+    settled = False
+    while rounds < max_rounds:
+        mu, y, z, stick_rows, slide_rows, gap_rows = result
+        delta = w_rows @ mu + d_rows
+        scale = tolerance * max(1.0, float(np.abs(delta).max()))
+        zscale = 1e-8 * max(1e-300, float(np.max(np.abs(z), initial=0.0)))
+        yscale = 1e-6 * max(1e-300, float(np.max(np.abs(y), initial=0.0)))
+        changes = []  # (key, contact, axis or None, new value)
+        for k, j in enumerate(normal):
+            if closed[k] and mu[j] <= scale * c:
+                changes.append(((k, "open"), k, None, False))  # the QP pulls on it
+            elif not closed[k] and delta[j] <= scale and abs(z[gap_rows[k]]) > zscale:
+                changes.append(((k, "close"), k, None, True))  # the QP pushes it in
+            elif closed[k] and frictional[k]:
+                for t in (1, 2):
+                    s = slip[k, t - 1]
+                    if s == _PROBE:  # slide against the slip the QP chose, or stick
+                        to = _slip_against(delta[j + t], scale)
+                    elif s == 0 and abs(mu[j + t]) >= pyramid[k] * mu[j] * (1 - 1e-9) > 0:
+                        to = 1 if mu[j + t] > 0 else -1  # the pyramid binds
+                    elif s == 0 and (k, t) not in probed and abs(y[stick_rows[k, t]]) > yscale:
+                        to = _PROBE
+                    elif s in (1, -1) and abs(z[slide_rows[k, t]]) > zscale:
+                        to = 0  # the QP holds the slip back
+                    else:
+                        continue
+                    changes.append(((k, t, to), k, t, to))
+        changes = [ch for ch in changes if ch[0] not in rejected]
+        if not changes:
+            settled = True
+            break
+        new_closed, new_slip = closed.copy(), slip.copy()
+        for _, k, t, to in changes:
+            if t is None:
+                new_closed[k] = to
+                new_slip[k] = _PROBE if to and frictional[k] else 0
+            else:
+                new_slip[k, t - 1] = to
+                if to == _PROBE:
+                    probed.add((k, t))
+        key = (new_closed.tobytes(), new_slip.tobytes())
+        if key in visited:  # a degenerate cycle (a contact touching with no force): stop
+            settled = True
+            break
+        visited.add(key)
+        trial = solve(new_closed, new_slip)
+        rounds += 1
+        if trial is None:
+            rejected.update(ch[0] for ch in changes)
+            continue
+        closed, slip, result = new_closed, new_slip, trial
+    # A probed axis is not a contact law (its friction could push the slip along): settle
+    # the ones left, sliding against their slip or sticking, or open their contacts.
+    probing = closed[:, None] & (slip == _PROBE)
+    if np.any(probing):
+        delta = w_rows @ result[0] + d_rows
+        scale = tolerance * max(1.0, float(np.abs(delta).max()))
+        tk, tt = np.nonzero(probing)
+        for fixed in (
+            [_slip_against(delta[normal[k] + 1 + t], scale) for k, t in zip(tk, tt, strict=True)],
+            [0] * len(tk),
+        ):
+            trial_slip = slip.copy()
+            trial_slip[tk, tt] = fixed
+            trial = solve(closed, trial_slip)
+            rounds += 1
+            if trial is not None:
+                slip, result = trial_slip, trial
+                break
+        else:
+            trial_closed, trial_slip = closed.copy(), slip.copy()
+            trial_closed[tk] = False
+            trial_slip[tk] = 0
+            trial = solve(trial_closed, trial_slip)
+            rounds += 1
+            if trial is None:
+                raise InfeasibleProblemError(
+                    f"the inverse problem with {nc} contacts found no friction states with a"
+                    " solution"
+                )
+            closed, slip, result = trial_closed, trial_slip, trial
+            settled = False
+    mu = result[0]
     forces = np.zeros(d.size)
     forces[rows] = mu / c
     forces[sa] = np.clip(forces[sa], lo, hi)
-    return ContactInverseSolution(forces, rounds, np.array_equal(new, state))
+    return ContactInverseSolution(forces, rounds, settled)

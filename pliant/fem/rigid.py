@@ -15,7 +15,9 @@ Anitescu and Potra (1997), written in the same compliance form as the deformable
 M = diag(m I, R I_body R^T) and J the contact Jacobian (rows n, t1, t2 of each contact):
 
     free motion   v_free = v + h g,   w_free = w - h I^-1 (w x I w)  (implicit gyroscopic term,
-                  one Newton step in the body frame; Catto, GDC 2015),
+                  one Newton step in the body frame; Catto, GDC 2015); a body with velocity
+                  damping c (drag in a fluid, an air table) divides its free twist and its
+                  M^-1 by 1 + h c (the damping force -c M u taken at the end of the step),
     constraints   delta = W lambda + delta_free,  W = h^2 J M^-1 J^T,
                   delta_free = (phi, 0, 0) + h J u_free - h (relative obstacle motion),
     correction    u = u_free + h M^-1 J^T lambda,
@@ -161,6 +163,8 @@ class RigidBody:
             frame; default from the shape for a Sphere, a Box, a Capsule or a BoxUnion (solid,
             uniform density; a BoxUnion's boxes centred on its frame origin).
         friction: Coulomb coefficient; a contact uses sqrt(mu_a mu_b) (as Box2D and Bullet).
+        linear_damping, angular_damping: velocity damping c >= 0 (1/s): a force -c m v and a
+            torque -c I w, e.g. the drag of a fluid or of an air table (as Bullet's damping).
         position, rotation, velocity, angular_velocity: the initial state (default: the
             shape's pose, at rest).
     """
@@ -172,6 +176,8 @@ class RigidBody:
         inertia: np.ndarray | None = None,
         *,
         friction: float = 0.5,
+        linear_damping: float = 0.0,
+        angular_damping: float = 0.0,
         position=None,
         rotation: np.ndarray | None = None,
         velocity=(0.0, 0.0, 0.0),
@@ -216,6 +222,11 @@ class RigidBody:
         self.mass = float(mass)
         self.inertia = inertia.copy()
         self.friction = _check_friction(friction, name)
+        for label, c in (("linear", linear_damping), ("angular", angular_damping)):
+            if not (math.isfinite(c) and c >= 0.0):
+                raise ModelError(f"{name}: the {label} damping must be finite and >= 0, got {c!r}")
+        self.linear_damping = float(linear_damping)
+        self.angular_damping = float(angular_damping)
         self.position = np.array(shape.position if position is None else position, dtype=float)
         self.rotation = check_rotation(shape.rotation if rotation is None else rotation)
         self.velocity = np.asarray(velocity, dtype=float).reshape(3)
@@ -357,16 +368,21 @@ def free_twists(
     for i, b in enumerate(bodies):
         twists[i, :3] = velocities[i] + dt * np.asarray(gravity)
         twists[i, 3:] = free_angular_velocity(b.inertia, rotations[i], angular_velocities[i], dt)
+        twists[i, :3] /= 1.0 + dt * b.linear_damping
+        twists[i, 3:] /= 1.0 + dt * b.angular_damping
     return twists
 
 
-def inverse_mass(bodies: list[RigidBody], rotations: np.ndarray) -> np.ndarray:
-    """(6n, 6n) block-diagonal M^-1 = diag(I / m, R I^-1 R^T) of the bodies (world frame)."""
+def inverse_mass(bodies: list[RigidBody], rotations: np.ndarray, dt: float) -> np.ndarray:
+    """(6n, 6n) block-diagonal M^-1 = diag(I / m, R I^-1 R^T) of the bodies (world frame),
+    each block divided by 1 + h c for the bodies' velocity damping c."""
     n = len(bodies)
     m_inv = np.zeros((n, 6, n, 6))
     for i, b in enumerate(bodies):
-        m_inv[i, :3, i, :3] = np.eye(3) / b.mass
-        m_inv[i, 3:, i, 3:] = rotations[i] @ np.linalg.inv(b.inertia) @ rotations[i].T
+        m_inv[i, :3, i, :3] = np.eye(3) / (b.mass * (1.0 + dt * b.linear_damping))
+        m_inv[i, 3:, i, 3:] = (rotations[i] @ np.linalg.inv(b.inertia) @ rotations[i].T) / (
+            1.0 + dt * b.angular_damping
+        )
     return m_inv.reshape(6 * n, 6 * n)
 
 
@@ -404,7 +420,7 @@ class RigidStep:
         dt: float,
     ) -> RigidStep:
         twists = free_twists(bodies, rotations, velocities, angular_velocities, gravity, dt)
-        return cls(positions, rotations, twists, inverse_mass(bodies, rotations))
+        return cls(positions, rotations, twists, inverse_mass(bodies, rotations, dt))
 
     def speeds(self, bodies: list[RigidBody]) -> np.ndarray:
         """Largest speed of a point of each body's shape over the step (free motion)."""
@@ -634,7 +650,7 @@ class RigidSolver:
         contacts = self._detect(state, speed)
         k = len(contacts)
         u_free = twists_free.reshape(-1)
-        m_inv = inverse_mass(bodies, state.rotations)
+        m_inv = inverse_mass(bodies, state.rotations, h)
         jac, obstacle_velocity = self._contact_jacobian(state, contacts)
         delta_free = h * (jac @ u_free + obstacle_velocity.reshape(-1))
         delta_free[0::3] += contacts.gap

@@ -36,10 +36,12 @@ from pliant.robots.trunk import trunk
 
 @dataclass(frozen=True)
 class RobotEntry:
-    """A registered robot: builder, scripted actuation, goal trajectories and camera."""
+    """A registered robot: builder, scripted actuation (commands, or a control object such
+    as trunk_push's inverse control with contacts, as a function of time), goal trajectories
+    and camera."""
 
     build: Callable[..., Model]
-    demo_actuation: Callable[[float], np.ndarray]
+    demo_actuation: Callable[[float], object]
     trajectories: dict[str, Callable[[int], np.ndarray]]
     view: tuple[float, float]
 
@@ -61,6 +63,7 @@ ROBOTS: dict[str, RobotEntry] = {
     ),
     "gripper": RobotEntry(_gripper.soft_gripper, _gripper.demo_actuation, {}, (15.0, -70.0)),
     "trunk_cube": RobotEntry(_trunk_cube.trunk_cube, _trunk_cube.demo_actuation, {}, (20.0, 60.0)),
+    "trunk_push": RobotEntry(_trunk_cube.trunk_push, _trunk_cube.push_demo, {}, (60.0, 90.0)),
     "trunk_cup": RobotEntry(_trunk_cup.trunk_cup, _trunk_cup.demo_actuation, {}, (20.0, 150.0)),
     "catch_object": RobotEntry(
         _catch_object.catch_object, _catch_object.demo_actuation, {}, (10.0, -80.0)

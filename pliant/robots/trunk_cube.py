@@ -13,6 +13,8 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
+from dataclasses import dataclass
+from functools import cache
 
 import numpy as np
 
@@ -20,6 +22,9 @@ from pliant.constraints.base import EmbeddedPoints
 from pliant.constraints.cable import CableActuator
 from pliant.constraints.collision import Box, Plane
 from pliant.constraints.contact import Contacts
+from pliant.constraints.control import InverseControl
+from pliant.constraints.effector import PositionEffector, RigidEffector
+from pliant.errors import ModelError
 from pliant.fem.rigid import DrivenNodes, KinematicBody, RigidBody, rail
 from pliant.mesh.tetmesh import TetMesh
 from pliant.model import Model
@@ -121,3 +126,161 @@ def demo_actuation(t: float) -> np.ndarray:
     values = np.zeros(8)
     values[3] = 25.0 * min(t, 1.0)
     return values
+
+
+# --- Pushing a cube to a goal with inverse control and contacts (QPCC) -----------------------
+
+
+def trunk_push(
+    *,
+    mesh: TetMesh | None = None,
+    mesh_size: float = 8.0,
+    young_modulus: float = 450.0,
+    poisson_ratio: float = 0.45,
+    total_mass: float = 0.042,
+    material: MaterialName = "corotational",
+    rayleigh_mass: float = 0.1,
+    rayleigh_stiffness: float = 0.1,
+    cube_size: float = 50.0,
+    cube_mass: float = 0.01,
+    cube_gap: float = 0.3,
+    cube_z: float = 150.0,
+    cube_friction: float = 0.0,
+    drag: float = 20.0,
+    floor_height: float = -45.0,
+    pusher_weight: float = 0.3,
+    cube_axes: tuple[bool, bool, bool] = (True, False, False),
+) -> Model:
+    """The Trunk, base fixed, beside a cube on an air table: the scene of the QPCC push.
+
+    The cube (`cube_size` mm, `cube_mass` kg) stands on a frictionless floor at y =
+    floor_height with its -x face `cube_gap` mm from the trunk's side at z = cube_z, and feels
+    a viscous drag -drag m v (1/s), so that it moves only while pushed. Its friction with the
+    trunk is `cube_friction`. Two effectors: the cube's centre on x and z (`RigidEffector`,
+    which the actuators move only through the contacts), and the trunk's point facing the
+    cube on x (weight `pusher_weight`), whose goal :class:`PushControl` keeps on the cube's
+    face to hold the contact, as the thesis' Trunk-and-cube reward favours contact (§4.1.2).
+    """
+    arm = trunk_cube(
+        mesh=mesh,
+        mesh_size=mesh_size,
+        young_modulus=young_modulus,
+        poisson_ratio=poisson_ratio,
+        total_mass=total_mass,
+        material=material,
+        rayleigh_mass=rayleigh_mass,
+        rayleigh_stiffness=rayleigh_stiffness,
+        base_motion=lambda t: 0.0,
+        floor_height=floor_height,
+    )
+    body = arm.body
+    rest = body.rest_positions.reshape(-1, 3)
+    near = rest[np.abs(rest[:, 2] - cube_z) <= 0.5 * mesh_size]
+    if near.size == 0:
+        raise ModelError(f"trunk_push: the trunk has no node near z = {cube_z}")
+    side = near[np.argmax(near[:, 0])]
+    half = 0.5 * cube_size
+    cube = RigidBody(
+        Box([half, half, half], position=[side[0] + cube_gap + half, floor_height + half, cube_z]),
+        cube_mass,
+        friction=cube_friction,
+        linear_damping=drag,
+        angular_damping=drag,
+        name="cube",
+    )
+    pusher = PositionEffector(
+        EmbeddedPoints(body.mesh, [[side[0], 0.0, cube_z]]),
+        body.rest_positions,
+        axes=(True, False, False),
+        weight=pusher_weight,
+        name="pusher",
+    )
+    floor = Plane(normal=(0.0, 1.0, 0.0), point=(0.0, floor_height, 0.0))
+    return Model(
+        body,
+        actuators=arm.actuators,
+        effectors=[RigidEffector(cube, axes=cube_axes, name="cube"), pusher],
+        contacts=Contacts([floor], friction=0.0, margin=3.0),
+        drivers=arm.drivers,
+        rigid_bodies=[cube],
+        name="trunk_push",
+    )
+
+
+@dataclass
+class PushControl:
+    """Inverse control with contacts (QPCC) that pushes a model's first rigid body to `target`.
+
+    Each step, in `begin`, the goals of the two effectors of :func:`trunk_push` are set from
+    the state: the cube's goal moves from its centre towards `target` by at most
+    speed * dt (a goal the step can reach without a jolt: the one-step QP would otherwise
+    throw the light trunk at a goal millimetres away), and near the target by at most
+    drag * dt * distance, so that the cube does not coast past it once released; the pusher's
+    goal is the cube's face pressed in by `depth`, so that the QP keeps the contact closed and
+    pushes through it (`dt` is the solver's time step). The
+    forces come from :class:`InverseControl` (Eq. 2.15 with complementarity), the contacts
+    within `seed_gap` starting closed (default speed * dt: a gap the trunk may close in one
+    step at the pushing speed; closing a wider one in a step throws the trunk at the cube).
+    """
+
+    target: np.ndarray
+    speed: float = 10.0
+    depth: float = 2.0
+    dt: float = 0.01
+    seed_gap: float | None = None
+    regularisation: float = 1e-3
+    roles = ("actuator", "effector")
+
+    def __post_init__(self) -> None:
+        self.target = np.asarray(self.target, dtype=float).reshape(3)
+        for label, v in (("speed", self.speed), ("depth", self.depth), ("dt", self.dt)):
+            if not (math.isfinite(v) and v > 0):
+                raise ModelError(f"PushControl: {label} must be finite and > 0, got {v!r}")
+        seed = self.speed * self.dt if self.seed_gap is None else self.seed_gap
+        self._inverse = InverseControl(regularisation=self.regularisation, seed_gap=seed)
+
+    def prepare(self, model) -> None:
+        if len(model.effectors) != 2 or not model.rigid_bodies:
+            raise ModelError(
+                f"PushControl drives a cube effector and a pusher effector (trunk_push); "
+                f"{model.name} has {len(model.effectors)} effectors"
+            )
+        self._inverse.prepare(model)
+
+    def begin(self, model, state) -> None:
+        cube, pusher = model.effectors
+        centre = state.rigid_positions[0]
+        step = self.speed * self.dt
+        # Slow down near the target: a cube left at speed v coasts v / drag under its drag.
+        ahead = self.target - centre
+        drag = cube.body.linear_damping
+        reach = np.minimum(step, drag * self.dt * np.abs(ahead)) if drag > 0 else step
+        cube.goals = centre + np.clip(ahead, -reach, reach)
+        half = float(cube.body.shape.half_extents[0])
+        face = centre[0] - half + self.depth
+        point = pusher.position(state.positions)[0]
+        goal = point.copy()
+        goal[0] += float(np.clip(face - point[0], -step, step))
+        pusher.goals = goal[None, :]
+
+    def actuation_with_contacts(self, problem, model, state, contact):
+        return self._inverse.actuation_with_contacts(problem, model, state, contact)
+
+    def actuation(self, problem, model, state):
+        return self._inverse.actuation(problem, model, state)
+
+
+PUSH_TARGETS = (5.0, 10.0, 15.0)
+
+
+def push_demo(t: float) -> PushControl:
+    """Push the cube of the default :func:`trunk_push` by 5, 10 then 15 mm along x, one target
+    every 1.5 s."""
+    start = _default_push_cube()
+    offset = PUSH_TARGETS[min(int(t / 1.5), len(PUSH_TARGETS) - 1)]
+    return PushControl(start + np.array([offset, 0.0, 0.0]))
+
+
+@cache
+def _default_push_cube() -> np.ndarray:
+    return trunk_push().rigid_bodies[0].position.copy()

@@ -94,6 +94,9 @@ class ImplicitEuler:
         model, body, h = self.model, self.model.body, self.dt
         ctrl = as_control(control)
         ctrl.prepare(model)
+        begin = getattr(ctrl, "begin", None)
+        if begin is not None:  # feedback controls: goals from the state the step starts from
+            begin(model, state)
         step = state.step + 1
         velocities, at = state.velocities, state.positions
         if model.drivers:

@@ -104,6 +104,9 @@ class StaticSolver:
         model, body = self.model, self.model.body
         ctrl = as_control(control)
         ctrl.prepare(model)
+        begin = getattr(ctrl, "begin", None)
+        if begin is not None:  # feedback controls: goals from the state the step starts from
+            begin(model, state)
         step = state.step + 1
         q = model.drive(state.positions, state.time)
         # Each iteration chooses the total constraint forces; the previous iterate's warm-start

@@ -6,6 +6,7 @@ from __future__ import annotations
 import numpy as np
 
 from pliant.constraints.cable import CableActuator
+from pliant.constraints.effector import RigidEffector
 from pliant.model import Model, State
 from pliant.viz.render import BODY_COLOR, render_scene
 from pliant.viz.shapes import shape_surface
@@ -55,6 +56,11 @@ class RobotCamera:
             solids.append((pts, tris, RIGID_COLOR))
         return solids
 
+    def _effector_points(self, effector, state: State) -> np.ndarray:
+        if isinstance(effector, RigidEffector):  # an object: its centre in this state
+            return state.rigid_positions[self.model.rigid_bodies.index(effector.body)][None]
+        return effector.position(state.positions)
+
     def frame(
         self, state: State, *, title: str | None = None, goals: np.ndarray | None = None
     ) -> np.ndarray:
@@ -67,7 +73,7 @@ class RobotCamera:
         markers = {}
         if self.model.effectors:
             markers["effector"] = (
-                np.vstack([e.position(x) for e in self.model.effectors]),
+                np.vstack([self._effector_points(e, state) for e in self.model.effectors]),
                 "tab:red",
             )
         if goals is not None:
