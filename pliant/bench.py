@@ -134,6 +134,7 @@ def multigait_on_floor(meshes: Path) -> Model:
         material="corotational",
         young_modulus=70.0,
         poisson_ratio=0.45,
+        cavity_mode="pressure",
     )
 
 

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import functools
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Literal
 
@@ -19,6 +20,7 @@ import scipy.sparse as sp
 from pliant.errors import MaterialError, ModelError
 from pliant.fem import kernels
 from pliant.fem.material import Material
+from pliant.fem.membrane import Membrane, MembraneAssembly
 from pliant.fem.sparsity import StiffnessPattern
 from pliant.mesh.quality import validate_mesh
 from pliant.mesh.tetmesh import TetMesh
@@ -45,6 +47,7 @@ class Linearisation:
     frames: np.ndarray
     dets: np.ndarray
     stiffness_velocity: np.ndarray | None = None  # K_s v (n, 3) when linearised with v
+    membrane_tangents: tuple[np.ndarray, ...] = ()  # (t, 9, 9) per membrane of the body
 
     @property
     def n_inverted(self) -> int:
@@ -88,6 +91,8 @@ class TetBody:
         fixed_nodes: indices of nodes held at their rest position.
         gravity: acceleration vector (robot scenes: (0, 0, -9810) mm/s^2).
         rayleigh_mass, rayleigh_stiffness: alpha and beta of D = alpha M + beta K.
+        membranes: membranes of triangles on the body's nodes (faces of its tetrahedra) whose
+            stretch adds to the elastic forces (a strain-limiting layer).
     """
 
     def __init__(
@@ -102,6 +107,7 @@ class TetBody:
         gravity: tuple[float, float, float] | np.ndarray = (0.0, 0.0, 0.0),
         rayleigh_mass: float = 0.0,
         rayleigh_stiffness: float = 0.0,
+        membranes: Sequence[Membrane] = (),
     ) -> None:
         # Inverted, degenerate, disconnected or malformed meshes raise their MeshError here.
         validate_mesh(mesh.points, mesh.tets)
@@ -147,6 +153,7 @@ class TetBody:
         self.free_index = np.full(3 * n, -1, dtype=np.int64)
         self.free_index[self.free_dofs] = np.arange(self.free_dofs.size)
         self.pattern = StiffnessPattern.build(self.tets, self.free_index)
+        self.membranes = [MembraneAssembly(m, n, self.free_index, self.pattern) for m in membranes]
 
         self.mass_type: MassType = mass
         self.node_masses = self._node_masses(mass)
@@ -269,7 +276,17 @@ class TetBody:
         kernels.gather_nodal(elem, self._incidence_ptr, self._incidence, nodal)
         forces = np.ascontiguousarray(nodal[:, :3])
         kv = np.ascontiguousarray(nodal[:, 3:]) if v.shape[0] else None
-        return Linearisation(x, forces, float(energy), frames, dets, kv)
+        tangents = []
+        for assembly in self.membranes:
+            membrane_forces, membrane_energy = assembly.membrane.element_forces(x)
+            forces += assembly.nodal(membrane_forces)
+            energy += membrane_energy
+            tangent = assembly.membrane.element_stiffness(x)
+            tangents.append(tangent)
+            if kv is not None:
+                local = v.reshape(-1)[assembly.membrane.dofs]
+                kv += assembly.nodal(np.einsum("trc,tc->tr", tangent, local))
+        return Linearisation(x, forces, float(energy), frames, dets, kv, tuple(tangents))
 
     @_sized_threads
     def stiffness_matvec(
@@ -295,6 +312,8 @@ class TetBody:
         )
         out = np.empty_like(cols)
         kernels.gather_free(elem_out, self._incidence_ptr, self._incidence, self.free_index, out)
+        for assembly, tangent in zip(self.membranes, lin.membrane_tangents, strict=True):
+            out += assembly.matvec(tangent, cols)
         return out[:, 0] if u.ndim == 1 else out
 
     @_sized_threads
@@ -315,6 +334,8 @@ class TetBody:
         )
         data = np.zeros(self.pattern.nnz)
         kernels.scatter_add(self._element_blocks, 1.0, self.pattern.scatter, data)
+        for assembly, tangent in zip(self.membranes, lin.membrane_tangents, strict=True):
+            assembly.add_to_data(tangent, data)
         return data
 
     def stiffness_matrix(self, lin: Linearisation, *, exact: bool = False) -> sp.csr_matrix:

@@ -5,10 +5,11 @@ body 6.3 mm thick, a centre block between four legs, one chamber per leg and one
 centre. As in the scene's mesh, a chamber is a row of narrow slots across its leg (across the
 body in the centre) between a 1 mm floor and a 1.5 mm roof, all at one pressure: inflated, the
 slots push the walls between them apart and lengthen the top of the leg, while the floor,
-stiffened by the strain-limiting layer (paper in the real robot), keeps its length, so the leg
-curls towards the floor. The scene's slots are 0.75 mm wide, ten to a leg; here five 3 mm
-slots per leg and per centre keep the mesh coarse. The floor is meshed as a layer of its own,
-so that the robot builder can stiffen exactly it.
+held by the strain-limiting layer (paper in the real robot, a membrane on the underside in
+:func:`pliant.robots.multigait.multigait`), keeps its length, so the leg curls towards the
+floor. The scene's slots are 0.75 mm wide, ten to a leg; here five 3 mm slots per leg and per
+centre keep the mesh coarse. The floor is meshed as a layer of its own:
+its top is one flat element boundary, under the slots and the walls alike.
 
 The reference mesh of the SOFA scene (59k tetrahedra) is loaded with
 :func:`pliant.mesh.load_mesh`; :func:`reference_cavity_surfaces` finds its chamber walls from
@@ -159,7 +160,7 @@ def multigait(
             (3, occ.addBox(*lo, *(hi - lo))) for slots in chambers.values() for lo, hi in slots
         ]
         body, _ = occ.cut(fused, holes)
-        # The floor as a volume of its own: the strain-limiting layer is then whole elements.
+        # The floor as a volume of its own: its top is an element boundary everywhere.
         below = occ.addBox(-1.0, -width, -1.0, length + 2.0, 2 * width, floor + 1.0)
         floor_part, _ = occ.intersect(occ.copy(body), [(3, below)], removeTool=False)
         upper_part, _ = occ.cut(body, [(3, below)])

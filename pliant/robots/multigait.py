@@ -1,17 +1,28 @@
 """The Multigait pneumatic quadruped on the ground (thesis §3.1.2, §3.4.1).
 
-How the gait moves it (measured on the default mesh, experiments/multigait_gait.py): an
-inflated leg curls towards the floor and lifts its hip, so that it stands on the edge of its
-tip; the inflated centre arches the body and lifts it onto the legs. The pressure that curls a
-leg also stretches its floor (the coarse elements of the strain-limiting layer cannot be both
-inextensible and free to bend), so an inflated chamber lengthens the robot between its
-contacts (by up to a millimetre) more than the curl shortens it; on each change, the side that
-stands on fewer, less loaded contacts slides. Over the hand-defined gait this makes the robot
-travel about 0.4 mm per cycle along +x, towards the legs it inflates first. SofaGym's
-Multigait, whose paper layer is an inextensible membrane, travels the other way (its test
-script inflates the legs at low x first and its reward counts +x progress), by centimetres:
-there the curled legs and the arched centre shorten the robot. Finer meshes with a stiffer
-layer (mesh_size 3, layer_stiffness 70) do shorten it, but then barely move (0.05 mm/cycle).
+How the hand-defined gait walks it (measured on the default mesh, dt = 0.01 s, 0.6 s phases,
+experiments/multigait_gait.py): the paper under the real robot, a membrane here as in SofaGym
+(a triangle layer of E = 5000 kPa, 1 mm, on the underside), keeps the underside's length, so
+an inflated leg curls and draws its tip in towards the body. Which end slides is the one that
+carries less of the weight. While the rear legs curl, the robot rests on its flat front half
+(all of its weight), so the rear tips draw in, by 8 mm, and the front stays. Once the rear legs
+are deflated and flat again they carry the robot, and the curled front legs, deflated last,
+unroll forward. Each cycle moves both ends of the underside and the centre of mass 6.2 mm
+towards the front legs, -x, away from the legs inflated first (6.4 mm on the first cycle,
+from rest), about 4.5 % of the body length; with friction 0.4 or 1.0 instead of 0.7: 6.5 and
+6.3 mm on the first cycle, with dt = 0.005 s: 6.4 mm, on a finer mesh (mesh_size 4): 6.3 mm;
+coarser meshes resolve the curl less (mesh_size 9: 3.8 mm, 12: 0.9 mm).
+SofaGym's complete model goes 36 mm in its six-action episode (thesis Table 3.2).
+
+The chambers are volume-controlled, as SofaGym's (volume growth of 1500 mm^3 per leg and
+2000 mm^3 in the centre, about 4.8 and 3.9 times its chambers' volumes): a Neo-Hookean chamber
+is a balloon whose pressure peaks (about 33 kPa for the default mesh's centre), so that a
+pressure command above the peak inflates it without bound, while the volume command passes
+the peak at a bounded pressure (42 kPa at most over the gait). At a pressure of 30 kPa the
+gait moves the robot 1.5 mm on its first cycle. Without the membrane (stiffening the floor's
+tetrahedra cannot do its work: one linear element through a layer locks in bending), the
+pressure stretches the floor, an inflated leg lengthens by up to 19 mm instead of drawing in,
+and the gait moves the robot 1.2 mm per cycle the wrong way, towards the legs inflated first.
 """
 
 from __future__ import annotations
@@ -24,6 +35,7 @@ from pliant.constraints.collision import Plane
 from pliant.constraints.contact import Contacts
 from pliant.errors import ModelError
 from pliant.fem.body import TetBody
+from pliant.fem.membrane import Membrane
 from pliant.mesh import multigait as geometry
 from pliant.mesh.tetmesh import TetMesh
 from pliant.model import Model
@@ -51,28 +63,27 @@ def multigait(
     friction: float = 0.7,
     collision_points: np.ndarray | None = None,
     collision_spacing: float = 20.0,
-    cavity_mode: str = "pressure",
+    cavity_mode: str = "volume",
     max_pressure: float = 50.0,
-    layer_thickness: float = 1.0,
-    layer_stiffness: float = 20.0,
+    membrane_stiffness: float = 5000.0,
+    membrane_poisson_ratio: float = 0.49,
 ) -> Model:
     """The Multigait body on a floor at z = 0, five chambers (CHAMBERS order).
 
     Values of the SOFA Multigait scenes by default (E = 70 kPa, nu = 0.05, 35 g, friction
     0.7); the silicone is Neo-Hookean: at the gait's pressure (about half of E) the thin roofs
     over the slots strain by tens of percent, and the corotational law lets them collapse
-    (elements invert from about 35 kPa on the default mesh). A Neo-Hookean chamber has a
-    balloon's pressure limit: above about 33 kPa the centre chamber of the default mesh
-    inflates without bound (65 times its volume at 35 kPa). `mesh`: a mesh whose surfaces hold
-    'cavity_<chamber>' walls (Pliant's parametric mesh by default, or the SOFA reference mesh
-    with walls from :func:`pliant.mesh.multigait.reference_cavity_surfaces`).
+    (elements invert within the first gait phase on the default mesh). `mesh`: a mesh whose
+    surfaces hold 'cavity_<chamber>' walls (Pliant's parametric mesh by default, or the SOFA
+    reference mesh with walls from :func:`pliant.mesh.multigait.reference_cavity_surfaces`).
     `collision_points` (k, 3): the points that touch the floor (the SOFA scene's collision
     surface vertices); default: underside nodes, one per `collision_spacing` mm cell, and
     the corners of the underside's outline with a node every `collision_spacing` mm along it.
-    `cavity_mode`: "pressure" (kPa) or "volume" (mm^3 of growth), up to `max_pressure` kPa.
-    The elements of the underside's `layer_thickness` mm are `layer_stiffness` times stiffer:
-    the strain-limiting layer (paper in the real robot) that makes an inflated leg bend down
-    instead of ballooning.
+    `cavity_mode`: "volume" (mm^3 of growth, SofaGym's command) or "pressure" (kPa), at most
+    `max_pressure` kPa either way. The strain-limiting layer (paper in the real robot) is a
+    membrane on the underside's triangles, of stretch stiffness `membrane_stiffness` (E t,
+    kPa mm; SofaGym's 5000 kPa, 1 mm) and Poisson ratio `membrane_poisson_ratio`; 0 leaves it
+    out. It keeps the underside's length and lets it bend, so that an inflated leg curls.
     """
     mesh = mesh if mesh is not None else geometry.multigait(mesh_size=mesh_size)
     missing = [c for c in geometry.CHAMBERS if f"cavity_{c}" not in mesh.surfaces]
@@ -81,6 +92,18 @@ def multigait(
     modes = {"pressure": "force", "volume": "displacement"}
     if cavity_mode not in modes:
         raise ModelError(f"cavity_mode must be 'pressure' or 'volume', got {cavity_mode!r}")
+    paper = (
+        [
+            Membrane(
+                mesh.points,
+                _underside_triangles(mesh),
+                stretch_stiffness=membrane_stiffness,
+                poisson_ratio=membrane_poisson_ratio,
+            )
+        ]
+        if membrane_stiffness != 0
+        else []
+    )
     body = TetBody(
         mesh,
         make_material(material, young_modulus, poisson_ratio),
@@ -88,11 +111,8 @@ def multigait(
         gravity=gravity,
         rayleigh_mass=rayleigh_mass,
         rayleigh_stiffness=rayleigh_stiffness,
+        membranes=paper,
     )
-    z = mesh.points[:, 2]
-    layer = np.all(z[mesh.tets] <= z.min() + layer_thickness + 1e-9, axis=1)
-    body.mu[layer] *= layer_stiffness
-    body.lam[layer] *= layer_stiffness
     chambers = [
         CavityActuator(
             mesh.surfaces[f"cavity_{c}"],
@@ -113,14 +133,24 @@ def multigait(
     return Model(body, actuators=chambers, contacts=contacts, name="multigait")
 
 
+def _underside(mesh: TetMesh) -> np.ndarray:
+    """(n,) bool: the nodes on the flat underside."""
+    z = mesh.points[:, 2]
+    return z <= z.min() + 1e-6 * np.ptp(mesh.points)
+
+
+def _underside_triangles(mesh: TetMesh) -> np.ndarray:
+    """(t, 3) the boundary triangles of the flat underside."""
+    triangles = mesh.boundary_triangles()
+    return triangles[np.all(_underside(mesh)[triangles], axis=1)]
+
+
 def _underside_nodes(mesh: TetMesh, spacing: float) -> np.ndarray:
     """Nodes of the underside, one per `spacing` x `spacing` cell (the closest to its centre),
     and along its outline the corners and a node every `spacing` mm: a curled leg rests on
     the edge of its tip."""
-    z = mesh.points[:, 2]
-    bottom = z <= z.min() + 1e-6 * np.ptp(mesh.points)
-    triangles = mesh.boundary_triangles()
-    underside = triangles[np.all(bottom[triangles], axis=1)]
+    bottom = _underside(mesh)
+    underside = _underside_triangles(mesh)
     edges = np.sort(underside[:, [[0, 1], [1, 2], [2, 0]]].reshape(-1, 2), axis=1)
     edges, count = np.unique(edges, axis=0, return_counts=True)
     return np.union1d(
@@ -177,10 +207,16 @@ def _thinned(mesh: TetMesh, nodes: np.ndarray, spacing: float) -> np.ndarray:
     return np.sort(nodes[order[first]])
 
 
-def demo_actuation(t: float, *, pressure: float = 30.0, phase: float = 0.6) -> np.ndarray:
+def demo_actuation(
+    t: float, *, amplitude: tuple[float, float] = (4900.0, 3300.0), phase: float = 0.6
+) -> np.ndarray:
     """The hand-defined gait: each group inflated in turn (rear legs, centre, front legs),
     then deflated in the same order; one phase every `phase` seconds (SofaGym's Multigait
-    action lasts 0.6 s), ramped over a phase."""
+    action lasts 0.6 s), ramped over a phase. `amplitude`: the command of the inflated centre
+    and of each inflated leg, in the chambers' unit: mm^3 of volume growth for the default
+    volume-controlled model (3.9 and 4.8 times the rest volumes of the default mesh's chambers,
+    as SofaGym's 2000 and 1500 mm^3 are of the reference mesh's), kPa for a
+    pressure-controlled one."""
     groups = len(GAIT)
     k, frac = divmod(t / phase, 1.0)
     k = int(k) % (2 * groups)
@@ -196,7 +232,8 @@ def demo_actuation(t: float, *, pressure: float = 30.0, phase: float = 0.6) -> n
             on = 0.0
         for name in names:
             level[geometry.CHAMBERS.index(name)] = on
-    return pressure * level
+    centre, leg = amplitude
+    return level * np.where(np.array(geometry.CHAMBERS) == "centre", centre, leg)
 
 
 def centre_of_mass(model: Model, positions: np.ndarray) -> np.ndarray:

@@ -40,6 +40,17 @@ class StaticSolver:
             Where the consistent tangent is not positive definite, an iteration falls back to
             SOFA's material tangent (keeping the cables' term). W = H K^-1 H^T is then the
             compliance of the equilibrium to a change of the constraint forces.
+        augmentation: with the consistent tangent, the Newton matrix of each iteration is
+            K + sum_i rho_i h_i^T h_i over the displacement-controlled cables' rows h_i held
+            at their displacement at the last iterate (tension strictly inside the force
+            bounds), with rho_i = augmentation / W_ii at rest (0 turns it off). A held
+            cable's row is an equality, so the update is still Newton's on the constrained
+            problem (the rows' multipliers are shifted by rho_i times the rows' residual, zero
+            at convergence), but the matrix stays positive definite wherever K is on the
+            constraints' null space: a Diamond pulled hard by its cables compresses its arms,
+            K alone turns indefinite, and the fallback to SOFA's tangent converges linearly
+            (80 iterations and more). :meth:`condense` gives the exact W = H K^-1 H^T, without
+            the term.
     """
 
     def __init__(
@@ -50,6 +61,7 @@ class StaticSolver:
         max_iterations: int = 100,
         tangent: TangentPolicy = "fresh",
         consistent: bool = True,
+        augmentation: float = 10.0,
     ) -> None:
         if model.rigid_bodies:
             raise ModelError(
@@ -60,17 +72,40 @@ class StaticSolver:
         self.tolerance = tolerance
         self.max_iterations = max_iterations
         self._geometric = consistent and model.geometric_pattern() is not None
+        self._augmented = self._augmentation_pattern() if consistent else []
+        pattern = None
+        if self._geometric or self._augmented:
+            parts = [model.geometric_pattern()] if self._geometric else []
+            parts += [(np.repeat(d, d.size), np.tile(d, d.size)) for _, d in self._augmented]
+            pattern = (
+                np.concatenate([r for r, _ in parts]),
+                np.concatenate([c for _, c in parts]),
+            )
         self.system = LinearisedSystem(
             model.body,
             policy=tangent,
             rtol=1e-12,
-            extra_pattern=model.geometric_pattern() if self._geometric else None,
+            extra_pattern=pattern,
             exact_tangent=consistent,
         )
+        self.augmentation = augmentation
+        self._row_stiffness: np.ndarray | None = None
         self._size = float(np.linalg.norm(np.ptp(model.body.rest_positions, axis=0)))
         self._gravity = model.body.gravity_forces()
         self.dt = None
         self.last_report = StepReport()
+
+    def _augmentation_pattern(self) -> list[tuple[int, np.ndarray]]:
+        """(actuator index, free DoFs its row touches) of each displacement-controlled cable."""
+        from pliant.constraints.cable import CableActuator
+
+        free = self.model.body.free_index
+        found = []
+        for i, a in enumerate(self.model.actuators):
+            if isinstance(a, CableActuator) and a.mode == "displacement":
+                dofs = free[3 * np.unique(a.points.nodes)[:, None] + np.arange(3)].ravel()
+                found.append((i, dofs[dofs >= 0]))
+        return found
 
     def _condense(
         self,
@@ -79,20 +114,40 @@ class StaticSolver:
         roles: tuple[str, ...] | None = None,
         contact: ContactConstraint | None = None,
         actuation: np.ndarray | None = None,
+        *,
+        augment: bool = False,
     ):
         model, body = self.model, self.model.body
         lin = body.linearise(q)
         check_linearisation(lin, step, None)
-        extra = None
+        space = model.constraint_space(
+            q, roles=roles, extra=(contact,) if contact is not None else ()
+        )
+        extra = []
         if self._geometric:
             tension = np.zeros(model.n_actuators) if actuation is None else actuation
             if tension.size != model.n_actuators:
                 tension = np.zeros(model.n_actuators)
-            extra = model.geometric_stiffness(q, tension)
-        self.system.prepare(lin, 0.0, 1.0, extra)
-        space = model.constraint_space(
-            q, roles=roles, extra=(contact,) if contact is not None else ()
-        )
+            extra.append(model.geometric_stiffness(q, tension))
+        first = space.slices["actuator"].start
+        held = actuation is not None and actuation.size == model.n_actuators
+        for k, (i, dofs) in enumerate(self._augmented):
+            rho = 0.0
+            cable = model.actuators[i]
+            # Only rows held at their displacement (force strictly inside its bounds at the
+            # last iterate) are equalities; a row at a force bound is not, and augmenting it
+            # would turn Newton into a slow fixed-point iteration.
+            if (
+                augment
+                and held
+                and self._row_stiffness is not None
+                and self.augmentation > 0
+                and cable.min_force < actuation[i] < cable.max_force
+            ):
+                rho = self.augmentation * self._row_stiffness[k]
+            h = space.jacobian_t[dofs, first + i] if rho > 0 else np.zeros(dofs.size)
+            extra.append(rho * np.outer(h, h).ravel())
+        self.system.prepare(lin, 0.0, 1.0, np.concatenate(extra) if extra else None)
         residual = body.gather(lin.forces + self._gravity)
         cols = self.system.solve(np.column_stack([residual, space.jacobian_t]))
         dq_free, k_inv_ht = cols[:, 0], cols[:, 1:]
@@ -109,6 +164,8 @@ class StaticSolver:
             begin(model, state)
         step = state.step + 1
         q = model.drive(state.positions, state.time)
+        if self._augmented and self._row_stiffness is None:
+            self._row_stiffness = self._rest_row_stiffness()
         # Each iteration chooses the total constraint forces; the previous iterate's warm-start
         # the next (course bounds still refer to the state the step starts from).
         guide = state.copy()
@@ -116,7 +173,7 @@ class StaticSolver:
             contact = model.contacts.constraint(q, None) if model.contacts else None
             try:
                 problem, dq_free, k_inv_ht = self._condense(
-                    q, step, getattr(ctrl, "roles", None), contact, guide.actuation
+                    q, step, getattr(ctrl, "roles", None), contact, guide.actuation, augment=True
                 )
             except SolverError as exc:
                 raise DivergenceError(f"step {step}: {exc}", step=step, cause="solver") from exc
@@ -168,6 +225,15 @@ class StaticSolver:
             model.actuator_distances(q),
             contact_forces,
         )
+
+    def _rest_row_stiffness(self) -> np.ndarray:
+        """1 / W_ii of the augmented cables' rows at rest: the scale of rho_i."""
+        model = self.model
+        q = model.drive(model.body.rest_positions.copy(), 0.0)
+        problem, _, _ = self._condense(q, 0, ("actuator",), None, None)
+        first = problem.slices["actuator"].start
+        diag = np.diag(problem.compliance)
+        return np.array([1.0 / diag[first + i] for i, _ in self._augmented])
 
     def condense(self, state: State) -> CondensedProblem:
         """Exact W = H K^-1 H^T and delta_free at `state` (with the contact rows detected
