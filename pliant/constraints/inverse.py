@@ -191,110 +191,116 @@ class ContactInverseSolution:
     settled: bool
 
 
-_OPEN, _STICK, _PROBE = 0, 1, 2  # _slip of a closed contact's tangent axis: 0 sticks, +-1 slides
+_PROBE = 2  # slip state of a tangent axis with its slip left free (0 sticks, +-1 slides)
 
 
-def _contact_qp(
-    hess,
-    grad,
-    w_rows,
-    d_rows,
-    na,
-    normal,
-    pyramid,
-    lo,
-    hi,
-    dmin,
-    dmax,
-    closed,
-    slip,
-    tolerance,
-    max_iterations,
-):
-    """One round of the QPCC active set: the QP for given contact states, its solution (all
-    unknowns, zero for open contacts), its multipliers and the rows of each tangent axis, or
-    None where ProxQP finds no solution.
+@dataclass
+class _ContactQP:
+    """The QPs of the QPCC's active set: one per round, for given contact states.
 
     slip[k, t] is 0 (sticks: delta_t = 0, |lambda_t| <= p lambda_n), s = +-1 (slides:
-    lambda_t = s p lambda_n, s delta_t <= 0) or 2 (probe: delta_t free, |lambda_t| <= p
+    lambda_t = s p lambda_n, s delta_t <= 0) or _PROBE (delta_t free, |lambda_t| <= p
     lambda_n; used once to learn which way the QP wants an axis to slip)."""
-    n = hess.shape[0]
-    big = 1e20
-    eq_rows, eq_rhs, in_rows, in_lo, in_hi = [], [], [], [], []
-    stick_rows, slide_rows, gap_rows = {}, {}, {}
-    box_lo, box_hi = np.full(n, -big), np.full(n, big)
-    box_lo[:na], box_hi[:na] = np.clip(lo, -big, big), np.clip(hi, -big, big)
-    for i in range(na):  # course bounds on the actuators' displacement
-        in_rows.append(w_rows[i])
-        in_lo.append(max(dmin[i] - d_rows[i], -big))
-        in_hi.append(min(dmax[i] - d_rows[i], big))
 
-    def pyramid_rows(j, t, k):
-        for sign in (1.0, -1.0):
-            row = np.zeros(n)
-            row[j + t], row[j] = sign, -pyramid[k]
-            in_rows.append(row)
-            in_lo.append(-big)
-            in_hi.append(0.0)
+    hess: np.ndarray  # objective on the unknowns (actuators, then 3 per contact), scaled
+    grad: np.ndarray
+    w_rows: np.ndarray  # delta of the unknowns' rows = w_rows mu + d_rows
+    d_rows: np.ndarray
+    na: int
+    normal: np.ndarray  # index of each contact's normal unknown
+    pyramid: np.ndarray  # mu / sqrt(2) per contact
+    lo: np.ndarray  # actuator force bounds (scaled) and course bounds
+    hi: np.ndarray
+    dmin: np.ndarray
+    dmax: np.ndarray
+    tolerance: float
+    max_iterations: int
 
-    for k, j in enumerate(normal):
-        if not closed[k]:
-            gap_rows[k] = len(in_rows)
-            in_rows.append(w_rows[j])  # delta_n >= 0
-            in_lo.append(-d_rows[j])
-            in_hi.append(big)
-            continue
-        eq_rows.append(w_rows[j])  # delta_n = 0, lambda_n >= 0
-        eq_rhs.append(-d_rows[j])
-        box_lo[j] = 0.0
-        if pyramid[k] == 0.0:  # frictionless: lambda_t = 0, delta_t free
-            for t in (1, 2):
+    def solve(self, closed: np.ndarray, slip: np.ndarray):
+        """The QP's solution (all unknowns, zero for open contacts), its multipliers and the
+        rows of each contact's constraints, or None where ProxQP finds no solution."""
+        hess, grad, w_rows, d_rows, na = self.hess, self.grad, self.w_rows, self.d_rows, self.na
+        normal, pyramid, lo, hi = self.normal, self.pyramid, self.lo, self.hi
+        dmin, dmax = self.dmin, self.dmax
+        n = hess.shape[0]
+        big = 1e20
+        eq_rows, eq_rhs, in_rows, in_lo, in_hi = [], [], [], [], []
+        stick_rows, slide_rows, gap_rows = {}, {}, {}
+        box_lo, box_hi = np.full(n, -big), np.full(n, big)
+        box_lo[:na], box_hi[:na] = np.clip(lo, -big, big), np.clip(hi, -big, big)
+        for i in range(na):  # course bounds on the actuators' displacement
+            in_rows.append(w_rows[i])
+            in_lo.append(max(dmin[i] - d_rows[i], -big))
+            in_hi.append(min(dmax[i] - d_rows[i], big))
+
+        def pyramid_rows(j, t, k):
+            for sign in (1.0, -1.0):
                 row = np.zeros(n)
-                row[j + t] = 1.0
-                eq_rows.append(row)
-                eq_rhs.append(0.0)
-            continue
-        for t in (1, 2):
-            s = slip[k, t - 1]
-            if s == 0:
-                stick_rows[k, t] = len(eq_rows)
-                eq_rows.append(w_rows[j + t])
-                eq_rhs.append(-d_rows[j + t])
-                pyramid_rows(j, t, k)
-            elif s == _PROBE:
-                pyramid_rows(j, t, k)
-            else:
-                row = np.zeros(n)
-                row[j + t], row[j] = 1.0, -s * pyramid[k]
-                eq_rows.append(row)
-                eq_rhs.append(0.0)
-                slide_rows[k, t] = len(in_rows)
-                in_rows.append(s * w_rows[j + t])
+                row[j + t], row[j] = sign, -pyramid[k]
+                in_rows.append(row)
                 in_lo.append(-big)
-                in_hi.append(-s * d_rows[j + t])
-    # Open contacts carry no force: their unknowns are left out of the QP (fixing them by
-    # equal box bounds stalls ProxQP), only their delta_n >= 0 rows stay.
-    keep = np.ones(n, dtype=bool)
-    for k in np.flatnonzero(~closed):
-        keep[normal[k] : normal[k] + 3] = False
-    qp = _dense_qp(int(keep.sum()), len(eq_rows), len(in_rows), tolerance, max_iterations)
-    qp.init(
-        hess[np.ix_(keep, keep)],
-        grad[keep],
-        np.array(eq_rows)[:, keep] if eq_rows else None,
-        np.array(eq_rhs) if eq_rows else None,
-        np.array(in_rows)[:, keep],
-        np.array(in_lo),
-        np.array(in_hi),
-        box_lo[keep],
-        box_hi[keep],
-    )
-    qp.solve()
-    if qp.results.info.status != proxqp.QPSolverOutput.PROXQP_SOLVED:
-        return None
-    mu = np.zeros(n)
-    mu[keep] = qp.results.x
-    return mu, qp.results.y.copy(), qp.results.z.copy(), stick_rows, slide_rows, gap_rows
+                in_hi.append(0.0)
+
+        for k, j in enumerate(normal):
+            if not closed[k]:
+                gap_rows[k] = len(in_rows)
+                in_rows.append(w_rows[j])  # delta_n >= 0
+                in_lo.append(-d_rows[j])
+                in_hi.append(big)
+                continue
+            eq_rows.append(w_rows[j])  # delta_n = 0, lambda_n >= 0
+            eq_rhs.append(-d_rows[j])
+            box_lo[j] = 0.0
+            if pyramid[k] == 0.0:  # frictionless: lambda_t = 0, delta_t free
+                for t in (1, 2):
+                    row = np.zeros(n)
+                    row[j + t] = 1.0
+                    eq_rows.append(row)
+                    eq_rhs.append(0.0)
+                continue
+            for t in (1, 2):
+                s = slip[k, t - 1]
+                if s == 0:
+                    stick_rows[k, t] = len(eq_rows)
+                    eq_rows.append(w_rows[j + t])
+                    eq_rhs.append(-d_rows[j + t])
+                    pyramid_rows(j, t, k)
+                elif s == _PROBE:
+                    pyramid_rows(j, t, k)
+                else:
+                    row = np.zeros(n)
+                    row[j + t], row[j] = 1.0, -s * pyramid[k]
+                    eq_rows.append(row)
+                    eq_rhs.append(0.0)
+                    slide_rows[k, t] = len(in_rows)
+                    in_rows.append(s * w_rows[j + t])
+                    in_lo.append(-big)
+                    in_hi.append(-s * d_rows[j + t])
+        # Open contacts carry no force: their unknowns are left out of the QP (fixing them by
+        # equal box bounds stalls ProxQP), only their delta_n >= 0 rows stay.
+        keep = np.ones(n, dtype=bool)
+        for k in np.flatnonzero(~closed):
+            keep[normal[k] : normal[k] + 3] = False
+        qp = _dense_qp(
+            int(keep.sum()), len(eq_rows), len(in_rows), self.tolerance, self.max_iterations
+        )
+        qp.init(
+            hess[np.ix_(keep, keep)],
+            grad[keep],
+            np.array(eq_rows)[:, keep] if eq_rows else None,
+            np.array(eq_rhs) if eq_rows else None,
+            np.array(in_rows)[:, keep],
+            np.array(in_lo),
+            np.array(in_hi),
+            box_lo[keep],
+            box_hi[keep],
+        )
+        qp.solve()
+        if qp.results.info.status != proxqp.QPSolverOutput.PROXQP_SOLVED:
+            return None
+        mu = np.zeros(n)
+        mu[keep] = qp.results.x
+        return mu, qp.results.y.copy(), qp.results.z.copy(), stick_rows, slide_rows, gap_rows
 
 
 def _slip_against(slip_displacement: float, scale: float) -> int:
@@ -380,24 +386,22 @@ def solve_inverse_with_contacts(
     )
     slip = np.zeros((nc, 2), dtype=int)
 
-    def solve(closed, slip):
-        return _contact_qp(
-            hess,
-            grad,
-            w_rows,
-            d_rows,
-            na,
-            normal,
-            pyramid,
-            lo * c,
-            hi * c,
-            dmin,
-            dmax,
-            closed,
-            slip,
-            tolerance,
-            max_iterations,
-        )
+    qp = _ContactQP(
+        hess,
+        grad,
+        w_rows,
+        d_rows,
+        na,
+        normal,
+        pyramid,
+        lo * c,
+        hi * c,
+        dmin,
+        dmax,
+        tolerance,
+        max_iterations,
+    )
+    solve = qp.solve
 
     # A first feasible state. Closed contacts start with their slip free (probed: the rounds
     # then make each axis stick or slide against the slip); while the QP has no solution,

@@ -156,8 +156,9 @@ def trunk_push(
     The cube (`cube_size` mm, `cube_mass` kg) stands on a frictionless floor at y =
     floor_height with its -x face `cube_gap` mm from the trunk's side at z = cube_z, and feels
     a viscous drag -drag m v (1/s), so that it moves only while pushed. Its friction with the
-    trunk is `cube_friction`. Two effectors: the cube's centre on x and z (`RigidEffector`,
-    which the actuators move only through the contacts), and the trunk's point facing the
+    trunk is `cube_friction`. Two effectors: the cube's centre on `cube_axes` (x by default:
+    a pusher cannot pull the cube back sideways; a `RigidEffector`, which the actuators move
+    only through the contacts), and the trunk's point facing the
     cube on x (weight `pusher_weight`), whose goal :class:`PushControl` keeps on the cube's
     face to hold the contact, as the thesis' Trunk-and-cube reward favours contact (§4.1.2).
     """
