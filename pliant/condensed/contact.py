@@ -83,9 +83,10 @@ class ContactRobot:
         tolerance, max_iterations: Newton's (StaticSolver), the tolerance relative to the
             body size.
         max_increment: largest change of an imposed displacement in one static step.
-        consistent: the static solver's tangent, and so W: the consistent one (with the
-            cables' geometric stiffness) or SOFA's material tangent, the thesis' W (see
-            CollectionPlan.consistent_tangent).
+        consistent: the tangent of W: the consistent one (with the cables' geometric
+            stiffness) or SOFA's material tangent, the thesis' W (see
+            CollectionPlan.consistent_tangent). The equilibria are solved on the consistent
+            tangent either way (the same states, reached in fewer iterations).
     """
 
     @classmethod
@@ -129,13 +130,14 @@ class ContactRobot:
             if held
             else model
         )
-        settings = {
-            "tolerance": tolerance,
-            "max_iterations": max_iterations,
-            "consistent": consistent,
-        }
+        # Equilibria by Newton on the consistent tangent (quadratic, and robust where the
+        # material tangent converges linearly or not at all); W from the tangent asked for.
+        settings = {"tolerance": tolerance, "max_iterations": max_iterations}
         self.solver = StaticSolver(self.held, **settings)
         self._free_solver = StaticSolver(model, **settings) if held else self.solver
+        self._compliance = (
+            self.solver if consistent else StaticSolver(self.held, **settings, consistent=False)
+        )
         self.max_increment = max_increment
         self.layout = Layout.of(model, () if self.contact is None else (self.contact,))
         na, ne, nc = (self.layout.counts[r] for r in ("actuator", "effector", "contact"))
@@ -168,7 +170,7 @@ class ContactRobot:
 
     def problem(self, state: State) -> CondensedProblem:
         """The exact W and delta_free at `state`, rows in layout order."""
-        held = self.solver.condense(state)
+        held = self._compliance.condense(state)
         order = self._order
         return CondensedProblem(
             held.compliance[np.ix_(order, order)], held.free_distance[order], self.layout.slices

@@ -73,9 +73,11 @@ class CollectionPlan:
             sampled pose gives one sample per finger, and `actuator_bounds` bound the control.
         consistent_tangent: W of the static solver's consistent tangent (the equilibrium's
             compliance, with the cables' geometric stiffness), or of SOFA's material tangent,
-            the thesis' W. A finger held at its tip is compressed by its cables: with their
-            geometric stiffness its W grows steeply with their tension, off the states a box
-            of (delta_a, delta_c) samples; the material tangent's W does not.
+            the thesis' W (the equilibria are the same). A finger held at its tip is
+            compressed by its cables: with their geometric stiffness its W grows steeply with
+            their tension, off the states a box of (delta_a, delta_c) samples; the material
+            tangent's W does not. Likewise a Diamond whose held cables stabilise compressed
+            arms: its consistent K is near singular there (W up to 10^4 times its median).
     """
 
     robot: str
