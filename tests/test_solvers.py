@@ -278,3 +278,28 @@ def test_cholesky_backends_reject_indefinite_and_non_finite_matrices(backend) ->
     assert np.all(np.isfinite(factor.solve(np.ones(pattern.n_free))))
     with pytest.raises(SolverError, match="unknown Cholesky backend"):
         sparse_cholesky(pattern.indptr, pattern.indices, "umfpack")
+
+
+def test_cable_rows_read_from_their_points_give_the_problem_of_solving_every_column() -> None:
+    """The Diamond's cables run through one point each: their rows (and the effector's) are
+    read from the points' columns kept for the lagged factorisation (PointRows) instead of one
+    solve per row and step. Same W, delta_free and motion as solving every column, to
+    round-off, over direct steps and inverse steps across refactorisations."""
+    from pliant.constraints.control import InverseControl
+
+    model = robots.diamond(mesh_size=20.0)
+    kept = ImplicitEuler(model, 0.01)
+    every = ImplicitEuler(model, 0.01, point_compliance=False)
+    assert kept._point_rows(("actuator",)) is not None
+    assert every._point_rows(("actuator",)) is None
+    a = b = model.rest_state()
+    for i in range(60):
+        goal = [np.array([[5.0, 0.0, 118.0]])]
+        control = np.array([0.3 * i, 0.0, 4.0, 0.0]) if i < 30 else InverseControl(goals=goal)
+        a, b = kept.step(a, control), every.step(b, control)
+        pa, pb = kept.last_report.problem, every.last_report.problem
+        assert pa.slices == pb.slices
+        assert np.abs(pa.compliance - pb.compliance).max() < 1e-10 * np.abs(pb.compliance).max()
+        assert np.abs(pa.free_distance - pb.free_distance).max() < 1e-10
+    assert np.abs(a.positions - b.positions).max() < 1e-9
+    assert kept.system.factorisations > 2  # the kept columns were renewed

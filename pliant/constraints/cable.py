@@ -56,7 +56,8 @@ class CableActuator(Actuator):
     def distance(self, x: np.ndarray) -> np.ndarray:
         return np.array([self.rest_length - self.length(x)])
 
-    def jacobian(self, x: np.ndarray) -> JacobianRows:
+    def point_gradients(self, x: np.ndarray) -> np.ndarray:
+        """(k, 3) d delta / d p_j for the cable's embedded points p_j."""
         poly = self._polyline(x)
         seg = np.diff(poly, axis=0)
         norm = np.linalg.norm(seg, axis=1, keepdims=True)
@@ -67,7 +68,11 @@ class CableActuator(Actuator):
         dl[:-1] -= unit
         if self.pull_point is not None:
             dl = dl[1:]
-        grad = -dl[:, None, :] * self.points.weights[:, :, None]  # d delta / d node, (k, 4, 3)
+        return -dl
+
+    def jacobian(self, x: np.ndarray) -> JacobianRows:
+        # d delta / d node, (k, 4, 3)
+        grad = self.point_gradients(x)[:, None, :] * self.points.weights[:, :, None]
         return JacobianRows(self.points.nodes.reshape(1, -1), grad.reshape(1, -1, 3))
 
     @classmethod

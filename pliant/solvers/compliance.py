@@ -109,3 +109,81 @@ class PointCompliance:
         np.add.at(f, where, forces)
         cols = (3 * used[:, None] + np.arange(3)).reshape(-1)
         return self._store[:, cols] @ f.reshape(-1)
+
+
+class PointRows:
+    """Rows of cables and position effectors read through their points' compliance.
+
+    A cable's row is sum_j g_j . P_j over its embedded points (g_j = d delta / d p_j), and a
+    position effector's rows are the weighted axes of P_j; so with G the (rows, 3 points)
+    matrix of those coefficients, H = G P and W = G (P Z) G^T, A^-1 H^T lambda = Z G^T lambda,
+    from the columns Z kept for the factorisation by a :class:`PointCompliance`. Worth it for
+    robots whose cables run through few points (the Diamond: one each), whose columns are then
+    solved once per factorisation instead of one per row at every step.
+
+    Args:
+        constraints: the rows' constraints in the order of the constraint space.
+        free_index: the body's full DoF -> free DoF map.
+    """
+
+    def __init__(self, constraints: list, free_index: np.ndarray) -> None:
+        from pliant.constraints.cable import CableActuator
+        from pliant.constraints.effector import PositionEffector
+
+        self.constraints = constraints
+        nodes, weights, self._offsets = [], [], []
+        for c in constraints:
+            if not isinstance(c, CableActuator | PositionEffector):
+                raise TypeError(f"{type(c).__name__} rows are not combinations of point rows")
+            self._offsets.append(sum(len(n) for n in nodes))
+            nodes.append(c.points.nodes)
+            weights.append(c.points.weights)
+        points = EmbeddedPoints.__new__(EmbeddedPoints)
+        points.nodes = np.concatenate(nodes)
+        points.weights = np.concatenate(weights)
+        self.n_points = len(points)
+        self.n_rows = sum(c.n_rows for c in constraints)
+        self.cache = PointCompliance(points, free_index)
+        self._index = np.arange(self.n_points)
+
+    @classmethod
+    def build(cls, constraints: list, free_index: np.ndarray) -> PointRows | None:
+        """PointRows for `constraints` if all are cables or position effectors and their
+        points' columns (3 per point) are no more than 4 steps' worth of row columns."""
+        if not constraints:
+            return None
+        try:
+            rows = cls(constraints, free_index)
+        except TypeError:
+            return None
+        return rows if 0 < 3 * rows.n_points <= 4 * rows.n_rows else None
+
+    def coefficients(self, x: np.ndarray) -> np.ndarray:
+        """G (rows, 3 points) at positions x."""
+        from pliant.constraints.cable import CableActuator
+
+        g = np.zeros((self.n_rows, 3 * self.n_points))
+        row = 0
+        for c, off in zip(self.constraints, self._offsets, strict=True):
+            if isinstance(c, CableActuator):
+                g[row, 3 * off : 3 * (off + len(c.points))] = c.point_gradients(x).reshape(-1)
+                row += 1
+                continue
+            for j in range(len(c.points)):
+                for ax in c.axes:
+                    g[row, 3 * (off + j) + ax] = c.weight
+                    row += 1
+        return g
+
+    def condense(self, solve, factorisation: int, x: np.ndarray, motion: np.ndarray):
+        """(W without h^2, H motion, lambda -> A^-1 H^T lambda) for the factorisation
+        numbered `factorisation` (A^-1: `solve`), the rows' coefficients taken at x."""
+        g = self.coefficients(x)
+        slots = self.cache.columns(solve, factorisation, self._index)
+        w = g @ self.cache.block(self._index, slots) @ g.T
+        moved = g @ self.cache.read(self._index, motion).reshape(-1)
+
+        def response(lam: np.ndarray) -> np.ndarray:
+            return self.cache.apply(slots, (g.T @ lam).reshape(-1, 3))
+
+        return w, moved, response

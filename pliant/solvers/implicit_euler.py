@@ -42,7 +42,7 @@ from pliant.errors import DivergenceError, ModelError, SolverError
 from pliant.fem.rigid import RigidStep, integrate_poses
 from pliant.model import Model, State
 from pliant.solvers.base import StepReport, check_linearisation, check_motion
-from pliant.solvers.compliance import PointCompliance
+from pliant.solvers.compliance import PointCompliance, PointRows
 from pliant.solvers.system import LinearisedSystem, TangentPolicy
 
 
@@ -57,7 +57,10 @@ class ImplicitEuler:
         point_compliance: keep the colliding points' compliance columns for the life of a
             factorisation (:mod:`pliant.solvers.compliance`) rather than solving three columns
             per contact at every step; same results to round-off. Not used by "pcg", whose
-            solves are not one factorisation's.
+            solves are not one factorisation's. With the "lagged" tangent and no contact, the
+            same for the points of cables and position effectors when they are few (at most
+            4/3 of a point per row, as the Diamond's one point per cable): their rows' columns
+            are then read from the points' (:class:`pliant.solvers.compliance.PointRows`).
     """
 
     def __init__(
@@ -80,6 +83,8 @@ class ImplicitEuler:
             if point_compliance and model.contacts is not None
             else None
         )
+        self._row_points: dict[tuple[str, ...] | None, PointRows | None] = {}
+        self._rows_on_points = point_compliance and tangent == "lagged"
         body = model.body
         self._size = float(np.linalg.norm(np.ptp(body.rest_positions, axis=0)))
         self._gravity = body.gravity_forces()
@@ -117,8 +122,11 @@ class ImplicitEuler:
         self._place_objects(rigid)
         try:
             self.system.prepare(lin, a_m, a_k)
+            point_rows = self._point_rows(roles) if contact is None else None
             if contact is not None and self._points is not None and self.system.policy != "pcg":
                 problem, correction = self._condense_with_points(at, roles, contact, rhs, v, rigid)
+            elif point_rows is not None:
+                problem, correction = self._condense_on_points(at, roles, rhs, v, point_rows)
             else:
                 problem, correction = self._condense(at, roles, contact, rhs, v, rigid)
         except SolverError as exc:
@@ -190,6 +198,33 @@ class ImplicitEuler:
         self._add_objects(w, delta_free, space.slices, contact, rigid)
         problem = CondensedProblem(0.5 * (w + w.T), delta_free, space.slices)
         return problem, (dv_free, lambda lam: a_inv_ht @ lam)
+
+    def _point_rows(self, roles) -> PointRows | None:
+        """The rows of `roles` read through their points' columns, or None where that does
+        not pay (see PointRows.build) or the rows are not points' (cavities, objects)."""
+        if not self._rows_on_points:
+            return None
+        key = None if roles is None else tuple(roles)
+        if key not in self._row_points:
+            model = self.model
+            wanted = [
+                c for c in model.actuators + model.effectors if roles is None or c.role in roles
+            ]
+            self._row_points[key] = PointRows.build(wanted, model.body.free_index)
+        return self._row_points[key]
+
+    def _condense_on_points(self, at, roles, rhs, v, rows: PointRows):
+        """As `_condense` without contact, the rows' columns from their points' columns kept
+        for the factorisation: one solve (the free motion) per step."""
+        h = self.dt
+        space = self.model.constraint_space(at, roles=roles)
+        dv_free = self.system.solve(rhs)
+        w, moved, response = rows.condense(
+            self.system.solve, self.system.factorisations, at, v + dv_free
+        )
+        delta_free = space.distance + h * moved
+        problem = CondensedProblem(0.5 * h * h * (w + w.T), delta_free, space.slices)
+        return problem, (dv_free, response)
 
     def _condense_with_points(self, at, roles, contact, rhs, v, rigid):
         """As `_condense`, with the contact columns read from the colliding points' compliance
