@@ -132,8 +132,16 @@ class CableBundle:
     def distance(self, x: np.ndarray) -> np.ndarray:
         return self._rows(x)[0]
 
+    def point_gradients(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Shortenings (rows,) and d delta / d p (P, 3) for the cables' embedded points, in
+        the order of the cables and of their points."""
+        return _bundle_points(*self._arguments(x))
+
     def _rows(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        return _bundle_rows(
+        return _bundle_rows(*self._arguments(x))
+
+    def _arguments(self, x: np.ndarray) -> tuple:
+        return (
             np.ascontiguousarray(x, dtype=np.float64),
             self._nodes,
             self._weights,
@@ -204,9 +212,9 @@ class CableBundle:
 
 
 @njit(cache=True)
-def _bundle_rows(x, nodes, weights, pulls, starts, ends, owner, rest):
-    """Shortenings L0 - L(x) of the cables and dL/dx per embedded point and node (P, 4, 3),
-    negated: the rows of H. Vertices are the embedded points, then the pull points."""
+def _bundle_points(x, nodes, weights, pulls, starts, ends, owner, rest):
+    """Shortenings L0 - L(x) of the cables and d delta / d p per embedded point (P, 3).
+    Vertices are the embedded points, then the pull points."""
     n_points = nodes.shape[0]
     verts = np.empty((n_points + pulls.shape[0], 3))
     for j in range(n_points):
@@ -226,9 +234,17 @@ def _bundle_rows(x, nodes, weights, pulls, starts, ends, owner, rest):
             for i in range(3):
                 dl[ends[s], i] += d[i] / length
                 dl[starts[s], i] -= d[i] / length
-    grad = np.empty((n_points, nodes.shape[1], 3))
-    for j in range(n_points):
+    return delta, -dl[:n_points]
+
+
+@njit(cache=True)
+def _bundle_rows(x, nodes, weights, pulls, starts, ends, owner, rest):
+    """Shortenings L0 - L(x) of the cables and their rows of H per embedded point and node
+    (P, 4, 3): d delta / d p spread on each point's nodes by its weights."""
+    delta, dp = _bundle_points(x, nodes, weights, pulls, starts, ends, owner, rest)
+    grad = np.empty((nodes.shape[0], nodes.shape[1], 3))
+    for j in range(nodes.shape[0]):
         for a in range(nodes.shape[1]):
             for i in range(3):
-                grad[j, a, i] = -dl[j, i] * weights[j, a]
+                grad[j, a, i] = dp[j, i] * weights[j, a]
     return delta, grad

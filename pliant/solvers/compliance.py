@@ -127,24 +127,53 @@ class PointRows:
     """
 
     def __init__(self, constraints: list, free_index: np.ndarray) -> None:
-        from pliant.constraints.cable import CableActuator
+        from pliant.constraints.cable import CableActuator, CableBundle
         from pliant.constraints.effector import PositionEffector
 
         self.constraints = constraints
         nodes, weights, self._offsets = [], [], []
+        cable_rows, cable_points = [], []  # the cables' rows, and their points' (row, point)
+        const_rows = []  # (row, column of G, value): the effectors' constant coefficients
+        self._effectors: list[tuple[int, PositionEffector]] = []  # with their first rows
+        self.slices: dict[str, slice] = {}
+        row = 0
         for c in constraints:
             if not isinstance(c, CableActuator | PositionEffector):
                 raise TypeError(f"{type(c).__name__} rows are not combinations of point rows")
-            self._offsets.append(sum(len(n) for n in nodes))
+            off = sum(len(n) for n in nodes)
+            self._offsets.append(off)
             nodes.append(c.points.nodes)
             weights.append(c.points.weights)
+            if isinstance(c, CableActuator):
+                cable_rows.append(row)
+                cable_points += [(row, off + j) for j in range(len(c.points))]
+            else:
+                self._effectors.append((row, c))
+                for j in range(len(c.points)):
+                    for i, ax in enumerate(c.axes):
+                        const_rows.append((row + j * c.axes.size + i, 3 * (off + j) + ax, c.weight))
+            role = self.slices.get(c.role)
+            self.slices[c.role] = slice(row if role is None else role.start, row + c.n_rows)
+            row += c.n_rows
+        self.n_rows = row
+        for role in ("actuator", "effector", "contact"):
+            self.slices.setdefault(role, slice(row, row))
         points = EmbeddedPoints.__new__(EmbeddedPoints)
         points.nodes = np.concatenate(nodes)
         points.weights = np.concatenate(weights)
         self.n_points = len(points)
-        self.n_rows = sum(c.n_rows for c in constraints)
         self.cache = PointCompliance(points, free_index)
         self._index = np.arange(self.n_points)
+        cables = [c for c in constraints if isinstance(c, CableActuator)]
+        self._cables = CableBundle(cables) if cables else None
+        self._cable_rows = np.array(cable_rows, dtype=np.int64)
+        pairs = np.array(cable_points, dtype=np.int64).reshape(-1, 2)
+        self._g_rows = pairs[:, :1]
+        self._g_cols = 3 * pairs[:, 1:] + np.arange(3)
+        self._g0 = np.zeros((self.n_rows, 3 * self.n_points))
+        for r, col, value in const_rows:
+            self._g0[r, col] = value
+        self._block: tuple[int, np.ndarray] | None = None
 
     @classmethod
     def build(cls, constraints: list, free_index: np.ndarray) -> PointRows | None:
@@ -158,32 +187,28 @@ class PointRows:
             return None
         return rows if 0 < 3 * rows.n_points <= 4 * rows.n_rows else None
 
-    def coefficients(self, x: np.ndarray) -> np.ndarray:
-        """G (rows, 3 points) at positions x."""
-        from pliant.constraints.cable import CableActuator
-
-        g = np.zeros((self.n_rows, 3 * self.n_points))
-        row = 0
-        for c, off in zip(self.constraints, self._offsets, strict=True):
-            if isinstance(c, CableActuator):
-                g[row, 3 * off : 3 * (off + len(c.points))] = c.point_gradients(x).reshape(-1)
-                row += 1
-                continue
-            for j in range(len(c.points)):
-                for ax in c.axes:
-                    g[row, 3 * (off + j) + ax] = c.weight
-                    row += 1
-        return g
+    def evaluate(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The rows' distances delta(x) (rows,) and coefficients G (rows, 3 points) at x."""
+        g = self._g0.copy()
+        delta = np.zeros(self.n_rows)
+        if self._cables is not None:
+            delta[self._cable_rows], grads = self._cables.point_gradients(x)
+            g[self._g_rows, self._g_cols] = grads
+        for row, effector in self._effectors:
+            delta[row : row + effector.n_rows] = effector.distance(x)
+        return delta, g
 
     def condense(self, solve, factorisation: int, x: np.ndarray, motion: np.ndarray):
-        """(W without h^2, H motion, lambda -> A^-1 H^T lambda) for the factorisation
-        numbered `factorisation` (A^-1: `solve`), the rows' coefficients taken at x."""
-        g = self.coefficients(x)
+        """(delta(x), W without h^2, H motion, lambda -> A^-1 H^T lambda) for the factorisation
+        numbered `factorisation` (A^-1: `solve`), the rows taken at x."""
+        delta, g = self.evaluate(x)
         slots = self.cache.columns(solve, factorisation, self._index)
-        w = g @ self.cache.block(self._index, slots) @ g.T
+        if self._block is None or self._block[0] != factorisation:  # P A^-1 P^T, kept with A
+            self._block = (factorisation, self.cache.block(self._index, slots))
+        w = g @ self._block[1] @ g.T
         moved = g @ self.cache.read(self._index, motion).reshape(-1)
 
         def response(lam: np.ndarray) -> np.ndarray:
             return self.cache.apply(slots, (g.T @ lam).reshape(-1, 3))
 
-        return w, moved, response
+        return delta, w, moved, response

@@ -217,13 +217,11 @@ class ImplicitEuler:
         """As `_condense` without contact, the rows' columns from their points' columns kept
         for the factorisation: one solve (the free motion) per step."""
         h = self.dt
-        space = self.model.constraint_space(at, roles=roles)
         dv_free = self.system.solve(rhs)
-        w, moved, response = rows.condense(
+        distance, w, moved, response = rows.condense(
             self.system.solve, self.system.factorisations, at, v + dv_free
         )
-        delta_free = space.distance + h * moved
-        problem = CondensedProblem(0.5 * h * h * (w + w.T), delta_free, space.slices)
+        problem = CondensedProblem(0.5 * h * h * (w + w.T), distance + h * moved, rows.slices)
         return problem, (dv_free, response)
 
     def _condense_with_points(self, at, roles, contact, rhs, v, rigid):
