@@ -280,3 +280,19 @@ def test_mass_of_a_rigid_translation_is_the_total_mass(mass, distorted_mesh) -> 
     matrix = body.pattern.matrix(body.mass_data)
     v = np.random.default_rng(1).standard_normal(body.n_free)
     assert matrix @ v == pytest.approx(body.mass_matvec(v), rel=1e-12)
+
+
+def test_nodal_sums_agree_on_one_and_several_threads():
+    """The element-order scatter (one thread) and the node-parallel gather sum the same terms."""
+    from pliant.fem import kernels
+
+    body = TetBody(box_beam(30.0, 10.0, 10.0, 6, 2, 2), Corotational(E, NU), density=1e-6)
+    values = np.random.default_rng(0).normal(size=(body.tets.shape[0], 4, 6))
+    by_node = np.empty((body.rest_positions.shape[0], 6))
+    by_element = np.empty_like(by_node)
+    kernels._gather_by_node(values, body._incidence_ptr, body._incidence, by_node)
+    kernels._scatter_by_element(values, body.tets, by_element)
+    expected = np.zeros_like(by_node)
+    np.add.at(expected, body.tets, values)
+    np.testing.assert_allclose(by_node, expected, rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(by_element, expected, rtol=1e-12, atol=1e-12)

@@ -273,7 +273,7 @@ class TetBody:
             dets,
         )
         nodal = np.empty((x.shape[0], elem.shape[2]))
-        kernels.gather_nodal(elem, self._incidence_ptr, self._incidence, nodal)
+        kernels.gather_nodal(elem, self.tets, self._incidence_ptr, self._incidence, nodal)
         forces = np.ascontiguousarray(nodal[:, :3])
         kv = np.ascontiguousarray(nodal[:, 3:]) if v.shape[0] else None
         tangents = []

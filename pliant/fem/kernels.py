@@ -12,11 +12,13 @@ Material tags: 0 corotational (tangent R K0 R^T, or exact), 1 Neo-Hookean (exact
 
 from __future__ import annotations
 
+import numba
 import numpy as np
 from numba import njit, prange
 
-# Quadratic convergence: a step smaller than 1e-8 leaves an error near machine precision.
-_POLAR_TOL = 1e-8
+# Near convergence the Newton iterate's error e obeys e' ~ e^2 / 2 and a step is about the
+# previous error, so a step below 1e-6 leaves an error below 1e-12.
+_POLAR_TOL = 1e-6
 _POLAR_MAX_ITER = 40
 
 
@@ -126,7 +128,7 @@ def _gradient(x, tet, g, out):
 def internal_forces(x, v, tets, grads, vols, mu, lam, tag, elem_forces, elem_kv, frames, dets):
     """Element internal forces and elastic energy, and optionally K_s v.
 
-    Writes -V P g_a into `elem_forces` (m, 4, 3) (gather them with `gather_nodal`), the
+    Writes -V P g_a into `elem_forces` (m, 4, 3) (sum them per node with `gather_nodal`), the
     linearisation frame (R for corotational, F^-1 for Neo-Hookean) into `frames` (m, 3, 3)
     and det F into `dets`. An element with det F <= 0 contributes no force; its det is recorded
     so that the caller reports the inversion instead of a NaN. When `v` (n, 3) is not empty,
@@ -205,13 +207,35 @@ def internal_forces(x, v, tets, grads, vols, mu, lam, tag, elem_forces, elem_kv,
     return energies.sum()
 
 
-@njit(cache=True, parallel=True)
-def gather_nodal(elem_values, incidence_ptr, incidence, out):
+def gather_nodal(elem_values, tets, incidence_ptr, incidence, out):
     """out[n] = sum of elem_values[e, a] over the (e, a) with tets[e, a] == n.
 
     elem_values (m, 4, ...) and out (n, ...) are contiguous; `incidence` lists e * 4 + a per
-    node (sorted by node, `incidence_ptr` its CSR offsets). Node-parallel, no write conflicts.
+    node (sorted by node, `incidence_ptr` its CSR offsets). On several threads node-parallel,
+    with no write conflicts; on one thread a scatter in element order, which streams through
+    elem_values instead of reading it at random (3x faster on the Diamond's 4147 elements).
     """
+    if numba.get_num_threads() > 1:
+        _gather_by_node(elem_values, incidence_ptr, incidence, out)
+    else:
+        _scatter_by_element(elem_values, tets, out)
+
+
+@njit(cache=True)
+def _scatter_by_element(elem_values, tets, out):
+    width = out.size // out.shape[0]
+    flat = elem_values.reshape((elem_values.shape[0], 4, width))
+    res = out.reshape((out.shape[0], width))
+    res[:] = 0.0
+    for e in range(flat.shape[0]):
+        for a in range(4):
+            n = tets[e, a]
+            for j in range(width):
+                res[n, j] += flat[e, a, j]
+
+
+@njit(cache=True, parallel=True)
+def _gather_by_node(elem_values, incidence_ptr, incidence, out):
     width = out.size // out.shape[0]
     flat = elem_values.reshape((elem_values.shape[0] * 4, width))
     res = out.reshape((out.shape[0], width))
