@@ -59,8 +59,10 @@ def run(
         folder = out / robot
         images = []
         state = start = model.rest_state()
+        cell_type, cells, rows = model.body.vtk_cells()
+        rest = model.body.rest_positions[rows]
         with (
-            VtuSeriesWriter(folder, robot, model.body.tets) as vtu,
+            VtuSeriesWriter(folder, robot, cells, cell_type) as vtu,
             Progress(console=console) as bar,
         ):
             task = bar.add_task(f"{robot}: {n_steps} steps", total=n_steps)
@@ -70,10 +72,10 @@ def run(
                     images.append(camera.frame(state, title=f"{robot}  t = {state.time:.2f} s"))
                     vtu.write(
                         state.time,
-                        state.positions,
+                        state.positions[rows],
                         {
-                            "displacement": state.positions - model.body.rest_positions,
-                            "velocity": state.velocities,
+                            "displacement": state.positions[rows] - rest,
+                            "velocity": state.velocities[rows],
                         },
                     )
         gif = save_gif(images, folder / f"{robot}.gif", fps=15)
@@ -82,7 +84,7 @@ def run(
         console.print(f"[red]error:[/red] {exc}")
         raise typer.Exit(1) from exc
     console.print(
-        f"{model.body.mesh.n_tets} tetrahedra, {n_steps} steps; actuation"
+        f"{model.body.label}, {n_steps} steps; actuation"
         f" {np.round(state.actuation, 2).tolist()} -> displacement"
         f" {np.round(state.displacement, 2).tolist()}"
     )

@@ -22,6 +22,7 @@ from pliant.constraints.friction import ContactForces
 from pliant.errors import ModelError
 from pliant.fem.body import TetBody
 from pliant.fem.rigid import DrivenNodes, RigidBody
+from pliant.fem.rod import RodBody
 
 
 @dataclass
@@ -131,7 +132,7 @@ class Model:
     """A simulated robot: one deformable body, its constraints, and what it is coupled to.
 
     Args:
-        body: the deformable body.
+        body: the deformable body: tetrahedra, or a rod (:class:`pliant.fem.rod.RodBody`).
         actuators: cables, cavities, ... in the order of the actuation vector.
         effectors: position effectors, used by inverse control.
         contacts: obstacles the body touches and the contact law (friction, margin).
@@ -143,7 +144,7 @@ class Model:
 
     def __init__(
         self,
-        body: TetBody,
+        body: TetBody | RodBody,
         *,
         actuators: list[Actuator] | tuple = (),
         effectors: list[Constraint] | tuple = (),
@@ -180,35 +181,55 @@ class Model:
             raise ModelError(f"constraint names must be unique, got {names}")
 
     def geometric_pattern(self) -> tuple[np.ndarray, np.ndarray] | None:
-        """Free-DoF (rows, cols) of the cables' geometric stiffness (None without cables)."""
-        if self._cables() is None:
+        """Free-DoF (rows, cols) of the actuators' load stiffness -lambda d^2 delta/dx^2 (the
+        cables' geometric stiffness, a rotation actuator's torque turning with its node);
+        None when no actuator has one."""
+        parts = self._load_stiffness_parts()
+        if parts is None:
             return None
         return self._geometric[0], self._geometric[1]
 
     def geometric_stiffness(self, positions: np.ndarray, actuation: np.ndarray) -> np.ndarray:
-        """Values of the cables' geometric stiffness at `positions` under the actuator forces
-        `actuation` (cable tensions), on :meth:`geometric_pattern`."""
-        bundle, index = self._cables()
-        keep = self._geometric[2]
-        blocks = bundle.geometric_stiffness(positions, np.maximum(actuation[index], 0.0))
-        return blocks.reshape(-1)[keep]
+        """Values of the actuators' load stiffness at `positions` under the actuator forces
+        `actuation` (cable tensions, torques), on :meth:`geometric_pattern`."""
+        blocks = []
+        for evaluate, index in self._load_stiffness_parts():
+            blocks.append(evaluate(positions, actuation[index]))
+        return np.concatenate(blocks).reshape(-1)[self._geometric[2]]
 
-    def _cables(self):
-        """(bundle of every cable actuator, their actuator indices), or None."""
-        if not hasattr(self, "_cable_bundle"):
-            index = [i for i, a in enumerate(self.actuators) if isinstance(a, CableActuator)]
-            self._cable_bundle = None
-            if index:
-                bundle = CableBundle([self.actuators[i] for i in index])
-                ni, nj = bundle.geometric_pairs()
+    def _load_stiffness_parts(self) -> list | None:
+        """[(blocks(x, forces) -> (E, 3, 3), actuator indices)] of the actuators with a load
+        stiffness (the cables bundled), or None; builds the pattern once."""
+        if not hasattr(self, "_load_parts"):
+            cables = [i for i, a in enumerate(self.actuators) if isinstance(a, CableActuator)]
+            others = [
+                i
+                for i, a in enumerate(self.actuators)
+                if not isinstance(a, CableActuator) and hasattr(a, "load_stiffness")
+            ]
+            parts, pairs = [], []
+            if cables:
+                bundle = CableBundle([self.actuators[i] for i in cables])
+                # A slack cable has no tension: only a pulling one stiffens.
+                parts.append(
+                    (lambda x, f, b=bundle: b.geometric_stiffness(x, np.maximum(f, 0.0)), cables)
+                )
+                pairs.append(bundle.geometric_pairs())
+            for i in others:
+                act = self.actuators[i]
+                parts.append((lambda x, f, a=act: a.load_stiffness(x, float(f[0])), [i]))
+                pairs.append(act.load_stiffness_pairs())
+            self._load_parts = parts or None
+            if parts:
+                ni = np.concatenate([p[0] for p in pairs])
+                nj = np.concatenate([p[1] for p in pairs])
                 free = self.body.free_index
                 rows = free[3 * ni[:, None, None] + np.arange(3)[None, :, None]]
                 cols = free[3 * nj[:, None, None] + np.arange(3)[None, None, :]]
                 rows, cols = np.broadcast_arrays(rows, cols)
                 keep = ((rows >= 0) & (cols >= 0)).reshape(-1)
                 self._geometric = (rows.reshape(-1)[keep], cols.reshape(-1)[keep], keep)
-                self._cable_bundle = (bundle, np.array(index))
-        return self._cable_bundle
+        return self._load_parts
 
     def _check_drivers(self) -> None:
         body = self.body
@@ -239,11 +260,15 @@ class Model:
 
     def drive_velocities(self, state: State, dt: float) -> np.ndarray:
         """(n, 3) velocity of each driven node over the step [t, t + h] from `state`,
-        (p(t + h) - q) / h; zero on the other nodes."""
+        (p(t + h) - q) / h (for a rod's orientation, the spin from q to p(t + h) over h);
+        zero on the other nodes."""
         velocities = np.zeros_like(state.positions)
         for driver in self.drivers:
-            moved = driver.positions(state.time + dt) - state.positions[driver.nodes]
-            velocities[driver.nodes] = moved / dt
+            nodes = driver.nodes
+            moved = self.body.difference(
+                driver.positions(state.time + dt), state.positions[nodes], nodes
+            )
+            velocities[nodes] = moved / dt
         return velocities
 
     @staticmethod

@@ -61,6 +61,16 @@ class EmbeddedPoints:
         obj.weights[:, 0] = 1.0
         return obj
 
+    @classmethod
+    def on_rod(cls, rod, arc_lengths) -> EmbeddedPoints:
+        """Points of a rod's centreline at rest arc lengths (a :class:`pliant.fem.rod.RodBody`):
+        interpolated between the two nodes around each."""
+        nodes, weights = rod.interpolation(arc_lengths)
+        obj = cls.at_nodes(nodes[:, 0])
+        obj.nodes[:, 1] = nodes[:, 1]
+        obj.weights[:, :2] = weights
+        return obj
+
     def __len__(self) -> int:
         return int(self.nodes.shape[0])
 

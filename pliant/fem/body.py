@@ -95,6 +95,11 @@ class TetBody:
             stretch adds to the elastic forces (a strain-limiting layer).
     """
 
+    # Largest change of an element frame entry before the "lagged" policy refactorises: on
+    # the Diamond pulled by its cables it stays within 8e-3 mm of refactorising every step
+    # (see pliant.solvers.system).
+    lag_tolerance = 0.02
+
     def __init__(
         self,
         mesh: TetMesh,
@@ -177,6 +182,41 @@ class TetBody:
     @property
     def n_free(self) -> int:
         return int(self.free_dofs.size)
+
+    @property
+    def extent(self) -> float:
+        """Diagonal of the rest shape's bounding box (the scale of divergence checks)."""
+        return float(np.linalg.norm(np.ptp(self.rest_positions, axis=0)))
+
+    @property
+    def label(self) -> str:
+        return f"{self.tets.shape[0]} tetrahedra"
+
+    def advance(self, positions: np.ndarray, increment: np.ndarray) -> np.ndarray:
+        """Positions moved by a displacement (the configuration space is a vector space here;
+        a rod's orientations are not, see :class:`pliant.fem.rod.RodBody`)."""
+        return positions + increment
+
+    def difference(self, to: np.ndarray, frm: np.ndarray, nodes: np.ndarray) -> np.ndarray:
+        """Displacements (k, 3) that :meth:`advance` `frm` to `to` (rows of the nodes `nodes`)."""
+        return to - frm
+
+    @functools.cached_property
+    def boundary_triangles(self) -> np.ndarray:
+        """The mesh's boundary faces (k, 3), outward (found once)."""
+        return self.mesh.boundary_triangles()
+
+    def colliding_nodes(self) -> np.ndarray:
+        """Surface nodes that are not held: the default points of its contacts."""
+        return np.setdiff1d(np.unique(self.boundary_triangles), self.fixed_nodes)
+
+    def skin(self, positions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The surface to draw: (points, boundary triangles)."""
+        return positions, self.boundary_triangles
+
+    def vtk_cells(self) -> tuple[str, np.ndarray, np.ndarray]:
+        """(cell type, cells, point rows) of the body for ParaView."""
+        return "tetra", self.tets, np.arange(self.n_nodes)
 
     def gather(self, full: np.ndarray) -> np.ndarray:
         """Free-DoF part of nodal arrays (n, 3) or (n, 3, k) -> (n_free,) or (n_free, k)."""

@@ -86,7 +86,7 @@ class ImplicitEuler:
         self._row_points: dict[tuple[str, ...] | None, PointRows | None] = {}
         self._rows_on_points = point_compliance and tangent == "lagged"
         body = model.body
-        self._size = float(np.linalg.norm(np.ptp(body.rest_positions, axis=0)))
+        self._size = body.extent
         self._gravity = body.gravity_forces()
         self.last_report = StepReport()
 
@@ -141,7 +141,7 @@ class ImplicitEuler:
         dv_free, response = correction
         v_new = v + dv_free + h * response(lam)
         dq = body.scatter(h * v_new)
-        positions = state.positions + dq
+        positions = body.advance(state.positions, dq)
         new_velocities = body.scatter(v_new)
         if model.drivers:
             positions = model.drive(positions, state.time + h)

@@ -90,7 +90,7 @@ class StaticSolver:
         )
         self.augmentation = augmentation
         self._row_stiffness: np.ndarray | None = None
-        self._size = float(np.linalg.norm(np.ptp(model.body.rest_positions, axis=0)))
+        self._size = model.body.extent
         self._gravity = model.body.gravity_forces()
         self.dt = None
         self.last_report = StepReport()
@@ -192,8 +192,8 @@ class StaticSolver:
                 travel = np.linalg.norm(model.contacts.points.positions(dq), axis=1).max()
                 if travel > model.contacts.margin:
                     dq *= model.contacts.margin / travel
-            check_motion(q + dq, np.zeros_like(q), dq, self._size, step, None)
-            q += dq
+            q = body.advance(q, dq)
+            check_motion(q, np.zeros_like(q), dq, self._size, step, None)
             limit = self.tolerance * self._size
             if contact is not None:
                 # Updates below the contact solver's tolerance are its own noise.

@@ -26,6 +26,7 @@ import scipy.sparse as sp
 
 from pliant.errors import SolverError
 from pliant.fem.body import Linearisation, TetBody
+from pliant.fem.rod import RodBody
 from pliant.fem.sparsity import StiffnessPattern
 from pliant.solvers.linear import SparseCholesky, block_pcg, sparse_cholesky
 
@@ -35,12 +36,12 @@ TangentPolicy = Literal["fresh", "pcg", "lagged"]
 class LinearisedSystem:
     def __init__(
         self,
-        body: TetBody,
+        body: TetBody | RodBody,
         *,
         policy: TangentPolicy = "lagged",
         rtol: float = 1e-10,
         refactor_iterations: int = 6,
-        lag_tolerance: float = 0.02,
+        lag_tolerance: float | None = None,
         max_iterations: int = 200,
         extra_pattern: tuple[np.ndarray, np.ndarray] | None = None,
         exact_tangent: bool = False,
@@ -48,6 +49,8 @@ class LinearisedSystem:
         """`extra_pattern`: free-DoF (rows, cols) of further entries added to A at each
         factorisation (:meth:`prepare`'s `extra` values, one per pair; duplicates add up), e.g.
         the cables' geometric stiffness; the pattern must be symmetric.
+        `lag_tolerance`: the "lagged" policy's largest frame change before refactorising
+        (default: the body's `lag_tolerance`).
         `exact_tangent`: factorise the exact material tangent (the corotational one with the
         variation of the rotation) rather than SOFA's; where that matrix is not positive
         definite, the factorisation falls back to SOFA's tangent (`last_fallback`)."""
@@ -57,7 +60,7 @@ class LinearisedSystem:
         self.policy = policy
         self.rtol = rtol
         self.refactor_iterations = refactor_iterations
-        self.lag_tolerance = lag_tolerance
+        self.lag_tolerance = body.lag_tolerance if lag_tolerance is None else lag_tolerance
         self.max_iterations = max_iterations
         self._cholesky: SparseCholesky | None = None
         self._factor_valid = False

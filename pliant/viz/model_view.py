@@ -29,8 +29,7 @@ class RobotCamera:
         self.model = model
         self.view = view
         self.size = size
-        self.triangles = model.body.mesh.boundary_triangles()
-        rest = model.body.rest_positions
+        rest, _ = model.body.skin(model.body.rest_positions)
         lo, hi = rest.min(axis=0), rest.max(axis=0)
         self._centre = 0.5 * (lo + hi)
         self._floor = 0.6 * float(np.linalg.norm(hi - lo))
@@ -79,7 +78,7 @@ class RobotCamera:
         if goals is not None:
             markers["goal"] = (np.atleast_2d(goals), "tab:green")
         return render_scene(
-            [(x, self.triangles, BODY_COLOR), *self._solids(state)],
+            [(*self.model.body.skin(x), BODY_COLOR), *self._solids(state)],
             title=title,
             markers=markers or None,
             lines=lines or None,

@@ -77,7 +77,7 @@ def save_gif(frames: Iterable[np.ndarray], path: str | os.PathLike, fps: float =
 
 
 class VtuSeriesWriter:
-    """A time series of tetrahedral meshes for ParaView: one .vtu per frame and a .pvd index.
+    """A time series of meshes for ParaView: one .vtu per frame and a .pvd index.
 
     Files are `directory/{stem}_{index:05d}.vtu` and `directory/{stem}.pvd`. The .pvd is
     rewritten after every frame, so the series opens in ParaView even if the run stops early.
@@ -85,8 +85,9 @@ class VtuSeriesWriter:
     Args:
         directory: output folder, created if missing.
         stem: common file name prefix.
-        tets: (m, 4) node indices of the tetrahedra, the same for every frame
-            (e.g. `TetMesh.tets`).
+        tets: (m, k) node indices of the cells, the same for every frame (e.g.
+            `TetMesh.tets`; a body's `vtk_cells()` gives its cells and their type).
+        cell_type: meshio's name of the cells: "tetra" (k = 4), "line" (k = 2), ...
 
     Example:
         with VtuSeriesWriter("out", "finger", mesh.tets) as series:
@@ -94,12 +95,23 @@ class VtuSeriesWriter:
                 series.write(t, x, {"velocity": v})
     """
 
-    def __init__(self, directory: str | os.PathLike, stem: str, tets: np.ndarray) -> None:
+    _CELL_SIZES = {"tetra": 4, "line": 2, "triangle": 3}
+
+    def __init__(
+        self, directory: str | os.PathLike, stem: str, tets: np.ndarray, cell_type: str = "tetra"
+    ) -> None:
         tets = np.asarray(tets)
-        if tets.ndim != 2 or tets.shape[1] != 4 or not np.issubdtype(tets.dtype, np.integer):
+        size = self._CELL_SIZES.get(cell_type)
+        if size is None:
             raise ValueError(
-                f"tets must be integers of shape (m, 4), got {tets.dtype} {tets.shape}"
+                f"cell_type must be one of {sorted(self._CELL_SIZES)}, got {cell_type!r}"
             )
+        if tets.ndim != 2 or tets.shape[1] != size or not np.issubdtype(tets.dtype, np.integer):
+            raise ValueError(
+                f"{cell_type} cells must be integers of shape (m, {size}), got {tets.dtype}"
+                f" {tets.shape}"
+            )
+        self.cell_type = cell_type
         if not stem or Path(stem).name != stem:
             raise ValueError(f"stem must be a plain file name prefix, got {stem!r}")
         self.directory = Path(directory)
@@ -147,7 +159,7 @@ class VtuSeriesWriter:
                     f"point data {name!r} must have shape (n,) or (n, c) with n = {len(points)}, "
                     f"got {value.shape}"
                 )
-        mesh = meshio.Mesh(points, [("tetra", self.tets)], point_data=data)
+        mesh = meshio.Mesh(points, [(self.cell_type, self.tets)], point_data=data)
         path = self.directory / f"{self.stem}_{len(self.files):05d}.vtu"
         with atomic_path(path) as tmp:
             meshio.write(tmp, mesh, file_format="vtu")

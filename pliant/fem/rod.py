@@ -1,0 +1,462 @@
+"""Slender deformable parts as discrete Cosserat rods (geometrically exact Simo-Reissner beams).
+
+A rod of N centreline nodes has N positions x_i and N orientations R_i (its material frame,
+directors d1, d2 across the section and d3 along the centreline at rest). Pliant's solvers see
+a body of 2N "nodes" of three DoFs each: rows 0..N-1 of a state's positions are the centreline
+points, rows N..2N-1 the orientations as rotation vectors (R_i = exp([theta_i]x)); the matching
+velocity rows are the nodes' velocities and their angular velocities in the world frame. An
+increment of an orientation row is a spatial spin (R <- exp([dtheta]x) R), so constraints,
+fixed and driven nodes, the compliance W and the factorisation policies work on rods as they
+do on tetrahedral bodies, and an actuator or effector may act on the orientations too.
+
+Mechanics (:mod:`pliant.fem.rod_kernels`): stretch, two shears, two bendings and torsion, with
+linear-elastic resultants (n = C (gamma - gamma0), m = B (kappa - kappa0)) at any rotation;
+one-point quadrature per element, free of shear locking. Mass: lumped, the element's
+translational mass split over its nodes and its rotary inertia rho I l lumped isotropically
+(the bending value: a circular section's torsional inertia is twice that; rotary inertia
+only shifts the highest modes, and an isotropic one has no gyroscopic term).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+
+from pliant.errors import MaterialError, ModelError
+from pliant.fem import kernels, rod_kernels
+from pliant.fem.body import Linearisation
+from pliant.fem.material import Material
+from pliant.fem.rigid import KinematicBody
+from pliant.fem.sparsity import StiffnessPattern
+
+
+@dataclass(frozen=True)
+class RodSection:
+    """Cross-section of a rod: area, second moments about d1 and d2, torsion constant, shear
+    correction factor, and its outline in the (d1, d2) plane for drawing.
+
+    Use :meth:`circle` or :meth:`rectangle`. `thickness` is the distance from the centreline
+    to the surface that a contact uses (the radius; half the smaller side of a rectangle).
+    """
+
+    area: float
+    inertia: tuple[float, float]
+    torsion: float
+    shear_coefficient: float
+    thickness: float
+    outline: tuple[tuple[float, float], ...]
+
+    @classmethod
+    def circle(cls, radius: float, *, sides: int = 12) -> RodSection:
+        """A solid circular section (shear factor 0.9, Timoshenko/Cowper for nu ~ 0.3)."""
+        r = _positive("radius", radius)
+        i = math.pi * r**4 / 4.0
+        angles = np.linspace(0.0, 2.0 * math.pi, sides, endpoint=False)
+        outline = tuple((r * math.cos(a), r * math.sin(a)) for a in angles)
+        return cls(math.pi * r * r, (i, i), 2.0 * i, 0.9, r, outline)
+
+    @classmethod
+    def rectangle(cls, width: float, height: float) -> RodSection:
+        """A solid rectangle, `width` along d1 and `height` along d2 (shear factor 5/6;
+        torsion constant a b^3 (1/3 - 0.21 (b/a)(1 - b^4 / (12 a^4))), a >= b, Roark)."""
+        w, h = _positive("width", width), _positive("height", height)
+        a, b = max(w, h), min(w, h)
+        torsion = a * b**3 * (1.0 / 3.0 - 0.21 * (b / a) * (1.0 - b**4 / (12.0 * a**4)))
+        outline = ((w / 2, h / 2), (-w / 2, h / 2), (-w / 2, -h / 2), (w / 2, -h / 2))
+        return cls(w * h, (w * h**3 / 12.0, h * w**3 / 12.0), torsion, 5.0 / 6.0, b / 2, outline)
+
+
+def _positive(name: str, value: float) -> float:
+    if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
+        raise ModelError(f"the rod's {name} must be finite and > 0, got {value!r}")
+    return float(value)
+
+
+def parallel_frames(points: np.ndarray, normal: Sequence[float] | None = None) -> np.ndarray:
+    """Node frames (N, 3, 3) along a polyline: d3 the mean tangent of the node's edges, d1
+    carried from `normal` (default: the axis least aligned with the first tangent, made
+    perpendicular) by parallel transport, d2 = d3 x d1. Columns are d1, d2, d3."""
+    edges = np.diff(points, axis=0)
+    tangents = edges / np.linalg.norm(edges, axis=1, keepdims=True)
+    node_t = np.vstack([tangents[:1], tangents[:-1] + tangents[1:], tangents[-1:]])
+    node_t /= np.linalg.norm(node_t, axis=1, keepdims=True)
+    t0 = node_t[0]
+    d1 = np.eye(3)[int(np.argmin(np.abs(t0)))] if normal is None else np.asarray(normal, float)
+    d1 = d1 - (d1 @ t0) * t0
+    norm = float(np.linalg.norm(d1))
+    if not (np.isfinite(norm) and norm > 1e-9):
+        raise ModelError(f"the rod's normal must not be parallel to its first tangent {t0}")
+    d1 /= norm
+    frames = np.empty((len(points), 3, 3))
+    for i, t in enumerate(node_t):
+        if i:  # parallel transport: the smallest rotation taking the last tangent to this one
+            prev = node_t[i - 1]
+            axis = np.cross(prev, t)
+            s, c = float(np.linalg.norm(axis)), float(prev @ t)
+            if s > 1e-12:
+                k = axis / s
+                d1 = d1 * c + np.cross(k, d1) * s + k * (k @ d1) * (1.0 - c)
+            d1 = d1 - (d1 @ t) * t
+            d1 /= np.linalg.norm(d1)
+        frames[i] = np.column_stack([d1, np.cross(t, d1), t])
+    return frames
+
+
+class RodBody:
+    """A deformable rod: a discrete Cosserat rod along a polyline.
+
+    Args:
+        points: (N, 3) centreline nodes at rest, N >= 2, in order.
+        section: the cross-section (:meth:`RodSection.circle`, :meth:`RodSection.rectangle`).
+        material: E and nu (any :class:`pliant.fem.material.Material`; G = E / (2 (1 + nu))).
+        density: mass per volume; or give `total_mass` instead.
+        frames: (N, 3, 3) rest frames (columns d1, d2, d3); default :func:`parallel_frames`
+            with `normal` as the first d1.
+        clamped: centreline nodes whose position and orientation are held (a clamp).
+        pinned: centreline nodes whose position only is held (a ball joint).
+        gravity: acceleration vector (robot scenes: (0, 0, -9810) mm/s^2).
+        rayleigh_mass, rayleigh_stiffness: alpha and beta of D = alpha M + beta K.
+
+    Node k of the body is centreline node k for k < N and the orientation of node k - N
+    above: `fixed_nodes` lists those held, as for a :class:`pliant.fem.body.TetBody`.
+    """
+
+    mass_type = "lumped"
+    membranes: tuple = ()
+    # A lagged rod tangent is unstable: the axial stiffness EA, (l / r)^2 times the bending
+    # one, turned by a small rotation swamps the bending stiffness. A rod's banded system is
+    # cheap to factorise, so the "lagged" policy refactorises it at every step.
+    lag_tolerance = 0.0
+
+    def __init__(
+        self,
+        points: np.ndarray,
+        section: RodSection,
+        material: Material,
+        *,
+        density: float | None = None,
+        total_mass: float | None = None,
+        frames: np.ndarray | None = None,
+        normal: Sequence[float] | None = None,
+        clamped: Sequence[int] = (),
+        pinned: Sequence[int] = (),
+        gravity: Sequence[float] = (0.0, 0.0, 0.0),
+        rayleigh_mass: float = 0.0,
+        rayleigh_stiffness: float = 0.0,
+    ) -> None:
+        x = np.ascontiguousarray(points, dtype=np.float64)
+        if x.ndim != 2 or x.shape[1] != 3 or x.shape[0] < 2 or not np.all(np.isfinite(x)):
+            raise ModelError(f"a rod needs (N >= 2, 3) finite points, got shape {x.shape}")
+        lengths = np.linalg.norm(np.diff(x, axis=0), axis=1)
+        if lengths.min() <= 1e-9 * max(float(lengths.max()), 1e-300):
+            raise ModelError(f"the rod has a zero-length element ({int(np.argmin(lengths))})")
+        if not isinstance(section, RodSection):
+            raise ModelError(f"section must be a RodSection, got {section!r}")
+        if not isinstance(material, Material):
+            raise MaterialError(f"material must be a Material, got {material!r}")
+        n = x.shape[0]
+        frames = parallel_frames(x, normal) if frames is None else np.asarray(frames, float)
+        if frames.shape != (n, 3, 3):
+            raise ModelError(f"frames must have shape ({n}, 3, 3), got {frames.shape}")
+        for i, f in enumerate(frames):
+            if np.abs(f.T @ f - np.eye(3)).max() > 1e-9 or np.linalg.det(f) < 0:
+                raise ModelError(f"frame {i} of the rod is not a proper rotation")
+        self.section = section
+        self.material = material
+        self.n_centreline = n
+        self.lengths = lengths
+        self.elements = np.column_stack([np.arange(n - 1), np.arange(1, n)]).astype(np.int64)
+        vectors = np.array([_log(f) for f in frames])
+        self.rest_positions = np.ascontiguousarray(np.vstack([x, vectors]))
+        self.gamma0, self.kappa0 = rod_kernels.rest_strains(
+            x, rod_kernels.node_rotations(vectors), self.elements, lengths
+        )
+        e, g = material.young_modulus, material.mu
+        i1, i2 = section.inertia
+        self._c = np.tile(
+            [section.shear_coefficient * g * section.area] * 2 + [e * section.area], (n - 1, 1)
+        )
+        self._b = np.tile([e * i1, e * i2, g * section.torsion], (n - 1, 1))
+
+        volume = section.area * float(lengths.sum())
+        if (density is None) == (total_mass is None):
+            raise MaterialError("give exactly one of density or total_mass")
+        rho = float(density) if density is not None else float(total_mass) / volume
+        if not math.isfinite(rho) or rho <= 0:
+            raise MaterialError(f"density must be finite and > 0, got {rho!r}")
+        self.density = rho
+        self.total_mass = rho * volume
+        for name, val in (
+            ("rayleigh_mass", rayleigh_mass),
+            ("rayleigh_stiffness", rayleigh_stiffness),
+        ):
+            if not math.isfinite(val) or val < 0:
+                raise MaterialError(f"{name} must be finite and >= 0, got {val!r}")
+        self.rayleigh_mass = float(rayleigh_mass)
+        self.rayleigh_stiffness = float(rayleigh_stiffness)
+        self.gravity = np.asarray(gravity, dtype=float)
+        if self.gravity.shape != (3,) or not np.all(np.isfinite(self.gravity)):
+            raise ModelError(f"gravity must be a finite 3-vector, got {gravity!r}")
+
+        share = np.zeros(n)  # half of each adjacent element's length
+        share[:-1] += 0.5 * lengths
+        share[1:] += 0.5 * lengths
+        rotary = rho * 0.5 * (i1 + i2)
+        self.node_masses = np.concatenate([rho * section.area * share, rotary * share])
+
+        for label, nodes in (("clamped", clamped), ("pinned", pinned)):
+            idx = np.asarray(nodes, dtype=np.int64).reshape(-1)
+            if idx.size and (idx.min() < 0 or idx.max() >= n):
+                raise ModelError(f"{label} nodes must lie in [0, {n}), got {idx.tolist()}")
+        clamped = np.asarray(clamped, dtype=np.int64).reshape(-1)
+        pinned = np.asarray(pinned, dtype=np.int64).reshape(-1)
+        self.fixed_nodes = np.unique(np.concatenate([clamped, clamped + n, pinned]))
+        fixed_mask = np.zeros(6 * n, dtype=bool)
+        fixed_mask[(3 * self.fixed_nodes[:, None] + np.arange(3)).ravel()] = True
+        self.free_dofs = np.flatnonzero(~fixed_mask)
+        self.free_index = np.full(6 * n, -1, dtype=np.int64)
+        self.free_index[self.free_dofs] = np.arange(self.free_dofs.size)
+        # An element couples its two nodes and their two orientations: a 4-"node" element.
+        self._element_nodes = np.column_stack([self.elements, self.elements + n]).astype(np.int64)
+        self.pattern = StiffnessPattern.build(self._element_nodes, self.free_index)
+        self._mass_diagonal = np.repeat(self.node_masses, 3)[self.free_dofs]
+        diagonal = self.pattern.matrix(np.arange(self.pattern.nnz, dtype=float)).diagonal()
+        self.mass_data = np.zeros(self.pattern.nnz)
+        self.mass_data[diagonal.astype(np.int64)] = self._mass_diagonal
+        self._blocks = np.empty((n - 1, 12, 12))
+
+    # --- layout -----------------------------------------------------------------------------
+    @property
+    def n_nodes(self) -> int:
+        return 2 * self.n_centreline
+
+    @property
+    def n_free(self) -> int:
+        return int(self.free_dofs.size)
+
+    @property
+    def extent(self) -> float:
+        """Diagonal of the rest centreline's bounding box."""
+        return float(np.linalg.norm(np.ptp(self.rest_positions[: self.n_centreline], axis=0)))
+
+    @property
+    def label(self) -> str:
+        return f"rod of {self.n_centreline - 1} elements"
+
+    def gather(self, full: np.ndarray) -> np.ndarray:
+        """Free-DoF part of nodal arrays (2N, 3) or (2N, 3, k)."""
+        return full.reshape(3 * self.n_nodes, *full.shape[2:])[self.free_dofs]
+
+    def scatter(self, free: np.ndarray) -> np.ndarray:
+        """Nodal array (2N, 3[, k]) with zeros on fixed DoFs from a free-DoF vector."""
+        out = np.zeros((3 * self.n_nodes, *free.shape[1:]))
+        out[self.free_dofs] = free
+        return out.reshape(self.n_nodes, 3, *free.shape[1:])
+
+    def centreline(self, positions: np.ndarray) -> np.ndarray:
+        """(N, 3) centreline points of a state's positions."""
+        return positions[: self.n_centreline]
+
+    def frames(self, positions: np.ndarray) -> np.ndarray:
+        """(N, 3, 3) material frames (columns d1, d2, d3) of a state's positions."""
+        return rod_kernels.node_rotations(np.ascontiguousarray(positions[self.n_centreline :]))
+
+    def interpolation(self, arc_lengths: Sequence[float]) -> tuple[np.ndarray, np.ndarray]:
+        """Points of the centreline at rest arc lengths s (from node 0) as (nodes (k, 2),
+        weights (k, 2)): linear between the two nodes of the element holding s."""
+        s = np.atleast_1d(np.asarray(arc_lengths, dtype=float))
+        ends = np.concatenate([[0.0], np.cumsum(self.lengths)])
+        if not np.all(np.isfinite(s)) or s.min() < 0 or s.max() > ends[-1] * (1 + 1e-12):
+            raise ModelError(f"arc lengths must lie in [0, {ends[-1]:.6g}], got {s.tolist()}")
+        e = np.clip(np.searchsorted(ends, s, side="right") - 1, 0, len(self.lengths) - 1)
+        t = (s - ends[e]) / self.lengths[e]
+        return np.column_stack([e, e + 1]), np.column_stack([1.0 - t, t])
+
+    def colliding_nodes(self) -> np.ndarray:
+        """Centreline nodes that are not held: the default points of its contacts."""
+        return np.setdiff1d(np.arange(self.n_centreline), self.fixed_nodes)
+
+    # --- configuration space ----------------------------------------------------------------
+    def advance(self, positions: np.ndarray, increment: np.ndarray) -> np.ndarray:
+        """Positions moved by `increment` (2N, 3): translations of the centreline, spatial
+        spins of the orientations."""
+        n = self.n_centreline
+        out = np.empty_like(positions)
+        out[:n] = positions[:n] + increment[:n]
+        rod_kernels.advance_rotations(
+            np.ascontiguousarray(positions[n:]), np.ascontiguousarray(increment[n:]), out[n:]
+        )
+        return out
+
+    def difference(self, to: np.ndarray, frm: np.ndarray, nodes: np.ndarray) -> np.ndarray:
+        """Increments (k, 3) that :meth:`advance` `frm` to `to`, for the body nodes `nodes`."""
+        out = to - frm
+        turn = nodes >= self.n_centreline
+        if np.any(turn):
+            spins = np.empty((int(turn.sum()), 3))
+            rod_kernels.rotation_differences(
+                np.ascontiguousarray(to[turn]), np.ascontiguousarray(frm[turn]), spins
+            )
+            out[turn] = spins
+        return out
+
+    # --- mass -------------------------------------------------------------------------------
+    def mass_matvec(self, u: np.ndarray) -> np.ndarray:
+        diag = self._mass_diagonal
+        return diag[:, None] * u if u.ndim == 2 else diag * u
+
+    def gravity_forces(self) -> np.ndarray:
+        """Weight of the centreline nodes, (2N, 3); none on the orientations."""
+        out = np.zeros((self.n_nodes, 3))
+        out[: self.n_centreline] = self.node_masses[: self.n_centreline, None] * self.gravity
+        return out
+
+    # --- elasticity -------------------------------------------------------------------------
+    def _split(self, positions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        n = self.n_centreline
+        x = np.ascontiguousarray(positions[:n], dtype=np.float64)
+        return x, rod_kernels.node_rotations(np.ascontiguousarray(positions[n:], dtype=float))
+
+    def linearise(
+        self, positions: np.ndarray, velocities: np.ndarray | None = None
+    ) -> Linearisation:
+        """Forces and moments, energy, the elements' middle frames and stretches gamma_3 (the
+        inversion check: an element turned against its frame has gamma_3 <= 0), and K v."""
+        x, rot = self._split(positions)
+        m = self.elements.shape[0]
+        v = np.empty((0, 3)) if velocities is None else np.ascontiguousarray(velocities, float)
+        forces = np.empty((self.n_nodes, 3))
+        kv = np.empty((self.n_nodes, 3))
+        frames = np.empty((m, 3, 3))
+        stretch = np.empty(m)
+        energy = rod_kernels.rod_forces(
+            x,
+            rot,
+            self.elements,
+            self.lengths,
+            self.gamma0,
+            self.kappa0,
+            self._c,
+            self._b,
+            v,
+            forces,
+            kv,
+            frames,
+            stretch,
+        )
+        return Linearisation(
+            np.array(positions, dtype=float),
+            forces,
+            float(energy),
+            frames,
+            stretch,
+            kv if velocities is not None else None,
+        )
+
+    def stiffness_data(self, lin: Linearisation, *, exact: bool = False) -> np.ndarray:
+        """Tangent stiffness on the free DoFs, as data aligned with `self.pattern`: the
+        Gauss-Newton tangent, or the consistent one (`exact`)."""
+        x, rot = self._split(lin.positions)
+        rod_kernels.rod_stiffness(
+            x,
+            rot,
+            self.elements,
+            self.lengths,
+            self.gamma0,
+            self.kappa0,
+            self._c,
+            self._b,
+            exact,
+            self._blocks,
+        )
+        data = np.zeros(self.pattern.nnz)
+        kernels.scatter_add(self._blocks, 1.0, self.pattern.scatter, data)
+        return data
+
+    def stiffness_matrix(self, lin: Linearisation, *, exact: bool = False) -> sp.csr_matrix:
+        return self.pattern.matrix(self.stiffness_data(lin, exact=exact))
+
+    def stiffness_matvec(
+        self, lin: Linearisation, u: np.ndarray, *, exact: bool = False
+    ) -> np.ndarray:
+        """K u on the free DoFs; u is (n_free,) or (n_free, k)."""
+        return self.stiffness_matrix(lin, exact=exact) @ u
+
+    # --- drawing ----------------------------------------------------------------------------
+    def skin(self, positions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The rod's surface for drawing: the section's outline swept along the centreline
+        with the material frames, closed at both ends. (points, triangles)."""
+        x, rot = self._split(positions)
+        outline = np.array(self.section.outline)
+        k, n = len(outline), self.n_centreline
+        local = np.column_stack([outline, np.zeros(k)])
+        rings = x[:, None, :] + np.einsum("nij,kj->nki", rot, local)
+        ring = np.arange(k)
+        nxt = (ring + 1) % k
+        tris = [
+            np.column_stack([i * k + ring, (i + 1) * k + ring, (i + 1) * k + nxt])
+            for i in range(n - 1)
+        ] + [np.column_stack([i * k + ring, (i + 1) * k + nxt, i * k + nxt]) for i in range(n - 1)]
+        centres = n * k + np.arange(2)  # the end caps' centres
+        tris.append(np.column_stack([np.full(k, centres[0]), nxt, ring]))
+        tris.append(
+            np.column_stack([np.full(k, centres[1]), (n - 1) * k + ring, (n - 1) * k + nxt])
+        )
+        points = np.vstack([rings.reshape(-1, 3), x[[0, -1]]])
+        return points, np.vstack(tris).astype(np.int64)
+
+    def vtk_cells(self) -> tuple[str, np.ndarray, np.ndarray]:
+        """(cell type, cells, point rows) of the body for ParaView: lines on the centreline."""
+        return "line", self.elements, np.arange(self.n_centreline)
+
+
+class ClampedEnd:
+    """A rod node clamped to a kinematic body (a cart, a motor's shaft): its position and
+    orientation follow the carrier's pose rigidly, as they were at t = 0.
+
+    Args:
+        rod: the rod; `node` must be one of its clamped nodes.
+        node: centreline node index.
+        carrier: the kinematic body whose prescribed pose carries the node.
+    """
+
+    def __init__(self, rod: RodBody, node: int, carrier: KinematicBody, *, name: str = "clamp"):
+        n = rod.n_centreline
+        if not 0 <= int(node) < n:
+            raise ModelError(
+                f"{name}: node {node} is not a centreline node of the rod (0..{n - 1})"
+            )
+        self.nodes = np.array([int(node), int(node) + n], dtype=np.int64)
+        self.carrier = carrier
+        self.name = name
+        self._local: tuple[np.ndarray, np.ndarray] | None = None
+
+    def attach(self, rest_positions: np.ndarray) -> None:
+        """Fix the node's position and frame in the carrier's frame (called by the Model)."""
+        position, rotation = self.carrier.pose(0.0)
+        point, vector = rest_positions[self.nodes]
+        self._local = (rotation.T @ (point - position), rotation.T @ _exp(vector))
+
+    def positions(self, t: float) -> np.ndarray:
+        """(2, 3): the node's position and its orientation (rotation vector) at time t."""
+        if self._local is None:
+            raise ModelError(f"{self.name}: not attached to a rod (give it to a Model)")
+        position, rotation = self.carrier.pose(t)
+        point, frame = self._local
+        return np.vstack([position + rotation @ point, _log(rotation @ frame)])
+
+
+def _exp(vector: np.ndarray) -> np.ndarray:
+    out = np.empty((3, 3))
+    rod_kernels.so3_exp(np.asarray(vector, dtype=float), out)
+    return out
+
+
+def _log(rotation: np.ndarray) -> np.ndarray:
+    out = np.empty(3)
+    rod_kernels.so3_log(np.ascontiguousarray(rotation, dtype=float), out)
+    return out
