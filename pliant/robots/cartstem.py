@@ -2,24 +2,32 @@
 §4.2.2; SofaGym cartstemcontact-v0).
 
 The cart translates along x and carries the beam's base (driven nodes); two boxes, one on
-each side and above the cart, stop the beam. The task is to bring the tip to an abscissa
-behind an obstacle: moving the cart towards that obstacle presses the beam on it and swings
-the tip back, away from the goal (the local minimum of a QP started without contact); the tip
-gets there only by first bending the beam over the opposite obstacle (Fig. 3.11).
+each side and above the cart, stop the beam. The beam is a tetrahedral bar, or a Cosserat rod
+of square section (`stem="rod"`, SofaGym's stem is a Cosserat beam). The task is to bring the
+tip to an abscissa behind an obstacle: moving the cart towards that obstacle presses the
+beam on it and swings the tip back, away from the goal (the local minimum of a QP started
+without contact); the tip gets there only by first bending the beam over the opposite
+obstacle (Fig. 3.11).
 """
 
 from __future__ import annotations
 
 import math
 from collections.abc import Callable
+from functools import partial
+from typing import Literal
 
 import numpy as np
 
+from pliant.constraints.base import EmbeddedPoints
 from pliant.constraints.collision import Box
 from pliant.constraints.contact import Contacts
+from pliant.constraints.effector import PositionEffector
 from pliant.errors import ModelError
 from pliant.fem.body import TetBody
+from pliant.fem.material import Material
 from pliant.fem.rigid import DrivenNodes, KinematicBody, rail
+from pliant.fem.rod import ClampedEnd, RodBody, RodSection
 from pliant.mesh import box_beam
 from pliant.mesh.tetmesh import TetMesh
 from pliant.model import Model
@@ -32,12 +40,16 @@ from pliant.robots.common import (
     smooth_ramp,
 )
 
+# How far the cart slides left in the scripted solution: the tetrahedral bar (2 cells across)
+# is stiffer in bending than the rod (linear tetrahedra lock), so it needs a longer slide.
+DEMO_SLIDE = {"tetrahedra": 24.0, "rod": 20.0}
 
-def demo_cart_motion(t: float) -> float:
-    """The scripted solution for a goal behind the right obstacle: the cart slides left (a
-    smooth 2 s ramp to -24 mm), bending the beam over the left obstacle so that its tip swings
-    right, over the right one."""
-    return -24.0 * smooth_ramp(t, 0.0, 2.0)
+
+def demo_cart_motion(t: float, stem: str = "tetrahedra") -> float:
+    """The scripted solution for a goal behind the right obstacle (tip at x = 25 mm): the cart
+    slides left (a smooth 2 s ramp), bending the beam over the left obstacle so that its tip
+    swings right, over the right one."""
+    return -DEMO_SLIDE[stem] * smooth_ramp(t, 0.0, 2.0)
 
 
 def stem_mesh(length: float, width: float, cells: int) -> TetMesh:
@@ -56,6 +68,7 @@ def stem_mesh(length: float, width: float, cells: int) -> TetMesh:
 
 def cartstem_contact(
     *,
+    stem: Literal["rod", "tetrahedra"] = "tetrahedra",
     mesh: TetMesh | None = None,
     length: float = 100.0,
     width: float = 10.0,
@@ -72,13 +85,15 @@ def cartstem_contact(
     obstacle_height: float = 10.0,
     friction: float = 0.0,
     contact_margin: float = 3.0,
-    cart_motion: Callable[[float], float] = demo_cart_motion,
+    cart_motion: Callable[[float], float] | None = None,
 ) -> Model:
     """The beam on its cart between the two obstacles.
 
     Args:
-        mesh: replaces the beam mesh (vertical, base on z = 0); default `stem_mesh`.
-        length, width, cells: the beam (mm), square section, hexahedra along it.
+        stem: "tetrahedra" (a bar of 6-tet cells, 2 x 2 across) or "rod" (a Cosserat rod of
+            `2 cells` elements, its nodes colliding as balls of radius width / 2).
+        mesh: replaces the beam mesh (vertical, base on z = 0; tetrahedral stem only).
+        length, width, cells: the beam (mm), square section, cells along it.
         young_modulus, poisson_ratio, density, material: the beam's material (kPa, kg/mm^3).
         rayleigh_mass, rayleigh_stiffness: damping of the beam.
         obstacle_spacing: distance between the obstacles' inner faces, centred on x = 0.
@@ -87,12 +102,56 @@ def cartstem_contact(
         friction: Coulomb coefficient of the beam on the obstacles.
         contact_margin: detection distance (mm); the beam's points move up to about 1 mm per
             0.01 s step (2 mm at most in the tests) when the cart drags it over an obstacle.
-        cart_motion: the cart's displacement along x (mm) as a function of time (s).
+        cart_motion: the cart's displacement along x (mm) as a function of time (s); default
+            the scripted solution for the stem (`demo_cart_motion`).
     """
     if not (math.isfinite(obstacle_spacing) and obstacle_spacing > width):
         raise ModelError(
             f"the obstacles must be further apart than the beam is wide ({width} mm), got"
             f" obstacle_spacing={obstacle_spacing!r}"
+        )
+    if stem not in DEMO_SLIDE:
+        raise ModelError(f"stem must be 'rod' or 'tetrahedra', got {stem!r}")
+    if cart_motion is None:
+        cart_motion = partial(demo_cart_motion, stem=stem)
+    half = np.asarray(obstacle_size, dtype=float) / 2
+    centre_z = obstacle_height + half[2]
+    obstacles = [
+        Box(half, position=[side * (obstacle_spacing / 2 + half[0]), 0.0, centre_z])
+        for side in (-1.0, 1.0)
+    ]
+    cart = KinematicBody(
+        Box([2.0 * width, width, 2.0], position=[0.0, 0.0, -2.0]),
+        rail([0.0, 0.0, -2.0], [1.0, 0.0, 0.0], cart_motion),
+        name="cart",
+    )
+    if stem == "rod":
+        if mesh is not None:
+            raise ModelError("a mesh replaces the tetrahedral stem only (stem='tetrahedra')")
+        n = 2 * cells
+        rod = RodBody(
+            np.column_stack([np.zeros(n + 1), np.zeros(n + 1), np.linspace(0.0, length, n + 1)]),
+            RodSection.rectangle(width, width),
+            Material(young_modulus, poisson_ratio),
+            density=density,
+            normal=(1.0, 0.0, 0.0),
+            clamped=[0],
+            gravity=gravity,
+            rayleigh_mass=rayleigh_mass,
+            rayleigh_stiffness=rayleigh_stiffness,
+        )
+        return Model(
+            rod,
+            effectors=[PositionEffector(EmbeddedPoints.at_nodes([n]), rod.rest_positions)],
+            contacts=Contacts(
+                obstacles,
+                friction=friction,
+                margin=contact_margin,
+                points=EmbeddedPoints.at_nodes(rod.colliding_nodes()),
+                thickness=0.5 * width,
+            ),
+            drivers=[ClampedEnd(rod, 0, cart, name="cart")],
+            name="cartstem_contact",
         )
     mesh = mesh if mesh is not None else stem_mesh(length, width, cells)
     base = fixed_by_box(mesh, landmark(mesh, "fixed_box", [[-width, -width, -0.01], [width] * 3]))
@@ -105,23 +164,11 @@ def cartstem_contact(
         rayleigh_mass=rayleigh_mass,
         rayleigh_stiffness=rayleigh_stiffness,
     )
-    half = np.asarray(obstacle_size, dtype=float) / 2
-    centre_z = obstacle_height + half[2]
-    obstacles = [
-        Box(half, position=[side * (obstacle_spacing / 2 + half[0]), 0.0, centre_z])
-        for side in (-1.0, 1.0)
-    ]
-    cart = KinematicBody(
-        Box([2.0 * width, width, 2.0], position=[0.0, 0.0, -2.0]),
-        rail([0.0, 0.0, -2.0], [1.0, 0.0, 0.0], cart_motion),
-        name="cart",
-    )
-    contacts = Contacts(obstacles, friction=friction, margin=contact_margin)
     tip = effector(mesh, body, landmark(mesh, "effector", [0.0, 0.0, length]))
     return Model(
         body,
         effectors=[tip],
-        contacts=contacts,
+        contacts=Contacts(obstacles, friction=friction, margin=contact_margin),
         drivers=[DrivenNodes(base, cart, name="cart")],
         name="cartstem_contact",
     )
@@ -130,3 +177,8 @@ def cartstem_contact(
 def demo_actuation(t: float) -> np.ndarray:
     """No actuator: the cart follows the model's own scripted motion (`cart_motion`)."""
     return np.zeros(0)
+
+
+def cartstem_rod(**kwargs) -> Model:
+    """CartStemContact with a Cosserat rod stem (keywords of :func:`cartstem_contact`)."""
+    return cartstem_contact(stem="rod", **kwargs)
