@@ -52,10 +52,15 @@ def main(
         "out/condensed"
     ),
     out: Annotated[Path, typer.Option(help="results")] = Path("experiments/results/condensed"),
+    robot_names: Annotated[
+        list[str], typer.Option("--robot", help="robots to run (default: both)")
+    ] = ("finger", "diamond"),
 ) -> None:
     out.mkdir(parents=True, exist_ok=True)
     rows = {}
-    for robot, samples in (("finger", finger_samples), ("diamond", diamond_samples)):
+    sizes = {"finger": finger_samples, "diamond": diamond_samples}
+    for robot in robot_names:
+        samples = sizes[robot]
         # W of SOFA's material tangent, the thesis' W (equilibria solved on the consistent
         # one): where the Diamond's held cables stabilise compressed arms, the consistent K is
         # near singular and its W reaches 10^4 times its median, off any learnable trend.

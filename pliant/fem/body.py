@@ -37,6 +37,36 @@ def nodes_in_box(points: np.ndarray, box: np.ndarray | tuple) -> np.ndarray:
     return np.flatnonzero(inside)
 
 
+def set_bulk_properties(
+    body,
+    volume: float,
+    *,
+    density: float | None,
+    total_mass: float | None,
+    rayleigh_mass: float,
+    rayleigh_stiffness: float,
+    gravity,
+) -> None:
+    """Check and set a body's density and total mass (from exactly one of them), Rayleigh
+    coefficients and gravity: MaterialError or ModelError on a missing, non-finite or negative
+    value."""
+    if (density is None) == (total_mass is None):
+        raise MaterialError("give exactly one of density or total_mass")
+    rho = float(density) if density is not None else float(total_mass) / volume
+    if not math.isfinite(rho) or rho <= 0:
+        raise MaterialError(f"density must be finite and > 0, got {rho!r}")
+    body.density = rho
+    body.total_mass = rho * volume
+    for name, val in (("rayleigh_mass", rayleigh_mass), ("rayleigh_stiffness", rayleigh_stiffness)):
+        if not math.isfinite(val) or val < 0:
+            raise MaterialError(f"{name} must be finite and >= 0, got {val!r}")
+    body.rayleigh_mass = float(rayleigh_mass)
+    body.rayleigh_stiffness = float(rayleigh_stiffness)
+    body.gravity = np.asarray(gravity, dtype=float)
+    if body.gravity.shape != (3,) or not np.all(np.isfinite(body.gravity)):
+        raise ModelError(f"gravity must be a finite 3-vector, got {gravity!r}")
+
+
 @dataclass
 class Linearisation:
     """Forces and per-element frames of the body at one configuration."""
@@ -125,25 +155,15 @@ class TetBody:
         self.mu = np.full(n_elem, material.mu)
         self.lam = np.full(n_elem, material.lam)
 
-        volume = float(self.volumes.sum())
-        if (density is None) == (total_mass is None):
-            raise MaterialError("give exactly one of density or total_mass")
-        rho = float(density) if density is not None else float(total_mass) / volume
-        if not math.isfinite(rho) or rho <= 0:
-            raise MaterialError(f"density must be finite and > 0, got {rho!r}")
-        self.density = rho
-        self.total_mass = rho * volume
-        for name, val in (
-            ("rayleigh_mass", rayleigh_mass),
-            ("rayleigh_stiffness", rayleigh_stiffness),
-        ):
-            if not math.isfinite(val) or val < 0:
-                raise MaterialError(f"{name} must be finite and >= 0, got {val!r}")
-        self.rayleigh_mass = float(rayleigh_mass)
-        self.rayleigh_stiffness = float(rayleigh_stiffness)
-        self.gravity = np.asarray(gravity, dtype=float)
-        if self.gravity.shape != (3,) or not np.all(np.isfinite(self.gravity)):
-            raise ModelError(f"gravity must be a finite 3-vector, got {gravity!r}")
+        set_bulk_properties(
+            self,
+            float(self.volumes.sum()),
+            density=density,
+            total_mass=total_mass,
+            rayleigh_mass=rayleigh_mass,
+            rayleigh_stiffness=rayleigh_stiffness,
+            gravity=gravity,
+        )
 
         n = self.n_nodes
         fixed = np.unique(np.asarray([] if fixed_nodes is None else fixed_nodes, dtype=np.int64))

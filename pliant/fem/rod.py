@@ -28,7 +28,7 @@ import scipy.sparse as sp
 
 from pliant.errors import MaterialError, ModelError
 from pliant.fem import kernels, rod_kernels
-from pliant.fem.body import Linearisation
+from pliant.fem.body import Linearisation, set_bulk_properties
 from pliant.fem.material import Material
 from pliant.fem.rigid import KinematicBody
 from pliant.fem.sparsity import StiffnessPattern
@@ -177,30 +177,30 @@ class RodBody:
         )
         e, g = material.young_modulus, material.mu
         i1, i2 = section.inertia
-        self._c = np.tile(
+        shear_stretch = np.tile(
             [section.shear_coefficient * g * section.area] * 2 + [e * section.area], (n - 1, 1)
         )
-        self._b = np.tile([e * i1, e * i2, g * section.torsion], (n - 1, 1))
+        bend_twist = np.tile([e * i1, e * i2, g * section.torsion], (n - 1, 1))
+        # What every element kernel reads: connectivity, rest lengths and strains, C and B.
+        self._elements = (
+            self.elements,
+            lengths,
+            self.gamma0,
+            self.kappa0,
+            shear_stretch,
+            bend_twist,
+        )
 
-        volume = section.area * float(lengths.sum())
-        if (density is None) == (total_mass is None):
-            raise MaterialError("give exactly one of density or total_mass")
-        rho = float(density) if density is not None else float(total_mass) / volume
-        if not math.isfinite(rho) or rho <= 0:
-            raise MaterialError(f"density must be finite and > 0, got {rho!r}")
-        self.density = rho
-        self.total_mass = rho * volume
-        for name, val in (
-            ("rayleigh_mass", rayleigh_mass),
-            ("rayleigh_stiffness", rayleigh_stiffness),
-        ):
-            if not math.isfinite(val) or val < 0:
-                raise MaterialError(f"{name} must be finite and >= 0, got {val!r}")
-        self.rayleigh_mass = float(rayleigh_mass)
-        self.rayleigh_stiffness = float(rayleigh_stiffness)
-        self.gravity = np.asarray(gravity, dtype=float)
-        if self.gravity.shape != (3,) or not np.all(np.isfinite(self.gravity)):
-            raise ModelError(f"gravity must be a finite 3-vector, got {gravity!r}")
+        set_bulk_properties(
+            self,
+            section.area * float(lengths.sum()),
+            density=density,
+            total_mass=total_mass,
+            rayleigh_mass=rayleigh_mass,
+            rayleigh_stiffness=rayleigh_stiffness,
+            gravity=gravity,
+        )
+        rho = self.density
 
         share = np.zeros(n)  # half of each adjacent element's length
         share[:-1] += 0.5 * lengths
@@ -333,21 +333,7 @@ class RodBody:
         kv = np.empty((self.n_nodes, 3))
         frames = np.empty((m, 3, 3))
         stretch = np.empty(m)
-        energy = rod_kernels.rod_forces(
-            x,
-            rot,
-            self.elements,
-            self.lengths,
-            self.gamma0,
-            self.kappa0,
-            self._c,
-            self._b,
-            v,
-            forces,
-            kv,
-            frames,
-            stretch,
-        )
+        energy = rod_kernels.rod_forces(x, rot, *self._elements, v, forces, kv, frames, stretch)
         return Linearisation(
             np.array(positions, dtype=float),
             forces,
@@ -361,18 +347,7 @@ class RodBody:
         """Tangent stiffness on the free DoFs, as data aligned with `self.pattern`: the
         Gauss-Newton tangent, or the consistent one (`exact`)."""
         x, rot = self._split(lin.positions)
-        rod_kernels.rod_stiffness(
-            x,
-            rot,
-            self.elements,
-            self.lengths,
-            self.gamma0,
-            self.kappa0,
-            self._c,
-            self._b,
-            exact,
-            self._blocks,
-        )
+        rod_kernels.rod_stiffness(x, rot, *self._elements, exact, self._blocks)
         data = np.zeros(self.pattern.nnz)
         kernels.scatter_add(self._blocks, 1.0, self.pattern.scatter, data)
         return data
