@@ -7,10 +7,10 @@ Needs the models of table_5_1.py:
     OPENBLAS_NUM_THREADS=1 python experiments/condensed/trajectories.py \
         out/condensed_full/finger_6500.pt out/condensed_full/diamond_6500.pt
 
-The Diamond's circle lies in the workspace of the learned box (cables pulled 0-30 mm): pulling
-its cables raises the effector from z = 125 mm (the elbows are drawn down and in), so the
-circle of radius 15 mm is at z = 140 mm (`--diamond-height`); the robot's default circle at
-z = 115 mm needs cables paying out below their rest length, which the box excludes.
+The Diamond's circle (`lifted_circle`, radius 15 mm at z = 140 mm) lies in the workspace of
+the learned box (cables pulled 0-30 mm): pulling the cables raises the effector from z = 125 mm
+(the elbows are drawn down and in); the robot's `circle` at z = 115 mm needs cables paying out
+below their rest length, which the box excludes.
 
 Each goal gets --iterations control iterations on the FEM robot (the plant), with W and
 delta_free from the network or from the FEM. The error of Table 5.8 is |d_exact - d_learned| /
@@ -34,7 +34,7 @@ from pliant.condensed.learned import LearnedCondensedModel, OutOfBoundsWarning
 from pliant.condensed.plots import plot_reached
 from pliant.solvers import StaticSolver
 
-GOALS = {"diamond": ("circle", 30, (0, 1)), "finger": ("closing", 25, (0, 2))}
+GOALS = {"diamond": ("lifted_circle", 30, (0, 1)), "finger": ("closing", 25, (0, 2))}
 
 
 def main(
@@ -42,8 +42,6 @@ def main(
     iterations: Annotated[int, typer.Option()] = 5,
     pid: Annotated[str, typer.Option(help="K,I,D of the closed loop")] = "0.5,0.1,0",
     out: Annotated[Path, typer.Option(help="results")] = Path("experiments/results/condensed"),
-    diamond_radius: Annotated[float, typer.Option(help="mm")] = 15.0,
-    diamond_height: Annotated[float, typer.Option(help="mm")] = 140.0,
 ) -> None:
     out.mkdir(parents=True, exist_ok=True)
     path = out / "trajectories.json"
@@ -53,8 +51,7 @@ def main(
         learned = LearnedCondensedModel.load(model)
         robot = learned.plan.robot
         name, n, plane = GOALS[robot]
-        shape = {"radius": diamond_radius, "height": diamond_height} if robot == "diamond" else {}
-        goals = robots.entry(robot).trajectories[name](n, **shape)
+        goals = robots.entry(robot).trajectories[name](n)
         fem = robots.build(robot, **learned.plan.robot_kwargs)
         rows = {"model": model.name, "training_samples": learned.plan.n_train}
         for loop, gains in (("open", None), ("closed", [float(v) for v in pid.split(",")])):
@@ -90,16 +87,12 @@ def main(
             )
             print(robot, loop, json.dumps(rows[loop]))
         report[f"{robot}_{name}"] = rows
-    report["settings"] = {
-        "iterations_per_goal": iterations,
-        "pid": pid,
-        "units": "mm",
-        "diamond_circle": {"radius": diamond_radius, "height": diamond_height},
-    }
+    report["settings"] = {"iterations_per_goal": iterations, "pid": pid, "units": "mm"}
     report["note"] = (
-        "The Diamond circle lies in the workspace of the learned box (cables 0-30 mm): pulling"
-        " the cables raises the effector from z = 125 mm, so the circle is above it; a circle"
-        " below it (z = 115 mm) needs cables paying out below their rest length."
+        "The Diamond follows lifted_circle (radius 15 mm at z = 140 mm), in the workspace of"
+        " the learned box (cables 0-30 mm): pulling the cables raises the effector from z ="
+        " 125 mm; the circle below it (z = 115 mm) needs cables paying out below their rest"
+        " length."
     )
     path.write_text(json.dumps(report, indent=1))
 

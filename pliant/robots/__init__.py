@@ -48,7 +48,10 @@ class RobotEntry:
 
 ROBOTS: dict[str, RobotEntry] = {
     "diamond": RobotEntry(
-        diamond, _diamond.demo_actuation, {"circle": _diamond.circle}, (20.0, -60.0)
+        diamond,
+        _diamond.demo_actuation,
+        {"circle": _diamond.circle, "lifted_circle": _diamond.lifted_circle},
+        (20.0, -60.0),
     ),
     "trunk": RobotEntry(trunk, _trunk.demo_actuation, {"circle": _trunk.circle}, (15.0, -45.0)),
     "finger": RobotEntry(

@@ -86,3 +86,10 @@ def circle(n: int = 30, *, radius: float = 15.0, height: float = 115.0) -> np.nd
     """The thesis' Diamond circle: n goals on a horizontal circle below the rest effector."""
     a = np.linspace(0.0, 2.0 * math.pi, n, endpoint=False)
     return np.column_stack([radius * np.cos(a), radius * np.sin(a), np.full(n, height)])
+
+
+def lifted_circle(n: int = 30, *, radius: float = 15.0, height: float = 140.0) -> np.ndarray:
+    """The circle above the rest effector that cables which only pull (0-30 mm, a learned
+    condensed model's box) reach: pulling draws the elbows down and in and raises the top;
+    the circle below it needs cables paying out below their rest length."""
+    return circle(n, radius=radius, height=height)
