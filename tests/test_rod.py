@@ -453,3 +453,36 @@ def test_cartstem_with_a_rod_stem_reaches_the_goal_behind_the_obstacle() -> None
     assert len(state.contact_forces.keys) > 0  # bearing on the obstacle
     assert deepest > -0.05
     assert np.abs(model.body.centreline(state.positions)[:, 1]).max() < 1e-9
+
+
+def test_a_rod_resting_on_the_floor_carries_its_weight_on_its_surface() -> None:
+    """A free rod of radius 2 dropped from 0.5 mm onto a plane with friction: its nodes,
+    contact balls of the rod's radius, come to rest at height 2 (within the contact solver's
+    tolerance) and the floor's normal forces add up to the weight."""
+    from pliant.constraints.collision import Plane
+    from pliant.constraints.contact import Contacts
+
+    points = np.column_stack([np.linspace(0.0, L, 11), np.zeros(11), np.full(11, 2.5)])
+    rod = RodBody(
+        points,
+        RodSection.circle(2.0),
+        Material(E, 0.3),
+        density=1e-6,
+        gravity=(0.0, 0.0, -9810.0),
+        rayleigh_mass=5.0,
+    )
+    contacts = Contacts(
+        [Plane()],
+        friction=0.5,
+        margin=1.0,
+        points=EmbeddedPoints.at_nodes(rod.colliding_nodes()),
+        thickness=2.0,
+    )
+    model = Model(rod, contacts=contacts)
+    solver = ImplicitEuler(model, 0.01)
+    state = model.rest_state()
+    for _ in range(200):
+        state = solver.step(state)
+    np.testing.assert_allclose(rod.centreline(state.positions)[:, 2], 2.0, atol=1e-4)
+    weight = rod.total_mass * 9810.0
+    assert state.contact_forces.forces[:, 2].sum() == pytest.approx(weight, rel=1e-5)
