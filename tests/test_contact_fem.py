@@ -174,6 +174,46 @@ def test_bad_contact_input_raises() -> None:
         Contacts([])
 
 
+def test_thick_points_rest_at_their_thickness_on_the_floor_and_under_a_body() -> None:
+    """Colliding points that are balls of radius r (Contacts(thickness=r), a rod's nodes): the
+    soft cube, with a rigid box lying on it, settles with its bottom nodes at height r and the
+    box's underside r above the nodes under it (within the solver tolerance), and the floor
+    carries the weight of both."""
+    from pliant.fem.rigid import RigidBody
+
+    r, lift = 1.5, 0.2
+    body = _cube(lift=r + lift).body
+    box = RigidBody(Box([6.0, 6.0, 3.0], position=[10.0, 10.0, 20.0 + 2 * (r + lift) + 3.0]), 0.002)
+    contacts = Contacts([Plane()], friction=0.5, margin=1.0, thickness=r)
+    model = Model(body, contacts=contacts, rigid_bodies=[box])
+    solver = ImplicitEuler(model, 0.01)
+    state = model.rest_state()
+    for _ in range(300):
+        state = solver.step(state)
+    keys, forces = state.contact_forces.keys, state.contact_forces.forces
+    nodes = contacts.points.nodes[keys[:, 0], 0]
+    on_floor = keys[:, 1] == 0
+    assert np.count_nonzero(on_floor) == 16 and np.count_nonzero(~on_floor) == 4
+    tolerance = contacts.tolerance
+    assert np.abs(state.positions[nodes[on_floor], 2] - r).max() < tolerance
+    box.shape.set_pose(state.rigid_positions[0], state.rigid_rotations[0])
+    gaps = box.shape.signed_distance(state.positions[nodes[~on_floor]]).gap - r
+    assert np.abs(gaps).max() < tolerance
+    weight = (body.total_mass + box.mass) * G
+    assert abs(forces[on_floor, 2].sum() - weight) < 1e-5 * weight
+    assert solver.last_report.contact.converged
+
+
+def test_bad_contact_thickness_raises() -> None:
+    for thickness in (-0.1, float("nan"), float("inf")):
+        with pytest.raises(ContactError, match="thickness"):
+            Contacts([Plane()], thickness=thickness)
+    # The overlap check at the start counts the thickness: nodes 0.2 above the floor are
+    # balls 2.3 into it, deeper than the margin.
+    with pytest.raises(ContactError, match="overlaps"):
+        _cube(lift=0.2, thickness=2.5)
+
+
 def _cable_beam_under_a_wall(with_wall: bool) -> Model:
     """The two-cable beam (courses 8 mm); optionally a block above the tip whose underside is
     4 mm over the beam (z = 14)."""

@@ -612,18 +612,23 @@ def detect(
     shapes: list[Shape],
     margin: float,
     *,
+    radius: float = 0.0,
     broad_phase: str = "auto",
 ) -> ContactSet:
     """Contacts of query points (e.g. surface nodes of a deformable body) with shapes.
 
-    Every (point, shape) pair with phi < margin is one contact, sorted by shape then point;
-    feature is 2 x point index. `broad_phase`: "mask" (bounding-box mask per shape), "tree"
-    (k-d tree of the points, ball query per shape) or "auto" (see the module docstring).
+    The points are balls of `radius` (0: points; a rod's centreline nodes: its radius). Every
+    (point, shape) pair with gap = phi - radius < margin is one contact, sorted by shape then
+    point; point_a is where the ball meets the normal, feature is 2 x point index.
+    `broad_phase`: "mask" (bounding-box mask per shape), "tree" (k-d tree of the points, ball
+    query per shape) or "auto" (see the module docstring).
     """
     p = _query_points(points)
-    margin = float(margin)
+    margin, radius = float(margin), float(radius)
     if not (np.isfinite(margin) and margin >= 0.0):
         raise ContactError(f"the margin must be finite and >= 0, got {margin!r}")
+    if not (np.isfinite(radius) and radius >= 0.0):
+        raise ContactError(f"the query points' radius must be finite and >= 0, got {radius!r}")
     if broad_phase not in ("auto", "mask", "tree"):
         raise ContactError(f"broad_phase must be 'auto', 'mask' or 'tree', got {broad_phase!r}")
     if len(p) == 0:
@@ -638,7 +643,7 @@ def detect(
         if box is None:
             candidates = np.arange(len(p))
         else:
-            lo, hi = box[0] - margin, box[1] + margin
+            lo, hi = box[0] - (margin + radius), box[1] + (margin + radius)
             if np.any(lo > cloud_hi) or np.any(hi < cloud_lo):
                 continue
             if tree is not None:
@@ -649,7 +654,7 @@ def detect(
             else:
                 candidates = np.flatnonzero(np.all((p >= lo) & (p <= hi), axis=1))
         if candidates.size:
-            found.append(_contacts_with_shape(p, candidates, shape, j, margin))
+            found.append(_contacts_with_shape(p, candidates, shape, j, margin, radius))
     return ContactSet.concatenate(found)
 
 

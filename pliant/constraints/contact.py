@@ -52,6 +52,9 @@ class Contacts:
         tolerance: contact solver tolerance: the largest correction of a contact's displacement
             in a last Gauss-Seidel sweep (model length unit; 1e-5 mm by default).
         max_iterations: contact solver sweeps before a ContactConvergenceWarning.
+        thickness: radius of the colliding points, balls rather than points (a rod's
+            centreline nodes): a point touches a shape or a rigid body when its signed
+            distance equals the thickness; a contact's gap is the distance less the thickness.
     """
 
     def __init__(
@@ -63,6 +66,7 @@ class Contacts:
         points: EmbeddedPoints | None = None,
         tolerance: float = 1e-5,
         max_iterations: int = 1000,
+        thickness: float = 0.0,
     ) -> None:
         self.shapes = list(shapes)
         if not self.shapes:
@@ -77,10 +81,13 @@ class Contacts:
             raise ContactError(f"the contact tolerance must be finite and > 0, got {tolerance!r}")
         if max_iterations < 1:
             raise ContactError(f"max_iterations must be >= 1, got {max_iterations}")
+        if not (math.isfinite(thickness) and thickness >= 0):
+            raise ContactError(f"the contact thickness must be finite and >= 0, got {thickness!r}")
         self.margin = margin
         self.points = points
         self.tolerance = float(tolerance)
         self.max_iterations = int(max_iterations)
+        self.thickness = float(thickness)
         self.bodies: list[RigidBody] = []
 
     def attach(self, body, rigid_bodies: Sequence[RigidBody] = ()) -> None:
@@ -100,7 +107,9 @@ class Contacts:
 
     def check_overlap(self, positions: np.ndarray) -> None:
         """ContactError if a colliding point starts inside a shape deeper than the margin."""
-        found = detect(self.points.positions(positions), self.shapes, self.margin)
+        found = detect(
+            self.points.positions(positions), self.shapes, self.margin, radius=self.thickness
+        )
         if len(found) and found.gap.min() < -self.margin:
             i = int(np.argmin(found.gap))
             raise ContactError(
@@ -131,7 +140,7 @@ class Contacts:
         rows are a :class:`CoupledContact`.
         """
         points = self.points.positions(positions)
-        found = detect(points, self.shapes, self.margin)
+        found = detect(points, self.shapes, self.margin, radius=self.thickness)
         if not self.bodies:
             if len(found) == 0:
                 return None
@@ -141,6 +150,7 @@ class Contacts:
                 self.points,
                 friction=self.friction[found.index_b],
                 obstacle_displacement=motion,
+                thickness=self.thickness,
             )
         if rigid is None or dt is None:
             raise ContactError("contacts with rigid bodies need a dynamic step (ImplicitEuler)")
@@ -159,7 +169,7 @@ class Contacts:
         on_bodies = [
             replace(c, index_b=c.index_b + len(shapes) + i)
             for i, b in enumerate(bodies)
-            if len(c := detect(points, [b.shape], self.margin + reach[i]))
+            if len(c := detect(points, [b.shape], self.margin + reach[i], radius=self.thickness))
         ]
         deformable = ContactSet.concatenate([found, *on_bodies])
         motion = dt * shape_velocities(deformable, shapes + [b.shape for b in bodies])
@@ -171,6 +181,7 @@ class Contacts:
             self.points,
             friction=mu[deformable.index_b],
             obstacle_displacement=motion,
+            thickness=self.thickness,
         )
         # Side b of the body's contacts: minus the velocity of the rigid body's point.
         jacobian = -contact_twist_jacobian(

@@ -352,8 +352,10 @@ class ContactForces:
 class ContactConstraint(Constraint):
     """Contact rows of points of a deformable body against shapes, three per contact.
 
-    The rows are linearised at detection: with p(x) = sum_a w_a x_a the contact point carried
-    by the body, p0 = contacts.point_a and u the obstacle's displacement over the step,
+    The rows are linearised at detection: with p(x) = sum_a w_a x_a the point carried by the
+    body, p0 = contacts.point_a + r n its position at detection (r: the points' thickness, the
+    radius of the balls they are; point_a is where a ball meets the normal) and u the
+    obstacle's displacement over the step,
 
         delta_n = phi + n . (p(x) - p0 - u),   delta_ti = t_i . (p(x) - p0 - u),
 
@@ -365,6 +367,7 @@ class ContactConstraint(Constraint):
             for nodes, or barycentric points).
         friction: mu per contact (or one for all), e.g. mu_of_shape[contacts.index_b].
         obstacle_displacement: (k, 3) u, e.g. h * shape_velocities(contacts, shapes); default 0.
+        thickness: r, the radius the contacts were detected with (`detect(..., radius=r)`).
     """
 
     role = "contact"
@@ -376,6 +379,7 @@ class ContactConstraint(Constraint):
         *,
         friction: np.ndarray | float = 0.0,
         obstacle_displacement: np.ndarray | None = None,
+        thickness: float = 0.0,
         name: str = "contacts",
     ) -> None:
         self.name = name
@@ -390,7 +394,7 @@ class ContactConstraint(Constraint):
         u = np.asarray(u, dtype=float)
         if u.shape != (k, 3) or not np.all(np.isfinite(u)):
             raise ContactError(f"{name}: obstacle_displacement must be finite ({k}, 3)")
-        self._origin = contacts.point_a + u
+        self._origin = contacts.point_a + thickness * contacts.normal + u
         self._gap = contacts.gap
         self._frames = contacts.frames
 
