@@ -33,6 +33,7 @@ from __future__ import annotations
 
 import math
 from abc import ABC, abstractmethod
+from collections.abc import Sequence
 from dataclasses import dataclass, replace
 from dataclasses import fields as dataclass_fields
 from functools import cached_property
@@ -45,6 +46,7 @@ from pliant.errors import ContactError
 from pliant.fem.rotation import check_rotation
 
 _TREE_MIN_SHAPES = 12
+_NO_BOUND = (np.full(3, -np.inf), np.full(3, np.inf))
 
 
 def _vector(value, name: str) -> np.ndarray:
@@ -161,6 +163,11 @@ class Shape(ABC):
     def _local_distance(self, p: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(phi, n, closest) for points in the shape frame."""
 
+    def _primitive(self) -> tuple[int, np.ndarray] | None:
+        """(kind, sizes) of a shape the compiled detection knows (contact_kernels.PLANE, ...),
+        None for the others (meshes), detected through `_local_distance`."""
+        return None
+
     def bounds(self) -> tuple[np.ndarray, np.ndarray] | None:
         """World axis-aligned bounding box (lower, upper), None for an unbounded shape."""
         box = self._local_box()
@@ -213,6 +220,9 @@ class Plane(Shape):
         closest[:, 2] = 0.0
         return p[:, 2].copy(), normal, closest
 
+    def _primitive(self):
+        return kernels.PLANE, np.zeros(3)
+
     def _local_box(self):
         return None
 
@@ -231,6 +241,9 @@ class Sphere(Shape):
         off_centre = length > 0.0
         normal[off_centre] = p[off_centre] / length[off_centre, None]
         return length - self.radius, normal, self.radius * normal
+
+    def _primitive(self):
+        return kernels.SPHERE, np.array([self.radius, 0.0, 0.0])
 
     def _local_box(self):
         return -np.full(3, self.radius), np.full(3, self.radius)
@@ -268,6 +281,9 @@ class Box(Shape):
         closest[rows, axis] = side * h[axis]
         return gap, normal, closest
 
+    def _primitive(self):
+        return kernels.BOX, self.half_extents
+
     def _local_box(self):
         return -self.half_extents, self.half_extents.copy()
 
@@ -297,6 +313,9 @@ class Capsule(Shape):
         off_axis = length > 0.0
         normal[off_axis] = d[off_axis] / length[off_axis, None]
         return length - self.radius, normal, axis_point + self.radius * normal
+
+    def _primitive(self):
+        return kernels.CAPSULE, np.array([self.radius, self.half_length, 0.0])
 
     def _local_box(self):
         extent = np.array([self.radius, self.radius, self.radius + self.half_length])
@@ -541,8 +560,7 @@ class ContactSet:
     @cached_property
     def frames(self) -> np.ndarray:
         """(k, 3, 3): rows n, t1, t2 of each contact, orthonormal with t2 = n x t1."""
-        t1, t2 = tangent_frame(self.normal)
-        return np.stack([self.normal, t1, t2], axis=1)
+        return kernels.tangent_frames(self.normal)
 
     @property
     def tangent1(self) -> np.ndarray:
@@ -589,28 +607,34 @@ def _contacts_with_shape(
     shape_index: int,
     margin: float,
     radius: float = 0.0,
+    bounds: tuple[np.ndarray, np.ndarray] = _NO_BOUND,
 ) -> ContactSet:
-    """Contacts of the candidate points (spheres of `radius` around them) with one shape."""
-    query = shape.signed_distance(points[candidates])
-    gap = query.gap - radius
-    keep = gap < margin
-    k = int(np.count_nonzero(keep))
-    normal = query.normal[keep]
-    return ContactSet(
-        candidates[keep].astype(np.int64),
-        np.full(k, shape_index, dtype=np.int64),
-        2 * candidates[keep].astype(np.int64),
-        gap[keep],
-        normal,
-        points[candidates[keep]] - radius * normal,
-        query.closest[keep],
-    )
+    """Contacts of the candidate points inside `bounds` (spheres of `radius` around them) with
+    one shape: the primitives in one compiled pass (contact_kernels.primitive_contacts), meshes
+    through their signed distance."""
+    candidates = candidates.astype(np.int64, copy=False)
+    primitive = shape._primitive()
+    if primitive is not None:
+        rows, gap, normal, point_a, point_b = kernels.primitive_contacts(
+            points, candidates, *bounds, *primitive, shape.position, shape.rotation, margin, radius
+        )
+        kept = candidates[rows]
+    else:
+        near = points[candidates]
+        candidates = candidates[np.all((near >= bounds[0]) & (near <= bounds[1]), axis=1)]
+        query = shape.signed_distance(points[candidates])
+        gap = query.gap - radius
+        keep = gap < margin
+        kept, gap, normal = candidates[keep], gap[keep], query.normal[keep]
+        point_a, point_b = points[kept] - radius * normal, query.closest[keep]
+    index_b = np.full(kept.size, shape_index, dtype=np.int64)
+    return ContactSet(kept, index_b, 2 * kept, gap, normal, point_a, point_b)
 
 
 def detect(
     points: np.ndarray,
     shapes: list[Shape],
-    margin: float,
+    margin: float | Sequence[float],
     *,
     radius: float = 0.0,
     broad_phase: str = "auto",
@@ -618,14 +642,18 @@ def detect(
     """Contacts of query points (e.g. surface nodes of a deformable body) with shapes.
 
     The points are balls of `radius` (0: points; a rod's centreline nodes: its radius). Every
-    (point, shape) pair with gap = phi - radius < margin is one contact, sorted by shape then
-    point; point_a is where the ball meets the normal, feature is 2 x point index.
-    `broad_phase`: "mask" (bounding-box mask per shape), "tree" (k-d tree of the points, ball
-    query per shape) or "auto" (see the module docstring).
+    (point, shape) pair with gap = phi - radius < margin (one for all shapes, or one per shape)
+    is one contact, sorted by shape then point; point_a is where the ball meets the normal,
+    feature is 2 x point index. `broad_phase`: "mask" (bounding-box test of every point per
+    shape), "tree" (k-d tree of the points, ball query per shape) or "auto" (see the module
+    docstring).
     """
     p = _query_points(points)
-    margin, radius = float(margin), float(radius)
-    if not (np.isfinite(margin) and margin >= 0.0):
+    margins = np.asarray(margin, dtype=float).reshape(-1)
+    radius = float(radius)
+    if margins.size not in (1, len(shapes)):
+        raise ContactError(f"expected 1 or {len(shapes)} margins, got {margins.size}")
+    if not np.all(np.isfinite(margins) & (margins >= 0.0)):
         raise ContactError(f"the margin must be finite and >= 0, got {margin!r}")
     if not (np.isfinite(radius) and radius >= 0.0):
         raise ContactError(f"the query points' radius must be finite and >= 0, got {radius!r}")
@@ -633,28 +661,29 @@ def detect(
         raise ContactError(f"broad_phase must be 'auto', 'mask' or 'tree', got {broad_phase!r}")
     if len(p) == 0:
         return ContactSet.empty()
+    margins = np.broadcast_to(margins, (len(shapes),))
     boxes = [shape.bounds() for shape in shapes]
     n_bounded = sum(b is not None for b in boxes)
     use_tree = broad_phase == "tree" or (broad_phase == "auto" and n_bounded >= _TREE_MIN_SHAPES)
     tree = cKDTree(p) if use_tree and n_bounded else None
     cloud_lo, cloud_hi = p.min(axis=0), p.max(axis=0)
+    every = np.arange(len(p))
     found = []
     for j, (shape, box) in enumerate(zip(shapes, boxes, strict=True)):
-        if box is None:
-            candidates = np.arange(len(p))
-        else:
-            lo, hi = box[0] - (margin + radius), box[1] + (margin + radius)
-            if np.any(lo > cloud_hi) or np.any(hi < cloud_lo):
+        bounds, candidates = _NO_BOUND, every
+        if box is not None:
+            grown = float(margins[j]) + radius
+            bounds = (box[0] - grown, box[1] + grown)
+            if np.any(bounds[0] > cloud_hi) or np.any(bounds[1] < cloud_lo):
                 continue
             if tree is not None:
+                lo, hi = bounds
                 near = tree.query_ball_point(0.5 * (lo + hi), 0.5 * np.linalg.norm(hi - lo))
-                near = np.sort(np.asarray(near, dtype=np.int64))
-                inside = np.all((p[near] >= lo) & (p[near] <= hi), axis=1)
-                candidates = near[inside]
-            else:
-                candidates = np.flatnonzero(np.all((p >= lo) & (p <= hi), axis=1))
+                candidates = np.sort(np.asarray(near, dtype=np.int64))
         if candidates.size:
-            found.append(_contacts_with_shape(p, candidates, shape, j, margin, radius))
+            found.append(
+                _contacts_with_shape(p, candidates, shape, j, float(margins[j]), radius, bounds)
+            )
     return ContactSet.concatenate(found)
 
 

@@ -45,6 +45,7 @@ from pliant.constraints.collision import (
     Shape,
     Sphere,
     collide,
+    cross,
 )
 from pliant.constraints.condensed import CondensedProblem
 from pliant.constraints.friction import (
@@ -451,13 +452,17 @@ def contact_twist_jacobian(
 ) -> np.ndarray:
     """(3k, 6n) rows (n, t1, t2) . J(p) of the velocity of each contact point `points[c]`
     carried by body `bodies[c]` (centre of mass `centres[bodies[c]]`); rows of contacts whose
-    body index is outside [0, n) are zero."""
+    body index is outside [0, n) are zero.
+
+    A row f gives f . (v + w x a) = f . v + (a x f) . w, a = p - x the arm."""
     k = len(points)
     jac = np.zeros((k, 3, n, 6))
-    for c in range(k):
-        i = int(bodies[c])
-        if 0 <= i < n:
-            jac[c, :, i] = frames[c] @ twist_jacobian(points[c] - centres[i])[0]
+    carried = np.flatnonzero((bodies >= 0) & (bodies < n))
+    body = bodies[carried]
+    rows = frames[carried]  # (m, 3, 3)
+    arms = np.repeat(points[carried] - centres[body], 3, axis=0)
+    jac[carried, :, body, :3] = rows
+    jac[carried, :, body, 3:] = cross(arms, rows.reshape(-1, 3)).reshape(-1, 3, 3)
     return jac.reshape(3 * k, 6 * n)
 
 
