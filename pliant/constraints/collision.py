@@ -577,14 +577,9 @@ class ContactSet:
 
     @classmethod
     def concatenate(cls, sets: list[ContactSet]) -> ContactSet:
-        if not sets:
-            return cls.empty()
-        return cls(
-            *(
-                np.concatenate([getattr(s, name) for s in sets])
-                for name in (f.name for f in dataclass_fields(cls))
-            )
-        )
+        if len(sets) <= 1:
+            return sets[0] if sets else cls.empty()
+        return cls(*(np.concatenate([getattr(s, name) for s in sets]) for name in _FIELDS))
 
     def swapped(self) -> ContactSet:
         """The same contacts seen from b: a and b exchanged, the normal reversed, features
@@ -598,6 +593,9 @@ class ContactSet:
             self.point_b,
             self.point_a,
         )
+
+
+_FIELDS = tuple(f.name for f in dataclass_fields(ContactSet))
 
 
 def _contacts_with_shape(
@@ -748,6 +746,8 @@ def shape_velocities(contacts: ContactSet, shapes: list[Shape]) -> np.ndarray:
     """
     velocity = np.zeros((len(contacts), 3))
     for j in np.unique(contacts.index_b):
-        rows = contacts.index_b == j
-        velocity[rows] = shapes[int(j)].point_velocity(contacts.point_b[rows])
+        shape = shapes[int(j)]
+        if shape.linear_velocity.any() or shape.angular_velocity.any():  # else still: 0
+            rows = contacts.index_b == j
+            velocity[rows] = shape.point_velocity(contacts.point_b[rows])
     return velocity

@@ -125,6 +125,30 @@ def tangent_frames(normals):
     return frames
 
 
+@njit(cache=True)
+def contact_twist_rows(frames, points, bodies, centres, n):
+    """(3k, 6n) rows f . J(p) = (f, a x f) of each contact's frame rows f on the twist of the
+    body carrying its point (a = p - x the arm; zero rows for bodies outside [0, n)):
+    fem.rigid.contact_twist_jacobian, compiled."""
+    k = points.shape[0]
+    jac = np.zeros((3 * k, 6 * n))
+    for c in range(k):
+        i = bodies[c]
+        if i < 0 or i >= n:
+            continue
+        a0, a1, a2 = (
+            points[c, 0] - centres[i, 0],
+            points[c, 1] - centres[i, 1],
+            points[c, 2] - centres[i, 2],
+        )
+        for r in range(3):
+            f0, f1, f2 = frames[c, r, 0], frames[c, r, 1], frames[c, r, 2]
+            row = jac[3 * c + r, 6 * i : 6 * i + 6]
+            row[0], row[1], row[2] = f0, f1, f2
+            row[3], row[4], row[5] = a1 * f2 - a2 * f1, a2 * f0 - a0 * f2, a0 * f1 - a1 * f0
+    return jac
+
+
 # Closest-point features of a triangle (a, b, c): its vertices, its edges ab, bc, ca, its face.
 VERTEX_A, VERTEX_B, VERTEX_C, EDGE_AB, EDGE_BC, EDGE_CA, FACE = range(7)
 
@@ -264,6 +288,20 @@ def closest_points(points, triangles, box_min, box_max, child, spans, order):
             top += 2
         dist2[i], closest[i], triangle[i], feature[i] = best, best_point, best_tri, best_feature
     return dist2, closest, triangle, feature
+
+
+@njit(cache=True)
+def matrix_summary(w):
+    """(all entries finite, max |w_ij|, max |w_ij - w_ji|) of a square matrix, in one pass."""
+    scale = asymmetry = 0.0
+    for i in range(w.shape[0]):
+        for j in range(i, w.shape[0]):
+            a, b = w[i, j], w[j, i]
+            if not (math.isfinite(a) and math.isfinite(b)):
+                return False, math.nan, math.nan
+            scale = max(scale, abs(a), abs(b))
+            asymmetry = max(asymmetry, abs(a - b))
+    return True, scale, asymmetry
 
 
 @njit(cache=True)
