@@ -433,6 +433,29 @@ def test_compiled_detection_matches_the_plain_signed_distances(rng):
     np.testing.assert_array_equal(frames, np.stack([normals, t1, t2], axis=1))
 
 
+def test_bounds_are_the_extreme_corners_of_the_posed_local_box(rng):
+    """Shape.bounds (extremes taken term by term) against the eight corners of the local box
+    posed in the world, and bounding_radius against the farthest corner: equal."""
+    for _ in range(20):
+        rotation = axis_angle(rng.normal(size=3), rng.uniform(0.0, 3.0))
+        centre = rng.normal(size=3)
+        size = rng.uniform(0.5, 2.0, 3)
+        for shape in (
+            Box(size, centre, rotation),
+            Capsule(size[0], size[1], centre, rotation),
+            TriangleMesh(*box_mesh(size), centre, rotation),
+        ):
+            lo, hi = shape._local_box()
+            corners = np.array(
+                [[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])]
+            )
+            world = corners @ rotation.T + centre
+            np.testing.assert_allclose(shape.bounds()[0], world.min(axis=0), rtol=0, atol=1e-15)
+            np.testing.assert_allclose(shape.bounds()[1], world.max(axis=0), rtol=0, atol=1e-15)
+            farthest = np.linalg.norm(corners, axis=1).max()
+            assert shape.bounding_radius() == pytest.approx(farthest, rel=1e-15)
+
+
 # ---------------------------------------------------------------------------- contact rows
 
 

@@ -173,13 +173,22 @@ class Shape(ABC):
         box = self._local_box()
         if box is None:
             return None
-        world = _rotate(_box_corners(*box), self.rotation) + self.position
-        return world.min(axis=0), world.max(axis=0)
+        # The extreme corners of R [lo, hi] + x, axis by axis: each term of the row sums (as
+        # _rotate adds them) takes the corner coordinate that makes it smallest or largest.
+        at_lo, at_hi = self.rotation * box[0], self.rotation * box[1]
+        low, high = np.minimum(at_lo, at_hi), np.maximum(at_lo, at_hi)
+        return (
+            low[:, 0] + low[:, 1] + low[:, 2] + self.position,
+            high[:, 0] + high[:, 1] + high[:, 2] + self.position,
+        )
 
     def bounding_radius(self) -> float:
         """Radius of a ball about the shape's origin that holds the shape (inf: unbounded)."""
         box = self._local_box()
-        return math.inf if box is None else float(np.linalg.norm(_box_corners(*box), axis=1).max())
+        if box is None:
+            return math.inf
+        farthest = np.maximum(np.abs(box[0]), np.abs(box[1]))  # the farthest corner
+        return float(np.linalg.norm(farthest[None], axis=1)[0])
 
     @abstractmethod
     def _local_box(self) -> tuple[np.ndarray, np.ndarray] | None:
@@ -659,29 +668,24 @@ def detect(
         raise ContactError(f"broad_phase must be 'auto', 'mask' or 'tree', got {broad_phase!r}")
     if len(p) == 0:
         return ContactSet.empty()
-    margins = np.broadcast_to(margins, (len(shapes),))
+    margins = margins.tolist() * len(shapes) if margins.size == 1 else margins.tolist()
     boxes = [shape.bounds() for shape in shapes]
     n_bounded = sum(b is not None for b in boxes)
     use_tree = broad_phase == "tree" or (broad_phase == "auto" and n_bounded >= _TREE_MIN_SHAPES)
     tree = cKDTree(p) if use_tree and n_bounded else None
-    cloud_lo, cloud_hi = p.min(axis=0), p.max(axis=0)
     every = np.arange(len(p))
     found = []
     for j, (shape, box) in enumerate(zip(shapes, boxes, strict=True)):
         bounds, candidates = _NO_BOUND, every
         if box is not None:
-            grown = float(margins[j]) + radius
+            grown = margins[j] + radius
             bounds = (box[0] - grown, box[1] + grown)
-            if np.any(bounds[0] > cloud_hi) or np.any(bounds[1] < cloud_lo):
-                continue
-            if tree is not None:
+            if tree is not None:  # (the mask is the compiled pass's box test)
                 lo, hi = bounds
                 near = tree.query_ball_point(0.5 * (lo + hi), 0.5 * np.linalg.norm(hi - lo))
                 candidates = np.sort(np.asarray(near, dtype=np.int64))
         if candidates.size:
-            found.append(
-                _contacts_with_shape(p, candidates, shape, j, float(margins[j]), radius, bounds)
-            )
+            found.append(_contacts_with_shape(p, candidates, shape, j, margins[j], radius, bounds))
     return ContactSet.concatenate(found)
 
 
