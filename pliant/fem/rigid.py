@@ -46,6 +46,7 @@ from pliant.constraints.collision import (
     Shape,
     Sphere,
     collide,
+    cross,
 )
 from pliant.constraints.condensed import CondensedProblem
 from pliant.constraints.friction import (
@@ -362,7 +363,8 @@ def free_angular_velocity(
     """One Newton step on I (w - w0) + h w x I w = 0 in the body frame (Catto 2015)."""
     w0 = rotation.T @ angular_velocity
     jac = inertia + dt * (skew(w0) @ inertia - skew(inertia @ w0))
-    return rotation @ (w0 - np.linalg.solve(jac, dt * np.cross(w0, inertia @ w0)))
+    gyroscopic = cross(w0[None], (inertia @ w0)[None])[0]  # w0 x I w0
+    return rotation @ (w0 - np.linalg.solve(jac, dt * gyroscopic))
 
 
 def free_twists(
