@@ -45,6 +45,15 @@ SOFA_STEPS_PER_S = {
     "cantilever-15360": 1.65,
     "cantilever-51840": 0.06,
 }
+# SOFA's figure a Pliant scene is compared with when SOFA did not measure that scene itself.
+SOFA_STAND_INS = {
+    "trunk+cables+cube": (
+        "trunk+cables",
+        "SOFA: the Trunk with its cables, without the cube (SOFA's cube scene was not measured)",
+    ),
+}
+# The Trunk's reference mesh touches the cube from step 15 and pushes it until step 145.
+TRUNK_CUBE_WARMUP = 40
 # Thesis Fig. 5.5 / Table 5.2 (SOFA, the thesis' machine), frames/s of the Soft Finger.
 THESIS_FINGER_FPS = {"coarse": 32.6, "fine": 4.8, "superfine": 1.8}
 
@@ -95,6 +104,12 @@ def multigait(meshes: Path) -> Model:
         gravity=(0.0, 0.0, -9810.0),
     )
     return Model(body, name="multigait")
+
+
+def trunk_with_cube(meshes: Path) -> Model:
+    """The Trunk's reference mesh with its 8 cables, pushing the rigid cube of
+    :func:`pliant.robots.trunk_cube.trunk_cube` (cube on a floor, base on a carriage)."""
+    return robots.build("trunk_cube", mesh=load_mesh(meshes / "Trunk_trunk.vtk"))
 
 
 def multigait_on_floor(meshes: Path) -> Model:
@@ -154,6 +169,28 @@ class Measurement:
         return self.steps_per_s / self.sofa if self.sofa else None
 
 
+@dataclass
+class Timing:
+    """Timed runs of one scene: steps/s of each, and per step the median factorisations, the
+    mean contact-solver sweeps and the mean contacts, all of them and those of the body's
+    points on rigid bodies (0 without contacts)."""
+
+    rates: list[float]
+    factorisations_per_step: float
+    sweeps_per_step: float
+    contacts_per_step: float
+    body_contacts_per_step: float
+
+
+def _contact_counts(model: Model, state) -> tuple[int, int]:
+    """Contacts of the step that gave `state`, all and the body's points on rigid bodies."""
+    contacts, keys = model.contacts, state.contact_forces.keys
+    if contacts is None:
+        return 0, 0
+    on_bodies = (keys[:, 0] < len(contacts.points)) & (keys[:, 1] >= len(contacts.shapes))
+    return len(keys), int(np.count_nonzero(on_bodies))
+
+
 def time_steps(
     make_solver: Callable[[], object],
     state,
@@ -161,24 +198,30 @@ def time_steps(
     steps: int,
     repeats: int,
     warmup: int,
-) -> tuple[list[float], float, float]:
-    """steps/s of `repeats` runs of `steps` steps, each from the state after the warm-up; the
-    median factorisations per step and the mean contact-solver sweeps per step (0: none)."""
+) -> Timing:
+    """`repeats` runs of `steps` steps, each from the state after the warm-up; the contact
+    figures are counted in the timer's pauses, after each step."""
     solver = make_solver()
     for _ in range(warmup):
         state = solver.step(state, control(state))
-    rates, facts, sweeps = [], [], []
+    rates, facts, sweeps, counts = [], [], [], []
     for _ in range(repeats):
         s = state.copy()
         f0 = solver.system.factorisations
-        t0 = time.perf_counter()
+        elapsed = 0.0
         for _ in range(steps):
+            t0 = time.perf_counter()
             s = solver.step(s, control(s))
+            elapsed += time.perf_counter() - t0
             report = solver.last_report.contact
             sweeps.append(report.iterations if report is not None else 0)
-        rates.append(steps / (time.perf_counter() - t0))
+            counts.append(_contact_counts(solver.model, s))
+        rates.append(steps / elapsed)
         facts.append((solver.system.factorisations - f0) / steps)
-    return rates, statistics.median(facts), float(np.mean(sweeps))
+    total, on_bodies = np.mean(counts, axis=0)
+    return Timing(
+        rates, statistics.median(facts), float(np.mean(sweeps)), float(total), float(on_bodies)
+    )
 
 
 def run_benchmarks(
@@ -202,7 +245,7 @@ def run_benchmarks(
         for policy in policies:
             if cables is not None:
                 model.set_actuation(cables, mode="displacement")
-            rates, facts, sweeps = time_steps(
+            timing = time_steps(
                 lambda p=policy: ImplicitEuler(model, 0.01, tangent=p),
                 model.rest_state(),
                 control if callable(control) else (lambda s: control),
@@ -211,24 +254,33 @@ def run_benchmarks(
                 warmup,
             )
             details = dict(extra)
+            contact = ""
             if model.contacts is not None:
-                details["contact_sweeps_per_step"] = sweeps
+                details["contact_sweeps_per_step"] = timing.sweeps_per_step
+                details["contacts_per_step"] = timing.contacts_per_step
+                details["body_contacts_per_step"] = timing.body_contacts_per_step
+                contact = (
+                    f", {timing.sweeps_per_step:.0f} contact sweeps/step,"
+                    f" {timing.contacts_per_step:.1f} contacts/step"
+                    f" ({timing.body_contacts_per_step:.1f} on rigid bodies)"
+                )
             m = Measurement(
                 scene,
                 model.body.mesh.n_tets,
                 policy,
-                statistics.median(rates),
-                rates,
-                facts,
+                statistics.median(timing.rates),
+                timing.rates,
+                timing.factorisations_per_step,
                 sofa,
                 details,
             )
             results.append(m)
             ratio = f"{m.speedup:.1f}x SOFA" if m.speedup else ""
-            contact = f", {sweeps:.0f} contact sweeps/step" if model.contacts else ""
+            if "sofa_scene" in details:
+                ratio += f" ({details['sofa_scene']})"
             console.print(
                 f"  {scene:<22} {policy:<6} {m.steps_per_s:9.2f} steps/s"
-                f"  ({facts:.3f} factorisations/step{contact}) {ratio}"
+                f"  ({timing.factorisations_per_step:.3f} factorisations/step{contact}) {ratio}"
             )
 
     console.print(f"[bold]pliant bench[/bold] {__version__}; reference meshes: {meshes}")
@@ -315,6 +367,20 @@ def run_benchmarks(
                     n_steps=max(10, steps // 5),
                     warmup=warmup,
                 )
+        if meshes is not None:
+            stand_in, label = SOFA_STAND_INS["trunk+cables+cube"]
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore", ContactConvergenceWarning)
+                measure(
+                    "trunk+cables+cube",
+                    trunk_with_cube(meshes),
+                    control=lambda s: robots.entry("trunk_cube").demo_actuation(s.time),
+                    policies=("lagged",),
+                    n_steps=max(10, steps // 5),
+                    warmup=TRUNK_CUBE_WARMUP,
+                    sofa=SOFA_STEPS_PER_S[stand_in],
+                    sofa_scene=label,
+                )
     for res in ("coarse",) if quick else ("coarse", "fine", "superfine"):
         finger = robots.soft_finger(resolution=res)
         measure(
@@ -339,7 +405,7 @@ def run_benchmarks(
         f" {statistics.median(static_times) * 1e3:.1f} ms"
     )
     goal = dia.effectors[0].position(st.positions) + np.array([[5.0, 0.0, 0.0]])
-    rates, _, _ = time_steps(
+    timing = time_steps(
         lambda: ImplicitEuler(dia, 0.01),
         dia.rest_state(),
         lambda s: InverseControl(goals=[goal]),
@@ -347,7 +413,7 @@ def run_benchmarks(
         repeats,
         10,
     )
-    inverse_ms = 1e3 / statistics.median(rates)
+    inverse_ms = 1e3 / statistics.median(timing.rates)
     console.print(f"  inverse QP control step (diamond): {inverse_ms:.2f} ms")
     peak_mb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
 
@@ -392,6 +458,10 @@ def _print_table(results: list[Measurement], console: Console) -> None:
             f"{best / any_m.sofa:.1f}x" if any_m.sofa else "-",
         )
     console.print(table)
+    for scene in scenes:
+        note = next(m for m in results if m.scene == scene).extra.get("sofa_scene")
+        if note:
+            console.print(f"  {scene}: {note}")
 
 
 def _plot(results: list[Measurement], path: Path) -> None:

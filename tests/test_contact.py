@@ -8,6 +8,7 @@ import time
 import numpy as np
 import pytest
 
+from pliant.constraints import contact_kernels as kernels
 from pliant.constraints.base import EmbeddedPoints
 from pliant.constraints.cable import CableActuator
 from pliant.constraints.collision import (
@@ -20,6 +21,7 @@ from pliant.constraints.collision import (
     collide,
     detect,
     shape_velocities,
+    tangent_frame,
 )
 from pliant.constraints.condensed import CondensedProblem
 from pliant.constraints.direct import solve_direct
@@ -34,9 +36,11 @@ from pliant.fem.rigid import (
     RigidWorld,
     box_inertia,
     capsule_inertia,
+    contact_twist_jacobian,
     rail,
     servo,
     sphere_inertia,
+    twist_jacobian,
 )
 from pliant.fem.rotation import axis_angle, exp_map, log_map
 from pliant.mesh import box_beam
@@ -394,6 +398,64 @@ def test_broad_phase_finds_exactly_the_brute_force_contacts(rng):
         np.testing.assert_array_equal(contacts.gap, [r[2] for r in reference])
 
 
+def test_compiled_detection_matches_the_plain_signed_distances(rng):
+    """detect's compiled pass over primitives (contact_kernels.primitive_contacts) against the
+    shapes' NumPy signed distances, for balls of radius r: the same contacts, gaps, normals
+    and contact points; points on a box's faces, edges and centre and on a capsule's axis
+    included (the ties of the closest feature). The frames against tangent_frame."""
+    rotation = axis_angle([1.0, -2.0, 0.5], 0.8)
+    centre = np.array([0.3, -0.2, 0.1])
+    h = np.array([0.5, 0.3, 0.8])
+    ties = np.array([[0.5, 0.0, 0.0], [0.5, 0.3, 0.1], [0.0, 0.0, 0.0], [0.0, 0.0, 0.2]])
+    points = np.vstack([centre + rng.uniform(-2.0, 2.0, (2000, 3)), centre + ties @ rotation.T])
+    shapes = [
+        Plane(rotation[:, 2], centre),
+        Sphere(0.7, centre),
+        Box(h, centre, rotation),
+        Capsule(0.4, 0.6, centre, rotation),
+    ]
+    margin, radius = 0.3, 0.2
+    found = detect(points, shapes, margin, radius=radius)
+    for j, shape in enumerate(shapes):
+        answer = shape.signed_distance(points)
+        hit = np.flatnonzero(answer.gap - radius < margin)
+        mine = found.index_b == j
+        np.testing.assert_array_equal(found.index_a[mine], hit)
+        np.testing.assert_array_equal(found.gap[mine], answer.gap[hit] - radius)
+        np.testing.assert_array_equal(found.normal[mine], answer.normal[hit])
+        np.testing.assert_array_equal(found.point_b[mine], answer.closest[hit])
+        np.testing.assert_array_equal(
+            found.point_a[mine], points[hit] - radius * answer.normal[hit]
+        )
+    normals = np.vstack([found.normal, np.eye(3), [[0.6, 0.6, 0.0], [0.0, -0.8, 0.6]]])
+    t1, t2 = tangent_frame(normals)
+    frames = kernels.tangent_frames(normals)
+    np.testing.assert_array_equal(frames, np.stack([normals, t1, t2], axis=1))
+
+
+def test_bounds_are_the_extreme_corners_of_the_posed_local_box(rng):
+    """Shape.bounds (extremes taken term by term) against the eight corners of the local box
+    posed in the world, and bounding_radius against the farthest corner: equal."""
+    for _ in range(20):
+        rotation = axis_angle(rng.normal(size=3), rng.uniform(0.0, 3.0))
+        centre = rng.normal(size=3)
+        size = rng.uniform(0.5, 2.0, 3)
+        for shape in (
+            Box(size, centre, rotation),
+            Capsule(size[0], size[1], centre, rotation),
+            TriangleMesh(*box_mesh(size), centre, rotation),
+        ):
+            lo, hi = shape._local_box()
+            corners = np.array(
+                [[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])]
+            )
+            world = corners @ rotation.T + centre
+            np.testing.assert_allclose(shape.bounds()[0], world.min(axis=0), rtol=0, atol=1e-15)
+            np.testing.assert_allclose(shape.bounds()[1], world.max(axis=0), rtol=0, atol=1e-15)
+            farthest = np.linalg.norm(corners, axis=1).max()
+            assert shape.bounding_radius() == pytest.approx(farthest, rel=1e-15)
+
+
 # ---------------------------------------------------------------------------- contact rows
 
 
@@ -695,6 +757,24 @@ def test_kinematic_twist_and_attached_point_jacobian(rng):
     numeric = (moved - points.positions(np.zeros(3), rotation)) / eps
     np.testing.assert_allclose(points.jacobian(rotation) @ twist, numeric, atol=1e-6)
     np.testing.assert_allclose(log_map(exp_map([0.0, 3.1, 0.0])), [0.0, 3.1, 0.0], atol=1e-12)
+
+
+def test_contact_twist_jacobian_is_the_frames_times_the_point_jacobians(rng):
+    """Rows (n, t1, t2) J(p) of contacts carried by bodies 0..2, and zero rows for contacts
+    on an obstacle (body index -1 or 3): against twist_jacobian, frame by frame."""
+    k, n = 9, 3
+    normals = rng.normal(size=(k, 3))
+    normals /= np.linalg.norm(normals, axis=1, keepdims=True)
+    frames = np.stack([normals, *tangent_frame(normals)], axis=1)
+    points, centres = rng.normal(size=(k, 3)), rng.normal(size=(n, 3))
+    bodies = np.array([0, 2, -1, 1, 3, 0, 2, 1, -1])
+    rows = contact_twist_jacobian(frames, points, bodies, centres, n).reshape(k, 3, n, 6)
+    for c in range(k):
+        expected = np.zeros((3, n, 6))
+        if 0 <= bodies[c] < n:
+            arm = points[c] - centres[bodies[c]]
+            expected[:, bodies[c]] = frames[c] @ twist_jacobian(arm)[0]
+        np.testing.assert_allclose(rows[c], expected, atol=1e-14)
 
 
 def test_invalid_rigid_bodies_raise():

@@ -475,7 +475,6 @@ def test_a_rod_resting_on_the_floor_carries_its_weight_on_its_surface() -> None:
         [Plane()],
         friction=0.5,
         margin=1.0,
-        points=EmbeddedPoints.at_nodes(rod.colliding_nodes()),
         thickness=2.0,
     )
     model = Model(rod, contacts=contacts)

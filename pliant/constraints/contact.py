@@ -48,7 +48,8 @@ class Contacts:
         friction: Coulomb coefficient mu, one for all shapes or one per shape.
         margin: detection (alarm) distance in model units; None: 2 % of the body's bounding-box
             diagonal.
-        points: the colliding points of the body; None: its surface nodes that are not fixed.
+        points: the colliding points of the body; None: its `colliding_nodes()` (the surface
+            nodes of tetrahedra, the centreline nodes of a rod, that are not held).
         tolerance: contact solver tolerance: the largest correction of a contact's displacement
             in a last Gauss-Seidel sweep (model length unit; 1e-5 mm by default).
         max_iterations: contact solver sweeps before a ContactConvergenceWarning.
@@ -94,15 +95,14 @@ class Contacts:
         """Resolve the defaults against the body and take the model's rigid bodies (called
         once by the Model)."""
         self.bodies = list(rigid_bodies)
-        shapes = [*self.shapes, *(b.shape for b in self.bodies)]
-        if len({id(s) for s in shapes}) != len(shapes):
+        self._colliders = [*self.shapes, *(b.shape for b in self.bodies)]
+        if len({id(s) for s in self._colliders}) != len(self._colliders):
             raise ContactError("each obstacle and rigid body needs its own shape object")
+        self._friction = np.concatenate([self.friction, [b.friction for b in self.bodies]])
         if self.points is None:
-            surface = np.unique(body.mesh.boundary_triangles())
-            moving = np.setdiff1d(surface, body.fixed_nodes)
-            self.points = EmbeddedPoints.at_nodes(moving)
+            self.points = EmbeddedPoints.at_nodes(body.colliding_nodes())
         if self.margin is None:
-            self.margin = 0.02 * float(np.linalg.norm(np.ptp(body.rest_positions, axis=0)))
+            self.margin = 0.02 * body.extent
         self.check_overlap(body.rest_positions)
 
     def check_overlap(self, positions: np.ndarray) -> None:
@@ -140,25 +140,23 @@ class Contacts:
         rows are a :class:`CoupledContact`.
         """
         points = self.points.positions(positions)
+        if self.bodies:
+            if rigid is None or dt is None:
+                raise ContactError("contacts with rigid bodies need a dynamic step (ImplicitEuler)")
+            return self._coupled(points, dt, rigid)
         found = detect(points, self.shapes, self.margin, radius=self.thickness)
-        if not self.bodies:
-            if len(found) == 0:
-                return None
-            motion = None if dt is None else dt * shape_velocities(found, self.shapes)
-            return ContactConstraint(
-                found,
-                self.points,
-                friction=self.friction[found.index_b],
-                obstacle_displacement=motion,
-                thickness=self.thickness,
-            )
-        if rigid is None or dt is None:
-            raise ContactError("contacts with rigid bodies need a dynamic step (ImplicitEuler)")
-        return self._coupled(points, found, dt, rigid)
+        if len(found) == 0:
+            return None
+        motion = None if dt is None else dt * shape_velocities(found, self.shapes)
+        return ContactConstraint(
+            found,
+            self.points,
+            friction=self.friction[found.index_b],
+            obstacle_displacement=motion,
+            thickness=self.thickness,
+        )
 
-    def _coupled(
-        self, points: np.ndarray, found: ContactSet, dt: float, rigid: RigidStep
-    ) -> CoupledContact | None:
+    def _coupled(self, points: np.ndarray, dt: float, rigid: RigidStep) -> CoupledContact | None:
         """Rows of the body's points against obstacles and rigid bodies, then of rigid bodies
         against obstacles and each other (see the module docstring)."""
         bodies, shapes, n = self.bodies, self.shapes, len(self.bodies)
@@ -166,20 +164,15 @@ class Contacts:
             b.shape.set_pose(rigid.positions[i], rigid.rotations[i])
         # A body may close a gap by the distance its points travel in the step.
         reach = dt * rigid.speeds(bodies)
-        on_bodies = [
-            replace(c, index_b=c.index_b + len(shapes) + i)
-            for i, b in enumerate(bodies)
-            if len(c := detect(points, [b.shape], self.margin + reach[i], radius=self.thickness))
-        ]
-        deformable = ContactSet.concatenate([found, *on_bodies])
-        motion = dt * shape_velocities(deformable, shapes + [b.shape for b in bodies])
+        margins = np.concatenate([np.full(len(shapes), self.margin), self.margin + reach])
+        deformable = detect(points, self._colliders, margins, radius=self.thickness)
         on_body = deformable.index_b >= len(shapes)
+        motion = dt * shape_velocities(deformable, self._colliders)
         motion[on_body] = 0.0  # a rigid body's motion enters through G u
-        mu = np.concatenate([self.friction, [b.friction for b in bodies]])
         rows = ContactConstraint(
             deformable,
             self.points,
-            friction=mu[deformable.index_b],
+            friction=self._friction[deformable.index_b],
             obstacle_displacement=motion,
             thickness=self.thickness,
         )
@@ -210,8 +203,8 @@ class Contacts:
         )
         pair_distance = -np.einsum("krj,kj->kr", pairs.frames, obstacle_motion)
         pair_distance[:, 0] += pairs.gap
-        mu_a = np.array([bodies[i].friction for i in pairs.index_a])
-        pair_friction = np.sqrt(mu_a * mu[pairs.index_b])
+        mu = self._friction
+        pair_friction = np.sqrt(mu[len(shapes) + pairs.index_a] * mu[pairs.index_b])
         return CoupledContact(
             rows,
             pairs,
@@ -224,8 +217,7 @@ class Contacts:
     def _rigid_pairs(self, reach: np.ndarray) -> ContactSet:
         """Contacts of each rigid body (side a, index = body) with the obstacles and the later
         bodies (side b, index = obstacle, or len(shapes) + body)."""
-        bodies, shapes = self.bodies, self.shapes
-        colliders = [*shapes, *(b.shape for b in bodies)]
+        bodies, shapes, colliders = self.bodies, self.shapes, self._colliders
         found = []
         for i, body in enumerate(bodies):
             box = body.shape.bounds()

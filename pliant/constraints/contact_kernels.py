@@ -1,6 +1,7 @@
-"""Compiled kernels of the contact pipeline: the triangle-mesh distance query and the projected
-block Gauss-Seidel sweep. The modules collision.py and friction.py hold the readable
-definitions and the validation; the tests compare these kernels with plain references.
+"""Compiled kernels of the contact pipeline: the detection of points against primitive shapes,
+the contacts' tangent frames, the triangle-mesh distance query and the projected block
+Gauss-Seidel sweep. The modules collision.py and friction.py hold the readable definitions
+and the validation; the tests compare these kernels with plain references.
 """
 
 from __future__ import annotations
@@ -9,6 +10,144 @@ import math
 
 import numpy as np
 from numba import njit
+
+# Primitive shapes the detection kernel knows (collision.Shape._kernel), with their sizes.
+PLANE, SPHERE, BOX, CAPSULE = range(4)  # (), (radius,), (half extents), (radius, half length)
+
+
+@njit(cache=True)
+def primitive_contacts(points, candidates, lo, hi, kind, size, position, rotation, margin, radius):
+    """Contacts of the candidate points, balls of `radius`, inside the box [lo, hi] with one
+    primitive shape posed at (position, rotation): the plain definitions of
+    collision.Plane/Sphere/Box/Capsule._local_distance and collision._contacts_with_shape,
+    point by point and in the same floating-point operations.
+
+    Returns (candidate rows kept, gap, normal, point_a, point_b) for gap = phi - radius <
+    margin, in the candidates' order.
+    """
+    k = candidates.shape[0]
+    kept = np.empty(k, dtype=np.int64)
+    gap = np.empty(k)
+    normal = np.empty((k, 3))
+    point_a = np.empty((k, 3))
+    point_b = np.empty((k, 3))
+    local = np.empty(3)
+    n = np.empty(3)
+    c = np.empty(3)
+    count = 0
+    for row in range(k):
+        p = points[candidates[row]]
+        if not (lo[0] <= p[0] <= hi[0] and lo[1] <= p[1] <= hi[1] and lo[2] <= p[2] <= hi[2]):
+            continue
+        d0, d1, d2 = p[0] - position[0], p[1] - position[1], p[2] - position[2]
+        for a in range(3):  # R^T (p - x)
+            local[a] = d0 * rotation[0, a] + d1 * rotation[1, a] + d2 * rotation[2, a]
+        if kind == PLANE:
+            phi = local[2]
+            n[0], n[1], n[2] = 0.0, 0.0, 1.0
+            c[0], c[1], c[2] = local[0], local[1], 0.0
+        elif kind == SPHERE:
+            length = math.sqrt(local[0] * local[0] + local[1] * local[1] + local[2] * local[2])
+            n[0], n[1], n[2] = 0.0, 0.0, 1.0  # the centre itself: any direction is a closest one
+            if length > 0.0:
+                for a in range(3):
+                    n[a] = local[a] / length
+            phi = length - size[0]
+            for a in range(3):
+                c[a] = size[0] * n[a]
+        elif kind == BOX:
+            out0 = max(abs(local[0]) - size[0], 0.0)
+            out1 = max(abs(local[1]) - size[1], 0.0)
+            out2 = max(abs(local[2]) - size[2], 0.0)
+            length = math.sqrt(out0 * out0 + out1 * out1 + out2 * out2)
+            for a in range(3):
+                c[a] = min(max(local[a], -size[a]), size[a])
+            if length > 0.0:
+                phi = length
+                for a in range(3):
+                    n[a] = (local[a] - c[a]) / length
+            else:  # inside or on the surface: the nearest face is the one of largest q
+                axis = 0
+                for a in range(1, 3):
+                    if abs(local[a]) - size[a] > abs(local[axis]) - size[axis]:
+                        axis = a
+                phi = abs(local[axis]) - size[axis]
+                side = -1.0 if local[axis] < 0.0 else 1.0
+                n[0], n[1], n[2] = 0.0, 0.0, 0.0
+                n[axis] = side
+                c[axis] = side * size[axis]
+        else:  # CAPSULE
+            z = min(max(local[2], -size[1]), size[1])
+            e0, e1, e2 = local[0], local[1], local[2] - z
+            length = math.sqrt(e0 * e0 + e1 * e1 + e2 * e2)
+            n[0], n[1], n[2] = 1.0, 0.0, 0.0  # on the axis: any direction across it
+            if length > 0.0:
+                n[0], n[1], n[2] = e0 / length, e1 / length, e2 / length
+            phi = length - size[0]
+            c[0], c[1], c[2] = size[0] * n[0], size[0] * n[1], z + size[0] * n[2]
+        g = phi - radius
+        if not g < margin:
+            continue
+        kept[count] = row
+        gap[count] = g
+        for a in range(3):  # R n, R c + x
+            normal[count, a] = n[0] * rotation[a, 0] + n[1] * rotation[a, 1] + n[2] * rotation[a, 2]
+            point_b[count, a] = (
+                c[0] * rotation[a, 0] + c[1] * rotation[a, 1] + c[2] * rotation[a, 2]
+            ) + position[a]
+            point_a[count, a] = p[a] - radius * normal[count, a]
+        count += 1
+    return kept[:count], gap[:count], normal[:count], point_a[:count], point_b[:count]
+
+
+@njit(cache=True)
+def tangent_frames(normals):
+    """(k, 3, 3) rows n, t1, t2 of each contact: collision.tangent_frame, compiled."""
+    k = normals.shape[0]
+    frames = np.empty((k, 3, 3))
+    for i in range(k):
+        n0, n1, n2 = normals[i, 0], normals[i, 1], normals[i, 2]
+        # t1 = n x e, e the world axis least aligned with n (the first of equals).
+        a0, a1, a2 = abs(n0), abs(n1), abs(n2)
+        if a0 <= a1 and a0 <= a2:
+            t0, t1, t2 = 0.0, n2, -n1
+        elif a1 <= a2:
+            t0, t1, t2 = -n2, 0.0, n0
+        else:
+            t0, t1, t2 = n1, -n0, 0.0
+        norm = math.sqrt(t0 * t0 + t1 * t1 + t2 * t2)
+        t0, t1, t2 = t0 / norm, t1 / norm, t2 / norm
+        frames[i, 0, 0], frames[i, 0, 1], frames[i, 0, 2] = n0, n1, n2
+        frames[i, 1, 0], frames[i, 1, 1], frames[i, 1, 2] = t0, t1, t2
+        frames[i, 2, 0] = n1 * t2 - n2 * t1
+        frames[i, 2, 1] = n2 * t0 - n0 * t2
+        frames[i, 2, 2] = n0 * t1 - n1 * t0
+    return frames
+
+
+@njit(cache=True)
+def contact_twist_rows(frames, points, bodies, centres, n):
+    """(3k, 6n) rows f . J(p) = (f, a x f) of each contact's frame rows f on the twist of the
+    body carrying its point (a = p - x the arm; zero rows for bodies outside [0, n)):
+    fem.rigid.contact_twist_jacobian, compiled."""
+    k = points.shape[0]
+    jac = np.zeros((3 * k, 6 * n))
+    for c in range(k):
+        i = bodies[c]
+        if i < 0 or i >= n:
+            continue
+        a0, a1, a2 = (
+            points[c, 0] - centres[i, 0],
+            points[c, 1] - centres[i, 1],
+            points[c, 2] - centres[i, 2],
+        )
+        for r in range(3):
+            f0, f1, f2 = frames[c, r, 0], frames[c, r, 1], frames[c, r, 2]
+            row = jac[3 * c + r, 6 * i : 6 * i + 6]
+            row[0], row[1], row[2] = f0, f1, f2
+            row[3], row[4], row[5] = a1 * f2 - a2 * f1, a2 * f0 - a0 * f2, a0 * f1 - a1 * f0
+    return jac
+
 
 # Closest-point features of a triangle (a, b, c): its vertices, its edges ab, bc, ca, its face.
 VERTEX_A, VERTEX_B, VERTEX_C, EDGE_AB, EDGE_BC, EDGE_CA, FACE = range(7)
@@ -149,6 +288,20 @@ def closest_points(points, triangles, box_min, box_max, child, spans, order):
             top += 2
         dist2[i], closest[i], triangle[i], feature[i] = best, best_point, best_tri, best_feature
     return dist2, closest, triangle, feature
+
+
+@njit(cache=True)
+def matrix_summary(w):
+    """(all entries finite, max |w_ij|, max |w_ij - w_ji|) of a square matrix, in one pass."""
+    scale = asymmetry = 0.0
+    for i in range(w.shape[0]):
+        for j in range(i, w.shape[0]):
+            a, b = w[i, j], w[j, i]
+            if not (math.isfinite(a) and math.isfinite(b)):
+                return False, math.nan, math.nan
+            scale = max(scale, abs(a), abs(b))
+            asymmetry = max(asymmetry, abs(a - b))
+    return True, scale, asymmetry
 
 
 @njit(cache=True)

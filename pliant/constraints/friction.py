@@ -108,10 +108,9 @@ def _check_problem(problem: CondensedProblem) -> tuple[np.ndarray, np.ndarray]:
     r = d.shape[0]
     if w.shape != (r, r) or d.ndim != 1:
         raise ContactError(f"W must be ({r}, {r}) for {r} rows of delta_free, got {w.shape}")
-    if not (np.all(np.isfinite(w)) and np.all(np.isfinite(d))):
+    finite, scale, asymmetry = kernels.matrix_summary(w)
+    if not (finite and np.all(np.isfinite(d))):
         raise ContactError("W and delta_free must be finite (the free motion diverged?)")
-    scale = float(np.abs(w).max()) if r else 0.0
-    asymmetry = float(np.abs(w - w.T).max()) if r else 0.0
     if asymmetry > 1e-8 * scale:
         raise ContactError(f"W must be symmetric, |W - W^T| = {asymmetry:.3g} (|W| = {scale:.3g})")
     if r and np.diag(w).min() < -1e-12 * scale:
@@ -310,6 +309,12 @@ def _active_set_solution(
     return new if admissible else None
 
 
+def _records(keys: np.ndarray) -> np.ndarray:
+    """(k,) rows of int64 keys (k, 3) viewed as single records, to sort and compare."""
+    rows = np.ascontiguousarray(keys, dtype=np.int64)
+    return rows.view(np.dtype((np.void, rows.itemsize * rows.shape[1]))).ravel()
+
+
 @dataclass(frozen=True)
 class ContactForces:
     """Contact forces of a step in world coordinates, by contact identity: what the next step
@@ -337,12 +342,14 @@ class ContactForces:
     def warm_start(self, contacts: ContactSet) -> np.ndarray:
         """(3k,) multipliers for `contacts` in their frames: the previous force of the contact
         with the same identity projected on its new frame, zero for a new contact."""
-        index = {tuple(key): i for i, key in enumerate(self.keys.tolist())}
         previous = np.zeros((len(contacts), 3))
-        for j, key in enumerate(contacts.keys.tolist()):
-            i = index.get(tuple(key))
-            if i is not None:
-                previous[j] = self.forces[i]
+        if len(self.keys) and len(contacts):
+            # Identities as 24-byte records, matched by a sorted search (the last of equals).
+            old, new = _records(self.keys), _records(contacts.keys)
+            order = np.argsort(old, kind="stable")
+            at = np.searchsorted(old[order], new, side="right") - 1
+            found = (at >= 0) & (old[order[at]] == new)
+            previous[found] = self.forces[order[at[found]]]
         return np.einsum("krj,kj->kr", contacts.frames, previous).reshape(-1)
 
     def copy(self) -> ContactForces:

@@ -37,6 +37,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from pliant.constraints import contact_kernels
 from pliant.constraints.collision import (
     Box,
     BoxUnion,
@@ -45,6 +46,7 @@ from pliant.constraints.collision import (
     Shape,
     Sphere,
     collide,
+    cross,
 )
 from pliant.constraints.condensed import CondensedProblem
 from pliant.constraints.friction import (
@@ -221,6 +223,7 @@ class RigidBody:
         self.shape = shape
         self.mass = float(mass)
         self.inertia = inertia.copy()
+        self.inverse_inertia = np.linalg.inv(inertia)
         self.friction = _check_friction(friction, name)
         for label, c in (("linear", linear_damping), ("angular", angular_damping)):
             if not (math.isfinite(c) and c >= 0.0):
@@ -259,13 +262,22 @@ class KinematicBody:
         self.friction = _check_friction(friction, name)
         fixed = (shape.position.copy(), shape.rotation.copy())
         self.trajectory = trajectory if trajectory is not None else (lambda t: fixed)
+        self._last_pose = None  # (trajectory, t, pose): a step asks for the same t repeatedly
 
     def pose(self, t: float) -> tuple[np.ndarray, np.ndarray]:
+        """The pose at t (read-only arrays)."""
+        last = self._last_pose
+        if last is not None and last[0] is self.trajectory and last[1] == t:
+            return last[2]
         position, rotation = self.trajectory(t)
         position = np.asarray(position, dtype=float).reshape(3)
         if not np.all(np.isfinite(position)):
             raise ModelError(f"{self.name}: the trajectory gave a non-finite position at t={t}")
-        return position, check_rotation(rotation, name=f"{self.name} rotation at t={t}")
+        pose = (position.copy(), check_rotation(rotation, name=f"{self.name} rotation at t={t}"))
+        for array in pose:
+            array.flags.writeable = False
+        self._last_pose = (self.trajectory, t, pose)
+        return pose
 
     def twist(self, t: float, dt: float) -> tuple[np.ndarray, np.ndarray]:
         x0, r0 = self.pose(t)
@@ -351,7 +363,8 @@ def free_angular_velocity(
     """One Newton step on I (w - w0) + h w x I w = 0 in the body frame (Catto 2015)."""
     w0 = rotation.T @ angular_velocity
     jac = inertia + dt * (skew(w0) @ inertia - skew(inertia @ w0))
-    return rotation @ (w0 - np.linalg.solve(jac, dt * np.cross(w0, inertia @ w0)))
+    gyroscopic = cross(w0[None], (inertia @ w0)[None])[0]  # w0 x I w0
+    return rotation @ (w0 - np.linalg.solve(jac, dt * gyroscopic))
 
 
 def free_twists(
@@ -380,7 +393,7 @@ def inverse_mass(bodies: list[RigidBody], rotations: np.ndarray, dt: float) -> n
     m_inv = np.zeros((n, 6, n, 6))
     for i, b in enumerate(bodies):
         m_inv[i, :3, i, :3] = np.eye(3) / (b.mass * (1.0 + dt * b.linear_damping))
-        m_inv[i, 3:, i, 3:] = (rotations[i] @ np.linalg.inv(b.inertia) @ rotations[i].T) / (
+        m_inv[i, 3:, i, 3:] = (rotations[i] @ b.inverse_inertia @ rotations[i].T) / (
             1.0 + dt * b.angular_damping
         )
     return m_inv.reshape(6 * n, 6 * n)
@@ -451,14 +464,13 @@ def contact_twist_jacobian(
 ) -> np.ndarray:
     """(3k, 6n) rows (n, t1, t2) . J(p) of the velocity of each contact point `points[c]`
     carried by body `bodies[c]` (centre of mass `centres[bodies[c]]`); rows of contacts whose
-    body index is outside [0, n) are zero."""
-    k = len(points)
-    jac = np.zeros((k, 3, n, 6))
-    for c in range(k):
-        i = int(bodies[c])
-        if 0 <= i < n:
-            jac[c, :, i] = frames[c] @ twist_jacobian(points[c] - centres[i])[0]
-    return jac.reshape(3 * k, 6 * n)
+    body index is outside [0, n) are zero.
+
+    A row f gives f . (v + w x a) = f . v + (a x f) . w, a = p - x the arm (compiled: the
+    plain definition is frames[c] @ twist_jacobian(points[c] - centres[bodies[c]]))."""
+    return contact_kernels.contact_twist_rows(
+        frames, points, np.asarray(bodies, dtype=np.int64), centres, n
+    )
 
 
 @dataclass
@@ -535,7 +547,7 @@ class RigidWorld:
 
     def inverse_inertias(self, state: RigidState) -> np.ndarray:
         """(n, 3, 3) world inverse inertia R I^-1 R^T of each body."""
-        inv = np.array([np.linalg.inv(b.inertia) for b in self.bodies]).reshape(-1, 3, 3)
+        inv = np.array([b.inverse_inertia for b in self.bodies]).reshape(-1, 3, 3)
         return state.rotations @ inv @ state.rotations.transpose(0, 2, 1)
 
     def energy(self, state: RigidState) -> float:

@@ -147,7 +147,6 @@ def cartstem_contact(
                 obstacles,
                 friction=friction,
                 margin=contact_margin,
-                points=EmbeddedPoints.at_nodes(rod.colliding_nodes()),
                 thickness=0.5 * width,
             ),
             drivers=[ClampedEnd(rod, 0, cart, name="cart")],

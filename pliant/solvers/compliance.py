@@ -18,6 +18,7 @@ from __future__ import annotations
 import numpy as np
 
 from pliant.constraints.base import EmbeddedPoints
+from pliant.solvers import compliance_kernels as kernels
 
 
 class PointCompliance:
@@ -65,12 +66,15 @@ class PointCompliance:
                 )
             z = solve(rhs)
             need = self._used + missing.size
-            if 3 * need > self._store.shape[1]:
-                width = 3 * max(need, 2 * self._store.shape[1] // 3)
-                grown = np.zeros((self.n_free, width), order="F")
-                grown[:, : 3 * self._used] = self._store[:, : 3 * self._used]
-                self._store = grown
-            self._store[:, 3 * self._used : 3 * need] = z
+            if self._used == 0:  # a new factorisation's first columns: kept as solved
+                self._store = z
+            else:
+                if 3 * need > self._store.shape[1]:
+                    width = 3 * max(need, 2 * self._store.shape[1] // 3)
+                    grown = np.zeros((self.n_free, width), order="F")
+                    grown[:, : 3 * self._used] = self._store[:, : 3 * self._used]
+                    self._store = grown
+                self._store[:, 3 * self._used : 3 * need] = z
             self._slot[missing] = np.arange(self._used, need)
             self._used = need
             self.solved_points += missing.size
@@ -91,12 +95,12 @@ class PointCompliance:
 
     def block(self, index: np.ndarray, slots: np.ndarray) -> np.ndarray:
         """P A^-1 P^T between the points of `index`: (3k, 3k)."""
-        k = index.size
-        cols = (3 * slots[:, None] + np.arange(3)).reshape(-1)
-        dofs = self._dofs[index]  # (k, 4, 3)
-        rows = self._store[np.where(dofs >= 0, dofs, 0).reshape(-1)][:, cols]
-        w = self._weights[index].reshape(k, 4, 3, 1)
-        return np.sum(w * rows.reshape(k, 4, 3, 3 * k), axis=1).reshape(3 * k, 3 * k)
+        return kernels.point_block(self._store, self._dofs[index], self._weights[index], slots)
+
+    def framed_rows(self, index: np.ndarray, frames: np.ndarray, values: np.ndarray) -> np.ndarray:
+        """F P values: the rows (3k, c) of the frames (k, 3, 3) on the points of `index`
+        applied to free-DoF values (n_free, c)."""
+        return kernels.framed_rows(frames, self._dofs[index], self._weights[index], values)
 
     def apply(self, slots: np.ndarray, forces: np.ndarray) -> np.ndarray:
         """A^-1 P^T f for point forces `forces` (k, 3) on the points held in `slots`."""

@@ -43,6 +43,7 @@ from pliant.fem.rigid import RigidStep, integrate_poses
 from pliant.model import Model, State
 from pliant.solvers.base import StepReport, check_linearisation, check_motion
 from pliant.solvers.compliance import PointCompliance, PointRows
+from pliant.solvers.compliance_kernels import framed_block
 from pliant.solvers.system import LinearisedSystem, TangentPolicy
 
 
@@ -238,10 +239,9 @@ class ImplicitEuler:
         k, n_s, n_c = index.size, space.distance.size, contact.n_rows
         slots = cache.columns(self.system.solve, self.system.factorisations, index)
         # Contact rows' products, all through P (the points' displacement rows).
-        block = cache.block(index, slots).reshape(k, 3, k, 3)
-        w_cc = np.einsum("ira,iajb,jsb->irjs", frames, block, frames).reshape(3 * k, 3 * k)
-        w_ca = np.einsum("ira,iaj->irj", frames, cache.read(index, a_inv_ht)).reshape(3 * k, n_s)
-        moved = np.einsum("ira,ia->ir", frames, cache.read(index, v + dv_free)).reshape(-1)
+        w_cc = framed_block(frames, cache.block(index, slots))
+        w_ca = cache.framed_rows(index, frames, a_inv_ht)
+        moved = cache.framed_rows(index, frames, (v + dv_free)[:, None]).reshape(-1)
         w = np.zeros((n_s + n_c, n_s + n_c))
         w[:n_s, :n_s] = space.jacobian_t.T @ a_inv_ht
         w[n_s : n_s + 3 * k, :n_s] = w_ca
