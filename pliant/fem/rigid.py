@@ -317,6 +317,22 @@ def servo(
     return pose
 
 
+def motor(
+    pivot,
+    axis,
+    speed: float,
+    position,
+    rotation: np.ndarray | None = None,
+    *,
+    start: float = 0.0,
+) -> Trajectory:
+    """A part on a DC motor's shaft: turned about `axis` through `pivot` at a constant `speed`
+    (rad/s) from time `start` (s), as :func:`servo` with the angle speed (t - start)."""
+    if not math.isfinite(speed):
+        raise ModelError(f"a motor's speed must be finite, got {speed!r}")
+    return servo(pivot, axis, lambda t: speed * max(t - start, 0.0), position, rotation)
+
+
 class DrivenNodes:
     """Held nodes of a deformable body carried by a kinematic body (a cart on a rail, a
     gripper's translating base): a rigid attachment of the nodes to the carrier's frame.
