@@ -98,7 +98,6 @@ class Contacts:
         self._colliders = [*self.shapes, *(b.shape for b in self.bodies)]
         if len({id(s) for s in self._colliders}) != len(self._colliders):
             raise ContactError("each obstacle and rigid body needs its own shape object")
-        self._friction = np.concatenate([self.friction, [b.friction for b in self.bodies]])
         if self.points is None:
             self.points = EmbeddedPoints.at_nodes(body.colliding_nodes())
         if self.margin is None:
@@ -165,6 +164,8 @@ class Contacts:
         # A body may close a gap by the distance its points travel in the step.
         reach = dt * rigid.speeds(bodies)
         margins = np.concatenate([np.full(len(shapes), self.margin), self.margin + reach])
+        # Read every step: the obstacles' and bodies' coefficients may be changed between steps.
+        mu = np.concatenate([self.friction, [b.friction for b in self.bodies]])
         deformable = detect(points, self._colliders, margins, radius=self.thickness)
         on_body = deformable.index_b >= len(shapes)
         motion = dt * shape_velocities(deformable, self._colliders)
@@ -172,7 +173,7 @@ class Contacts:
         rows = ContactConstraint(
             deformable,
             self.points,
-            friction=self._friction[deformable.index_b],
+            friction=mu[deformable.index_b],
             obstacle_displacement=motion,
             thickness=self.thickness,
         )
@@ -203,7 +204,6 @@ class Contacts:
         )
         pair_distance = -np.einsum("krj,kj->kr", pairs.frames, obstacle_motion)
         pair_distance[:, 0] += pairs.gap
-        mu = self._friction
         pair_friction = np.sqrt(mu[len(shapes) + pairs.index_a] * mu[pairs.index_b])
         return CoupledContact(
             rows,
