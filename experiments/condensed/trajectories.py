@@ -58,7 +58,13 @@ def main(
             reached = {}
             for source_name, source in (
                 ("learned", learned),
-                ("exact", ExactCondensed(fem, StaticSolver(fem))),
+                # The reference is the W the network learned (the plan's tangent).
+                (
+                    "exact",
+                    ExactCondensed(
+                        fem, StaticSolver(fem, consistent=learned.plan.consistent_tangent)
+                    ),
+                ),
             ):
                 with warnings.catch_warnings():
                     warnings.simplefilter("ignore", OutOfBoundsWarning)

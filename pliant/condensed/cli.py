@@ -312,7 +312,10 @@ def control(
             )
         reached["learned"] = result
         if exact:
-            reference = ExactCondensed(robot, StaticSolver(robot))
+            # The reference is the W the network learned (the plan's tangent).
+            reference = ExactCondensed(
+                robot, StaticSolver(robot, consistent=plan.consistent_tangent)
+            )
             reached["exact"] = follow_trajectory(
                 robot,
                 targets,
