@@ -522,8 +522,8 @@ def alart_curnier(
 ):
     """F(lambda), zero exactly at the solutions of the contact problem, and the rows of lambda
     that a Newton step moves freely. When `jacobian` and `proximal` are (r, r), they receive an
-    element J of F's Newton derivative and P, the term that replacing W by W + eps diag(W)
-    adds to it per unit eps.
+    element J of F's Newton derivative and P, the term that replacing W by W + eps diag(W) in
+    the derivatives of delta adds to it per unit eps (rho and the rows' scales kept).
 
     Contact k, rho = 1 / W_nn, sigma = lambda - rho delta (Alart and Curnier, CMAME 92, 1991):
 
