@@ -1,8 +1,9 @@
 """Compiled kernels of the contact pipeline: the detection of points against primitive shapes,
-the contacts' tangent frames, the triangle-mesh distance query and the projected block
-Gauss-Seidel sweep. The modules collision.py and friction.py hold the readable definitions
-and the validation; the tests compare these kernels with plain references.
-"""
+the contacts' tangent frames, the triangle-mesh distance query, and the contact solve (the
+projected block Gauss-Seidel sweep, the Alart-Curnier function with its Newton derivative, and
+the semismooth Newton iteration judged by the sweeps). The modules collision.py and
+friction.py hold the readable definitions and the validation; the tests compare these kernels
+with plain references."""
 
 from __future__ import annotations
 

@@ -21,8 +21,7 @@ exactly even for an anisotropic W_tt (a radial clamp would not). Its fixed point
 solutions, and the largest change of a block's displacement in a sweep is the residual that
 decides convergence. Alone it converges linearly, slowly where rows are strongly coupled: two
 fingers squeezing a rigid cube (normal rows correlated at -0.98 through the cube), stiff cables
-pressing the body on a contact, a rigid box on its corners (W singular). It took 633 sweeps a
-step on the gripper and stopped unconverged at 1000 on half of them.
+pressing the body on a contact, a rigid box on its corners (W singular).
 
 The solver is therefore a semismooth Newton method on the Alart-Curnier function F
 (:func:`pliant.constraints.contact_kernels.alart_curnier`; Alart and Curnier, CMAME 92, 1991),
@@ -32,14 +31,19 @@ Newton step: the direction solves (J + eps P) x = -F, P the term of W + eps diag
 point regularisation, Rockafellar 1976, as in Siconos: W of an indeterminate grasp is singular),
 refined once towards J x = -F; Armijo's line search on |F|^2, eps adapted as a
 Levenberg-Marquardt parameter in [1e-8, 1e-2]. Where no step decreases |F|, the sweep's result
-is the next iterate. Measured on the problems of the bench's timed windows, sweeps a step (the
-GS + active-set solver before -> this one): gripper 633 -> 14 (13 Newton steps), Trunk with
-cables and cube 173 -> 4, Multigait 76 -> 3, trunk_cube 45 -> 3. Also measured, and not kept:
-a proximal-point outer loop with Gauss-Seidel inside (slower than plain Gauss-Seidel on the
-gripper: the proximal term that speeds up the inner sweeps slows the outer loop by as much),
-nonsmooth nonlinear conjugate gradients (Silcowitz, Niebe and Erleben 2010; gripper 620 -> 587,
-trunk with cube 173 -> 82), Anderson acceleration of the sweeps (gripper 146, erratic: the
-extrapolation breaks the contact states; trunk with cube 20).
+is the next iterate. Sweeps a step in the bench's timed windows (Gauss-Seidel with the
+active-set jump it replaces -> this solver, whose Newton steps are in the report): gripper
+635 -> 14 (12 Newton steps; 10 of 20 steps stopped unconverged, now none), Trunk with cables and
+cube 173 -> 4, Multigait 76 -> 3, trunk_cube 45 -> 3. Measured on the same windows' problems
+and not kept: a proximal-point outer loop with Gauss-Seidel inside (more sweeps than plain
+Gauss-Seidel on the gripper: the proximal term that speeds up the inner sweeps slows the outer
+loop as much), nonsmooth nonlinear conjugate gradients (Silcowitz, Niebe and Erleben 2010;
+gripper 620 -> 587, trunk with cube 173 -> 82), Anderson acceleration of the sweeps (gripper
+146, erratic: the extrapolation upsets the contact states; trunk with cube 20).
+
+Where the forces are not unique (a rigid box on its 4 corners), the solution found depends on
+the method: along the forces' null space, the proximal term moves this one least from its
+warm start.
 """
 
 from __future__ import annotations
