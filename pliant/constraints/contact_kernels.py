@@ -1,8 +1,9 @@
 """Compiled kernels of the contact pipeline: the detection of points against primitive shapes,
-the contacts' tangent frames, the triangle-mesh distance query and the projected block
-Gauss-Seidel sweep. The modules collision.py and friction.py hold the readable definitions
-and the validation; the tests compare these kernels with plain references.
-"""
+the contacts' tangent frames, the triangle-mesh distance query, and the contact solve (the
+projected block Gauss-Seidel sweep, the Alart-Curnier function with its Newton derivative, and
+the semismooth Newton iteration judged by the sweeps). The modules collision.py and
+friction.py hold the readable definitions and the validation; the tests compare these kernels
+with plain references."""
 
 from __future__ import annotations
 
@@ -368,6 +369,53 @@ def _add_column(delta, w, row, change):
 
 
 @njit(cache=True)
+def _actuator_law(rest, wii, displacement_mode, command, force_lo, force_hi, course_lo, course_hi):
+    """An actuator row's force given rest = delta_i - W_ii lambda_i (its displacement without
+    its own force), and the displacement that force holds, or NaN where the force is a bound or
+    the command: the law of :func:`pliant.constraints.direct.solve_direct`, one row at a time.
+
+    Displacement mode: the command clamped to the course, held by a force within its bounds.
+    Force mode: the commanded force, unless it drives delta out of its course: then the force
+    that holds delta on that bound, no further from the command.
+    """
+    if displacement_mode:
+        target = min(max(command, course_lo), course_hi)
+        held = (target - rest) / wii
+        if held < force_lo:
+            return force_lo, math.nan
+        if held > force_hi:
+            return force_hi, math.nan
+        return held, target
+    force = min(max(command, force_lo), force_hi)
+    reached = wii * force + rest
+    if reached > course_hi:  # the upper course bound lowers the force, down to force_lo
+        held = (course_hi - rest) / wii
+        if held < force_lo:
+            return force_lo, math.nan
+        if held > force:
+            return force, math.nan
+        return held, course_hi
+    if reached < course_lo:
+        held = (course_lo - rest) / wii
+        if held > force_hi:
+            return force_hi, math.nan
+        if held < force:
+            return force, math.nan
+        return held, course_lo
+    return force, math.nan
+
+
+@njit(cache=True)
+def _negligible(w):
+    """The diagonal entry below which a row is one that no force moves (e.g. a contact on a
+    fixed node): 1e-14 of the largest."""
+    tiny = 0.0
+    for i in range(w.shape[0]):
+        tiny = max(tiny, 1e-14 * abs(w[i, i]))
+    return tiny
+
+
+@njit(cache=True)
 def gauss_seidel(
     w,
     delta_free,
@@ -393,9 +441,7 @@ def gauss_seidel(
     """
     delta = w @ lam + delta_free
     n_contacts = friction.shape[0]
-    tiny = 0.0
-    for i in range(w.shape[0]):
-        tiny = max(tiny, 1e-14 * abs(w[i, i]))
+    tiny = _negligible(w)
     residual = np.inf
     for sweep in range(max_iterations):
         residual = 0.0
@@ -404,19 +450,16 @@ def gauss_seidel(
             wii = w[i, i]
             if wii <= tiny:
                 continue
-            rest = delta[i] - wii * lam[i]  # delta_i with this row's own force removed
-            if displacement_mode[j]:
-                target = min(max(command[j], course_lo[j]), course_hi[j])
-                new = min(max((target - rest) / wii, force_lo[j]), force_hi[j])
-            else:
-                # The commanded force, unless it drives delta out of its course: then the
-                # force that holds delta on that bound, no further from the command.
-                new = min(max(command[j], force_lo[j]), force_hi[j])
-                reached = wii * new + rest
-                if reached > course_hi[j]:
-                    new = min(max((course_hi[j] - rest) / wii, force_lo[j]), new)
-                elif reached < course_lo[j]:
-                    new = max(min((course_lo[j] - rest) / wii, force_hi[j]), new)
+            new, _ = _actuator_law(
+                delta[i] - wii * lam[i],
+                wii,
+                displacement_mode[j],
+                command[j],
+                force_lo[j],
+                force_hi[j],
+                course_lo[j],
+                course_hi[j],
+            )
             change = new - lam[i]
             lam[i] = new
             _add_column(delta, w, i, change)
@@ -450,3 +493,232 @@ def gauss_seidel(
         if residual <= tolerance:
             return sweep + 1, residual
     return max_iterations, residual
+
+
+@njit(cache=True)
+def _add_row(jacobian, proximal, row, w, source, scale):
+    """Row `row` of the derivative gains scale * W[source], and of the proximal term
+    scale * W[source, source] on column `source`."""
+    for j in range(w.shape[0]):
+        jacobian[row, j] += scale * w[source, j]
+    proximal[row, source] += scale * w[source, source]
+
+
+@njit(cache=True)
+def alart_curnier(
+    w,
+    delta,
+    lam,
+    actuator_rows,
+    displacement_mode,
+    command,
+    force_lo,
+    force_hi,
+    course_lo,
+    course_hi,
+    contact_start,
+    friction,
+    jacobian,
+    proximal,
+):
+    """F(lambda), zero exactly at the solutions of the contact problem, and the rows of lambda
+    that a Newton step moves freely. When `jacobian` and `proximal` are (r, r), they receive an
+    element J of F's Newton derivative and P, the term that replacing W by W + eps diag(W) in
+    the derivatives of delta adds to it per unit eps (rho and the rows' scales kept).
+
+    Contact k, rho = 1 / W_nn, sigma = lambda - rho delta (Alart and Curnier, CMAME 92, 1991):
+
+        sigma_n <= 0 (open):      F = lambda
+        else, normal:             F_n = rho delta_n
+              |sigma_t| <= R:     F_t = rho delta_t                       (stick)
+              |sigma_t| >  R:     F_t = lambda_t - R sigma_t / |sigma_t|  (slip)
+
+    with R = mu sigma_n. For any rho > 0, F = 0 is Signorini's law and Coulomb's with the exact
+    disk. Actuator row i: F_i = (delta_i - target) / W_ii where its law holds a displacement,
+    else lambda_i - force (:func:`_actuator_law`). Other rows (effectors, rows that no force
+    moves) keep lambda: F_i = 0 and a unit row, as Gauss-Seidel leaves them.
+    """
+    r = lam.shape[0]
+    f = np.zeros(r)
+    free = np.zeros(r, dtype=np.bool_)
+    with_jacobian = jacobian.shape[0] == r
+    if with_jacobian:
+        jacobian[:, :] = 0.0
+        proximal[:, :] = 0.0
+        for i in range(r):
+            jacobian[i, i] = 1.0
+    tiny = _negligible(w)
+    for j in range(actuator_rows.shape[0]):
+        i = actuator_rows[j]
+        wii = w[i, i]
+        if wii <= tiny:
+            continue
+        force, target = _actuator_law(
+            delta[i] - wii * lam[i],
+            wii,
+            displacement_mode[j],
+            command[j],
+            force_lo[j],
+            force_hi[j],
+            course_lo[j],
+            course_hi[j],
+        )
+        if math.isnan(target):
+            f[i] = lam[i] - force
+            continue
+        f[i] = (delta[i] - target) / wii
+        free[i] = True
+        if with_jacobian:
+            jacobian[i, i] = 0.0
+            _add_row(jacobian, proximal, i, w, i, 1.0 / wii)
+    for k in range(friction.shape[0]):
+        n = contact_start + 3 * k
+        t1, t2 = n + 1, n + 2
+        if w[n, n] <= tiny:
+            continue
+        rho = 1.0 / w[n, n]
+        sigma_n = lam[n] - rho * delta[n]
+        if sigma_n <= 0.0:
+            f[n], f[t1], f[t2] = lam[n], lam[t1], lam[t2]
+            continue
+        free[n] = free[t1] = free[t2] = True
+        f[n] = rho * delta[n]
+        s1, s2 = lam[t1] - rho * delta[t1], lam[t2] - rho * delta[t2]
+        radius = friction[k] * sigma_n
+        norm = math.hypot(s1, s2)
+        if with_jacobian:
+            jacobian[n, n] = 0.0
+            _add_row(jacobian, proximal, n, w, n, rho)
+        if norm <= radius:
+            f[t1], f[t2] = rho * delta[t1], rho * delta[t2]
+            if with_jacobian:
+                jacobian[t1, t1] = jacobian[t2, t2] = 0.0
+                _add_row(jacobian, proximal, t1, w, t1, rho)
+                _add_row(jacobian, proximal, t2, w, t2, rho)
+            continue
+        u1, u2 = s1 / norm, s2 / norm
+        f[t1], f[t2] = lam[t1] - radius * u1, lam[t2] - radius * u2
+        if not with_jacobian:
+            continue
+        # d(R u) = u dR + (R / |sigma_t|) (I - u u^T) d sigma_t, dR = mu d sigma_n,
+        # d sigma = d lambda - rho W d lambda.
+        c, mu = radius / norm, friction[k]
+        u = (u1, u2)
+        for a in range(2):
+            row = n + 1 + a
+            jacobian[row, n] -= mu * u[a]
+            _add_row(jacobian, proximal, row, w, n, mu * u[a] * rho)
+            for b in range(2):
+                projector = (1.0 if a == b else 0.0) - u[a] * u[b]  # (I - u u^T)_ab
+                jacobian[row, n + 1 + b] -= c * projector
+                _add_row(jacobian, proximal, row, w, n + 1 + b, c * projector * rho)
+    return f, free
+
+
+# The proximal weight eps of Newton's matrix J + eps P (P: the term of W + eps diag(W)) is
+# adapted as a Levenberg-Marquardt parameter (More, Lecture Notes in Math. 630, 1978): divided
+# by 10 after a full step, multiplied by 100 (at most twice a step) when the line search fails.
+# The smallest keeps Newton exact to round-off on a well-posed problem (with one refinement,
+# the error is eps^2); the largest damps the steps on an indeterminate one.
+PROXIMAL_MIN, PROXIMAL_MAX = 1e-8, 1e-2
+# Armijo's line search: sufficient decrease 1e-4 of |F|^2 per unit step, steps down to 2^-13.
+ARMIJO, SHORTEST_STEP = 1e-4, 1e-4
+
+
+@njit(cache=True)
+def _newton_direction(f, free, jacobian, proximal, eps):
+    """x with (J + eps P) x = -F, refined once towards J x = -F; None if singular.
+
+    Rows outside `free` have unit rows in J (and none in P): they move by -F. The others solve
+    the reduced system. Where J is invertible the refined x is J^-1 (-F) to O(eps^2); where it
+    is singular (W of a rigid box on its corners, an indeterminate grasp), P selects the
+    smallest move of lambda, the step of a proximal point iteration.
+    """
+    direction = -f
+    index = np.flatnonzero(free)
+    m = index.size
+    if m == 0:
+        return direction
+    exact = np.empty((m, m))
+    regularised = np.empty((m, m))
+    rhs = np.empty(m)
+    for a in range(m):
+        i = index[a]
+        value = -f[i]
+        for j in range(f.shape[0]):
+            if not free[j]:
+                value -= jacobian[i, j] * direction[j]
+        rhs[a] = value
+        for b in range(m):
+            exact[a, b] = jacobian[i, index[b]]
+            regularised[a, b] = exact[a, b] + eps * proximal[i, index[b]]
+    try:
+        x = np.linalg.solve(regularised, rhs)
+        x += np.linalg.solve(regularised, rhs - exact @ x)
+    except Exception:  # noqa: BLE001 (numba raises a plain Exception on a singular matrix)
+        return None
+    if not np.all(np.isfinite(x)):
+        return None
+    direction[index] = x
+    return direction
+
+
+@njit(cache=True)
+def _newton_step(w, delta_free, lam, blocks, eps, jacobian, proximal):
+    """One damped Newton step on F (:func:`alart_curnier`) from lam, in place: the longest of
+    1, 1/2, 1/4, ... that decreases |F|^2 by Armijo's rule, retried with a larger proximal
+    weight when none does. Returns (whether lam moved, the proximal weight for the next step).
+    """
+    delta = w @ lam + delta_free
+    f, free = alart_curnier(w, delta, lam, *blocks, jacobian, proximal)
+    merit = f @ f
+    no_jacobian = np.empty((0, 0))
+    for _ in range(3):
+        direction = _newton_direction(f, free, jacobian, proximal, eps)
+        if direction is not None:
+            change = w @ direction
+            step = 1.0
+            while step >= SHORTEST_STEP:
+                trial = lam + step * direction
+                f_trial, _ = alart_curnier(
+                    w, delta + step * change, trial, *blocks, no_jacobian, no_jacobian
+                )
+                if f_trial @ f_trial <= (1.0 - ARMIJO * step) * merit:
+                    lam[:] = trial
+                    return True, max(PROXIMAL_MIN, eps / 10.0) if step == 1.0 else eps
+                step *= 0.5
+        if eps >= PROXIMAL_MAX:
+            break
+        eps = min(PROXIMAL_MAX, 100.0 * eps)
+    return False, eps
+
+
+@njit(cache=True)
+def newton_gauss_seidel(w, delta_free, lam, blocks, tolerance, max_iterations):
+    """The contact problem by semismooth Newton on F (:func:`alart_curnier`), judged by
+    Gauss-Seidel; `lam` (the warm start) is updated in place.
+
+    Each iteration makes one Gauss-Seidel sweep from lam, whose residual is the convergence
+    test, then a Newton step from lam, or takes the sweep's result where the step fails.
+    Returns (sweeps, Newton steps, residual of the last sweep); lam is that sweep's result.
+    """
+    r = lam.shape[0]
+    jacobian = np.empty((r, r))
+    proximal = np.empty((r, r))
+    swept = np.empty(r)
+    eps = PROXIMAL_MIN
+    newton_steps = 0
+    sweeps, residual = 0, np.inf
+    while sweeps < max_iterations:
+        swept[:] = lam
+        _, residual = gauss_seidel(w, delta_free, swept, *blocks, tolerance, 1)
+        sweeps += 1
+        if residual <= tolerance or sweeps == max_iterations:
+            break
+        moved, eps = _newton_step(w, delta_free, lam, blocks, eps, jacobian, proximal)
+        if moved:
+            newton_steps += 1
+        else:
+            lam[:] = swept
+    lam[:] = swept
+    return sweeps, newton_steps, residual

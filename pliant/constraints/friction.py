@@ -13,19 +13,37 @@ delta_t is the tangential displacement over the step, so slip opposes the force,
 dissipation principle. Actuator rows follow their mode (force or displacement) and bounds as in
 :func:`pliant.constraints.direct.solve_direct`; effector rows are passive (lambda_e = 0).
 
-The solver is projected block Gauss-Seidel (Jean, CMAME 177, 1999): each block (an actuator
-row, a contact triple) in turn gets the exact solution of its own law with the other
-multipliers frozen. For a contact that is the normal projection max(0, .) followed by the
-tangential problem min 1/2 x^T W_tt x + g^T x on the disk |x| <= mu lambda_n, whose solution
-satisfies Coulomb's law exactly even for an anisotropic W_tt (a radial clamp of the
-unconstrained solution would not).
+Projected block Gauss-Seidel (Jean, CMAME 177, 1999) gives each block (an actuator row, a
+contact triple) in turn the exact solution of its own law with the other multipliers frozen:
+for a contact the normal projection max(0, .), then the tangential problem
+min 1/2 x^T W_tt x + g^T x on the disk |x| <= mu lambda_n, whose solution satisfies Coulomb's law
+exactly even for an anisotropic W_tt (a radial clamp would not). Its fixed points are the
+solutions, and the largest change of a block's displacement in a sweep is the residual that
+decides convergence. Alone it converges linearly, slowly where rows are strongly coupled: two
+fingers squeezing a rigid cube (normal rows correlated at -0.98 through the cube), stiff cables
+pressing the body on a contact, a rigid box on its corners (W singular).
 
-Gauss-Seidel converges linearly, slowly when W is the compliance of a soft body (its smooth
-modes are far more compliant than its local ones: 947 sweeps for 18 sticking nodes of a
-cantilever in tests/test_contact.py). Every 8, 16, 32, ... sweeps the solver therefore tries a
-jump to the exact solution of the current states of the blocks (separated, sticking, slipping
-in a fixed direction; actuators on their command or bound), one dense solve, kept only if it is
-admissible: 37 sweeps in that test, exact to round-off. Sweeps decide convergence either way.
+The solver is therefore a semismooth Newton method on the Alart-Curnier function F
+(:func:`pliant.constraints.contact_kernels.alart_curnier`; Alart and Curnier, CMAME 92, 1991),
+whose zeros are the same solutions, with the actuators' laws in the same F. Each iteration
+makes one Gauss-Seidel sweep from the iterate, the judge of convergence as before, and one
+Newton step: the direction solves (J + eps P) x = -F, P the term of W + eps diag(W) (a proximal
+point regularisation, Rockafellar 1976, as in Siconos: W of an indeterminate grasp is singular),
+refined once towards J x = -F; Armijo's line search on |F|^2, eps adapted as a
+Levenberg-Marquardt parameter in [1e-8, 1e-2]. Where no step decreases |F|, the sweep's result
+is the next iterate. Sweeps a step in the bench's timed windows (Gauss-Seidel with the
+active-set jump it replaces -> this solver, whose Newton steps are in the report): gripper
+635 -> 14 (12 Newton steps; 10 of 20 steps stopped unconverged, now none), Trunk with cables and
+cube 173 -> 4, Multigait 76 -> 3, trunk_cube 45 -> 3. Measured on the same windows' problems
+and not kept: a proximal-point outer loop with Gauss-Seidel inside (more sweeps than plain
+Gauss-Seidel on the gripper: the proximal term that speeds up the inner sweeps slows the outer
+loop as much), nonsmooth nonlinear conjugate gradients (Silcowitz, Niebe and Erleben 2010;
+gripper 620 -> 587, trunk with cube 173 -> 82), Anderson acceleration of the sweeps (gripper
+146, erratic: the extrapolation upsets the contact states; trunk with cube 20).
+
+Where the forces are not unique (a rigid box on its 4 corners), the solution found depends on
+the method: along the forces' null space, the proximal term moves this one least from its
+warm start.
 """
 
 from __future__ import annotations
@@ -52,18 +70,20 @@ from pliant.errors import ContactConvergenceWarning, ContactError
 
 @dataclass(frozen=True)
 class ContactReport:
-    """How the Gauss-Seidel iterations ended.
+    """How the contact solve ended.
 
     Attributes:
-        iterations: sweeps made.
+        iterations: Gauss-Seidel sweeps made (one per iteration, each with a Newton step).
         residual: largest displacement correction of one block in the last sweep (units of
             delta).
         converged: residual <= tolerance.
+        newton_steps: Newton steps taken (the other iterations took the sweep's result).
     """
 
     iterations: int = 0
     residual: float = 0.0
     converged: bool = True
+    newton_steps: int = 0
 
 
 @dataclass(frozen=True)
@@ -177,28 +197,13 @@ def solve_contact(
         contact_rows.start,
         mu,
     )
-    # Gauss-Seidel, and after 8 (or r/3, about the cost of the dense solve in sweeps), then
-    # twice as many sweeps, ... a jump to the exact solution of the blocks' current states.
-    iterations, residual = 0, math.inf
-    next_jump = max(8, r // 3)
-    while iterations < max_iterations:
-        sweeps, residual = kernels.gauss_seidel(
-            w,
-            d,
-            lam,
-            *layout.arrays(),
-            float(tolerance),
-            min(next_jump, max_iterations) - iterations,
-        )
-        iterations += int(sweeps)
-        if residual <= tolerance or iterations >= max_iterations:
-            break
-        jump = _active_set_solution(w, d, lam, layout, tolerance)
-        if jump is not None:
-            lam = jump
-        next_jump *= 2
-    converged = bool(residual <= tolerance)
-    if not converged:
+    iterations, newton_steps, residual = kernels.newton_gauss_seidel(
+        w, d, lam, layout.arrays(), float(tolerance), max_iterations
+    )
+    report = ContactReport(
+        int(iterations), float(residual), bool(residual <= tolerance), int(newton_steps)
+    )
+    if not report.converged:
         warnings.warn(
             f"the contact solver stopped after {iterations} Gauss-Seidel sweeps with residual"
             f" {residual:.3g} > tolerance {tolerance:.3g}; raise max_iterations, loosen the"
@@ -206,14 +211,12 @@ def solve_contact(
             ContactConvergenceWarning,
             stacklevel=2,
         )
-    return ContactSolution(
-        lam, w @ lam + d, ContactReport(iterations, float(residual), converged), problem.slices
-    )
+    return ContactSolution(lam, w @ lam + d, report, problem.slices)
 
 
 @dataclass(frozen=True)
 class _Blocks:
-    """The blocks of a contact problem, in the order the Gauss-Seidel kernel takes them."""
+    """The blocks of a contact problem, in the order the kernels take them."""
 
     actuator_rows: np.ndarray
     displacement_mode: np.ndarray
@@ -227,86 +230,6 @@ class _Blocks:
 
     def arrays(self) -> tuple:
         return tuple(getattr(self, f.name) for f in fields(self))
-
-
-def _active_set_solution(
-    w: np.ndarray, d: np.ndarray, lam: np.ndarray, blocks: _Blocks, tolerance: float
-) -> np.ndarray | None:
-    """The multipliers that meet exactly the laws of the blocks in their current states, or
-    None if they are not admissible.
-
-    States read from lam: a separated contact (lambda_n = 0) keeps lambda = 0; a sticking one
-    has its three rows free with delta = 0; a slipping one keeps its friction direction
-    d_t = lambda_t / |lambda_t|, lambda_t = mu lambda_n d_t, with delta_n = 0. An actuator
-    strictly inside its force bounds and bound to a displacement (its command, or the course
-    bound that holds a force command) is free with that delta; the others keep their lambda.
-    One least-squares solve on these equations (W may be singular, e.g. coplanar corners of a
-    rigid box); the answer is kept if it meets the equations, the signs, cones and bounds, and
-    Gauss-Seidel goes on from it (a slip direction may still turn: the sweeps remain the judge
-    of convergence). Once Gauss-Seidel has found the states, this ends the slow linear tail of
-    its convergence.
-    """
-    r = d.size
-    fixed = lam.copy()
-    directions, rows, targets = [], [], []
-
-    def free(direction: dict[int, float], row: int, target: float) -> None:
-        column = np.zeros(r)
-        for i, value in direction.items():
-            column[i] = value
-            fixed[i] = 0.0
-        directions.append(column)
-        rows.append(row)
-        targets.append(target)
-
-    b = blocks
-    for j, i in enumerate(b.actuator_rows):
-        if not b.force_lo[j] < lam[i] < b.force_hi[j]:
-            continue
-        if b.displacement_mode[j]:
-            free({i: 1.0}, i, min(max(b.command[j], b.course_lo[j]), b.course_hi[j]))
-            continue
-        command = min(max(b.command[j], b.force_lo[j]), b.force_hi[j])
-        if lam[i] != command:  # held on a course bound: the upper one lowers the force
-            free({i: 1.0}, i, b.course_hi[j] if lam[i] < command else b.course_lo[j])
-    mu = b.friction
-    normal = b.contact_start + 3 * np.arange(mu.size)
-    for k, n in enumerate(normal):
-        if lam[n] <= 0.0:
-            continue
-        tangential = math.hypot(lam[n + 1], lam[n + 2])
-        if tangential < mu[k] * lam[n] * (1.0 - 1e-9):
-            for row in (n, n + 1, n + 2):
-                free({row: 1.0}, row, 0.0)
-        else:  # on the rim of the cone (a frictionless contact has lambda_t = 0 there)
-            slip = mu[k] / tangential if tangential > 0.0 else 0.0
-            free({n: 1.0, n + 1: slip * lam[n + 1], n + 2: slip * lam[n + 2]}, n, 0.0)
-    if not rows:
-        return None
-    basis = np.array(directions).T
-    matrix = w[rows] @ basis
-    rhs = np.array(targets) - d[rows] - w[rows] @ fixed
-    try:
-        x = np.linalg.lstsq(matrix, rhs, rcond=1e-12)[0]
-    except np.linalg.LinAlgError:
-        return None
-    if np.abs(matrix @ x - rhs).max() > tolerance:
-        return None
-    new = fixed + basis @ x
-    delta = w @ new + d
-    lam_n, delta_n = new[normal], delta[normal]
-    tangential = np.hypot(new[normal + 1], new[normal + 2])
-    act = b.actuator_rows
-    inside = (new[act] > b.force_lo) & (new[act] < b.force_hi) & ~b.displacement_mode
-    admissible = (
-        np.all(lam_n >= 0.0)
-        and np.all(tangential <= mu * lam_n * (1.0 + 1e-12))
-        and np.all(delta_n[lam_n == 0.0] >= -tolerance)
-        and np.all((new[act] >= b.force_lo) & (new[act] <= b.force_hi))
-        and np.all(delta[act][inside] >= b.course_lo[inside] - tolerance)
-        and np.all(delta[act][inside] <= b.course_hi[inside] + tolerance)
-    )
-    return new if admissible else None
 
 
 def _records(keys: np.ndarray) -> np.ndarray:
