@@ -172,14 +172,21 @@ class Measurement:
 @dataclass
 class Timing:
     """Timed runs of one scene: steps/s of each, and per step the median factorisations, the
-    mean contact-solver sweeps and the mean contacts, all of them and those of the body's
-    points on rigid bodies (0 without contacts)."""
+    mean contact-solver sweeps and Newton steps, and the mean contacts, all of them and those
+    of the body's points on rigid bodies (0 without contacts)."""
 
     rates: list[float]
     factorisations_per_step: float
     sweeps_per_step: float
+    newton_steps_per_step: float
     contacts_per_step: float
     body_contacts_per_step: float
+
+
+def _elements(model: Model) -> int:
+    """Elements of the model's body (tetrahedra, or a rod's elements)."""
+    body = model.body
+    return int(body.tets.shape[0] if hasattr(body, "tets") else body.elements.shape[0])
 
 
 def _contact_counts(model: Model, state) -> tuple[int, int]:
@@ -204,7 +211,7 @@ def time_steps(
     solver = make_solver()
     for _ in range(warmup):
         state = solver.step(state, control(state))
-    rates, facts, sweeps, counts = [], [], [], []
+    rates, facts, sweeps, newton, counts = [], [], [], [], []
     for _ in range(repeats):
         s = state.copy()
         f0 = solver.system.factorisations
@@ -215,12 +222,18 @@ def time_steps(
             elapsed += time.perf_counter() - t0
             report = solver.last_report.contact
             sweeps.append(report.iterations if report is not None else 0)
+            newton.append(report.newton_steps if report is not None else 0)
             counts.append(_contact_counts(solver.model, s))
         rates.append(steps / elapsed)
         facts.append((solver.system.factorisations - f0) / steps)
     total, on_bodies = np.mean(counts, axis=0)
     return Timing(
-        rates, statistics.median(facts), float(np.mean(sweeps)), float(total), float(on_bodies)
+        rates,
+        statistics.median(facts),
+        float(np.mean(sweeps)),
+        float(np.mean(newton)),
+        float(total),
+        float(on_bodies),
     )
 
 
@@ -257,16 +270,18 @@ def run_benchmarks(
             contact = ""
             if model.contacts is not None:
                 details["contact_sweeps_per_step"] = timing.sweeps_per_step
+                details["contact_newton_steps_per_step"] = timing.newton_steps_per_step
                 details["contacts_per_step"] = timing.contacts_per_step
                 details["body_contacts_per_step"] = timing.body_contacts_per_step
                 contact = (
-                    f", {timing.sweeps_per_step:.0f} contact sweeps/step,"
+                    f", {timing.sweeps_per_step:.1f} contact sweeps"
+                    f" + {timing.newton_steps_per_step:.1f} Newton steps/step,"
                     f" {timing.contacts_per_step:.1f} contacts/step"
                     f" ({timing.body_contacts_per_step:.1f} on rigid bodies)"
                 )
             m = Measurement(
                 scene,
-                model.body.mesh.n_tets,
+                _elements(model),
                 policy,
                 statistics.median(timing.rates),
                 timing.rates,
