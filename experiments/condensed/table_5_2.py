@@ -4,10 +4,13 @@ meshes (coarse ~1.6k, fine ~9k, superfine ~18k tetrahedra).
 Thesis: 6500 samples and 9000 epochs each, losses 3.79e-6 / 4.26e-6 / 3.60e-6 and ~300 FPS
 with the learned model whatever the mesh. Target here: >= 3000 loop iterations/s (network + QP,
 Algorithm 2, on a warm-started ProxQP model), independent of the mesh, since neither the
-network nor the QP depends on it. The loss is measured on small datasets (the fine meshes'
-static solves cost seconds each on a shared core), the same size for the three meshes:
+network nor the QP depends on it. The loss is measured on datasets of the same size for the
+three meshes, smaller than the thesis' (1000 samples each: about 25 minutes on one core, the
+superfine mesh's static solves taking a second each):
 
-    OPENBLAS_NUM_THREADS=1 python experiments/condensed/table_5_2.py --samples 128 --epochs 1000
+    OPENBLAS_NUM_THREADS=1 OMP_NUM_THREADS=1 NUMBA_NUM_THREADS=1 \
+        python experiments/condensed/table_5_2.py --samples 1000 --epochs 1000 \
+        --work out/condensed_t52
 
 Cables -10..10 mm as in table_5_1.py. The rate is timed over --iterations loop iterations
 cycling through the 25 goals of the closing trajectory, after a warm-up; the network's own
