@@ -57,19 +57,6 @@ def actuator(**settings) -> CableActuator:
     return CableActuator(EmbeddedPoints.at_nodes([0, 1]), segment, **settings)
 
 
-def contact_problem(w: np.ndarray, free: np.ndarray, n_actuators: int = 0) -> CondensedProblem:
-    r = free.size
-    return CondensedProblem(
-        w,
-        free,
-        {
-            "actuator": slice(0, n_actuators),
-            "effector": slice(n_actuators, n_actuators),
-            "contact": slice(n_actuators, r),
-        },
-    )
-
-
 def random_spd(rng: np.random.Generator, n: int, floor: float = 0.05) -> np.ndarray:
     b = rng.normal(size=(n, n))
     return b @ b.T / n + floor * np.eye(n)
@@ -118,7 +105,7 @@ def test_frictionless_contact_is_the_closed_form(rng, free_normal):
     # One frictionless contact: lambda_n = max(0, -delta_free_n / W_nn), lambda_t = 0.
     w = random_spd(rng, 3)
     free = np.array([free_normal, 0.7, -0.4])
-    solution = solve_contact(contact_problem(w, free), 0.0, tolerance=1e-14)
+    solution = solve_contact(CondensedProblem.of_rows(w, free), 0.0, tolerance=1e-14)
     expected = max(0.0, -free_normal / w[0, 0])
     np.testing.assert_allclose(solution.contact_forces[0], [expected, 0.0, 0.0], atol=1e-14)
     assert solution.report.converged and solution.report.iterations <= 2
@@ -132,7 +119,9 @@ def test_stick_and_slip_of_one_contact():
     w = np.diag([w_n, w_t, w_t])
     lam_n = d / w_n
     for s in (0.02, -0.04, 0.3, -1.0):
-        solution = solve_contact(contact_problem(w, np.array([-d, s, 0.0])), mu, tolerance=1e-14)
+        solution = solve_contact(
+            CondensedProblem.of_rows(w, np.array([-d, s, 0.0])), mu, tolerance=1e-14
+        )
         lam = solution.contact_forces[0]
         delta = solution.displacement
         if abs(s) / w_t <= mu * lam_n:
@@ -148,7 +137,9 @@ def test_anisotropic_slip_opposes_the_force(rng):
     # With W_tt anisotropic a radial clamp of the unconstrained lambda_t would slip obliquely;
     # the disk problem keeps delta_t = -nu lambda_t (maximal dissipation).
     w = np.array([[1.0, 0.2, -0.1], [0.2, 3.0, 1.2], [-0.1, 1.2, 0.8]])
-    solution = solve_contact(contact_problem(w, np.array([-0.5, 2.0, -1.0])), 0.3, tolerance=1e-14)
+    solution = solve_contact(
+        CondensedProblem.of_rows(w, np.array([-0.5, 2.0, -1.0])), 0.3, tolerance=1e-14
+    )
     assert_contact_laws(solution, np.array([0.3]), 1e-12)
     lam = solution.contact_forces[0]
     np.testing.assert_allclose(np.linalg.norm(lam[1:]), 0.3 * lam[0], rtol=1e-12)
@@ -160,7 +151,9 @@ def test_coupled_contacts_obey_signorini_and_coulomb(rng):
     mu = rng.uniform(0.0, 1.0, k)
     for _ in range(3):
         free = rng.normal(size=3 * k)
-        solution = solve_contact(contact_problem(w, free), mu, tolerance=1e-12, max_iterations=5000)
+        solution = solve_contact(
+            CondensedProblem.of_rows(w, free), mu, tolerance=1e-12, max_iterations=5000
+        )
         assert solution.report.converged
         assert_contact_laws(solution, mu, 1e-10)
 
@@ -174,7 +167,7 @@ def test_actuators_without_active_contact_match_the_direct_solve(rng):
         actuator(name="cable", mode="displacement", value=0.5, max_force=10.0),
         actuator(name="cavity", mode="force", value=3.0, max_displacement=0.4),
     ]
-    problem = contact_problem(w, free, n_actuators=2)
+    problem = CondensedProblem.of_rows(w, free, actuators=2)
     solution = solve_contact(problem, 0.4, actuators=actuators, tolerance=1e-14)
     expected = solve_direct(problem, actuators, np.zeros(2), tolerance=1e-14)
     np.testing.assert_allclose(solution.actuation, expected, atol=1e-12)
@@ -188,7 +181,7 @@ def test_actuator_pushing_into_a_contact(rng):
     free = np.array([0.0, 0.05, 0.0, 0.0])
     servo_row = actuator(name="servo", mode="displacement", value=1.0, min_force=-np.inf)
     solution = solve_contact(
-        contact_problem(w, free, n_actuators=1), 0.5, actuators=[servo_row], tolerance=1e-14
+        CondensedProblem.of_rows(w, free, actuators=1), 0.5, actuators=[servo_row], tolerance=1e-14
     )
     np.testing.assert_allclose(solution.displacement[0], 1.0, atol=1e-12)
     assert_contact_laws(solution, np.array([0.5]), 1e-12)
@@ -199,11 +192,19 @@ def test_warm_start_reduces_the_iterations(rng):
     w = random_spd(rng, 3 * k)
     mu = np.full(k, 0.6)
     free = rng.normal(size=3 * k)
-    cold = solve_contact(contact_problem(w, free), mu, tolerance=1e-10, max_iterations=5000)
+    cold = solve_contact(
+        CondensedProblem.of_rows(w, free), mu, tolerance=1e-10, max_iterations=5000
+    )
     nearby = free + 1e-6 * rng.normal(size=3 * k)  # the next step of a smooth motion
-    again_cold = solve_contact(contact_problem(w, nearby), mu, tolerance=1e-10, max_iterations=5000)
+    again_cold = solve_contact(
+        CondensedProblem.of_rows(w, nearby), mu, tolerance=1e-10, max_iterations=5000
+    )
     warm = solve_contact(
-        contact_problem(w, nearby), mu, initial=cold.forces, tolerance=1e-10, max_iterations=5000
+        CondensedProblem.of_rows(w, nearby),
+        mu,
+        initial=cold.forces,
+        tolerance=1e-10,
+        max_iterations=5000,
     )
     assert warm.report.iterations < again_cold.report.iterations / 2
     np.testing.assert_allclose(warm.forces, again_cold.forces, atol=1e-6)
@@ -213,7 +214,7 @@ def test_non_convergence_warns_with_the_residual(rng):
     w = random_spd(rng, 30)
     with pytest.warns(ContactConvergenceWarning, match="residual"):
         solution = solve_contact(
-            contact_problem(w, rng.normal(size=30)), 0.5, tolerance=1e-14, max_iterations=2
+            CondensedProblem.of_rows(w, rng.normal(size=30)), 0.5, tolerance=1e-14, max_iterations=2
         )
     assert not solution.report.converged
     assert solution.report.iterations == 2 and solution.report.residual > 1e-14
@@ -222,17 +223,17 @@ def test_non_convergence_warns_with_the_residual(rng):
 def test_invalid_contact_problems_raise(rng):
     w, free = random_spd(rng, 6), rng.normal(size=6)
     with pytest.raises(ContactError, match="mu = -0.1"):
-        solve_contact(contact_problem(w, free), [0.5, -0.1])
+        solve_contact(CondensedProblem.of_rows(w, free), [0.5, -0.1])
     with pytest.raises(ContactError, match="finite"):
-        solve_contact(contact_problem(w, free), [0.5, np.nan])
+        solve_contact(CondensedProblem.of_rows(w, free), [0.5, np.nan])
     bad = free.copy()
     bad[2] = np.inf
     with pytest.raises(ContactError, match="finite"):
-        solve_contact(contact_problem(w, bad), 0.5)
+        solve_contact(CondensedProblem.of_rows(w, bad), 0.5)
     with pytest.raises(ContactError, match="symmetric"):
-        solve_contact(contact_problem(w + np.triu(np.ones((6, 6)), 1), free), 0.5)
+        solve_contact(CondensedProblem.of_rows(w + np.triu(np.ones((6, 6)), 1), free), 0.5)
     with pytest.raises(ContactError, match="triples"):
-        solve_contact(contact_problem(w[:5, :5], free[:5]), 0.5)
+        solve_contact(CondensedProblem.of_rows(w[:5, :5], free[:5]), 0.5)
 
 
 def test_warm_start_is_matched_by_contact_identity():

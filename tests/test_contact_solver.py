@@ -19,19 +19,6 @@ from pliant.fem.rigid import box_inertia, contact_twist_jacobian
 # ---------------------------------------------------------------------------- helpers
 
 
-def problem_of(w: np.ndarray, free: np.ndarray, n_actuators: int = 0) -> CondensedProblem:
-    r = free.size
-    return CondensedProblem(
-        w,
-        free,
-        {
-            "actuator": slice(0, n_actuators),
-            "effector": slice(n_actuators, n_actuators),
-            "contact": slice(n_actuators, r),
-        },
-    )
-
-
 def cables() -> list[CableActuator]:
     """A displacement-mode row within force bounds and a force-mode row within its course."""
     segment = np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0]])
@@ -142,7 +129,7 @@ def test_indeterminate_grasp_meets_the_tolerance_in_few_iterations(on_floor):
     tolerance = 1e-6
     _, sweeps, residual = gauss_seidel(w, free, mu, tolerance=tolerance, sweeps=1000)
     assert residual > tolerance, f"plain Gauss-Seidel met the tolerance in {sweeps} sweeps"
-    solution = solve_contact(problem_of(w, free), mu, tolerance=tolerance)
+    solution = solve_contact(CondensedProblem.of_rows(w, free), mu, tolerance=tolerance)
     report = solution.report
     assert report.converged and report.iterations <= 20, report
     assert_signorini_coulomb(solution, mu, 10 * tolerance)
@@ -164,7 +151,7 @@ def test_random_problems_obey_the_laws(rng, rank_deficit):
         free = np.concatenate([rng.normal(size=2), rng.normal(size=3 * k)])
         mu = rng.uniform(0.0, 1.0, k)
         solution = solve_contact(
-            problem_of(w, free, n_actuators=2), mu, actuators=cables(), tolerance=1e-10
+            CondensedProblem.of_rows(w, free, actuators=2), mu, actuators=cables(), tolerance=1e-10
         )
         assert solution.report.converged, solution.report
         assert_signorini_coulomb(solution, mu, 1e-9)
@@ -182,7 +169,7 @@ def test_equals_gauss_seidel_where_its_solution_is_unique(rng):
         expected, sweeps, residual = gauss_seidel(w, free, mu, cables())
         assert residual <= 1e-13
         solution = solve_contact(
-            problem_of(w, free, n_actuators=2), mu, actuators=cables(), tolerance=1e-12
+            CondensedProblem.of_rows(w, free, actuators=2), mu, actuators=cables(), tolerance=1e-12
         )
         np.testing.assert_allclose(
             solution.forces, expected, rtol=0, atol=1e-9 * np.abs(expected).max()

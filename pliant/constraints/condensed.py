@@ -20,6 +20,25 @@ class CondensedProblem:
     free_distance: np.ndarray
     slices: dict[str, slice]
 
+    @classmethod
+    def of_rows(
+        cls,
+        compliance: np.ndarray,
+        free_distance: np.ndarray,
+        *,
+        actuators: int = 0,
+        effectors: int = 0,
+    ) -> CondensedProblem:
+        """The problem whose first `actuators` rows are actuators', the next `effectors`
+        effectors' and the rest contacts'."""
+        r, e = free_distance.size, actuators + effectors
+        slices = {
+            "actuator": slice(0, actuators),
+            "effector": slice(actuators, e),
+            "contact": slice(e, r),
+        }
+        return cls(compliance, free_distance, slices)
+
     def block(self, row: str, col: str) -> np.ndarray:
         """W_{row,col}, e.g. block("effector", "actuator") is W_ea."""
         return self.compliance[self.slices[row], self.slices[col]]
