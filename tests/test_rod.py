@@ -418,6 +418,10 @@ def test_bad_rods_raise() -> None:
         rod.interpolation([3.0])
     with pytest.raises(ModelError):
         ClampedEnd(rod, 7, KinematicBody(_carrier_shape()))
+    with pytest.raises(ModelError, match="fixed nodes"):  # a clamp carries held nodes only
+        Model(rod, drivers=[ClampedEnd(rod, 2, KinematicBody(_carrier_shape()))])
+    with pytest.raises(ModelError):
+        motor([0.0, 0.0, 0.0], [0.0, 0.0, 1.0], np.nan, [0.0, 0.0, 0.0])
 
 
 def test_a_rod_folded_onto_itself_is_reported_not_silently_inverted() -> None:
