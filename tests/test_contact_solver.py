@@ -9,11 +9,11 @@ import numpy as np
 import pytest
 
 from pliant.constraints import contact_kernels as kernels
-from pliant.constraints.base import EmbeddedPoints, actuator_bounds
+from pliant.constraints.base import EmbeddedPoints
 from pliant.constraints.cable import CableActuator
 from pliant.constraints.collision import tangent_frame
 from pliant.constraints.condensed import CondensedProblem
-from pliant.constraints.friction import solve_contact
+from pliant.constraints.friction import ContactBlocks, solve_contact
 from pliant.fem.rigid import box_inertia, contact_twist_jacobian
 
 # ---------------------------------------------------------------------------- helpers
@@ -35,24 +35,10 @@ def gauss_seidel(
     w: np.ndarray, free: np.ndarray, mu: np.ndarray, actuators=(), tolerance=1e-13, sweeps=10**6
 ) -> tuple[np.ndarray, int, float]:
     """Plain projected block Gauss-Seidel from zero forces: (lambda, sweeps, residual)."""
-    lo, hi, dmin, dmax = actuator_bounds(list(actuators), np.zeros(len(actuators)))
+    n = len(actuators)
+    blocks = ContactBlocks.of(actuators, np.zeros(n), slice(0, n), n, mu)
     lam = np.zeros(free.size)
-    done, residual = kernels.gauss_seidel(
-        w,
-        free,
-        lam,
-        np.arange(len(actuators), dtype=np.int64),
-        np.array([a.mode == "displacement" for a in actuators], dtype=np.bool_),
-        np.array([a.value for a in actuators], dtype=float),
-        lo,
-        hi,
-        dmin,
-        dmax,
-        len(actuators),
-        mu,
-        tolerance,
-        sweeps,
-    )
+    done, residual = kernels.gauss_seidel(w, free, lam, *blocks.arrays(), tolerance, sweeps)
     return lam, int(done), float(residual)
 
 
@@ -190,18 +176,7 @@ def test_newton_derivative_matches_finite_differences(rng):
     lam[2::3] = np.abs(lam[2::3])
     mu = rng.uniform(0.1, 1.0, k)
     actuators = cables()
-    lo, hi, dmin, dmax = actuator_bounds(actuators, np.zeros(2))
-    blocks = (
-        np.arange(2, dtype=np.int64),
-        np.array([True, False]),
-        np.array([a.value for a in actuators], dtype=float),
-        lo,
-        hi,
-        dmin,
-        dmax,
-        2,
-        mu,
-    )
+    blocks = ContactBlocks.of(actuators, np.zeros(2), slice(0, 2), 2, mu).arrays()
     jacobian, proximal, none = np.empty((r, r)), np.empty((r, r)), np.empty((0, 0))
     f, _ = kernels.alart_curnier(w, w @ lam + free, lam, *blocks, jacobian, proximal)
     step = 1e-6

@@ -185,18 +185,7 @@ def solve_contact(
         raise ContactError(f"the warm start must be {r} finite values, got shape {lam.shape}")
     lam[problem.slices["effector"]] = 0.0
     previous = np.zeros(len(actuators)) if previous_displacement is None else previous_displacement
-    lo, hi, dmin, dmax = actuator_bounds(list(actuators), np.asarray(previous, dtype=float))
-    layout = _Blocks(
-        np.arange(act.start, act.stop, dtype=np.int64),
-        np.array([a.mode == "displacement" for a in actuators], dtype=np.bool_),
-        np.array([a.value for a in actuators], dtype=float),
-        lo,
-        hi,
-        dmin,
-        dmax,
-        contact_rows.start,
-        mu,
-    )
+    layout = ContactBlocks.of(actuators, previous, act, contact_rows.start, mu)
     iterations, newton_steps, residual = kernels.newton_gauss_seidel(
         w, d, lam, layout.arrays(), float(tolerance), max_iterations
     )
@@ -215,7 +204,7 @@ def solve_contact(
 
 
 @dataclass(frozen=True)
-class _Blocks:
+class ContactBlocks:
     """The blocks of a contact problem, in the order the kernels take them."""
 
     actuator_rows: np.ndarray
@@ -227,6 +216,31 @@ class _Blocks:
     course_hi: np.ndarray
     contact_start: int
     friction: np.ndarray
+
+    @classmethod
+    def of(
+        cls,
+        actuators: Sequence[Actuator],
+        previous_displacement: np.ndarray,
+        actuator_rows: slice,
+        contact_start: int,
+        friction: np.ndarray,
+    ) -> ContactBlocks:
+        """The actuators' rows, modes, commands and this step's bounds, and the contacts'."""
+        lo, hi, dmin, dmax = actuator_bounds(
+            list(actuators), np.asarray(previous_displacement, dtype=float)
+        )
+        return cls(
+            np.arange(actuator_rows.start, actuator_rows.stop, dtype=np.int64),
+            np.array([a.mode == "displacement" for a in actuators], dtype=np.bool_),
+            np.array([a.value for a in actuators], dtype=float),
+            lo,
+            hi,
+            dmin,
+            dmax,
+            contact_start,
+            friction,
+        )
 
     def arrays(self) -> tuple:
         return tuple(getattr(self, f.name) for f in fields(self))
