@@ -120,9 +120,6 @@ def test_indeterminate_grasp_meets_the_tolerance_in_few_iterations(on_floor):
     assert report.converged and report.iterations <= 20, report
     assert_signorini_coulomb(solution, mu, 10 * tolerance)
     assert np.all(solution.contact_forces[:8, 0] > 0.0)  # both faces squeezed
-    print(
-        f"squeezed box (floor: {on_floor}): {report.iterations} iterations, Gauss-Seidel {sweeps}"
-    )
 
 
 @pytest.mark.parametrize("rank_deficit", [0, 9])
