@@ -299,7 +299,8 @@ def test_kept_point_compliance_gives_the_problem_of_solving_every_column(with_ri
         contacts=Contacts([Plane()], friction=0.5, margin=1.0),
         rigid_bodies=rigid,
     )
-    kept, solved = ImplicitEuler(model, 0.01), ImplicitEuler(model, 0.01, point_compliance=False)
+    kept = ImplicitEuler(model, 0.01, contact_screening=False)
+    solved = ImplicitEuler(model, 0.01, point_compliance=False)
     state = model.rest_state()
     checked = 0
     for i in range(60):
@@ -317,6 +318,56 @@ def test_kept_point_compliance_gives_the_problem_of_solving_every_column(with_ri
         state = new
     assert checked > 30
     assert kept.system.factorisations > 1  # columns were renewed with the factorisation
+
+
+@pytest.mark.parametrize("with_rigid", [False, True])
+def test_contact_screening_gives_the_step_of_the_whole_contact_problem(with_rigid) -> None:
+    """Screening solves only the contacts that may close and checks that the others stay open;
+    from the same state, its step equals the step solving every contact within the margin to
+    the contact tolerance, over a cube pulled by a cable that falls, bounces and rests on the
+    floor (a box on top with `with_rigid`). The contacts left out get zero force, and a
+    second round takes back the contacts the first one would have closed."""
+    from pliant.constraints.base import EmbeddedPoints
+    from pliant.constraints.cable import CableActuator
+    from pliant.fem.rigid import RigidBody
+
+    model = _cube(lift=0.5)
+    body = model.body
+    path = EmbeddedPoints(body.mesh, [[2.0, 2.0, 10.5], [10.0, 2.0, 10.5], [18.0, 2.0, 10.5]])
+    cable = CableActuator(path, body.rest_positions, pull_point=[-5.0, 2.0, 10.5])
+    rigid = (
+        [RigidBody(Box([6.0, 6.0, 3.0], position=[10.0, 10.0, 22.5]), 0.002, friction=0.3)]
+        if with_rigid
+        else []
+    )
+    model = Model(
+        body,
+        actuators=[cable],
+        contacts=Contacts([Plane()], friction=0.5, margin=1.0, tolerance=1e-8),
+        rigid_bodies=rigid,
+    )
+    screened = ImplicitEuler(model, 0.01)
+    whole = ImplicitEuler(model, 0.01, contact_screening=False)
+    state = model.rest_state()
+    left_out, second_rounds = 0, 0
+    for i in range(60):
+        command = np.array([min(0.05 * i, 1.0)])
+        new = screened.step(state, command)
+        reference = whole.step(state, command)
+        report = screened.last_report.contact
+        if report is not None:
+            left_out += report.screened
+            second_rounds += report.rounds > 1
+            assert len(new.contact_forces.keys) == len(reference.contact_forces.keys)
+            np.testing.assert_allclose(
+                new.contact_forces.forces, reference.contact_forces.forces, atol=1e-4
+            )
+        assert np.abs(new.positions - reference.positions).max() < 1e-6
+        if with_rigid:
+            assert np.abs(new.rigid_positions - reference.rigid_positions).max() < 1e-6
+        state = new
+    assert left_out > 100  # most contacts within the margin stay open
+    assert second_rounds > 0
 
 
 def test_object_effector_rows_predict_the_carried_object_exactly(monkeypatch) -> None:

@@ -594,6 +594,10 @@ class ContactSet:
             return sets[0] if sets else cls.empty()
         return cls(*(np.concatenate([getattr(s, name) for s in sets]) for name in _FIELDS))
 
+    def take(self, index: np.ndarray) -> ContactSet:
+        """The contacts `index` (indices or a boolean mask), in that order."""
+        return ContactSet(*(getattr(self, name)[index] for name in _FIELDS))
+
     def swapped(self) -> ContactSet:
         """The same contacts seen from b: a and b exchanged, the normal reversed, features
         marked as b's (odd)."""

@@ -267,6 +267,25 @@ class CoupledContact(Constraint):
         self.friction = np.concatenate([rows.friction, pair_friction])
         self.rigid_jacobian = rigid_jacobian
         self._pair_distance = pair_distance
+        self._pairs = pairs
+        self._n_points = n_points
+
+    def take(self, index: np.ndarray) -> CoupledContact:
+        """The rows of the body's contacts `index` (indices into `rows`, or a boolean mask
+        over them) and of every rigid pair."""
+        index = np.flatnonzero(index) if np.asarray(index).dtype == bool else np.asarray(index)
+        k = len(self.rows.contacts)
+        own = (3 * index[:, None] + np.arange(3)).reshape(-1)
+        keep = np.concatenate([own, np.arange(3 * k, self.rigid_jacobian.shape[0])])
+        return CoupledContact(
+            self.rows.take(index),
+            self._pairs,
+            self._pair_distance,
+            self.friction[k:],
+            self.rigid_jacobian[keep],
+            self._n_points,
+            self.name,
+        )
 
     @property
     def n_rows(self) -> int:

@@ -28,6 +28,9 @@ class DirectControl:
     values: np.ndarray | None = None
     # Effectors are passive under direct control: the step needs no effector rows.
     roles = ("actuator",)
+    # Its contact solution solves a complementarity problem: a contact left out of it at zero
+    # force whose gap stays open is part of the whole problem's solution (contact screening).
+    complementarity = True
 
     def prepare(self, model) -> None:
         if self.values is not None:

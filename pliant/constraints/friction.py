@@ -78,12 +78,18 @@ class ContactReport:
             delta).
         converged: residual <= tolerance.
         newton_steps: Newton steps taken (the other iterations took the sweep's result).
+        screened: contacts left out of the solve, at zero force, because they stay open
+            without it (:class:`pliant.solvers.ImplicitEuler`'s contact screening).
+        rounds: solves of the step (more than one when screening had to take contacts back);
+            `iterations` and `newton_steps` count those of every round.
     """
 
     iterations: int = 0
     residual: float = 0.0
     converged: bool = True
     newton_steps: int = 0
+    screened: int = 0
+    rounds: int = 1
 
 
 @dataclass(frozen=True)
@@ -350,6 +356,16 @@ class ContactConstraint(Constraint):
     def frames(self) -> np.ndarray:
         """(k, 3, 3) rows (n, t1, t2) of each contact: H_c = blockdiag(frames) P."""
         return self._frames
+
+    def take(self, index: np.ndarray) -> ContactConstraint:
+        """The rows of the contacts `index` (indices or a boolean mask), in that order."""
+        out = ContactConstraint.__new__(ContactConstraint)
+        out.name = self.name
+        out.contacts = self.contacts.take(index)
+        out._frames = self._frames[index]
+        for name in ("friction", "nodes", "weights", "_origin", "_gap"):
+            setattr(out, name, getattr(self, name)[index])
+        return out
 
     def distance(self, x: np.ndarray) -> np.ndarray:
         p = np.einsum("ka,kai->ki", self.weights, x[self.nodes])

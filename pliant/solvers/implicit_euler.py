@@ -31,16 +31,18 @@ lambda_c (pliant.fem.rigid).
 
 from __future__ import annotations
 
+from dataclasses import dataclass, replace
+
 import numpy as np
 
 from pliant.constraints.condensed import CondensedProblem
 from pliant.constraints.contact import CoupledContact
 from pliant.constraints.control import as_control, constraint_forces
 from pliant.constraints.effector import RigidEffector
-from pliant.constraints.friction import ContactReport, ContactSolution
+from pliant.constraints.friction import ContactForces, ContactReport, ContactSolution
 from pliant.errors import DivergenceError, ModelError, SolverError
 from pliant.fem.rigid import RigidStep, integrate_poses
-from pliant.model import Model, State
+from pliant.model import ConstraintSpace, Model, State
 from pliant.solvers.base import StepReport, check_linearisation, check_motion
 from pliant.solvers.compliance import PointCompliance, PointRows
 from pliant.solvers.compliance_kernels import framed_block
@@ -62,6 +64,13 @@ class ImplicitEuler:
             same for the points of cables and position effectors when they are few (at most
             4/3 of a point per row, as the Diamond's one point per cable): their rows' columns
             are then read from the points' (:class:`pliant.solvers.compliance.PointRows`).
+        contact_screening: with point compliance and a control whose contact solution is a
+            complementarity problem's (commands: DirectControl), solve the contacts that may
+            close and check that the others stay open (:meth:`_screened`); same solution to
+            the contact tolerance, without the columns of the points that stay open.
+        screen_gap: gap below which screening takes a contact into the solve (default: a
+            tenth of the contact margin); any value gives the same solution, it only sets
+            how often a second round is needed.
     """
 
     def __init__(
@@ -72,6 +81,8 @@ class ImplicitEuler:
         tangent: TangentPolicy = "lagged",
         rtol: float = 1e-10,
         point_compliance: bool = True,
+        contact_screening: bool = True,
+        screen_gap: float | None = None,
     ) -> None:
         if not (np.isfinite(dt) and dt > 0):
             raise SolverError(f"the time step must be finite and > 0, got {dt!r}")
@@ -86,6 +97,11 @@ class ImplicitEuler:
         )
         self._row_points: dict[tuple[str, ...] | None, PointRows | None] = {}
         self._rows_on_points = point_compliance and tangent == "lagged"
+        self.contact_screening = contact_screening
+        if screen_gap is not None and not (np.isfinite(screen_gap) and screen_gap >= 0):
+            raise SolverError(f"screen_gap must be finite and >= 0, got {screen_gap!r}")
+        margin = model.contacts.margin if model.contacts is not None else 0.0
+        self.screen_gap = 0.1 * margin if screen_gap is None else float(screen_gap)
         body = model.body
         self._size = body.extent
         self._gravity = body.gravity_forces()
@@ -121,24 +137,29 @@ class ImplicitEuler:
             rhs -= (a_m - 1.0) * body.mass_matvec(v)
         roles = getattr(ctrl, "roles", None)
         self._place_objects(rigid)
+        solved = None  # (lambda, contact report, contact forces) when screening solved them
         try:
             self.system.prepare(lin, a_m, a_k)
             point_rows = self._point_rows(roles) if contact is None else None
             if contact is not None and self._points is not None and self.system.policy != "pcg":
-                problem, correction = self._condense_with_points(at, roles, contact, rhs, v, rigid)
+                free = self._free_with_points(at, roles, rhs)
+                if self.contact_screening and getattr(ctrl, "complementarity", False):
+                    problem, correction, contact, solved = self._screened(
+                        ctrl, state, at, free, contact, v, rigid
+                    )
+                else:
+                    problem, correction = self._with_points(at, free, contact, v, rigid)
             elif point_rows is not None:
                 problem, correction = self._condense_on_points(at, roles, rhs, v, point_rows)
             else:
                 problem, correction = self._condense(at, roles, contact, rhs, v, rigid)
+            # A QP that fails is a step that fails, named as such.
+            lam, contact_report, contact_forces = solved or constraint_forces(
+                ctrl, problem, model, state, contact
+            )
         except SolverError as exc:
             raise DivergenceError(f"step {step}: {exc}", step=step, cause="solver") from exc
         coupled = isinstance(contact, CoupledContact)
-        try:
-            lam, contact_report, contact_forces = constraint_forces(
-                ctrl, problem, model, state, contact
-            )
-        except SolverError as exc:  # a QP that fails is a step that fails, named as such
-            raise DivergenceError(f"step {step}: {exc}", step=step, cause="solver") from exc
         dv_free, response = correction
         v_new = v + dv_free + h * response(lam)
         dq = body.scatter(h * v_new)
@@ -225,14 +246,73 @@ class ImplicitEuler:
         problem = CondensedProblem(0.5 * h * h * (w + w.T), distance + h * moved, rows.slices)
         return problem, (dv_free, response)
 
-    def _condense_with_points(self, at, roles, contact, rhs, v, rigid):
-        """As `_condense`, with the contact columns read from the colliding points' compliance
-        kept for the factorisation (:mod:`pliant.solvers.compliance`): only the actuator and
-        effector columns are solved at every step."""
-        h, cache = self.dt, self._points
+    def _free_with_points(self, at, roles, rhs) -> _FreeMotion:
+        """The free motion and the actuator and effector columns (one block solve)."""
         space = self.model.constraint_space(at, roles=roles)
         cols = self.system.solve(np.column_stack([rhs, space.jacobian_t]))
-        dv_free, a_inv_ht = cols[:, 0], cols[:, 1:]
+        return _FreeMotion(space, cols[:, 0], cols[:, 1:])
+
+    def _screened(self, ctrl, state, at, free: _FreeMotion, contact, v, rigid):
+        """The step's problem and solution with only the contacts that may close: those
+        closed at the last step or whose gap the free motion brings within `screen_gap`, then
+        any other that the solution would close (their gap after the step, read from the
+        velocities it gives, below minus the contact tolerance), until none is left.
+
+        A contact left out has zero force and a gap that stays open, so it meets Signorini's
+        and Coulomb's laws as it is: the solution of the reduced problem is a solution of the
+        whole one, to the contact tolerance. It needs no compliance columns: a push moving a
+        few of the points within the margin solves the columns of those few."""
+        h, cache, model = self.dt, self._points, self.model
+        coupled = isinstance(contact, CoupledContact)
+        rows = contact.rows if coupled else contact
+        index, frames = rows.contacts.index_a, rows.frames
+        k = index.size
+        distance = rows.distance(at)[0::3]
+        normal_twist = contact.rigid_jacobian[0 : 3 * k : 3] if coupled else None
+
+        def gaps(velocities: np.ndarray, twists: np.ndarray | None) -> np.ndarray:
+            moved = np.einsum("kj,kj->k", frames[:, 0], cache.read(index, velocities))
+            gap = distance + h * moved
+            if coupled:
+                gap += h * (normal_twist @ twists.reshape(-1))
+            return gap
+
+        # First the contacts closed at the last step; then those the solution would close.
+        wanted = state.contact_forces.warm_start(rows.contacts)[0::3] != 0.0
+        tolerance, rounds, sweeps, newton = model.contacts.tolerance, 0, 0, 0
+        while True:
+            rounds += 1
+            kept = np.flatnonzero(wanted)
+            part = contact.take(kept)
+            problem, correction = self._with_points(at, free, part, v, rigid)
+            lam, report, _ = constraint_forces(ctrl, problem, model, state, part)
+            sweeps += report.iterations
+            newton += report.newton_steps
+            dv_free, response = correction
+            lam_c = lam[problem.slices["contact"]]
+            twists = (
+                rigid.twists(part.rigid_jacobian, lam_c, h, state.step + 1) if coupled else None
+            )
+            after = gaps(v + dv_free + h * response(lam), twists)
+            if not np.any(~wanted & (after < -tolerance)):
+                break
+            wanted |= after < self.screen_gap
+        # Every contact's multipliers, zero for those left out.
+        full = np.zeros((len(contact.contacts), 3))
+        full[kept] = lam_c[: 3 * kept.size].reshape(-1, 3)
+        full[k:] = lam_c[3 * kept.size :].reshape(-1, 3)
+        forces = ContactForces.from_multipliers(contact.contacts, full)
+        report = replace(
+            report, iterations=sweeps, newton_steps=newton, screened=k - kept.size, rounds=rounds
+        )
+        return problem, correction, part, (lam, report, forces)
+
+    def _with_points(self, at, free: _FreeMotion, contact, v, rigid):
+        """As `_condense`, with the contact columns read from the colliding points' compliance
+        kept for the factorisation (:mod:`pliant.solvers.compliance`): only the actuator and
+        effector columns are solved at every step (in `free`)."""
+        h, cache = self.dt, self._points
+        space, dv_free, a_inv_ht = free.space, free.dv_free, free.a_inv_ht
         coupled = isinstance(contact, CoupledContact)
         rows = contact.rows if coupled else contact
         index, frames = rows.contacts.index_a, rows.frames
@@ -339,6 +419,15 @@ class ImplicitEuler:
         finally:
             self.system.policy = saved
         return self.last_report.problem
+
+
+@dataclass(frozen=True)
+class _FreeMotion:
+    """A step's free motion and the columns A^-1 H^T of its actuator and effector rows."""
+
+    space: ConstraintSpace
+    dv_free: np.ndarray
+    a_inv_ht: np.ndarray
 
 
 class _Passive:
