@@ -274,6 +274,20 @@ def test_a_step_longer_than_the_margin_warns() -> None:
         ImplicitEuler(model, 0.01).step(state)
 
 
+def test_a_long_step_far_from_every_obstacle_does_not_warn() -> None:
+    import warnings
+
+    from pliant.errors import ContactMarginWarning
+
+    model = _cube(lift=20.0)
+    model.contacts.margin = 1e-3
+    state = model.rest_state()
+    state.velocities[:] = [0.0, 0.0, -200.0]  # 2 mm in one step, ending 18 mm above the floor
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", ContactMarginWarning)
+        ImplicitEuler(model, 0.01).step(state)
+
+
 @pytest.mark.parametrize("with_rigid", [False, True])
 def test_kept_point_compliance_gives_the_problem_of_solving_every_column(with_rigid) -> None:
     """The contact columns read from the points' compliance kept for a factorisation

@@ -117,14 +117,23 @@ class Contacts:
                 " move the body or the shape"
             )
 
-    def check_travel(self, displacement: np.ndarray, step: int) -> None:
-        """Warn when a colliding point moved further than the margin over a step."""
-        travel = float(np.linalg.norm(self.points.positions(displacement), axis=1).max())
-        if travel > self.margin:
+    def check_travel(self, positions: np.ndarray, displacement: np.ndarray, step: int) -> None:
+        """Warn when a colliding point moved further than the margin over a step and ends it
+        within the margin of an obstacle or rigid body (as posed at the step's start): it may
+        have crossed a surface no row was given for. A point swinging fast far from every
+        obstacle is no concern."""
+        travel = np.linalg.norm(self.points.positions(displacement), axis=1)
+        fast = np.flatnonzero(travel > self.margin)
+        if fast.size == 0:
+            return
+        ends = self.points.positions(positions)[fast]
+        near = detect(ends, self._colliders, self.margin, radius=self.thickness)
+        if len(near):
+            moved = float(travel[fast[near.index_a]].max())
             warnings.warn(
-                f"step {step}: a colliding point moved {travel:.3g}, more than the contact"
-                f" margin {self.margin:.3g}; contacts may have been missed: raise the margin"
-                " or reduce the time step",
+                f"step {step}: a colliding point moved {moved:.3g}, more than the contact"
+                f" margin {self.margin:.3g}, and ended near an obstacle; contacts may have been"
+                " missed: raise the margin or reduce the time step",
                 ContactMarginWarning,
                 stacklevel=3,
             )

@@ -114,7 +114,7 @@ def trunk_cube(
         body,
         actuators=cables,
         effectors=arm.effectors,
-        contacts=Contacts([floor], friction=friction, margin=3.0),
+        contacts=Contacts([floor], friction=friction, margin=5.0),
         drivers=[DrivenNodes(body.fixed_nodes, carriage, name="carriage")],
         rigid_bodies=[cube],
         name="trunk_cube",

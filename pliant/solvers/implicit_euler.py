@@ -27,6 +27,12 @@ Rigid bodies coupled by contact (:class:`pliant.constraints.contact.CoupledConta
 h^2 G M_r^-1 G^T to the contact block of W and h G u_free to its delta_free (u_free: their
 free twists under gravity); lambda then also gives their twists u = u_free + h M_r^-1 G^T
 lambda_c (pliant.fem.rigid).
+
+Contacts are screened (under commands): of the points within the contact margin, most stay
+open, and a contact that stays open needs no force, so the step solves those closed at the
+last step and takes in the others only where its solution would close them. The solution is
+the whole problem's; the compliance columns solved are those of the few points that touch
+(the Trunk pushing a cube: 4 of 70 points).
 """
 
 from __future__ import annotations
@@ -68,9 +74,10 @@ class ImplicitEuler:
             complementarity problem's (commands: DirectControl), solve the contacts that may
             close and check that the others stay open (:meth:`_screened`); same solution to
             the contact tolerance, without the columns of the points that stay open.
-        screen_gap: gap below which screening takes a contact into the solve (default: a
-            tenth of the contact margin); any value gives the same solution, it only sets
-            how often a second round is needed.
+        screen_gap: when a round of screening would close contacts it left out, the next
+            round takes in every contact whose gap that round leaves below this (default: a
+            tenth of the contact margin); any value >= 0 gives the same solution, it only
+            sets how many rounds are needed.
     """
 
     def __init__(
@@ -192,7 +199,7 @@ class ImplicitEuler:
             self._place_objects(new)
         check_motion(new.positions, new.velocities, dq, self._size, step, h)
         if model.contacts is not None:
-            model.contacts.check_travel(dq, step)
+            model.contacts.check_travel(positions, dq, step)
         self.last_report = StepReport(
             problem,
             lam_a,
@@ -253,10 +260,10 @@ class ImplicitEuler:
         return _FreeMotion(space, cols[:, 0], cols[:, 1:])
 
     def _screened(self, ctrl, state, at, free: _FreeMotion, contact, v, rigid):
-        """The step's problem and solution with only the contacts that may close: those
-        closed at the last step or whose gap the free motion brings within `screen_gap`, then
-        any other that the solution would close (their gap after the step, read from the
-        velocities it gives, below minus the contact tolerance), until none is left.
+        """The step's problem and solution with only the contacts that may close: first those
+        closed at the last step; then, while the solution would close another (its gap after
+        the step, read from the velocities the solution gives, below minus the contact
+        tolerance), the solve again with every contact whose gap it leaves below `screen_gap`.
 
         A contact left out has zero force and a gap that stays open, so it meets Signorini's
         and Coulomb's laws as it is: the solution of the reduced problem is a solution of the
