@@ -15,6 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
+from pliant.constraints.attachment import Attachment
 from pliant.constraints.base import Actuator, Constraint
 from pliant.constraints.cable import CableActuator, CableBundle
 from pliant.constraints.contact import Contacts
@@ -139,7 +140,9 @@ class Model:
         drivers: held nodes carried by kinematic bodies (a cart, a translating base); each
             node is one of the body's fixed nodes and belongs to one driver at most.
         rigid_bodies: dynamic rigid bodies the body touches (and that touch the obstacles of
-            `contacts` and each other); they need `contacts`, which detects them.
+            `contacts` and each other; `contacts` detects them) or carries (`attachments`).
+        attachments: points of the body held at fixed places of rigid bodies of the model
+            (:class:`pliant.constraints.attachment.Attachment`).
     """
 
     def __init__(
@@ -151,6 +154,7 @@ class Model:
         contacts: Contacts | None = None,
         drivers: list[DrivenNodes] | tuple = (),
         rigid_bodies: list[RigidBody] | tuple = (),
+        attachments: list[Attachment] | tuple = (),
         name: str = "robot",
     ) -> None:
         self.body = body
@@ -160,12 +164,21 @@ class Model:
         self.contacts = contacts
         self.drivers = list(drivers)
         self.rigid_bodies = list(rigid_bodies)
+        self.attachments = list(attachments)
         self._check_drivers()
-        if self.rigid_bodies and contacts is None:
+        if self.rigid_bodies and contacts is None and not self.attachments:
             raise ModelError(
-                f"{name}: rigid bodies interact with the body only by contact; give"
-                " contacts=Contacts(...) (its shapes may be just the floor)"
+                f"{name}: rigid bodies interact with the body by contact or attachment; give"
+                " contacts=Contacts(...) (its shapes may be just the floor) or attachments"
             )
+        for a in self.attachments:
+            if not isinstance(a, Attachment):
+                raise ModelError(f"{a!r} is not an Attachment")
+            if not any(a.body is b for b in self.rigid_bodies):
+                raise ModelError(
+                    f"{a.name}: its body {a.body.name} is not one of the model's rigid_bodies"
+                )
+            a.bind(body.rest_positions)
         if contacts is not None:
             contacts.attach(body, self.rigid_bodies)
         for c in self.actuators:

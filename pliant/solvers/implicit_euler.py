@@ -41,6 +41,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from pliant.constraints.attachment import eliminate
 from pliant.constraints.condensed import CondensedProblem
 from pliant.constraints.contact import CoupledContact
 from pliant.constraints.control import as_control, constraint_forces
@@ -97,6 +98,11 @@ class ImplicitEuler:
         self.dt = float(dt)
         self.system = LinearisedSystem(model.body, policy=tangent, rtol=rtol)
         self._objects, self._object_rows = self._find_objects()
+        # Each attachment with its body's index.
+        self._attached = [
+            (next(i for i, b in enumerate(model.rigid_bodies) if b is a.body), a)
+            for a in model.attachments
+        ]
         self._points = (
             PointCompliance(model.contacts.points, model.body.free_index)
             if point_compliance and model.contacts is not None
@@ -147,7 +153,9 @@ class ImplicitEuler:
         solved = None  # (lambda, contact report, contact forces) when screening solved them
         try:
             self.system.prepare(lin, a_m, a_k)
-            point_rows = self._point_rows(roles) if contact is None else None
+            point_rows = (
+                self._point_rows(roles) if contact is None and not model.attachments else None
+            )
             if contact is not None and self._points is not None and self.system.policy != "pcg":
                 free = self._free_with_points(at, roles, rhs)
                 if self.contact_screening and getattr(ctrl, "complementarity", False):
@@ -161,13 +169,12 @@ class ImplicitEuler:
             else:
                 problem, correction = self._condense(at, roles, contact, rhs, v, rigid)
             # A QP that fails is a step that fails, named as such.
-            lam, contact_report, contact_forces = solved or constraint_forces(
-                ctrl, problem, model, state, contact
+            lam, contact_report, contact_forces = solved or self._forces(
+                ctrl, problem, state, contact
             )
         except SolverError as exc:
             raise DivergenceError(f"step {step}: {exc}", step=step, cause="solver") from exc
-        coupled = isinstance(contact, CoupledContact)
-        dv_free, response = correction
+        dv_free, response, rigid_rows = correction
         v_new = v + dv_free + h * response(lam)
         dq = body.scatter(h * v_new)
         positions = body.advance(state.positions, dq)
@@ -187,8 +194,8 @@ class ImplicitEuler:
         )
         if rigid is not None:
             twists = (
-                rigid.twists(contact.rigid_jacobian, lam[problem.slices["contact"]], h, step)
-                if coupled
+                rigid.twists(rigid_rows, lam, h, step)
+                if rigid_rows is not None
                 else rigid.twists_free
             )
             new.rigid_positions, new.rigid_rotations = integrate_poses(
@@ -213,20 +220,17 @@ class ImplicitEuler:
         """W and delta_free with every constraint column solved (one factorisation, one block
         solve); returns the problem and (dv_free, lambda -> A^-1 H^T lambda)."""
         h = self.dt
-        space = self.model.constraint_space(
-            at, roles=roles, extra=(contact,) if contact is not None else ()
-        )
+        extra = ((contact,) if contact is not None else ()) + tuple(self.model.attachments)
+        space = self.model.constraint_space(at, roles=roles, extra=extra)
         cols = self.system.solve(np.column_stack([rhs, space.jacobian_t]))
         dv_free, a_inv_ht = cols[:, 0], cols[:, 1:]
         # delta_free linearised at q with the same H as W, so that a constraint met at rest stays
         # met exactly (evaluating delta at q_free instead leaves an O(h^2) steady-state bias).
         delta_free = space.distance + h * (space.jacobian_t.T @ (v + dv_free))
         w = h * h * (space.jacobian_t.T @ a_inv_ht)
-        if isinstance(contact, CoupledContact):
-            self._add_rigid(w, delta_free, space.slices["contact"], contact, rigid)
-        self._add_objects(w, delta_free, space.slices, contact, rigid)
+        g = self._couple_rigid(w, delta_free, space.slices, contact, rigid)
         problem = CondensedProblem(0.5 * (w + w.T), delta_free, space.slices)
-        return problem, (dv_free, lambda lam: a_inv_ht @ lam)
+        return problem, (dv_free, lambda lam: a_inv_ht @ lam, g)
 
     def _point_rows(self, roles) -> PointRows | None:
         """The rows of `roles` read through their points' columns, or None where that does
@@ -251,13 +255,18 @@ class ImplicitEuler:
             self.system.solve, self.system.factorisations, at, v + dv_free
         )
         problem = CondensedProblem(0.5 * h * h * (w + w.T), distance + h * moved, rows.slices)
-        return problem, (dv_free, response)
+        return problem, (dv_free, response, None)
 
     def _free_with_points(self, at, roles, rhs) -> _FreeMotion:
-        """The free motion and the actuator and effector columns (one block solve)."""
-        space = self.model.constraint_space(at, roles=roles)
-        cols = self.system.solve(np.column_stack([rhs, space.jacobian_t]))
-        return _FreeMotion(space, cols[:, 0], cols[:, 1:])
+        """The free motion and the columns of the actuator, effector and attachment rows (one
+        block solve)."""
+        model = self.model
+        space = model.constraint_space(at, roles=roles)
+        attached = model.constraint_space(at, model.attachments) if model.attachments else None
+        blocks = [rhs, space.jacobian_t] + ([attached.jacobian_t] if attached else [])
+        cols = self.system.solve(np.column_stack(blocks))
+        n_s = space.distance.size
+        return _FreeMotion(space, cols[:, 0], cols[:, 1 : 1 + n_s], attached, cols[:, 1 + n_s :])
 
     def _screened(self, ctrl, state, at, free: _FreeMotion, contact, v, rigid):
         """The step's problem and solution with only the contacts that may close: first those
@@ -292,13 +301,13 @@ class ImplicitEuler:
             kept = np.flatnonzero(wanted)
             part = contact.take(kept)
             problem, correction = self._with_points(at, free, part, v, rigid)
-            lam, report, _ = constraint_forces(ctrl, problem, model, state, part)
+            lam, report, _ = self._forces(ctrl, problem, state, part)
             sweeps += report.iterations
             newton += report.newton_steps
-            dv_free, response = correction
+            dv_free, response, rigid_rows = correction
             lam_c = lam[problem.slices["contact"]]
             twists = (
-                rigid.twists(part.rigid_jacobian, lam_c, h, state.step + 1) if coupled else None
+                rigid.twists(rigid_rows, lam, h, state.step + 1) if rigid_rows is not None else None
             )
             after = gaps(v + dv_free + h * response(lam), twists)
             if not np.any(~wanted & (after < -tolerance)):
@@ -324,40 +333,80 @@ class ImplicitEuler:
         rows = contact.rows if coupled else contact
         index, frames = rows.contacts.index_a, rows.frames
         k, n_s, n_c = index.size, space.distance.size, contact.n_rows
+        n_b = 0 if free.attached is None else free.attached.distance.size
         slots = cache.columns(self.system.solve, self.system.factorisations, index)
         # Contact rows' products, all through P (the points' displacement rows).
         w_cc = framed_block(frames, cache.block(index, slots))
         w_ca = cache.framed_rows(index, frames, a_inv_ht)
         moved = cache.framed_rows(index, frames, (v + dv_free)[:, None]).reshape(-1)
-        w = np.zeros((n_s + n_c, n_s + n_c))
+        n = n_s + n_c + n_b
+        w = np.zeros((n, n))
         w[:n_s, :n_s] = space.jacobian_t.T @ a_inv_ht
         w[n_s : n_s + 3 * k, :n_s] = w_ca
         w[:n_s, n_s : n_s + 3 * k] = w_ca.T
         w[n_s : n_s + 3 * k, n_s : n_s + 3 * k] = w_cc
-        w *= h * h
-        delta_free = np.concatenate(
-            [space.distance + h * (space.jacobian_t.T @ (v + dv_free)), contact.distance(at)]
-        )
+        delta_free = np.zeros(n)
+        delta_free[:n_s] = space.distance + h * (space.jacobian_t.T @ (v + dv_free))
+        delta_free[n_s : n_s + n_c] = contact.distance(at)
         delta_free[n_s : n_s + 3 * k] += h * moved
+        if n_b:  # attachment rows, last: their columns were solved with the free motion
+            attached, a_inv_hb = free.attached, free.a_inv_hb
+            b = slice(n_s + n_c, n)
+            w[b, :n_s] = attached.jacobian_t.T @ a_inv_ht
+            w[:n_s, b] = w[b, :n_s].T
+            w[n_s : n_s + 3 * k, b] = cache.framed_rows(index, frames, a_inv_hb)
+            w[b, n_s : n_s + 3 * k] = w[n_s : n_s + 3 * k, b].T
+            w[b, b] = attached.jacobian_t.T @ a_inv_hb
+            delta_free[b] = attached.distance + h * (attached.jacobian_t.T @ (v + dv_free))
+        w *= h * h
         end = slice(n_s + n_c, n_s + n_c)  # where constraint_space puts an absent role
         slices = {r: sl if sl.stop > sl.start else end for r, sl in space.slices.items()}
         slices["contact"] = slice(n_s, n_s + n_c)
-        if coupled:
-            self._add_rigid(w, delta_free, slices["contact"], contact, rigid)
-        self._add_objects(w, delta_free, slices, contact, rigid)
+        if n_b:
+            slices["attachment"] = slice(n_s + n_c, n)
+        g = self._couple_rigid(w, delta_free, slices, contact, rigid)
         problem = CondensedProblem(0.5 * (w + w.T), delta_free, slices)
 
         def response(lam: np.ndarray) -> np.ndarray:
             forces = np.einsum("irs,ir->is", frames, lam[n_s : n_s + 3 * k].reshape(k, 3))
-            return a_inv_ht @ lam[:n_s] + cache.apply(slots, forces)
+            out = a_inv_ht @ lam[:n_s] + cache.apply(slots, forces)
+            if n_b:
+                out += free.a_inv_hb @ lam[n_s + n_c :]
+            return out
 
-        return problem, (dv_free, response)
+        return problem, (dv_free, response, g)
 
-    def _add_rigid(self, w, delta_free, rows: slice, contact: CoupledContact, rigid) -> None:
-        """The rigid bodies' share of the contact rows: h^2 G M^-1 G^T and h G u_free."""
-        h, g = self.dt, contact.rigid_jacobian
-        w[rows, rows] += h * h * (g @ rigid.inverse_mass @ g.T)
-        delta_free[rows] += h * (g @ rigid.twists_free.reshape(-1))
+    def _forces(self, ctrl, problem: CondensedProblem, state: State, contact):
+        """lambda for every row of `problem`, the contact report and forces: the control
+        solves the problem with its attachment rows eliminated, then their multipliers follow
+        (:func:`pliant.constraints.attachment.eliminate`)."""
+        elimination = eliminate(problem)
+        if elimination is None:
+            return constraint_forces(ctrl, problem, self.model, state, contact)
+        lam, report, forces = constraint_forces(
+            ctrl, elimination.problem, self.model, state, contact
+        )
+        return elimination.full(lam), report, forces
+
+    def _couple_rigid(self, w, delta_free, slices, contact, rigid) -> np.ndarray | None:
+        """Add the rigid bodies' share to a problem: with G the rows' dependence on the bodies'
+        twists (contact rows on bodies, rigid-body effectors, attachments; zero elsewhere),
+        W += h^2 G M^-1 G^T and delta_free += h G u_free. Returns G (None without bodies)."""
+        if rigid is None:
+            return None
+        h, model = self.dt, self.model
+        n = len(model.rigid_bodies)
+        g = np.zeros((delta_free.size, 6 * n))
+        if isinstance(contact, CoupledContact):
+            g[slices["contact"]] = contact.rigid_jacobian
+        se = slices["effector"]
+        if self._object_rows is not None and se.stop > se.start:
+            g[se] = self._object_rows
+        if model.attachments:
+            g[slices["attachment"]] = np.vstack([a.twist_rows(i, n) for i, a in self._attached])
+        w += h * h * (g @ rigid.inverse_mass @ g.T)
+        delta_free += h * (g @ rigid.twists_free.reshape(-1))
+        return g
 
     def _find_objects(self) -> tuple[list[tuple[int, RigidEffector]], np.ndarray | None]:
         """The rigid-body effectors, each with its body's index, and their rows' dependence on
@@ -378,13 +427,18 @@ class ImplicitEuler:
         return found, (rows if found else None)
 
     def _place_objects(self, rigid) -> None:
-        """Give the rigid-body effectors their body's centre (`rigid`: a RigidStep or State)."""
+        """Give the rigid-body effectors their body's centre and the attachments their body's
+        pose (`rigid`: a RigidStep or State)."""
         if rigid is None:
             return
         centres = getattr(rigid, "rigid_positions", None)
         centres = rigid.positions if centres is None else centres
+        rotations = getattr(rigid, "rigid_rotations", None)
+        rotations = rigid.rotations if rotations is None else rotations
         for index, effector in self._objects:
             effector.centre = centres[index].copy()
+        for index, attachment in self._attached:
+            attachment.set_pose(centres[index].copy(), rotations[index].copy())
 
     def _add_objects(self, w, delta_free, slices, contact, rigid) -> None:
         """Rows of rigid-body effectors: delta_e += h J u_free; W gains h^2 J M^-1 J^T and,
@@ -430,11 +484,14 @@ class ImplicitEuler:
 
 @dataclass(frozen=True)
 class _FreeMotion:
-    """A step's free motion and the columns A^-1 H^T of its actuator and effector rows."""
+    """A step's free motion and the columns A^-1 H^T of its actuator and effector rows (and
+    of its attachment rows)."""
 
     space: ConstraintSpace
     dv_free: np.ndarray
     a_inv_ht: np.ndarray
+    attached: ConstraintSpace | None = None  # the attachment rows, when the model has some
+    a_inv_hb: np.ndarray | None = None
 
 
 class _Passive:
