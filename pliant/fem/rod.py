@@ -107,15 +107,21 @@ def parallel_frames(points: np.ndarray, normal: Sequence[float] | None = None) -
 
 
 class RodBody:
-    """A deformable rod: a discrete Cosserat rod along a polyline.
+    """A deformable rod: a discrete Cosserat rod along a polyline, or a lattice of them.
 
     Args:
-        points: (N, 3) centreline nodes at rest, N >= 2, in order.
+        points: (N, 3) centreline nodes at rest, N >= 2, in order along the polyline.
         section: the cross-section (:meth:`RodSection.circle`, :meth:`RodSection.rectangle`).
         material: E and nu (any :class:`pliant.fem.material.Material`; G = E / (2 (1 + nu))).
         density: mass per volume; or give `total_mass` instead.
-        frames: (N, 3, 3) rest frames (columns d1, d2, d3); default :func:`parallel_frames`
-            with `normal` as the first d1.
+        elements: (E, 2) node pairs of a lattice (beams joined rigidly where they share a
+            node: a junction keeps its angles); default: the polyline 0-1-...-(N-1). A
+            lattice's elements are straight at rest, each with its own frame (d3 along it,
+            d1 from `normal` made perpendicular, or the axis least aligned with it), held to
+            its nodes' frames by constant offsets.
+        frames: (N, 3, 3) rest frames of the nodes (columns d1, d2, d3); default on a
+            polyline :func:`parallel_frames` with `normal` as the first d1, on a lattice the
+            world axes.
         clamped: centreline nodes whose position and orientation are held (a clamp).
         pinned: centreline nodes whose position only is held (a ball joint).
         gravity: acceleration vector (robot scenes: (0, 0, -9810) mm/s^2).
@@ -140,6 +146,7 @@ class RodBody:
         *,
         density: float | None = None,
         total_mass: float | None = None,
+        elements: np.ndarray | None = None,
         frames: np.ndarray | None = None,
         normal: Sequence[float] | None = None,
         clamped: Sequence[int] = (),
@@ -151,15 +158,24 @@ class RodBody:
         x = np.ascontiguousarray(points, dtype=np.float64)
         if x.ndim != 2 or x.shape[1] != 3 or x.shape[0] < 2 or not np.all(np.isfinite(x)):
             raise ModelError(f"a rod needs (N >= 2, 3) finite points, got shape {x.shape}")
-        lengths = np.linalg.norm(np.diff(x, axis=0), axis=1)
+        n = x.shape[0]
+        self.is_lattice = elements is not None
+        if elements is None:
+            pairs = np.column_stack([np.arange(n - 1), np.arange(1, n)]).astype(np.int64)
+        else:
+            pairs = _check_elements(elements, n)
+        lengths = np.linalg.norm(x[pairs[:, 1]] - x[pairs[:, 0]], axis=1)
         if lengths.min() <= 1e-9 * max(float(lengths.max()), 1e-300):
             raise ModelError(f"the rod has a zero-length element ({int(np.argmin(lengths))})")
         if not isinstance(section, RodSection):
             raise ModelError(f"section must be a RodSection, got {section!r}")
         if not isinstance(material, Material):
             raise MaterialError(f"material must be a Material, got {material!r}")
-        n = x.shape[0]
-        frames = parallel_frames(x, normal) if frames is None else np.asarray(frames, float)
+        if frames is None:
+            frames = (
+                np.tile(np.eye(3), (n, 1, 1)) if self.is_lattice else parallel_frames(x, normal)
+            )
+        frames = np.asarray(frames, dtype=float)
         if frames.shape != (n, 3, 3):
             raise ModelError(f"frames must have shape ({n}, 3, 3), got {frames.shape}")
         for i, f in enumerate(frames):
@@ -169,21 +185,33 @@ class RodBody:
         self.material = material
         self.n_centreline = n
         self.lengths = lengths
-        self.elements = np.column_stack([np.arange(n - 1), np.arange(1, n)]).astype(np.int64)
+        self.elements = pairs
         vectors = np.array([_log(f) for f in frames])
+        rotations = rod_kernels.node_rotations(vectors)
+        # The elements' offsets from their nodes' frames: none on a polyline, whose frames are
+        # its elements'; on a lattice, each element's own frame seen from each of its nodes.
+        offsets = np.tile(np.eye(3), (len(pairs), 2, 1, 1))
+        if self.is_lattice:
+            own = _element_frames(x, pairs, normal)
+            offsets[:, 0] = np.einsum("eji,ejk->eik", rotations[pairs[:, 0]], own)
+            offsets[:, 1] = np.einsum("eji,ejk->eik", rotations[pairs[:, 1]], own)
+        self.offsets = np.ascontiguousarray(offsets)
         self.rest_positions = np.ascontiguousarray(np.vstack([x, vectors]))
         self.gamma0, self.kappa0 = rod_kernels.rest_strains(
-            x, rod_kernels.node_rotations(vectors), self.elements, lengths
+            x, rotations, self.elements, self.offsets, lengths
         )
         e, g = material.young_modulus, material.mu
         i1, i2 = section.inertia
+        m = len(pairs)
         shear_stretch = np.tile(
-            [section.shear_coefficient * g * section.area] * 2 + [e * section.area], (n - 1, 1)
+            [section.shear_coefficient * g * section.area] * 2 + [e * section.area], (m, 1)
         )
-        bend_twist = np.tile([e * i1, e * i2, g * section.torsion], (n - 1, 1))
-        # What every element kernel reads: connectivity, rest lengths and strains, C and B.
+        bend_twist = np.tile([e * i1, e * i2, g * section.torsion], (m, 1))
+        # What every element kernel reads: connectivity and offsets, rest lengths and strains,
+        # C and B.
         self._elements = (
             self.elements,
+            self.offsets,
             lengths,
             self.gamma0,
             self.kappa0,
@@ -203,8 +231,8 @@ class RodBody:
         rho = self.density
 
         share = np.zeros(n)  # half of each adjacent element's length
-        share[:-1] += 0.5 * lengths
-        share[1:] += 0.5 * lengths
+        np.add.at(share, pairs[:, 0], 0.5 * lengths)
+        np.add.at(share, pairs[:, 1], 0.5 * lengths)
         rotary = rho * 0.5 * (i1 + i2)
         self.node_masses = np.concatenate([rho * section.area * share, rotary * share])
 
@@ -227,7 +255,7 @@ class RodBody:
         diagonal = self.pattern.matrix(np.arange(self.pattern.nnz, dtype=float)).diagonal()
         self.mass_data = np.zeros(self.pattern.nnz)
         self.mass_data[diagonal.astype(np.int64)] = self._mass_diagonal
-        self._blocks = np.empty((n - 1, 12, 12))
+        self._blocks = np.empty((m, 12, 12))
 
     # --- layout -----------------------------------------------------------------------------
     @property
@@ -268,6 +296,11 @@ class RodBody:
     def interpolation(self, arc_lengths: Sequence[float]) -> tuple[np.ndarray, np.ndarray]:
         """Points of the centreline at rest arc lengths s (from node 0) as (nodes (k, 2),
         weights (k, 2)): linear between the two nodes of the element holding s."""
+        if self.is_lattice:
+            raise ModelError(
+                "arc lengths are measured along a polyline rod; embed points of a lattice at"
+                " its nodes (EmbeddedPoints.at_nodes)"
+            )
         s = np.atleast_1d(np.asarray(arc_lengths, dtype=float))
         ends = np.concatenate([[0.0], np.cumsum(self.lengths)])
         if not np.all(np.isfinite(s)) or s.min() < 0 or s.max() > ends[-1] * (1 + 1e-12):
@@ -364,9 +397,12 @@ class RodBody:
     # --- drawing ----------------------------------------------------------------------------
     def skin(self, positions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The rod's surface for drawing: the section's outline swept along the centreline
-        with the material frames, closed at both ends. (points, triangles)."""
+        with the material frames, closed at both ends (on a lattice, one tube per element,
+        its rings turned with the element's frames at its ends). (points, triangles)."""
         x, rot = self._split(positions)
         outline = np.array(self.section.outline)
+        if self.is_lattice:
+            return self._lattice_skin(x, rot, outline)
         k, n = len(outline), self.n_centreline
         local = np.column_stack([outline, np.zeros(k)])
         rings = x[:, None, :] + np.einsum("nij,kj->nki", rot, local)
@@ -383,6 +419,26 @@ class RodBody:
         )
         points = np.vstack([rings.reshape(-1, 3), x[[0, -1]]])
         return points, np.vstack(tris).astype(np.int64)
+
+    def _lattice_skin(self, x, rot, outline) -> tuple[np.ndarray, np.ndarray]:
+        k, pairs = len(outline), self.elements
+        local = np.column_stack([outline, np.zeros(k)])
+        ends = [
+            np.einsum("eij,ejk->eik", rot[pairs[:, side]], self.offsets[:, side])
+            for side in range(2)
+        ]
+        rings = [
+            x[pairs[:, side], None, :] + np.einsum("eij,kj->eki", ends[side], local)
+            for side in range(2)
+        ]
+        points = np.concatenate([rings[0], rings[1]], axis=1).reshape(-1, 3)  # (E * 2k, 3)
+        ring = np.arange(k)
+        nxt = (ring + 1) % k
+        quad = np.vstack(
+            [np.column_stack([ring, k + ring, k + nxt]), np.column_stack([ring, k + nxt, nxt])]
+        )
+        tris = quad[None, :, :] + (2 * k * np.arange(len(pairs)))[:, None, None]
+        return points, tris.reshape(-1, 3).astype(np.int64)
 
     def vtk_cells(self) -> tuple[str, np.ndarray, np.ndarray]:
         """(cell type, cells, point rows) of the body for ParaView: lines on the centreline."""
@@ -423,6 +479,45 @@ class ClampedEnd:
         position, rotation = self.carrier.pose(t)
         point, frame = self._local
         return np.vstack([position + rotation @ point, _log(rotation @ frame)])
+
+
+def _check_elements(elements, n: int) -> np.ndarray:
+    """(E, 2) int64 node pairs of a lattice, checked: in range, no element on one node, none
+    twice, every node in one at least."""
+    pairs = np.asarray(elements)
+    if pairs.ndim != 2 or pairs.shape[1] != 2 or len(pairs) == 0:
+        raise ModelError(f"a lattice's elements must be (E >= 1, 2) node pairs, got {pairs.shape}")
+    if not np.issubdtype(pairs.dtype, np.integer):
+        raise ModelError(f"a lattice's elements must be node indices, got dtype {pairs.dtype}")
+    pairs = pairs.astype(np.int64)
+    if pairs.min() < 0 or pairs.max() >= n:
+        raise ModelError(f"a lattice's elements must join nodes of [0, {n})")
+    if np.any(pairs[:, 0] == pairs[:, 1]):
+        raise ModelError(
+            f"element {int(np.argmax(pairs[:, 0] == pairs[:, 1]))} joins a node to itself"
+        )
+    if len(np.unique(np.sort(pairs, axis=1), axis=0)) != len(pairs):
+        raise ModelError("a lattice joins the same two nodes twice")
+    lonely = np.setdiff1d(np.arange(n), pairs)
+    if lonely.size:
+        raise ModelError(f"nodes {lonely.tolist()} belong to no element of the lattice")
+    return pairs
+
+
+def _element_frames(x: np.ndarray, pairs: np.ndarray, normal) -> np.ndarray:
+    """(E, 3, 3) frames of straight elements: d3 along the element, d1 from `normal` (or the
+    world axis least aligned with d3) made perpendicular, d2 = d3 x d1."""
+    d3 = x[pairs[:, 1]] - x[pairs[:, 0]]
+    d3 /= np.linalg.norm(d3, axis=1, keepdims=True)
+    out = np.empty((len(pairs), 3, 3))
+    for e, t in enumerate(d3):
+        d1 = None if normal is None else np.asarray(normal, dtype=float)
+        if d1 is None or np.linalg.norm(d1 - (d1 @ t) * t) < 1e-6 * np.linalg.norm(d1):
+            d1 = np.eye(3)[int(np.argmin(np.abs(t)))]
+        d1 = d1 - (d1 @ t) * t
+        d1 /= np.linalg.norm(d1)
+        out[e] = np.column_stack([d1, np.cross(t, d1), t])
+    return out
 
 
 def _exp(vector: np.ndarray) -> np.ndarray:

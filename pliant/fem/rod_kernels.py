@@ -1,6 +1,7 @@
 """Compiled kernels of the discrete Cosserat rod (:mod:`pliant.fem.rod`).
 
-Element e joins nodes i and j = i + 1 (positions x, rotations R: material frame -> world),
+Element e joins nodes i and j (positions x, rotations R: material frame -> world; on a
+lattice, R_i stands for R_i Q, the node's frame times the element's constant offset from it),
 one-point quadrature at its middle (Simo & Vu-Quoc 1986; Crisfield 1997, ch. 17):
 
     Phi   = log(R_i^T R_j)              relative rotation, the same vector in frames i and j
@@ -275,21 +276,42 @@ def node_rotations(vectors):
     return out
 
 
+@njit(cache=True, inline="always")
+def _ends(rot, i, j, offsets, e, ri, rj):
+    """The element's frames at its two nodes: R_i Q_e0 and R_j Q_e1 (Q: the element's constant
+    offsets from its nodes' frames, identity on a polyline; a spatial spin of R_i turns
+    R_i Q_e0 by the same spin, so every derivative below holds unchanged)."""
+    for a in range(3):
+        for b in range(3):
+            si = 0.0
+            sj = 0.0
+            for c in range(3):
+                si += rot[i, a, c] * offsets[e, 0, c, b]
+                sj += rot[j, a, c] * offsets[e, 1, c, b]
+            ri[a, b] = si
+            rj[a, b] = sj
+
+
 @njit(cache=True)
-def rest_strains(x, rot, elements, lengths):
+def rest_strains(x, rot, elements, offsets, lengths):
     """(m, 3) gamma and (m, 3) kappa of every element at (x, rot): the rod's rest strains."""
     m = elements.shape[0]
     gamma = np.empty((m, 3))
     kappa = np.empty((m, 3))
     rm = np.empty((3, 3))
+    ri = np.empty((3, 3))
+    rj = np.empty((3, 3))
     for e in range(m):
         i, j = elements[e, 0], elements[e, 1]
-        _strains(x[i], x[j], rot[i], rot[j], lengths[e], gamma[e], kappa[e], rm)
+        _ends(rot, i, j, offsets, e, ri, rj)
+        _strains(x[i], x[j], ri, rj, lengths[e], gamma[e], kappa[e], rm)
     return gamma, kappa
 
 
 @njit(cache=True)
-def rod_forces(x, rot, elements, lengths, gamma0, kappa0, cs, bs, v, forces, kv, frames, stretch):
+def rod_forces(
+    x, rot, elements, offsets, lengths, gamma0, kappa0, cs, bs, v, forces, kv, frames, stretch
+):
     """Nodal forces (rows 0..N-1) and moments (rows N..2N-1) into `forces` (2N, 3), each
     element's middle frame into `frames` (m, 3, 3) and gamma_3 into `stretch` (m,); when
     `v` (2N, 3: velocities, then angular velocities) is not empty, the Gauss-Newton tangent
@@ -304,9 +326,12 @@ def rod_forces(x, rot, elements, lengths, gamma0, kappa0, cs, bs, v, forces, kv,
     ke = np.empty(12)
     ve = np.empty(12)
     rows = np.empty(4, dtype=np.int64)
+    ri = np.empty((3, 3))
+    rj = np.empty((3, 3))
     for e in range(elements.shape[0]):
         i, j = elements[e, 0], elements[e, 1]
         rows[0], rows[1], rows[2], rows[3] = i, j, n + i, n + j
+        _ends(rot, i, j, offsets, e, ri, rj)
         if with_v:
             for b in range(4):
                 for a in range(3):
@@ -314,8 +339,8 @@ def rod_forces(x, rot, elements, lengths, gamma0, kappa0, cs, bs, v, forces, kv,
             en, g3, rm = _element_forces(
                 x[i],
                 x[j],
-                rot[i],
-                rot[j],
+                ri,
+                rj,
                 lengths[e],
                 gamma0[e],
                 kappa0[e],
@@ -327,7 +352,7 @@ def rod_forces(x, rot, elements, lengths, gamma0, kappa0, cs, bs, v, forces, kv,
             )
         else:
             en, g3, rm = _element_forces(
-                x[i], x[j], rot[i], rot[j], lengths[e], gamma0[e], kappa0[e], cs[e], bs[e], fe
+                x[i], x[j], ri, rj, lengths[e], gamma0[e], kappa0[e], cs[e], bs[e], fe
             )
         energy += en
         stretch[e] = g3
@@ -397,17 +422,20 @@ def _consistent_block(xi, xj, ri, rj, length, gamma0, kappa0, cs, bs, out):
 
 
 @njit(cache=True)
-def rod_stiffness(x, rot, elements, lengths, gamma0, kappa0, cs, bs, exact, blocks):
+def rod_stiffness(x, rot, elements, offsets, lengths, gamma0, kappa0, cs, bs, exact, blocks):
     """Element tangent blocks (m, 12, 12), in the element DoF order x_i, x_j, theta_i,
     theta_j: the Gauss-Newton tangent, or the consistent one when `exact`."""
+    ri = np.empty((3, 3))
+    rj = np.empty((3, 3))
     for e in range(elements.shape[0]):
         i, j = elements[e, 0], elements[e, 1]
+        _ends(rot, i, j, offsets, e, ri, rj)
         if exact:
             _consistent_block(
                 x[i],
                 x[j],
-                rot[i],
-                rot[j],
+                ri,
+                rj,
                 lengths[e],
                 gamma0[e],
                 kappa0[e],
@@ -416,7 +444,7 @@ def rod_stiffness(x, rot, elements, lengths, gamma0, kappa0, cs, bs, exact, bloc
                 blocks[e],
             )
         else:
-            _gauss_newton_block(x[i], x[j], rot[i], rot[j], lengths[e], cs[e], bs[e], blocks[e])
+            _gauss_newton_block(x[i], x[j], ri, rj, lengths[e], cs[e], bs[e], blocks[e])
 
 
 @njit(cache=True)
