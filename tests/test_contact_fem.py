@@ -288,18 +288,14 @@ def test_a_long_step_far_from_every_obstacle_does_not_warn() -> None:
         ImplicitEuler(model, 0.01).step(state)
 
 
-@pytest.mark.parametrize("with_rigid", [False, True])
-def test_kept_point_compliance_gives_the_problem_of_solving_every_column(with_rigid) -> None:
-    """The contact columns read from the points' compliance kept for a factorisation
-    (pliant.solvers.compliance) give the W, delta_free and step of solving all columns at every
-    step, to round-off: over a fall, a bounce and rest on the floor (contacts appear and go,
-    the lagged factorisation is reused and renewed), with and without a rigid body on top."""
+def _pulled_cube(with_rigid: bool, **contact) -> Model:
+    """The soft cube 0.5 mm above the floor with a cable along its top (pulled from x = -5),
+    and with `with_rigid` a rigid box resting on it."""
     from pliant.constraints.base import EmbeddedPoints
     from pliant.constraints.cable import CableActuator
     from pliant.fem.rigid import RigidBody
 
-    model = _cube(lift=0.5)
-    body = model.body
+    body = _cube(lift=0.5).body
     path = EmbeddedPoints(body.mesh, [[2.0, 2.0, 10.5], [10.0, 2.0, 10.5], [18.0, 2.0, 10.5]])
     cable = CableActuator(path, body.rest_positions, pull_point=[-5.0, 2.0, 10.5])
     rigid = (
@@ -307,12 +303,21 @@ def test_kept_point_compliance_gives_the_problem_of_solving_every_column(with_ri
         if with_rigid
         else []
     )
-    model = Model(
+    return Model(
         body,
         actuators=[cable],
-        contacts=Contacts([Plane()], friction=0.5, margin=1.0),
+        contacts=Contacts([Plane()], friction=0.5, margin=1.0, **contact),
         rigid_bodies=rigid,
     )
+
+
+@pytest.mark.parametrize("with_rigid", [False, True])
+def test_kept_point_compliance_gives_the_problem_of_solving_every_column(with_rigid) -> None:
+    """The contact columns read from the points' compliance kept for a factorisation
+    (pliant.solvers.compliance) give the W, delta_free and step of solving all columns at every
+    step, to round-off: over a fall, a bounce and rest on the floor (contacts appear and go,
+    the lagged factorisation is reused and renewed), with and without a rigid body on top."""
+    model = _pulled_cube(with_rigid)
     kept = ImplicitEuler(model, 0.01, contact_screening=False)
     solved = ImplicitEuler(model, 0.01, point_compliance=False)
     state = model.rest_state()
@@ -341,25 +346,7 @@ def test_contact_screening_gives_the_step_of_the_whole_contact_problem(with_rigi
     the contact tolerance, over a cube pulled by a cable that falls, bounces and rests on the
     floor (a box on top with `with_rigid`). The contacts left out get zero force, and a
     second round takes back the contacts the first one would have closed."""
-    from pliant.constraints.base import EmbeddedPoints
-    from pliant.constraints.cable import CableActuator
-    from pliant.fem.rigid import RigidBody
-
-    model = _cube(lift=0.5)
-    body = model.body
-    path = EmbeddedPoints(body.mesh, [[2.0, 2.0, 10.5], [10.0, 2.0, 10.5], [18.0, 2.0, 10.5]])
-    cable = CableActuator(path, body.rest_positions, pull_point=[-5.0, 2.0, 10.5])
-    rigid = (
-        [RigidBody(Box([6.0, 6.0, 3.0], position=[10.0, 10.0, 22.5]), 0.002, friction=0.3)]
-        if with_rigid
-        else []
-    )
-    model = Model(
-        body,
-        actuators=[cable],
-        contacts=Contacts([Plane()], friction=0.5, margin=1.0, tolerance=1e-8),
-        rigid_bodies=rigid,
-    )
+    model = _pulled_cube(with_rigid, tolerance=1e-8)
     screened = ImplicitEuler(model, 0.01)
     whole = ImplicitEuler(model, 0.01, contact_screening=False)
     state = model.rest_state()
