@@ -30,7 +30,8 @@ lambda_c (pliant.fem.rigid).
 
 Contacts are screened (under commands): of the points within the contact margin, most stay
 open, and a contact that stays open needs no force, so the step solves those closed at the
-last step and takes in the others only where its solution would close them. The solution is
+last step or approaching fast enough to close, and takes in the others only where its solution
+would close them. The solution is
 the whole problem's; the compliance columns solved are those of the few points that touch
 (the Trunk pushing a cube: 4 of 70 points).
 """
@@ -270,9 +271,10 @@ class ImplicitEuler:
 
     def _screened(self, ctrl, state, at, free: _FreeMotion, contact, v, rigid):
         """The step's problem and solution with only the contacts that may close: first those
-        closed at the last step; then, while the solution would close another (its gap after
-        the step, read from the velocities the solution gives, below minus the contact
-        tolerance), the solve again with every contact whose gap it leaves below `screen_gap`.
+        closed at the last step and those the current velocities would close over the step;
+        then, while the solution would close another (its gap after the step, read from the
+        velocities the solution gives, below minus the contact tolerance), the solve again
+        with every contact whose gap it leaves below `screen_gap`.
 
         A contact left out has zero force and a gap that stays open, so it meets Signorini's
         and Coulomb's laws as it is: the solution of the reduced problem is a solution of the
@@ -293,8 +295,12 @@ class ImplicitEuler:
                 gap += h * (normal_twist @ twists.reshape(-1))
             return gap
 
-        # First the contacts closed at the last step; then those the solution would close.
-        wanted = state.contact_forces.warm_start(rows.contacts)[0::3] != 0.0
+        # First the contacts closed at the last step or that their velocities would close
+        # over this one; then those the solution would close.
+        current = np.hstack([state.rigid_velocities, state.rigid_angular_velocities])
+        wanted = (state.contact_forces.warm_start(rows.contacts)[0::3] != 0.0) | (
+            gaps(v, current if coupled else None) < 0.0
+        )
         tolerance, rounds, sweeps, newton = model.contacts.tolerance, 0, 0, 0
         while True:
             rounds += 1
