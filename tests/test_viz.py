@@ -307,3 +307,13 @@ def test_shape_surfaces_enclose_their_shapes() -> None:
     assert 0.95 < enclosed_volume(pts, tris) / exact < 1.0
     pts, _ = shape_surface(Plane(point=(0.0, 0.0, -1.0)), extent=10.0, centre=[3.0, 4.0, 7.0])
     assert np.allclose(pts[:, 2], -1.0) and np.allclose(pts.mean(axis=0)[:2], [3.0, 4.0])
+
+
+def test_robot_camera_draws_the_axis_of_gravity_vertical() -> None:
+    """The Trunk scenes fall along -y, the others along -z: the camera puts that axis up, so
+    a floor under the Trunk is drawn as a floor, not as a wall."""
+    from pliant import robots
+    from pliant.viz.model_view import RobotCamera
+
+    assert RobotCamera(robots.build("trunk_cube")).vertical == "y"
+    assert RobotCamera(robots.build("diamond")).vertical == "z"

@@ -53,7 +53,7 @@ ROBOTS: dict[str, RobotEntry] = {
         {"circle": _diamond.circle, "lifted_circle": _diamond.lifted_circle},
         (20.0, -60.0),
     ),
-    "trunk": RobotEntry(trunk, _trunk.demo_actuation, {"circle": _trunk.circle}, (15.0, -45.0)),
+    "trunk": RobotEntry(trunk, _trunk.demo_actuation, {"circle": _trunk.circle}, (20.0, -60.0)),
     "finger": RobotEntry(
         soft_finger, _finger.demo_actuation, {"closing": _finger.closing}, (10.0, -80.0)
     ),
@@ -66,9 +66,9 @@ ROBOTS: dict[str, RobotEntry] = {
     ),
     "cartstem_rod": RobotEntry(_cartstem.cartstem_rod, _cartstem.demo_actuation, {}, (5.0, -90.0)),
     "gripper": RobotEntry(_gripper.soft_gripper, _gripper.demo_actuation, {}, (15.0, -70.0)),
-    "trunk_cube": RobotEntry(_trunk_cube.trunk_cube, _trunk_cube.demo_actuation, {}, (20.0, 60.0)),
-    "trunk_push": RobotEntry(_trunk_cube.trunk_push, _trunk_cube.push_demo, {}, (60.0, 90.0)),
-    "trunk_cup": RobotEntry(_trunk_cup.trunk_cup, _trunk_cup.demo_actuation, {}, (20.0, 150.0)),
+    "trunk_cube": RobotEntry(_trunk_cube.trunk_cube, _trunk_cube.demo_actuation, {}, (20.0, -60.0)),
+    "trunk_push": RobotEntry(_trunk_cube.trunk_push, _trunk_cube.push_demo, {}, (20.0, -60.0)),
+    "trunk_cup": RobotEntry(_trunk_cup.trunk_cup, _trunk_cup.demo_actuation, {}, (20.0, -60.0)),
     "catch_object": RobotEntry(
         _catch_object.catch_object, _catch_object.demo_actuation, {}, (10.0, -80.0)
     ),

@@ -16,7 +16,8 @@ RIGID_COLOR = "#e0944a"
 
 
 class RobotCamera:
-    """Renders states of one model with a fixed camera (bounds set from the rest shape)."""
+    """Renders states of one model with a fixed camera (bounds set from the rest shape), the
+    axis of gravity drawn vertical."""
 
     def __init__(
         self,
@@ -29,6 +30,9 @@ class RobotCamera:
         self.model = model
         self.view = view
         self.size = size
+        # Up is against gravity: its largest component's axis (z without gravity).
+        gravity = np.asarray(getattr(model.body, "gravity", np.zeros(3)), dtype=float)
+        self.vertical = "xyz"[int(np.argmax(np.abs(gravity)))] if np.any(gravity) else "z"
         rest, _ = model.body.skin(model.body.rest_positions)
         lo, hi = rest.min(axis=0), rest.max(axis=0)
         self._centre = 0.5 * (lo + hi)
@@ -86,4 +90,5 @@ class RobotCamera:
             bounds=self.bounds,
             size=self.size,
             legend=False,
+            vertical=self.vertical,
         )

@@ -117,8 +117,11 @@ def lambert_shade(
     return rgba
 
 
-def apply_camera(ax: Axes3D, bounds: np.ndarray, view: tuple[float, float]) -> None:
-    """Set limits to `bounds`, equal scale on the three axes, orthographic camera at `view`."""
+def apply_camera(
+    ax: Axes3D, bounds: np.ndarray, view: tuple[float, float], vertical: str = "z"
+) -> None:
+    """Set limits to `bounds`, equal scale on the three axes, orthographic camera at `view`
+    with the axis `vertical` ("x", "y" or "z") drawn upwards."""
     bounds = np.asarray(bounds, dtype=float)
     if bounds.shape != (2, 3) or not np.all(bounds[1] > bounds[0]):
         raise ValueError(
@@ -131,7 +134,7 @@ def apply_camera(ax: Axes3D, bounds: np.ndarray, view: tuple[float, float]) -> N
     # A box aspect equal to the extents gives one length unit the same size on every axis.
     ax.set_box_aspect(bounds[1] - bounds[0])
     ax.set_proj_type("ortho")
-    ax.view_init(elev=view[0], azim=view[1])
+    ax.view_init(elev=view[0], azim=view[1], vertical_axis=vertical)
 
 
 def _check_surface(points: np.ndarray, triangles: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -175,6 +178,7 @@ def draw_scene(
     bounds: np.ndarray | None = None,
     edgecolor: Color | None = None,
     legend: bool = True,
+    vertical: str = "z",
 ) -> None:
     """Draw surfaces, markers and polylines into a 3D Axes.
 
@@ -189,13 +193,14 @@ def draw_scene(
             sequence. By default the box around everything drawn.
         edgecolor: colour of the triangle edges; None draws no mesh lines.
         legend: label the markers and lines with their names.
+        vertical: the axis drawn upwards (a scene under gravity along -y: "y").
     """
     markers, lines = _named_points(markers), _named_points(lines)
     checked = [(*_check_surface(p, t), c) for p, t, c in surfaces]
     if bounds is None:
         named = [p for p, _ in (*markers.values(), *lines.values())]
         bounds = scene_bounds([p for p, _, _ in checked] + named)
-    apply_camera(ax, bounds, view)
+    apply_camera(ax, bounds, view, vertical)
     ax.computed_zorder = False
     ax.set_axis_off()
 
@@ -279,6 +284,7 @@ def render_scene(
     size: tuple[int, int] = (640, 480),
     edgecolor: Color | None = None,
     legend: bool = True,
+    vertical: str = "z",
 ) -> np.ndarray:
     """Render several bodies, markers and polylines to an RGB image.
 
@@ -303,6 +309,7 @@ def render_scene(
         bounds=bounds,
         edgecolor=edgecolor,
         legend=legend,
+        vertical=vertical,
     )
     if title:
         fig.text(0.5, 0.98, title, ha="center", va="top", fontsize="medium")
