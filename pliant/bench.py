@@ -172,8 +172,9 @@ class Measurement:
 @dataclass
 class Timing:
     """Timed runs of one scene: steps/s of each, and per step the median factorisations, the
-    mean contact-solver sweeps and Newton steps, and the mean contacts, all of them and those
-    of the body's points on rigid bodies (0 without contacts)."""
+    mean contact-solver sweeps and Newton steps, the mean contacts, all of them, those of the
+    body's points on rigid bodies and those solved (not screened out), and the mean contact
+    solves (screening's rounds); 0 without contacts."""
 
     rates: list[float]
     factorisations_per_step: float
@@ -181,6 +182,8 @@ class Timing:
     newton_steps_per_step: float
     contacts_per_step: float
     body_contacts_per_step: float
+    solved_contacts_per_step: float = 0.0
+    contact_rounds_per_step: float = 0.0
 
 
 def _elements(model: Model) -> int:
@@ -223,10 +226,13 @@ def time_steps(
             report = solver.last_report.contact
             sweeps.append(report.iterations if report is not None else 0)
             newton.append(report.newton_steps if report is not None else 0)
-            counts.append(_contact_counts(solver.model, s))
+            total, on_bodies = _contact_counts(solver.model, s)
+            screened = report.screened if report is not None else 0
+            rounds = report.rounds if report is not None else 0
+            counts.append((total, on_bodies, total - screened, rounds))
         rates.append(steps / elapsed)
         facts.append((solver.system.factorisations - f0) / steps)
-    total, on_bodies = np.mean(counts, axis=0)
+    total, on_bodies, solved, rounds = np.mean(counts, axis=0)
     return Timing(
         rates,
         statistics.median(facts),
@@ -234,6 +240,8 @@ def time_steps(
         float(np.mean(newton)),
         float(total),
         float(on_bodies),
+        float(solved),
+        float(rounds),
     )
 
 
@@ -273,11 +281,15 @@ def run_benchmarks(
                 details["contact_newton_steps_per_step"] = timing.newton_steps_per_step
                 details["contacts_per_step"] = timing.contacts_per_step
                 details["body_contacts_per_step"] = timing.body_contacts_per_step
+                details["solved_contacts_per_step"] = timing.solved_contacts_per_step
+                details["contact_solves_per_step"] = timing.contact_rounds_per_step
                 contact = (
                     f", {timing.sweeps_per_step:.1f} contact sweeps"
                     f" + {timing.newton_steps_per_step:.1f} Newton steps/step,"
                     f" {timing.contacts_per_step:.1f} contacts/step"
-                    f" ({timing.body_contacts_per_step:.1f} on rigid bodies)"
+                    f" ({timing.body_contacts_per_step:.1f} on rigid bodies,"
+                    f" {timing.solved_contacts_per_step:.1f} solved in"
+                    f" {timing.contact_rounds_per_step:.2f} solves)"
                 )
             m = Measurement(
                 scene,
