@@ -28,12 +28,16 @@ h^2 G M_r^-1 G^T to the contact block of W and h G u_free to its delta_free (u_f
 free twists under gravity); lambda then also gives their twists u = u_free + h M_r^-1 G^T
 lambda_c (pliant.fem.rigid).
 
+Rows of points attached to a rigid body (:mod:`pliant.constraints.attachment`) and of
+rigid-body effectors depend on the twists too: with G all rows' dependence on the twists,
+W gains h^2 G M_r^-1 G^T and delta_free h G u_free. Attachment rows are eliminated (Schur
+complement) before the control solves the rest.
+
 Contacts are screened (under commands): of the points within the contact margin, most stay
 open, and a contact that stays open needs no force, so the step solves those closed at the
-last step or approaching fast enough to close, and takes in the others only where its solution
-would close them. The solution is
-the whole problem's; the compliance columns solved are those of the few points that touch
-(the Trunk pushing a cube: 4 of 70 points).
+last step or approaching fast enough to close, and takes in the others only where its
+solution would close them. The solution is the whole problem's; the compliance columns solved
+are those of the few points that touch (the Trunk pushing a cube: 4 of 75 points).
 """
 
 from __future__ import annotations
@@ -445,22 +449,6 @@ class ImplicitEuler:
             effector.centre = centres[index].copy()
         for index, attachment in self._attached:
             attachment.set_pose(centres[index].copy(), rotations[index].copy())
-
-    def _add_objects(self, w, delta_free, slices, contact, rigid) -> None:
-        """Rows of rigid-body effectors: delta_e += h J u_free; W gains h^2 J M^-1 J^T and,
-        with contacts on rigid bodies, h^2 J M^-1 G^T (see RigidEffector)."""
-        se, rows = slices["effector"], self._object_rows
-        if rows is None or se.stop == se.start:
-            return
-        h = self.dt
-        m_inv = rigid.inverse_mass
-        delta_free[se] += h * (rows @ rigid.twists_free.reshape(-1))
-        w[se, se] += h * h * (rows @ m_inv @ rows.T)
-        if isinstance(contact, CoupledContact):
-            sc = slices["contact"]
-            coupling = h * h * (rows @ m_inv @ contact.rigid_jacobian.T)
-            w[se, sc] += coupling
-            w[sc, se] += coupling.T
 
     def _rigid_step(self, state: State) -> RigidStep | None:
         """The rigid bodies' free motion over the step (None without rigid bodies)."""
