@@ -15,6 +15,17 @@ import numpy as np
 from numba import njit
 
 
+@njit(cache=True, inline="always")
+def _point_value(values, dofs, weights, i, a, col):
+    """(P_i values)_a in column `col`: sum_n weights[i, n, a] values[dofs[i, n, a], col] over
+    the point's free DoFs."""
+    total = 0.0
+    for n in range(dofs.shape[1]):
+        if dofs[i, n, a] >= 0:
+            total += weights[i, n, a] * values[dofs[i, n, a], col]
+    return total
+
+
 @njit(cache=True)
 def point_block(store, dofs, weights, slots):
     """(3k, 3k) P A^-1 P^T between k points: entry (3i + a, 3j + b) is
@@ -26,11 +37,7 @@ def point_block(store, dofs, weights, slots):
             column = 3 * slots[j] + b
             for i in range(k):
                 for a in range(3):
-                    total = 0.0
-                    for n in range(dofs.shape[1]):
-                        if dofs[i, n, a] >= 0:
-                            total += weights[i, n, a] * store[dofs[i, n, a], column]
-                    out[3 * i + a, 3 * j + b] = total
+                    out[3 * i + a, 3 * j + b] = _point_value(store, dofs, weights, i, a, column)
     return out
 
 
@@ -69,11 +76,7 @@ def framed_rows(frames, dofs, weights, values):
     for i in range(k):
         for col in range(c):
             for a in range(3):
-                total = 0.0
-                for n in range(dofs.shape[1]):
-                    if dofs[i, n, a] >= 0:
-                        total += weights[i, n, a] * values[dofs[i, n, a], col]
-                point[a] = total
+                point[a] = _point_value(values, dofs, weights, i, a, col)
             for r in range(3):
                 out[3 * i + r, col] = (
                     frames[i, r, 0] * point[0]
