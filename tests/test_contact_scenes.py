@@ -38,3 +38,43 @@ def test_reference_trunk_touches_the_cube_over_the_bench_window() -> None:
     assert min(pressing) >= 1, pressing
     n_points = len(model.contacts.points)
     assert (state.contact_forces.keys[:, 0] >= n_points).sum() == 4  # the cube's corners
+
+
+def test_sofa_estimate_scales_the_same_algorithm_by_the_measured_ratio() -> None:
+    """The trunk+cube SOFA estimate is Pliant's rate on SOFA's algorithm times SOFA's measured
+    rate over Pliant's on the same algorithm for the cable-only Trunk; without those three
+    measurements there is no estimate."""
+    from pliant.bench import SOFA_STEPS_PER_S, Measurement, sofa_estimate
+
+    runs = [
+        Measurement("trunk+cables", 1972, "fresh", 388.0, [388.0], 1.0),
+        Measurement("trunk+cables+cube", 1972, "sofa-algorithm", 40.0, [40.0], 1.0),
+        Measurement("trunk+cables+cube", 1972, "lagged", 200.0, [200.0], 1.0),
+    ]
+    estimate = sofa_estimate(runs)
+    sofa = SOFA_STEPS_PER_S["trunk+cables"]
+    assert estimate["sofa_estimate_steps_per_s"] == pytest.approx(40.0 * sofa / 388.0)
+    assert estimate["speedup_vs_estimate"] == pytest.approx(200.0 / (40.0 * sofa / 388.0))
+    assert sofa_estimate(runs[1:]) is None
+
+
+def test_sofa_algorithm_solves_the_step_of_the_default_solver() -> None:
+    """The bench's "sofa-algorithm" (every contact within the margin, every column, a
+    factorisation each step) solves the same steps as Pliant's fresh tangent with screening
+    and kept columns: its rate measures the algorithm, not another problem."""
+    from pliant.bench import POLICY_OPTIONS
+
+    model = robots.build("trunk_cube")
+    demo = robots.entry("trunk_cube").demo_actuation
+    sofa = ImplicitEuler(model, 0.01, **POLICY_OPTIONS["sofa-algorithm"])
+    ours = ImplicitEuler(model, 0.01, tangent="fresh")
+    state, touching = model.rest_state(), 0
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ContactMarginWarning)
+        for _ in range(40):
+            a, b = sofa.step(state, demo(state.time)), ours.step(state, demo(state.time))
+            assert np.abs(a.positions - b.positions).max() < 1e-6
+            assert ours.last_report.contact is None or sofa.last_report.contact.screened == 0
+            touching += int(np.any(b.contact_forces.forces != 0.0))
+            state = b
+    assert touching > 10

@@ -68,6 +68,12 @@ class StaticSolver:
                 f"{model.name} has rigid bodies: the static solver cannot balance them (a body on"
                 " contacts is singular without inertia); use ImplicitEuler"
             )
+        if np.all(model.body.free_index >= 0):
+            raise ModelError(
+                f"{model.name}'s body holds no node: its stiffness is singular (rigid motions"
+                " cost no energy), so it has no unique static equilibrium; give it fixed nodes"
+                " (or driven ones), or use ImplicitEuler"
+            )
         self.model = model
         self.tolerance = tolerance
         self.max_iterations = max_iterations
