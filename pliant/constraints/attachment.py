@@ -26,7 +26,9 @@ import scipy.linalg
 from pliant.constraints.base import Constraint, EmbeddedPoints, JacobianRows
 from pliant.constraints.condensed import CondensedProblem
 from pliant.errors import ModelError, SolverError
+from pliant.fem import rod_kernels
 from pliant.fem.rigid import RigidBody
+from pliant.fem.rotation import log_map
 
 
 class Attachment(Constraint):
@@ -103,6 +105,92 @@ class Attachment(Constraint):
         cross[:, 2, 0], cross[:, 2, 1] = -arms[:, 1], arms[:, 0]
         g[:, :, 6 * index + 3 : 6 * index + 6] = cross
         return g.reshape(-1, 6 * n_bodies)
+
+
+class Weld(Attachment):
+    """Nodes of a rod built into a dynamic rigid body: each keeps its place *and* its
+    orientation in the body's frame (a leg clamped into a hub; position rows alone leave the
+    rod free to turn about the nodes, a pin).
+
+    Six rows per node: the three of :class:`Attachment`, then three on its orientation,
+
+        delta_R = log(R_i (R Q_i)^T) = 0   (world axes),
+
+    with R_i the node's material frame, R the body's rotation and Q_i = R^T R_i taken at the
+    model's build. An increment of a rod's orientation is a spatial spin, so the rows read it
+    with the identity and the body's angular velocity with minus the identity: G = [0, -I].
+    (The exact derivative of log differs from the identity by O(|delta_R|), and the rows hold
+    delta_R at zero: the same first-order linearisation as every other row of the step.)
+
+    Args:
+        rod: the model's :class:`pliant.fem.rod.RodBody`.
+        nodes: centreline nodes welded to the body.
+        body: the rigid body (one of the model's `rigid_bodies`).
+    """
+
+    def __init__(self, rod, nodes, body: RigidBody, *, name: str = "weld") -> None:
+        from pliant.fem.rod import RodBody
+
+        if not isinstance(rod, RodBody):
+            raise ModelError(
+                f"{name}: a weld holds a rod's nodes and frames; got {type(rod).__name__} (a"
+                " tetrahedral body's points fix its orientation: use Attachment)"
+            )
+        nodes = np.asarray(nodes, dtype=np.int64).reshape(-1)
+        n = rod.n_centreline
+        if nodes.size and (nodes.min() < 0 or nodes.max() >= n):
+            raise ModelError(f"{name}: rod nodes must lie in [0, {n}), got {nodes.tolist()}")
+        if np.unique(nodes).size != nodes.size:
+            raise ModelError(f"{name}: node listed twice in {nodes.tolist()}")
+        super().__init__(EmbeddedPoints.at_nodes(nodes), body, name=name)
+        self.rod = rod
+        self.nodes = nodes
+        self.frames: np.ndarray | None = None  # (k, 3, 3) Q_i, set by bind
+
+    def bind(self, rest_positions: np.ndarray) -> None:
+        super().bind(rest_positions)
+        self.frames = np.einsum(
+            "ji,kjl->kil", self.body.rotation, self._node_frames(rest_positions)
+        )
+
+    def _node_frames(self, x: np.ndarray) -> np.ndarray:
+        return rod_kernels.node_rotations(
+            np.ascontiguousarray(x[self.rod.n_centreline + self.nodes])
+        )
+
+    @property
+    def n_rows(self) -> int:
+        return 6 * len(self.points)
+
+    def orientation_error(self, x: np.ndarray) -> np.ndarray:
+        """(k, 3) log(R_i (R Q_i)^T): each node's frame against the one the body holds."""
+        if self.frames is None:
+            raise ModelError(f"{self.name}: not part of a model yet (Model binds the frames)")
+        held = np.einsum("ij,kjl->kil", self.rotation, self.frames)
+        turned = np.einsum("kij,klj->kil", self._node_frames(x), held)
+        return np.array([log_map(r) for r in turned])
+
+    def distance(self, x: np.ndarray) -> np.ndarray:
+        return np.concatenate([super().distance(x), self.orientation_error(x).reshape(-1)])
+
+    def jacobian(self, x: np.ndarray) -> JacobianRows:
+        placed = super().jacobian(x)
+        k, m = self.nodes.size, placed.nodes.shape[1]
+        # Orientation rows: the node's spin, in the first of the rows' m slots.
+        spins = np.zeros((k, 3, m, 3))
+        for axis in range(3):
+            spins[:, axis, 0, axis] = 1.0
+        turned = np.repeat(self.rod.n_centreline + self.nodes, 3)
+        return JacobianRows(
+            np.vstack([placed.nodes, np.repeat(turned[:, None], m, axis=1)]),
+            np.concatenate([placed.values, spins.reshape(3 * k, m, 3)]),
+        )
+
+    def twist_rows(self, index: int, n_bodies: int) -> np.ndarray:
+        """The attachment's rows [-I, [a]x], then [0, -I] for each node's orientation."""
+        turned = np.zeros((self.nodes.size, 3, 6 * n_bodies))
+        turned[:, :, 6 * index + 3 : 6 * index + 6] = -np.eye(3)
+        return np.vstack([super().twist_rows(index, n_bodies), turned.reshape(-1, 6 * n_bodies)])
 
 
 @dataclass(frozen=True)
