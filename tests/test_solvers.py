@@ -302,3 +302,30 @@ def test_cable_rows_read_from_their_points_give_the_problem_of_solving_every_col
         assert np.abs(pa.free_distance - pb.free_distance).max() < 1e-10
     assert np.abs(a.positions - b.positions).max() < 1e-9
     assert kept.system.factorisations > 2  # the kept columns were renewed
+
+
+def test_background_factorisation_gives_the_same_steps_and_raises_its_errors() -> None:
+    """A refactorisation on the worker thread (small bodies) changes nothing but when it
+    runs: the steps are bitwise those of factorising in line; a factorisation that fails
+    there raises at the first solve, and the system factorises again afterwards."""
+    from pliant.solvers.system import LinearisedSystem
+
+    model = robots.build("trunk_cube")
+    demo = robots.entry("trunk_cube").demo_actuation
+    inline, background = ImplicitEuler(model, 0.01), ImplicitEuler(model, 0.01)
+    assert background._background
+    inline._background = False
+    a = b = model.rest_state()
+    for _ in range(30):
+        a, b = inline.step(a, demo(a.time)), background.step(b, demo(b.time))
+        assert np.array_equal(a.positions, b.positions)
+    assert background.system.factorisations == inline.system.factorisations > 1
+
+    body = _soft_beam().body
+    lin = body.linearise(body.rest_positions)
+    system = LinearisedSystem(body, policy="fresh")
+    system.prepare(lin, 1.0, -1e3, background=True)  # M - 1000 K: indefinite
+    with pytest.raises(SolverError, match="not positive definite"):
+        system.solve(np.ones(body.n_free))
+    system.prepare(lin, 1.0, 0.1, background=True)
+    assert np.all(np.isfinite(system.solve(np.ones(body.n_free))))

@@ -65,7 +65,11 @@ def _finish(
             try:
                 locate_points(mesh, value, tolerance=tolerance)
             except ModelError as exc:
-                raise MeshError(f"landmark {name!r} is not inside the material: {exc}") from exc
+                raise MeshError(
+                    f"landmark {name!r} is not inside the material: {exc}. A mesh too coarse for"
+                    " the geometry cuts its curved surfaces inside it (facets sag by about"
+                    " size^2 / 8 r on a radius r): lower mesh_size"
+                ) from exc
     return mesh
 
 

@@ -53,6 +53,7 @@ from pliant.constraints.control import as_control, constraint_forces
 from pliant.constraints.effector import RigidEffector
 from pliant.constraints.friction import ContactForces, ContactReport, ContactSolution
 from pliant.errors import DivergenceError, ModelError, SolverError
+from pliant.fem.body import PARALLEL_MIN_TETS
 from pliant.fem.rigid import RigidStep, integrate_poses
 from pliant.model import ConstraintSpace, Model, State
 from pliant.solvers.base import StepReport, check_linearisation, check_motion
@@ -121,6 +122,9 @@ class ImplicitEuler:
         margin = model.contacts.margin if model.contacts is not None else 0.0
         self.screen_gap = 0.1 * margin if screen_gap is None else float(screen_gap)
         body = model.body
+        # Bodies whose kernels run on one thread leave the other core to a factorisation.
+        elements = body.tets if hasattr(body, "tets") else body.elements
+        self._background = elements.shape[0] < PARALLEL_MIN_TETS
         self._size = body.extent
         self._gravity = body.gravity_forces()
         self.last_report = StepReport()
@@ -146,6 +150,10 @@ class ImplicitEuler:
         lin = body.linearise(state.positions, velocities)
         check_linearisation(lin, step, h)
         a_m, a_k = self._coefficients()
+        try:  # on a small body, a refactorisation runs on while the step detects its contacts
+            self.system.prepare(lin, a_m, a_k, background=self._background)
+        except SolverError as exc:
+            raise DivergenceError(f"step {step}: {exc}", step=step, cause="solver") from exc
         rigid = self._rigid_step(state)
         contact = model.contacts.constraint(state.positions, h, rigid) if model.contacts else None
         v = body.gather(state.velocities)
@@ -157,7 +165,6 @@ class ImplicitEuler:
         self._place_objects(rigid)
         solved = None  # (lambda, contact report, contact forces) when screening solved them
         try:
-            self.system.prepare(lin, a_m, a_k)
             point_rows = (
                 self._point_rows(roles) if contact is None and not model.attachments else None
             )

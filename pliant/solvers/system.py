@@ -15,10 +15,16 @@ Three policies:
   8e-3 mm during the transient and 5e-5 mm at the end (measured; see the tests and bench).
 
 The static solver uses "fresh" by default: its Newton iterations then converge quadratically.
+
+A factorisation may run in the background (``prepare(..., background=True)``): CHOLMOD
+releases the GIL, so on a small body (one compiled thread) the step detects its contacts and
+builds its constraint rows on the other core meanwhile; the first solve waits for it.
 """
 
 from __future__ import annotations
 
+from concurrent.futures import Future, ThreadPoolExecutor
+from functools import cache
 from typing import Literal
 
 import numpy as np
@@ -31,6 +37,12 @@ from pliant.fem.sparsity import StiffnessPattern
 from pliant.solvers.linear import SparseCholesky, block_pcg, sparse_cholesky
 
 TangentPolicy = Literal["fresh", "pcg", "lagged"]
+
+
+@cache
+def _worker() -> ThreadPoolExecutor:
+    """The one thread that background factorisations run on."""
+    return ThreadPoolExecutor(max_workers=1, thread_name_prefix="pliant-factorise")
 
 
 class LinearisedSystem:
@@ -75,9 +87,11 @@ class LinearisedSystem:
         self.last_fallback = False
         self._extra_pattern = extra_pattern
         self._merged = None if extra_pattern is None else _merge(body.pattern, *extra_pattern)
+        self._pending: Future | None = None  # a background factorisation
 
     def invalidate(self) -> None:
         """Forget the factorisation (after a state restore, to stay reproducible)."""
+        self._wait()
         self._factor_valid = False
 
     def prepare(
@@ -86,9 +100,12 @@ class LinearisedSystem:
         mass_coef: float,
         stiffness_coef: float,
         extra: np.ndarray | None = None,
+        *,
+        background: bool = False,
     ) -> None:
         """Set the linearisation of the next solves: A = mass_coef M + stiffness_coef K_s
-        (+ the `extra` entries on the extra pattern, scaled by stiffness_coef)."""
+        (+ the `extra` entries on the extra pattern, scaled by stiffness_coef). With
+        `background`, a refactorisation runs on another thread until the first solve."""
         if (extra is None) != (self._merged is None):
             raise SolverError("extra entries need the extra pattern given to the system, and back")
         self.extra = extra
@@ -106,9 +123,10 @@ class LinearisedSystem:
             drift = np.max(np.abs(lin.frames - self._factor_frames))
             needs = drift > self.lag_tolerance
         if needs:
-            self.refactorise()
+            self.refactorise(background=background)
 
-    def refactorise(self) -> None:
+    def refactorise(self, *, background: bool = False) -> None:
+        self._wait()
         self._factor_valid = False
         self.last_fallback = False
         if self.exact_tangent:
@@ -117,7 +135,11 @@ class LinearisedSystem:
             except SolverError:
                 self.last_fallback = True
         if not self.exact_tangent or self.last_fallback:
-            self._factorise(self._assemble(exact=False))
+            data = self._assemble(exact=False)
+            if background and not self.last_fallback:
+                self._pending = _worker().submit(self._factorise, data)
+            else:
+                self._factorise(data)
         self._factor_valid = True
         self._factor_frames = self.lin.frames.copy()
         self._factor_coefs = (self.mass_coef, self.stiffness_coef)
@@ -139,6 +161,16 @@ class LinearisedSystem:
             extra_slots, weights=self.extra, minlength=indices.size
         )
         return merged
+
+    def _wait(self) -> None:
+        """Finish a background factorisation, raising its error here."""
+        pending, self._pending = self._pending, None
+        if pending is not None:
+            try:
+                pending.result()
+            except BaseException:
+                self._factor_valid = False
+                raise
 
     def _factorise(self, data: np.ndarray) -> None:
         if self._cholesky is None:
@@ -164,6 +196,7 @@ class LinearisedSystem:
 
     def solve(self, rhs: np.ndarray) -> np.ndarray:
         """A^-1 rhs for rhs (n_free,) or (n_free, k)."""
+        self._wait()
         if self._fresh or self.policy == "lagged":
             self.last_iterations = 0
             return self._cholesky.solve(rhs)
