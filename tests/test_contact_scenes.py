@@ -42,8 +42,9 @@ def test_reference_trunk_touches_the_cube_over_the_bench_window() -> None:
 
 def test_sofa_estimate_scales_the_same_algorithm_by_the_measured_ratio() -> None:
     """The trunk+cube SOFA estimate is Pliant's rate on SOFA's algorithm times SOFA's measured
-    rate over Pliant's on the same algorithm for the cable-only Trunk; without those three
-    measurements there is no estimate."""
+    rate over Pliant's on the same algorithm for the cable-only Trunk; the bound adds to SOFA's
+    cable-only step the time the contacts add to Pliant's; without those three measurements
+    there is neither."""
     from pliant.bench import SOFA_STEPS_PER_S, Measurement, sofa_estimate
 
     runs = [
@@ -55,6 +56,9 @@ def test_sofa_estimate_scales_the_same_algorithm_by_the_measured_ratio() -> None
     sofa = SOFA_STEPS_PER_S["trunk+cables"]
     assert estimate["sofa_estimate_steps_per_s"] == pytest.approx(40.0 * sofa / 388.0)
     assert estimate["speedup_vs_estimate"] == pytest.approx(200.0 / (40.0 * sofa / 388.0))
+    bound = 1.0 / (1.0 / sofa + 1.0 / 40.0 - 1.0 / 388.0)  # SOFA's step + what contacts add
+    assert estimate["sofa_bound_steps_per_s"] == pytest.approx(bound)
+    assert estimate["sofa_estimate_steps_per_s"] < bound
     assert sofa_estimate(runs[1:]) is None
 
 
