@@ -181,6 +181,8 @@ class Model:
             a.bind(body.rest_positions)
         if contacts is not None:
             contacts.attach(body, self.rigid_bodies)
+            if self.attachments:
+                contacts.exclude_carried(self.attachments)
         for c in self.actuators:
             if c.role != "actuator":
                 raise ModelError(f"{c.name} is a {c.role}, not an actuator")

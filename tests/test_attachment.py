@@ -270,3 +270,24 @@ def test_bad_welds_raise():
     tets = TetBody(mesh, Corotational(E, 0.3), total_mass=1e-6)
     with pytest.raises(ModelError, match="use Attachment"):
         Weld(tets, [0], hub)
+
+
+def test_a_welded_rod_on_a_hub_resting_on_the_floor_carries_its_weight():
+    """The welded node sits on the hub's face: it does not collide with the hub it is held by
+    (that row would be the weld's own, with no compliance: W singular). The rod droops onto the
+    floor; at rest the floor carries the hub and the rod (to 1e-9), the weld holds to 1e-12."""
+    rod = straight_rod(8, clamped=[], rayleigh_mass=10.0, gravity=(0, 0, -G), density=1e-7)
+    hub = RigidBody(Box([25.0, 25.0, 25.0], position=[-25.0, 0.0, 0.0]), 0.05, name="hub")
+    contacts = Contacts([Plane(point=(0, 0, -25.0))], friction=0.5, margin=1.0, thickness=1.0)
+    weld = Weld(rod, [0], hub)
+    model = Model(rod, rigid_bodies=[hub], attachments=[weld], contacts=contacts)
+    assert np.argwhere(contacts._carried).tolist() == [[0, 0]]
+    solver, state = ImplicitEuler(model, 0.01), model.rest_state()
+    for _ in range(300):
+        state = solver.step(state)
+    weight = (hub.mass + rod.total_mass) * G
+    forces = state.contact_forces
+    assert abs(forces.forces[:, 2].sum() - weight) < 1e-9 * weight
+    assert 8 in forces.keys[:, 0]  # the tip rests on the floor
+    weld.set_pose(state.rigid_positions[0], state.rigid_rotations[0])
+    assert np.abs(weld.distance(state.positions)).max() < 1e-12

@@ -90,6 +90,7 @@ class Contacts:
         self.max_iterations = int(max_iterations)
         self.thickness = float(thickness)
         self.bodies: list[RigidBody] = []
+        self._carried: np.ndarray | None = None  # (points, bodies): point held by the body
 
     def attach(self, body, rigid_bodies: Sequence[RigidBody] = ()) -> None:
         """Resolve the defaults against the body and take the model's rigid bodies (called
@@ -103,6 +104,24 @@ class Contacts:
         if self.margin is None:
             self.margin = 0.02 * body.extent
         self.check_overlap(body.rest_positions)
+
+    def exclude_carried(self, attachments: Sequence) -> None:
+        """Points held on a rigid body by an attachment do not collide with that body: each
+        colliding point whose nodes are all attached to it (a rod's welded end, the nodes of
+        a face holding a payload) sits on its surface and moves with it, so a contact row
+        there would be the attachment's rows again, with no compliance of its own."""
+        index = {id(b): i for i, b in enumerate(self.bodies)}
+        carried = np.zeros((len(self.points), len(self.bodies)), dtype=bool)
+        own = [set(nodes[weights > 0].tolist()) for nodes, weights in self._point_nodes()]
+        for attachment in attachments:
+            held = set(attachment.points.nodes[attachment.points.weights > 0].tolist())
+            column = index[id(attachment.body)]
+            for j, nodes in enumerate(own):
+                carried[j, column] |= bool(nodes) and nodes <= held
+        self._carried = carried if carried.any() else None
+
+    def _point_nodes(self):
+        return zip(self.points.nodes, self.points.weights, strict=True)
 
     def check_overlap(self, positions: np.ndarray) -> None:
         """ContactError if a colliding point starts inside a shape deeper than the margin."""
@@ -176,6 +195,11 @@ class Contacts:
         # Read every step: the obstacles' and bodies' coefficients may be changed between steps.
         mu = np.concatenate([self.friction, [b.friction for b in self.bodies]])
         deformable = detect(points, self._colliders, margins, radius=self.thickness)
+        if self._carried is not None and len(deformable):
+            body = np.maximum(deformable.index_b - len(shapes), 0)
+            carried = (deformable.index_b >= len(shapes)) & self._carried[deformable.index_a, body]
+            if carried.any():
+                deformable = deformable.take(~carried)
         on_body = deformable.index_b >= len(shapes)
         motion = dt * shape_velocities(deformable, self._colliders)
         motion[on_body] = 0.0  # a rigid body's motion enters through G u
