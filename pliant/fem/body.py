@@ -348,16 +348,9 @@ class TetBody:
                 kv += assembly.nodal(np.einsum("trc,tc->tr", tangent, local))
         return Linearisation(x, forces, float(energy), frames, dets, kv, tuple(tangents))
 
-    @_sized_threads
-    def stiffness_matvec(
-        self, lin: Linearisation, u: np.ndarray, *, exact: bool = False
-    ) -> np.ndarray:
-        """K_s u on the free DoFs (K_s = -df/dx); u is (n_free,) or (n_free, k)."""
-        cols = np.ascontiguousarray(u[:, None] if u.ndim == 1 else u, dtype=np.float64)
-        elem_out = np.empty((self.tets.shape[0], 4, 3, cols.shape[1]))
-        kernels.stiffness_matvec(
-            cols,
-            self._elem_dofs,
+    def _tangent_args(self, lin: Linearisation, exact: bool) -> tuple:
+        """The arguments the tangent kernels share: configuration, elements, material, frames."""
+        return (
             lin.positions,
             self.tets,
             self.grads,
@@ -368,8 +361,16 @@ class TetBody:
             lin.frames,
             lin.dets,
             exact,
-            elem_out,
         )
+
+    @_sized_threads
+    def stiffness_matvec(
+        self, lin: Linearisation, u: np.ndarray, *, exact: bool = False
+    ) -> np.ndarray:
+        """K_s u on the free DoFs (K_s = -df/dx); u is (n_free,) or (n_free, k)."""
+        cols = np.ascontiguousarray(u[:, None] if u.ndim == 1 else u, dtype=np.float64)
+        elem_out = np.empty((self.tets.shape[0], 4, 3, cols.shape[1]))
+        kernels.stiffness_matvec(cols, self._elem_dofs, *self._tangent_args(lin, exact), elem_out)
         out = np.empty_like(cols)
         kernels.gather_free(elem_out, self._incidence_ptr, self._incidence, self.free_index, out)
         for assembly, tangent in zip(self.membranes, lin.membrane_tangents, strict=True):
@@ -400,19 +401,7 @@ class TetBody:
                 data,
             )
         else:
-            kernels.element_stiffness(
-                lin.positions,
-                self.tets,
-                self.grads,
-                self.volumes,
-                self.mu,
-                self.lam,
-                self.material.kernel_tag,
-                lin.frames,
-                lin.dets,
-                exact,
-                self._element_blocks,
-            )
+            kernels.element_stiffness(*self._tangent_args(lin, exact), self._element_blocks)
             kernels.scatter_add(self._element_blocks, 1.0, self.pattern.scatter, data)
         for assembly, tangent in zip(self.membranes, lin.membrane_tangents, strict=True):
             assembly.add_to_data(tangent, data)
