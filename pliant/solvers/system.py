@@ -23,6 +23,7 @@ builds its constraint rows on the other core meanwhile; the first solve waits fo
 
 from __future__ import annotations
 
+import os
 from concurrent.futures import Future, ThreadPoolExecutor
 from functools import cache
 from typing import Literal
@@ -43,6 +44,12 @@ TangentPolicy = Literal["fresh", "pcg", "lagged"]
 def _worker() -> ThreadPoolExecutor:
     """The one thread that background factorisations run on."""
     return ThreadPoolExecutor(max_workers=1, thread_name_prefix="pliant-factorise")
+
+
+# A forked child inherits the executor but not its thread: it starts its own. (A child forked
+# after numba's OpenMP kernels ran is stopped by GNU OpenMP itself: use "spawn" or
+# "forkserver" for worker processes, as pliant.condensed.collect does.)
+os.register_at_fork(after_in_child=_worker.cache_clear)
 
 
 class LinearisedSystem:
