@@ -112,16 +112,17 @@ class Contacts:
         there would be the attachment's rows again, with no compliance of its own."""
         index = {id(b): i for i, b in enumerate(self.bodies)}
         carried = np.zeros((len(self.points), len(self.bodies)), dtype=bool)
-        own = [set(nodes[weights > 0].tolist()) for nodes, weights in self._point_nodes()]
+        points = self.points
+        own = [
+            set(nodes[weights > 0].tolist())
+            for nodes, weights in zip(points.nodes, points.weights, strict=True)
+        ]
         for attachment in attachments:
             held = set(attachment.points.nodes[attachment.points.weights > 0].tolist())
             column = index[id(attachment.body)]
             for j, nodes in enumerate(own):
                 carried[j, column] |= bool(nodes) and nodes <= held
         self._carried = carried if carried.any() else None
-
-    def _point_nodes(self):
-        return zip(self.points.nodes, self.points.weights, strict=True)
 
     def check_overlap(self, positions: np.ndarray) -> None:
         """ContactError if a colliding point starts inside a shape deeper than the margin."""
