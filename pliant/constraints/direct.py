@@ -31,6 +31,11 @@ def box_qp(
         x = np.clip(np.asarray(guess, dtype=float), lower, upper)
         at_bound = ((x == lower) & np.isfinite(lower)) | ((x == upper) & np.isfinite(upper))
         free = ~at_bound
+        if not at_bound.any():  # no bound held: the unconstrained minimiser, if it is feasible
+            x = np.linalg.solve(hess, -grad)
+            if np.all((x >= lower) & (x <= upper)):
+                return x
+            x = np.clip(np.asarray(guess, dtype=float), lower, upper)
         if free.any():
             x[free] = np.linalg.solve(
                 hess[np.ix_(free, free)], -(grad[free] + hess[np.ix_(free, at_bound)] @ x[at_bound])
