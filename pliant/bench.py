@@ -196,12 +196,6 @@ class Timing:
     contact_rounds_per_step: float = 0.0
 
 
-def _elements(model: Model) -> int:
-    """Elements of the model's body (tetrahedra, or a rod's elements)."""
-    body = model.body
-    return int(body.tets.shape[0] if hasattr(body, "tets") else body.elements.shape[0])
-
-
 def _contact_counts(model: Model, state) -> tuple[int, int]:
     """Contacts of the step that gave `state`, all and the body's points on rigid bodies."""
     contacts, keys = model.contacts, state.contact_forces.keys
@@ -303,7 +297,7 @@ def run_benchmarks(
                 )
             m = Measurement(
                 scene,
-                _elements(model),
+                model.body.n_elements,
                 policy,
                 statistics.median(timing.rates),
                 timing.rates,

@@ -200,6 +200,10 @@ class TetBody:
         return int(self.rest_positions.shape[0])
 
     @property
+    def n_elements(self) -> int:
+        return int(self.tets.shape[0])
+
+    @property
     def n_free(self) -> int:
         return int(self.free_dofs.size)
 

@@ -263,6 +263,10 @@ class RodBody:
         return 2 * self.n_centreline
 
     @property
+    def n_elements(self) -> int:
+        return int(self.elements.shape[0])
+
+    @property
     def n_free(self) -> int:
         return int(self.free_dofs.size)
 

@@ -123,8 +123,7 @@ class ImplicitEuler:
         self.screen_gap = 0.1 * margin if screen_gap is None else float(screen_gap)
         body = model.body
         # Bodies whose kernels run on one thread leave the other core to a factorisation.
-        elements = body.tets if hasattr(body, "tets") else body.elements
-        self._background = elements.shape[0] < PARALLEL_MIN_TETS
+        self._background = body.n_elements < PARALLEL_MIN_TETS
         self._size = body.extent
         self._gravity = body.gravity_forces()
         self.last_report = StepReport()
