@@ -1,0 +1,140 @@
+"""CartStemContact (thesis §3.1.2, §3.3.2, §4.2.2; SofaGym cartstemcontact-v0).
+
+A beam standing on a cart between two box obstacles; the cart, position-controlled with a
+bounded speed, must bring the beam's tip over a goal on x, which behind an obstacle means
+bending the beam over the other one first (the QPCC from rest stalls in a local minimum).
+
+Observation (thesis, Eq. 4.7's state): [x_cart, x_tip, x_left, x_right, l_x, l_z, x_goal]
+divided by the beam length (7 values; x_left/x_right the obstacles' centres, l_x, l_z their
+size); ``observation="sofagym"`` gives SofaGym's 8: [x_cart, x_tip, x_left, x_right, half
+sizes (3), x_goal]. Action: Box(1) in [-1, 1], the cart's target ``max_move * a``, reached at
+most at ``max_speed`` (mm/s); ``action_type="discrete"``: 3 actions (left, stay, right: the
+target moves by ``max_speed`` x step time). Reward: thesis -|x_tip - x_goal| / length;
+``reward="sofagym"``: max(-max_dist, -|x_tip - x_goal|) / max_dist. Terminated when
+|x_tip - x_goal| < ``goal_tolerance`` (thesis: 1 % of the beam's length). 30 steps of
+30 x 0.01 s. Goal drawn uniformly on [-goal_range, goal_range].
+"""
+
+from __future__ import annotations
+
+from typing import Literal
+
+import gymnasium as gym
+import numpy as np
+
+from pliant.envs.base import ActionType, SoftRobotEnv, scaled_box
+from pliant.model import Model
+from pliant.robots.cartstem import cartstem_contact
+
+
+class CartStemContactEnv(SoftRobotEnv):
+    name = "CartStemContact"
+    version = 1
+    view = (5.0, -90.0)
+
+    def __init__(
+        self,
+        *,
+        dt: float = 0.01,
+        substeps: int = 30,
+        action_type: ActionType = "continuous",
+        observation: Literal["thesis", "sofagym"] = "thesis",
+        reward: Literal["thesis", "sofagym"] = "thesis",
+        max_move: float = 40.0,
+        max_speed: float = 40.0,
+        goal_range: float = 35.0,
+        goal_tolerance: float = 1.0,
+        stem: Literal["tetrahedra", "rod"] = "tetrahedra",
+        length: float = 100.0,
+        render_mode: str | None = None,
+        tangent: str = "lagged",
+        **robot_kwargs,
+    ) -> None:
+        if observation not in ("thesis", "sofagym"):
+            raise ValueError(f"observation must be 'thesis' or 'sofagym', got {observation!r}")
+        if reward not in ("thesis", "sofagym"):
+            raise ValueError(f"reward must be 'thesis' or 'sofagym', got {reward!r}")
+        for key, value in (("max_move", max_move), ("max_speed", max_speed)):
+            if not (np.isfinite(value) and value > 0):
+                raise ValueError(f"{key} must be > 0, got {value!r}")
+        self.observation_variant = observation
+        self.reward_variant = reward
+        self.max_move = float(max_move)
+        self.max_speed = float(max_speed)
+        self.goal_range = float(goal_range)
+        self.goal_tolerance = float(goal_tolerance)
+        self.stem = stem
+        self.length = float(length)
+        self.robot_kwargs = robot_kwargs
+        super().__init__(
+            dt=dt,
+            substeps=substeps,
+            action_type=action_type,
+            render_mode=render_mode,
+            tangent=tangent,
+        )
+        if action_type == "discrete":
+            self.action_space = gym.spaces.Discrete(3)
+        else:
+            self.action_space = scaled_box(-1.0, 1.0, (1,))
+        self.observation_space = scaled_box(-5.0, 5.0, (7 if observation == "thesis" else 8,))
+        boxes = self.model.contacts.shapes
+        self.obstacles = np.array([b.position for b in boxes])
+        self.obstacle_size = 2.0 * np.asarray(boxes[0].half_extents, dtype=float)
+
+    def _build(self) -> Model:
+        self.cart = self.ramp("cart", 0.0)
+        return cartstem_contact(
+            stem=self.stem, length=self.length, cart_motion=self.cart.scalar, **self.robot_kwargs
+        )
+
+    def cart_x(self) -> float:
+        return self.cart.scalar(self.state.time)
+
+    def tip_x(self) -> float:
+        return float(self.model.effectors[0].position(self.state.positions)[0, 0])
+
+    def _reset_task(self, rng, options) -> None:
+        goal = (options or {}).get("goal")
+        if goal is None:
+            goal = rng.uniform(-self.goal_range, self.goal_range)
+        self.task["goal"] = float(goal)
+        self.task["target"] = 0.0
+
+    def _commands_from_action(self, action) -> None:
+        reach = self.max_speed * self.step_time
+        now = self.cart_x()
+        if self.action_type == "discrete":
+            target = self.task["target"] + (action - 1) * reach
+        else:
+            target = self.max_move * float(action[0])
+        target = float(np.clip(target, -self.max_move, self.max_move))
+        self.task["target"] = target
+        self.cart.retarget(
+            self.state.time, now + np.clip(target - now, -reach, reach), self.step_time
+        )
+
+    def _observe(self) -> np.ndarray:
+        xl, xr = self.obstacles[0, 0], self.obstacles[1, 0]
+        size = self.obstacle_size
+        if self.observation_variant == "thesis":
+            obs = [self.cart_x(), self.tip_x(), xl, xr, size[0], size[2], self.task["goal"]]
+        else:
+            obs = [self.cart_x(), self.tip_x(), xl, xr, *(0.5 * size), self.task["goal"]]
+        return np.asarray(obs) / self.length
+
+    def _reward(self):
+        error = abs(self.tip_x() - self.task["goal"])
+        if self.reward_variant == "thesis":
+            r = -error / self.length
+        else:
+            r = max(-self.max_move, -error) / self.max_move
+        return r, error < self.goal_tolerance, {"distance": r}
+
+    def _render_goal(self):
+        tip = self.model.effectors[0].position(self.state.positions)[0]
+        return np.array([self.task["goal"], tip[1], tip[2]])
+
+    def _info(self):
+        error = abs(self.tip_x() - self.task["goal"])
+        return {"distance": error, "is_success": error < self.goal_tolerance}
