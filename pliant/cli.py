@@ -185,13 +185,27 @@ def bench(
     ] = 100,
     quick: Annotated[bool, typer.Option(help="small scenes only (a smoke run)")] = False,
     out: Annotated[Path, typer.Option(help="JSON results file")] = Path("bench-results/bench.json"),
+    envs: Annotated[
+        str,
+        typer.Option(
+            help="environments' speed (env and simulation steps/s, real-time factor at dt 0.01,"
+            " 0.02, 0.03), written to envs.json beside the JSON: 'all', 'none', 'only' (skip"
+            " the scenes) or comma-separated names"
+        ),
+    ] = "all",
 ) -> None:
     """Median steps/s beside SOFA's measured figures; writes JSON and a log-log plot."""
     from pliant.bench import run_benchmarks
 
-    run_benchmarks(
-        meshes=meshes, repeats=repeats, steps=steps, quick=quick, out=out, console=console
-    )
+    if envs != "only":
+        run_benchmarks(
+            meshes=meshes, repeats=repeats, steps=steps, quick=quick, out=out, console=console
+        )
+    if envs != "none":
+        from pliant.envs.speed import report_envs
+
+        names = None if envs in ("all", "only") else [n.strip() for n in envs.split(",")]
+        report_envs(names, quick=quick, out=out.with_name("envs.json"), console=console)
 
 
 if __name__ == "__main__":
