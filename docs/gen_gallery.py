@@ -26,9 +26,9 @@ def summary(entry) -> str:
 def page(names: list[str]) -> str:
     rows = [
         "# Gallery\n",
-        "Every registered robot and scene after the first moments of its scripted demo. Each runs",
-        "with `pliant run NAME` (a GIF, a PNG and a ParaView series in `out/NAME/`). Regenerate the",
-        "pictures with `python docs/gen_gallery.py`.\n",
+        "Every registered robot and scene after the first moments of its scripted demo. Each",
+        "runs with `pliant run NAME` (a GIF, a PNG and a ParaView series in `out/NAME/`).",
+        "Regenerate the pictures with `python docs/gen_gallery.py`.\n",
     ]
     for name in names:
         entry = robots.ROBOTS[name]
@@ -52,7 +52,7 @@ def main(out: Path, quick: bool) -> None:
         state = model.rest_state()
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
-            for state in scripted(sim, state, entry.demo_actuation, steps):  # noqa: B007
+            for state in scripted(sim, model.rest_state(), entry.demo_actuation, steps):  # noqa: B007
                 pass
         camera = RobotCamera(model, view=entry.view, size=(480, 360))
         save_png(camera.frame(state, title=f"{name}  t = {state.time:.1f} s"), out / f"{name}.png")

@@ -22,5 +22,5 @@ for _ in range(3 if QUICK else 20):
 pliant.envs.set_state(env, snapshot)  # back to the start: the same actions replay exactly
 again = [env.step(np.array([-1.0], dtype=np.float32))[1] for _ in rewards]
 assert again == rewards
-print(f"{len(rewards)} steps, return {sum(rewards):.3f}, tip-goal distance {info['distance']:.1f} mm")
+print(f"{len(rewards)} steps, return {sum(rewards):.3f}, tip-goal {info['distance']:.1f} mm")
 save_gif(frames, out("cartstem_env.gif"), fps=4)

@@ -29,7 +29,10 @@ body = TetBody(
 )
 path = np.column_stack([np.linspace(10, 95, 9), np.full(9, 10.0), np.full(9, 17.0)])
 cable = CableActuator(
-    EmbeddedPoints(mesh, path), body.rest_positions, pull_point=[-5.0, 10.0, 17.0], max_displacement=15.0
+    EmbeddedPoints(mesh, path),
+    body.rest_positions,
+    pull_point=[-5.0, 10.0, 17.0],
+    max_displacement=15.0,
 )
 model = Model(body, actuators=[cable], name="beam")
 sim = ImplicitEuler(model, dt=0.01)
