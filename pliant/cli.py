@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import time
 from pathlib import Path
 from typing import Annotated
 
@@ -206,6 +207,40 @@ def bench(
 
         names = None if envs in ("all", "only") else [n.strip() for n in envs.split(",")]
         report_envs(names, quick=quick, out=out.with_name("envs.json"), console=console)
+
+
+@app.command()
+def view(
+    target: Annotated[
+        str,
+        typer.Argument(
+            help="a robot (live, sliders and a draggable goal), an environment id"
+            " (pliant/Name-v0: an episode) or a folder `pliant run` wrote (playback)"
+        ),
+    ],
+    port: Annotated[int, typer.Option(help="port (the next free one if taken)")] = 8080,
+    host: Annotated[str, typer.Option(help="interface to serve on")] = "127.0.0.1",
+    dt: Annotated[float, typer.Option(help="time step of a live robot")] = 0.01,
+    policy: Annotated[
+        Path | None, typer.Option(help="a Stable-Baselines3 model (.zip) to act in an environment")
+    ] = None,
+) -> None:
+    """Open ROBOT, ENV or RUN_DIR in the browser (viser): the simulation live, actuators on
+    sliders, a goal to drag for inverse control, play/pause/step/reset, playback of a run."""
+    from pliant.viz.viewer import open_viewer
+
+    try:
+        viewer = open_viewer(target, host=host, port=port, dt=dt, policy=policy)
+    except PliantError as exc:
+        console.print(f"[red]error:[/red] {exc}")
+        raise typer.Exit(2) from exc
+    console.print(f"Pliant viewer of {target}: {viewer.url}  (Ctrl-C to stop)")
+    viewer.start()
+    try:
+        while True:
+            time.sleep(1.0)
+    except KeyboardInterrupt:
+        viewer.stop()
 
 
 if __name__ == "__main__":
