@@ -373,6 +373,27 @@ def test_planning_needs_discrete_actions_and_snapshots() -> None:
         OPD().plan(gym.make("CartPole-v1"))
 
 
+@pytest.mark.parametrize(
+    "planner",
+    [OPD(budget=8, gamma=GAMMA), UCT(budget=8, gamma=GAMMA, horizon=2, seed=0)],
+    ids=["opd", "uct"],
+)
+def test_a_decision_on_the_diamond_leaves_its_state_and_predicts_the_real_step(planner) -> None:
+    """Pliant's Diamond (Discrete(8), Eq. 3.2 reward clipped to [0, 1]), its small variant:
+    one decision leaves the simulation where it was, and the reward the tree predicted for
+    the played action is the one the real step returns."""
+    envs = pytest.importorskip("pliant.envs")
+    env = gym.make("pliant/Diamond-v0", **envs.ENVS["Diamond"].quick)
+    env.reset(seed=0)
+    env.step(3)
+    start = env.unwrapped.get_state()
+    action = planner.plan(env)
+    _, reward, *_ = env.step(action)
+    assert planner.root.children[action].reward == reward
+    env.unwrapped.set_state(start)
+    assert env.unwrapped.step(action)[1] == reward
+
+
 # ------------------------------------------------------------------------------------ CLI
 
 runner = CliRunner()
