@@ -259,9 +259,11 @@ def test_opd_refuses_rewards_outside_the_unit_interval_and_restores_the_state() 
     env.reset(seed=0)
     env.step(1)
     before = env.get_state()
+    planner = OPD(budget=10, gamma=GAMMA)
     with pytest.raises(PlanningError, match=r"rewards in \[0, 1\].*1\.5"):
-        OPD(budget=10, gamma=GAMMA).plan(env)
+        planner.plan(env)
     assert env.get_state() == before
+    assert planner.root is None  # the half-expanded tree is dropped
 
 
 @pytest.mark.parametrize(

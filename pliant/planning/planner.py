@@ -73,6 +73,9 @@ class Planner(ABC):
         reused = sum(1 for _ in self.root.subtree()) - 1
         try:
             expansions = self._search(sim)
+        except BaseException:
+            self.root = None  # a search cut short can leave a node half expanded
+            raise
         finally:
             sim.restore(real)
         if not self.root.children:

@@ -59,7 +59,7 @@ class UCT(Planner):
         horizon: H, the depth (from the current root) below which nothing is simulated.
         exploration: c, the weight of UCB1's exploration term (1: UCB1 as Auer et al. state it).
         rollout: "random" plays uniformly random actions from a new node to the horizon;
-            "none" counts nothing beyond the tree (the search then grows deeper, not wider).
+            "none" counts nothing beyond the tree (a new node is worth its reward alone).
         recommend: "visits", the most visited root child (robust), or "mean", the best mean
             return.
         terminal_reward: the reward counted at every step after the episode ends, up to H.
