@@ -418,6 +418,20 @@ def test_plan_command_writes_actions_report_and_gif(tmp_path) -> None:
     assert frames.shape[0] == len(actions) + 1  # the reset and every real step
 
 
+def test_plan_command_passes_env_kwargs_and_runs_uct(tmp_path) -> None:
+    """With back_reward = 0.9, going back forever (0.9/(1-γ) = 9) beats the end of the chain
+    (γ^3/(1-γ) = 7.29): the plan turns round."""
+    result = runner.invoke(
+        app,
+        ["plan", "pliant.planning.toys:PliantChain-v0", "-k", "back_reward=0.9", "--algo", "uct"]
+        + ["--depth", "10", "--budget", "500", "--steps", "5", "--out", str(tmp_path)],
+    )
+    assert result.exit_code == 0, result.output
+    assert json.loads((tmp_path / "actions.json").read_text()) == [0] * 5
+    report = json.loads((tmp_path / "report.json").read_text())
+    assert report["algo"] == "uct" and report["depth"] == 10 and report["total_reward"] == 4.5
+
+
 @pytest.mark.parametrize(
     ("args", "match"),
     [

@@ -51,7 +51,9 @@ class UCT(Planner):
     """UCT over saved states.
 
     The budget counts simulated environment steps, rollouts included: the search runs
-    iterations until it has spent them (the last one may overrun by its rollout).
+    iterations until it has spent them (the last one may overrun by its rollout), and at most
+    ``budget`` iterations, since one that ends on an ended node or at the horizon simulates
+    nothing (a small tree searched to the horizon spends less).
 
     Args:
         budget: environment steps simulated per decision.
@@ -103,8 +105,6 @@ class UCT(Planner):
 
     def _search(self, sim: Simulator) -> int:
         expansions = 0
-        # Every iteration but those that end on a terminal node or at the horizon simulates a
-        # step, so `budget` iterations are enough; the cap stops a fully searched tree.
         for _ in range(self.budget):
             if sim.steps >= self.budget:
                 break
