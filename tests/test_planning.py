@@ -375,17 +375,24 @@ def test_planning_needs_discrete_actions_and_snapshots() -> None:
         OPD().plan(gym.make("CartPole-v1"))
 
 
+@pytest.fixture(scope="module")
+def diamond() -> gym.Env:
+    """Pliant's Diamond (Discrete(8), Eq. 3.2 reward clipped to [0, 1]), its small variant."""
+    envs = pytest.importorskip("pliant.envs")
+    return gym.make("pliant/Diamond-v0", **envs.ENVS["Diamond"].quick)
+
+
 @pytest.mark.parametrize(
     "planner",
     [OPD(budget=8, gamma=GAMMA), UCT(budget=8, gamma=GAMMA, horizon=2, seed=0)],
     ids=["opd", "uct"],
 )
-def test_a_decision_on_the_diamond_leaves_its_state_and_predicts_the_real_step(planner) -> None:
-    """Pliant's Diamond (Discrete(8), Eq. 3.2 reward clipped to [0, 1]), its small variant:
-    one decision leaves the simulation where it was, and the reward the tree predicted for
+def test_a_decision_on_the_diamond_leaves_its_state_and_predicts_the_real_step(
+    diamond, planner
+) -> None:
+    """One decision leaves the simulation where it was, and the reward the tree predicted for
     the played action is the one the real step returns."""
-    envs = pytest.importorskip("pliant.envs")
-    env = gym.make("pliant/Diamond-v0", **envs.ENVS["Diamond"].quick)
+    env = diamond
     env.reset(seed=0)
     env.step(3)
     start = env.unwrapped.get_state()
@@ -424,12 +431,15 @@ def test_plan_command_passes_env_kwargs_and_runs_uct(tmp_path) -> None:
     result = runner.invoke(
         app,
         ["plan", "pliant.planning.toys:PliantChain-v0", "-k", "back_reward=0.9", "--algo", "uct"]
-        + ["--depth", "10", "--budget", "500", "--steps", "5", "--out", str(tmp_path)],
+        + ["--depth", "10", "--budget", "500", "--steps", "5", "--no-reuse-tree"]
+        + ["--out", str(tmp_path)],
     )
     assert result.exit_code == 0, result.output
     assert json.loads((tmp_path / "actions.json").read_text()) == [0] * 5
     report = json.loads((tmp_path / "report.json").read_text())
     assert report["algo"] == "uct" and report["depth"] == 10 and report["total_reward"] == 4.5
+    assert not report["reuse_tree"]
+    assert all(d["reused_nodes"] == 0 for d in report["decisions"])
 
 
 @pytest.mark.parametrize(
@@ -453,6 +463,9 @@ def test_plan_command_rejects_bad_input_in_one_line(tmp_path, args, match) -> No
 # ----------------------------------------------------------------------------------- docs
 
 
-@pytest.mark.parametrize("code", re.findall(r"```python\n(.*?)```", DOCS.read_text(), re.S))
+EXAMPLES = re.findall(r"```python\n(.*?)```", DOCS.read_text(), re.S)
+
+
+@pytest.mark.parametrize("code", EXAMPLES, ids=[f"example{i}" for i in range(len(EXAMPLES))])
 def test_docs_examples_run(code) -> None:
     exec(compile(code, str(DOCS), "exec"), {})

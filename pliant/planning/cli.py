@@ -42,6 +42,10 @@ def plan(
     steps: Annotated[int, typer.Option(help="decisions played on the real environment")] = 50,
     out: Annotated[Path, typer.Option(help="output folder")] = Path("out/plan"),
     seed: Annotated[int, typer.Option(help="seed of the reset and of UCT's rollouts")] = 0,
+    reuse_tree: Annotated[
+        bool,
+        typer.Option(help="keep the played child's subtree (no: rebuild each step, Table 3.1)"),
+    ] = True,
     env_kwarg: Annotated[
         list[str] | None,
         typer.Option(
@@ -56,7 +60,7 @@ def plan(
     try:
         if steps < 1:
             raise PlanningError(f"--steps must be >= 1, got {steps}")
-        planner = _planner(algo, budget=budget, gamma=gamma, depth=depth, seed=seed)
+        planner = _planner(algo, budget, gamma, depth, seed, reuse_tree)
         env = _make(env_id, _kwargs(env_kwarg or []))
     except (PlanningError, typer.BadParameter) as exc:
         raise _usage_error(exc) from None
@@ -87,6 +91,7 @@ def plan(
         "gamma": gamma,
         "depth": depth,
         "seed": seed,
+        "reuse_tree": reuse_tree,
         "discounted_return": report.discounted_return(gamma),
         **report.to_dict(),
         "gif": gif.name if gif else None,
@@ -129,12 +134,14 @@ class _Frames:
             self.failure = "the environment draws no RGB frames"
 
 
-def _planner(algo: str, *, budget: int, gamma: float, depth: int | None, seed: int) -> Planner:
+def _planner(
+    algo: str, budget: int, gamma: float, depth: int | None, seed: int, reuse_tree: bool
+) -> Planner:
     if algo == "opd":
-        return OPD(budget=budget, gamma=gamma, max_depth=depth)
+        return OPD(budget=budget, gamma=gamma, max_depth=depth, reuse_tree=reuse_tree)
     if algo == "uct":
         horizon = {} if depth is None else {"horizon": depth}
-        return UCT(budget=budget, gamma=gamma, seed=seed, **horizon)
+        return UCT(budget=budget, gamma=gamma, seed=seed, reuse_tree=reuse_tree, **horizon)
     raise PlanningError(f"--algo must be 'opd' or 'uct', got {algo!r}")
 
 
