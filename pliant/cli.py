@@ -1,4 +1,4 @@
-"""The ``pliant`` command line: run, inverse, bench."""
+"""The ``pliant`` command line: run, inverse, bench, plan."""
 
 from __future__ import annotations
 
@@ -16,6 +16,7 @@ from rich.table import Table
 from pliant import robots
 from pliant.condensed.cli import app as condensed_app
 from pliant.errors import PliantError
+from pliant.planning.cli import plan
 from pliant.solvers import ImplicitEuler, StaticSolver
 
 app = typer.Typer(
@@ -25,6 +26,7 @@ app = typer.Typer(
 )
 console = Console()
 app.add_typer(condensed_app, name="condensed")
+app.command()(plan)
 
 
 def _solver(model, solver: str, dt: float):

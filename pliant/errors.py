@@ -92,3 +92,8 @@ class DatasetError(PliantError, ValueError):
 class LearnedModelError(PliantError, ValueError):
     """A learned condensed model cannot be used: unreadable file, or a robot whose constraint
     layout (actuators, effectors, contacts and their rows) differs from the one it learned."""
+
+
+class PlanningError(PliantError, ValueError):
+    """A planner cannot be used on this environment or with these settings: no discrete actions,
+    no get_state/set_state, a reward outside what the algorithm assumes, a budget too small."""
