@@ -61,15 +61,17 @@ def run_episode(
     *,
     max_steps: int,
     seed: int | None = None,
+    options: dict | None = None,
     on_step: Callable[[Any], None] | None = None,
 ) -> EpisodeReport:
-    """Reset ``env`` (with ``seed``) and play up to ``max_steps`` decisions of ``planner``.
+    """Reset ``env`` (with ``seed`` and ``options``, e.g. a goal) and play up to ``max_steps``
+    decisions of ``planner``.
 
     The planner's tree is cleared first and re-rooted on each played action.
     ``on_step(env)`` is called after the reset and after every real step (to render frames).
     """
     start = time.perf_counter()
-    env.reset(seed=seed)
+    env.reset(seed=seed, options=options)
     planner.reset()
     report = EpisodeReport()
     if on_step is not None:
