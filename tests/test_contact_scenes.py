@@ -40,28 +40,6 @@ def test_reference_trunk_touches_the_cube_over_the_bench_window() -> None:
     assert (state.contact_forces.keys[:, 0] >= n_points).sum() == 4  # the cube's corners
 
 
-def test_sofa_estimate_scales_the_same_algorithm_by_the_measured_ratio() -> None:
-    """The trunk+cube SOFA estimate is Pliant's rate on SOFA's algorithm times SOFA's measured
-    rate over Pliant's on the same algorithm for the cable-only Trunk; the bound adds to SOFA's
-    cable-only step the time the contacts add to Pliant's; without those three measurements
-    there is neither."""
-    from pliant.bench import SOFA_STEPS_PER_S, Measurement, sofa_estimate
-
-    runs = [
-        Measurement("trunk+cables", 1972, "fresh", 388.0, [388.0], 1.0),
-        Measurement("trunk+cables+cube", 1972, "sofa-algorithm", 40.0, [40.0], 1.0),
-        Measurement("trunk+cables+cube", 1972, "lagged", 200.0, [200.0], 1.0),
-    ]
-    estimate = sofa_estimate(runs)
-    sofa = SOFA_STEPS_PER_S["trunk+cables"]
-    assert estimate["sofa_estimate_steps_per_s"] == pytest.approx(40.0 * sofa / 388.0)
-    assert estimate["speedup_vs_estimate"] == pytest.approx(200.0 / (40.0 * sofa / 388.0))
-    bound = 1.0 / (1.0 / sofa + 1.0 / 40.0 - 1.0 / 388.0)  # SOFA's step + what contacts add
-    assert estimate["sofa_bound_steps_per_s"] == pytest.approx(bound)
-    assert estimate["sofa_estimate_steps_per_s"] < bound
-    assert sofa_estimate(runs[1:]) is None
-
-
 def test_sofa_algorithm_solves_the_step_of_the_default_solver() -> None:
     """The bench's "sofa-algorithm" (every contact within the margin, every column, a
     factorisation each step) solves the same steps as Pliant's fresh tangent with screening
