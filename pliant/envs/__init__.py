@@ -49,6 +49,9 @@ _register("Maze", "pliant.envs.maze:MazeEnv", 250, substeps=2, mesh_size=8.0)
 _register("Multigait", "pliant.envs.multigait:MultigaitEnv", 6, substeps=4, mesh_size=10.0)
 _register("TrunkCup", "pliant.envs.trunk_cup:TrunkCupEnv", 250, settle_steps=5)
 _register("TrunkPush", "pliant.envs.trunk_push:TrunkPushEnv", 10, substeps=5, settle_steps=5)
+_register(
+    "RodManipulator", "pliant.envs.rod_manipulator:RodManipulatorEnv", 30, mesh_size=8.0, substeps=4
+)
 _register("Gripper", "pliant.envs.gripper:GripperEnv", 250, substeps=2, mesh_size=12.0)
 
 
