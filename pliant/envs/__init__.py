@@ -52,6 +52,9 @@ _register("TrunkPush", "pliant.envs.trunk_push:TrunkPushEnv", 10, substeps=5, se
 _register(
     "RodManipulator", "pliant.envs.rod_manipulator:RodManipulatorEnv", 30, mesh_size=8.0, substeps=4
 )
+_register(
+    "CatchTheObject", "pliant.envs.catch_object:CatchTheObjectEnv", 30, mesh_size=8.0, substeps=4
+)
 _register("Gripper", "pliant.envs.gripper:GripperEnv", 250, substeps=2, mesh_size=12.0)
 
 
