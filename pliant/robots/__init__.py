@@ -64,6 +64,7 @@ ROBOTS: dict[str, RobotEntry] = {
     "cartstem_contact": RobotEntry(
         _cartstem.cartstem_contact, _cartstem.demo_actuation, {}, (5.0, -90.0)
     ),
+    "cartstem": RobotEntry(_cartstem.cartstem, _cartstem.demo_actuation, {}, (5.0, -90.0)),
     "cartstem_rod": RobotEntry(_cartstem.cartstem_rod, _cartstem.demo_actuation, {}, (5.0, -90.0)),
     "gripper": RobotEntry(_gripper.soft_gripper, _gripper.demo_actuation, {}, (15.0, -70.0)),
     "trunk_cube": RobotEntry(_trunk_cube.trunk_cube, _trunk_cube.demo_actuation, {}, (20.0, -60.0)),
