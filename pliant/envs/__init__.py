@@ -56,6 +56,7 @@ _register(
     "CatchTheObject", "pliant.envs.catch_object:CatchTheObjectEnv", 30, mesh_size=8.0, substeps=4
 )
 _register("CartStem", "pliant.envs.cartstem_free:CartStemEnv", 80, substeps=4)
+_register("StemPendulum", "pliant.envs.stem_pendulum:StemPendulumEnv", 50, substeps=4)
 _register("Gripper", "pliant.envs.gripper:GripperEnv", 250, substeps=2, mesh_size=12.0)
 
 

@@ -23,6 +23,7 @@ from pliant.robots import multigait as _multigait
 from pliant.robots import pneunet as _pneunet
 from pliant.robots import rod_manipulator as _rod_manipulator
 from pliant.robots import simple_maze as _simple_maze
+from pliant.robots import stem_pendulum as _stem_pendulum
 from pliant.robots import tripod as _tripod
 from pliant.robots import trunk as _trunk
 from pliant.robots import trunk_cube as _trunk_cube
@@ -65,6 +66,9 @@ ROBOTS: dict[str, RobotEntry] = {
         _cartstem.cartstem_contact, _cartstem.demo_actuation, {}, (5.0, -90.0)
     ),
     "cartstem": RobotEntry(_cartstem.cartstem, _cartstem.demo_actuation, {}, (5.0, -90.0)),
+    "stem_pendulum": RobotEntry(
+        _stem_pendulum.stem_pendulum, _stem_pendulum.demo_actuation, {}, (5.0, -90.0)
+    ),
     "cartstem_rod": RobotEntry(_cartstem.cartstem_rod, _cartstem.demo_actuation, {}, (5.0, -90.0)),
     "gripper": RobotEntry(_gripper.soft_gripper, _gripper.demo_actuation, {}, (15.0, -70.0)),
     "trunk_cube": RobotEntry(_trunk_cube.trunk_cube, _trunk_cube.demo_actuation, {}, (20.0, -60.0)),

@@ -1,0 +1,60 @@
+"""Physical checks of the scenes built for the environments: StemPendulum, BubbleMotion,
+TrunkSpaceDebris."""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from pliant.robots.stem_pendulum import small_swing_period, stem_pendulum
+from pliant.solvers import ImplicitEuler
+
+
+def _turned(model, angle: float):
+    """The stem's rest state turned by `angle` about the hinge (+y), at rest."""
+    state = model.rest_state()
+    n = model.body.n_centreline
+    turn = Rotation.from_rotvec([0.0, angle, 0.0])
+    state.positions[:n] = turn.apply(state.positions[:n])
+    state.positions[n:] = (turn * Rotation.from_rotvec(state.positions[n:])).as_rotvec()
+    return state
+
+
+def test_stem_pendulum_swings_with_the_compound_pendulum_period():
+    # T = 2 pi sqrt(2 L / 3 g) for a rigid uniform rod about one end (small swings, 3 deg: the
+    # amplitude adds theta^2 / 16 = 0.02 %). The lumped masses of 10 elements overestimate the
+    # inertia by 0.5 % (sum of i^2 h^3 + n^2 h^3 / 2 against n^3 h^3 / 3): about 0.25 % on T;
+    # implicit Euler's period error is O((omega dt)^2) = 1e-4 at dt = 1 ms.
+    model = stem_pendulum(rayleigh_stiffness=0.0)
+    sim = ImplicitEuler(model, dt=1e-3)
+    state = _turned(model, np.radians(3.0))
+    tip, times = [], []
+    for _ in range(1600):
+        state = sim.step(state, np.zeros(3))
+        tip.append(model.effectors[0].position(state.positions)[0, 0])
+        times.append(state.time)
+    tip, times = np.array(tip), np.array(times)
+    up = np.flatnonzero((tip[:-1] < 0) & (tip[1:] >= 0))
+    crossings = times[up] - tip[up] * (times[up + 1] - times[up]) / (tip[up + 1] - tip[up])
+    period = np.diff(crossings).mean()
+    assert len(crossings) >= 3
+    assert abs(period / small_swing_period(100.0) - 1.0) < 0.01
+    # The hinge keeps the swing in its plane.
+    assert np.abs(state.positions[: model.body.n_centreline, 1]).max() < 1e-6
+
+
+def test_stem_pendulum_holds_still_where_the_torque_balances_gravity():
+    # Static balance of the motor's torque tau and the weight's moment: m g (L / 2) sin(theta)
+    # = tau, so a torque of a fifth of m g L / 2 holds the stem at asin(0.2) from the vertical.
+    model = stem_pendulum(rayleigh_mass=5.0)
+    body = model.body
+    mass = 1.0e-6 * 25.0 * 100.0
+    tau = 0.2 * mass * 9810.0 * 50.0
+    sim = ImplicitEuler(model, dt=0.01)
+    state = model.rest_state()
+    for _ in range(400):
+        state = sim.step(state, np.array([tau, 0.0, 0.0]))
+    tip = model.effectors[0].position(state.positions)[0]
+    angle = np.arctan2(abs(tip[0]), -tip[2])
+    assert abs(angle - np.arcsin(0.2)) < 0.01
+    assert body.n_centreline == 11
