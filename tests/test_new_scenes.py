@@ -4,8 +4,10 @@ TrunkSpaceDebris."""
 from __future__ import annotations
 
 import numpy as np
+import pytest
 from scipy.spatial.transform import Rotation
 
+from pliant.robots.bubble_motion import bubble_motion, demo_actuation
 from pliant.robots.stem_pendulum import small_swing_period, stem_pendulum
 from pliant.solvers import ImplicitEuler
 
@@ -58,3 +60,40 @@ def test_stem_pendulum_holds_still_where_the_torque_balances_gravity():
     angle = np.arctan2(abs(tip[0]), -tip[2])
     assert abs(angle - np.arcsin(0.2)) < 0.01
     assert body.n_centreline == 11
+
+
+def _top_heights(model, state) -> np.ndarray:
+    """Height of the top face over each cavity's centre (nearest top node)."""
+    rest = model.body.rest_positions
+    heights = []
+    for k in range(9):
+        centre = model.body.mesh.landmarks[f"top_{k}"][0]
+        node = int(np.argmin(np.linalg.norm(rest - centre, axis=1)))
+        heights.append(state.positions[node, 2] - rest[node, 2])
+    return np.array(heights)
+
+
+def test_bubble_board_inflating_one_cavity_raises_the_top_over_it_only():
+    model = bubble_motion(mesh_size=8.0, top_mesh_size=4.0, ball_position=(20.0, 20.0))
+    sim = ImplicitEuler(model, dt=0.01)
+    state = model.rest_state()
+    pressures = np.zeros(9)
+    pressures[1] = 30.0  # the middle cavity of the -y row
+    for _ in range(60):
+        state = sim.step(state, pressures)
+    rise = _top_heights(model, state)
+    assert rise[1] > 1.0  # a bubble of millimetres (4 mm at the default mesh)
+    others = np.delete(rise, 1)
+    assert np.abs(others).max() < 0.25 * rise[1]
+    # The inflated cavity's volume grows; its pressure is the one imposed.
+    assert state.displacement[1] > 0 and state.actuation[1] == pytest.approx(30.0)
+
+
+def test_bubble_board_ball_rolls_off_a_bubble():
+    # A ball on the flank of the centre bubble rolls away from it, down the slope.
+    model = bubble_motion(ball_position=(10.0, 0.0))
+    sim = ImplicitEuler(model, dt=0.01)
+    state = model.rest_state()
+    for _ in range(80):
+        state = sim.step(state, demo_actuation(state.time))
+    assert state.rigid_positions[0, 0] > 13.0

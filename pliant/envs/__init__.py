@@ -57,6 +57,14 @@ _register(
 )
 _register("CartStem", "pliant.envs.cartstem_free:CartStemEnv", 80, substeps=4)
 _register("StemPendulum", "pliant.envs.stem_pendulum:StemPendulumEnv", 50, substeps=4)
+_register(
+    "BubbleMotion",
+    "pliant.envs.bubble_motion:BubbleMotionEnv",
+    20,
+    substeps=3,
+    mesh_size=10.0,
+    top_mesh_size=6.0,
+)
 _register("Gripper", "pliant.envs.gripper:GripperEnv", 250, substeps=2, mesh_size=12.0)
 
 

@@ -14,6 +14,7 @@ import numpy as np
 
 from pliant.errors import UnknownRobotError
 from pliant.model import Model
+from pliant.robots import bubble_motion as _bubble_motion
 from pliant.robots import cartstem as _cartstem
 from pliant.robots import catch_object as _catch_object
 from pliant.robots import diamond as _diamond
@@ -66,6 +67,9 @@ ROBOTS: dict[str, RobotEntry] = {
         _cartstem.cartstem_contact, _cartstem.demo_actuation, {}, (5.0, -90.0)
     ),
     "cartstem": RobotEntry(_cartstem.cartstem, _cartstem.demo_actuation, {}, (5.0, -90.0)),
+    "bubble_motion": RobotEntry(
+        _bubble_motion.bubble_motion, _bubble_motion.demo_actuation, {}, (35.0, -60.0)
+    ),
     "stem_pendulum": RobotEntry(
         _stem_pendulum.stem_pendulum, _stem_pendulum.demo_actuation, {}, (5.0, -90.0)
     ),
