@@ -9,6 +9,8 @@ from scipy.spatial.transform import Rotation
 
 from pliant.robots.bubble_motion import bubble_motion, demo_actuation
 from pliant.robots.stem_pendulum import small_swing_period, stem_pendulum
+from pliant.robots.trunk_debris import demo_actuation as trunk_debris_demo
+from pliant.robots.trunk_debris import trunk_space_debris
 from pliant.solvers import ImplicitEuler
 
 
@@ -97,3 +99,20 @@ def test_bubble_board_ball_rolls_off_a_bubble():
     for _ in range(80):
         state = sim.step(state, demo_actuation(state.time))
     assert state.rigid_positions[0, 0] > 13.0
+
+
+def test_space_debris_floats_without_gravity_and_a_push_sets_the_cube_drifting():
+    model = trunk_space_debris()
+    sim = ImplicitEuler(model, dt=0.01)
+    state = model.rest_state()
+    start = state.rigid_positions[0].copy()
+    for _ in range(20):
+        state = sim.step(state, np.zeros(8))
+    # Nothing weighs: the trunk stays straight and the cube where it floats.
+    np.testing.assert_allclose(state.positions, model.body.rest_positions, atol=1e-9)
+    np.testing.assert_allclose(state.rigid_positions[0], start, atol=1e-12)
+    for _ in range(40):
+        state = sim.step(state, trunk_debris_demo(state.time))
+    # Curled towards +x, the trunk has pushed the cube away along +x; once free it drifts.
+    assert state.rigid_positions[0, 0] > start[0] + 10.0
+    assert state.rigid_velocities[0, 0] > 0.0

@@ -65,6 +65,13 @@ _register(
     mesh_size=10.0,
     top_mesh_size=6.0,
 )
+_register(
+    "TrunkSpaceDebris",
+    "pliant.envs.trunk_space_debris:TrunkSpaceDebrisEnv",
+    50,
+    substeps=3,
+    cube_sizes=(20.0, 30.0),
+)
 _register("Gripper", "pliant.envs.gripper:GripperEnv", 250, substeps=2, mesh_size=12.0)
 
 

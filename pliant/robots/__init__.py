@@ -29,6 +29,7 @@ from pliant.robots import tripod as _tripod
 from pliant.robots import trunk as _trunk
 from pliant.robots import trunk_cube as _trunk_cube
 from pliant.robots import trunk_cup as _trunk_cup
+from pliant.robots import trunk_debris as _trunk_debris
 from pliant.robots.diamond import diamond
 from pliant.robots.finger import soft_finger
 from pliant.robots.multigait import multigait
@@ -78,6 +79,9 @@ ROBOTS: dict[str, RobotEntry] = {
     "trunk_cube": RobotEntry(_trunk_cube.trunk_cube, _trunk_cube.demo_actuation, {}, (20.0, -60.0)),
     "trunk_push": RobotEntry(_trunk_cube.trunk_push, _trunk_cube.push_demo, {}, (20.0, -60.0)),
     "trunk_cup": RobotEntry(_trunk_cup.trunk_cup, _trunk_cup.demo_actuation, {}, (20.0, -60.0)),
+    "trunk_space_debris": RobotEntry(
+        _trunk_debris.trunk_space_debris, _trunk_debris.demo_actuation, {}, (20.0, -90.0)
+    ),
     "catch_object": RobotEntry(
         _catch_object.catch_object, _catch_object.demo_actuation, {}, (10.0, -80.0)
     ),
