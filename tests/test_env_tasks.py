@@ -81,3 +81,82 @@ def test_space_debris_snapshot_carries_its_cube_size_and_replays_exactly():
         np.testing.assert_array_equal(o1, o2)
         np.testing.assert_array_equal(o1, o3)
         assert r1 == r2 == r3
+
+
+def test_trunk_cup_curling_over_the_cup_drags_it_to_a_goal_behind():
+    env = make("TrunkCup", action_type="continuous")
+    env.reset(seed=0)
+    cup = env.unwrapped.cup().copy()
+    env.reset(seed=0, options={"goal": cup + [0.0, 0.0, -25.0]})
+    curl = -np.ones(8, dtype=np.float32)
+    curl[2] = 2 * 25.0 / 70.0 - 1  # the -y cable (CURL_DOWN_CABLE) to 25 mm
+    rewards = [env.step(curl)[1] for _ in range(8)]
+    assert env.unwrapped.cup()[2] < cup[2] - 10.0
+    assert sum(rewards) > 0.3 and min(rewards) >= 0.0
+
+
+def test_trunk_push_bending_onto_the_cube_pushes_it_along_x():
+    env = make("TrunkPush")
+    env.reset(seed=0)
+    start = env.unwrapped.cube().copy()
+    bend = -np.ones(9, dtype=np.float32)
+    bend[3] = 2 * 15.0 / 70.0 - 1  # the +x cable to 15 mm
+    bend[8] = 0.0  # the carriage at the middle of its course (0 mm)
+    for _ in range(6):
+        *_, info = env.step(bend)
+    assert env.unwrapped.cube()[0] > start[0] + 5.0
+    assert set(info["reward_parts"]) == {"goal", "contact"}
+
+
+def test_rod_manipulator_opposite_bendings_turn_the_rod():
+    from pliant.robots.rod_manipulator import demo_actuation
+
+    env = make("RodManipulator")
+    env.reset(seed=0, options={"goal": np.radians(90.0)})
+    rewards = []
+    for k in range(8):
+        cables = demo_actuation(0.15 + 0.1 * k) / 15.0 * 2.0 - 1.0
+        base = (-7.0 + 10.0) / 15.0 * 2.0 - 1.0  # pressed 2 mm on the rod
+        _, r, *_ = env.step(np.append(cables, base).astype(np.float32))
+        rewards.append(r)
+    assert np.degrees(env.unwrapped.task["angle"]) > 10.0
+    assert rewards[-1] > rewards[0] and rewards[0] == pytest.approx(-1.0, abs=0.05)
+
+
+@pytest.mark.parametrize(("cart", "caught"), [(1.0, True), (-1.0, False)])
+def test_catch_the_object_under_the_ball_catches_it(cart, caught):
+    env = make("CatchTheObject")
+    env.reset(seed=0, options={"ball_x": 25.0})
+    for _ in range(30):
+        *_, term, trunc, info = env.step(np.array([cart * 25.0 / 40.0], dtype=np.float32))
+        if term or trunc:
+            break
+    assert info["is_success"] == caught
+    assert term != caught  # a missed ball ends the episode
+
+
+def test_stem_pendulum_pumping_raises_the_tip():
+    env = make("StemPendulum", substeps=10)
+    env.reset(seed=0)
+    _, r0, *_ = env.step(np.zeros(1, dtype=np.float32))
+    assert r0 == pytest.approx(-1.0, abs=1e-4)  # hanging still: dist = 2 L (stretched 1 um)
+    best = r0
+    for _ in range(20):
+        # Push with the swing: a positive torque (about +y) moves the hanging tip towards -x.
+        obs = env.unwrapped._last_obs
+        push = -1.0 if obs[2] >= 0 else 1.0
+        _, r, *_ = env.step(np.array([push], dtype=np.float32))
+        best = max(best, r)
+    assert best > -0.6  # the tip above the pivot's level: dist < 1.2 L
+
+
+def test_cart_stem_ends_when_the_cart_runs_away():
+    env = make("CartStem")
+    env.reset(seed=0, options={"speed": 0.0})
+    steps = 0
+    for _ in range(80):
+        *_, term, trunc, info = env.step(0)
+        steps += 1
+        if term or trunc:
+            break
+    assert term and steps < 20

@@ -7,9 +7,10 @@ horizontal: swinging it up takes several swings). The episode starts hanging at 
 
 Observation (5 values, SofaGym's size): the tip's (x, z) from the pivot divided by the length
 L, its velocity (x, z) divided by ``velocity_scale`` mm/s and the motor's torque divided by its
-maximum. Action: Box(1) in [-1, 1] (SofaGym's), the torque a x max (ramped over the
-sub-steps); ``action_type="discrete"``: 3 actions, -max, 0, +max. Reward (SofaGym's):
--dist / (2 L), dist the distance from the tip to the upright position (0, 0, L), in [-1, 0].
+maximum. Action: Box(1) in [-1, 1] (SofaGym's), the torque a x max about +y (ramped over the
+sub-steps; a positive torque moves the hanging tip towards -x); ``action_type="discrete"``: 3
+actions, -max, 0, +max. Reward (SofaGym's): -dist / (2 L), dist the distance from the tip to
+the upright position (0, 0, L), in [-1, 0].
 Not terminated; 50 steps of 10 x 0.01 s.
 """
 
