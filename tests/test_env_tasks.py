@@ -4,7 +4,9 @@ actions reach their goals, rewards follow their definitions, options do what the
 from __future__ import annotations
 
 import pickle
+import re
 import warnings
+from pathlib import Path
 
 import gymnasium as gym
 import numpy as np
@@ -160,3 +162,16 @@ def test_cart_stem_ends_when_the_cart_runs_away():
         if term or trunc:
             break
     assert term and steps < 20
+
+
+DOCS = Path(__file__).parents[1] / "docs" / "environments.md"
+
+
+@pytest.mark.parametrize("code", re.findall(r"```python\n(.*?)```", DOCS.read_text(), flags=re.S))
+def test_docs_example_runs(code):
+    exec(compile(code, str(DOCS), "exec"), {})
+
+
+def test_docs_table_lists_every_registered_environment():
+    rows = {line.split("|")[1].strip() for line in DOCS.read_text().splitlines() if "|" in line}
+    assert set(ENVS) <= rows
