@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 import pliant.envs  # noqa: F401  (registers the environments)
-from pliant.envs import ENVS
+from pliant.envs import ENVS, EnvStateError
 
 
 def make(name: str, **kwargs) -> gym.Env:
@@ -175,3 +175,13 @@ def test_docs_example_runs(code):
 def test_docs_table_lists_every_registered_environment():
     rows = {line.split("|")[1].strip() for line in DOCS.read_text().splitlines() if "|" in line}
     assert set(ENVS) <= rows
+
+
+def test_space_debris_refuses_a_snapshot_of_a_cube_size_it_does_not_have():
+    env = make("TrunkSpaceDebris", cube_sizes=(25.0,))
+    env.reset(seed=0)
+    other = make("TrunkSpaceDebris")
+    other.reset(seed=0, options={"cube_size": 20.0})
+    with pytest.raises(EnvStateError, match="20.0 mm"):
+        env.unwrapped.set_state(other.unwrapped.get_state())
+    assert env.unwrapped.cube_size == 25.0

@@ -32,7 +32,7 @@ from typing import Literal
 import numpy as np
 
 from pliant.constraints.base import EmbeddedPoints
-from pliant.envs.base import ActionType, EnvSnapshot, scaled_box
+from pliant.envs.base import ActionType, EnvSnapshot, EnvStateError, scaled_box
 from pliant.envs.trunk import LENGTH, TrunkEnv
 from pliant.envs.trunk_cup import neutral_fibre
 from pliant.mesh import shapes
@@ -130,10 +130,24 @@ class TrunkSpaceDebrisEnv(TrunkEnv):
 
     def set_state(self, snapshot: EnvSnapshot) -> None:
         """Restore a snapshot (:meth:`SoftRobotEnv.set_state`) into the model of its cube."""
-        size = snapshot.task.get("cube_size") if isinstance(snapshot, EnvSnapshot) else None
-        if size is not None and float(size) in self.cube_sizes:
-            self.use_cube_size(size)
-        super().set_state(snapshot)
+        size = None
+        if isinstance(snapshot, EnvSnapshot) and snapshot.env == self.name:
+            size = snapshot.task.get("cube_size")
+        if size is None:
+            super().set_state(snapshot)
+            return
+        if float(size) not in self.cube_sizes:
+            raise EnvStateError(
+                f"{self.name}: the snapshot's cube ({size} mm) is not one of this environment's"
+                f" sizes {self.cube_sizes}"
+            )
+        current = self.cube_size
+        self.use_cube_size(size)
+        try:
+            super().set_state(snapshot)
+        except EnvStateError:
+            self.use_cube_size(current)
+            raise
 
     # ------------------------------------------------------------------------ the task
     def _reset_task(self, rng, options) -> None:
