@@ -115,6 +115,15 @@ class GripperEnv(SoftRobotEnv):
         self.max_cable = float(self.model.actuators[0].max_displacement)
         self.cube_half = float(self.model.rigid_bodies[0].shape.half_extents[0])
         self.cube_mass = float(self.model.rigid_bodies[0].mass)
+        # The fingers' inner faces: the smallest |x| of the nodes of the fingers' lower halves.
+        rest = self.model.body.rest_positions
+        fingers = rest[:, 2] < 0.5 * rest[self.model.body.fixed_nodes, 2].min()
+        room = float(np.abs(rest[fingers, 0]).min()) - self.cube_half
+        if not 0 <= self.cube_range < room:
+            raise ValueError(
+                f"cube_range must lie in [0, {room:g}) mm (the cube between the fingers), got"
+                f" {cube_range!r}"
+            )
         if action_type == "discrete":
             self.action_space = gym.spaces.Discrete(len(_MOVES))
         else:
