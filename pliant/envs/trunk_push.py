@@ -31,7 +31,7 @@ import numpy as np
 
 from pliant.envs.base import ActionType, scaled_box
 from pliant.envs.trunk import LENGTH, TrunkEnv
-from pliant.envs.trunk_cup import neutral_fibre, settled
+from pliant.envs.trunk_scene import neutral_fibre, settled
 from pliant.model import Model, State
 from pliant.robots.trunk_cube import trunk_cube
 
