@@ -47,6 +47,32 @@ _register("CartStemContact", "pliant.envs.cartstem:CartStemContactEnv", 30, subs
 _register("SimpleMaze", "pliant.envs.maze:SimpleMazeEnv", 50, substeps=4)
 _register("Maze", "pliant.envs.maze:MazeEnv", 250, substeps=2, mesh_size=8.0)
 _register("Multigait", "pliant.envs.multigait:MultigaitEnv", 6, substeps=4, mesh_size=10.0)
+_register("TrunkCup", "pliant.envs.trunk_cup:TrunkCupEnv", 250, settle_steps=5)
+_register("TrunkPush", "pliant.envs.trunk_push:TrunkPushEnv", 10, substeps=5, settle_steps=5)
+_register(
+    "RodManipulator", "pliant.envs.rod_manipulator:RodManipulatorEnv", 30, mesh_size=8.0, substeps=4
+)
+_register(
+    "CatchTheObject", "pliant.envs.catch_object:CatchTheObjectEnv", 30, mesh_size=8.0, substeps=4
+)
+_register("CartStem", "pliant.envs.cartstem_free:CartStemEnv", 80, substeps=4)
+_register("StemPendulum", "pliant.envs.stem_pendulum:StemPendulumEnv", 50, substeps=4)
+_register(
+    "BubbleMotion",
+    "pliant.envs.bubble_motion:BubbleMotionEnv",
+    20,
+    substeps=3,
+    mesh_size=10.0,
+    top_mesh_size=6.0,
+)
+_register(
+    "TrunkSpaceDebris",
+    "pliant.envs.trunk_space_debris:TrunkSpaceDebrisEnv",
+    50,
+    substeps=3,
+    cube_sizes=(20.0, 30.0),
+)
+_register("Gripper", "pliant.envs.gripper:GripperEnv", 250, substeps=2, mesh_size=12.0)
 
 
 def make(env_id: str, **kwargs) -> gym.Env:

@@ -14,6 +14,7 @@ import numpy as np
 
 from pliant.errors import UnknownRobotError
 from pliant.model import Model
+from pliant.robots import bubble_motion as _bubble_motion
 from pliant.robots import cartstem as _cartstem
 from pliant.robots import catch_object as _catch_object
 from pliant.robots import diamond as _diamond
@@ -23,10 +24,12 @@ from pliant.robots import multigait as _multigait
 from pliant.robots import pneunet as _pneunet
 from pliant.robots import rod_manipulator as _rod_manipulator
 from pliant.robots import simple_maze as _simple_maze
+from pliant.robots import stem_pendulum as _stem_pendulum
 from pliant.robots import tripod as _tripod
 from pliant.robots import trunk as _trunk
 from pliant.robots import trunk_cube as _trunk_cube
 from pliant.robots import trunk_cup as _trunk_cup
+from pliant.robots import trunk_debris as _trunk_debris
 from pliant.robots.diamond import diamond
 from pliant.robots.finger import soft_finger
 from pliant.robots.multigait import multigait
@@ -64,11 +67,21 @@ ROBOTS: dict[str, RobotEntry] = {
     "cartstem_contact": RobotEntry(
         _cartstem.cartstem_contact, _cartstem.demo_actuation, {}, (5.0, -90.0)
     ),
+    "cartstem": RobotEntry(_cartstem.cartstem, _cartstem.demo_actuation, {}, (5.0, -90.0)),
+    "bubble_motion": RobotEntry(
+        _bubble_motion.bubble_motion, _bubble_motion.demo_actuation, {}, (35.0, -60.0)
+    ),
+    "stem_pendulum": RobotEntry(
+        _stem_pendulum.stem_pendulum, _stem_pendulum.demo_actuation, {}, (5.0, -90.0)
+    ),
     "cartstem_rod": RobotEntry(_cartstem.cartstem_rod, _cartstem.demo_actuation, {}, (5.0, -90.0)),
     "gripper": RobotEntry(_gripper.soft_gripper, _gripper.demo_actuation, {}, (15.0, -70.0)),
     "trunk_cube": RobotEntry(_trunk_cube.trunk_cube, _trunk_cube.demo_actuation, {}, (20.0, -60.0)),
     "trunk_push": RobotEntry(_trunk_cube.trunk_push, _trunk_cube.push_demo, {}, (20.0, -60.0)),
     "trunk_cup": RobotEntry(_trunk_cup.trunk_cup, _trunk_cup.demo_actuation, {}, (20.0, -60.0)),
+    "trunk_space_debris": RobotEntry(
+        _trunk_debris.trunk_space_debris, _trunk_debris.demo_actuation, {}, (20.0, -90.0)
+    ),
     "catch_object": RobotEntry(
         _catch_object.catch_object, _catch_object.demo_actuation, {}, (10.0, -80.0)
     ),

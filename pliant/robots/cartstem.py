@@ -85,9 +85,10 @@ def cartstem_contact(
     obstacle_height: float = 10.0,
     friction: float = 0.0,
     contact_margin: float = 3.0,
+    obstacles: bool = True,
     cart_motion: Callable[[float], float] | None = None,
 ) -> Model:
-    """The beam on its cart between the two obstacles.
+    """The beam on its cart between the two obstacles (or alone, `obstacles=False`).
 
     Args:
         stem: "tetrahedra" (a bar of 6-tet cells, 2 x 2 across) or "rod" (a Cosserat rod of
@@ -102,6 +103,7 @@ def cartstem_contact(
         friction: Coulomb coefficient of the beam on the obstacles.
         contact_margin: detection distance (mm); the beam's points move up to about 1 mm per
             0.01 s step (2 mm at most in the tests) when the cart drags it over an obstacle.
+        obstacles: False leaves the obstacles out: the stem alone on its cart (CartStem).
         cart_motion: the cart's displacement along x (mm) as a function of time (s); default
             the scripted solution for the stem (`demo_cart_motion`).
     """
@@ -116,7 +118,7 @@ def cartstem_contact(
         cart_motion = partial(demo_cart_motion, stem=stem)
     half = np.asarray(obstacle_size, dtype=float) / 2
     centre_z = obstacle_height + half[2]
-    obstacles = [
+    boxes = [
         Box(half, position=[side * (obstacle_spacing / 2 + half[0]), 0.0, centre_z])
         for side in (-1.0, 1.0)
     ]
@@ -144,11 +146,13 @@ def cartstem_contact(
             rod,
             effectors=[PositionEffector(EmbeddedPoints.at_nodes([n]), rod.rest_positions)],
             contacts=Contacts(
-                obstacles,
+                boxes,
                 friction=friction,
                 margin=contact_margin,
                 thickness=0.5 * width,
-            ),
+            )
+            if obstacles
+            else None,
             drivers=[ClampedEnd(rod, 0, cart, name="cart")],
             name="cartstem_contact",
         )
@@ -167,7 +171,7 @@ def cartstem_contact(
     return Model(
         body,
         effectors=[tip],
-        contacts=Contacts(obstacles, friction=friction, margin=contact_margin),
+        contacts=Contacts(boxes, friction=friction, margin=contact_margin) if obstacles else None,
         drivers=[DrivenNodes(base, cart, name="cart")],
         name="cartstem_contact",
     )
@@ -176,6 +180,29 @@ def cartstem_contact(
 def demo_actuation(t: float) -> np.ndarray:
     """No actuator: the cart follows the model's own scripted motion (`cart_motion`)."""
     return np.zeros(0)
+
+
+def stem_demo_cart_motion(t: float) -> float:
+    """Shake the cart: 10 mm at 2 Hz for a second, then hold it (the stem swings and settles)."""
+    return 10.0 * math.sin(4.0 * math.pi * min(t, 1.0))
+
+
+def cartstem(
+    *,
+    stem: Literal["rod", "tetrahedra"] = "rod",
+    young_modulus: float = 1000.0,
+    cart_motion: Callable[[float], float] = stem_demo_cart_motion,
+    **kwargs,
+) -> Model:
+    """CartStem (SofaGym cartstem-v0): the stem alone on its cart, no obstacle; a Cosserat rod
+    by default, as SofaGym's (keywords of :func:`cartstem_contact`)."""
+    return cartstem_contact(
+        stem=stem,
+        young_modulus=young_modulus,
+        obstacles=False,
+        cart_motion=cart_motion,
+        **kwargs,
+    )
 
 
 def cartstem_rod(**kwargs) -> Model:

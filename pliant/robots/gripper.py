@@ -23,7 +23,7 @@ from pliant.constraints.collision import Box, Plane
 from pliant.constraints.contact import Contacts
 from pliant.errors import ModelError
 from pliant.fem.body import TetBody
-from pliant.fem.rigid import DrivenNodes, KinematicBody, RigidBody, rail
+from pliant.fem.rigid import DrivenNodes, KinematicBody, RigidBody, Trajectory
 from pliant.mesh.gmsh_session import gmsh_model, mesh_volumes
 from pliant.mesh.tetmesh import TetMesh
 from pliant.model import Model
@@ -114,9 +114,10 @@ def soft_gripper(
     cube_mass: float = 0.01,
     floor_height: float = -10.0,
     friction: float = 0.8,
-    base_motion: Callable[[float], float] = demo_base_motion,
+    base_motion: Callable[[float], float | np.ndarray] = demo_base_motion,
 ) -> Model:
-    """Two cable fingers on a base that moves along z by `base_motion(t)` (mm), over a cube.
+    """Two cable fingers on a base translated by `base_motion(t)` (mm), over a cube:
+    a number moves it along z, a 3-vector translates it along any axis (the thesis' base).
 
     Defaults: SofaGym's gripper fingers (E = 20000 kPa, nu = 0.48), silicone density; a 20 mm,
     10 g cube on the floor 10 mm under the fingertips, centred between the fingers (10 mm
@@ -152,7 +153,7 @@ def soft_gripper(
         tip.name = f"fingertip_{i}"
     base = KinematicBody(
         Box([35.0, 12.0, 3.0], position=[0.0, 0.0, 73.0]),
-        rail([0.0, 0.0, 73.0], [0.0, 0.0, 1.0], base_motion),
+        _translation([0.0, 0.0, 73.0], base_motion),
         name="base",
     )
     half = cube_size / 2
@@ -172,6 +173,19 @@ def soft_gripper(
         rigid_bodies=[cube],
         name="soft_gripper",
     )
+
+
+def _translation(origin, motion: Callable[[float], float | np.ndarray]) -> Trajectory:
+    """The base's pose: origin + motion(t), along z for a number; never turned."""
+    o = np.asarray(origin, dtype=float)
+
+    def pose(t: float) -> tuple[np.ndarray, np.ndarray]:
+        d = np.asarray(motion(t), dtype=float)
+        if d.ndim == 0:
+            return o + [0.0, 0.0, float(d)], np.eye(3)
+        return o + d.reshape(3), np.eye(3)
+
+    return pose
 
 
 def demo_actuation(t: float) -> np.ndarray:

@@ -1,0 +1,168 @@
+"""TrunkPush: the Trunk on a translating base pushes a cube on a plane to a goal (thesis
+§4.1.2, §4.1.3: the proxy chapter's task, here on the FEM Trunk).
+
+The scene of :func:`pliant.robots.trunk_cube.trunk_cube`: the Trunk lying along +z under
+gravity -y, its base on a carriage translating along z, a rigid cube on the floor beside its
+distal half (+x side).
+
+Observation (thesis: "16 points on the skeleton + cube centre + goal"): ``n_points`` points
+along the neutral fibre, the cube's centre and the goal's (x, z), divided by the trunk's length
+(16 x 3 + 3 + 2 = 53 values, the authors' code's). Action: continuous (thesis), Box(9) in
+[-1, 1]: the 8 cables (targets in [0, max], ``"absolute"``, or increments, ``"increment"``, as
+:class:`pliant.envs.trunk.TrunkEnv`) and the carriage's target in [base_low, base_high] mm,
+reached at most at ``base_speed`` mm/s; discrete: 18 actions, one cable pulled or released by
+``action_scale`` mm (16) or the carriage moved by -``base_step`` / +``base_step`` mm. (The
+thesis' proxy acts on two beams' bendings instead of cables: the FEM Trunk's actuators are its
+cables.) Reward: thesis, -d / L - ``contact_weight`` x d_c / L with d the cube-goal distance in
+the floor's plane (x, z), d_c the distance from the cube's centre to the nearest fibre point
+(the thesis' negative weighted trunk-cube distance, favouring contact) and L the trunk's
+length; ``reward="sofagym"`` (authors' code): -d / L alone. Terminated (solved) when d <
+``goal_tolerance`` = 8 mm (5 % of the trunk's length, thesis). The goal is the cube's start
+plus an offset drawn in [goal_low, goal_high] (x, z). 10 steps of 30 x 0.01 s (0.3 s a step,
+the thesis' iteration). The trunk starts settled under gravity.
+"""
+
+from __future__ import annotations
+
+from typing import Literal
+
+import gymnasium as gym
+import numpy as np
+
+from pliant.envs.base import ActionType, scaled_box
+from pliant.envs.trunk import LENGTH, TrunkEnv
+from pliant.envs.trunk_scene import neutral_fibre, settled
+from pliant.model import Model, State
+from pliant.robots.trunk_cube import trunk_cube
+
+
+class TrunkPushEnv(TrunkEnv):
+    name = "TrunkPush"
+    version = 1
+    view = (60.0, -60.0)
+
+    def __init__(
+        self,
+        *,
+        dt: float = 0.01,
+        substeps: int = 30,
+        action_type: ActionType = "continuous",
+        continuous_mode: Literal["absolute", "increment"] = "absolute",
+        action_scale: float = 5.0,
+        reward: Literal["thesis", "sofagym"] = "thesis",
+        contact_weight: float = 0.2,
+        base_low: float = -40.0,
+        base_high: float = 40.0,
+        base_speed: float = 100.0,
+        base_step: float = 5.0,
+        goal_low: tuple[float, float] = (5.0, -30.0),
+        goal_high: tuple[float, float] = (40.0, 20.0),
+        goal_tolerance: float = 8.0,
+        n_points: int = 16,
+        settle_steps: int = 30,
+        mesh_size: float = 8.0,
+        render_mode: str | None = None,
+        tangent: str = "lagged",
+        **robot_kwargs,
+    ) -> None:
+        if not base_low <= 0.0 <= base_high:
+            raise ValueError(f"need base_low <= 0 <= base_high, got {base_low}, {base_high}")
+        for key, value in (("base_speed", base_speed), ("base_step", base_step)):
+            if not (np.isfinite(value) and value > 0):
+                raise ValueError(f"{key} must be > 0, got {value!r}")
+        self.contact_weight = float(contact_weight)
+        self.base_low, self.base_high = float(base_low), float(base_high)
+        self.base_speed = float(base_speed)
+        self.base_step = float(base_step)
+        super().__init__(
+            dt=dt,
+            substeps=substeps,
+            action_type=action_type,
+            continuous_mode=continuous_mode,
+            action_scale=action_scale,
+            reward=reward,
+            goal_low=goal_low,
+            goal_high=goal_high,
+            goal_tolerance=goal_tolerance,
+            n_points=n_points,
+            settle_steps=settle_steps,
+            mesh_size=mesh_size,
+            render_mode=render_mode,
+            tangent=tangent,
+            **robot_kwargs,
+        )
+        n = self.n_actuators
+        if action_type == "discrete":
+            self.action_space = gym.spaces.Discrete(2 * n + 2)
+        else:
+            self.action_space = scaled_box(-1.0, 1.0, (n + 1,))
+        self.observation_space = scaled_box(-3.0, 3.0, (3 * self.n_points + 5,))
+
+    def _build(self) -> Model:
+        self.carriage = self.ramp("carriage", 0.0)
+        model = trunk_cube(
+            mesh_size=self.mesh_size, base_motion=self.carriage.scalar, **self.robot_kwargs
+        )
+        self.fibre = neutral_fibre(model, self.n_points)
+        return model
+
+    def _initial_state(self) -> State:
+        return settled(self.model, self.sim, self.settle_steps)
+
+    def cube(self) -> np.ndarray:
+        return self.state.rigid_positions[0]
+
+    def distance(self) -> float:
+        gap = self.cube() - self.task["goal"]
+        return float(np.hypot(gap[0], gap[2]))
+
+    def contact_distance(self) -> float:
+        points = self.fibre.positions(self.state.positions)
+        return float(np.linalg.norm(points - self.cube(), axis=1).min())
+
+    def _reset_task(self, rng, options) -> None:
+        goal = (options or {}).get("goal")
+        if goal is None:
+            x, z = rng.uniform(self.goal_low, self.goal_high)
+            goal = self.cube() + [x, 0.0, z]
+        self.task["goal"] = np.asarray(goal, dtype=float).reshape(3)
+        self.task["base"] = 0.0
+        self.task["distance"] = self.distance()
+
+    def _commands_from_action(self, action) -> None:
+        n = self.n_actuators
+        now = self.carriage.scalar(self.state.time)
+        if self.action_type == "discrete":
+            if action < 2 * n:
+                super()._commands_from_action(action)
+                base = self.task["base"]
+            else:
+                base = self.task["base"] + (1.0 if action == 2 * n + 1 else -1.0) * self.base_step
+        else:
+            super()._commands_from_action(action[:n])
+            s = 0.5 * (float(action[n]) + 1.0)
+            base = self.base_low + s * (self.base_high - self.base_low)
+        base = float(np.clip(base, self.base_low, self.base_high))
+        self.task["base"] = base
+        reach = self.base_speed * self.step_time
+        self.carriage.retarget(
+            self.state.time, now + np.clip(base - now, -reach, reach), self.step_time
+        )
+
+    def _observe(self) -> np.ndarray:
+        goal = self.task["goal"][[0, 2]]
+        pts = np.concatenate(
+            [self.fibre.positions(self.state.positions).ravel(), self.cube(), goal]
+        )
+        return pts / LENGTH
+
+    def _reward(self):
+        d = self.distance()
+        self.task["distance"] = d
+        parts = {"goal": -d / LENGTH}
+        if self.reward_variant == "thesis":
+            parts["contact"] = -self.contact_weight * self.contact_distance() / LENGTH
+        return sum(parts.values()), d < self.goal_tolerance, parts
+
+    def _render_goal(self):
+        return self.task["goal"]

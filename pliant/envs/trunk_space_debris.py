@@ -1,0 +1,213 @@
+"""TrunkSpaceDebris: the Trunk catches a free-floating cube in zero gravity, with the thesis'
+bio-inspired whole-arm reward (thesis §3.2.2, Eq. 3.3, Fig. 3.9-3.10; not in SofaGym).
+
+The scene of :func:`pliant.robots.trunk_debris.trunk_space_debris`: the Trunk along +z on a
+spacecraft's hull (z = 0), no gravity, a rigid cube floating at rest beside its distal half.
+Each episode draws the cube's size from ``cube_sizes`` (mm) and its position: height z in
+[z_low, z_high], gap to the trunk's surface in [gap_low, gap_high], direction around the trunk
+within +-``azimuth_range`` rad of +x. A cube size is a model of its own (its shape, mass and
+inertia): the sizes are a finite set, each model built once on the same Trunk mesh and kept;
+a snapshot records the size, and ``set_state`` switches to that model.
+
+Points (Fig. 3.9): T on the proximal section (the axis at ``proximal`` x L), P the middle of
+the trunk (0.5 L), D its tip; M and N the centres of two opposite faces of the cube, M the
+face towards the trunk's axis at the start, N the far one (fixed in the cube: they turn with
+it, as the thesis notes); C the cube's centre.
+
+Observation: ``n_points`` points along the neutral fibre, C, M, N (mm divided by the trunk's
+length L) and the cube's size divided by L ("the cube's dimensions and position are added to
+the observation"; 21 points: 73 values). Action: continuous (thesis), the 8 cables as targets
+in [0, max] (``"absolute"``) or increments (``"increment"``), as
+:class:`pliant.envs.trunk.TrunkEnv`; ``action_type="discrete"``: one cable pulled or released
+by ``action_scale`` mm (16 actions). Reward: Eq. 3.3,
+r_t = -|PM_t| / |PM_0| - |DN_t| / |DN_0| - |CT_t| / |CT_0| (the three phases: approach,
+deformation, wrapping), its three terms in ``info["reward_parts"]``. Terminated when the cube
+has drifted more than ``escape_distance`` mm from T (lost). 50 steps of 10 x 0.01 s.
+"""
+
+from __future__ import annotations
+
+from typing import Literal
+
+import numpy as np
+
+from pliant.constraints.base import EmbeddedPoints
+from pliant.envs.base import ActionType, EnvSnapshot, EnvStateError, scaled_box
+from pliant.envs.trunk import LENGTH, TrunkEnv
+from pliant.envs.trunk_scene import neutral_fibre
+from pliant.mesh import shapes
+from pliant.model import Model, State
+from pliant.robots.trunk_debris import beside_trunk, trunk_space_debris
+from pliant.solvers import ImplicitEuler
+
+
+class TrunkSpaceDebrisEnv(TrunkEnv):
+    name = "TrunkSpaceDebris"
+    version = 1
+    view = (20.0, -90.0)
+
+    def __init__(
+        self,
+        *,
+        dt: float = 0.01,
+        substeps: int = 10,
+        action_type: ActionType = "continuous",
+        continuous_mode: Literal["absolute", "increment"] = "absolute",
+        action_scale: float = 2.0,
+        cube_sizes: tuple[float, ...] = (20.0, 25.0, 30.0, 35.0, 40.0),
+        z_low: float = 110.0,
+        z_high: float = 160.0,
+        gap_low: float = 5.0,
+        gap_high: float = 20.0,
+        azimuth_range: float = np.radians(30.0),
+        proximal: float = 0.25,
+        escape_distance: float = 250.0,
+        n_points: int = 21,
+        mesh_size: float = 8.0,
+        render_mode: str | None = None,
+        tangent: str = "lagged",
+        **robot_kwargs,
+    ) -> None:
+        sizes = tuple(float(s) for s in cube_sizes)
+        if not sizes or min(sizes) <= 0:
+            raise ValueError(f"cube_sizes must be positive sizes, got {cube_sizes!r}")
+        if not (z_low <= z_high and 0 < gap_low <= gap_high and 0 < proximal < 0.5):
+            raise ValueError("need z_low <= z_high, 0 < gap_low <= gap_high, 0 < proximal < 0.5")
+        self.cube_sizes = sizes
+        self.z_range = (float(z_low), float(z_high))
+        self.gap_range = (float(gap_low), float(gap_high))
+        self.azimuth_range = float(azimuth_range)
+        self.proximal = float(proximal)
+        self.escape_distance = float(escape_distance)
+        self._tangent = tangent
+        self._scenes: dict[float, tuple[Model, ImplicitEuler, State]] = {}
+        super().__init__(
+            dt=dt,
+            substeps=substeps,
+            action_type=action_type,
+            continuous_mode=continuous_mode,
+            action_scale=action_scale,
+            reward="thesis",
+            n_points=n_points,
+            settle_steps=0,
+            mesh_size=mesh_size,
+            render_mode=render_mode,
+            tangent=tangent,
+            **robot_kwargs,
+        )
+        self._scenes[self.cube_sizes[0]] = (self.model, self.sim, self._initial)
+        self.cube_size = self.cube_sizes[0]
+        self.observation_space = scaled_box(-3.0, 3.0, (3 * self.n_points + 10,))
+
+    # ------------------------------------------------------------------ one model per size
+    def _build(self) -> Model:
+        self.trunk_mesh = shapes.trunk(mesh_size=self.mesh_size)
+        model = self._scene(self.cube_sizes[0])
+        self.fibre = neutral_fibre(model, self.n_points)
+        z = np.array([self.proximal, 0.5, 1.0]) * LENGTH
+        self.trunk_points = EmbeddedPoints(model.body.mesh, np.column_stack([0 * z, 0 * z, z]))
+        return model
+
+    def _scene(self, size: float) -> Model:
+        return trunk_space_debris(mesh=self.trunk_mesh, cube_size=size, **self.robot_kwargs)
+
+    def _initial_state(self) -> State:
+        return self.model.rest_state()
+
+    def use_cube_size(self, size: float) -> None:
+        """Switch to the model of a cube of `size` mm (built on first use, then kept)."""
+        size = float(size)
+        if size not in self.cube_sizes:
+            raise ValueError(f"cube size {size} is not one of {self.cube_sizes}")
+        if size not in self._scenes:
+            model = self._scene(size)
+            sim = ImplicitEuler(model, dt=self.dt, tangent=self._tangent)
+            self._scenes[size] = (model, sim, model.rest_state())
+        self.model, self.sim, self._initial = self._scenes[size]
+        self.sim.system.invalidate()
+        self.cube_size = size
+        self._camera = None
+
+    def set_state(self, snapshot: EnvSnapshot) -> None:
+        """Restore a snapshot (:meth:`SoftRobotEnv.set_state`) into the model of its cube."""
+        size = None
+        if isinstance(snapshot, EnvSnapshot) and snapshot.env == self.name:
+            size = snapshot.task.get("cube_size")
+        if size is None:
+            super().set_state(snapshot)
+            return
+        if float(size) not in self.cube_sizes:
+            raise EnvStateError(
+                f"{self.name}: the snapshot's cube ({size} mm) is not one of this environment's"
+                f" sizes {self.cube_sizes}"
+            )
+        current = self.cube_size
+        self.use_cube_size(size)
+        try:
+            super().set_state(snapshot)
+        except EnvStateError:
+            self.use_cube_size(current)
+            raise
+
+    # ------------------------------------------------------------------------ the task
+    def _reset_task(self, rng, options) -> None:
+        options = options or {}
+        size = options.get("cube_size")
+        if size is None:
+            size = self.cube_sizes[int(rng.integers(len(self.cube_sizes)))]
+        self.use_cube_size(size)
+        self.state = self._initial.copy()
+        position = options.get("cube_position")
+        if position is None:
+            z = rng.uniform(*self.z_range)
+            gap = rng.uniform(*self.gap_range)
+            azimuth = rng.uniform(-self.azimuth_range, self.azimuth_range)
+            position = beside_trunk(self.cube_size, z, gap, azimuth)
+            # The cube turned with its direction, a face towards the axis.
+            c, s = np.cos(azimuth), np.sin(azimuth)
+            self.state.rigid_rotations[0] = [[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]]
+        self.state.rigid_positions[0] = np.asarray(position, dtype=float).reshape(3)
+        # M: the centre of the face towards the trunk's axis; N: the opposite face (cube frame).
+        centre = self.state.rigid_positions[0]
+        inward = -np.array([centre[0], centre[1], 0.0])
+        local = self.state.rigid_rotations[0].T @ inward
+        axis = int(np.argmax(np.abs(local)))
+        face = np.zeros(3)
+        face[axis] = 0.5 * self.cube_size * np.sign(local[axis])
+        self.task["cube_size"] = self.cube_size
+        self.task["faces"] = np.vstack([face, -face])
+        self.task["d0"] = np.maximum(self._distances(), 1e-9)
+
+    def cube(self) -> np.ndarray:
+        return self.state.rigid_positions[0]
+
+    def cube_faces(self) -> np.ndarray:
+        """(2, 3): M and N in the world."""
+        return self.cube() + self.task["faces"] @ self.state.rigid_rotations[0].T
+
+    def _distances(self) -> np.ndarray:
+        """|PM|, |DN|, |CT|."""
+        t, p, d = self.trunk_points.positions(self.state.positions)
+        m, n = self.cube_faces()
+        return np.array(
+            [np.linalg.norm(p - m), np.linalg.norm(d - n), np.linalg.norm(self.cube() - t)]
+        )
+
+    def _observe(self) -> np.ndarray:
+        pts = np.vstack(
+            [self.fibre.positions(self.state.positions), self.cube(), self.cube_faces()]
+        )
+        return np.concatenate([pts.ravel(), [self.cube_size]]) / LENGTH
+
+    def _reward(self):
+        ratios = self._distances() / self.task["d0"]
+        parts = dict(zip(("approach", "deformation", "wrapping"), (-ratios).tolist(), strict=True))
+        lost = bool(self._distances()[2] > self.escape_distance)
+        return sum(parts.values()), lost, parts
+
+    def _info(self):
+        distances = self._distances()
+        return dict(zip(("PM", "DN", "CT"), distances.tolist(), strict=True))
+
+    def _render_goal(self):
+        return self.cube_faces()

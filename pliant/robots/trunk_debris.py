@@ -1,0 +1,111 @@
+"""The Trunk catching a free-floating cube in zero gravity: space debris (thesis §3.2.2,
+Fig. 3.10).
+
+The Trunk of :mod:`pliant.robots.trunk` (along +z, its base held over its first 20 mm) is
+mounted on a spacecraft's hull, the plane z = 0; nothing weighs. A rigid cube floats at rest
+beside its distal half, on the +x side by default. Pulling the +x cables bends the trunk
+towards the cube; wrapping it catches the cube, a push sends it drifting away.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from pliant.constraints.collision import Box, Plane
+from pliant.constraints.contact import Contacts
+from pliant.fem.rigid import RigidBody
+from pliant.mesh.shapes import _require_positive
+from pliant.mesh.tetmesh import TetMesh
+from pliant.model import Model
+from pliant.robots.common import MaterialName
+from pliant.robots.trunk import trunk
+
+LENGTH = 195.0
+BASE_RADIUS, TIP_RADIUS = 13.0, 5.0
+
+
+def trunk_radius(z: float) -> float:
+    """Outer radius of the default Trunk at height z (its cone: 13 mm at the base, 5 at the
+    tip)."""
+    return BASE_RADIUS + (TIP_RADIUS - BASE_RADIUS) * z / LENGTH
+
+
+def beside_trunk(size: float, z: float, gap: float, azimuth: float = 0.0) -> np.ndarray:
+    """Centre of a cube of `size` mm at height z whose face towards the trunk's axis is `gap` mm
+    from its surface, in the direction `azimuth` (rad, from +x towards +y)."""
+    distance = trunk_radius(z) + gap + size / 2
+    return np.array([distance * math.cos(azimuth), distance * math.sin(azimuth), z])
+
+
+def trunk_space_debris(
+    *,
+    mesh: TetMesh | None = None,
+    mesh_size: float = 8.0,
+    young_modulus: float = 450.0,
+    poisson_ratio: float = 0.45,
+    total_mass: float = 0.042,
+    material: MaterialName = "corotational",
+    rayleigh_mass: float = 0.1,
+    rayleigh_stiffness: float = 0.1,
+    cable_mode: str = "displacement",
+    max_long_displacement: float = 70.0,
+    max_short_displacement: float = 40.0,
+    max_displacement_change: float | None = 1.0,
+    cube_size: float = 30.0,
+    cube_mass: float = 0.01,
+    cube_position: tuple[float, float, float] | None = None,
+    cube_rotation: np.ndarray | None = None,
+    friction: float = 0.5,
+    contact_margin: float = 5.0,
+) -> Model:
+    """The Trunk (SoftRobots parameters, coarse mesh by default, no gravity) and a rigid cube
+    of `cube_size` mm and `cube_mass` kg floating at rest at `cube_position` (default: 10 mm
+    from the trunk's surface on +x at z = 150 mm; see :func:`beside_trunk`).
+
+    Give `mesh` (a :func:`pliant.mesh.shapes.trunk` mesh) to build several scenes on one
+    Trunk mesh, e.g. one per cube size.
+    """
+    _require_positive(cube_size=cube_size, cube_mass=cube_mass)
+    arm = trunk(
+        mesh=mesh,
+        mesh_size=mesh_size,
+        young_modulus=young_modulus,
+        poisson_ratio=poisson_ratio,
+        total_mass=total_mass,
+        material=material,
+        gravity=(0.0, 0.0, 0.0),
+        rayleigh_mass=rayleigh_mass,
+        rayleigh_stiffness=rayleigh_stiffness,
+        cable_mode=cable_mode,
+        max_long_displacement=max_long_displacement,
+        max_short_displacement=max_short_displacement,
+        max_displacement_change=max_displacement_change,
+    )
+    half = cube_size / 2
+    position = beside_trunk(cube_size, 150.0, 10.0) if cube_position is None else cube_position
+    cube = RigidBody(
+        Box([half, half, half], position=position, rotation=cube_rotation),
+        cube_mass,
+        friction=friction,
+        name="cube",
+    )
+    hull = Plane(normal=(0.0, 0.0, 1.0), point=(0.0, 0.0, 0.0))
+    return Model(
+        arm.body,
+        actuators=arm.actuators,
+        effectors=arm.effectors,
+        contacts=Contacts([hull], friction=friction, margin=contact_margin),
+        rigid_bodies=[cube],
+        name="trunk_space_debris",
+    )
+
+
+def demo_actuation(t: float) -> np.ndarray:
+    """Curl towards the cube: the long +x cable (3) to 40 mm and the short one (7) to 20 mm
+    over 1 s, held: the distal half wraps the cube's near face."""
+    values = np.zeros(8)
+    values[3] = 40.0 * min(t, 1.0)
+    values[7] = 20.0 * min(t, 1.0)
+    return values

@@ -1,0 +1,187 @@
+"""Task checks of the environments beyond the API (tests/test_envs.py): experts and scripted
+actions reach their goals, rewards follow their definitions, options do what they say."""
+
+from __future__ import annotations
+
+import pickle
+import re
+import warnings
+from pathlib import Path
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import pliant.envs  # noqa: F401  (registers the environments)
+from pliant.envs import ENVS, EnvStateError
+
+
+def make(name: str, **kwargs) -> gym.Env:
+    return gym.make(f"pliant/{name}-v0", **{**ENVS[name].quick, **kwargs})
+
+
+@pytest.fixture(autouse=True)
+def _quiet():
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        yield
+
+
+@pytest.mark.parametrize("kind", ["discrete", "continuous"])
+def test_gripper_expert_lifts_the_cube_to_the_goal(kind):
+    from pliant.envs.gripper import expert_action
+
+    # The fingers need the default mesh to close on the cube (a coarse one locks).
+    env = make("Gripper", action_type=kind, mesh_size=5.0)
+    env.reset(seed=0, options={"cube": [2.0, -2.0], "goal": 12.0})
+    for _ in range(40):
+        *_, term, trunc, info = env.step(expert_action(env))
+        if term or trunc:
+            break
+    assert term and info["is_success"]
+    cube = env.unwrapped.cube()
+    assert cube[2] > 9.0 and abs(cube[0] - 2.0) < 3.0
+
+
+def test_gripper_push_down_pulls_the_cube_down_with_the_drawn_force():
+    env = make("Gripper", cube_push_down=True, push_force=50.0)
+    env.reset(seed=0)
+    g = env.unwrapped
+    g.state.rigid_positions[0, 2] += 5.0  # in the air: the first step's fall shows the push
+    free = make("Gripper")
+    free.reset(seed=0)
+    free.unwrapped.state.rigid_positions[0, 2] += 5.0
+    env.step(6)
+    free.step(6)
+    assert g.cube()[2] < free.unwrapped.cube()[2]
+
+
+def _rollout(env, actions) -> list:
+    return [env.step(a)[:2] for a in actions]
+
+
+def test_space_debris_snapshot_carries_its_cube_size_and_replays_exactly():
+    env = make("TrunkSpaceDebris")
+    env.reset(seed=0, options={"cube_size": 20.0})
+    still = -np.ones(8, dtype=np.float32)
+    _, r, *_ = env.step(still)
+    assert r == pytest.approx(-3.0, abs=1e-9)  # Eq. 3.3 at the start: each ratio is 1
+    snapshot = pickle.dumps(pliant.envs.get_state(env))
+    env.action_space.seed(3)
+    actions = [env.action_space.sample() for _ in range(3)]
+    first = _rollout(env, actions)
+    env.reset(seed=1, options={"cube_size": 30.0})
+    assert env.unwrapped.cube_size == 30.0
+    pliant.envs.set_state(env, pickle.loads(snapshot))
+    assert env.unwrapped.cube_size == 20.0
+    again = _rollout(env, actions)
+    other = make("TrunkSpaceDebris")  # a fresh environment builds the 20 mm model on restore
+    other.reset(seed=5, options={"cube_size": 30.0})
+    pliant.envs.set_state(other, pickle.loads(snapshot))
+    there = _rollout(other, actions)
+    for (o1, r1), (o2, r2), (o3, r3) in zip(first, again, there, strict=True):
+        np.testing.assert_array_equal(o1, o2)
+        np.testing.assert_array_equal(o1, o3)
+        assert r1 == r2 == r3
+
+
+def test_trunk_cup_curling_over_the_cup_drags_it_to_a_goal_behind():
+    env = make("TrunkCup", action_type="continuous")
+    env.reset(seed=0)
+    cup = env.unwrapped.cup().copy()
+    env.reset(seed=0, options={"goal": cup + [0.0, 0.0, -25.0]})
+    curl = -np.ones(8, dtype=np.float32)
+    curl[2] = 2 * 25.0 / 70.0 - 1  # the -y cable (CURL_DOWN_CABLE) to 25 mm
+    rewards = [env.step(curl)[1] for _ in range(8)]
+    assert env.unwrapped.cup()[2] < cup[2] - 10.0
+    assert sum(rewards) > 0.3 and min(rewards) >= 0.0
+
+
+def test_trunk_push_bending_onto_the_cube_pushes_it_along_x():
+    env = make("TrunkPush")
+    env.reset(seed=0)
+    start = env.unwrapped.cube().copy()
+    bend = -np.ones(9, dtype=np.float32)
+    bend[3] = 2 * 15.0 / 70.0 - 1  # the +x cable to 15 mm
+    bend[8] = 0.0  # the carriage at the middle of its course (0 mm)
+    for _ in range(6):
+        *_, info = env.step(bend)
+    assert env.unwrapped.cube()[0] > start[0] + 5.0
+    assert set(info["reward_parts"]) == {"goal", "contact"}
+
+
+def test_rod_manipulator_opposite_bendings_turn_the_rod():
+    from pliant.robots.rod_manipulator import demo_actuation
+
+    env = make("RodManipulator")
+    env.reset(seed=0, options={"goal": np.radians(90.0)})
+    rewards = []
+    for k in range(8):
+        cables = demo_actuation(0.15 + 0.1 * k) / 15.0 * 2.0 - 1.0
+        base = (-7.0 + 10.0) / 15.0 * 2.0 - 1.0  # pressed 2 mm on the rod
+        _, r, *_ = env.step(np.append(cables, base).astype(np.float32))
+        rewards.append(r)
+    assert np.degrees(env.unwrapped.task["angle"]) > 10.0
+    assert rewards[-1] > rewards[0] and rewards[0] == pytest.approx(-1.0, abs=0.05)
+
+
+@pytest.mark.parametrize(("cart", "caught"), [(1.0, True), (-1.0, False)])
+def test_catch_the_object_under_the_ball_catches_it(cart, caught):
+    env = make("CatchTheObject")
+    env.reset(seed=0, options={"ball_x": 25.0})
+    for _ in range(30):
+        *_, term, trunc, info = env.step(np.array([cart * 25.0 / 40.0], dtype=np.float32))
+        if term or trunc:
+            break
+    assert info["is_success"] == caught
+    assert term != caught  # a missed ball ends the episode
+
+
+def test_stem_pendulum_pumping_raises_the_tip():
+    env = make("StemPendulum", substeps=10)
+    env.reset(seed=0)
+    _, r0, *_ = env.step(np.zeros(1, dtype=np.float32))
+    assert r0 == pytest.approx(-1.0, abs=1e-4)  # hanging still: dist = 2 L (stretched 1 um)
+    best = r0
+    for _ in range(20):
+        # Push with the swing: a positive torque (about +y) moves the hanging tip towards -x.
+        obs = env.unwrapped._last_obs
+        push = -1.0 if obs[2] >= 0 else 1.0
+        _, r, *_ = env.step(np.array([push], dtype=np.float32))
+        best = max(best, r)
+    assert best > -0.6  # the tip above the pivot's level: dist < 1.2 L
+
+
+def test_cart_stem_ends_when_the_cart_runs_away():
+    env = make("CartStem")
+    env.reset(seed=0, options={"speed": 0.0})
+    steps = 0
+    for _ in range(80):
+        *_, term, trunc, info = env.step(0)
+        steps += 1
+        if term or trunc:
+            break
+    assert term and steps < 20
+
+
+DOCS = Path(__file__).parents[1] / "docs" / "environments.md"
+
+
+@pytest.mark.parametrize("code", re.findall(r"```python\n(.*?)```", DOCS.read_text(), flags=re.S))
+def test_docs_example_runs(code):
+    exec(compile(code, str(DOCS), "exec"), {})
+
+
+def test_docs_table_lists_every_registered_environment():
+    rows = {line.split("|")[1].strip() for line in DOCS.read_text().splitlines() if "|" in line}
+    assert set(ENVS) <= rows
+
+
+def test_space_debris_refuses_a_snapshot_of_a_cube_size_it_does_not_have():
+    env = make("TrunkSpaceDebris", cube_sizes=(25.0,))
+    env.reset(seed=0)
+    other = make("TrunkSpaceDebris")
+    other.reset(seed=0, options={"cube_size": 20.0})
+    with pytest.raises(EnvStateError, match="20.0 mm"):
+        env.unwrapped.set_state(other.unwrapped.get_state())
+    assert env.unwrapped.cube_size == 25.0
