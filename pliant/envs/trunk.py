@@ -31,6 +31,32 @@ from pliant.robots.trunk import trunk
 LENGTH = 195.0
 
 
+def settled(model: Model, sim, steps: int) -> State:
+    """The rest state after `steps` unactuated steps, its clock back at 0 (the ramps start
+    there): positions, velocities and rigid bodies, without the contact warm start."""
+    state = model.rest_state()
+    for _ in range(steps):
+        state = sim.step(state, np.zeros(len(model.actuators)))
+    return State(
+        state.positions,
+        state.velocities,
+        displacement=state.displacement,
+        actuation=state.actuation,
+        rigid_positions=state.rigid_positions,
+        rigid_rotations=state.rigid_rotations,
+        rigid_velocities=state.rigid_velocities,
+        rigid_angular_velocities=state.rigid_angular_velocities,
+    )
+
+
+def neutral_fibre(model: Model, n_points: int) -> EmbeddedPoints:
+    """`n_points` points along the Trunk's axis (x = y = 0, z from 0 to its length), embedded
+    in its mesh: the neutral fibre the observations read."""
+    z = np.linspace(0.0, LENGTH, n_points)
+    axis = np.column_stack([np.zeros(n_points), np.zeros(n_points), z])
+    return EmbeddedPoints(model.body.mesh, axis)
+
+
 class TrunkEnv(SoftRobotEnv):
     name = "Trunk"
     version = 1
@@ -93,26 +119,11 @@ class TrunkEnv(SoftRobotEnv):
 
     def _build(self) -> Model:
         model = trunk(mesh_size=self.mesh_size, **self.robot_kwargs)
-        axis = np.column_stack(
-            [
-                np.zeros(self.n_points),
-                np.zeros(self.n_points),
-                np.linspace(0.0, LENGTH, self.n_points),
-            ]
-        )
-        self.fibre = EmbeddedPoints(model.body.mesh, axis)
+        self.fibre = neutral_fibre(model, self.n_points)
         return model
 
     def _initial_state(self) -> State:
-        state = self.model.rest_state()
-        for _ in range(self.settle_steps):
-            state = self.sim.step(state, np.zeros(self.n_actuators))
-        return State(
-            state.positions,
-            state.velocities,
-            displacement=state.displacement,
-            actuation=state.actuation,
-        )
+        return settled(self.model, self.sim, self.settle_steps)
 
     def tip(self) -> np.ndarray:
         return self.model.effectors[0].position(self.state.positions)[0]

@@ -26,8 +26,7 @@ from typing import Literal
 import numpy as np
 
 from pliant.envs.base import ActionType, progress_reward, scaled_box
-from pliant.envs.trunk import LENGTH, TrunkEnv
-from pliant.envs.trunk_scene import neutral_fibre, settled
+from pliant.envs.trunk import LENGTH, TrunkEnv, neutral_fibre, settled
 from pliant.model import Model, State
 from pliant.robots.trunk_cup import trunk_cup
 

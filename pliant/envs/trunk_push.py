@@ -30,8 +30,7 @@ import gymnasium as gym
 import numpy as np
 
 from pliant.envs.base import ActionType, scaled_box
-from pliant.envs.trunk import LENGTH, TrunkEnv
-from pliant.envs.trunk_scene import neutral_fibre, settled
+from pliant.envs.trunk import LENGTH, TrunkEnv, neutral_fibre, settled
 from pliant.model import Model, State
 from pliant.robots.trunk_cube import trunk_cube
 

@@ -33,8 +33,7 @@ import numpy as np
 
 from pliant.constraints.base import EmbeddedPoints
 from pliant.envs.base import ActionType, EnvSnapshot, EnvStateError, scaled_box
-from pliant.envs.trunk import LENGTH, TrunkEnv
-from pliant.envs.trunk_scene import neutral_fibre
+from pliant.envs.trunk import LENGTH, TrunkEnv, neutral_fibre
 from pliant.mesh import shapes
 from pliant.model import Model, State
 from pliant.robots.trunk_debris import beside_trunk, trunk_space_debris
