@@ -19,7 +19,7 @@ import scipy.sparse as sp
 
 from pliant.errors import MaterialError, ModelError
 from pliant.fem import kernels
-from pliant.fem.material import COROTATIONAL, Material
+from pliant.fem.material import COROTATIONAL, COROTATIONAL_LARGE, Material
 from pliant.fem.membrane import Membrane, MembraneAssembly
 from pliant.fem.sparsity import StiffnessPattern
 from pliant.mesh.quality import validate_mesh
@@ -151,6 +151,12 @@ class TetBody:
         self.rest_positions = np.ascontiguousarray(mesh.points, dtype=np.float64)
         self.tets = np.ascontiguousarray(mesh.tets, dtype=np.int64)
         self.volumes, self.grads = kernels.rest_gradients(self.rest_positions, self.tets)
+        # SOFA's "large" rotation compares each element's edge frame with its rest one.
+        self.rest_frames = (
+            kernels.edge_frames(self.rest_positions, self.tets)
+            if material.kernel_tag == COROTATIONAL_LARGE
+            else np.empty((0, 3, 3))
+        )
         n_elem = self.tets.shape[0]
         self.mu = np.full(n_elem, material.mu)
         self.lam = np.full(n_elem, material.lam)
@@ -331,6 +337,7 @@ class TetBody:
             self.mu,
             self.lam,
             self.material.kernel_tag,
+            self.rest_frames,
             elem_forces,
             elem_kv,
             frames,
@@ -385,9 +392,9 @@ class TetBody:
     def stiffness_data(self, lin: Linearisation, *, exact: bool = False) -> np.ndarray:
         """Tangent stiffness on the free DoFs, as data aligned with `self.pattern`."""
         data = np.zeros(self.pattern.nnz)
+        tag = self.material.kernel_tag
         if (
-            self.material.kernel_tag == COROTATIONAL
-            and not exact
+            (tag == COROTATIONAL_LARGE or (tag == COROTATIONAL and not exact))
             and self.tets.shape[0] < PARALLEL_MIN_TETS
         ):
             # SOFA's tangent in closed form, scattered as it is computed, on one thread: on the
