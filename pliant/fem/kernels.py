@@ -291,8 +291,8 @@ def _piola_differential(df, frame, f, det, mu, lam, tag, exact, dp, w1, w2):
     """dp = dP for a variation dF of the deformation gradient (w1, w2 are scratch).
 
     Corotational (tags 0 and 2): SOFA's tangent R (2 mu sym(R^T dF) + lam tr(R^T dF) I), plus,
-    when `exact` and the rotation is polar (tag 0), the variation of R: (lam tr(S - I) - 2 mu) dR with dR = R [w]x and
-    (tr(S) I - S) w = axial(R^T dF - dF^T R).
+    when `exact` and the rotation is polar (tag 0), the variation of R:
+    (lam tr(S - I) - 2 mu) dR with dR = R [w]x and (tr(S) I - S) w = axial(R^T dF - dF^T R).
     Neo-Hookean (frame = F^-1): mu dF + (mu - lam ln J) F^-T dF^T F^-T + lam tr(F^-1 dF) F^-T.
     """
     if tag != 1:

@@ -202,6 +202,7 @@ class ImplicitEuler:
             lam_a,
             model.actuator_distances(positions),
             contact_forces,
+            displacement_before=state.displacement,
         )
         if rigid is not None:
             twists = (

@@ -230,6 +230,7 @@ class StaticSolver:
             lam_a,
             model.actuator_distances(q),
             contact_forces,
+            displacement_before=state.displacement,
         )
 
     def _rest_row_stiffness(self) -> np.ndarray:
