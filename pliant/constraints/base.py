@@ -141,8 +141,8 @@ class Actuator(Constraint):
             displacement at the end of the last step; "lagged" (SoftRobots' maxDispVariation,
             the default of scenes read by :mod:`pliant.sofa`), the displacement at the end of
             the step before, which SoftRobots stores when it solves a step, before that step's
-            correction moves the body. A ramp towards a command then starts one step later
-            (1, 1, 2, 3, ... mm a step at 1 mm per step).
+            correction moves the body: delta_n <= delta_{n-2} + max_displacement_change, so
+            a ramp met exactly climbs every other step (1, 1, 2, 2, 3, ... mm at 1 mm a step).
     """
 
     role = "actuator"

@@ -21,6 +21,7 @@ import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Literal
 
 import meshio
 import numpy as np
@@ -134,6 +135,14 @@ class SofaScene:
         """The actuators' commands as the scene sets them."""
         return np.array([a.value for a in self.model.actuators])
 
+    def entry(self):
+        """The scene as a registered robot (:class:`pliant.robots.RobotEntry`) for the
+        command line: built once, its commands held constant."""
+        from pliant.robots import RobotEntry
+
+        commands = self.commands()
+        return RobotEntry(lambda: self.model, lambda t: commands, {}, (20.0, -60.0))
+
     def simulate(self, n_steps: int, state: State | None = None) -> State:
         """Run `n_steps` steps under the scene's commands; returns the last state."""
         solver = self.solver()
@@ -143,27 +152,53 @@ class SofaScene:
         return state
 
 
+@dataclass(frozen=True)
+class Choices:
+    """Where SOFA and Pliant's defaults differ, which one a loaded scene makes."""
+
+    rotation: Literal["scene", "polar"]  # "scene": the FEM's method ("large" by default)
+    outside: Literal["keep", "project"]
+    change_reference: Literal["lagged", "last"]
+
+
+SOFA_CHOICES = Choices("scene", "keep", "lagged")
+PLIANT_CHOICES = Choices("polar", "project", "last")
+
+
 def load_scene(
     path: str | Path,
     *,
     sofa_compatible: bool = True,
     mesh_dirs: Sequence[str | Path] = (),
+    rotation: Literal["scene", "polar"] | None = None,
+    outside: Literal["keep", "project"] | None = None,
+    change_reference: Literal["lagged", "last"] | None = None,
 ) -> SofaScene:
     """Read a SOFA scene (``.scn`` XML or a ``createScene`` Python script) into a model.
 
     Args:
         path: the scene file.
-        sofa_compatible: SOFA's choices where Pliant's defaults differ (see the module text).
+        sofa_compatible: SOFA's choices where Pliant's defaults differ (see the module text);
+            False takes Pliant's.
         mesh_dirs: folders where mesh files not found beside the scene are looked for (by their
             path as written, then by their file name).
+        rotation, outside, change_reference: override one of those choices: the element
+            rotation ("scene": the FEM's method; "polar"), points outside the mesh ("keep",
+            "project"), what a cable's maxDispVariation is measured from ("lagged", "last").
 
     Raises:
         SceneError: the scene cannot be read, uses components Pliant does not support (all
             of them named in one message), or misses what a simulation needs.
     """
     path = Path(path)
+    base = SOFA_CHOICES if sofa_compatible else PLIANT_CHOICES
+    choices = Choices(
+        rotation or base.rotation,
+        outside or base.outside,
+        change_reference or base.change_reference,
+    )
     root = read_scene(path)
-    return _Builder(root, path, sofa_compatible, [Path(d) for d in mesh_dirs]).build()
+    return _Builder(root, path, choices, [Path(d) for d in mesh_dirs]).build()
 
 
 def _floats(value, what: str) -> np.ndarray:
@@ -199,8 +234,8 @@ def _is_link(value) -> bool:
 
 
 class _Builder:
-    def __init__(self, root: SceneNode, path: Path, compatible: bool, mesh_dirs: list[Path]):
-        self.root, self.path, self.compatible, self.mesh_dirs = root, path, compatible, mesh_dirs
+    def __init__(self, root: SceneNode, path: Path, choices: Choices, mesh_dirs: list[Path]):
+        self.root, self.path, self.choices, self.mesh_dirs = root, path, choices, mesh_dirs
 
     # --- scene-wide ------------------------------------------------------------------------
     def build(self) -> SofaScene:
@@ -278,7 +313,7 @@ class _Builder:
             raise SceneError(
                 f"{fem.path}: method {method!r} is not supported (large, polar or svd)"
             )
-        rotation = "large" if method == "large" and self.compatible else "polar"
+        rotation = "large" if method == "large" and self.choices.rotation == "scene" else "polar"
         negative = signed_volumes(points, tets) < 0.0
         if negative.any():
             if rotation == "large":
@@ -422,7 +457,7 @@ class _Builder:
         if not any(o.type == "BarycentricMapping" for o in node.objects):
             raise SceneError(f"{node.path}: points without a BarycentricMapping to the body")
         positions = self._positions(node, dofs)
-        outside = "keep" if self.compatible else "project"
+        outside = self.choices.outside
         actuators, effectors = [], []
         for obj in constraints:
             idx = self._indices(node, obj, "indices", positions)
@@ -472,7 +507,7 @@ class _Builder:
             min_displacement=-_float(obj, "maxNegativeDisp", math.inf),
             max_displacement=_float(obj, "maxPositiveDisp", math.inf),
             max_displacement_change=None if change is None else _float(obj, "maxDispVariation", 0),
-            change_reference="lagged" if self.compatible else "last",
+            change_reference=self.choices.change_reference,
         )
 
     def _effector(
