@@ -30,7 +30,8 @@ from scipy.spatial.transform import Rotation
 from pliant.constraints.base import EmbeddedPoints
 from pliant.constraints.cable import CableActuator
 from pliant.constraints.effector import PositionEffector
-from pliant.fem.body import TetBody, nodes_in_box
+from pliant.fem.body import TetBody, fixed_components, nodes_in_box
+from pliant.fem.loads import Load, NodalForces, RestShapeSprings
 from pliant.fem.material import Corotational
 from pliant.mesh.quality import signed_volumes
 from pliant.mesh.tetmesh import TetMesh
@@ -91,6 +92,10 @@ HANDLED = frozenset(
         "BoxROI",
         "FixedConstraint",
         "FixedProjectiveConstraint",
+        "PartialFixedConstraint",
+        "PartialFixedProjectiveConstraint",
+        "ConstantForceField",
+        "RestShapeSpringsForceField",
         "EulerImplicitSolver",
         "StaticSolver",
         "BarycentricMapping",
@@ -334,6 +339,8 @@ class _Builder:
             mesh,
             material,
             fixed_nodes=fixed,
+            fixed_dofs=self._fixed_components(node, points),
+            loads=self._loads(node, points),
             gravity=tuple(gravity),
             rayleigh_mass=rayleigh[0],
             rayleigh_stiffness=rayleigh[1],
@@ -446,6 +453,41 @@ class _Builder:
                     raise SceneError(f"{obj.path}: no indices")
                 fixed.append(idx)
         return np.unique(np.concatenate(fixed))
+
+    def _fixed_components(self, node: SceneNode, points: np.ndarray) -> np.ndarray:
+        dofs = [np.zeros(0, dtype=np.int64)]
+        for obj in node.objects:
+            if obj.type in ("PartialFixedConstraint", "PartialFixedProjectiveConstraint"):
+                idx = self._indices(node, obj, "indices", points)
+                if idx is None or _flag(obj, "fixAll", False):
+                    idx = np.arange(points.shape[0])
+                axes = _floats(obj.attrs.get("fixedDirections", "1 1 1"), f"{obj.path}")
+                dofs.append(fixed_components(idx, tuple(bool(a) for a in axes)))
+        return np.concatenate(dofs)
+
+    def _loads(self, node: SceneNode, points: np.ndarray) -> list[Load]:
+        loads: list[Load] = []
+        for obj in node.objects:
+            if obj.type not in ("ConstantForceField", "RestShapeSpringsForceField"):
+                continue
+            key = "indices" if obj.type == "ConstantForceField" else "points"
+            idx = self._indices(node, obj, key, points)
+            idx = np.arange(points.shape[0]) if idx is None else idx
+            if obj.type == "RestShapeSpringsForceField":
+                if "external_rest_shape" in obj.attrs:
+                    raise SceneError(f"{obj.path}: external_rest_shape is not supported")
+                k = _floats(obj.attrs.get("stiffness", "1"), f"{obj.path}.stiffness")
+                loads.append(RestShapeSprings(idx, points, k if k.size > 1 else k[0]))
+            elif "forces" in obj.attrs:
+                forces = _floats(obj.attrs["forces"], f"{obj.path}.forces").reshape(-1, 3)
+                loads.append(NodalForces(idx, forces if len(forces) > 1 else forces[0]))
+            elif "totalForce" in obj.attrs:
+                total = _floats(obj.attrs["totalForce"], f"{obj.path}.totalForce")
+                loads.append(NodalForces(idx, total / idx.size))
+            else:
+                force = _floats(obj.attrs.get("force", "0 0 0"), f"{obj.path}.force")
+                loads.append(NodalForces(idx, force))
+        return loads
 
     # --- points carried by the body: cables, effectors ---------------------------------------
     def _embedded(self, node: SceneNode, body: TetBody, mesh: TetMesh):
