@@ -8,6 +8,7 @@ within 1e-3 mm of them.
 
 from __future__ import annotations
 
+import re
 import textwrap
 from pathlib import Path
 
@@ -29,6 +30,17 @@ needs_reference = pytest.mark.skipif(
     not (REFERENCE / "diamond_plain_0.vtk").is_file() or not MESHES.is_dir(),
     reason="SOFA's reference outputs are not beside the repository (../shared)",
 )
+
+
+DOCS = Path(__file__).parents[1] / "docs" / "sofa.md"
+
+
+@needs_reference
+@pytest.mark.parametrize(
+    "code", re.findall(r"```python\n(.*?)```", DOCS.read_text(), flags=re.S), ids=["port", "choice"]
+)
+def test_docs_examples_run(code: str) -> None:
+    exec(compile(code, str(DOCS), "exec"), {})
 
 
 def sofa_positions(path: Path) -> np.ndarray:
