@@ -527,9 +527,9 @@ class _Builder:
         return pts.reshape(-1, 3)
 
     def _cable(self, obj: SceneObject, points: EmbeddedPoints, body: TetBody) -> CableActuator:
-        pull = obj.attrs.get("pullPoint")
-        has_pull = _flag(obj, "hasPullPoint", pull is not None)
-        pull_point = _floats(pull if pull is not None else "0 0 0", f"{obj.path}.pullPoint")
+        # SoftRobots: a pull point unless hasPullPoint is false, at the origin unless given.
+        has_pull = _flag(obj, "hasPullPoint", True)
+        pull_point = _floats(obj.attrs.get("pullPoint", "0 0 0"), f"{obj.path}.pullPoint")
         values = _floats(obj.attrs.get("value", "0"), f"{obj.path}.value")
         index = int(_float(obj, "valueIndex", 0.0))
         mode = str(obj.attrs.get("valueType", "displacement")).lower()
@@ -543,8 +543,8 @@ class _Builder:
             name=obj.node.name if obj.name == obj.type else obj.node.name + "/" + obj.name,
             mode=mode,
             value=float(values[index]) if values.size else 0.0,
-            # SoftRobots' cables only pull (minForce 0 unless the scene sets it).
-            min_force=_float(obj, "minForce", 0.0),
+            # SoftRobots bounds the tension only where the scene sets the bounds.
+            min_force=_float(obj, "minForce", -math.inf),
             max_force=_float(obj, "maxForce", math.inf),
             min_displacement=-_float(obj, "maxNegativeDisp", math.inf),
             max_displacement=_float(obj, "maxPositiveDisp", math.inf),
