@@ -18,6 +18,7 @@ import pytest
 from pliant.constraints.base import EmbeddedPoints
 from pliant.constraints.cable import CableActuator
 from pliant.fem.body import TetBody
+from pliant.fem.loads import SurfacePressure
 from pliant.fem.material import Corotational
 from pliant.mesh import box_beam
 from pliant.model import Model
@@ -132,14 +133,62 @@ def test_unsupported_components_are_listed_in_one_error(tmp_path) -> None:
         <MeshVTKLoader name="loader" filename="x.vtk"/>
         <TetrahedronFEMForceField/>
         <HexahedronFEMForceField/>
-        <Node name="cavity"><SurfacePressureConstraint/></Node>
+        <Node name="cavity"><SurfacePressureForceField/></Node>
         </Node></Node>"""
     )
     with pytest.raises(SceneError) as err:
         load_scene(scene)
     message = str(err.value)
     assert "HexahedronFEMForceField (at root/Body)" in message
-    assert "SurfacePressureConstraint (at root/Body/cavity)" in message
+    assert "SurfacePressureForceField (at root/Body/cavity)" in message
+
+
+def test_a_cavity_scene_inflates_like_the_pressure_load(tmp_path) -> None:
+    """A SurfacePressureConstraint on a surface mesh of its own (STL, mapped into the body)
+    in pressure mode: the closed surface's pressure force, p dV/dx, is the SurfacePressure
+    load's on the same faces, so the static equilibria agree."""
+    import meshio
+
+    mesh = box_beam(10.0, 10.0, 10.0, 2, 2, 2)
+    surface = mesh.boundary_triangles()
+    meshio.write(tmp_path / "body.vtu", meshio.Mesh(mesh.points, [("tetra", mesh.tets)]))
+    meshio.write(tmp_path / "cavity.stl", meshio.Mesh(mesh.points, [("triangle", surface)]))
+    scene = tmp_path / "cavity.scn"
+    scene.write_text(
+        """<Node name="root" dt="0.01" gravity="0 0 0">
+        <Node name="Body">
+          <StaticSolver/>
+          <MeshVTKLoader name="loader" filename="body.vtu"/>
+          <MeshTopology name="topo" src="@loader"/>
+          <MechanicalObject name="dofs"/>
+          <UniformMass totalMass="0.001"/>
+          <TetrahedronFEMForceField youngModulus="1000" poissonRatio="0.3" method="polar"/>
+          <BoxROI name="box" box="-1 -1 -1 0.1 11 11"/>
+          <FixedConstraint indices="@box.indices"/>
+          <Node name="cavity">
+            <MeshSTLLoader name="surface" filename="cavity.stl"/>
+            <MeshTopology name="walls" src="@surface"/>
+            <MechanicalObject name="points" src="@surface"/>
+            <SurfacePressureConstraint triangles="@walls.triangles" value="20"
+                valueType="pressure"/>
+            <BarycentricMapping/>
+          </Node>
+        </Node></Node>"""
+    )
+    loaded = load_scene(scene)
+    assert loaded.solver_kind == "static" and len(loaded.model.actuators) == 1
+    by_scene = loaded.simulate(1).positions
+    body = TetBody(
+        mesh,
+        Corotational(1000.0, 0.3),
+        density=1e-6,
+        fixed_nodes=np.flatnonzero(mesh.points[:, 0] < 0.1),
+        loads=[SurfacePressure(surface, 20.0)],
+    )
+    by_load = StaticSolver(Model(body)).step(Model(body).rest_state()).positions
+    motion = np.abs(by_load - mesh.points).max()
+    assert motion > 0.1
+    assert np.abs(by_scene - by_load).max() < 1e-8 * motion
 
 
 def test_a_scene_without_a_body_says_so(tmp_path) -> None:

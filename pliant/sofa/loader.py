@@ -18,6 +18,7 @@ mesh, change measured from the last step). See docs/sofa.md for the list of comp
 from __future__ import annotations
 
 import math
+import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -29,6 +30,7 @@ from scipy.spatial.transform import Rotation
 
 from pliant.constraints.base import EmbeddedPoints
 from pliant.constraints.cable import CableActuator
+from pliant.constraints.cavity import CavityActuator, enclosed_volume
 from pliant.constraints.effector import PositionEffector
 from pliant.fem.body import TetBody, fixed_components, nodes_in_box
 from pliant.fem.loads import Load, NodalForces, RestShapeSprings
@@ -102,8 +104,11 @@ HANDLED = frozenset(
         "CableConstraint",
         "CableActuator",
         "PositionEffector",
+        "SurfacePressureConstraint",
+        "SurfacePressureActuator",
     }
 )
+CAVITIES = frozenset({"SurfacePressureConstraint", "SurfacePressureActuator"})
 
 
 @dataclass
@@ -366,16 +371,33 @@ class _Builder:
         target = link.strip().lstrip("@").split("/")[-1].split(".")[0]
         return node.find(target)
 
-    def _read_mesh(self, loader: SceneObject) -> tuple[np.ndarray, np.ndarray]:
+    def _loaded(self, loader: SceneObject) -> tuple[np.ndarray, dict[str, np.ndarray]]:
         """The loader's points (transformed as SOFA's MeshLoader does: scale, then rotation,
-        then translation) and tetrahedra, in the file's order."""
+        then translation) and its cells by type, in the file's order."""
         file = self._resolve_file(loader)
         try:
-            raw = meshio.read(file)
+            with warnings.catch_warnings():
+                # meshio sniffs an ASCII STL as binary first, with an integer overflow warning.
+                warnings.simplefilter("ignore", RuntimeWarning)
+                raw = meshio.read(file)
         except Exception as exc:  # meshio reports malformed files with many exception types
             raise SceneError(f"{loader.path}: cannot read {str(file)!r}: {exc}") from exc
-        points = np.asarray(raw.points, dtype=float)
-        tets = [b.data for b in raw.cells if b.type == "tetra"]
+        cells: dict[str, list[np.ndarray]] = {}
+        for block in raw.cells:
+            cells.setdefault(block.type, []).append(np.asarray(block.data, dtype=np.int64))
+        scale = _floats(loader.attrs.get("scale3d", loader.attrs.get("scale", "1")), "scale")
+        euler = _floats(loader.attrs.get("rotation", "0 0 0"), f"{loader.path}.rotation")
+        shift = _floats(loader.attrs.get("translation", "0 0 0"), f"{loader.path}.translation")
+        # SOFA's Euler angles (degrees) compose as Rz Ry Rx: scipy's extrinsic "xyz".
+        rot = Rotation.from_euler("xyz", euler, degrees=True).as_matrix()
+        points = (np.asarray(raw.points, dtype=float) * scale) @ rot.T + shift
+        return points, {k: np.concatenate(v) for k, v in cells.items()}
+
+    def _read_mesh(self, loader: SceneObject) -> tuple[np.ndarray, np.ndarray]:
+        """The loader's points and tetrahedra, in the file's order."""
+        points, cells = self._loaded(loader)
+        file = Path(str(loader.attrs.get("filename", "")))
+        tets = [cells["tetra"]] if "tetra" in cells else []
         if not tets:
             raise SceneError(f"{loader.path}: {file.name} holds no tetrahedra")
         tets = np.concatenate(tets).astype(np.int64)
@@ -385,12 +407,7 @@ class _Builder:
                 f"{loader.path}: {unused} nodes of {file.name} belong to no tetrahedron (SOFA"
                 " would simulate them as free particles); remove them from the mesh"
             )
-        scale = _floats(loader.attrs.get("scale3d", loader.attrs.get("scale", "1")), "scale")
-        euler = _floats(loader.attrs.get("rotation", "0 0 0"), f"{loader.path}.rotation")
-        shift = _floats(loader.attrs.get("translation", "0 0 0"), f"{loader.path}.translation")
-        # SOFA's Euler angles (degrees) compose as Rz Ry Rx: scipy's extrinsic "xyz".
-        rot = Rotation.from_euler("xyz", euler, degrees=True).as_matrix()
-        return (points * scale) @ rot.T + shift, tets
+        return points, tets
 
     def _mass(self, node: SceneNode, n_nodes: int) -> dict:
         mass = self._one(node, {"UniformMass", "MeshMatrixMass"}, "masses")
@@ -493,6 +510,7 @@ class _Builder:
     def _embedded(self, node: SceneNode, body: TetBody, mesh: TetMesh):
         dofs = self._one(node, {"MechanicalObject"}, "MechanicalObjects")
         constraints = [o for o in node.objects if o.type in ("CableConstraint", "CableActuator")]
+        constraints += [o for o in node.objects if o.type in CAVITIES]
         constraints += [o for o in node.objects if o.type == "PositionEffector"]
         if dofs is None or not constraints:
             return [], []
@@ -502,6 +520,12 @@ class _Builder:
         outside = self.choices.outside
         actuators, effectors = [], []
         for obj in constraints:
+            if obj.type in CAVITIES:
+                embedded = EmbeddedPoints(
+                    mesh, positions, tolerance=0.1 * body.extent, outside=outside
+                )
+                actuators.append(self._cavity(node, obj, embedded, body))
+                continue
             idx = self._indices(node, obj, "indices", positions)
             pts = positions if idx is None else positions[idx]
             # SOFA maps a point wherever it lies; Pliant keeps a generous check against typos.
@@ -513,11 +537,18 @@ class _Builder:
         return actuators, effectors
 
     def _positions(self, node: SceneNode, dofs: SceneObject) -> np.ndarray:
-        value = dofs.attrs.get("position")
+        """The points of a MechanicalObject: its `position`, a link to positions, or the
+        mesh of its `src` loader or of its node's topology."""
+        value = dofs.attrs.get("position", dofs.attrs.get("src"))
         if value is None:
-            raise SceneError(f"{dofs.path}: no position")
+            loaders = [o for o in node.objects if o.type in MESH_LOADERS]
+            if len(loaders) != 1:
+                raise SceneError(f"{dofs.path}: no position (and no single mesh loader)")
+            return self._loaded(loaders[0])[0]
         if _is_link(value):
             source = self._link(node, value)
+            if source is not None and source.type in MESH_LOADERS:
+                return self._loaded(source)[0]
             if source is None or "position" not in source.attrs:
                 raise SceneError(f"{dofs.path}.position: {value!r} names no positions")
             value = source.attrs["position"]
@@ -549,6 +580,53 @@ class _Builder:
             min_displacement=-_float(obj, "maxNegativeDisp", math.inf),
             max_displacement=_float(obj, "maxPositiveDisp", math.inf),
             max_displacement_change=None if change is None else _float(obj, "maxDispVariation", 0),
+            change_reference=self.choices.change_reference,
+        )
+
+    def _cavity(
+        self, node: SceneNode, obj: SceneObject, points: EmbeddedPoints, body: TetBody
+    ) -> CavityActuator:
+        """SoftRobots' SurfacePressureConstraint: the closed surface of its node's mesh,
+        carried by the body; a pressure (force mode) or a volume growth (displacement)."""
+        value = obj.attrs.get("triangles")
+        if value is None or _is_link(value):
+            source = self._link(node, value) if value is not None else None
+            if source is not None and source.type not in MESH_LOADERS:
+                source = self._link(node, str(source.attrs.get("src", "")))
+            if source is None:
+                loaders = [o for o in node.objects if o.type in MESH_LOADERS]
+                source = loaders[0] if len(loaders) == 1 else None
+            if source is None:
+                raise SceneError(f"{obj.path}.triangles: {value!r} names no surface mesh")
+            cells = self._loaded(source)[1]
+            if "triangle" not in cells:
+                raise SceneError(f"{obj.path}: the cavity's mesh holds no triangles")
+            triangles = cells["triangle"]
+        else:
+            triangles = _floats(value, f"{obj.path}.triangles").astype(np.int64).reshape(-1, 3)
+        rest = points.positions(body.rest_positions)
+        values = _floats(obj.attrs.get("value", "0"), f"{obj.path}.value")
+        index = int(_float(obj, "valueIndex", 0.0))
+        kind = str(obj.attrs.get("valueType", "pressure")).lower()
+        if kind not in ("pressure", "volumegrowth"):
+            raise SceneError(f"{obj.path}.valueType: 'pressure' or 'volumeGrowth', not {kind!r}")
+        change = obj.attrs.get("maxVolumeGrowthVariation")
+        return CavityActuator(
+            triangles,
+            body.rest_positions,
+            points=points,
+            # The pressure inflates the cavity whichever way the file orients its faces.
+            flip_normals=enclosed_volume(rest, triangles) < 0.0,
+            name=node.name,
+            mode="force" if kind == "pressure" else "displacement",
+            value=float(values[index]) if values.size else 0.0,
+            min_force=_float(obj, "minPressure", -math.inf),
+            max_force=_float(obj, "maxPressure", math.inf),
+            min_displacement=_float(obj, "minVolumeGrowth", -math.inf),
+            max_displacement=_float(obj, "maxVolumeGrowth", math.inf),
+            max_displacement_change=None
+            if change is None
+            else _float(obj, "maxVolumeGrowthVariation", 0.0),
             change_reference=self.choices.change_reference,
         )
 
