@@ -287,3 +287,31 @@ def test_the_cable_ramp_follows_the_change_reference(reference, expected) -> Non
         # the step), a small fraction of the 1 mm steps.
         tol = 1e-6 if isinstance(solver, StaticSolver) else 0.05
         assert np.abs(np.array(reached) - expected).max() < tol, (type(solver), reached)
+
+
+def test_large_frames_keep_the_file_order_of_reoriented_elements(tmp_path, rng) -> None:
+    """A mesh file with some elements negatively oriented (nodes 0 and 1 swapped): the loader
+    reorients them for Pliant but keeps SOFA's frame, the file's first three nodes, so the
+    forces are those of the NumPy reference run on the file's elements as they are."""
+    import meshio
+
+    from pliant.fem import reference
+
+    mesh = box_beam(20.0, 10.0, 10.0, 2, 1, 1)
+    tets = mesh.tets.copy()
+    tets[::3] = tets[::3][:, [1, 0, 2, 3]]
+    meshio.write(tmp_path / "body.vtu", meshio.Mesh(mesh.points, [("tetra", tets)]))
+    scene = tmp_path / "body.scn"
+    scene.write_text(
+        """<Node name="root" gravity="0 0 0"><Node name="Body">
+        <EulerImplicitSolver/><MeshVTKLoader name="loader" filename="body.vtu"/>
+        <UniformMass totalMass="0.001"/><TetrahedronFEMForceField youngModulus="1000"
+        poissonRatio="0.3"/></Node></Node>"""
+    )
+    body = load_scene(scene).model.body
+    moved = mesh.points + 0.8 * rng.standard_normal(mesh.points.shape)
+    material = body.material
+    forces, _ = reference.internal_forces(
+        moved, tets, mesh.points, material.mu, material.lam, "corotational", rotation="large"
+    )
+    assert np.abs(body.linearise(moved).forces - forces).max() < 1e-10 * np.abs(forces).max()

@@ -140,6 +140,9 @@ class TetBody:
         loads: external loads and elastic supports (:mod:`pliant.fem.loads`): their forces
             add to the internal ones and their tangents to the stiffness, at the time the
             solver passes.
+        frame_nodes: (m, 3) the nodes whose edges give each element's frame under
+            ``Corotational(rotation="large")`` (default: its first three; a SOFA mesh whose
+            element was reoriented keeps its file order here, see :mod:`pliant.sofa`).
     """
 
     # Largest change of an element frame entry before the "lagged" policy refactorises: on
@@ -162,6 +165,7 @@ class TetBody:
         membranes: Sequence[Membrane] = (),
         fixed_dofs: np.ndarray | None = None,
         loads: Sequence[Load] = (),
+        frame_nodes: np.ndarray | None = None,
     ) -> None:
         # Inverted, degenerate, disconnected or malformed meshes raise their MeshError here.
         validate_mesh(mesh.points, mesh.tets)
@@ -171,9 +175,20 @@ class TetBody:
         self.tets = np.ascontiguousarray(mesh.tets, dtype=np.int64)
         self.volumes, self.grads = kernels.rest_gradients(self.rest_positions, self.tets)
         # SOFA's "large" rotation compares each element's edge frame with its rest one.
+        large = material.kernel_tag == COROTATIONAL_LARGE
+        nodes = self.tets[:, :3] if frame_nodes is None else np.asarray(frame_nodes, np.int64)
+        if large and frame_nodes is not None:
+            ordered = np.sort(nodes, axis=1) if nodes.ndim == 2 else nodes
+            if (
+                nodes.shape != (self.tets.shape[0], 3)
+                or not (nodes[:, :, None] == self.tets[:, None, :]).any(axis=2).all()
+                or np.any(ordered[:, 1:] == ordered[:, :-1])
+            ):
+                raise ModelError("frame_nodes must give three distinct nodes of each element")
+        self.frame_nodes = np.ascontiguousarray(nodes) if large else np.empty((0, 3), np.int64)
         self.rest_frames = (
-            kernels.edge_frames(self.rest_positions, self.tets)
-            if material.kernel_tag == COROTATIONAL_LARGE
+            kernels.edge_frames(self.rest_positions, self.frame_nodes)
+            if large
             else np.empty((0, 3, 3))
         )
         n_elem = self.tets.shape[0]
@@ -420,6 +435,7 @@ class TetBody:
             self.mu,
             self.lam,
             self.material.kernel_tag,
+            self.frame_nodes,
             self.rest_frames,
             elem_forces,
             elem_kv,

@@ -88,8 +88,9 @@ def polar_rotation(f):
 
 @njit(cache=True, inline="always")
 def _edge_frame(x, tet, q):
-    """q = the element's edge frame, columns e_0, e_1, e_2 (SOFA's "large" method): e_0 along
-    x_1 - x_0, e_2 along (x_1 - x_0) x (x_2 - x_0), e_1 = e_2 x e_0."""
+    """q = the edge frame of the nodes tet[0], tet[1], tet[2] (an element's first three in
+    SOFA's "large" method), columns e_0, e_1, e_2: e_0 along x_1 - x_0, e_2 along
+    (x_1 - x_0) x (x_2 - x_0), e_1 = e_2 x e_0."""
     a, b, c = tet[0], tet[1], tet[2]
     u0, u1, u2 = x[b, 0] - x[a, 0], x[b, 1] - x[a, 1], x[b, 2] - x[a, 2]
     w0, w1, w2 = x[c, 0] - x[a, 0], x[c, 1] - x[a, 1], x[c, 2] - x[a, 2]
@@ -105,7 +106,7 @@ def _edge_frame(x, tet, q):
 
 @njit(cache=True)
 def edge_frames(x, tets):
-    """Edge frames (m, 3, 3) of the elements at positions x (see `_edge_frame`)."""
+    """Edge frames (m, 3, 3) of node triples (m, >= 3) at positions x (see `_edge_frame`)."""
     out = np.empty((tets.shape[0], 3, 3))
     for e in range(tets.shape[0]):
         _edge_frame(x, tets[e], out[e])
@@ -154,13 +155,27 @@ def _gradient(x, tet, g, out):
 
 @njit(cache=True, parallel=True)
 def internal_forces(
-    x, v, tets, grads, vols, mu, lam, tag, rest_frames, elem_forces, elem_kv, frames, dets
+    x,
+    v,
+    tets,
+    grads,
+    vols,
+    mu,
+    lam,
+    tag,
+    frame_nodes,
+    rest_frames,
+    elem_forces,
+    elem_kv,
+    frames,
+    dets,
 ):
     """Element internal forces and elastic energy, and optionally K_s v.
 
     Writes -V P g_a into `elem_forces` (m, 4, 3) (sum them per node with `gather_nodal`), the
     linearisation frame (R for corotational, F^-1 for Neo-Hookean) into `frames` (m, 3, 3)
-    (tag 2 reads the elements' rest edge frames Q(X) from `rest_frames`: R = Q(x) Q(X)^T)
+    (tag 2: R = Q(x) Q(X)^T with Q the edge frame of the nodes `frame_nodes` (m, 3) and Q(X)
+    read from `rest_frames`)
     and det F into `dets`. An element with det F <= 0 contributes no force; its det is recorded
     so that the caller reports the inversion instead of a NaN. When `v` (n, 3) is not empty,
     also writes the element contributions of K_s v (default tangent, the one assembled) into
@@ -194,7 +209,7 @@ def internal_forces(
                 if tag == 0:
                     _polar(f, r, work)
                 else:
-                    _edge_frame(x, tets[e], q)
+                    _edge_frame(x, frame_nodes[e], q)
                     q0 = rest_frames[e]
                     for i in range(3):
                         for j in range(3):

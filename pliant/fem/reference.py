@@ -57,7 +57,7 @@ def internal_forces(points, tets, rest, mu, lam, material, rotation="polar"):
     for tet in tets:
         dm = (rest[tet[1:]] - rest[tet[0]]).T
         ds = (points[tet[1:]] - points[tet[0]]).T
-        vol = np.linalg.det(dm) / 6.0
+        vol = abs(np.linalg.det(dm)) / 6.0  # either orientation, as SOFA takes them
         f = ds @ np.linalg.inv(dm)
         grads = np.vstack([-np.linalg.inv(dm).sum(axis=0), np.linalg.inv(dm)])
         r = None

@@ -324,15 +324,11 @@ class _Builder:
                 f"{fem.path}: method {method!r} is not supported (large, polar or svd)"
             )
         rotation = "large" if method == "large" and self.choices.rotation == "scene" else "polar"
+        # SOFA takes elements in either orientation; Pliant's are positive. The "large" frame
+        # stays the file's first three nodes of each element.
+        frame_nodes = tets[:, :3].copy()
         negative = signed_volumes(points, tets) < 0.0
-        if negative.any():
-            if rotation == "large":
-                raise SceneError(
-                    f"{loader.path}: {int(negative.sum())} tetrahedra are negatively oriented;"
-                    " SOFA's 'large' rotation reads its frame in the file's node order, which"
-                    " reorienting them would change (use method='polar' or reorient the mesh)"
-                )
-            tets[negative] = tets[negative][:, [0, 2, 1, 3]]
+        tets[negative] = tets[negative][:, [0, 2, 1, 3]]
         mesh = TetMesh(points, tets)
         material = Corotational(
             _float(fem, "youngModulus", 5000.0), _float(fem, "poissonRatio", 0.45), rotation
@@ -345,6 +341,7 @@ class _Builder:
             material,
             fixed_nodes=fixed,
             fixed_dofs=self._fixed_components(node, points),
+            frame_nodes=frame_nodes if rotation == "large" else None,
             loads=self._loads(node, points),
             gravity=tuple(gravity),
             rayleigh_mass=rayleigh[0],
