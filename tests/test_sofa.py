@@ -202,6 +202,20 @@ def test_a_cavity_scene_inflates_like_the_pressure_load(tmp_path) -> None:
     assert np.abs(by_scene - by_load).max() < 1e-8 * motion
 
 
+@needs_reference
+def test_a_cable_not_carried_by_the_body_is_refused(tmp_path) -> None:
+    text = (REFERENCE / "diamond_plain.scn").read_text()
+    text = text.replace(
+        "<DefaultAnimationLoop/>",
+        '<DefaultAnimationLoop/><Node name="loose"><MechanicalObject position="0 0 0 1 1 1"/>'
+        '<CableConstraint name="c"/></Node>',
+    )
+    scene = tmp_path / "scene.scn"
+    scene.write_text(text)
+    with pytest.raises(SceneError, match=r"CableConstraint \(at root/loose\)"):
+        load_scene(scene, mesh_dirs=[MESHES])
+
+
 def test_a_scene_without_a_body_says_so(tmp_path) -> None:
     scene = tmp_path / "scene.scn"
     scene.write_text('<Node name="root"><Node name="Body"><UniformMass/></Node></Node>')

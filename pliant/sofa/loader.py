@@ -109,6 +109,7 @@ HANDLED = frozenset(
     }
 )
 CAVITIES = frozenset({"SurfacePressureConstraint", "SurfacePressureActuator"})
+POINT_CONSTRAINTS = frozenset({"CableConstraint", "CableActuator", "PositionEffector", *CAVITIES})
 
 
 @dataclass
@@ -257,10 +258,23 @@ class _Builder:
             raise SceneError(f"root.gravity: three values expected, got {gravity.size}")
         body, mesh, solver_kind = self._body(body_node, gravity)
         actuators, effectors = [], []
-        for child in body_node.children:
+        carried = [n for n in body_node.walk() if n is not body_node]
+        for child in carried:
             acts, effs = self._embedded(child, body, mesh)
             actuators += acts
             effectors += effs
+        stray = [
+            f"{obj.type} (at {node.path})"
+            for node in self.root.walk()
+            if node is not body_node and not any(node is c for c in carried)
+            for obj in node.objects
+            if obj.type in POINT_CONSTRAINTS
+        ]
+        if stray:
+            raise SceneError(
+                f"{self.path.name}: actuators and effectors act on points carried by the body"
+                f" (a node under {body_node.path} with a BarycentricMapping): " + "; ".join(stray)
+            )
         model = Model(body, actuators=actuators, effectors=effectors, name=self.path.stem)
         return SofaScene(model, dt, solver_kind, self.path)
 
