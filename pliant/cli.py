@@ -39,22 +39,35 @@ def _solver(model, solver: str, dt: float):
 
 @app.command()
 def run(
-    robot: Annotated[str, typer.Argument(help=f"one of {', '.join(sorted(robots.ROBOTS))}")],
+    robot: Annotated[
+        str,
+        typer.Argument(help=f"one of {', '.join(sorted(robots.ROBOTS))}, or a SOFA scene file"),
+    ],
     duration: Annotated[float, typer.Option(help="simulated seconds")] = 3.0,
     dt: Annotated[float, typer.Option(help="time step")] = 0.01,
     solver: Annotated[str, typer.Option(help="dynamic or static")] = "dynamic",
     frames: Annotated[int, typer.Option(help="frames in the GIF and VTU series")] = 30,
     out: Annotated[Path, typer.Option(help="output folder")] = Path("out"),
+    mesh_dir: Annotated[list[Path], typer.Option(help="where a scene's meshes are")] = [],  # noqa: B006
 ) -> None:
-    """Simulate ROBOT under its scripted actuation; save a GIF, a PNG and a VTU time series."""
+    """Simulate ROBOT (or a SOFA .scn / .py scene, under its commands) under its scripted
+    actuation; save a GIF, a PNG and a VTU time series."""
     from pliant.scenario import scripted
     from pliant.viz import VtuSeriesWriter, save_gif, save_png
     from pliant.viz.model_view import RobotCamera
 
     try:
-        entry = robots.entry(robot)
+        scene = None
+        if robot.endswith((".scn", ".xml", ".py")):
+            from pliant.sofa import load_scene
+
+            scene = load_scene(robot, mesh_dirs=mesh_dir)
+            entry, robot = scene.entry(), Path(robot).stem
+        else:
+            entry = robots.entry(robot)
         model = entry.build()
-        sim = _solver(model, solver, dt)
+        # A scene runs SOFA's step (its time step, refactorised every step) unless told otherwise.
+        sim = scene.solver() if scene and solver == "dynamic" else _solver(model, solver, dt)
         n_steps = max(1, round(duration / dt))
         frames = max(1, min(frames, n_steps))
         frame_steps = set(np.linspace(n_steps / frames, n_steps, frames).round().astype(int))

@@ -36,6 +36,9 @@ class State:
         step: number of steps taken.
         actuation: (n_actuators,) actuator forces lambda_a of the last step.
         displacement: (n_actuators,) actuator distances delta_a at the end of the last step.
+        displacement_before: delta_a at the end of the step before the last (what an actuator
+            with ``change_reference="lagged"`` limits its change against, as SoftRobots does);
+            empty before the first step.
         contact_forces: the last step's contact forces by contact identity (the next step's
             warm start, so that a restored state replays exactly).
         rigid_positions, rigid_rotations, rigid_velocities, rigid_angular_velocities: the
@@ -57,6 +60,7 @@ class State:
     rigid_rotations: np.ndarray = field(default_factory=lambda: np.zeros((0, 3, 3)))
     rigid_velocities: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
     rigid_angular_velocities: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
+    displacement_before: np.ndarray = field(default_factory=lambda: np.zeros(0))
 
     _RIGID = ("rigid_positions", "rigid_rotations", "rigid_velocities", "rigid_angular_velocities")
 
@@ -70,6 +74,7 @@ class State:
             self.displacement.copy(),
             self.contact_forces.copy(),
             *(getattr(self, name).copy() for name in self._RIGID),
+            self.displacement_before.copy(),
         )
 
     def allclose(self, other: State, *, atol: float = 0.0) -> bool:
@@ -92,6 +97,7 @@ class State:
             step=self.step,
             actuation=self.actuation,
             displacement=self.displacement,
+            displacement_before=self.displacement_before,
             contact_keys=self.contact_forces.keys,
             contact_forces=self.contact_forces.forces,
             **{name: getattr(self, name) for name in self._RIGID},
@@ -109,8 +115,12 @@ class State:
                 d["actuation"],
                 d["displacement"],
                 ContactForces(d["contact_keys"], d["contact_forces"]),
-                # States saved before rigid bodies existed have none.
-                **{name: d[name] for name in cls._RIGID if name in d.files},
+                # States saved before rigid bodies (or the lagged displacement) existed have none.
+                **{
+                    name: d[name]
+                    for name in (*cls._RIGID, "displacement_before")
+                    if name in d.files
+                },
             )
 
 

@@ -14,6 +14,7 @@ from pliant.fem import reference
 from pliant.fem.body import TetBody
 from pliant.fem.material import Corotational
 from pliant.mesh import box_beam
+from pliant.mesh.tetmesh import TetMesh
 from pliant.model import Model
 from pliant.solvers import StaticSolver
 
@@ -296,3 +297,142 @@ def test_nodal_sums_agree_on_one_and_several_threads():
     np.add.at(expected, body.tets, values)
     np.testing.assert_allclose(by_node, expected, rtol=1e-12, atol=1e-12)
     np.testing.assert_allclose(by_element, expected, rtol=1e-12, atol=1e-12)
+
+
+# ---------------------------------------------------------------------------------------------
+# SOFA's "large" rotation: R = Q(x) Q(X)^T from the edge frames (first edge, then the plane of
+# the first two), P = R (2 mu eps + lam tr(eps) I) with eps = sym(R^T F) - I.
+
+
+def _large(young: float = E, nu: float = NU) -> Corotational:
+    return Corotational(young, nu, rotation="large")
+
+
+def test_large_rotation_rigid_motions_produce_no_force(distorted_mesh) -> None:
+    body = TetBody(distorted_mesh, _large(), density=1e-6)
+    x = distorted_mesh.points
+    scale = E * 10.0**2
+    for moved in (x + [12.0, -7.0, 30.0], x @ _rotation(130.0, [1.0, 2.0, -0.5]).T + [5, 0, -3]):
+        lin = body.linearise(moved)
+        assert np.abs(lin.forces).max() < 1e-9 * scale
+        assert abs(lin.energy) < 1e-9 * E * body.volumes.sum()
+
+
+def test_large_rotation_kernels_match_the_numpy_reference(rng, distorted_mesh) -> None:
+    x = distorted_mesh.points
+    moved = x @ _rotation(35.0, [0.3, -1.0, 0.2]).T + rng.standard_normal(x.shape)
+    mat = _large()
+    lin = TetBody(distorted_mesh, mat, density=1e-6).linearise(moved)
+    forces, energy = reference.internal_forces(
+        moved, distorted_mesh.tets, x, mat.mu, mat.lam, "corotational", rotation="large"
+    )
+    assert np.abs(lin.forces - forces).max() < 1e-10 * np.abs(forces).max()
+    assert abs(lin.energy - energy) < 1e-12 * abs(energy)
+    polar = TetBody(distorted_mesh, Corotational(E, NU), density=1e-6).linearise(moved)
+    assert np.abs(lin.forces - polar.forces).max() > 1e-3 * np.abs(forces).max()
+
+
+def test_large_rotation_passes_the_patch_test_to_first_order(rng, distorted_mesh) -> None:
+    """Boundary nodes on a rotated affine map x = R0 (X + G X) + c. Each element's edge frame
+    differs from the polar rotation by O(|G|), so a uniform F is an equilibrium up to O(|G|^2)
+    (exactly in the linear limit, the linear patch test): the interior nodes' distance to the
+    affine map, relative to the strain's displacement, falls in proportion to |G|."""
+    mesh = distorted_mesh
+    x = mesh.points
+    boundary = np.unique(mesh.boundary_triangles())
+    interior = np.setdiff1d(np.arange(mesh.n_nodes), boundary)
+    model = Model(TetBody(mesh, _large(), density=1e-6, fixed_nodes=boundary))
+    r0 = _rotation(70.0, [0.2, 1.0, -0.4])
+    direction = rng.uniform(-1.0, 1.0, (3, 3))
+    relative = []
+    for size in (1e-2, 1e-3):
+        g = size * direction
+        affine = (x + x @ g.T) @ r0.T + [3.0, -2.0, 1.0]
+        state = model.rest_state()
+        state.positions[:] = affine
+        solved = StaticSolver(model).step(state)
+        strain_motion = np.abs(x @ g.T).max()
+        relative.append(np.abs(solved.positions - affine)[interior].max() / strain_motion)
+    # Measured: 4.2e-4 and 4.2e-5 (a tenth of the strain, a tenth of the relative error).
+    assert relative[0] < 2e-3
+    assert relative[1] < 0.15 * relative[0], relative
+
+
+def test_large_rotation_forces_are_the_energy_gradient_where_the_frame_is_polar(rng) -> None:
+    """With the first edge along x and the first face in the xy plane, F = R0 diag(a, b, c)
+    keeps the edge frame equal to the polar rotation (R^T F symmetric), where the variation of
+    R drops out of d psi: f = -dE/dx there, although R depends on x."""
+    rest = np.array([[0.0, 0.0, 0.0], [4.0, 0.0, 0.0], [1.0, 3.0, 0.0], [1.5, 1.0, 5.0]])
+    mesh = TetMesh(rest, np.array([[0, 1, 2, 3]]))
+    body = TetBody(mesh, _large(), density=1e-6)
+    r0 = _rotation(40.0, [1.0, -2.0, 0.5])
+    x = (rest * [1.1, 0.93, 1.05]) @ r0.T + [1.0, 2.0, 3.0]
+    lin = body.linearise(x)
+    assert np.abs(lin.forces).max() > 1.0
+    eps = 1e-6
+    for _ in range(5):
+        d = rng.standard_normal(x.shape)
+        fd = (body.linearise(x + eps * d).energy - body.linearise(x - eps * d).energy) / (2 * eps)
+        assert fd == pytest.approx(-np.sum(lin.forces * d), rel=1e-7)
+
+
+def _sofa_element_stiffness(rest: np.ndarray, x: np.ndarray, young: float, nu: float):
+    """One element's stiffness as SOFA's 'large' method assembles it, written independently of
+    the kernels: the element in its rest edge frame, the strain-displacement matrix B (6 x 12,
+    Voigt, engineering shear), the isotropic C, K_local = V B^T C B, then rotated to the current
+    edge frame: K = Q K_local Q^T blockwise."""
+    q0, q = reference.edge_frame(rest), reference.edge_frame(x)
+    local = (rest - rest[0]) @ q0
+    dm = (local[1:] - local[0]).T
+    grads = np.vstack([-np.linalg.inv(dm).sum(axis=0), np.linalg.inv(dm)])
+    b = np.zeros((6, 12))
+    for a, (gx, gy, gz) in enumerate(grads):
+        b[:, 3 * a : 3 * a + 3] = [
+            [gx, 0, 0],
+            [0, gy, 0],
+            [0, 0, gz],
+            [gy, gx, 0],
+            [0, gz, gy],
+            [gz, 0, gx],
+        ]
+    c = np.full((3, 3), nu) + np.eye(3) * (1 - 2 * nu)
+    c = np.block([[c, np.zeros((3, 3))], [np.zeros((3, 3)), np.eye(3) * (1 - 2 * nu) / 2]])
+    c *= young / ((1 + nu) * (1 - 2 * nu))
+    vol = abs(np.linalg.det(dm)) / 6.0
+    rot = np.kron(np.eye(4), q)
+    return rot @ (vol * b.T @ c @ b) @ rot.T
+
+
+def test_large_rotation_tangent_is_sofas_rotated_linear_stiffness(rng) -> None:
+    """The step's tangent (and the static Newton's, for this law) is SOFA's R K0 R^T, not the
+    Jacobian of the forces: it matches SOFA's element stiffness at a strained, rotated state."""
+    rest = np.array([[0.0, 0.0, 0.0], [4.0, 0.5, 0.0], [1.0, 3.0, 0.2], [1.5, 1.0, 5.0]])
+    mesh = TetMesh(rest, np.array([[0, 1, 2, 3]]))
+    body = TetBody(mesh, _large(), density=1e-6)
+    x = rest @ _rotation(75.0, [1.0, 0.3, -0.5]).T + 0.2 * rng.standard_normal(rest.shape)
+    lin = body.linearise(x)
+    expected = _sofa_element_stiffness(rest, x, E, NU)
+    for exact in (False, True):
+        k = body.stiffness_matrix(lin, exact=exact).toarray()
+        assert np.abs(k - expected).max() < 1e-12 * np.abs(expected).max()
+
+
+def test_large_rotation_tangent_matches_force_differences_at_rotated_rest(rng, small_beam):
+    """At F = R (no strain) R K0 R^T is the exact Jacobian of the forces."""
+    body = clamped_body(small_beam, _large())
+    x = small_beam.points @ _rotation(60.0, [1.0, 2.0, -0.5]).T + [3.0, -1.0, 2.0]
+    lin = body.linearise(x)
+    eps = 1e-4
+    u = body.gather(rng.standard_normal(x.shape))
+    du = body.scatter(u)
+    fd = -body.gather(body.linearise(x + eps * du).forces - body.linearise(x - eps * du).forces)
+    fd /= 2 * eps
+    error = np.linalg.norm(body.stiffness_matvec(lin, u) - fd) / np.linalg.norm(fd)
+    assert error < 1e-6, f"relative error of K u: {error:.3g}"
+
+
+def test_an_unknown_rotation_is_a_material_error() -> None:
+    from pliant.errors import MaterialError
+
+    with pytest.raises(MaterialError, match="'polar' or 'large'"):
+        Corotational(E, NU, rotation="small")

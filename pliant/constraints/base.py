@@ -27,17 +27,26 @@ class JacobianRows:
 
 
 class EmbeddedPoints:
-    """Points carried by the mesh: p_j = sum_a w_ja x[node_ja] (barycentric in their tetrahedron).
+    """Points carried by the mesh: p_j = sum_a w_ja x[node_ja] over the nodes of an element.
 
-    SOFA attaches cable and effector points the same way (BarycentricMapping).
+    A point inside the mesh gets its barycentric coordinates in the element containing it, as
+    SOFA's BarycentricMapping does. A point outside (up to `tolerance` from the mesh) is, with
+    ``outside="project"`` (Pliant's default), moved onto its nearest element (coordinates
+    clamped to [0, 1]); with ``outside="keep"`` (SOFA's behaviour, the default of scenes read by
+    :mod:`pliant.sofa`), kept where it is, with its barycentric coordinates (some negative) in
+    the element whose centre is nearest.
     """
 
     def __init__(
-        self, mesh: TetMesh, points: np.ndarray, *, tolerance: float | None = None
+        self,
+        mesh: TetMesh,
+        points: np.ndarray,
+        *,
+        tolerance: float | None = None,
+        outside: Literal["project", "keep"] = "project",
     ) -> None:
-        """Embed `points`; a point up to `tolerance` outside the mesh (default 1 % of the
-        bounding-box diagonal) is projected onto its nearest element, as SOFA's mapping does
-        for points placed on a curved surface."""
+        """Embed `points`; `tolerance` is the largest distance outside the mesh accepted
+        (default 1 % of the bounding-box diagonal), `outside` how such a point is attached."""
         from pliant.mesh import locate_points
 
         pts = np.atleast_2d(np.asarray(points, dtype=float))
@@ -47,7 +56,7 @@ class EmbeddedPoints:
             raise ModelError("points must be finite")
         if tolerance is None:
             tolerance = 0.01 * float(np.linalg.norm(np.ptp(mesh.points, axis=0)))
-        tet_index, bary = locate_points(mesh, pts, tolerance=tolerance)
+        tet_index, bary = locate_points(mesh, pts, tolerance=tolerance, outside=outside)
         self.nodes = np.ascontiguousarray(mesh.tets[tet_index], dtype=np.int64)
         self.weights = np.ascontiguousarray(bary, dtype=float)
 
@@ -128,6 +137,12 @@ class Actuator(Constraint):
         min_force, max_force: effort bounds on lambda.
         min_displacement, max_displacement: course bounds on delta.
         max_displacement_change: largest change of delta in one step (None: unbounded).
+        change_reference: what that change is measured from: "last" (Pliant's default), the
+            displacement at the end of the last step; "lagged" (SoftRobots' maxDispVariation,
+            the default of scenes read by :mod:`pliant.sofa`), the displacement at the end of
+            the step before, which SoftRobots stores when it solves a step, before that step's
+            correction moves the body: delta_n <= delta_{n-2} + max_displacement_change, so
+            a ramp met exactly climbs every other step (1, 1, 2, 2, 3, ... mm at 1 mm a step).
     """
 
     role = "actuator"
@@ -143,6 +158,7 @@ class Actuator(Constraint):
         min_displacement: float = -math.inf,
         max_displacement: float = math.inf,
         max_displacement_change: float | None = None,
+        change_reference: Literal["last", "lagged"] = "last",
     ) -> None:
         self.name = name
         self.mode = mode
@@ -168,6 +184,11 @@ class Actuator(Constraint):
             if max_displacement_change <= 0:
                 raise ConstraintError(f"{name}: max_displacement_change must be > 0")
         self.max_displacement_change = max_displacement_change
+        if change_reference not in ("last", "lagged"):
+            raise ConstraintError(
+                f"{name}: change_reference must be 'last' or 'lagged', got {change_reference!r}"
+            )
+        self.change_reference = change_reference
 
     @property
     def mode(self) -> str:
@@ -195,6 +216,19 @@ class Actuator(Constraint):
     @property
     def n_rows(self) -> int:
         return 1
+
+
+def change_reference(actuators: list[Actuator], state) -> np.ndarray:
+    """The displacement each actuator's largest change per step is measured from, for the step
+    that starts from `state` (see :class:`Actuator`'s `change_reference`)."""
+    last = state.displacement
+    before = state.displacement_before if state.displacement_before.size == last.size else last
+    lagged = np.array(
+        [getattr(a, "change_reference", "last") == "lagged" for a in actuators], dtype=bool
+    )
+    if last.size != lagged.size or not lagged.any():
+        return last
+    return np.where(lagged, before, last)
 
 
 def actuator_bounds(

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from pliant.constraints.base import Actuator, JacobianRows
+from pliant.constraints.base import Actuator, EmbeddedPoints, JacobianRows
 from pliant.errors import ConstraintError
 
 
@@ -24,6 +24,9 @@ class CavityActuator(Actuator):
         triangles: (t, 3) node indices of the cavity wall, a closed surface whose enclosed
             volume is positive (flip_normals=True reverses a surface given the other way).
         rest_positions: to define V0.
+        points: the wall's vertices as points carried by the body (a surface mesh of its own
+            mapped into the body, as SoftRobots' SurfacePressureConstraint under a
+            BarycentricMapping); `triangles` then index these points instead of the nodes.
     """
 
     def __init__(
@@ -32,6 +35,7 @@ class CavityActuator(Actuator):
         rest_positions: np.ndarray,
         *,
         flip_normals: bool = False,
+        points: EmbeddedPoints | None = None,
         name: str = "cavity",
         **bounds,
     ) -> None:
@@ -42,8 +46,10 @@ class CavityActuator(Actuator):
             raise ConstraintError(
                 f"{name}: a cavity needs a closed surface of at least 4 triangles"
             )
-        if tri.min() < 0 or tri.max() >= rest_positions.shape[0]:
-            raise ConstraintError(f"{name}: cavity triangles index nodes outside the body")
+        self.points = points
+        n_vertices = rest_positions.shape[0] if points is None else len(points)
+        if tri.min() < 0 or tri.max() >= n_vertices:
+            raise ConstraintError(f"{name}: cavity triangles index vertices that do not exist")
         self.triangles = tri[:, ::-1].copy() if flip_normals else tri
         edges = np.sort(
             np.concatenate(
@@ -57,22 +63,27 @@ class CavityActuator(Actuator):
                 f"{name}: the cavity surface is not closed"
                 f" ({np.count_nonzero(counts != 2)} open edges)"
             )
-        self.rest_volume = enclosed_volume(rest_positions, self.triangles)
+        self.rest_volume = self.volume(rest_positions)
         if not self.rest_volume > 0:
             raise ConstraintError(
                 f"{name}: the cavity encloses a non-positive volume ({self.rest_volume:.3g});"
                 " its normals are inverted: pass flip_normals=True"
             )
-        self._nodes = self.triangles.reshape(1, -1)
+        self._nodes = (
+            self.triangles.reshape(1, -1) if points is None else points.nodes.reshape(1, -1)
+        )
+
+    def _vertices(self, x: np.ndarray) -> np.ndarray:
+        return x if self.points is None else self.points.positions(x)
 
     def volume(self, x: np.ndarray) -> float:
-        return enclosed_volume(x, self.triangles)
+        return enclosed_volume(self._vertices(x), self.triangles)
 
     def distance(self, x: np.ndarray) -> np.ndarray:
         return np.array([self.volume(x) - self.rest_volume])
 
     def jacobian(self, x: np.ndarray) -> JacobianRows:
-        p = x[self.triangles]
+        p = self._vertices(x)[self.triangles]
         grad = (
             np.stack(
                 [
@@ -84,4 +95,10 @@ class CavityActuator(Actuator):
             )
             / 6.0
         )
-        return JacobianRows(self._nodes, grad.reshape(1, -1, 3))
+        if self.points is None:
+            return JacobianRows(self._nodes, grad.reshape(1, -1, 3))
+        # dV/dp per vertex, spread on each vertex's element nodes by its weights.
+        per_vertex = np.zeros((len(self.points), 3))
+        np.add.at(per_vertex, self.triangles, grad)
+        values = per_vertex[:, None, :] * self.points.weights[:, :, None]
+        return JacobianRows(self._nodes, values.reshape(1, -1, 3))

@@ -8,6 +8,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from pliant.constraints.base import change_reference
 from pliant.constraints.condensed import CondensedProblem
 from pliant.constraints.direct import solve_direct
 from pliant.constraints.friction import (
@@ -39,7 +40,10 @@ class DirectControl:
     def actuation(self, problem: CondensedProblem, model, state) -> np.ndarray:
         """Actuator forces for this step; `state` is the state the step starts from."""
         return solve_direct(
-            problem, model.actuators, state.displacement, previous_actuation=state.actuation
+            problem,
+            model.actuators,
+            change_reference(model.actuators, state),
+            previous_actuation=state.actuation,
         )
 
     def actuation_with_contacts(
@@ -56,7 +60,7 @@ class DirectControl:
             problem,
             contact.friction,
             actuators=model.actuators,
-            previous_displacement=state.displacement,
+            previous_displacement=change_reference(model.actuators, state),
             initial=initial,
             tolerance=model.contacts.tolerance,
             max_iterations=model.contacts.max_iterations,
@@ -113,7 +117,7 @@ class InverseControl:
             sol = solve_inverse_with_contacts(
                 problem,
                 model.actuators,
-                state.displacement,
+                change_reference(model.actuators, state),
                 contact.friction,
                 regularisation=self.regularisation,
                 initial_active=closed,
@@ -166,7 +170,7 @@ class InverseControl:
         sol = solve_inverse(
             problem,
             model.actuators,
-            state.displacement,
+            change_reference(model.actuators, state),
             regularisation=self.regularisation,
             course=self.course,
         )

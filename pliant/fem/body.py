@@ -19,7 +19,8 @@ import scipy.sparse as sp
 
 from pliant.errors import MaterialError, ModelError
 from pliant.fem import kernels
-from pliant.fem.material import COROTATIONAL, Material
+from pliant.fem.loads import Load, LoadAssembly
+from pliant.fem.material import COROTATIONAL, COROTATIONAL_LARGE, Material
 from pliant.fem.membrane import Membrane, MembraneAssembly
 from pliant.fem.sparsity import StiffnessPattern
 from pliant.mesh.quality import validate_mesh
@@ -35,6 +36,15 @@ def nodes_in_box(points: np.ndarray, box: np.ndarray | tuple) -> np.ndarray:
         raise ModelError(f"a box is [[xmin, ymin, zmin], [xmax, ymax, zmax]], got {box.tolist()}")
     inside = np.all((points >= box[0]) & (points <= box[1]), axis=1)
     return np.flatnonzero(inside)
+
+
+def fixed_components(nodes: np.ndarray, axes: tuple[bool, bool, bool]) -> np.ndarray:
+    """DoF indices 3 * node + axis holding the chosen components of `nodes` (SOFA's
+    PartialFixedConstraint fixedDirections), for TetBody's `fixed_dofs`."""
+    picked = np.flatnonzero(np.asarray(axes, dtype=bool))
+    if len(axes) != 3:
+        raise ModelError(f"axes are three flags (x, y, z), got {axes!r}")
+    return (3 * np.asarray(nodes, dtype=np.int64).reshape(-1, 1) + picked).ravel()
 
 
 def set_bulk_properties(
@@ -78,6 +88,7 @@ class Linearisation:
     dets: np.ndarray
     stiffness_velocity: np.ndarray | None = None  # K_s v (n, 3) when linearised with v
     membrane_tangents: tuple[np.ndarray, ...] = ()  # (t, 9, 9) per membrane of the body
+    load_tangents: tuple[np.ndarray | None, ...] = ()  # per load, its symmetric blocks or None
 
     @property
     def n_inverted(self) -> int:
@@ -123,6 +134,15 @@ class TetBody:
         rayleigh_mass, rayleigh_stiffness: alpha and beta of D = alpha M + beta K.
         membranes: membranes of triangles on the body's nodes (faces of its tetrahedra) whose
             stretch adds to the elastic forces (a strain-limiting layer).
+        fixed_dofs: single components held at rest, as indices 3 * node + axis (SOFA's
+            PartialFixedConstraint; see :func:`fixed_components`): a node on a plane or a line
+            through it along the axes.
+        loads: external loads and elastic supports (:mod:`pliant.fem.loads`): their forces
+            add to the internal ones and their tangents to the stiffness, at the time the
+            solver passes.
+        frame_nodes: (m, 3) the nodes whose edges give each element's frame under
+            ``Corotational(rotation="large")`` (default: its first three; a SOFA mesh whose
+            element was reoriented keeps its file order here, see :mod:`pliant.sofa`).
     """
 
     # Largest change of an element frame entry before the "lagged" policy refactorises: on
@@ -143,6 +163,9 @@ class TetBody:
         rayleigh_mass: float = 0.0,
         rayleigh_stiffness: float = 0.0,
         membranes: Sequence[Membrane] = (),
+        fixed_dofs: np.ndarray | None = None,
+        loads: Sequence[Load] = (),
+        frame_nodes: np.ndarray | None = None,
     ) -> None:
         # Inverted, degenerate, disconnected or malformed meshes raise their MeshError here.
         validate_mesh(mesh.points, mesh.tets)
@@ -151,6 +174,23 @@ class TetBody:
         self.rest_positions = np.ascontiguousarray(mesh.points, dtype=np.float64)
         self.tets = np.ascontiguousarray(mesh.tets, dtype=np.int64)
         self.volumes, self.grads = kernels.rest_gradients(self.rest_positions, self.tets)
+        # SOFA's "large" rotation compares each element's edge frame with its rest one.
+        large = material.kernel_tag == COROTATIONAL_LARGE
+        nodes = self.tets[:, :3] if frame_nodes is None else np.asarray(frame_nodes, np.int64)
+        if large and frame_nodes is not None:
+            ordered = np.sort(nodes, axis=1) if nodes.ndim == 2 else nodes
+            if (
+                nodes.shape != (self.tets.shape[0], 3)
+                or not (nodes[:, :, None] == self.tets[:, None, :]).any(axis=2).all()
+                or np.any(ordered[:, 1:] == ordered[:, :-1])
+            ):
+                raise ModelError("frame_nodes must give three distinct nodes of each element")
+        self.frame_nodes = np.ascontiguousarray(nodes) if large else np.empty((0, 3), np.int64)
+        self.rest_frames = (
+            kernels.edge_frames(self.rest_positions, self.frame_nodes)
+            if large
+            else np.empty((0, 3, 3))
+        )
         n_elem = self.tets.shape[0]
         self.mu = np.full(n_elem, material.mu)
         self.lam = np.full(n_elem, material.lam)
@@ -171,14 +211,21 @@ class TetBody:
             raise ModelError(
                 f"fixed node indices must lie in [0, {n}), got {fixed.min()}..{fixed.max()}"
             )
-        self.fixed_nodes = fixed
         fixed_mask = np.zeros(3 * n, dtype=bool)
         fixed_mask[(3 * fixed[:, None] + np.arange(3)).ravel()] = True
+        if fixed_dofs is not None:
+            dofs = np.asarray(fixed_dofs, dtype=np.int64).reshape(-1)
+            if dofs.size and (dofs.min() < 0 or dofs.max() >= 3 * n):
+                raise ModelError(f"fixed DoF indices must lie in [0, {3 * n})")
+            fixed_mask[dofs] = True
+        # Nodes held in all three components (a partly held node still collides, say).
+        self.fixed_nodes = np.flatnonzero(fixed_mask.reshape(n, 3).all(axis=1))
         self.free_dofs = np.flatnonzero(~fixed_mask)
         self.free_index = np.full(3 * n, -1, dtype=np.int64)
         self.free_index[self.free_dofs] = np.arange(self.free_dofs.size)
         self.pattern = StiffnessPattern.build(self.tets, self.free_index)
         self.membranes = [MembraneAssembly(m, n, self.free_index, self.pattern) for m in membranes]
+        self.loads = [LoadAssembly(load, n, self.free_index, self.pattern) for load in loads]
 
         self.mass_type: MassType = mass
         self.node_masses = self._node_masses(mass)
@@ -253,6 +300,62 @@ class TetBody:
         out[self.free_dofs] = free
         return out.reshape(self.n_nodes, 3, *free.shape[1:])
 
+    def free_rigid_motions(self) -> list[str]:
+        """The rigid motions that nothing holds (neither held DoFs nor rest-shape springs):
+        along them the elastic stiffness is singular and a static equilibrium is not unique.
+        Empty when the body is held."""
+        from pliant.fem.loads import RestShapeSprings
+
+        x = self.rest_positions
+        centre = x.mean(axis=0)
+        scale = max(self.extent, 1e-300)
+        # u = t + w x (X - c): columns translations x, y, z, then rotations about x, y, z.
+        modes = np.zeros((self.n_nodes, 3, 6))
+        modes[:, :, :3] = np.eye(3)
+        arm = (x - centre) / scale
+        for i in range(3):
+            modes[:, :, 3 + i] = np.cross(np.eye(3)[i], arm)
+        held = self.free_index < 0
+        for assembly in self.loads:
+            if isinstance(assembly.load, RestShapeSprings):
+                held[(3 * assembly.load.groups[:, :1] + np.arange(3)).ravel()] = True
+        rows = modes.reshape(-1, 6)[held]
+        if rows.shape[0] == 0:
+            return ["every rigid motion (translations along x, y, z, rotations about x, y, z)"]
+        _, sing, vt = np.linalg.svd(rows, full_matrices=True)
+        rank = int(np.count_nonzero(sing > 1e-9 * sing.max())) if sing.size else 0
+        null = vt[rank:]
+        if null.shape[0] == 0:
+            return []
+        # Reduced row echelon form of the null space: canonical motions where they are free.
+        basis = null.copy()
+        lead = 0
+        for r in range(basis.shape[0]):
+            while lead < 6 and np.all(np.abs(basis[r:, lead]) < 1e-9):
+                lead += 1
+            if lead == 6:
+                break
+            pivot = r + int(np.argmax(np.abs(basis[r:, lead])))
+            basis[[r, pivot]] = basis[[pivot, r]]
+            basis[r] /= basis[r, lead]
+            for o in range(basis.shape[0]):
+                if o != r:
+                    basis[o] -= basis[o, lead] * basis[r]
+            lead += 1
+        names = []
+        for t, w in zip(basis[:, :3], basis[:, 3:] / scale, strict=True):
+            if np.linalg.norm(w) * scale < 1e-9 * max(np.linalg.norm(t), 1e-300):
+                d = np.round(t / np.linalg.norm(t), 3) + 0.0
+                names.append(f"translation along ({d[0]:g}, {d[1]:g}, {d[2]:g})")
+            else:
+                axis = np.round(w / np.linalg.norm(w), 3) + 0.0
+                point = np.round(centre + np.cross(w, t) / (w @ w), 3) + 0.0
+                names.append(
+                    f"rotation about the axis ({axis[0]:g}, {axis[1]:g}, {axis[2]:g}) through"
+                    f" ({point[0]:g}, {point[1]:g}, {point[2]:g})"
+                )
+        return names
+
     # --- mass -------------------------------------------------------------------------------
     def _node_masses(self, mass: str) -> np.ndarray:
         n = self.n_nodes
@@ -304,10 +407,11 @@ class TetBody:
     # --- elasticity -------------------------------------------------------------------------
     @_sized_threads
     def linearise(
-        self, positions: np.ndarray, velocities: np.ndarray | None = None
+        self, positions: np.ndarray, velocities: np.ndarray | None = None, *, time: float = 0.0
     ) -> Linearisation:
         """Internal forces, energy and element frames at `positions` (n, 3), and K_s v when
-        `velocities` (n, 3, zero on fixed nodes) are given."""
+        `velocities` (n, 3, zero on fixed nodes) are given; the loads' forces (and tangents)
+        at `time` are added (the energy is the elastic one)."""
         x = np.ascontiguousarray(positions, dtype=np.float64)
         v = (
             np.empty((0, 3))
@@ -331,6 +435,8 @@ class TetBody:
             self.mu,
             self.lam,
             self.material.kernel_tag,
+            self.frame_nodes,
+            self.rest_frames,
             elem_forces,
             elem_kv,
             frames,
@@ -350,7 +456,16 @@ class TetBody:
             if kv is not None:
                 local = v.reshape(-1)[assembly.membrane.dofs]
                 kv += assembly.nodal(np.einsum("trc,tc->tr", tangent, local))
-        return Linearisation(x, forces, float(energy), frames, dets, kv, tuple(tangents))
+        load_tangents = []
+        for assembly in self.loads:
+            forces += assembly.load.forces(x, time)
+            tangent = assembly.tangents(x, time)
+            load_tangents.append(tangent)
+            if kv is not None and tangent is not None:
+                kv += self.scatter(assembly.matvec(tangent, self.gather(v)[:, None])[:, 0])
+        return Linearisation(
+            x, forces, float(energy), frames, dets, kv, tuple(tangents), tuple(load_tangents)
+        )
 
     def _tangent_args(self, lin: Linearisation, exact: bool) -> tuple:
         """The arguments the tangent kernels share: configuration, elements, material, frames."""
@@ -379,17 +494,19 @@ class TetBody:
         kernels.gather_free(elem_out, self._incidence_ptr, self._incidence, self.free_index, out)
         for assembly, tangent in zip(self.membranes, lin.membrane_tangents, strict=True):
             out += assembly.matvec(tangent, cols)
+        for assembly, tangent in zip(self.loads, lin.load_tangents, strict=True):
+            if tangent is not None:
+                out += assembly.matvec(tangent, cols)
         return out[:, 0] if u.ndim == 1 else out
 
     @_sized_threads
     def stiffness_data(self, lin: Linearisation, *, exact: bool = False) -> np.ndarray:
         """Tangent stiffness on the free DoFs, as data aligned with `self.pattern`."""
         data = np.zeros(self.pattern.nnz)
-        if (
-            self.material.kernel_tag == COROTATIONAL
-            and not exact
-            and self.tets.shape[0] < PARALLEL_MIN_TETS
-        ):
+        tag = self.material.kernel_tag
+        if (tag == COROTATIONAL_LARGE or (tag == COROTATIONAL and not exact)) and self.tets.shape[
+            0
+        ] < PARALLEL_MIN_TETS:
             # SOFA's tangent in closed form, scattered as it is computed, on one thread: on the
             # Trunk's 1972 tetrahedra 0.22 ms, against 0.25 ms through stored blocks. Above
             # PARALLEL_MIN_TETS the blocks are computed on every thread (Multigait, 59296
@@ -409,6 +526,9 @@ class TetBody:
             kernels.scatter_add(self._element_blocks, 1.0, self.pattern.scatter, data)
         for assembly, tangent in zip(self.membranes, lin.membrane_tangents, strict=True):
             assembly.add_to_data(tangent, data)
+        for assembly, tangent in zip(self.loads, lin.load_tangents, strict=True):
+            if tangent is not None:
+                assembly.add_to_data(tangent, data)
         return data
 
     def stiffness_matrix(self, lin: Linearisation, *, exact: bool = False) -> sp.csr_matrix:

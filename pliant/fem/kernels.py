@@ -7,7 +7,9 @@ the first Piola-Kirchhoff differential dP(dF). 3x3 algebra is written out on pre
 scratch arrays: small-matrix calls (``@``, ``np.linalg``) would dominate the cost. A plain
 NumPy transcription used by the tests lives in :mod:`pliant.fem.reference`.
 
-Material tags: 0 corotational (tangent R K0 R^T, or exact), 1 Neo-Hookean (exact tangent).
+Material tags: 0 corotational with the polar rotation (tangent R K0 R^T, or exact),
+1 Neo-Hookean (exact tangent), 2 corotational with SOFA's "large" edge-frame rotation (tangent
+R K0 R^T, also when the exact one is asked for: see :class:`pliant.fem.material.Corotational`).
 """
 
 from __future__ import annotations
@@ -84,6 +86,33 @@ def polar_rotation(f):
     return r
 
 
+@njit(cache=True, inline="always")
+def _edge_frame(x, tet, q):
+    """q = the edge frame of the nodes tet[0], tet[1], tet[2] (an element's first three in
+    SOFA's "large" method), columns e_0, e_1, e_2: e_0 along x_1 - x_0, e_2 along
+    (x_1 - x_0) x (x_2 - x_0), e_1 = e_2 x e_0."""
+    a, b, c = tet[0], tet[1], tet[2]
+    u0, u1, u2 = x[b, 0] - x[a, 0], x[b, 1] - x[a, 1], x[b, 2] - x[a, 2]
+    w0, w1, w2 = x[c, 0] - x[a, 0], x[c, 1] - x[a, 1], x[c, 2] - x[a, 2]
+    n0, n1, n2 = u1 * w2 - u2 * w1, u2 * w0 - u0 * w2, u0 * w1 - u1 * w0
+    lu = np.sqrt(u0 * u0 + u1 * u1 + u2 * u2)
+    ln = np.sqrt(n0 * n0 + n1 * n1 + n2 * n2)
+    u0, u1, u2 = u0 / lu, u1 / lu, u2 / lu
+    n0, n1, n2 = n0 / ln, n1 / ln, n2 / ln
+    q[0, 0], q[1, 0], q[2, 0] = u0, u1, u2
+    q[0, 1], q[1, 1], q[2, 1] = n1 * u2 - n2 * u1, n2 * u0 - n0 * u2, n0 * u1 - n1 * u0
+    q[0, 2], q[1, 2], q[2, 2] = n0, n1, n2
+
+
+@njit(cache=True)
+def edge_frames(x, tets):
+    """Edge frames (m, 3, 3) of node triples (m, >= 3) at positions x (see `_edge_frame`)."""
+    out = np.empty((tets.shape[0], 3, 3))
+    for e in range(tets.shape[0]):
+        _edge_frame(x, tets[e], out[e])
+    return out
+
+
 @njit(cache=True)
 def rest_gradients(points, tets):
     """Signed rest volumes (m,) and shape-function gradients g (m, 4, 3) of linear tetrahedra."""
@@ -125,11 +154,28 @@ def _gradient(x, tet, g, out):
 
 
 @njit(cache=True, parallel=True)
-def internal_forces(x, v, tets, grads, vols, mu, lam, tag, elem_forces, elem_kv, frames, dets):
+def internal_forces(
+    x,
+    v,
+    tets,
+    grads,
+    vols,
+    mu,
+    lam,
+    tag,
+    frame_nodes,
+    rest_frames,
+    elem_forces,
+    elem_kv,
+    frames,
+    dets,
+):
     """Element internal forces and elastic energy, and optionally K_s v.
 
     Writes -V P g_a into `elem_forces` (m, 4, 3) (sum them per node with `gather_nodal`), the
     linearisation frame (R for corotational, F^-1 for Neo-Hookean) into `frames` (m, 3, 3)
+    (tag 2: R = Q(x) Q(X)^T with Q the edge frame of the nodes `frame_nodes` (m, 3) and Q(X)
+    read from `rest_frames`)
     and det F into `dets`. An element with det F <= 0 contributes no force; its det is recorded
     so that the caller reports the inversion instead of a NaN. When `v` (n, 3) is not empty,
     also writes the element contributions of K_s v (default tangent, the one assembled) into
@@ -147,6 +193,7 @@ def internal_forces(x, v, tets, grads, vols, mu, lam, tag, elem_forces, elem_kv,
         p = np.empty((3, 3))
         sig = np.empty((3, 3))
         w1 = np.empty((3, 3))
+        q = np.empty((3, 3))
         energy = 0.0
         for e in range(bounds[c], bounds[c + 1]):
             g = grads[e]
@@ -158,8 +205,15 @@ def internal_forces(x, v, tets, grads, vols, mu, lam, tag, elem_forces, elem_kv,
                 if with_v:
                     elem_kv[e] = 0.0
                 continue
-            if tag == 0:
-                _polar(f, r, work)
+            if tag != 1:
+                if tag == 0:
+                    _polar(f, r, work)
+                else:
+                    _edge_frame(x, frame_nodes[e], q)
+                    q0 = rest_frames[e]
+                    for i in range(3):
+                        for j in range(3):
+                            r[i, j] = q[i, 0] * q0[j, 0] + q[i, 1] * q0[j, 1] + q[i, 2] * q0[j, 2]
                 # S = R^T F, eps = sym(S) - I.
                 for i in range(3):
                     for j in range(3):
@@ -251,12 +305,12 @@ def _gather_by_node(elem_values, incidence_ptr, incidence, out):
 def _piola_differential(df, frame, f, det, mu, lam, tag, exact, dp, w1, w2):
     """dp = dP for a variation dF of the deformation gradient (w1, w2 are scratch).
 
-    Corotational: SOFA's tangent R (2 mu sym(R^T dF) + lam tr(R^T dF) I), plus, when
-    `exact`, the variation of R: (lam tr(S - I) - 2 mu) dR with dR = R [w]x and
-    (tr(S) I - S) w = axial(R^T dF - dF^T R).
+    Corotational (tags 0 and 2): SOFA's tangent R (2 mu sym(R^T dF) + lam tr(R^T dF) I), plus,
+    when `exact` and the rotation is polar (tag 0), the variation of R:
+    (lam tr(S - I) - 2 mu) dR with dR = R [w]x and (tr(S) I - S) w = axial(R^T dF - dF^T R).
     Neo-Hookean (frame = F^-1): mu dF + (mu - lam ln J) F^-T dF^T F^-T + lam tr(F^-1 dF) F^-T.
     """
-    if tag == 0:
+    if tag != 1:
         r = frame
         for i in range(3):  # w1 = R^T dF
             for j in range(3):
@@ -265,7 +319,7 @@ def _piola_differential(df, frame, f, det, mu, lam, tag, exact, dp, w1, w2):
         for i in range(3):  # w2 = 2 mu sym(w1) + lam tr I
             for j in range(3):
                 w2[i, j] = mu * (w1[i, j] + w1[j, i]) + (lam * tr if i == j else 0.0)
-        if exact:
+        if exact and tag == 0:
             # 2 mu dF = 2 mu R (sym + skew)(R^T dF): the skew part completes the tangent.
             for i in range(3):
                 for j in range(3):
@@ -431,7 +485,7 @@ def element_stiffness(x, tets, grads, vols, mu, lam, tag, frames, dets, exact, b
                 continue
             g = grads[e]
             v = vols[e]
-            if tag == 0 and not exact:
+            if tag == 2 or (tag == 0 and not exact):
                 _corotational_blocks(g, frames[e], v, mu[e], lam[e], rg, blocks[e])
                 continue
             _gradient(x, tets[e], g, f)

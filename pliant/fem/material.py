@@ -8,12 +8,15 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import ClassVar
+from typing import ClassVar, Literal
 
 from pliant.errors import MaterialError
 
 COROTATIONAL = 0
 NEO_HOOKEAN = 1
+COROTATIONAL_LARGE = 2
+
+Rotation = Literal["polar", "large"]
 
 
 @dataclass(frozen=True)
@@ -53,15 +56,40 @@ class Material:
 
 @dataclass(frozen=True)
 class Corotational(Material):
-    """Corotational linear elasticity (SOFA's TetrahedronFEMForceField, polar rotation).
+    """Corotational linear elasticity (SOFA's TetrahedronFEMForceField).
 
-    Energy density psi(F) = mu |S - I|^2 + lam/2 tr(S - I)^2 with F = R S the polar
-    decomposition, so that P = R (2 mu (S - I) + lam tr(S - I) I) is its exact gradient.
-    The linearisation used by the solvers is SOFA's R K0 R^T (symmetric positive definite);
-    the exact tangent, which adds the variation of R, is available for verification.
+    P = R (2 mu eps + lam tr(eps) I), eps = sym(R^T F) - I, with the element rotation R:
+
+    * ``rotation="polar"`` (SOFA's ``method="polar"``): F = R S, the polar decomposition.
+      Energy density psi(F) = mu |S - I|^2 + lam/2 tr(S - I)^2, of which P is the exact
+      gradient.
+    * ``rotation="large"`` (SOFA's default ``method="large"``, the one every SoftRobots scene
+      uses): R = Q(x) Q(X)^T with Q the orthonormal frame of the element's edges, first axis
+      along x_1 - x_0, third normal to the plane of x_0, x_1, x_2 (the element's own node
+      order). P is the gradient of the same psi with R frozen; it is the gradient of psi(F)
+      only where R^T F is symmetric (the edge frame is then the polar one: rest, rigid
+      motions, stretches along the frame's axes), and to first order in the strain
+      elsewhere.
+
+    The linearisation used by the dynamic step is SOFA's R K0 R^T (symmetric positive definite)
+    for both. The exact tangent of the polar law, which adds the variation of R, is what the
+    static Newton solve factorises (``StaticSolver(consistent=True)``); the large-frame forces
+    are not a gradient, their exact Jacobian is not symmetric, and the static solve uses R K0 R^T
+    for them too (Newton then converges linearly, as SOFA's own static solve does).
     """
 
-    kernel_tag: ClassVar[int] = COROTATIONAL
+    rotation: Rotation = "polar"
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        if self.rotation not in ("polar", "large"):
+            raise MaterialError(
+                f"the corotational rotation is 'polar' or 'large', got {self.rotation!r}"
+            )
+
+    @property
+    def kernel_tag(self) -> int:  # type: ignore[override]
+        return COROTATIONAL_LARGE if self.rotation == "large" else COROTATIONAL
 
 
 @dataclass(frozen=True)

@@ -359,10 +359,11 @@ class RodBody:
         return x, rod_kernels.node_rotations(np.ascontiguousarray(positions[n:], dtype=float))
 
     def linearise(
-        self, positions: np.ndarray, velocities: np.ndarray | None = None
+        self, positions: np.ndarray, velocities: np.ndarray | None = None, *, time: float = 0.0
     ) -> Linearisation:
         """Forces and moments, energy, the elements' middle frames and stretches gamma_3 (the
-        inversion check: an element turned against its frame has gamma_3 <= 0), and K v."""
+        inversion check: an element turned against its frame has gamma_3 <= 0), and K v.
+        (`time` is the loads' time for bodies that have loads; a rod has none.)"""
         x, rot = self._split(positions)
         m = self.elements.shape[0]
         v = np.empty((0, 3)) if velocities is None else np.ascontiguousarray(velocities, float)

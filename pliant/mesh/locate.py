@@ -6,6 +6,8 @@ x = sum_i b_i p_i over the four nodes p_i of the containing tetrahedron.
 
 from __future__ import annotations
 
+from typing import Literal
+
 import numpy as np
 from scipy.spatial import cKDTree
 
@@ -36,22 +38,33 @@ def _clamped(bary: np.ndarray) -> np.ndarray:
 
 
 def locate_points(
-    mesh: TetMesh, points: np.ndarray, *, tolerance: float | None = None
+    mesh: TetMesh,
+    points: np.ndarray,
+    *,
+    tolerance: float | None = None,
+    outside: Literal["project", "keep"] = "project",
 ) -> tuple[np.ndarray, np.ndarray]:
     """Find the tetrahedron containing each point and its barycentric coordinates.
 
     A point outside the mesh but within `tolerance` of it (a point on a curved surface that the
-    mesh approximates by flat faces, say) is attached to the nearest element found, with its
-    barycentric coordinates clamped onto that element.
+    mesh approximates by flat faces, say) is attached in one of two ways:
+
+    * ``outside="project"``: to the nearest element found, with its barycentric coordinates
+      clamped onto that element (the point moves onto the mesh);
+    * ``outside="keep"``: as SOFA's BarycentricMapping does, to the element whose centre is
+      nearest, with the point's own barycentric coordinates in it (some negative), so that
+      the point stays where it is and follows that element's affine motion.
 
     Args:
         mesh: the mesh.
         points: (k, 3) or (3,) query points.
         tolerance: largest accepted distance outside the mesh; by default 1e-3 times the
             bounding-box diagonal of the mesh.
+        outside: how a point outside the mesh is attached, see above.
 
     Returns:
-        (k,) element indices and (k, 4) barycentric coordinates, non-negative and summing to 1.
+        (k,) element indices and (k, 4) barycentric coordinates summing to 1, non-negative
+        unless `outside` is "keep".
 
     Raises:
         ModelError: a point is non-finite or farther than `tolerance` outside the mesh.
@@ -63,6 +76,8 @@ def locate_points(
         raise ModelError("points to locate must be finite")
     if tolerance is None:
         tolerance = 1e-3 * float(np.linalg.norm(np.ptp(mesh.points, axis=0)))
+    if outside not in ("project", "keep"):
+        raise ModelError(f"outside must be 'project' or 'keep', got {outside!r}")
 
     k = points.shape[0]
     if k == 0:
@@ -82,10 +97,15 @@ def locate_points(
     for j in np.flatnonzero(bary.min(axis=1) < -_INSIDE_EPS):
         element[j], bary[j] = _best_element(mesh, np.arange(mesh.n_tets), points[j])
 
-    outside = bary.min(axis=1) < -_INSIDE_EPS
-    bary[outside] = _clamped(bary[outside])
-    projected = np.einsum("ki,kij->kj", bary, mesh.points[mesh.tets[element]])
+    out = bary.min(axis=1) < -_INSIDE_EPS
+    projected = np.einsum("ki,kij->kj", _clamped(bary), mesh.points[mesh.tets[element]])
     distance = np.linalg.norm(projected - points, axis=1)
+    if outside == "project":
+        bary[out] = _clamped(bary[out])
+    elif out.any():
+        _, nearest = cKDTree(centroids).query(points[out])
+        element[out] = nearest
+        bary[out] = barycentric_coordinates(mesh, nearest, points[out])
     too_far = np.flatnonzero(distance > tolerance)
     if too_far.size:
         j = too_far[0]

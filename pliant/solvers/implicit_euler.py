@@ -146,7 +146,7 @@ class ImplicitEuler:
             drive = model.drive_velocities(state, h)
             velocities = body.scatter(body.gather(state.velocities)) + drive
             at = model.drive(state.positions, state.time + h)
-        lin = body.linearise(state.positions, velocities)
+        lin = body.linearise(state.positions, velocities, time=state.time)
         check_linearisation(lin, step, h)
         a_m, a_k = self._coefficients()
         try:  # on a small body, a refactorisation runs on while the step detects its contacts
@@ -202,6 +202,7 @@ class ImplicitEuler:
             lam_a,
             model.actuator_distances(positions),
             contact_forces,
+            displacement_before=state.displacement,
         )
         if rigid is not None:
             twists = (

@@ -68,11 +68,19 @@ class StaticSolver:
                 f"{model.name} has rigid bodies: the static solver cannot balance them (a body on"
                 " contacts is singular without inertia); use ImplicitEuler"
             )
-        if np.all(model.body.free_index >= 0):
+        if np.all(model.body.free_index >= 0) and not getattr(model.body, "loads", None):
             raise ModelError(
                 f"{model.name}'s body holds no node: its stiffness is singular (rigid motions"
                 " cost no energy), so it has no unique static equilibrium; give it fixed nodes"
                 " (or driven ones), or use ImplicitEuler"
+            )
+        free_motions = getattr(model.body, "free_rigid_motions", list)()
+        if free_motions:
+            raise ModelError(
+                f"{model.name}'s body is free to move rigidly: {'; '.join(free_motions)}. Its"
+                " stiffness is singular along these motions (constraints do not hold a body"
+                " in the static solve), so the equilibrium is not unique; hold them with fixed"
+                " nodes or components, or rest-shape springs, or use ImplicitEuler"
             )
         self.model = model
         self.tolerance = tolerance
@@ -99,6 +107,7 @@ class StaticSolver:
         self._size = model.body.extent
         self._gravity = model.body.gravity_forces()
         self.dt = None
+        self._time = 0.0  # the time of the loads in the step being solved
         self.last_report = StepReport()
 
     def _augmentation_pattern(self) -> list[tuple[int, np.ndarray]]:
@@ -124,7 +133,7 @@ class StaticSolver:
         augment: bool = False,
     ):
         model, body = self.model, self.model.body
-        lin = body.linearise(q)
+        lin = body.linearise(q, time=self._time)
         check_linearisation(lin, step, None)
         space = model.constraint_space(
             q, roles=roles, extra=(contact,) if contact is not None else ()
@@ -169,6 +178,7 @@ class StaticSolver:
         if begin is not None:  # feedback controls: goals from the state the step starts from
             begin(model, state)
         step = state.step + 1
+        self._time = state.time
         q = model.drive(state.positions, state.time)
         if self._augmented and self._row_stiffness is None:
             self._row_stiffness = self._rest_row_stiffness()
@@ -230,6 +240,7 @@ class StaticSolver:
             lam_a,
             model.actuator_distances(q),
             contact_forces,
+            displacement_before=state.displacement,
         )
 
     def _rest_row_stiffness(self) -> np.ndarray:
@@ -246,5 +257,6 @@ class StaticSolver:
         there, if the model has obstacles)."""
         model = self.model
         contact = model.contacts.constraint(state.positions, None) if model.contacts else None
+        self._time = state.time
         problem, _, _ = self._condense(state.positions, state.step, None, contact, state.actuation)
         return problem

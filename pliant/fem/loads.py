@@ -1,0 +1,218 @@
+"""External loads on a tetrahedral body and elastic supports: nodal forces (SOFA's
+ConstantForceField), surface pressure and traction (SurfacePressureForceField-like), springs to
+the rest shape (RestShapeSpringsForceField).
+
+A load gives nodal forces f(x, t) on groups of nodes (one node, or the three of a triangle)
+and, when they depend on the positions, the groups' tangent blocks K = -df/dx. The body adds
+them to its internal forces and tangent (:class:`pliant.fem.body.TetBody`, ``loads=``), so the
+static and dynamic solvers take them in without knowing them. Time-varying loads scale with a
+function of the time the solver passes (the start of a dynamic step, a static step's time).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import numpy as np
+import scipy.sparse as sp
+
+from pliant.errors import ModelError
+
+Schedule = Callable[[float], float]
+
+
+def _skew(v: np.ndarray) -> np.ndarray:
+    """[v]x for each row of v (k, 3) -> (k, 3, 3)."""
+    out = np.zeros((*v.shape[:-1], 3, 3))
+    out[..., 0, 1], out[..., 0, 2] = -v[..., 2], v[..., 1]
+    out[..., 1, 0], out[..., 1, 2] = v[..., 2], -v[..., 0]
+    out[..., 2, 0], out[..., 2, 1] = -v[..., 1], v[..., 0]
+    return out
+
+
+class Load:
+    """Base of the loads: `groups` (e, k) node indices; forces per group node (e, k, 3);
+    tangent blocks (e, 3k, 3k), or None for a load that does not depend on the positions."""
+
+    groups: np.ndarray
+    schedule: Schedule | None = None
+
+    def scale(self, time: float) -> float:
+        return 1.0 if self.schedule is None else float(self.schedule(time))
+
+    def group_forces(self, x: np.ndarray, time: float) -> np.ndarray:
+        raise NotImplementedError
+
+    def group_tangents(self, x: np.ndarray, time: float) -> np.ndarray | None:
+        return None
+
+    def forces(self, x: np.ndarray, time: float = 0.0) -> np.ndarray:
+        """Nodal forces (n, 3) at positions x and time t."""
+        out = np.zeros_like(x)
+        np.add.at(out, self.groups, self.group_forces(x, time))
+        return out
+
+
+def _check_nodes(nodes, what: str) -> np.ndarray:
+    idx = np.asarray(nodes, dtype=np.int64)
+    if idx.size == 0 or idx.min() < 0:
+        raise ModelError(f"{what}: give non-negative node indices")
+    return idx
+
+
+class NodalForces(Load):
+    """Forces on nodes, constant or scaled in time (SOFA's ConstantForceField).
+
+    Args:
+        nodes: (k,) node indices.
+        forces: (k, 3) forces, or one (3,) force on every node.
+        schedule: f(t) scaling the forces (None: constant).
+    """
+
+    def __init__(self, nodes, forces, *, schedule: Schedule | None = None) -> None:
+        idx = _check_nodes(nodes, "NodalForces")
+        values = np.broadcast_to(np.asarray(forces, dtype=float), (idx.size, 3)).copy()
+        if not np.all(np.isfinite(values)):
+            raise ModelError("NodalForces: forces must be finite")
+        self.groups = idx.reshape(-1, 1)
+        self.values = values
+        self.schedule = schedule
+
+    def group_forces(self, x, time):
+        return self.scale(time) * self.values[:, None, :]
+
+
+class SurfaceTraction(Load):
+    """A traction (force per area of the rest surface) on triangles, a dead load: each node
+    of a triangle of rest area A carries A t / 3 (exact for a uniform traction on linear
+    triangles).
+
+    Args:
+        triangles: (t, 3) node indices of faces of the body.
+        rest_positions: the body's rest positions (for the areas).
+        traction: (3,) force per area.
+        schedule: f(t) scaling the traction.
+    """
+
+    def __init__(
+        self, triangles, rest_positions, traction, *, schedule: Schedule | None = None
+    ) -> None:
+        tri = _check_nodes(triangles, "SurfaceTraction").reshape(-1, 3)
+        p = np.asarray(rest_positions, dtype=float)[tri]
+        area = 0.5 * np.linalg.norm(np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]), axis=1)
+        self.groups = tri
+        self.values = area[:, None, None] / 3.0 * np.asarray(traction, dtype=float)[None, None]
+        self.schedule = schedule
+
+    def group_forces(self, x, time):
+        return self.scale(time) * np.broadcast_to(self.values, (*self.groups.shape, 3))
+
+
+class SurfacePressure(Load):
+    """A pressure on triangles that follows the surface (a follower load): a triangle of
+    current area A and unit normal n (right-hand rule) carries p A n, a third on each node,
+    f_a = p/6 (x1 - x0) x (x2 - x0). On a closed surface these are p dV/dx: the force of a
+    cavity at pressure p (:class:`pliant.constraints.cavity.CavityActuator`).
+
+    Its tangent K_ab = -df_a/dx_b = -p/6 d((x1 - x0) x (x2 - x0))/dx_b is not symmetric for an
+    open surface (it is for a closed one, summed over the triangles): the body assembles its
+    symmetric part, the forces stay exact.
+
+    Args:
+        triangles: (t, 3) node indices of faces of the body, normals where the pressure pushes.
+        pressure: p (force per area).
+        schedule: f(t) scaling the pressure.
+    """
+
+    def __init__(self, triangles, pressure: float, *, schedule: Schedule | None = None) -> None:
+        self.groups = _check_nodes(triangles, "SurfacePressure").reshape(-1, 3)
+        self.pressure = float(pressure)
+        if not np.isfinite(self.pressure):
+            raise ModelError("SurfacePressure: the pressure must be finite")
+        self.schedule = schedule
+
+    def group_forces(self, x, time):
+        p = x[self.groups]
+        area_normal = np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0])  # 2 A n
+        force = self.scale(time) * self.pressure / 6.0 * area_normal
+        return np.repeat(force[:, None, :], 3, axis=1)
+
+    def group_tangents(self, x, time):
+        p = x[self.groups]
+        e1, e2 = p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]
+        # d(e1 x e2) = [e2 - e1]x dx0 - [e2]x dx1 + [e1]x dx2.
+        d = np.stack([_skew(e2 - e1), -_skew(e2), _skew(e1)], axis=1)  # (t, 3 nodes, 3, 3)
+        coef = -self.scale(time) * self.pressure / 6.0
+        blocks = np.zeros((len(self.groups), 9, 9))
+        for b in range(3):
+            for a in range(3):
+                blocks[:, 3 * a : 3 * a + 3, 3 * b : 3 * b + 3] = coef * d[:, b]
+        return blocks
+
+
+class RestShapeSprings(Load):
+    """Springs pulling nodes back to their rest positions, f = -k (x - X) (SOFA's
+    RestShapeSpringsForceField): an elastic support.
+
+    Args:
+        nodes: (k,) node indices.
+        rest_positions: the body's rest positions.
+        stiffness: k (force per length), one value or one per node.
+    """
+
+    def __init__(self, nodes, rest_positions, stiffness) -> None:
+        idx = _check_nodes(nodes, "RestShapeSprings")
+        k = np.broadcast_to(np.asarray(stiffness, dtype=float), idx.shape).copy()
+        if not np.all(np.isfinite(k)) or np.any(k <= 0):
+            raise ModelError("RestShapeSprings: stiffness must be finite and > 0")
+        self.groups = idx.reshape(-1, 1)
+        self.stiffness = k
+        self.anchors = np.asarray(rest_positions, dtype=float)[idx]
+
+    def group_forces(self, x, time):
+        return (-self.stiffness[:, None] * (x[self.groups[:, 0]] - self.anchors))[:, None, :]
+
+    def group_tangents(self, x, time):
+        return self.stiffness[:, None, None] * np.eye(3)[None]
+
+
+class LoadAssembly:
+    """A load's groups placed in a body's free DoFs and stiffness pattern (built once)."""
+
+    def __init__(self, load: Load, n_nodes: int, free_index: np.ndarray, pattern) -> None:
+        self.load = load
+        groups = load.groups
+        if groups.max() >= n_nodes:
+            raise ModelError(f"load node indices must lie in [0, {n_nodes})")
+        k3 = 3 * groups.shape[1]
+        dofs = (3 * groups[:, :, None] + np.arange(3)).reshape(-1, k3)
+        self.free_dofs = free_index[dofs]
+        held = self.free_dofs.ravel() >= 0
+        cols = np.arange(dofs.size)
+        self.to_free = sp.csr_matrix(
+            (np.ones(held.sum()), (self.free_dofs.ravel()[held], cols[held])),
+            shape=(pattern.n_free, dofs.size),
+        )
+        rows = np.broadcast_to(self.free_dofs[:, :, None], (len(dofs), k3, k3))
+        columns = np.broadcast_to(self.free_dofs[:, None, :], (len(dofs), k3, k3))
+        self.valid = (rows >= 0) & (columns >= 0)
+        n_free = max(pattern.n_free, 1)
+        entry_rows = np.repeat(np.arange(pattern.n_free), np.diff(pattern.indptr))
+        keys = entry_rows.astype(np.int64) * n_free + pattern.indices
+        wanted = rows[self.valid].astype(np.int64) * n_free + columns[self.valid]
+        found = np.searchsorted(keys, wanted)
+        if np.any(found >= keys.size) or np.any(keys[np.minimum(found, keys.size - 1)] != wanted):
+            raise ModelError("a load couples nodes that share no tetrahedron (use mesh faces)")
+        self.positions = found
+
+    def tangents(self, x: np.ndarray, time: float) -> np.ndarray | None:
+        """The symmetric part of the load's tangent blocks, or None."""
+        blocks = self.load.group_tangents(x, time)
+        return None if blocks is None else 0.5 * (blocks + blocks.transpose(0, 2, 1))
+
+    def add_to_data(self, blocks: np.ndarray, data: np.ndarray) -> None:
+        data += np.bincount(self.positions, weights=blocks[self.valid], minlength=data.size)
+
+    def matvec(self, blocks: np.ndarray, u: np.ndarray) -> np.ndarray:
+        local = np.where(self.free_dofs[:, :, None] >= 0, u[self.free_dofs], 0.0)
+        return self.to_free @ np.einsum("trc,tck->trk", blocks, local).reshape(-1, u.shape[1])

@@ -1,0 +1,664 @@
+"""A SOFA + SoftRobots scene turned into a Pliant model.
+
+Component semantics follow SOFA's and SoftRobots' documentation. With ``sofa_compatible=True``
+(the default) the three choices in which Pliant's own defaults differ from SOFA's are SOFA's:
+
+* element rotation: the FEM's ``method`` ("large", SOFA's default: the edge frame; "polar"
+  and "svd": the polar decomposition), see :class:`pliant.fem.material.Corotational`;
+* points outside the mesh (cable and effector points of a BarycentricMapping): kept where they
+  are, with barycentric coordinates in the element whose centre is nearest
+  (:class:`pliant.constraints.base.EmbeddedPoints`, ``outside="keep"``);
+* the cables' ``maxDispVariation``: measured from the displacement of the step before
+  (``change_reference="lagged"``, see :class:`pliant.constraints.base.Actuator`).
+
+``sofa_compatible=False`` keeps Pliant's choices (polar rotation, points projected onto the
+mesh, change measured from the last step). See docs/sofa.md for the list of components.
+"""
+
+from __future__ import annotations
+
+import math
+import warnings
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Literal
+
+import meshio
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from pliant.constraints.base import EmbeddedPoints
+from pliant.constraints.cable import CableActuator
+from pliant.constraints.cavity import CavityActuator, enclosed_volume
+from pliant.constraints.effector import PositionEffector
+from pliant.fem.body import TetBody, fixed_components, nodes_in_box
+from pliant.fem.loads import Load, NodalForces, RestShapeSprings
+from pliant.fem.material import Corotational
+from pliant.mesh.quality import signed_volumes
+from pliant.mesh.tetmesh import TetMesh
+from pliant.model import Model, State
+from pliant.sofa.tree import SceneError, SceneNode, SceneObject, read_scene
+
+# Components that change nothing Pliant computes: plugins, loops, visual and output
+# components, linear solvers (Pliant factorises exactly, as SparseLDLSolver does), constraint
+# solvers and corrections (Pliant solves the constraint problem exactly; SOFA's Gauss-Seidel
+# stops at its tolerance), topology containers (the mesh comes from the loader).
+IGNORED = frozenset(
+    {
+        "RequiredPlugin",
+        "DefaultAnimationLoop",
+        "FreeMotionAnimationLoop",
+        "DefaultVisualManagerLoop",
+        "VisualStyle",
+        "BackgroundSetting",
+        "InteractiveCamera",
+        "LightManager",
+        "OglSceneFrame",
+        "AttachBodyButtonSetting",
+        "OglModel",
+        "VisualModel",
+        "VTKExporter",
+        "SparseLDLSolver",
+        "AsyncSparseLDLSolver",
+        "SparseCholeskySolver",
+        "EigenSimplicialLDLT",
+        "EigenSparseLU",
+        "SparseLUSolver",
+        "CGLinearSolver",
+        "BlockGaussSeidelConstraintSolver",
+        "GenericConstraintSolver",
+        "ProjectedGaussSeidelConstraintSolver",
+        "LCPConstraintSolver",
+        "LinearSolverConstraintCorrection",
+        "GenericConstraintCorrection",
+        "UncoupledConstraintCorrection",
+        "MeshTopology",
+        "TetrahedronSetTopologyContainer",
+        "TetrahedronSetTopologyModifier",
+        "TetrahedronSetGeometryAlgorithms",
+        "TriangleSetTopologyContainer",
+        "TriangleSetTopologyModifier",
+        "TriangleSetGeometryAlgorithms",
+    }
+)
+MESH_LOADERS = frozenset({"MeshVTKLoader", "MeshGmshLoader", "MeshSTLLoader", "MeshOBJLoader"})
+FEM = frozenset({"TetrahedronFEMForceField"})
+HANDLED = frozenset(
+    {
+        *MESH_LOADERS,
+        *FEM,
+        "MechanicalObject",
+        "UniformMass",
+        "MeshMatrixMass",
+        "BoxROI",
+        "FixedConstraint",
+        "FixedProjectiveConstraint",
+        "PartialFixedConstraint",
+        "PartialFixedProjectiveConstraint",
+        "ConstantForceField",
+        "RestShapeSpringsForceField",
+        "EulerImplicitSolver",
+        "StaticSolver",
+        "BarycentricMapping",
+        "CableConstraint",
+        "CableActuator",
+        "PositionEffector",
+        "SurfacePressureConstraint",
+        "SurfacePressureActuator",
+    }
+)
+CAVITIES = frozenset({"SurfacePressureConstraint", "SurfacePressureActuator"})
+POINT_CONSTRAINTS = frozenset({"CableConstraint", "CableActuator", "PositionEffector", *CAVITIES})
+
+
+@dataclass
+class SofaScene:
+    """A scene read into Pliant: the model, SOFA's time step and solver kind.
+
+    Attributes:
+        model: the Pliant model (actuators hold the scene's commands).
+        dt: the root node's time step.
+        solver_kind: "dynamic" (EulerImplicitSolver) or "static" (StaticSolver).
+        path: the scene file.
+    """
+
+    model: Model
+    dt: float
+    solver_kind: str
+    path: Path
+
+    @property
+    def name(self) -> str:
+        return self.path.stem
+
+    def solver(self, *, tangent: str = "fresh"):
+        """The solver the scene asks for. The dynamic one refactorises every step by default,
+        as SOFA's direct solvers do (the "lagged" tangent is faster, and within 1e-2 mm of
+        it on the robot scenes, but not SOFA's step)."""
+        from pliant.solvers import ImplicitEuler, StaticSolver
+
+        if self.solver_kind == "static":
+            return StaticSolver(self.model)
+        return ImplicitEuler(self.model, self.dt, tangent=tangent)
+
+    def commands(self) -> np.ndarray:
+        """The actuators' commands as the scene sets them."""
+        return np.array([a.value for a in self.model.actuators])
+
+    def entry(self):
+        """The scene as a registered robot (:class:`pliant.robots.RobotEntry`) for the
+        command line: built once, its commands held constant."""
+        from pliant.robots import RobotEntry
+
+        commands = self.commands()
+        return RobotEntry(lambda: self.model, lambda t: commands, {}, (20.0, -60.0))
+
+    def simulate(self, n_steps: int, state: State | None = None) -> State:
+        """Run `n_steps` steps under the scene's commands; returns the last state."""
+        solver = self.solver()
+        state = self.model.rest_state() if state is None else state
+        for _ in range(n_steps):
+            state = solver.step(state)
+        return state
+
+
+@dataclass(frozen=True)
+class Choices:
+    """Where SOFA and Pliant's defaults differ, which one a loaded scene makes."""
+
+    rotation: Literal["scene", "polar"]  # "scene": the FEM's method ("large" by default)
+    outside: Literal["keep", "project"]
+    change_reference: Literal["lagged", "last"]
+
+
+SOFA_CHOICES = Choices("scene", "keep", "lagged")
+PLIANT_CHOICES = Choices("polar", "project", "last")
+
+
+def load_scene(
+    path: str | Path,
+    *,
+    sofa_compatible: bool = True,
+    mesh_dirs: Sequence[str | Path] = (),
+    rotation: Literal["scene", "polar"] | None = None,
+    outside: Literal["keep", "project"] | None = None,
+    change_reference: Literal["lagged", "last"] | None = None,
+) -> SofaScene:
+    """Read a SOFA scene (``.scn`` XML or a ``createScene`` Python script) into a model.
+
+    Args:
+        path: the scene file.
+        sofa_compatible: SOFA's choices where Pliant's defaults differ (see the module text);
+            False takes Pliant's.
+        mesh_dirs: folders where mesh files not found beside the scene are looked for (by their
+            path as written, then by their file name).
+        rotation, outside, change_reference: override one of those choices: the element
+            rotation ("scene": the FEM's method; "polar"), points outside the mesh ("keep",
+            "project"), what a cable's maxDispVariation is measured from ("lagged", "last").
+
+    Raises:
+        SceneError: the scene cannot be read, uses components Pliant does not support (all
+            of them named in one message), or misses what a simulation needs.
+    """
+    path = Path(path)
+    base = SOFA_CHOICES if sofa_compatible else PLIANT_CHOICES
+    choices = Choices(
+        rotation or base.rotation,
+        outside or base.outside,
+        change_reference or base.change_reference,
+    )
+    root = read_scene(path)
+    return _Builder(root, path, choices, [Path(d) for d in mesh_dirs]).build()
+
+
+def _floats(value, what: str) -> np.ndarray:
+    """A scene value (string of numbers, number, or sequence) as a flat float array."""
+    if isinstance(value, str):
+        parts = value.replace(",", " ").split()
+    else:
+        parts = list(np.ravel(np.asarray(value, dtype=object)))
+    try:
+        return np.array([float(p) for p in parts], dtype=float)
+    except (TypeError, ValueError) as exc:
+        raise SceneError(f"{what}: expected numbers, got {value!r}") from exc
+
+
+def _float(obj: SceneObject, key: str, default: float) -> float:
+    if key not in obj.attrs:
+        return default
+    values = _floats(obj.attrs[key], f"{obj.path}.{key}")
+    if values.size != 1:
+        raise SceneError(f"{obj.path}.{key}: one value expected, got {values.size}")
+    return float(values[0])
+
+
+def _flag(obj: SceneObject, key: str, default: bool) -> bool:
+    value = obj.attrs.get(key, default)
+    if isinstance(value, str):
+        return value.strip().lower() in ("1", "true", "yes")
+    return bool(value)
+
+
+def _is_link(value) -> bool:
+    return isinstance(value, str) and value.strip().startswith("@")
+
+
+class _Builder:
+    def __init__(self, root: SceneNode, path: Path, choices: Choices, mesh_dirs: list[Path]):
+        self.root, self.path, self.choices, self.mesh_dirs = root, path, choices, mesh_dirs
+
+    # --- scene-wide ------------------------------------------------------------------------
+    def build(self) -> SofaScene:
+        self._check_supported()
+        body_node = self._body_node()
+        dt = float(_floats(self.root.attrs.get("dt", 0.01), "root.dt")[0])
+        gravity = _floats(self.root.attrs.get("gravity", "0 -9.81 0"), "root.gravity")
+        if gravity.size != 3:
+            raise SceneError(f"root.gravity: three values expected, got {gravity.size}")
+        body, mesh, solver_kind = self._body(body_node, gravity)
+        actuators, effectors = [], []
+        carried = [n for n in body_node.walk() if n is not body_node]
+        for child in carried:
+            acts, effs = self._embedded(child, body, mesh)
+            actuators += acts
+            effectors += effs
+        stray = [
+            f"{obj.type} (at {node.path})"
+            for node in self.root.walk()
+            if node is not body_node and not any(node is c for c in carried)
+            for obj in node.objects
+            if obj.type in POINT_CONSTRAINTS
+        ]
+        if stray:
+            raise SceneError(
+                f"{self.path.name}: actuators and effectors act on points carried by the body"
+                f" (a node under {body_node.path} with a BarycentricMapping): " + "; ".join(stray)
+            )
+        model = Model(body, actuators=actuators, effectors=effectors, name=self.path.stem)
+        return SofaScene(model, dt, solver_kind, self.path)
+
+    def _check_supported(self) -> None:
+        unknown = [
+            f"{obj.type} (at {obj.node.path})"
+            for node in self.root.walk()
+            for obj in node.objects
+            if obj.type not in HANDLED and obj.type not in IGNORED
+        ]
+        if unknown:
+            raise SceneError(
+                f"{self.path.name} uses components Pliant does not support: "
+                + "; ".join(unknown)
+                + " (docs/sofa.md lists those it does)"
+            )
+
+    def _body_node(self) -> SceneNode:
+        nodes = [n for n in self.root.walk() if any(o.type in FEM for o in n.objects)]
+        if not nodes:
+            raise SceneError(
+                f"{self.path.name} has no deformable body (no TetrahedronFEMForceField)"
+            )
+        if len(nodes) > 1:
+            raise SceneError(
+                f"{self.path.name} has {len(nodes)} deformable bodies"
+                f" ({', '.join(n.path for n in nodes)}); a Pliant model has one"
+            )
+        return nodes[0]
+
+    def _one(self, node: SceneNode, types: frozenset[str] | set[str], what: str):
+        found = [o for o in node.objects if o.type in types]
+        if len(found) > 1:
+            raise SceneError(f"{node.path}: several {what} ({', '.join(o.name for o in found)})")
+        return found[0] if found else None
+
+    def _resolve_file(self, obj: SceneObject) -> Path:
+        name = str(obj.attrs.get("filename", ""))
+        if not name:
+            raise SceneError(f"{obj.path}: no filename")
+        candidates = [self.path.parent / name, Path(name)]
+        for d in self.mesh_dirs:
+            candidates += [d / name, d / Path(name).name]
+        for c in candidates:
+            if c.is_file():
+                return c
+        raise SceneError(
+            f"{obj.path}: mesh file {name!r} not found beside the scene"
+            + (f" nor in {', '.join(map(str, self.mesh_dirs))}" if self.mesh_dirs else "")
+            + " (pass mesh_dirs)"
+        )
+
+    # --- the deformable body ----------------------------------------------------------------
+    def _body(self, node: SceneNode, gravity: np.ndarray) -> tuple[TetBody, TetMesh, str]:
+        fem = self._one(node, FEM, "FEM force fields")
+        loader = self._mesh_loader(node)
+        points, tets = self._read_mesh(loader)
+        method = str(fem.attrs.get("method", "large")).lower()
+        if method not in ("large", "polar", "svd"):
+            raise SceneError(
+                f"{fem.path}: method {method!r} is not supported (large, polar or svd)"
+            )
+        rotation = "large" if method == "large" and self.choices.rotation == "scene" else "polar"
+        # SOFA takes elements in either orientation; Pliant's are positive. The "large" frame
+        # stays the file's first three nodes of each element.
+        frame_nodes = tets[:, :3].copy()
+        negative = signed_volumes(points, tets) < 0.0
+        tets[negative] = tets[negative][:, [0, 2, 1, 3]]
+        mesh = TetMesh(points, tets)
+        material = Corotational(
+            _float(fem, "youngModulus", 5000.0), _float(fem, "poissonRatio", 0.45), rotation
+        )
+        mass_kwargs = self._mass(node, points.shape[0])
+        solver_kind, rayleigh = self._ode_solver(node)
+        fixed = self._fixed_nodes(node, points)
+        body = TetBody(
+            mesh,
+            material,
+            fixed_nodes=fixed,
+            fixed_dofs=self._fixed_components(node, points),
+            frame_nodes=frame_nodes if rotation == "large" else None,
+            loads=self._loads(node, points),
+            gravity=tuple(gravity),
+            rayleigh_mass=rayleigh[0],
+            rayleigh_stiffness=rayleigh[1],
+            **mass_kwargs,
+        )
+        return body, mesh, solver_kind
+
+    def _mesh_loader(self, node: SceneNode) -> SceneObject:
+        """The loader the body's topology reads (``src="@loader"``), or the node's only one."""
+        for obj in node.objects:
+            src = obj.attrs.get("src")
+            if obj.type in ("MeshTopology", "TetrahedronSetTopologyContainer") and _is_link(src):
+                found = self._link(node, src)
+                if found is not None and found.type in MESH_LOADERS:
+                    return found
+        loader = self._one(node, MESH_LOADERS, "mesh loaders")
+        if loader is None:
+            raise SceneError(f"{node.path}: the body has no mesh loader (MeshVTKLoader, ...)")
+        return loader
+
+    def _link(self, node: SceneNode, link: str) -> SceneObject | None:
+        """The component a link such as ``@loader``, ``@boxROI.indices``, ``@../loader`` names."""
+        target = link.strip().lstrip("@").split("/")[-1].split(".")[0]
+        return node.find(target)
+
+    def _loaded(self, loader: SceneObject) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+        """The loader's points (transformed as SOFA's MeshLoader does: scale, then rotation,
+        then translation) and its cells by type, in the file's order."""
+        file = self._resolve_file(loader)
+        try:
+            with warnings.catch_warnings():
+                # meshio sniffs an ASCII STL as binary first, with an integer overflow warning.
+                warnings.simplefilter("ignore", RuntimeWarning)
+                raw = meshio.read(file)
+        except Exception as exc:  # meshio reports malformed files with many exception types
+            raise SceneError(f"{loader.path}: cannot read {str(file)!r}: {exc}") from exc
+        cells: dict[str, list[np.ndarray]] = {}
+        for block in raw.cells:
+            cells.setdefault(block.type, []).append(np.asarray(block.data, dtype=np.int64))
+        scale = _floats(loader.attrs.get("scale3d", loader.attrs.get("scale", "1")), "scale")
+        euler = _floats(loader.attrs.get("rotation", "0 0 0"), f"{loader.path}.rotation")
+        shift = _floats(loader.attrs.get("translation", "0 0 0"), f"{loader.path}.translation")
+        # SOFA's Euler angles (degrees) compose as Rz Ry Rx: scipy's extrinsic "xyz".
+        rot = Rotation.from_euler("xyz", euler, degrees=True).as_matrix()
+        points = (np.asarray(raw.points, dtype=float) * scale) @ rot.T + shift
+        return points, {k: np.concatenate(v) for k, v in cells.items()}
+
+    def _read_mesh(self, loader: SceneObject) -> tuple[np.ndarray, np.ndarray]:
+        """The loader's points and tetrahedra, in the file's order."""
+        points, cells = self._loaded(loader)
+        file = Path(str(loader.attrs.get("filename", "")))
+        tets = [cells["tetra"]] if "tetra" in cells else []
+        if not tets:
+            raise SceneError(f"{loader.path}: {file.name} holds no tetrahedra")
+        tets = np.concatenate(tets).astype(np.int64)
+        unused = points.shape[0] - np.unique(tets).size
+        if unused:
+            raise SceneError(
+                f"{loader.path}: {unused} nodes of {file.name} belong to no tetrahedron (SOFA"
+                " would simulate them as free particles); remove them from the mesh"
+            )
+        return points, tets
+
+    def _mass(self, node: SceneNode, n_nodes: int) -> dict:
+        mass = self._one(node, {"UniformMass", "MeshMatrixMass"}, "masses")
+        if mass is None:
+            raise SceneError(f"{node.path}: the body has no mass (UniformMass, MeshMatrixMass)")
+        if mass.type == "UniformMass":
+            if "totalMass" in mass.attrs:
+                return {"mass": "uniform", "total_mass": _float(mass, "totalMass", 1.0)}
+            return {"mass": "uniform", "total_mass": n_nodes * _float(mass, "vertexMass", 1.0)}
+        kind = "lumped" if _flag(mass, "lumping", False) else "consistent"
+        if "totalMass" in mass.attrs:
+            return {"mass": kind, "total_mass": _float(mass, "totalMass", 1.0)}
+        return {"mass": kind, "density": _float(mass, "massDensity", 1.0)}
+
+    def _ode_solver(self, node: SceneNode) -> tuple[str, tuple[float, float]]:
+        """The solver of the body's node or of its nearest ancestor that has one."""
+        at: SceneNode | None = node
+        while at is not None:
+            solver = self._one(at, {"EulerImplicitSolver", "StaticSolver"}, "ODE solvers")
+            if solver is not None:
+                if solver.type == "StaticSolver":
+                    return "static", (0.0, 0.0)
+                if _flag(solver, "firstOrder", False):
+                    raise SceneError(f"{solver.path}: firstOrder='1' is not supported")
+                return "dynamic", (
+                    _float(solver, "rayleighMass", 0.0),
+                    _float(solver, "rayleighStiffness", 0.0),
+                )
+            at = at.parent
+        raise SceneError(f"{node.path}: no ODE solver (EulerImplicitSolver or StaticSolver)")
+
+    def _indices(self, node: SceneNode, obj: SceneObject, key: str, points: np.ndarray):
+        value = obj.attrs.get(key)
+        if value is None:
+            return None
+        if _is_link(value):
+            source = self._link(node, value)
+            if source is None or source.type != "BoxROI":
+                raise SceneError(f"{obj.path}.{key}: {value!r} names no BoxROI")
+            return self._box_nodes(source, points)
+        return _floats(value, f"{obj.path}.{key}").astype(np.int64)
+
+    def _box_nodes(self, box: SceneObject, points: np.ndarray) -> np.ndarray:
+        """Nodes inside any of the BoxROI's boxes (xmin ymin zmin xmax ymax zmax each)."""
+        values = _floats(box.attrs.get("box", ""), f"{box.path}.box")
+        if values.size == 0 or values.size % 6:
+            raise SceneError(f"{box.path}.box: groups of six numbers expected")
+        found = [nodes_in_box(points, b.reshape(2, 3)) for b in values.reshape(-1, 6)]
+        return np.unique(np.concatenate(found))
+
+    def _fixed_nodes(self, node: SceneNode, points: np.ndarray) -> np.ndarray:
+        fixed = [np.zeros(0, dtype=np.int64)]
+        for obj in node.objects:
+            if obj.type in ("FixedConstraint", "FixedProjectiveConstraint"):
+                if _flag(obj, "fixAll", False):
+                    fixed.append(np.arange(points.shape[0]))
+                    continue
+                idx = self._indices(node, obj, "indices", points)
+                if idx is None:
+                    raise SceneError(f"{obj.path}: no indices")
+                fixed.append(idx)
+        return np.unique(np.concatenate(fixed))
+
+    def _fixed_components(self, node: SceneNode, points: np.ndarray) -> np.ndarray:
+        dofs = [np.zeros(0, dtype=np.int64)]
+        for obj in node.objects:
+            if obj.type in ("PartialFixedConstraint", "PartialFixedProjectiveConstraint"):
+                idx = self._indices(node, obj, "indices", points)
+                if idx is None or _flag(obj, "fixAll", False):
+                    idx = np.arange(points.shape[0])
+                axes = _floats(obj.attrs.get("fixedDirections", "1 1 1"), f"{obj.path}")
+                dofs.append(fixed_components(idx, tuple(bool(a) for a in axes)))
+        return np.concatenate(dofs)
+
+    def _loads(self, node: SceneNode, points: np.ndarray) -> list[Load]:
+        loads: list[Load] = []
+        for obj in node.objects:
+            if obj.type not in ("ConstantForceField", "RestShapeSpringsForceField"):
+                continue
+            key = "indices" if obj.type == "ConstantForceField" else "points"
+            idx = self._indices(node, obj, key, points)
+            idx = np.arange(points.shape[0]) if idx is None else idx
+            if obj.type == "RestShapeSpringsForceField":
+                if "external_rest_shape" in obj.attrs:
+                    raise SceneError(f"{obj.path}: external_rest_shape is not supported")
+                k = _floats(obj.attrs.get("stiffness", "1"), f"{obj.path}.stiffness")
+                loads.append(RestShapeSprings(idx, points, k if k.size > 1 else k[0]))
+            elif "forces" in obj.attrs:
+                forces = _floats(obj.attrs["forces"], f"{obj.path}.forces").reshape(-1, 3)
+                loads.append(NodalForces(idx, forces if len(forces) > 1 else forces[0]))
+            elif "totalForce" in obj.attrs:
+                total = _floats(obj.attrs["totalForce"], f"{obj.path}.totalForce")
+                loads.append(NodalForces(idx, total / idx.size))
+            else:
+                force = _floats(obj.attrs.get("force", "0 0 0"), f"{obj.path}.force")
+                loads.append(NodalForces(idx, force))
+        return loads
+
+    # --- points carried by the body: cables, effectors ---------------------------------------
+    def _embedded(self, node: SceneNode, body: TetBody, mesh: TetMesh):
+        dofs = self._one(node, {"MechanicalObject"}, "MechanicalObjects")
+        constraints = [o for o in node.objects if o.type in ("CableConstraint", "CableActuator")]
+        constraints += [o for o in node.objects if o.type in CAVITIES]
+        constraints += [o for o in node.objects if o.type == "PositionEffector"]
+        if dofs is None or not constraints:
+            return [], []
+        if not any(o.type == "BarycentricMapping" for o in node.objects):
+            raise SceneError(f"{node.path}: points without a BarycentricMapping to the body")
+        positions = self._positions(node, dofs)
+        outside = self.choices.outside
+        actuators, effectors = [], []
+        for obj in constraints:
+            if obj.type in CAVITIES:
+                embedded = EmbeddedPoints(
+                    mesh, positions, tolerance=0.1 * body.extent, outside=outside
+                )
+                actuators.append(self._cavity(node, obj, embedded, body))
+                continue
+            idx = self._indices(node, obj, "indices", positions)
+            pts = positions if idx is None else positions[idx]
+            # SOFA maps a point wherever it lies; Pliant keeps a generous check against typos.
+            embedded = EmbeddedPoints(mesh, pts, tolerance=0.1 * body.extent, outside=outside)
+            if obj.type == "PositionEffector":
+                effectors.append(self._effector(node, obj, embedded, body))
+            else:
+                actuators.append(self._cable(obj, embedded, body))
+        return actuators, effectors
+
+    def _positions(self, node: SceneNode, dofs: SceneObject) -> np.ndarray:
+        """The points of a MechanicalObject: its `position`, a link to positions, or the
+        mesh of its `src` loader or of its node's topology."""
+        value = dofs.attrs.get("position", dofs.attrs.get("src"))
+        if value is None:
+            loaders = [o for o in node.objects if o.type in MESH_LOADERS]
+            if len(loaders) != 1:
+                raise SceneError(f"{dofs.path}: no position (and no single mesh loader)")
+            return self._loaded(loaders[0])[0]
+        if _is_link(value):
+            source = self._link(node, value)
+            if source is not None and source.type in MESH_LOADERS:
+                return self._loaded(source)[0]
+            if source is None or "position" not in source.attrs:
+                raise SceneError(f"{dofs.path}.position: {value!r} names no positions")
+            value = source.attrs["position"]
+        pts = _floats(value, f"{dofs.path}.position")
+        if pts.size == 0 or pts.size % 3:
+            raise SceneError(f"{dofs.path}.position: triples of numbers expected")
+        return pts.reshape(-1, 3)
+
+    def _cable(self, obj: SceneObject, points: EmbeddedPoints, body: TetBody) -> CableActuator:
+        # SoftRobots: a pull point unless hasPullPoint is false, at the origin unless given.
+        has_pull = _flag(obj, "hasPullPoint", True)
+        pull_point = _floats(obj.attrs.get("pullPoint", "0 0 0"), f"{obj.path}.pullPoint")
+        values = _floats(obj.attrs.get("value", "0"), f"{obj.path}.value")
+        index = int(_float(obj, "valueIndex", 0.0))
+        mode = str(obj.attrs.get("valueType", "displacement")).lower()
+        if mode not in ("displacement", "force"):
+            raise SceneError(f"{obj.path}.valueType: 'displacement' or 'force', not {mode!r}")
+        change = obj.attrs.get("maxDispVariation")
+        return CableActuator(
+            points,
+            body.rest_positions,
+            pull_point=pull_point if has_pull else None,
+            name=obj.node.name if obj.name == obj.type else obj.node.name + "/" + obj.name,
+            mode=mode,
+            value=float(values[index]) if values.size else 0.0,
+            # SoftRobots bounds the tension only where the scene sets the bounds.
+            min_force=_float(obj, "minForce", -math.inf),
+            max_force=_float(obj, "maxForce", math.inf),
+            min_displacement=-_float(obj, "maxNegativeDisp", math.inf),
+            max_displacement=_float(obj, "maxPositiveDisp", math.inf),
+            max_displacement_change=None if change is None else _float(obj, "maxDispVariation", 0),
+            change_reference=self.choices.change_reference,
+        )
+
+    def _cavity(
+        self, node: SceneNode, obj: SceneObject, points: EmbeddedPoints, body: TetBody
+    ) -> CavityActuator:
+        """SoftRobots' SurfacePressureConstraint: the closed surface of its node's mesh,
+        carried by the body; a pressure (force mode) or a volume growth (displacement)."""
+        value = obj.attrs.get("triangles")
+        if value is None or _is_link(value):
+            source = self._link(node, value) if value is not None else None
+            if source is not None and source.type not in MESH_LOADERS:
+                source = self._link(node, str(source.attrs.get("src", "")))
+            if source is None:
+                loaders = [o for o in node.objects if o.type in MESH_LOADERS]
+                source = loaders[0] if len(loaders) == 1 else None
+            if source is None:
+                raise SceneError(f"{obj.path}.triangles: {value!r} names no surface mesh")
+            cells = self._loaded(source)[1]
+            if "triangle" not in cells:
+                raise SceneError(f"{obj.path}: the cavity's mesh holds no triangles")
+            triangles = cells["triangle"]
+        else:
+            triangles = _floats(value, f"{obj.path}.triangles").astype(np.int64).reshape(-1, 3)
+        rest = points.positions(body.rest_positions)
+        values = _floats(obj.attrs.get("value", "0"), f"{obj.path}.value")
+        index = int(_float(obj, "valueIndex", 0.0))
+        kind = str(obj.attrs.get("valueType", "pressure")).lower()
+        if kind not in ("pressure", "volumegrowth"):
+            raise SceneError(f"{obj.path}.valueType: 'pressure' or 'volumeGrowth', not {kind!r}")
+        change = obj.attrs.get("maxVolumeGrowthVariation")
+        return CavityActuator(
+            triangles,
+            body.rest_positions,
+            points=points,
+            # The pressure inflates the cavity whichever way the file orients its faces.
+            flip_normals=enclosed_volume(rest, triangles) < 0.0,
+            name=node.name,
+            mode="force" if kind == "pressure" else "displacement",
+            value=float(values[index]) if values.size else 0.0,
+            min_force=_float(obj, "minPressure", -math.inf),
+            max_force=_float(obj, "maxPressure", math.inf),
+            min_displacement=_float(obj, "minVolumeGrowth", -math.inf),
+            max_displacement=_float(obj, "maxVolumeGrowth", math.inf),
+            max_displacement_change=None
+            if change is None
+            else _float(obj, "maxVolumeGrowthVariation", 0.0),
+            change_reference=self.choices.change_reference,
+        )
+
+    def _effector(
+        self, node: SceneNode, obj: SceneObject, points: EmbeddedPoints, body: TetBody
+    ) -> PositionEffector:
+        goal = obj.attrs.get("effectorGoal")
+        goals = None
+        if goal is not None:
+            if _is_link(goal):
+                source = self._link(node, goal)
+                if source is None or "position" not in source.attrs:
+                    raise SceneError(f"{obj.path}.effectorGoal: {goal!r} names no positions")
+                goal = source.attrs["position"]
+            goals = _floats(goal, f"{obj.path}.effectorGoal").reshape(-1, 3)
+            if goals.shape[0] == 1 and len(points) > 1:
+                goals = np.repeat(goals, len(points), axis=0)
+        axes = tuple(
+            bool(v)
+            for v in _floats(obj.attrs.get("useDirections", "1 1 1"), f"{obj.path}.useDirections")
+        )
+        return PositionEffector(
+            points, body.rest_positions, goals=goals, axes=axes, name=obj.node.name
+        )

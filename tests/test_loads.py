@@ -1,0 +1,195 @@
+"""External loads and partial supports: closed-form answers, the cavity equivalence of a
+pressure load, the follower load's tangent against finite differences, and the error a
+body held too little raises in the static solve."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from conftest import distorted_box
+
+from pliant.constraints.base import EmbeddedPoints
+from pliant.constraints.cable import CableActuator
+from pliant.constraints.cavity import CavityActuator
+from pliant.errors import ModelError
+from pliant.fem.body import TetBody, fixed_components
+from pliant.fem.loads import NodalForces, RestShapeSprings, SurfacePressure, SurfaceTraction
+from pliant.fem.material import Corotational
+from pliant.mesh import box_beam
+from pliant.model import Model
+from pliant.solvers import ImplicitEuler, StaticSolver
+
+E, NU = 1000.0, 0.3
+
+
+def _face(mesh, axis: int, value: float) -> np.ndarray:
+    """Boundary triangles lying on the plane x[axis] = value (outward normals)."""
+    tri = mesh.boundary_triangles()
+    return tri[np.all(np.abs(mesh.points[tri][:, :, axis] - value) < 1e-9, axis=1)]
+
+
+def _bar_supports(x: np.ndarray) -> np.ndarray:
+    """Single components that hold a bar's rigid motions and nothing else: u_x = 0 on the
+    x = 0 face, u_y = u_z = 0 at the origin, u_z = 0 at (0, b, 0)."""
+    face = np.flatnonzero(np.abs(x[:, 0]) < 1e-9)
+    origin = np.flatnonzero(np.linalg.norm(x, axis=1) < 1e-9)
+    side = np.flatnonzero(np.linalg.norm(x - [0.0, x[:, 1].max(), 0.0], axis=1) < 1e-9)
+    return np.concatenate(
+        [
+            fixed_components(face, (True, False, False)),
+            fixed_components(origin, (False, True, True)),
+            fixed_components(side, (False, False, True)),
+        ]
+    )
+
+
+@pytest.mark.parametrize("stress", [1.0, 50.0])
+def test_uniaxial_traction_gives_the_exact_strains(rng, stress) -> None:
+    """A traction sigma on the x = L face of a bar held only against rigid motions: every
+    element has the strain sigma/E along x and -nu sigma/E across, exactly (a uniform stress
+    is an equilibrium of any linear-tetrahedron mesh, and the polar corotational law with a
+    symmetric F is linear in F - I), up to a 5 % strain."""
+    mesh = distorted_box(rng)
+    x = mesh.points
+    length = x[:, 0].max()
+    traction = SurfaceTraction(_face(mesh, 0, length), x, [stress, 0.0, 0.0])
+    body = TetBody(
+        mesh, Corotational(E, NU), density=1e-6, fixed_dofs=_bar_supports(x), loads=[traction]
+    )
+    model = Model(body)
+    assert body.free_rigid_motions() == []
+    solved = StaticSolver(model).step(model.rest_state())
+    u = solved.positions - x
+    # Displacement gradient per element: sum_a u_a (x) g_a.
+    grad = np.einsum("eai,eaj->eij", u[mesh.tets], body.grads)
+    expected = np.diag([stress / E, -NU * stress / E, -NU * stress / E])
+    assert np.abs(grad - expected).max() < 1e-9 * stress / E
+
+
+def test_a_pressure_load_on_a_closed_surface_equals_the_cavity_actuator() -> None:
+    """Pressure p on the whole (closed) boundary, pushing outwards, against a cavity
+    actuator on the same surface in force mode at lambda = p: the forces are p dV/dx both
+    ways, so the static equilibria agree to the solver's tolerance."""
+    mesh = box_beam(10.0, 10.0, 10.0, 2, 2, 2)
+    x = mesh.points
+    clamp = np.flatnonzero(x[:, 0] < 1e-9)
+    surface = mesh.boundary_triangles()
+    pressure = 20.0
+    loaded = TetBody(
+        mesh,
+        Corotational(E, NU),
+        density=1e-6,
+        fixed_nodes=clamp,
+        loads=[SurfacePressure(surface, pressure)],
+    )
+    by_load = StaticSolver(Model(loaded)).step(Model(loaded).rest_state())
+    body = TetBody(mesh, Corotational(E, NU), density=1e-6, fixed_nodes=clamp)
+    cavity = CavityActuator(surface, x, mode="force", value=pressure, min_force=0.0)
+    model = Model(body, actuators=[cavity])
+    by_actuator = StaticSolver(model).step(model.rest_state())
+    motion = np.abs(by_load.positions - x).max()
+    assert motion > 0.1
+    assert np.abs(by_load.positions - by_actuator.positions).max() < 1e-8 * motion
+
+
+def test_the_follower_load_tangent_matches_force_differences(rng) -> None:
+    """K = -df/dx of the pressure on an open surface (not symmetric) against central
+    differences, and the body's assembled part (its symmetric part) on a closed one, where
+    the full tangent is symmetric: K u = -(f(x + e u) - f(x - e u)) / 2e + O(e^2)."""
+    mesh = box_beam(20.0, 10.0, 10.0, 2, 1, 1)
+    x = mesh.points + 0.5 * rng.standard_normal(mesh.points.shape)
+    for surface in (_face(mesh, 2, 10.0), mesh.boundary_triangles()):
+        load = SurfacePressure(surface, 3.0)
+        tangents = load.group_tangents(x, 0.0)
+        u = rng.standard_normal(x.shape)
+        eps = 1e-6
+        fd = -(load.forces(x + eps * u, 0.0) - load.forces(x - eps * u, 0.0)) / (2 * eps)
+        ku = np.zeros_like(x)
+        np.add.at(
+            ku,
+            load.groups,
+            np.einsum("trc,tc->tr", tangents, u[load.groups].reshape(-1, 9)).reshape(-1, 3, 3),
+        )
+        assert np.abs(ku - fd).max() < 1e-7 * np.abs(fd).max()
+    body = TetBody(mesh, Corotational(E, NU), density=1e-6, loads=[load])
+    lin = body.linearise(x)
+    elastic = TetBody(mesh, Corotational(E, NU), density=1e-6).linearise(x)
+    v = rng.standard_normal(body.n_free)
+    assembled = body.stiffness_matvec(lin, v) - TetBody(
+        mesh, Corotational(E, NU), density=1e-6
+    ).stiffness_matvec(elastic, v)
+    fd = -(load.forces(x + eps * v.reshape(-1, 3)) - load.forces(x - eps * v.reshape(-1, 3)))
+    assert np.abs(assembled - fd.ravel() / (2 * eps)).max() < 1e-7 * np.abs(fd).max() / eps
+
+
+@pytest.mark.parametrize("solver", ["static", "dynamic"])
+def test_rest_shape_springs_hold_a_body_and_give_its_exact_offset(solver) -> None:
+    """Springs k on every node and the same force f on every node: the body translates
+    rigidly by f / k (no strain, so no elastic force), in the static solve and as the
+    damped dynamics' steady state."""
+    mesh = box_beam(20.0, 10.0, 10.0, 2, 1, 1)
+    x = mesh.points
+    nodes = np.arange(mesh.n_nodes)
+    f, k = np.array([0.3, -0.2, 0.5]), 2.0
+    body = TetBody(
+        mesh,
+        Corotational(E, NU),
+        density=1e-6,
+        rayleigh_mass=200.0,
+        loads=[RestShapeSprings(nodes, x, k), NodalForces(nodes, f)],
+    )
+    model = Model(body)
+    assert body.free_rigid_motions() == []
+    if solver == "static":
+        state = StaticSolver(model).step(model.rest_state())
+    else:
+        sim, state = ImplicitEuler(model, 0.01, tangent="fresh"), model.rest_state()
+        for _ in range(40):
+            state = sim.step(state)
+    assert np.abs(state.positions - (x + f / k)).max() < 1e-9
+
+
+def test_a_time_varying_load_follows_its_schedule() -> None:
+    """A nodal force switched on at t = 0.05 s: nothing moves before (no gravity)."""
+    mesh = box_beam(20.0, 10.0, 10.0, 2, 1, 1)
+    x = mesh.points
+    tip = np.flatnonzero(x[:, 0] > 20.0 - 1e-9)
+    load = NodalForces(tip, [0.0, 0.0, -1.0], schedule=lambda t: float(t >= 0.05 - 1e-12))
+    body = TetBody(
+        mesh,
+        Corotational(E, NU),
+        density=1e-6,
+        fixed_nodes=np.flatnonzero(x[:, 0] < 1e-9),
+        loads=[load],
+    )
+    model = Model(body)
+    sim, state = ImplicitEuler(model, 0.01, tangent="fresh"), model.rest_state()
+    for _ in range(5):
+        state = sim.step(state)
+    assert np.abs(state.positions - x).max() == 0.0
+    state = sim.step(state)
+    assert (state.positions - x)[tip, 2].max() < 0.0
+
+
+def test_a_body_held_too_little_names_its_free_rigid_motions() -> None:
+    """Only the x components of the clamped face held: the body can slide along y and z and
+    turn about x; held only by a cable, every rigid motion is free. The static solve refuses
+    both with the motions named (it used to invert a singular stiffness)."""
+    mesh = box_beam(30.0, 10.0, 10.0, 3, 1, 1)
+    x = mesh.points
+    face = np.flatnonzero(x[:, 0] < 1e-9)
+    body = TetBody(
+        mesh, Corotational(E, NU), density=1e-6, fixed_dofs=fixed_components(face, (1, 0, 0))
+    )
+    with pytest.raises(ModelError) as err:
+        StaticSolver(Model(body))
+    message = str(err.value)
+    for motion in ("translation along (0, 1, 0)", "translation along (0, 0, 1)"):
+        assert motion in message
+    assert "rotation about the axis (1, 0, 0)" in message
+    free = TetBody(mesh, Corotational(E, NU), density=1e-6, loads=[NodalForces([0], [0, 0, 1])])
+    cable = CableActuator(
+        EmbeddedPoints(mesh, np.array([[0.0, 5.0, 8.0], [30.0, 5.0, 8.0]])), x, value=1.0
+    )
+    with pytest.raises(ModelError, match="every rigid motion"):
+        StaticSolver(Model(free, actuators=[cable]))

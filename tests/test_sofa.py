@@ -1,0 +1,342 @@
+"""SOFA parity: the scene loader, SOFA's outside-point embedding, SoftRobots' rate limit.
+
+The reference: SOFA + SoftRobots ran the scenes of ../shared/sofa-reference/ and exported the
+node positions after 1 s (100 steps of 0.01 s), printed to about 6 significant digits
+(5e-4 mm). Pliant, given the same scene through :mod:`pliant.sofa`, must end at every node
+within 1e-3 mm of them.
+"""
+
+from __future__ import annotations
+
+import re
+import textwrap
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from pliant.constraints.base import EmbeddedPoints
+from pliant.constraints.cable import CableActuator
+from pliant.fem.body import TetBody
+from pliant.fem.loads import SurfacePressure
+from pliant.fem.material import Corotational
+from pliant.mesh import box_beam
+from pliant.model import Model
+from pliant.sofa import SceneError, load_scene
+from pliant.solvers import ImplicitEuler, StaticSolver
+
+REFERENCE = Path("../shared/sofa-reference")
+MESHES = Path("../shared/meshes")
+needs_reference = pytest.mark.skipif(
+    not (REFERENCE / "diamond_plain_0.vtk").is_file() or not MESHES.is_dir(),
+    reason="SOFA's reference outputs are not beside the repository (../shared)",
+)
+
+
+DOCS = Path(__file__).parents[1] / "docs" / "sofa.md"
+
+
+@needs_reference
+@pytest.mark.parametrize(
+    "code", re.findall(r"```python\n(.*?)```", DOCS.read_text(), flags=re.S), ids=["port", "choice"]
+)
+def test_docs_examples_run(code: str) -> None:
+    exec(compile(code, str(DOCS), "exec"), {})
+
+
+def sofa_positions(path: Path) -> np.ndarray:
+    """The POINTS of a legacy ASCII VTK file written by SOFA's VTKExporter."""
+    words = path.read_text().split()
+    at = words.index("POINTS")
+    n = int(words[at + 1])
+    return np.array(words[at + 3 : at + 3 + 3 * n], dtype=float).reshape(n, 3)
+
+
+# ---------------------------------------------------------------------------------------------
+# Same scene, same numbers
+
+
+@needs_reference
+@pytest.mark.parametrize("scene", ["diamond_plain", "trunk_cables"])
+def test_scenes_end_where_sofa_does(scene: str) -> None:
+    """Every node within 1e-3 mm of SOFA's exported position after 100 steps (measured:
+    5.0e-4 mm on both, the file's print precision)."""
+    loaded = load_scene(REFERENCE / f"{scene}.scn", mesh_dirs=[MESHES])
+    state = loaded.simulate(100)
+    reference = sofa_positions(REFERENCE / f"{scene}_0.vtk")
+    error = np.linalg.norm(state.positions - reference, axis=1)
+    assert error.max() <= 1e-3, f"max node error {error.max():.2e} mm"
+
+
+@needs_reference
+@pytest.mark.parametrize(
+    ("choice", "low", "high"),
+    # Measured on the Trunk with cables (max node error, mm; the tip moves 39 mm): the polar
+    # rotation 14.2, points projected onto the mesh 0.88, the change measured from the last
+    # step 0.10. Each choice alone moves the result well beyond SOFA's print precision.
+    [
+        ({"rotation": "polar"}, 5.0, 30.0),
+        ({"outside": "project"}, 0.3, 3.0),
+        ({"change_reference": "last"}, 0.03, 0.3),
+    ],
+)
+def test_each_sofa_choice_matters_on_the_trunk(choice, low, high) -> None:
+    loaded = load_scene(REFERENCE / "trunk_cables.scn", mesh_dirs=[MESHES], **choice)
+    error = np.linalg.norm(
+        loaded.simulate(100).positions - sofa_positions(REFERENCE / "trunk_cables_0.vtk"), axis=1
+    )
+    assert low < error.max() < high, f"{choice}: max node error {error.max():.3g} mm"
+
+
+@needs_reference
+def test_the_polar_rotation_misses_the_plain_diamond() -> None:
+    """The rotation alone makes the plain Diamond's gap: 1.29 mm with the polar one (measured),
+    5e-4 mm with SOFA's."""
+    loaded = load_scene(REFERENCE / "diamond_plain.scn", mesh_dirs=[MESHES], rotation="polar")
+    error = np.linalg.norm(
+        loaded.simulate(100).positions - sofa_positions(REFERENCE / "diamond_plain_0.vtk"), axis=1
+    )
+    assert 0.5 < error.max() < 3.0, f"max node error {error.max():.3g} mm"
+
+
+@needs_reference
+def test_a_python_scene_script_loads_like_its_xml_twin(tmp_path) -> None:
+    mesh = (MESHES / "Diamond_siliconeV0.vtu").resolve()
+    script = tmp_path / "diamond.py"
+    script.write_text(
+        textwrap.dedent(
+            f"""
+            import Sofa.Core
+
+
+            def createScene(rootNode):
+                rootNode.dt = 0.01
+                rootNode.gravity = [0, 0, -9810]
+                rootNode.addObject("RequiredPlugin", pluginName="SoftRobots")
+                body = rootNode.addChild("Body")
+                body.addObject("EulerImplicitSolver", rayleighStiffness=0, rayleighMass=0)
+                body.addObject("SparseLDLSolver")
+                body.addObject(
+                    "MeshVTKLoader", name="loader", filename="{mesh}",
+                    rotation=[90, 0, 0], translation=[0, 0, 35],
+                )
+                body.addObject("MeshTopology", src="@loader")
+                body.addObject("MechanicalObject", name="dofs")
+                body.addObject("UniformMass", totalMass=0.5)
+                body.addObject(
+                    "TetrahedronFEMForceField", youngModulus=180, poissonRatio=0.45
+                )
+                body.addObject("BoxROI", name="boxROI", box=[-15, -15, -40, 15, 15, 10])
+                body.addObject("FixedProjectiveConstraint", indices="@boxROI.indices")
+                return rootNode
+            """
+        )
+    )
+    from_script = load_scene(script).simulate(5)
+    from_xml = load_scene(REFERENCE / "diamond_plain.scn", mesh_dirs=[MESHES]).simulate(5)
+    assert np.array_equal(from_script.positions, from_xml.positions)
+
+
+def test_unsupported_components_are_listed_in_one_error(tmp_path) -> None:
+    scene = tmp_path / "scene.scn"
+    scene.write_text(
+        """<Node name="root"><Node name="Body">
+        <MeshVTKLoader name="loader" filename="x.vtk"/>
+        <TetrahedronFEMForceField/>
+        <HexahedronFEMForceField/>
+        <Node name="cavity"><SurfacePressureForceField/></Node>
+        </Node></Node>"""
+    )
+    with pytest.raises(SceneError) as err:
+        load_scene(scene)
+    message = str(err.value)
+    assert "HexahedronFEMForceField (at root/Body)" in message
+    assert "SurfacePressureForceField (at root/Body/cavity)" in message
+
+
+def test_a_cavity_scene_inflates_like_the_pressure_load(tmp_path) -> None:
+    """A SurfacePressureConstraint on a surface mesh of its own (STL, mapped into the body)
+    in pressure mode: the closed surface's pressure force, p dV/dx, is the SurfacePressure
+    load's on the same faces, so the static equilibria agree."""
+    import meshio
+
+    mesh = box_beam(10.0, 10.0, 10.0, 2, 2, 2)
+    surface = mesh.boundary_triangles()
+    meshio.write(tmp_path / "body.vtu", meshio.Mesh(mesh.points, [("tetra", mesh.tets)]))
+    meshio.write(tmp_path / "cavity.stl", meshio.Mesh(mesh.points, [("triangle", surface)]))
+    scene = tmp_path / "cavity.scn"
+    scene.write_text(
+        """<Node name="root" dt="0.01" gravity="0 0 0">
+        <Node name="Body">
+          <StaticSolver/>
+          <MeshVTKLoader name="loader" filename="body.vtu"/>
+          <MeshTopology name="topo" src="@loader"/>
+          <MechanicalObject name="dofs"/>
+          <UniformMass totalMass="0.001"/>
+          <TetrahedronFEMForceField youngModulus="1000" poissonRatio="0.3" method="polar"/>
+          <BoxROI name="box" box="-1 -1 -1 0.1 11 11"/>
+          <FixedConstraint indices="@box.indices"/>
+          <Node name="cavity">
+            <MeshSTLLoader name="surface" filename="cavity.stl"/>
+            <MeshTopology name="walls" src="@surface"/>
+            <MechanicalObject name="points" src="@surface"/>
+            <SurfacePressureConstraint triangles="@walls.triangles" value="20"
+                valueType="pressure"/>
+            <BarycentricMapping/>
+          </Node>
+        </Node></Node>"""
+    )
+    loaded = load_scene(scene)
+    assert loaded.solver_kind == "static" and len(loaded.model.actuators) == 1
+    by_scene = loaded.simulate(1).positions
+    body = TetBody(
+        mesh,
+        Corotational(1000.0, 0.3),
+        density=1e-6,
+        fixed_nodes=np.flatnonzero(mesh.points[:, 0] < 0.1),
+        loads=[SurfacePressure(surface, 20.0)],
+    )
+    by_load = StaticSolver(Model(body)).step(Model(body).rest_state()).positions
+    motion = np.abs(by_load - mesh.points).max()
+    assert motion > 0.1
+    assert np.abs(by_scene - by_load).max() < 1e-8 * motion
+
+
+@needs_reference
+def test_a_cable_not_carried_by_the_body_is_refused(tmp_path) -> None:
+    text = (REFERENCE / "diamond_plain.scn").read_text()
+    text = text.replace(
+        "<DefaultAnimationLoop/>",
+        '<DefaultAnimationLoop/><Node name="loose"><MechanicalObject position="0 0 0 1 1 1"/>'
+        '<CableConstraint name="c"/></Node>',
+    )
+    scene = tmp_path / "scene.scn"
+    scene.write_text(text)
+    with pytest.raises(SceneError, match=r"CableConstraint \(at root/loose\)"):
+        load_scene(scene, mesh_dirs=[MESHES])
+
+
+def test_a_scene_without_a_body_says_so(tmp_path) -> None:
+    scene = tmp_path / "scene.scn"
+    scene.write_text('<Node name="root"><Node name="Body"><UniformMass/></Node></Node>')
+    with pytest.raises(SceneError, match="no deformable body"):
+        load_scene(scene)
+
+
+@needs_reference
+def test_pliant_run_takes_a_scene_file(tmp_path) -> None:
+    from typer.testing import CliRunner
+
+    from pliant.cli import app
+
+    result = CliRunner().invoke(
+        app,
+        [
+            "run",
+            str(REFERENCE / "diamond_plain.scn"),
+            "--mesh-dir",
+            str(MESHES),
+            "--duration",
+            "0.02",
+            "--frames",
+            "1",
+            "--out",
+            str(tmp_path),
+        ],
+    )
+    assert result.exit_code == 0, result.output
+    assert (tmp_path / "diamond_plain" / "diamond_plain.pvd").is_file()
+
+
+# ---------------------------------------------------------------------------------------------
+# Points outside the mesh (SOFA's BarycentricMapping)
+
+
+def test_outside_points_are_kept_where_they_are_and_follow_affine_motions(rng) -> None:
+    """An outside point keeps its place at rest, gets barycentric coordinates (some negative,
+    summing to 1) in the element whose centre is nearest, and, since the element's
+    interpolation is affine, follows any affine motion of the mesh exactly."""
+    mesh = box_beam(30.0, 10.0, 10.0, 3, 1, 1)
+    points = np.array([[15.0, 5.0, 10.6], [31.0, 2.0, 3.0], [12.0, 5.0, 5.0]])
+    kept = EmbeddedPoints(mesh, points, outside="keep", tolerance=2.0)
+    projected = EmbeddedPoints(mesh, points, tolerance=2.0)
+    assert np.abs(kept.positions(mesh.points) - points).max() < 1e-12
+    assert np.abs(kept.weights.sum(axis=1) - 1.0).max() < 1e-12
+    assert kept.weights[:2].min(axis=1).max() < 0.0
+    centres = mesh.points[mesh.tets].mean(axis=1)
+    for j in range(2):
+        nearest = np.argmin(np.linalg.norm(centres - points[j], axis=1))
+        assert set(kept.nodes[j]) == set(mesh.tets[nearest])
+    # Projection moves the outside points onto the mesh; the inside point is the same.
+    moved = np.linalg.norm(projected.positions(mesh.points) - points, axis=1)
+    assert moved[0] > 0.5 and moved[1] > 0.9 and moved[2] < 1e-12
+    a = np.eye(3) + 0.2 * rng.uniform(-1.0, 1.0, (3, 3))
+    c = rng.uniform(-5.0, 5.0, 3)
+    assert np.abs(kept.positions(mesh.points @ a.T + c) - (points @ a.T + c)).max() < 1e-12
+
+
+# ---------------------------------------------------------------------------------------------
+# SoftRobots' rate limit
+
+
+@pytest.mark.parametrize(
+    ("reference", "expected"),
+    # SoftRobots measures the change from the displacement it stored while solving the
+    # previous step, before that step's correction: delta_n <= delta_{n-2} + 1, so a ramp met
+    # exactly climbs 1 mm every other step.
+    [("last", [1.0, 2.0, 3.0, 4.0, 4.0]), ("lagged", [1.0, 1.0, 2.0, 2.0, 3.0])],
+)
+def test_the_cable_ramp_follows_the_change_reference(reference, expected) -> None:
+    mesh = box_beam(60.0, 10.0, 10.0, 6, 1, 1)
+    body = TetBody(
+        mesh,
+        Corotational(1000.0, 0.45),
+        density=1e-6,
+        fixed_nodes=np.flatnonzero(mesh.points[:, 0] < 1e-9),
+    )
+    path = np.array([[0.0, 5.0, 8.0], [30.0, 5.0, 8.0], [60.0, 5.0, 8.0]])
+    cable = CableActuator(
+        EmbeddedPoints(mesh, path),
+        body.rest_positions,
+        value=4.0,
+        max_displacement_change=1.0,
+        change_reference=reference,
+    )
+    model = Model(body, actuators=[cable])
+    for solver in (StaticSolver(model), ImplicitEuler(model, 0.01, tangent="fresh")):
+        state, reached = model.rest_state(), []
+        for _ in range(5):
+            state = solver.step(state)
+            reached.append(float(state.displacement[0]))
+        # Static: met exactly; dynamic: met to first order (the length is linearised in
+        # the step), a small fraction of the 1 mm steps.
+        tol = 1e-6 if isinstance(solver, StaticSolver) else 0.05
+        assert np.abs(np.array(reached) - expected).max() < tol, (type(solver), reached)
+
+
+def test_large_frames_keep_the_file_order_of_reoriented_elements(tmp_path, rng) -> None:
+    """A mesh file with some elements negatively oriented (nodes 0 and 1 swapped): the loader
+    reorients them for Pliant but keeps SOFA's frame, the file's first three nodes, so the
+    forces are those of the NumPy reference run on the file's elements as they are."""
+    import meshio
+
+    from pliant.fem import reference
+
+    mesh = box_beam(20.0, 10.0, 10.0, 2, 1, 1)
+    tets = mesh.tets.copy()
+    tets[::3] = tets[::3][:, [1, 0, 2, 3]]
+    meshio.write(tmp_path / "body.vtu", meshio.Mesh(mesh.points, [("tetra", tets)]))
+    scene = tmp_path / "body.scn"
+    scene.write_text(
+        """<Node name="root" gravity="0 0 0"><Node name="Body">
+        <EulerImplicitSolver/><MeshVTKLoader name="loader" filename="body.vtu"/>
+        <UniformMass totalMass="0.001"/><TetrahedronFEMForceField youngModulus="1000"
+        poissonRatio="0.3"/></Node></Node>"""
+    )
+    body = load_scene(scene).model.body
+    moved = mesh.points + 0.8 * rng.standard_normal(mesh.points.shape)
+    material = body.material
+    forces, _ = reference.internal_forces(
+        moved, tets, mesh.points, material.mu, material.lam, "corotational", rotation="large"
+    )
+    assert np.abs(body.linearise(moved).forces - forces).max() < 1e-10 * np.abs(forces).max()
