@@ -16,6 +16,7 @@ from pliant import robots
 from pliant.condensed.cli import app as condensed_app
 from pliant.errors import PliantError
 from pliant.solvers import ImplicitEuler, StaticSolver
+from pliant.trajopt.cli import app as trajopt_app
 
 app = typer.Typer(
     add_completion=False,
@@ -24,6 +25,7 @@ app = typer.Typer(
 )
 console = Console()
 app.add_typer(condensed_app, name="condensed")
+app.add_typer(trajopt_app, name="trajopt")
 
 
 def _solver(model, solver: str, dt: float):

@@ -92,3 +92,8 @@ class DatasetError(PliantError, ValueError):
 class LearnedModelError(PliantError, ValueError):
     """A learned condensed model cannot be used: unreadable file, or a robot whose constraint
     layout (actuators, effectors, contacts and their rows) differs from the one it learned."""
+
+
+class TrajectoryOptimisationError(PliantError, ValueError):
+    """An optimal control problem is ill-posed (horizon, weights, shapes) or its solve failed
+    to produce a trajectory (a diverging rollout from the initial guess)."""
