@@ -29,7 +29,8 @@ class LinearDynamics:
             a = a[None]
         if b.ndim == 2:
             b = b[None]
-        n = max(a.shape[0], b.shape[0])
+        c = None if c is None else np.asarray(c, dtype=float).reshape(-1, a.shape[1])
+        n = max(a.shape[0], b.shape[0], 1 if c is None else c.shape[0])
         self.a = np.broadcast_to(a, (n, *a.shape[1:]))
         self.b = np.broadcast_to(b, (n, *b.shape[1:]))
         n_x = self.a.shape[1]
