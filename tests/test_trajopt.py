@@ -20,7 +20,7 @@ from pliant.trajopt import (
     tracking_cost,
 )
 from pliant.trajopt.crocoddyl_backend import solve_frozen
-from pliant.trajopt.ddp import backward_pass
+from pliant.trajopt.ddp import backward_pass, compiled_backward_pass
 
 H = 0.05  # time step of the mass-spring system
 
@@ -99,6 +99,24 @@ def test_controls_never_violate_their_bounds(rng):
     assert np.all(np.abs(steps) <= 0.1 + 1e-12)
     assert np.any(np.isclose(np.abs(steps), 0.1))  # the change bound binds
     assert result.cost < cost.value(*_rollout(system, bounds.project(guess)))
+
+
+@pytest.mark.parametrize("mu", [0.0, 1e-2])
+def test_compiled_backward_pass_is_the_numpy_reference(rng, mu):
+    n = 30
+    fx = np.tile(np.eye(6), (n, 1, 1))
+    fx[:, :3, 3:] = 0.02 * np.eye(3)
+    fu = rng.normal(size=(n, 6, 4)) * 1e-3
+    xs, us = rng.normal(size=(n + 1, 6)), rng.uniform(0.0, 100.0, (n, 4))
+    cost = tracking_cost(rng.normal(size=(n + 1, 3)), n_controls=4, control_weight=1e-6)
+    boxes = [(np.zeros(4), np.full(4, 100.0))] * n  # binds at many nodes
+    reference = backward_pass(xs, us, fx, fu, cost, boxes, mu)
+    compiled = compiled_backward_pass(xs, us, fx, fu, cost, boxes, mu)
+    assert np.any(reference.k + us == 100.0) and np.any(reference.k + us == 0.0)
+    np.testing.assert_allclose(compiled.k, reference.k, atol=1e-9)
+    np.testing.assert_allclose(compiled.feedback, reference.feedback, atol=1e-9)
+    assert compiled.predicted(1.0) == pytest.approx(reference.predicted(1.0), rel=1e-12)
+    assert compiled.stationarity == pytest.approx(reference.stationarity, rel=1e-12)
 
 
 def _rollout(system, us):
@@ -217,3 +235,34 @@ def test_bad_input_raises_named_errors():
         BoxDDP().solve(
             exploding, np.ones(2), cost, ActuationBounds(np.zeros(1), np.ones(1)), np.ones((10, 1))
         )
+
+
+def test_cli_writes_plots_gif_and_report(tmp_path):
+    """``pliant trajopt diamond`` and ``diamond-mpc`` on a coarse mesh and a short horizon."""
+    import json
+
+    from typer.testing import CliRunner
+
+    from pliant.cli import app
+
+    runner = CliRunner()
+    common = ["--mesh-size", "30", "--settle", "0.2", "--out", str(tmp_path)]
+    result = runner.invoke(
+        app,
+        ["trajopt", "diamond", "--no-nonlinear", "--horizon", "10", "--max-iterations", "2"]
+        + ["--frames", "2", *common],
+    )
+    assert result.exit_code == 0, result.output
+    report = json.loads((tmp_path / "diamond.json").read_text())
+    assert [r["run"] for r in report["runs"]] == ["linear"]
+    assert all(r["bound_violation"] == 0.0 for r in report["runs"])
+    for name in ("diamond.png", "diamond.gif"):
+        assert (tmp_path / name).stat().st_size > 0
+    result = runner.invoke(
+        app, ["trajopt", "diamond-mpc", "--horizon", "5", "--steps", "6", *common]
+    )
+    assert result.exit_code == 0, result.output
+    mpc = json.loads((tmp_path / "diamond_mpc.json").read_text())
+    assert mpc["bound_violation"] == 0.0 and mpc["loop_rate_hz"] > 0
+    result = runner.invoke(app, ["trajopt", "diamond", "--horizon", "0", *common])
+    assert result.exit_code == 1 and "horizon" in result.output

@@ -292,44 +292,81 @@ class BoxDDP:
             from pliant.trajopt import crocoddyl_backend
 
             return crocoddyl_backend.backward_pass(xs, us, fx, fu, cost, boxes, mu)
-        return backward_pass(xs, us, fx, fu, cost, boxes, mu)
+        return compiled_backward_pass(xs, us, fx, fu, cost, boxes, mu)
+
+
+def compiled_backward_pass(xs, us, fx, fu, cost: QuadraticCost, boxes, mu: float = 0.0) -> Gains:
+    """:func:`backward_pass` compiled (:mod:`pliant.trajopt.kernels`)."""
+    from pliant.trajopt import kernels
+
+    lower = np.array([b[0] for b in boxes], dtype=float)
+    upper = np.array([b[1] for b in boxes], dtype=float)
+    k, feedback, d1, d2, worst = kernels.backward_pass(
+        np.ascontiguousarray(xs, dtype=float),
+        np.ascontiguousarray(us, dtype=float),
+        np.ascontiguousarray(fx, dtype=float),
+        np.ascontiguousarray(fu, dtype=float),
+        cost.state_weights,
+        cost.state_reference,
+        cost.control_weights,
+        cost.control_reference,
+        lower,
+        upper,
+        float(mu),
+    )
+    return Gains(k, feedback, float(d1), float(d2), float(worst))
 
 
 def backward_pass(xs, us, fx, fu, cost: QuadraticCost, boxes, mu: float = 0.0) -> Gains:
-    """The box-DDP backward pass (numpy) along a nominal trajectory."""
+    """The box-DDP backward pass along a nominal trajectory (the NumPy reference)."""
     n, n_u = us.shape
     n_x = xs.shape[1]
     q, x_ref = cost.state_weights, cost.state_reference
     r, u_ref = cost.control_weights, cost.control_reference
+    lx = q * (xs - x_ref)
+    lu = r * (us - u_ref)
+    diag_x, diag_u = np.diag_indices(n_x), np.diag_indices(n_u)
     k_ff = np.zeros((n, n_u))
     k_fb = np.zeros((n, n_u, n_x))
-    vx = q[n] * (xs[n] - x_ref[n])
+    vx = lx[n].copy()
     vxx = np.diag(q[n])
     d1 = d2 = 0.0
     worst = 0.0
     for t in range(n - 1, -1, -1):
         a, b = fx[t], fu[t]
         vxx_b = vxx @ b
-        qx = q[t] * (xs[t] - x_ref[t]) + a.T @ vx
-        qu = r * (us[t] - u_ref) + b.T @ vx
-        qxx = np.diag(q[t]) + a.T @ vxx @ a
-        quu = np.diag(r) + b.T @ vxx_b
+        qx = lx[t] + a.T @ vx
+        qu = lu[t] + b.T @ vx
+        qxx = a.T @ vxx @ a
+        qxx[diag_x] += q[t]
+        quu = b.T @ vxx_b
+        quu[diag_u] += r
         qux = vxx_b.T @ a
-        quu_reg = quu + mu * np.mean(np.diag(quu)) * np.eye(n_u) if mu else quu
-        lo, hi = boxes[t]
-        du = box_qp(quu_reg, qu, lo - us[t], hi - us[t])
-        free = (du > lo - us[t]) & (du < hi - us[t])
-        gain = np.zeros((n_u, n_x))
-        if free.any():
-            gain[free] = -np.linalg.solve(quu_reg[np.ix_(free, free)], qux[free])
+        quu_reg = quu
+        if mu:
+            quu_reg = quu.copy()
+            quu_reg[diag_u] += mu * np.mean(quu[diag_u])
+        lo, hi = boxes[t][0] - us[t], boxes[t][1] - us[t]
+        # The unconstrained Newton step and gains in one solve; the box QP only when the
+        # step leaves the box.
+        sol = np.linalg.solve(quu_reg, np.column_stack([qu, qux]))
+        du, gain = -sol[:, 0], -sol[:, 1:]
+        if np.any(du < lo) or np.any(du > hi):
+            du = box_qp(quu_reg, qu, lo, hi)
+            free = (du > lo) & (du < hi)
+            gain = np.zeros((n_u, n_x))
+            if free.any():
+                gain[free] = -np.linalg.solve(quu_reg[np.ix_(free, free)], qux[free])
         # First-order stationarity at the nominal controls: the gradient projected on the box.
-        projected = np.where(us[t] <= lo, np.minimum(qu, 0.0), qu)
-        projected = np.where(us[t] >= hi, np.maximum(projected, 0.0), projected)
-        worst = max(worst, float(np.max(np.abs(projected))))
+        projected = np.where(lo >= 0.0, np.minimum(qu, 0.0), qu)
+        projected = np.where(hi <= 0.0, np.maximum(projected, 0.0), projected)
+        worst = max(worst, float(np.abs(projected).max()))
         k_ff[t], k_fb[t] = du, gain
+        quu_du = quu @ du
         d1 += float(du @ qu)
-        d2 += float(du @ quu @ du)
-        vx = qx + gain.T @ quu @ du + gain.T @ qu + qux.T @ du
-        vxx = qxx + gain.T @ quu @ gain + gain.T @ qux + qux.T @ gain
+        d2 += float(du @ quu_du)
+        gain_quu = gain.T @ quu
+        vx = qx + gain_quu @ du + gain.T @ qu + qux.T @ du
+        vxx = qxx + gain_quu @ gain + gain.T @ qux + qux.T @ gain
         vxx = 0.5 * (vxx + vxx.T)
     return Gains(k_ff, k_fb, d1, d2, worst)

@@ -43,19 +43,20 @@ def diamond_two_goals(
     position_weight: float = 1.0,
     velocity_weight: float = 1e-3,
     control_weight: float = 1e-6,
+    settle: float = 3.0,
 ) -> Scenario:
     """The Diamond's effector to two successive goals (Fig. 5.20), one per half horizon.
 
     The robot starts at its static equilibrium under gravity with slack cables; each goal is
-    where the effector is after 3 s under constant cable tensions (600, 0, 0, 200) and
+    where the effector is after `settle` seconds under constant cable tensions (600, 0, 0, 200) and
     (0, 500, 400, 0) mN, so both are reachable within the bounds 0 <= u <= max_force (mN),
     |u_k - u_{k-1}| <= max_change (mN per step)."""
     model = robots.diamond(mesh_size=mesh_size)
     start = StaticSolver(model).step(model.rest_state(), ForceControl(np.zeros(4)))
     dyn = CondensedDynamics(model, dt, nonlinear=nonlinear, lift=lift)
     holds = np.array([[600.0, 0.0, 0.0, 200.0], [0.0, 500.0, 400.0, 0.0]])
-    settle = max(1, round(3.0 / dt))
-    targets = [dyn.rollout(start, np.tile(u, (settle, 1))).xs[-1, :3] for u in holds]
+    steps = max(1, round(settle / dt))
+    targets = [dyn.rollout(start, np.tile(u, (steps, 1))).xs[-1, :3] for u in holds]
     goals = np.empty((horizon + 1, 3))
     half = horizon // 2
     goals[: half + 1] = targets[0]
