@@ -9,6 +9,7 @@ the second after), cable tensions 0..1500 mN changing by at most 40 mN per step 
 Runs:
   linear            Eq. 5.27's linear part (the thesis' choice), numpy backward pass
   linear-crocoddyl  the same with crocoddyl's Box-FDDP backward pass
+  linear-augmented  the change bound as a box on the change (pliant.trajopt.rate)
   non-linear        with the non-linear part, the thesis' lift (pseudo-inverse of H_e)
   non-linear-compliance  with the non-linear part, the compliance lift
   linear-no-change-bound the linear run without the bound on the change per step
@@ -22,6 +23,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import time
 from pathlib import Path
 
@@ -31,7 +33,7 @@ from pliant.trajopt import ActuationBounds, BoxDDP, LinearDynamics
 from pliant.trajopt.cli import summary
 from pliant.trajopt.crocoddyl_backend import backward_pass as crocoddyl_backward
 from pliant.trajopt.crocoddyl_backend import solve_frozen
-from pliant.trajopt.ddp import backward_pass
+from pliant.trajopt.ddp import backward_pass, compiled_backward_pass
 from pliant.trajopt.plots import plot_trajectory
 from pliant.trajopt.scenarios import diamond_two_goals
 
@@ -56,6 +58,7 @@ def main() -> None:
     runs = {
         "linear": ({}, "numpy", True),
         "linear-crocoddyl": ({}, "crocoddyl", True),
+        "linear-augmented": ({}, "numpy", "augmented"),
         "non-linear": ({"nonlinear": True}, "numpy", True),
         "non-linear-compliance": ({"nonlinear": True, "lift": "compliance"}, "numpy", True),
         "linear-no-change-bound": ({}, "numpy", False),
@@ -67,7 +70,10 @@ def main() -> None:
         if not change_bound:
             bounds = ActuationBounds(bounds.lower, bounds.upper)
         solver = BoxDDP(
-            max_iterations=args.max_iterations, tolerance=args.tolerance, backend=backend
+            max_iterations=args.max_iterations,
+            tolerance=args.tolerance,
+            backend=backend,
+            change_bound="augmented" if change_bound == "augmented" else "sequential",
         )
         result = solver.solve(scenario.dynamics, scenario.start, scenario.cost, bounds)
         report = summary(name, result, scenario)
@@ -98,8 +104,11 @@ def main() -> None:
         xs[0], fx, fu, frozen.c, scenario.cost, plain, us, max_iterations=200, tolerance=1e-10
     )
     comparison = {
-        "backward_pass_numpy_s": median_time(
+        "backward_pass_numpy_reference_s": median_time(
             lambda: backward_pass(xs, us, fx, fu, scenario.cost, boxes)
+        ),
+        "backward_pass_compiled_s": median_time(
+            lambda: compiled_backward_pass(xs, us, fx, fu, scenario.cost, boxes)
         ),
         "backward_pass_crocoddyl_s": median_time(
             lambda: crocoddyl_backward(xs, us, fx, fu, scenario.cost, boxes)
@@ -144,6 +153,8 @@ def main() -> None:
                     "tolerance": args.tolerance,
                 },
                 "thesis": THESIS,
+                "load_average_1min_at_end": os.getloadavg()[0],
+                "cores": os.cpu_count(),
                 "runs": reports,
                 "numpy_vs_crocoddyl": comparison,
             },

@@ -15,6 +15,7 @@ experiments/results/trajopt/mpc.json and mpc.png.
 from __future__ import annotations
 
 import json
+import os
 from pathlib import Path
 
 import numpy as np
@@ -82,7 +83,13 @@ def main() -> None:
     )
     (OUT / "mpc.json").write_text(
         json.dumps(
-            {"command": "python experiments/trajopt_mpc.py", "ddp": reference, "mpc": runs},
+            {
+                "command": "python experiments/trajopt_mpc.py",
+                "load_average_1min_at_end": os.getloadavg()[0],
+                "cores": os.cpu_count(),
+                "ddp": reference,
+                "mpc": runs,
+            },
             indent=1,
         )
     )

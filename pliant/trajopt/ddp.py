@@ -112,6 +112,12 @@ class BoxDDP:
             each accepted step).
         feedback: apply the feedback gains K in the forward pass (False: open-loop steps
             u + alpha k; measured slower on the Diamond).
+        change_bound: how a bound on the change per step is met: "sequential" (each node's
+            box around the nominal control before it, the forward pass clipping to the control
+            applied before) or "augmented" (the previous control in the state, its change the
+            control: :mod:`pliant.trajopt.rate`; needs `bounds.previous`). Measured on the
+            Diamond's two goals: sequential 46 iterations, 67 rollouts, cost 1171.5;
+            augmented 69 iterations, 317 rollouts, cost 1154.7.
     """
 
     def __init__(
@@ -125,7 +131,13 @@ class BoxDDP:
         min_regularisation: float = 1e-3,
         max_regularisation: float = 1e6,
         feedback: bool = True,
+        change_bound: Literal["augmented", "sequential"] = "sequential",
     ) -> None:
+        if change_bound not in ("augmented", "sequential"):
+            raise TrajectoryOptimisationError(
+                f"change_bound must be 'augmented' or 'sequential', got {change_bound!r}"
+            )
+        self.change_bound = change_bound
         if max_iterations < 1:
             raise TrajectoryOptimisationError(f"max_iterations must be >= 1, got {max_iterations}")
         if not (np.isfinite(tolerance) and tolerance > 0):
@@ -172,6 +184,12 @@ class BoxDDP:
                 f"the initial controls must have shape ({n}, {n_u}), got {us.shape}"
             )
         us = bounds.project(us)
+        if (
+            self.change_bound == "augmented"
+            and bounds.max_change is not None
+            and bounds.previous is not None
+        ):
+            return self._solve_augmented(system, start, cost, bounds, us, callback, clock)
         forward_time = backward_time = 0.0
         t = time.perf_counter()
         try:
@@ -269,12 +287,45 @@ class BoxDDP:
             history=history,
         )
 
+    def _solve_augmented(self, system, start, cost, bounds, us, callback, clock) -> DDPResult:
+        """The solve on the rate-augmented problem (:mod:`pliant.trajopt.rate`), its result
+        read back in the system's own state and controls."""
+        from pliant.trajopt import rate
+
+        n_u = us.shape[1]
+        inner = BoxDDP(
+            max_iterations=self.max_iterations,
+            tolerance=self.tolerance,
+            backend=self.backend,
+            alphas=self.alphas,
+            armijo=self.armijo,
+            min_regularisation=self.min_regularisation,
+            max_regularisation=self.max_regularisation,
+            feedback=self.feedback,
+            change_bound="sequential",
+        )
+        deltas = np.diff(np.vstack([bounds.previous, us]), axis=0)
+        result = inner.solve(
+            rate.RateSystem(system, bounds.previous, n_u),
+            start,
+            rate.rate_cost(cost, 1e-3 * cost.control_weights),
+            rate.RateBounds(bounds),
+            deltas,
+            callback=callback,
+        )
+        rollout = result.rollout.inner
+        result.us, result.xs, result.rollout = rollout.us, rollout.xs, rollout
+        result.cost = cost.value(rollout.xs, rollout.us)
+        result.bound_violation = bounds.violation(rollout.us)
+        result.wall_time = time.perf_counter() - clock
+        return result
+
     @staticmethod
     def _policy(nominal, gains: Gains, alpha: float, bounds: ActuationBounds, feedback: bool):
         applied: list[np.ndarray] = []
 
         def policy(k: int, x: np.ndarray, u: np.ndarray) -> np.ndarray:
-            lo, hi = bounds.box(applied[-1] if applied else None)
+            lo, hi = bounds.node_box(x, applied[-1] if applied else None)
             du = alpha * gains.k[k]
             if feedback:
                 du = du + gains.feedback[k] @ (x - nominal.xs[k])
@@ -285,9 +336,7 @@ class BoxDDP:
         return policy
 
     def _backward(self, xs, us, fx, fu, cost: QuadraticCost, bounds, mu: float) -> Gains:
-        boxes = []
-        for k in range(us.shape[0]):
-            boxes.append(bounds.box(us[k - 1] if k > 0 else None))
+        boxes = [bounds.node_box(xs[k], us[k - 1] if k > 0 else None) for k in range(len(us))]
         if self.backend == "crocoddyl":
             from pliant.trajopt import crocoddyl_backend
 

@@ -167,6 +167,10 @@ class ActuationBounds:
             np.minimum(self.upper, previous + self.max_change),
         )
 
+    def node_box(self, x: np.ndarray, previous) -> tuple[np.ndarray, np.ndarray]:
+        """The box of a node reached at state x (unused here) after the control `previous`."""
+        return self.box(previous)
+
     def project(self, us: np.ndarray) -> np.ndarray:
         """The closest controls, node by node, that meet every bound (an initial guess)."""
         out = np.array(us, dtype=float)
