@@ -12,6 +12,7 @@ Runs:
   linear-augmented  the change bound as a box on the change (pliant.trajopt.rate)
   non-linear        with the non-linear part, the thesis' lift (pseudo-inverse of H_e)
   non-linear-compliance  with the non-linear part, the compliance lift
+  non-linear-static with the non-linear part, the static (Guyan) lift
   linear-no-change-bound the linear run without the bound on the change per step
 Then, on the condensed problem frozen along the linear run's solution (no change bound,
 which crocoddyl's box does not take): one backward pass, numpy vs crocoddyl (median of 20),
@@ -61,6 +62,7 @@ def main() -> None:
         "linear-augmented": ({}, "numpy", "augmented"),
         "non-linear": ({"nonlinear": True}, "numpy", True),
         "non-linear-compliance": ({"nonlinear": True, "lift": "compliance"}, "numpy", True),
+        "non-linear-static": ({"nonlinear": True, "lift": "static"}, "numpy", True),
         "linear-no-change-bound": ({}, "numpy", False),
     }
     reports, plotted, solutions = [], {}, {}

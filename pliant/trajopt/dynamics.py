@@ -26,9 +26,12 @@ K and D written out. Two lifts:
 * "pseudo-inverse", L = H_e^+ (the thesis uses H_e^T, H_e's pseudo-inverse for points at
   nodes): the effector's own nodes move, a dent that the stiffness snaps back within a step;
 * "compliance", L = A^-1 H_e^T (H_e A^-1 H_e^T)^-1: the shape the body takes under a force at
-  the effector over one step, the smoothest motion that moves the effector.
+  the effector over one step;
+* "static", L = K^-1 H_e^T (H_e K^-1 H_e^T)^-1 with K the stiffness at the rollout's start
+  (one more factorisation per rollout): the shape of a quasi-static push on the effector,
+  the effector's own mass-spring (Guyan's reduction onto the effector).
 
-Either needs one or two solves of as many columns as effector rows per step.
+Each needs one or two solves of as many columns as effector rows per step.
 """
 
 from __future__ import annotations
@@ -42,6 +45,7 @@ from pliant.constraints.effector import PositionEffector
 from pliant.errors import DivergenceError, ModelError
 from pliant.model import Model, State
 from pliant.solvers.implicit_euler import ImplicitEuler
+from pliant.solvers.system import LinearisedSystem
 
 
 class ForceControl:
@@ -95,7 +99,8 @@ class CondensedDynamics:
         nonlinear: also save what the non-linear part of Eq. 5.27 needs (one or two more
             solves per step).
         lift: how the non-linear part lifts the effector state onto the nodes,
-            "pseudo-inverse" (the thesis') or "compliance" (see the module's docstring).
+            "pseudo-inverse" (the thesis'), "compliance" or "static" (see the module's
+            docstring).
     """
 
     def __init__(
@@ -107,8 +112,10 @@ class CondensedDynamics:
         nonlinear: bool = False,
         lift: str = "pseudo-inverse",
     ) -> None:
-        if lift not in ("pseudo-inverse", "compliance"):
-            raise ModelError(f"lift must be 'pseudo-inverse' or 'compliance', got {lift!r}")
+        if lift not in ("pseudo-inverse", "compliance", "static"):
+            raise ModelError(
+                f"lift must be 'pseudo-inverse', 'compliance' or 'static', got {lift!r}"
+            )
         self.lift = lift
         if not model.actuators:
             raise ModelError(f"{model.name} has no actuators to optimise")
@@ -179,6 +186,7 @@ class CondensedDynamics:
         states = [start]
         state = start
         xs[0] = self.effector_state(start)
+        static = self._static_shape(start) if mass is not None and self.lift == "static" else None
         for k in range(n):
             if policy is not None:
                 us[k] = policy(k, xs[k], us[k])
@@ -189,7 +197,7 @@ class CondensedDynamics:
                     f"the rollout diverged at node {k} of {n}: {exc}", step=k, cause="rollout"
                 ) from exc
             if mass is not None:
-                mass[k] = self._mass_response(state)
+                mass[k] = self._mass_response(state, static)
             state = new
             states.append(state)
             xs[k + 1] = self.effector_state(state)
@@ -201,12 +209,29 @@ class CondensedDynamics:
                 )
         return Rollout(xs, us, w_ea, free, states, mass)
 
-    def _mass_response(self, state: State) -> np.ndarray:
-        """P = H_e A^-1 M L with the factorisation of the step just taken."""
-        model, body = self.model, self.model.body
+    def _effector_rows_t(self, state: State) -> np.ndarray:
+        """H_e^T of the effector rows (unweighted), on the free DoFs."""
+        model = self.model
         space = model.constraint_space(state.positions, model.effectors, with_distance=False)
-        ht = space.jacobian_t * self._row_scale[None, :]
-        shape = self.sim.system.solve(ht) if self.lift == "compliance" else ht
+        return space.jacobian_t * self._row_scale[None, :]
+
+    def _static_shape(self, state: State) -> np.ndarray:
+        """K^-1 H_e^T at `state` (its own factorisation of the stiffness)."""
+        body = self.model.body
+        system = LinearisedSystem(body, policy="fresh")
+        system.prepare(body.linearise(state.positions, state.velocities), 0.0, 1.0)
+        return system.solve(self._effector_rows_t(state))
+
+    def _mass_response(self, state: State, static: np.ndarray | None) -> np.ndarray:
+        """P = H_e A^-1 M L with the factorisation of the step just taken."""
+        body = self.model.body
+        ht = self._effector_rows_t(state)
+        if self.lift == "static":
+            shape = static
+        elif self.lift == "compliance":
+            shape = self.sim.system.solve(ht)
+        else:
+            shape = ht
         lift = shape @ np.linalg.inv(ht.T @ shape)
         return ht.T @ self.sim.system.solve(body.mass_matvec(lift))
 
