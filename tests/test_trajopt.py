@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from pliant import robots
-from pliant.errors import InfeasibleProblemError, TrajectoryOptimisationError
+from pliant.errors import DivergenceError, InfeasibleProblemError, TrajectoryOptimisationError
 from pliant.trajopt import (
     ActuationBounds,
     BoxDDP,
@@ -314,3 +314,16 @@ def test_change_bound_optimum_against_a_qp_solver():
     assert augmented.cost == pytest.approx(reference, rel=1e-7)
     assert sequential.bound_violation == 0.0
     assert reference <= sequential.cost <= reference * (1 + 1e-4)
+
+
+def test_a_diverging_fem_rollout_names_its_node(diamond):
+    model, _ = diamond
+    dyn = CondensedDynamics(model, 0.02)
+    huge = np.full((5, 4), 1e7)  # mN: the cables crush the Diamond in one step
+    with pytest.raises(DivergenceError, match="node 0 of 5") as info:
+        dyn.rollout(model.rest_state(), huge)
+    assert info.value.cause == "rollout" and info.value.step == 0
+    cost = tracking_cost(np.zeros((6, 3)), n_controls=4)
+    bounds = ActuationBounds(np.zeros(4), np.full(4, 1e7))
+    with pytest.raises(TrajectoryOptimisationError, match="initial guess"):
+        BoxDDP().solve(dyn, model.rest_state(), cost, bounds, huge)
