@@ -36,7 +36,7 @@ Each needs one or two solves of as many columns as effector rows per step.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -84,7 +84,6 @@ class Rollout:
     free_motion: np.ndarray
     states: list[State]
     mass_response: np.ndarray | None = None
-    wall_time: float = field(default=0.0)
 
 
 class CondensedDynamics:
