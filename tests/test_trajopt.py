@@ -327,3 +327,41 @@ def test_a_diverging_fem_rollout_names_its_node(diamond):
     bounds = ActuationBounds(np.zeros(4), np.full(4, 1e7))
     with pytest.raises(TrajectoryOptimisationError, match="initial guess"):
         BoxDDP().solve(dyn, model.rest_state(), cost, bounds, huge)
+
+
+def test_several_effectors_and_selected_axes(diamond):
+    """Two effectors, one on x and z only and weighted: the condensed state holds their rows
+    (unweighted positions), Fu is still exact, and the DDP lowers the cost."""
+    from pliant.constraints.base import EmbeddedPoints
+    from pliant.constraints.effector import PositionEffector
+    from pliant.model import Model
+
+    base, _ = diamond
+    body = base.body
+    top = base.effectors[0]
+    elbow = PositionEffector(
+        EmbeddedPoints(body.mesh, [[0.0, 97.0, 45.0]]),
+        body.rest_positions,
+        axes=(True, False, True),
+        weight=3.0,
+        name="elbow",
+    )
+    model = Model(body, actuators=base.actuators, effectors=[top, elbow], name="two")
+    dyn = CondensedDynamics(model, 0.02)
+    start = model.rest_state()
+    assert dyn.n_state == 10
+    x0 = dyn.effector_state(start)
+    np.testing.assert_allclose(x0[3:5], elbow.position(start.positions)[0, [0, 2]])
+    us = np.tile([200.0, 0.0, 100.0, 0.0], (4, 1))
+    rollout = dyn.rollout(start, us)
+    _, fu = dyn.derivatives(rollout)
+    pushed = us.copy()
+    pushed[0, 0] += 10.0
+    fd = (dyn.rollout(start, pushed).xs[1] - rollout.xs[1]) / 10.0
+    np.testing.assert_allclose(fd, fu[0][:, 0], rtol=1e-8, atol=1e-12)
+    goals = np.tile(x0[:5] + [2.0, 0.0, 1.0, 1.0, 0.5], (5, 1))
+    cost = tracking_cost(goals, n_controls=4, control_weight=1e-6)
+    result = BoxDDP(max_iterations=3).solve(
+        dyn, start, cost, ActuationBounds(np.zeros(4), np.full(4, 500.0))
+    )
+    assert result.cost < result.history[0]["cost"] and result.bound_violation == 0.0
