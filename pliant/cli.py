@@ -18,6 +18,7 @@ from pliant.condensed.cli import app as condensed_app
 from pliant.errors import PliantError
 from pliant.planning.cli import plan
 from pliant.solvers import ImplicitEuler, StaticSolver
+from pliant.trajopt.cli import app as trajopt_app
 
 app = typer.Typer(
     add_completion=False,
@@ -27,6 +28,7 @@ app = typer.Typer(
 console = Console()
 app.add_typer(condensed_app, name="condensed")
 app.command()(plan)
+app.add_typer(trajopt_app, name="trajopt")
 
 
 def _solver(model, solver: str, dt: float):

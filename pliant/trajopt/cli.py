@@ -1,0 +1,183 @@
+"""``pliant trajopt SCENARIO``: DDP on condensed FEM dynamics; plots, a GIF, a JSON report."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Annotated
+
+import numpy as np
+import typer
+from rich.console import Console
+from rich.table import Table
+
+from pliant.errors import PliantError
+
+app = typer.Typer(
+    add_completion=False,
+    no_args_is_help=True,
+    help="Trajectory optimisation with condensed FEM dynamics (thesis §5.2).",
+)
+console = Console()
+
+
+def summary(name: str, result, scenario) -> dict:
+    """The JSON report of one solve: convergence and how close the effector came."""
+    goals, xs, n = scenario.goals, result.xs, scenario.cost.horizon
+    half = n // 2
+    m = goals.shape[1]
+    return {
+        "run": name,
+        **result.report(),
+        "error_first_goal_at_switch": float(np.linalg.norm(xs[half, :m] - goals[half])),
+        "error_final_goal_at_end": float(np.linalg.norm(xs[n, :m] - goals[n])),
+        "rms_tracking_error": float(np.sqrt(np.mean(np.sum((xs[:, :m] - goals) ** 2, axis=1)))),
+    }
+
+
+@app.command()
+def diamond(
+    nonlinear: Annotated[
+        bool, typer.Option(help="also solve with the non-linear part of Eq. 5.27")
+    ] = True,
+    backend: Annotated[str, typer.Option(help="backward pass: numpy or crocoddyl")] = "numpy",
+    mesh_size: Annotated[float, typer.Option(help="Diamond mesh size (mm)")] = 20.0,
+    dt: Annotated[float, typer.Option(help="time step (s)")] = 0.02,
+    horizon: Annotated[int, typer.Option(help="nodes N")] = 100,
+    max_iterations: Annotated[int, typer.Option(help="DDP iterations at most")] = 100,
+    tolerance: Annotated[float, typer.Option(help="relative cost decrease to stop")] = 1e-4,
+    frames: Annotated[int, typer.Option(help="frames in the GIF (0: no GIF)")] = 25,
+    settle: Annotated[float, typer.Option(help="seconds of constant tensions per goal")] = 3.0,
+    out: Annotated[Path, typer.Option(help="output folder")] = Path("out/trajopt"),
+) -> None:
+    """The Diamond's effector to two successive goals (Fig. 5.20), linear part of the state
+    derivative and, with --nonlinear, the non-linear one (the thesis' lift)."""
+    from pliant.trajopt.ddp import BoxDDP
+    from pliant.trajopt.plots import plot_trajectory
+    from pliant.trajopt.scenarios import diamond_two_goals
+
+    runs = {"linear": False, "non-linear": True} if nonlinear else {"linear": False}
+    reports, trajectories = [], {}
+    try:
+        solver = BoxDDP(max_iterations=max_iterations, tolerance=tolerance, backend=backend)
+        for name, part in runs.items():
+            scenario = diamond_two_goals(
+                mesh_size=mesh_size, dt=dt, horizon=horizon, nonlinear=part, settle=settle
+            )
+            with console.status(f"diamond, {name} state derivative"):
+                result = solver.solve(
+                    scenario.dynamics, scenario.start, scenario.cost, scenario.bounds
+                )
+            reports.append(summary(name, result, scenario))
+            trajectories[name] = (result.xs, result.us)
+            if name == "linear":
+                best, best_scenario = result, scenario
+    except PliantError as exc:
+        console.print(f"[red]error:[/red] {exc}")
+        raise typer.Exit(1) from exc
+    table = Table(title="Diamond, two goals: box-DDP on condensed FEM dynamics")
+    for col in ("run", "iterations", "converged", "cost", "wall (s)", "end error (mm)"):
+        table.add_column(col)
+    for r in reports:
+        table.add_row(
+            r["run"],
+            str(r["iterations"]),
+            str(r["converged"]),
+            f"{r['cost']:.4g}",
+            f"{r['wall_time_s']:.1f}",
+            f"{r['error_final_goal_at_end']:.3f}",
+        )
+    console.print(table)
+    out.mkdir(parents=True, exist_ok=True)
+    times = np.arange(horizon + 1) * dt
+    bounds = (best_scenario.bounds.lower, best_scenario.bounds.upper)
+    plot = plot_trajectory(
+        times,
+        trajectories,
+        best_scenario.goals,
+        bounds,
+        out / "diamond.png",
+        title="Diamond: two successive goals (box-DDP, full-FEM forward pass)",
+    )
+    written = [plot]
+    if frames > 0:
+        from pliant.viz import save_gif
+        from pliant.viz.model_view import RobotCamera
+
+        camera = RobotCamera(best_scenario.model, view=(20.0, -60.0))
+        states = best.rollout.states
+        picks = np.unique(np.linspace(0, len(states) - 1, frames).round().astype(int))
+        images = [
+            camera.frame(
+                states[k],
+                goals=best_scenario.goals[k][None],
+                title=f"diamond DDP  t = {k * dt:.2f} s",
+            )
+            for k in picks
+        ]
+        written.append(save_gif(images, out / "diamond.gif", fps=10))
+    report = out / "diamond.json"
+    report.write_text(json.dumps({"scenario": "diamond", "runs": reports}, indent=1))
+    written.append(report)
+    console.print("saved " + ", ".join(str(p) for p in written))
+
+
+@app.command("diamond-mpc")
+def diamond_mpc(
+    horizon: Annotated[int, typer.Option(help="prediction nodes")] = 20,
+    iterations: Annotated[int, typer.Option(help="DDP iterations per control step")] = 3,
+    mesh_size: Annotated[float, typer.Option(help="Diamond mesh size (mm)")] = 20.0,
+    dt: Annotated[float, typer.Option(help="time step (s)")] = 0.02,
+    steps: Annotated[int, typer.Option(help="control steps (the task's nodes)")] = 100,
+    settle: Annotated[float, typer.Option(help="seconds of constant tensions per goal")] = 3.0,
+    out: Annotated[Path, typer.Option(help="output folder")] = Path("out/trajopt"),
+) -> None:
+    """The Diamond's two-goal task by receding-horizon MPC on the condensed dynamics frozen at
+    each FEM state, the loop closed on the FEM: loop rate and tracking error."""
+    from pliant.trajopt.mpc import CondensedMPC
+    from pliant.trajopt.plots import plot_trajectory
+    from pliant.trajopt.scenarios import diamond_two_goals
+
+    try:
+        scenario = diamond_two_goals(mesh_size=mesh_size, dt=dt, horizon=steps, settle=settle)
+        mpc = CondensedMPC(
+            scenario.dynamics,
+            scenario.cost,
+            scenario.bounds,
+            horizon=horizon,
+            max_iterations=iterations,
+        )
+        with console.status("diamond MPC"):
+            result = mpc.run(scenario.start)
+    except PliantError as exc:
+        console.print(f"[red]error:[/red] {exc}")
+        raise typer.Exit(1) from exc
+    goals = scenario.goals
+    errors = np.linalg.norm(result.xs[:, : goals.shape[1]] - goals, axis=1)
+    report = {
+        "scenario": "diamond-mpc",
+        "horizon": horizon,
+        "iterations_per_step": iterations,
+        **result.report(),
+        "cost": scenario.cost.value(result.xs, result.us),
+        "rms_to_goals_mm": float(np.sqrt(np.mean(errors**2))),
+        "end_error_mm": float(errors[-1]),
+        "bound_violation": scenario.bounds.violation(result.us),
+    }
+    console.print(
+        f"MPC horizon {horizon}: controller {report['loop_rate_hz']:.0f} Hz, closed loop with"
+        f" the FEM {report['closed_loop_rate_hz']:.0f} Hz; RMS to the goals"
+        f" {report['rms_to_goals_mm']:.2f} mm, end error {report['end_error_mm']:.3f} mm"
+    )
+    out.mkdir(parents=True, exist_ok=True)
+    plot = plot_trajectory(
+        np.arange(steps + 1) * dt,
+        {f"MPC, horizon {horizon}": (result.xs, result.us)},
+        goals,
+        (scenario.bounds.lower, scenario.bounds.upper),
+        out / "diamond_mpc.png",
+        title="Diamond: MPC closed on the FEM",
+    )
+    path = out / "diamond_mpc.json"
+    path.write_text(json.dumps(report, indent=1))
+    console.print(f"saved {plot}, {path}")
