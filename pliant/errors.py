@@ -94,12 +94,11 @@ class LearnedModelError(PliantError, ValueError):
     layout (actuators, effectors, contacts and their rows) differs from the one it learned."""
 
 
-<<<<<<< HEAD
 class PlanningError(PliantError, ValueError):
     """A planner cannot be used on this environment or with these settings: no discrete actions,
     no get_state/set_state, a reward outside what the algorithm assumes, a budget too small."""
-=======
+
+
 class TrajectoryOptimisationError(PliantError, ValueError):
     """An optimal control problem is ill-posed (horizon, weights, shapes) or its solve failed
     to produce a trajectory (a diverging rollout from the initial guess)."""
->>>>>>> trajopt
