@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from pliant import robots
-from pliant.bench import TRUNK_CUBE_WARMUP, _contact_counts, trunk_with_cube
+from pliant.bench import TRUNK_CUBE_WARMUP, _contact_counts, trunk_cables_cube
 from pliant.errors import ContactMarginWarning
 from pliant.solvers import ImplicitEuler
 
@@ -17,20 +17,21 @@ REFERENCE_MESHES = Path(__file__).resolve().parents[2] / "shared" / "meshes"
 
 
 def test_reference_trunk_touches_the_cube_over_the_bench_window() -> None:
-    """`pliant bench` times trunk+cables+cube for 20 steps (its default) after its warm-up:
-    some of the trunk's points press on the cube at each of them, and the cube lies on the floor."""
-    if not (REFERENCE_MESHES / "Trunk_trunk.vtk").is_file():
-        pytest.skip("the reference Trunk mesh is not available")
-    model = trunk_with_cube(REFERENCE_MESHES)
-    demo = robots.entry("trunk_cube").demo_actuation
+    """`pliant bench` times SOFA's trunk_cables_cube.scn for 20 steps (its default) after its
+    warm-up: some of the trunk's points press on the cube at each of them, and the cube lies
+    on the floor."""
+    scene = trunk_cables_cube(REFERENCE_MESHES)
+    if scene is None:
+        pytest.skip("SOFA's reference scenes are not beside the repository (../shared)")
+    model, commands = scene.model, scene.commands()
     solver, state = ImplicitEuler(model, 0.01), model.rest_state()
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", ContactMarginWarning)  # the trunk's first fall
         for _ in range(TRUNK_CUBE_WARMUP):
-            state = solver.step(state, demo(state.time))
+            state = solver.step(state, commands)
     pressing = []
     for _ in range(20):
-        state = solver.step(state, demo(state.time))
+        state = solver.step(state, commands)
         keys, forces = state.contact_forces.keys, state.contact_forces.forces
         on_cube = (keys[:, 0] < len(model.contacts.points)) & (keys[:, 1] == 1)
         pressing.append(int(np.count_nonzero(np.linalg.norm(forces[on_cube], axis=1))))

@@ -137,6 +137,32 @@ def test_a_python_scene_script_loads_like_its_xml_twin(tmp_path) -> None:
     assert np.array_equal(from_script.positions, from_xml.positions)
 
 
+@needs_reference
+def test_the_trunk_pushes_the_cube_of_the_collision_scene() -> None:
+    """trunk_cables_cube.scn: its collision pipeline becomes Contacts (the floor a plane, the
+    STL's vertices the contact points, alarm distance the margin, mu the friction) and its
+    Rigid3 cube a RigidBody (10 g, inertia m a^2/6); the Trunk, pulled by cable L1, pushes
+    the cube along the floor (-x), and the cube stays on it."""
+    scene = load_scene(REFERENCE / "trunk_cables_cube.scn", mesh_dirs=[MESHES])
+    model = scene.model
+    contacts, (cube,) = model.contacts, model.rigid_bodies
+    assert [type(s).__name__ for s in contacts.shapes] == ["Plane"]
+    assert contacts.margin == 3.0 and contacts.shapes[0].position[1] == -15.0
+    assert cube.mass == 0.01
+    np.testing.assert_allclose(cube.inertia, 0.01 * 400 / 6 * np.eye(3), rtol=1e-6)
+    import meshio
+
+    stl = meshio.read(MESHES / "Trunk_trunk.stl").points
+    assert len(contacts.points) == len(np.unique(stl, axis=0))
+    solver = scene.solver(tangent="lagged")
+    state = model.rest_state()
+    for _ in range(100):
+        state = solver.step(state)
+    x, y, _ = state.rigid_positions[0]
+    assert x < -21.0  # pushed from -20 towards -x
+    assert abs(y - (-15.0 + 10.0)) < 0.5  # resting on the floor
+
+
 def test_unsupported_components_are_listed_in_one_error(tmp_path) -> None:
     scene = tmp_path / "scene.scn"
     scene.write_text(

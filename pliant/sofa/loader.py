@@ -31,10 +31,13 @@ from scipy.spatial.transform import Rotation
 from pliant.constraints.base import EmbeddedPoints
 from pliant.constraints.cable import CableActuator
 from pliant.constraints.cavity import CavityActuator, enclosed_volume
+from pliant.constraints.collision import Box, Plane, TriangleMesh
+from pliant.constraints.contact import Contacts
 from pliant.constraints.effector import PositionEffector
 from pliant.fem.body import TetBody, fixed_components, nodes_in_box
 from pliant.fem.loads import Load, NodalForces, RestShapeSprings
 from pliant.fem.material import Corotational
+from pliant.fem.rigid import RigidBody
 from pliant.mesh.quality import signed_volumes
 from pliant.mesh.tetmesh import TetMesh
 from pliant.model import Model, State
@@ -108,6 +111,28 @@ HANDLED = frozenset(
         "SurfacePressureActuator",
     }
 )
+# The collision pipeline: what it detects (points of the body, static triangle obstacles,
+# rigid bodies) and with which distances and friction becomes Pliant's Contacts; how it
+# searches (broad and narrow phases) changes nothing Pliant computes.
+PIPELINE = frozenset(
+    {
+        "CollisionPipeline",
+        "DefaultPipeline",
+        "BruteForceBroadPhase",
+        "BruteForceDetection",
+        "BVHNarrowPhase",
+        "CollisionResponse",
+        "DefaultContactManager",
+        "RuleBasedContactManager",
+    }
+)
+INTERSECTIONS = frozenset(
+    {"LocalMinDistance", "MinProximityIntersection", "NewProximityIntersection"}
+)
+COLLISION_MODELS = frozenset(
+    {"PointCollisionModel", "TriangleCollisionModel", "LineCollisionModel"}
+)
+HANDLED = HANDLED | PIPELINE | INTERSECTIONS | COLLISION_MODELS | {"RigidMapping"}
 CAVITIES = frozenset({"SurfacePressureConstraint", "SurfacePressureActuator"})
 POINT_CONSTRAINTS = frozenset({"CableConstraint", "CableActuator", "PositionEffector", *CAVITIES})
 
@@ -275,7 +300,15 @@ class _Builder:
                 f"{self.path.name}: actuators and effectors act on points carried by the body"
                 f" (a node under {body_node.path} with a BarycentricMapping): " + "; ".join(stray)
             )
-        model = Model(body, actuators=actuators, effectors=effectors, name=self.path.stem)
+        contacts, rigid = self._collisions(body_node, body, mesh)
+        model = Model(
+            body,
+            actuators=actuators,
+            effectors=effectors,
+            contacts=contacts,
+            rigid_bodies=rigid,
+            name=self.path.stem,
+        )
         return SofaScene(model, dt, solver_kind, self.path)
 
     def _check_supported(self) -> None:
@@ -291,6 +324,152 @@ class _Builder:
                 + "; ".join(unknown)
                 + " (docs/sofa.md lists those it does)"
             )
+
+    # --- collisions ----------------------------------------------------------------------------
+    def _collisions(self, body_node: SceneNode, body: TetBody, mesh: TetMesh):
+        """Contacts and rigid bodies from the collision pipeline: the body's collision points
+        (a child node with a PointCollisionModel mapped on it), static triangle obstacles (a
+        plane where their triangles are coplanar, else a closed triangle mesh), and rigid
+        bodies (a Rigid3 MechanicalObject whose collision child is a box's eight corners).
+        ``alarmDistance`` is the contact margin, ``contactDistance`` the points' thickness,
+        the response's ``mu`` the friction everywhere."""
+        intersection = [o for n in self.root.walk() for o in n.objects if o.type in INTERSECTIONS]
+        models = [o for n in self.root.walk() for o in n.objects if o.type in COLLISION_MODELS]
+        if not models:
+            return None, []
+        if not intersection:
+            raise SceneError(
+                f"{self.path.name}: collision models without a collision pipeline"
+                " (LocalMinDistance or MinProximityIntersection)"
+            )
+        proximity = intersection[0]
+        margin = _float(proximity, "alarmDistance", 1.0)
+        thickness = _float(proximity, "contactDistance", 0.5)
+        friction = self._friction()
+        rigid_nodes = [n for n in self.root.walk() if self._is_rigid(n)]
+        rigid = [self._rigid_body(n, friction) for n in rigid_nodes]
+        inside_rigid = {id(c) for n in rigid_nodes for c in n.walk()}
+        body_nodes = {id(c) for c in body_node.walk()}
+        points, obstacles = [], []
+        for node in self.root.walk():
+            types = {o.type for o in node.objects}
+            if not types & COLLISION_MODELS or id(node) in inside_rigid:
+                continue
+            if id(node) in body_nodes:
+                if "PointCollisionModel" not in types:
+                    raise SceneError(f"{node.path}: the body collides by points only")
+                if "BarycentricMapping" not in types:
+                    raise SceneError(f"{node.path}: collision points not mapped on the body")
+                dofs = self._one(node, {"MechanicalObject"}, "MechanicalObjects")
+                points.append(np.unique(self._positions(node, dofs), axis=0))
+            else:
+                obstacles.append(self._obstacle(node))
+        if not points:
+            raise SceneError(f"{self.path.name}: the body has no collision points")
+        if not obstacles and not rigid:
+            raise SceneError(f"{self.path.name}: collision points but nothing to collide with")
+        if not obstacles:
+            raise SceneError(f"{self.path.name}: rigid bodies need a static obstacle too")
+        embedded = EmbeddedPoints(
+            mesh, np.vstack(points), tolerance=0.1 * body.extent, outside=self.choices.outside
+        )
+        contacts = Contacts(
+            obstacles, friction=friction, margin=margin, points=embedded, thickness=thickness
+        )
+        return contacts, rigid
+
+    def _friction(self) -> float:
+        responses = [
+            o for n in self.root.walk() for o in n.objects if o.type == "CollisionResponse"
+        ]
+        if not responses:
+            return 0.0
+        params = str(responses[0].attrs.get("responseParams", ""))
+        for part in params.replace("&", " ").split():
+            key, _, value = part.partition("=")
+            if key == "mu":
+                return float(_floats(value, f"{responses[0].path}.responseParams")[0])
+        return 0.0
+
+    @staticmethod
+    def _is_rigid(node: SceneNode) -> bool:
+        return any(
+            o.type == "MechanicalObject" and str(o.attrs.get("template", "")).startswith("Rigid3")
+            for o in node.objects
+        )
+
+    def _rigid_body(self, node: SceneNode, friction: float) -> RigidBody:
+        dofs = self._one(node, {"MechanicalObject"}, "MechanicalObjects")
+        pose = _floats(dofs.attrs.get("position", "0 0 0 0 0 0 1"), f"{dofs.path}.position")
+        if pose.size != 7:
+            raise SceneError(f"{dofs.path}.position: one Rigid3 pose (7 values) expected")
+        rotation = Rotation.from_quat(pose[3:]).as_matrix()  # SOFA: x y z w, as scipy
+        mass = self._one(node, {"UniformMass"}, "masses")
+        if mass is None or "vertexMass" not in mass.attrs:
+            raise SceneError(f"{node.path}: a rigid body needs a UniformMass with vertexMass")
+        values = _floats(mass.attrs["vertexMass"], f"{mass.path}.vertexMass")
+        if values.size != 11:
+            raise SceneError(
+                f"{mass.path}.vertexMass: mass, volume and a 3x3 inertia per unit mass expected"
+            )
+        children = [c for c in node.children if any(o.type == "RigidMapping" for o in c.objects)]
+        shapes = [
+            self._rigid_box(c) for c in children if {o.type for o in c.objects} & COLLISION_MODELS
+        ]
+        if len(shapes) != 1:
+            raise SceneError(f"{node.path}: a rigid body collides through one mapped box")
+        half, offset = shapes[0]
+        if np.linalg.norm(offset) > 1e-9 * np.linalg.norm(half):
+            raise SceneError(f"{node.path}: the box must be centred on the rigid frame")
+        return RigidBody(
+            Box(half, position=pose[:3], rotation=rotation),
+            values[0],
+            values[0] * values[2:].reshape(3, 3),
+            friction=friction,
+            name=node.name,
+        )
+
+    def _rigid_box(self, node: SceneNode) -> tuple[np.ndarray, np.ndarray]:
+        dofs = self._one(node, {"MechanicalObject"}, "MechanicalObjects")
+        corners = _floats(dofs.attrs.get("position", ""), f"{dofs.path}.position").reshape(-1, 3)
+        lo, hi = corners.min(axis=0), corners.max(axis=0)
+        expected = np.array([[x, y, z] for x in (0, 1) for y in (0, 1) for z in (0, 1)])
+        box = lo + expected * (hi - lo)
+        if len(corners) != 8 or not all(np.isclose(box, c).all(1).any() for c in corners):
+            raise SceneError(
+                f"{node.path}: rigid collision shapes are boxes (the eight corners) here"
+            )
+        return 0.5 * (hi - lo), 0.5 * (hi + lo)
+
+    def _obstacle(self, node: SceneNode):
+        """A static obstacle: a plane where its triangles are coplanar, else a closed mesh."""
+        types = {o.type for o in node.objects}
+        if "TriangleCollisionModel" not in types:
+            raise SceneError(f"{node.path}: static obstacles collide by triangles")
+        model = next(o for o in node.objects if o.type == "TriangleCollisionModel")
+        if _flag(model, "moving", False) or _flag(model, "simulated", False):
+            raise SceneError(f"{node.path}: a moving obstacle needs a body (not supported)")
+        dofs = self._one(node, {"MechanicalObject"}, "MechanicalObjects")
+        points = self._positions(node, dofs)
+        topology = self._one(node, {"MeshTopology"}, "topologies")
+        if topology is not None and "triangles" in topology.attrs:
+            faces = _floats(topology.attrs["triangles"], f"{topology.path}.triangles")
+            faces = faces.astype(np.int64).reshape(-1, 3)
+        else:
+            loaders = [o for o in node.objects if o.type in MESH_LOADERS]
+            if len(loaders) != 1:
+                raise SceneError(f"{node.path}: no triangles for the obstacle")
+            faces = self._loaded(loaders[0])[1].get("triangle")
+            if faces is None:
+                raise SceneError(f"{node.path}: its mesh holds no triangles")
+        a, b, c = (points[faces[:, k]] for k in range(3))
+        normals = np.cross(b - a, c - a)
+        normal = normals.sum(axis=0)
+        normal /= np.linalg.norm(normal)
+        spread = np.abs((points[np.unique(faces)] - a[0]) @ normal).max()
+        if spread <= 1e-9 * np.ptp(points, axis=0).max():
+            return Plane(normal=normal, point=a[0])
+        return TriangleMesh(points, faces)
 
     def _body_node(self) -> SceneNode:
         nodes = [n for n in self.root.walk() if any(o.type in FEM for o in n.objects)]
