@@ -12,19 +12,11 @@ distance to the goal (``reward="thesis"``), or SofaGym's min(sqrt(max((d_prev - 
 
 from __future__ import annotations
 
-from typing import Literal
-
-import gymnasium as gym
 import numpy as np
 
 from pliant.constraints.base import EmbeddedPoints
-from pliant.envs.base import (
-    ActionType,
-    SoftRobotEnv,
-    discrete_increments,
-    progress_reward,
-    scaled_box,
-)
+from pliant.envs.base import ActionType, scaled_box
+from pliant.envs.reaching import CableReachingEnv, ContinuousMode, RewardVariant
 from pliant.model import Model, State
 from pliant.robots.trunk import trunk
 
@@ -57,7 +49,7 @@ def neutral_fibre(model: Model, n_points: int) -> EmbeddedPoints:
     return EmbeddedPoints(model.body.mesh, axis)
 
 
-class TrunkEnv(SoftRobotEnv):
+class TrunkEnv(CableReachingEnv):
     name = "Trunk"
     version = 1
     view = (20.0, -60.0)
@@ -68,9 +60,9 @@ class TrunkEnv(SoftRobotEnv):
         dt: float = 0.01,
         substeps: int = 5,
         action_type: ActionType = "discrete",
-        continuous_mode: Literal["absolute", "increment"] = "absolute",
+        continuous_mode: ContinuousMode = "absolute",
         action_scale: float = 1.0,
-        reward: Literal["thesis", "sofagym"] = "thesis",
+        reward: RewardVariant = "thesis",
         goal_low: tuple[float, float, float] = (-60.0, -60.0, 130.0),
         goal_high: tuple[float, float, float] = (60.0, 60.0, 190.0),
         goal_tolerance: float = 1.0,
@@ -81,40 +73,25 @@ class TrunkEnv(SoftRobotEnv):
         tangent: str = "lagged",
         **robot_kwargs,
     ) -> None:
-        if reward not in ("thesis", "sofagym"):
-            raise ValueError(f"reward must be 'thesis' or 'sofagym', got {reward!r}")
-        if continuous_mode not in ("absolute", "increment"):
-            raise ValueError(
-                f"continuous_mode must be 'absolute' or 'increment', got {continuous_mode!r}"
-            )
-        if not (np.isfinite(action_scale) and action_scale > 0):
-            raise ValueError(f"action_scale must be > 0, got {action_scale!r}")
         if n_points < 2:
             raise ValueError(f"n_points must be >= 2, got {n_points}")
         self.mesh_size = mesh_size
         self.robot_kwargs = robot_kwargs
-        self.continuous_mode = continuous_mode
-        self.action_scale = float(action_scale)
-        self.reward_variant = reward
-        self.goal_low = np.asarray(goal_low, dtype=float)
-        self.goal_high = np.asarray(goal_high, dtype=float)
-        self.goal_tolerance = float(goal_tolerance)
         self.n_points = int(n_points)
         self.settle_steps = int(settle_steps)
         super().__init__(
             dt=dt,
             substeps=substeps,
             action_type=action_type,
+            continuous_mode=continuous_mode,
+            action_scale=action_scale,
+            reward=reward,
+            goal_low=goal_low,
+            goal_high=goal_high,
+            goal_tolerance=goal_tolerance,
             render_mode=render_mode,
             tangent=tangent,
         )
-        self.max_commands = np.array([a.max_displacement for a in self.model.actuators])
-        n = self.n_actuators
-        if action_type == "discrete":
-            self._table = discrete_increments(n, self.action_scale)
-            self.action_space = gym.spaces.Discrete(2 * n)
-        else:
-            self.action_space = scaled_box(-1.0, 1.0, (n,))
         self.observation_space = scaled_box(-3.0, 3.0, (3 * (self.n_points + 1),))
 
     def _build(self) -> Model:
@@ -128,38 +105,14 @@ class TrunkEnv(SoftRobotEnv):
     def tip(self) -> np.ndarray:
         return self.model.effectors[0].position(self.state.positions)[0]
 
-    def distance(self) -> float:
-        return float(np.linalg.norm(self.tip() - self.task["goal"]))
+    def effector_position(self) -> np.ndarray:
+        return self.tip()
 
-    def _reset_task(self, rng, options) -> None:
-        goal = (options or {}).get("goal")
-        if goal is None:
-            goal = rng.uniform(self.goal_low, self.goal_high)
-        self.task["goal"] = np.asarray(goal, dtype=float).reshape(3)
-        self.task["distance"] = self.distance()
-
-    def _commands_from_action(self, action) -> None:
-        if self.action_type == "discrete":
-            target = self.commands + self._table[action]
-        elif self.continuous_mode == "absolute":
-            target = 0.5 * (action + 1.0) * self.max_commands
-        else:
-            target = self.commands + self.action_scale * action
-        self.target_commands = np.clip(target, 0.0, self.max_commands)
+    def sofagym_progress(self, distance: float) -> float:
+        """min(sqrt(max((d_prev - d) / d_prev, 0)), 1)."""
+        previous = self.task["distance"]
+        return min(np.sqrt(max((previous - distance) / previous, 0.0)), 1.0) if previous else 0.0
 
     def _observe(self) -> np.ndarray:
         pts = np.vstack([self.fibre.positions(self.state.positions), self.task["goal"]])
         return (pts / LENGTH).ravel()
-
-    def _reward(self):
-        d, previous = self.distance(), self.task["distance"]
-        if self.reward_variant == "thesis":
-            r = progress_reward(previous, d)
-        else:
-            r = min(np.sqrt(max((previous - d) / previous, 0.0)), 1.0) if previous > 0 else 0.0
-        self.task["distance"] = d
-        return r, d <= self.goal_tolerance, {"progress": r}
-
-    def _info(self):
-        d = self.task["distance"]
-        return {"distance": d, "is_success": d <= self.goal_tolerance}

@@ -26,8 +26,8 @@ from typing import Literal
 import numpy as np
 
 from pliant.envs.base import ActionType, progress_reward, scaled_box
-from pliant.envs.trunk import LENGTH, TrunkEnv, neutral_fibre, settled
-from pliant.model import Model, State
+from pliant.envs.trunk import LENGTH, TrunkEnv, neutral_fibre
+from pliant.model import Model
 from pliant.robots.trunk_cup import trunk_cup
 
 
@@ -78,9 +78,6 @@ class TrunkCupEnv(TrunkEnv):
         model = trunk_cup(mesh_size=self.mesh_size, base_motion=_still, **self.robot_kwargs)
         self.fibre = neutral_fibre(model, self.n_points)
         return model
-
-    def _initial_state(self) -> State:
-        return settled(self.model, self.sim, self.settle_steps)
 
     def cup(self) -> np.ndarray:
         return self.state.rigid_positions[0]

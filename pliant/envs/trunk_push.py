@@ -30,8 +30,8 @@ import gymnasium as gym
 import numpy as np
 
 from pliant.envs.base import ActionType, scaled_box
-from pliant.envs.trunk import LENGTH, TrunkEnv, neutral_fibre, settled
-from pliant.model import Model, State
+from pliant.envs.trunk import LENGTH, TrunkEnv, neutral_fibre
+from pliant.model import Model
 from pliant.robots.trunk_cube import trunk_cube
 
 
@@ -104,9 +104,6 @@ class TrunkPushEnv(TrunkEnv):
         )
         self.fibre = neutral_fibre(model, self.n_points)
         return model
-
-    def _initial_state(self) -> State:
-        return settled(self.model, self.sim, self.settle_steps)
 
     def cube(self) -> np.ndarray:
         return self.state.rigid_positions[0]
