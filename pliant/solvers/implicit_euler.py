@@ -56,10 +56,12 @@ from pliant.errors import DivergenceError, ModelError, SolverError
 from pliant.fem.body import PARALLEL_MIN_TETS
 from pliant.fem.rigid import RigidStep, integrate_poses
 from pliant.model import ConstraintSpace, Model, State
-from pliant.solvers.base import StepReport, check_linearisation, check_motion
+from pliant.solvers.base import StepReport, check_linearisation, check_motion, number_option
 from pliant.solvers.compliance import PointCompliance, PointRows
 from pliant.solvers.compliance_kernels import framed_block
 from pliant.solvers.system import LinearisedSystem, TangentPolicy
+
+MIN_DT = 1e-12  # s: the smallest time step accepted (see ImplicitEuler.__init__)
 
 
 class ImplicitEuler:
@@ -98,10 +100,13 @@ class ImplicitEuler:
         contact_screening: bool = True,
         screen_gap: float | None = None,
     ) -> None:
-        if not (np.isfinite(dt) and dt > 0):
-            raise SolverError(f"the time step must be finite and > 0, got {dt!r}")
+        # Below MIN_DT, h^2 in W underflows next to the mass: the constraint problem is
+        # singular (1e-200 s), long before any step of use (SOFA's scenes: 1e-2 to 1e-4 s).
+        self.dt = number_option(dt, "the time step dt", at_least=MIN_DT)
+        rtol = number_option(rtol, "rtol", above=0.0)
+        if screen_gap is not None:
+            screen_gap = number_option(screen_gap, "screen_gap", at_least=0.0)
         self.model = model
-        self.dt = float(dt)
         self.system = LinearisedSystem(model.body, policy=tangent, rtol=rtol)
         self._objects, self._object_rows = self._find_objects()
         # Each attachment with its body's index.
@@ -117,8 +122,6 @@ class ImplicitEuler:
         self._row_points: dict[tuple[str, ...] | None, PointRows | None] = {}
         self._rows_on_points = point_compliance and tangent == "lagged"
         self.contact_screening = contact_screening
-        if screen_gap is not None and not (np.isfinite(screen_gap) and screen_gap >= 0):
-            raise SolverError(f"screen_gap must be finite and >= 0, got {screen_gap!r}")
         margin = model.contacts.margin if model.contacts is not None else 0.0
         self.screen_gap = 0.1 * margin if screen_gap is None else float(screen_gap)
         body = model.body
@@ -133,8 +136,14 @@ class ImplicitEuler:
         return 1.0 + h * b.rayleigh_mass, h * b.rayleigh_stiffness + h * h
 
     def step(self, state: State, control=None) -> State:
-        """Advance one step; `control`: None, actuator commands, DirectControl or InverseControl."""
+        """Advance one step; `control`: None, actuator commands, DirectControl or InverseControl.
+
+        Raises:
+            StateError: `state` is not one of this model's (checked before any kernel runs).
+            DivergenceError: the step failed or its result is not a usable state.
+        """
         model, body, h = self.model, self.model.body, self.dt
+        state = model.check_state(state)
         ctrl = as_control(control)
         ctrl.prepare(model)
         begin = getattr(ctrl, "begin", None)
@@ -473,6 +482,7 @@ class ImplicitEuler:
 
     def condense(self, state: State) -> CondensedProblem:
         """Exact W and delta_free of the next step from `state` (fresh factorisation)."""
+        state = self.model.check_state(state)
         saved = self.system.policy
         self.system.policy = "fresh"
         try:

@@ -20,7 +20,7 @@ from pliant.constraints.control import as_control, constraint_forces
 from pliant.constraints.friction import ContactConstraint
 from pliant.errors import DivergenceError, ModelError, SolverError
 from pliant.model import Model, State
-from pliant.solvers.base import StepReport, check_linearisation, check_motion
+from pliant.solvers.base import StepReport, check_linearisation, check_motion, number_option
 from pliant.solvers.system import LinearisedSystem, TangentPolicy
 
 
@@ -75,8 +75,10 @@ class StaticSolver:
                 " (or driven ones), or use ImplicitEuler"
             )
         self.model = model
-        self.tolerance = tolerance
-        self.max_iterations = max_iterations
+        self.tolerance = number_option(tolerance, "tolerance", above=0.0)
+        self.max_iterations = number_option(
+            max_iterations, "max_iterations", at_least=1, integer=True
+        )
         self._geometric = consistent and model.geometric_pattern() is not None
         self._augmented = self._augmentation_pattern() if consistent else []
         pattern = None
@@ -94,7 +96,7 @@ class StaticSolver:
             extra_pattern=pattern,
             exact_tangent=consistent,
         )
-        self.augmentation = augmentation
+        self.augmentation = number_option(augmentation, "augmentation", at_least=0.0)
         self._row_stiffness: np.ndarray | None = None
         self._size = model.body.extent
         self._gravity = model.body.gravity_forces()
@@ -162,7 +164,10 @@ class StaticSolver:
         return CondensedProblem(0.5 * (w + w.T), delta_free, space.slices), dq_free, k_inv_ht
 
     def step(self, state: State, control=None) -> State:
+        """The equilibrium under `control` from `state`; StateError if `state` is not one of
+        this model's (checked before any kernel runs), DivergenceError if the solve fails."""
         model, body = self.model, self.model.body
+        state = model.check_state(state)
         ctrl = as_control(control)
         ctrl.prepare(model)
         begin = getattr(ctrl, "begin", None)
@@ -245,6 +250,7 @@ class StaticSolver:
         """Exact W = H K^-1 H^T and delta_free at `state` (with the contact rows detected
         there, if the model has obstacles)."""
         model = self.model
+        state = model.check_state(state)
         contact = model.contacts.constraint(state.positions, None) if model.contacts else None
         problem, _, _ = self._condense(state.positions, state.step, None, contact, state.actuation)
         return problem
