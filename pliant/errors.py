@@ -87,8 +87,8 @@ class DivergenceError(PliantError, RuntimeError):
         self.cause = cause
 
 
-class TrainingError(PliantError, RuntimeError):
-    """A training run cannot go on: its loss became non-finite, or its outputs cannot be written."""
+class TrainingError(PliantError, ValueError):
+    """A training run is given invalid settings, or cannot go on: its loss became non-finite."""
 
 
 class UnknownRobotError(PliantError, KeyError):

@@ -7,12 +7,13 @@
 
 from __future__ import annotations
 
+import inspect
 from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
 
-from pliant.errors import UnknownRobotError
+from pliant.errors import ModelError, UnknownRobotError
 from pliant.model import Model
 from pliant.robots import cartstem as _cartstem
 from pliant.robots import catch_object as _catch_object
@@ -92,8 +93,21 @@ def entry(name: str) -> RobotEntry:
 
 
 def build(name: str, **kwargs) -> Model:
-    """Build a registered robot by name with keyword overrides of its defaults."""
-    return entry(name).build(**kwargs)
+    """Build a registered robot by name with keyword overrides of its defaults; ModelError
+    names a keyword the builder does not take and lists those it does."""
+    builder = entry(name).build
+    parameters = inspect.signature(builder).parameters
+    if not any(p.kind is p.VAR_KEYWORD for p in parameters.values()):
+        known = [
+            k for k, p in parameters.items() if p.kind in (p.KEYWORD_ONLY, p.POSITIONAL_OR_KEYWORD)
+        ]
+        unknown = sorted(set(kwargs) - set(known))
+        if unknown:
+            raise ModelError(
+                f"{name} has no builder keyword {', '.join(map(repr, unknown))}; its keywords:"
+                f" {', '.join(known)}"
+            )
+    return builder(**kwargs)
 
 
 __all__ = [
