@@ -103,6 +103,11 @@ class DatasetError(PliantError, ValueError):
     partial collection was started with other settings."""
 
 
+class WorkerError(PliantError, RuntimeError):
+    """A worker process of a long job died (killed, out of memory); what it finished is kept
+    and the same call resumes."""
+
+
 class LearnedModelError(PliantError, ValueError):
     """A learned condensed model cannot be used: unreadable file, or a robot whose constraint
     layout (actuators, effectors, contacts and their rows) differs from the one it learned."""

@@ -14,6 +14,7 @@ import typer
 from rich.console import Console
 from rich.progress import Progress
 from rich.table import Table
+from rich.text import Text
 
 from pliant import robots
 from pliant.cli_support import (
@@ -161,7 +162,8 @@ def collect(
     With --contacts, the contact points are held too, displaced rigidly by --object from where
     the actuators put them; --sampling gripper samples only the object's displacement, a cube
     held by three of the robot, the actuation found by inverse control (--bounds bound it).
-    Rerun the same command to resume an interrupted collection.
+    Rerun the same command to resume an interrupted collection (its saved chunks are
+    checked; corrupt ones are solved again).
     """
     from pliant.condensed.collect import collect as run_collection
     from pliant.condensed.dataset import CollectionPlan
@@ -197,12 +199,33 @@ def collect(
             workers=workers,
             ray_address=ray,
             on_chunk=lambda done, total: bar.update(task, completed=done),
+            overwrite=overwrite,
         )
     failed = {s: int((~dataset.split(s).converged.astype(bool)).sum()) for s in ("train", "test")}
     console.print(
         f"saved {out}: {len(dataset.train)} training and {len(dataset.test)} test samples"
         f" ({failed['train']} and {failed['test']} did not converge)"
     )
+
+
+@app.command()
+def verify(
+    out: Annotated[Path, typer.Argument(help="HDF5 dataset (and its OUT.parts/ folder)")],
+) -> None:
+    """Check OUT and the saved chunks of its partial collection against their checksums.
+
+    Lists every corrupt part (exit 1), so that a corrupt dataset is collected again with
+    --overwrite and corrupt chunks are solved again by rerunning the same collect.
+    """
+    from pliant.condensed.collect import verify as find_problems
+    from pliant.errors import DatasetError
+
+    problems = find_problems(out)
+    for problem in problems[:-1]:
+        console.print(Text(f"bad: {problem}", style="red"), soft_wrap=True)
+    if problems:
+        raise DatasetError(f"{len(problems)} problem(s); last: {problems[-1]}")
+    console.print(f"{out}: no corrupt part found (every checksum matches)", markup=False)
 
 
 @app.command()
@@ -263,6 +286,12 @@ def train(
     learned, result = train_condensed(data, config)
     learned.save(out)
     scores = evaluate(learned, data.test)
+    if not scores["samples"]:
+        console.print(
+            f"saved {out}: best epoch {result.best_epoch} by the training loss"
+            f" {result.best_test_loss:.3g} (no converged test sample to score it on)"
+        )
+        return
     console.print(
         f"saved {out}: best epoch {result.best_epoch}, standardised test loss"
         f" {scores['loss']:.3g} (constant-W0 baseline {scores['baseline_loss']:.3g})"
