@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import warnings
 from pathlib import Path
 from typing import Annotated
 
@@ -22,6 +23,7 @@ from pliant.cli_support import (
     positive,
 )
 from pliant.condensed.cli import app as condensed_app
+from pliant.errors import UnreachableGoalWarning
 from pliant.solvers import ImplicitEuler, StaticSolver
 
 app = typer.Typer(
@@ -156,12 +158,14 @@ def inverse(
 
         results = []
         state = model.rest_state()
-        for goal in targets:
-            res, state = track_goals(
-                model, sim, state, goal[None], max_steps=max_steps, on_step=on_step
-            )
-            results += res
-            bar.advance(task)
+        with warnings.catch_warnings():  # goals out of reach are counted below instead
+            warnings.simplefilter("ignore", UnreachableGoalWarning)
+            for goal in targets:
+                res, state = track_goals(
+                    model, sim, state, goal[None], max_steps=max_steps, on_step=on_step
+                )
+                results += res
+                bar.advance(task)
     table = Table(title=f"{robot}: reached vs goal ({name})")
     for col in ("#", "goal", "reached", "error", "steps"):
         table.add_column(col)
@@ -176,6 +180,12 @@ def inverse(
     console.print(table)
     errors = np.array([r.error for r in results])
     console.print(f"error: mean {errors.mean():.3f}, max {errors.max():.3f} (mm for robot scenes)")
+    far = [i for i, r in enumerate(results) if r.out_of_reach]
+    if far:
+        console.print(
+            f"{len(far)} of {len(results)} goals out of reach (#{', #'.join(map(str, far))}):"
+            " reached is the closest configuration within the actuators' bounds"
+        )
     plot = plot_trajectory(
         np.array([r.goal for r in results]),
         np.array([r.reached for r in results]),
@@ -192,6 +202,7 @@ def inverse(
                 "errors": errors.tolist(),
                 "mean_error": float(errors.mean()),
                 "max_error": float(errors.max()),
+                "out_of_reach": [r.out_of_reach for r in results],
             },
             indent=1,
         )

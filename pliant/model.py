@@ -168,15 +168,22 @@ class State:
 
 def _real_array(value, what: str) -> np.ndarray:
     """`value` as a float64 array (itself when it is one), finite; StateError otherwise."""
-    try:
-        array = value if isinstance(value, np.ndarray) else np.asarray(value)
-    except (ValueError, TypeError) as exc:  # ragged nested sequences
-        raise StateError(f"{what} is not an array of numbers: {exc}") from None
-    if array.dtype.kind not in "iuf":
-        raise StateError(f"{what} must hold real numbers, got dtype {array.dtype}")
-    if array.dtype != np.float64:
+    if type(value) is np.ndarray and value.dtype == np.float64:
+        array = value  # the usual case, without a conversion
+    else:
+        try:
+            array = np.asarray(value)
+        except (ValueError, TypeError) as exc:  # ragged nested sequences
+            raise StateError(f"{what} is not an array of numbers: {exc}") from None
+        if array.dtype.kind not in "iuf":
+            raise StateError(f"{what} must hold real numbers, got dtype {array.dtype}")
         array = array.astype(np.float64)
-    if not math.isfinite(float(array.sum())) and not np.all(np.isfinite(array)):
+    # One pass: a finite sum shows every value finite (an overflowing one is told apart).
+    if (
+        array.size
+        and not math.isfinite(np.add.reduce(array, axis=None))
+        and not np.all(np.isfinite(array))
+    ):
         raise StateError(f"{what} holds non-finite values (NaN or inf)")
     return array
 
@@ -447,11 +454,15 @@ class Model:
             raise StateError(
                 f"{what}: {keys.shape[0]} contact keys but contact forces of shape {values.shape}"
             )
-        if isinstance(state.time, bool) or not isinstance(state.time, numbers.Real):
+        if type(state.time) is not float and (
+            isinstance(state.time, bool) or not isinstance(state.time, numbers.Real)
+        ):
             raise StateError(f"{what}: time must be a real number, got {state.time!r}")
         if not math.isfinite(state.time):
             raise StateError(f"{what}: time must be finite, got {state.time!r}")
-        if isinstance(state.step, bool) or not isinstance(state.step, numbers.Integral):
+        if type(state.step) is not int and (
+            isinstance(state.step, bool) or not isinstance(state.step, numbers.Integral)
+        ):
             raise StateError(f"{what}: step must be an integer, got {state.step!r}")
         if state.step < 0:
             raise StateError(f"{what}: step must be >= 0, got {state.step}")

@@ -2,12 +2,14 @@
 
 from __future__ import annotations
 
+import warnings
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 
 import numpy as np
 
 from pliant.constraints.control import InverseControl
+from pliant.errors import UnreachableGoalWarning
 from pliant.model import Model, State
 
 
@@ -22,10 +24,14 @@ def scripted(
 
 @dataclass
 class GoalResult:
+    """Where the effector went for one goal. `out_of_reach`: it settled (the closest
+    configuration the actuators' bounds allow) farther than the reach tolerance from it."""
+
     goal: np.ndarray
     reached: np.ndarray
     steps: int
     actuation: np.ndarray
+    out_of_reach: bool = False
 
     @property
     def error(self) -> float:
@@ -40,14 +46,19 @@ def track_goals(
     *,
     max_steps: int = 50,
     tolerance: float = 0.05,
+    reach: float | None = None,
     on_step: Callable[[State, np.ndarray], None] | None = None,
 ) -> tuple[list[GoalResult], State]:
     """Closed-loop inverse control of the model's first effector through a sequence of goals.
 
     Each step solves the inverse QP at the current configuration (Eq. 2.15) and applies the
     forces; the loop moves to the next goal when the effector has settled (moved less than
-    `tolerance` in a step) or after `max_steps` steps.
+    `tolerance` in a step) or after `max_steps` steps. A goal out of reach gives the closest
+    configuration the actuators' bounds allow (the QP's least squares): where the effector
+    settles farther than `reach` (default 10 x `tolerance`) from its goal, the result says
+    `out_of_reach` and an UnreachableGoalWarning names the goal and the distance left.
     """
+    reach = 10.0 * tolerance if reach is None else reach
     effector = model.effectors[0]
     results = []
     for goal in np.atleast_2d(goals):
@@ -58,8 +69,18 @@ def track_goals(
             now = effector.position(state.positions)[0]
             if on_step is not None:
                 on_step(state, goal)
-            if np.linalg.norm(now - previous) < tolerance:
+            settled = np.linalg.norm(now - previous) < tolerance
+            if settled:
                 break
             previous = now
-        results.append(GoalResult(goal, now, k, state.actuation.copy()))
+        far = settled and float(np.linalg.norm(now - goal)) > reach
+        if far:
+            warnings.warn(
+                f"goal {np.round(goal, 3).tolist()} is out of reach: the effector settled at"
+                f" {np.round(now, 3).tolist()}, {np.linalg.norm(now - goal):.3g} away, the"
+                " closest configuration within the actuators' bounds",
+                UnreachableGoalWarning,
+                stacklevel=2,
+            )
+        results.append(GoalResult(goal, now, k, state.actuation.copy(), far))
     return results, state

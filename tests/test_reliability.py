@@ -13,6 +13,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import two_cable_beam
 from typer.testing import CliRunner
 
 from pliant import robots
@@ -33,7 +34,6 @@ from pliant.mesh import TetMesh, box_beam, load_mesh, save_mesh
 from pliant.mesh.quality import validate_mesh
 from pliant.model import State
 from pliant.solvers import ImplicitEuler, StaticSolver
-from tests.conftest import two_cable_beam
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -60,7 +60,6 @@ import numpy as np
 from pliant.errors import PliantError
 from pliant.model import State
 from pliant.solvers import ImplicitEuler, StaticSolver
-from tests.conftest import two_cable_beam
 
 def case(name, call):
     try:

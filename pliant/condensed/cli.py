@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import math
 import warnings
 from pathlib import Path
 from typing import Annotated
@@ -54,6 +55,8 @@ def _interval(text: str) -> tuple[float, float]:
         low, high = (float(v) for v in text.split(":"))
     except ValueError:
         raise typer.BadParameter(f"expected LOW:HIGH, got {text!r}") from None
+    if not (math.isfinite(low) and math.isfinite(high) and low <= high):
+        raise typer.BadParameter(f"expected finite LOW <= HIGH, got {text!r}")
     return low, high
 
 
@@ -168,9 +171,12 @@ def collect(
     from pliant.condensed.collect import collect as run_collection
     from pliant.condensed.dataset import CollectionPlan
 
+    # Every option read before the robot is built (meshing takes seconds).
     kwargs = {k: _number_or_text(v) for k, v in _assignments(set_ or []).items()}
-    n_act = robots.build(robot, **kwargs).n_actuators
     intervals = [_interval(b) for b in bounds]
+    design_bounds = {k: _interval(v) for k, v in _assignments(design or []).items()}
+    object_bounds = tuple(_interval(b) for b in object_ or [])
+    n_act = robots.build(robot, **kwargs).n_actuators
     if len(intervals) == 1:
         intervals *= n_act
     if len(intervals) != n_act:
@@ -180,14 +186,14 @@ def collect(
         tuple(intervals),
         samples,
         robot_kwargs=kwargs,
-        design_bounds={k: _interval(v) for k, v in _assignments(design or []).items()},
+        design_bounds=design_bounds,
         test_fraction=test_fraction,
         seed=seed,
         max_increment=max_increment,
         samples_per_design=samples_per_design,
         chunk_size=chunk_size,
         contacts=contacts,
-        object_bounds=tuple(_interval(b) for b in object_ or []),
+        object_bounds=object_bounds,
         sampling=sampling,
         consistent_tangent=consistent_tangent,
     )

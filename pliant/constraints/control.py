@@ -79,12 +79,15 @@ class InverseControl:
     seed_gap: with contacts, contacts whose gap is at most this distance start the QPCC's
     active set closed (with the ones that carried a force at the previous step), so that the
     QP may choose to close them; the rounds then open those it does not push on.
+    contact_time_limit: seconds the QPCC's rounds may take per step (None: no limit); past
+    it, the last feasible round's forces are applied with a ContactConvergenceWarning.
     """
 
     goals: list[np.ndarray] | np.ndarray | None = None
     regularisation: float = 1e-3
     course: str = "soft"
     seed_gap: float = 0.0
+    contact_time_limit: float | None = 10.0
     roles = ("actuator", "effector")
 
     def prepare(self, model) -> None:
@@ -96,6 +99,13 @@ class InverseControl:
                 raise ModelError(f"{name} must be a real number, got {value!r}")
             if not (math.isfinite(value) and value >= 0.0):
                 raise ModelError(f"{name} must be finite and >= 0, got {value!r}")
+        limit = self.contact_time_limit
+        if limit is not None and (
+            isinstance(limit, bool)
+            or not isinstance(limit, numbers.Real)
+            or not (math.isfinite(limit) and limit > 0)
+        ):
+            raise ModelError(f"contact_time_limit must be None or finite and > 0, got {limit!r}")
         if self.course not in ("soft", "hard"):
             raise ModelError(f"course must be 'soft' or 'hard', got {self.course!r}")
         if self.goals is None:
@@ -131,6 +141,7 @@ class InverseControl:
                 contact.friction,
                 regularisation=self.regularisation,
                 initial_active=closed,
+                time_limit=self.contact_time_limit,
             )
             actuation, rounds, settled = sol.forces[sa], sol.rounds, sol.settled
         except InfeasibleProblemError as exc:
@@ -144,9 +155,15 @@ class InverseControl:
             )
         else:
             if not settled:
+                late = (
+                    f" (stopped at the time limit, contact_time_limit={self.contact_time_limit:g}"
+                    " s)"
+                    if sol.timed_out
+                    else ""
+                )
                 warnings.warn(
                     f"the contact states of the inverse problem did not settle in {rounds}"
-                    " rounds; its last round's actuator forces are applied",
+                    f" rounds{late}; its last round's actuator forces are applied",
                     ContactConvergenceWarning,
                     stacklevel=3,
                 )

@@ -130,6 +130,10 @@ class ImplicitEuler:
         self._size = body.extent
         self._gravity = body.gravity_forces()
         self.last_report = StepReport()
+        # (time, positions, velocities, linearisation) of the last state returned, checked
+        # before it was (see `step`); off while `condense` takes its passive step.
+        self._ahead: tuple | None = None
+        self._look_ahead = True
 
     def _coefficients(self) -> tuple[float, float]:
         b, h = self.model.body, self.dt
@@ -150,12 +154,8 @@ class ImplicitEuler:
         if begin is not None:  # feedback controls: goals from the state the step starts from
             begin(model, state)
         step = state.step + 1
-        velocities, at = state.velocities, state.positions
-        if model.drivers:
-            drive = model.drive_velocities(state, h)
-            velocities = body.scatter(body.gather(state.velocities)) + drive
-            at = model.drive(state.positions, state.time + h)
-        lin = body.linearise(state.positions, velocities)
+        at = model.drive(state.positions, state.time + h) if model.drivers else state.positions
+        lin, drive = self._linearise(state)
         check_linearisation(lin, step, h)
         a_m, a_k = self._coefficients()
         try:  # on a small body, a refactorisation runs on while the step detects its contacts
@@ -225,6 +225,12 @@ class ImplicitEuler:
             new.rigid_angular_velocities = twists[:, 3:].copy()
             self._place_objects(new)
         check_motion(new.positions, new.velocities, dq, self._size, step, h)
+        if self._look_ahead:
+            # The next step's linearisation, now: a state with inverted elements is refused
+            # by the step that made it, never returned (the next step reuses it).
+            ahead, _ = self._linearise(new, reuse=False)
+            check_linearisation(ahead, step, h)
+            self._ahead = (new.time, new.positions.copy(), new.velocities.copy(), ahead)
         if model.contacts is not None:
             model.contacts.check_travel(positions, dq, step)
         self.last_report = StepReport(
@@ -235,6 +241,26 @@ class ImplicitEuler:
             contact=contact_report,
         )
         return new
+
+    def _linearise(self, state: State, *, reuse: bool = True):
+        """The body linearised at `state` with the velocities of a step from it (driven nodes
+        at their velocity over the step), and those drive velocities (None without drivers).
+        With `reuse`, the look-ahead of the last step when `state` holds what it returned."""
+        model, body = self.model, self.model.body
+        drive = model.drive_velocities(state, self.dt) if model.drivers else None
+        ahead = self._ahead
+        if (
+            reuse
+            and ahead is not None
+            and ahead[0] == state.time
+            and np.array_equal(ahead[1], state.positions)
+            and np.array_equal(ahead[2], state.velocities)
+        ):
+            return ahead[3], drive
+        velocities = state.velocities
+        if drive is not None:
+            velocities = body.scatter(body.gather(state.velocities)) + drive
+        return body.linearise(state.positions, velocities), drive
 
     def _condense(self, at, roles, contact, rhs, v, rigid):
         """W and delta_free with every constraint column solved (one factorisation, one block
@@ -484,11 +510,11 @@ class ImplicitEuler:
         """Exact W and delta_free of the next step from `state` (fresh factorisation)."""
         state = self.model.check_state(state)
         saved = self.system.policy
-        self.system.policy = "fresh"
+        self.system.policy, self._look_ahead = "fresh", False
         try:
             self.step(state.copy(), _Passive())
         finally:
-            self.system.policy = saved
+            self.system.policy, self._look_ahead = saved, True
         return self.last_report.problem
 
 
