@@ -6,6 +6,7 @@ process, so that a regression fails one test instead of the whole run."""
 from __future__ import annotations
 
 import json
+import re
 import subprocess
 import sys
 import textwrap
@@ -56,6 +57,7 @@ def run_isolated(code: str, timeout: float = 300) -> list[dict]:
 # Prints, for each case, the exception's class and whether it is a PliantError.
 CASES_PRELUDE = """
 import json
+import re
 import numpy as np
 from pliant.errors import PliantError
 from pliant.model import State
@@ -417,3 +419,13 @@ def test_an_unexpected_exception_is_one_line_naming_it_a_bug(monkeypatch, tmp_pa
     result = runner.invoke(app, ["run", "finger", "--out", str(tmp_path)])
     line = _one_red_line(result)
     assert result.exit_code == 1 and "ZeroDivisionError" in line and "--debug" in line
+
+
+DOCS = ROOT / "docs" / "reliability.md"
+
+
+@pytest.mark.parametrize("code", re.findall(r"```python\n(.*?)```", DOCS.read_text(), flags=re.S))
+def test_the_reliability_page_examples_run(code, capsys) -> None:
+    exec(compile(code, str(DOCS), "exec"), {})
+    printed = capsys.readouterr().out.splitlines()
+    assert "another model" in printed[0] and "dt must be a real number" in printed[1]
