@@ -22,6 +22,9 @@ def scripted(
         yield state
 
 
+STALL_STEPS = 10  # steps without progress towards a goal after which track_goals moves on
+
+
 @dataclass
 class GoalResult:
     """Where the effector went for one goal. `out_of_reach`: it settled (the closest
@@ -54,8 +57,10 @@ def track_goals(
     Each step solves the inverse QP at the current configuration (Eq. 2.15) and applies the
     forces; the loop moves to the next goal when the effector has settled (moved less than
     `tolerance` in a step) or after `max_steps` steps. A goal out of reach gives the closest
-    configuration the actuators' bounds allow (the QP's least squares): where the effector
-    settles farther than `reach` (default 10 x `tolerance`) from its goal, the result says
+    configuration the actuators' bounds allow (the QP's least squares); a far goal can also
+    make the effector swing about it, so the loop also moves on once the distance to the goal
+    has not improved by `tolerance` in STALL_STEPS steps. Where the effector settled or
+    stalled farther than `reach` (default 10 x `tolerance`) from its goal, the result says
     `out_of_reach` and an UnreachableGoalWarning names the goal and the distance left.
     """
     reach = 10.0 * tolerance if reach is None else reach
@@ -64,21 +69,25 @@ def track_goals(
     for goal in np.atleast_2d(goals):
         control = InverseControl(goals=[goal[None, :]])
         previous = effector.position(state.positions)[0]
+        best, since = np.inf, 0
         for k in range(1, max_steps + 1):  # noqa: B007 (k is reported after the loop)
             state = solver.step(state, control)
             now = effector.position(state.positions)[0]
             if on_step is not None:
                 on_step(state, goal)
-            settled = np.linalg.norm(now - previous) < tolerance
-            if settled:
+            error = float(np.linalg.norm(now - goal))
+            best, since = (error, 0) if error < best - tolerance else (best, since + 1)
+            settled = bool(np.linalg.norm(now - previous) < tolerance)
+            stalled = since >= STALL_STEPS and error > reach
+            if settled or stalled:
                 break
             previous = now
-        far = settled and float(np.linalg.norm(now - goal)) > reach
+        far = error > reach and (settled or stalled)
         if far:
             warnings.warn(
-                f"goal {np.round(goal, 3).tolist()} is out of reach: the effector settled at"
-                f" {np.round(now, 3).tolist()}, {np.linalg.norm(now - goal):.3g} away, the"
-                " closest configuration within the actuators' bounds",
+                f"goal {np.round(goal, 3).tolist()} is out of reach: the effector ended at"
+                f" {np.round(now, 3).tolist()}, {error:.3g} away, about the closest"
+                " configuration within the actuators' bounds",
                 UnreachableGoalWarning,
                 stacklevel=2,
             )

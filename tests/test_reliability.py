@@ -429,3 +429,26 @@ def test_the_reliability_page_examples_run(code, capsys) -> None:
     exec(compile(code, str(DOCS), "exec"), {})
     printed = capsys.readouterr().out.splitlines()
     assert "another model" in printed[0] and "dt must be a real number" in printed[1]
+
+
+@pytest.mark.parametrize("offset", [(300.0, 0.0, 0.0), (1e4, 1e4, 0.0)])
+def test_a_goal_out_of_reach_gives_the_closest_configuration_and_says_so(offset) -> None:
+    """Issue 22, class 7: ProxQP reported these goals PRIMAL_INFEASIBLE within a few steps.
+    The best effort moves the effector towards the goal, bounds held, and reports the goal
+    out of reach once it settles."""
+    from pliant.errors import UnreachableGoalWarning
+    from pliant.scenario import track_goals
+
+    model = robots.build("diamond")
+    rest = model.effectors[0].goals[0].copy()
+    goal = rest + np.array(offset)
+    with pytest.warns(UnreachableGoalWarning, match="out of reach"):
+        (result,), state = track_goals(
+            model, ImplicitEuler(model, 0.01), model.rest_state(), goal[None], max_steps=60
+        )
+    assert result.out_of_reach and np.all(np.isfinite(state.positions))
+    moved = result.reached - rest
+    assert np.dot(moved, goal - rest) > 0  # towards the goal
+    assert result.error < np.linalg.norm(goal - rest)
+    for actuator, force in zip(model.actuators, state.actuation, strict=True):
+        assert actuator.min_force - 1e-9 <= force <= actuator.max_force + 1e-9
