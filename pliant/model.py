@@ -162,7 +162,7 @@ class State:
                 f"{str(path)!r} is not a readable state file (truncated or corrupt?): {exc}"
             ) from exc
         if model is not None:
-            state = model.check_state(state, what=f"the state in {str(path)!r}")
+            state = model.check_state(state, what=f"the state in {str(path)!r}", strict=True)
         return state
 
 
@@ -404,14 +404,18 @@ class Model:
             rigid_angular_velocities=np.array([x.angular_velocity for x in b]).reshape(-1, 3),
         )
 
-    def check_state(self, state: State, *, what: str = "the state") -> State:
+    def check_state(self, state: State, *, what: str = "the state", strict: bool = False) -> State:
         """`state` if it belongs to this model, else StateError naming what differs.
 
         The compiled kernels index the state's arrays by the model's nodes and elements: a
-        state of another model (other node count, columns, actuator or rigid-body count) or
-        with non-finite values must be refused before any of them runs. Arrays of another
-        real dtype (integers, float32) are accepted and returned as float64 in a copy; the
-        checks are O(1) but for one sum per array (a finite sum shows every value finite).
+        state of another model (other node count, columns, rigid-body count) or with
+        non-finite values must be refused before any of them runs. The last step's actuator
+        forces and displacements only start the next step: those of another actuator count (a
+        state of the same body under other actuators, released) are dropped, as for a state
+        that records none, unless `strict` (a state file loaded for this model), which
+        refuses them. Arrays of another real dtype (integers, float32) are accepted and
+        returned as float64 in a copy; the checks are O(1) but for one sum per array (a
+        finite sum shows every value finite).
         """
         if not isinstance(state, State):
             raise StateError(f"{what} must be a pliant State, got {type(state).__name__}")
@@ -438,10 +442,12 @@ class Model:
         for name in ("actuation", "displacement"):
             array = _real_array(getattr(state, name), f"{what}: {name}")
             if array.ndim != 1 or array.size not in (0, self.n_actuators):
-                raise StateError(
-                    f"{what}: {name} has shape {array.shape}, {self.name} has"
-                    f" {self.n_actuators} actuators; was the state made for another model?"
-                )
+                if strict or array.ndim != 1:
+                    raise StateError(
+                        f"{what}: {name} has shape {array.shape}, {self.name} has"
+                        f" {self.n_actuators} actuators; was the state made for another model?"
+                    )
+                array = np.zeros(0)
             cast[name] = array
         forces = state.contact_forces
         if not isinstance(forces, ContactForces):
