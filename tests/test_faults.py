@@ -318,3 +318,16 @@ def test_models_with_non_finite_weights_are_refused(reference, tmp_path) -> None
         app, ["condensed", "evaluate", str(path), str(tmp_path / "data.h5")]
     )
     assert result.exit_code == 1 and "non-finite weights" in result.output
+
+
+def test_the_command_line_offers_overwrite_and_verify(tmp_path) -> None:
+    out = tmp_path / "finger.h5"
+    args = ["condensed", "collect", "finger", "--out", str(out), "--bounds", "0:4"]
+    args += ["--samples", "4", "--test-fraction", "0", "--chunk-size", "2", "--workers", "1"]
+    runner = CliRunner()
+    assert runner.invoke(app, args).exit_code == 0
+    again = runner.invoke(app, args)
+    assert again.exit_code == 1 and "--overwrite" in again.output
+    assert runner.invoke(app, [*args, "--overwrite"]).exit_code == 0
+    sound = runner.invoke(app, ["condensed", "verify", str(out)])
+    assert sound.exit_code == 0 and "no corrupt part" in sound.output

@@ -231,7 +231,9 @@ def verify(
         console.print(Text(f"bad: {problem}", style="red"), soft_wrap=True)
     if problems:
         raise DatasetError(f"{len(problems)} problem(s); last: {problems[-1]}")
-    console.print(f"{out}: no corrupt part found (every checksum matches)", markup=False)
+    console.print(
+        f"{out}: no corrupt part found (every checksum matches)", markup=False, soft_wrap=True
+    )
 
 
 @app.command()
@@ -365,6 +367,8 @@ def control(
     learned = LearnedCondensedModel.load(model)
     plan = learned.plan
     entry = robots.entry(plan.robot)
+    if not entry.trajectories:
+        raise typer.BadParameter(f"{plan.robot} has no goal trajectory to control along")
     name = trajectory or next(iter(entry.trajectories))
     if name not in entry.trajectories:
         raise typer.BadParameter(
