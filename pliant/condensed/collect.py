@@ -87,6 +87,10 @@ def collect(
         WorkerError: a worker process died; the same call resumes.
     """
     out = Path(out)
+    if workers is not None and (
+        isinstance(workers, bool) or not isinstance(workers, int) or workers < 1
+    ):
+        raise DatasetError(f"workers must be None or an integer >= 1, got {workers!r}")
     if out.exists() and not overwrite:
         raise DatasetError(
             f"{out} already exists; pass --overwrite (overwrite=True) to replace it, check it"

@@ -18,6 +18,8 @@ from __future__ import annotations
 
 import hashlib
 import json
+import math
+import numbers
 import os
 import tempfile
 from collections.abc import Callable
@@ -106,6 +108,28 @@ class CollectionPlan:
     consistent_tangent: bool = True
 
     def __post_init__(self) -> None:
+        kinds = {
+            "n_train": numbers.Integral,
+            "chunk_size": numbers.Integral,
+            "newton_iterations": numbers.Integral,
+            "samples_per_design": numbers.Integral,
+            "seed": numbers.Integral,
+            "test_fraction": numbers.Real,
+            "max_increment": numbers.Real,
+            "tolerance": numbers.Real,
+        }
+        for name, kind in kinds.items():
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, kind):
+                what = "an integer" if kind is numbers.Integral else "a real number"
+                raise DatasetError(f"{name} must be {what}, got {value!r}")
+        if not all(
+            math.isfinite(getattr(self, name))
+            for name in ("test_fraction", "max_increment", "tolerance")
+        ):
+            raise DatasetError("test_fraction, max_increment and tolerance must be finite")
+        if not isinstance(self.robot, str):
+            raise DatasetError(f"robot must be a robot's name, got {self.robot!r}")
         if self.n_train < 1 or self.chunk_size < 1:
             raise DatasetError(
                 f"n_train and chunk_size must be >= 1, got {self.n_train}, {self.chunk_size}"

@@ -13,6 +13,7 @@ diverged weights can be saved.
 from __future__ import annotations
 
 import math
+import numbers
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -62,6 +63,11 @@ class TrainConfig:
                 raise TrainingError(f"{name} must be an integer >= 1, got {getattr(self, name)!r}")
         if not self.hidden or not all(isinstance(h, int) and h >= 1 for h in self.hidden):
             raise TrainingError(f"hidden widths must be integers >= 1, got {self.hidden!r}")
+        reals = {"learning_rate": self.learning_rate, "dropout": self.dropout}
+        reals["lr_factor"] = self.lr_factor
+        for name, value in reals.items():
+            if isinstance(value, bool) or not isinstance(value, numbers.Real):
+                raise TrainingError(f"{name} must be a real number, got {value!r}")
         if not (math.isfinite(self.learning_rate) and self.learning_rate > 0):
             raise TrainingError(f"learning_rate must be finite and > 0, got {self.learning_rate}")
         if not (math.isfinite(self.dropout) and 0 <= self.dropout < 1):

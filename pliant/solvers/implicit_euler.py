@@ -100,6 +100,8 @@ class ImplicitEuler:
         contact_screening: bool = True,
         screen_gap: float | None = None,
     ) -> None:
+        if not isinstance(model, Model):
+            raise ModelError(f"ImplicitEuler steps a pliant Model, got {type(model).__name__}")
         # Below MIN_DT, h^2 in W underflows next to the mass: the constraint problem is
         # singular (1e-200 s), long before any step of use (SOFA's scenes: 1e-2 to 1e-4 s).
         self.dt = number_option(dt, "the time step dt", at_least=MIN_DT)

@@ -63,6 +63,8 @@ class StaticSolver:
         consistent: bool = True,
         augmentation: float = 10.0,
     ) -> None:
+        if not isinstance(model, Model):
+            raise ModelError(f"StaticSolver solves a pliant Model, got {type(model).__name__}")
         if model.rigid_bodies:
             raise ModelError(
                 f"{model.name} has rigid bodies: the static solver cannot balance them (a body on"
