@@ -481,3 +481,25 @@ def test_unknown_roles_and_infinite_lower_bounds_are_named() -> None:
     for bounds in ({"min_force": np.inf}, {"max_displacement": -np.inf}):
         with pytest.raises(ConstraintError, match="admits no finite"):
             CableActuator(points, mesh.points, pull_point=[-10.0, 5.0, 5.0], **bounds)
+
+
+@pytest.mark.parametrize(
+    ("keyword", "value"),
+    [
+        ("mesh", "x"),
+        ("length", None),
+        ("height", "x"),
+        ("joint_height", [1.0, 2.0]),
+        ("resolution", [1.0]),
+        ("material", "rubber"),
+        ("gravity", (0.0, 0.0)),
+        ("gravity", "xyz"),
+        ("max_cable_displacement", [1.0, 2.0]),
+        ("length", 1e30),
+    ],
+)
+def test_builder_keywords_of_the_wrong_type_are_named(keyword, value) -> None:
+    """Checked against the builder's type hints before anything is meshed; a builder that
+    fails on a value of the right type (1e30 mm: gmsh cannot mesh it) is a ModelError too."""
+    with pytest.raises(ModelError, match=keyword if value != 1e30 else "cannot be built"):
+        robots.build("finger", **{keyword: value})
