@@ -128,9 +128,14 @@ class LearnedCondensedModel:
         """W and delta_free (Eq. 5.2) at actuator (and contact) distances delta_a (delta_c),
         for the rest values `rest` (default: the training design's). Warns with
         OutOfBoundsWarning, giving the distance, outside the region of the training data."""
-        active = np.concatenate(
-            [np.ravel(delta_a), np.zeros(0) if delta_c is None else np.ravel(delta_c)]
-        )
+        try:
+            active = np.concatenate(
+                [np.ravel(delta_a), np.zeros(0) if delta_c is None else np.ravel(delta_c)]
+            ).astype(float)
+        except (TypeError, ValueError) as exc:
+            raise LearnedModelError(f"the distances must be numbers: {exc}") from None
+        if not np.all(np.isfinite(active)):
+            raise LearnedModelError(f"the distances must be finite, got {active.tolist()}")
         if active.size != self.input_box.dim:
             raise LearnedModelError(
                 f"the model takes {self.input_box.dim} actuator and contact distances, got"
