@@ -331,3 +331,37 @@ def test_the_command_line_offers_overwrite_and_verify(tmp_path) -> None:
     assert runner.invoke(app, [*args, "--overwrite"]).exit_code == 0
     sound = runner.invoke(app, ["condensed", "verify", str(out)])
     assert sound.exit_code == 0 and "no corrupt part" in sound.output
+
+
+def test_a_training_killed_mid_run_resumes_from_an_intact_checkpoint(reference, tmp_path) -> None:
+    data, checkpoint = tmp_path / "data.h5", tmp_path / "run.ckpt"
+    reference.save(data)
+    code = f"""
+        from pathlib import Path
+        from pliant.condensed.dataset import Dataset
+        from pliant.condensed.train import TrainConfig, train_condensed
+
+        config = TrainConfig(epochs=10**6, batch_size=4, hidden=(16,), progress=False,
+                             checkpoint=Path({str(checkpoint)!r}), checkpoint_every=1)
+        train_condensed(Dataset.load({str(data)!r}), config)
+    """
+    child = subprocess.Popen([sys.executable, "-c", textwrap.dedent(code)], cwd=ROOT)
+    try:
+        deadline = time.monotonic() + 120
+        while time.monotonic() < deadline:
+            time.sleep(0.2)
+            try:
+                if torch.load(checkpoint, weights_only=True)["epoch"] >= 3:
+                    break
+            except (OSError, RuntimeError, EOFError):
+                continue  # not written yet
+        os.kill(child.pid, signal.SIGKILL)  # mid-epoch, or mid-write
+        child.wait(timeout=30)
+    finally:
+        if child.poll() is None:
+            child.kill()
+    saved = torch.load(checkpoint, weights_only=True)["epoch"]  # whole, never torn
+    assert saved >= 3
+    config = dataclasses.replace(TRAINING, epochs=saved + 2, checkpoint=checkpoint)
+    _, resumed = train_condensed(reference, config)
+    assert [h["epoch"] for h in resumed.history] == list(range(1, saved + 3))
