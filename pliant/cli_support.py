@@ -48,7 +48,14 @@ def report(message: str) -> None:
 
 def debugging(args: list[str]) -> bool:
     """Whether tracebacks are wanted: ``--debug`` before the command, or PLIANT_DEBUG=1."""
-    return "--debug" in args or os.environ.get("PLIANT_DEBUG", "") not in ("", "0")
+    if os.environ.get("PLIANT_DEBUG", "") not in ("", "0"):
+        return True
+    for arg in args:  # the global options, up to the command's name
+        if arg == "--debug":
+            return True
+        if not arg.startswith("-"):
+            return False
+    return False
 
 
 class ErrorHandlingGroup(typer.core.TyperGroup):

@@ -132,7 +132,7 @@ class ImplicitEuler:
         self._size = body.extent
         self._gravity = body.gravity_forces()
         self.last_report = StepReport()
-        # (time, positions, velocities, linearisation) of the last state returned, checked
+        # (time, dt, positions, velocities, linearisation) of the last state returned, checked
         # before it was (see `step`); off while `condense` takes its passive step.
         self._ahead: tuple | None = None
         self._look_ahead = True
@@ -232,7 +232,7 @@ class ImplicitEuler:
             # by the step that made it, never returned (the next step reuses it).
             ahead, _ = self._linearise(new, reuse=False)
             check_linearisation(ahead, step, h)
-            self._ahead = (new.time, new.positions.copy(), new.velocities.copy(), ahead)
+            self._ahead = (new.time, h, new.positions.copy(), new.velocities.copy(), ahead)
         if model.contacts is not None:
             model.contacts.check_travel(positions, dq, step)
         self.last_report = StepReport(
@@ -254,11 +254,11 @@ class ImplicitEuler:
         if (
             reuse
             and ahead is not None
-            and ahead[0] == state.time
-            and np.array_equal(ahead[1], state.positions)
-            and np.array_equal(ahead[2], state.velocities)
+            and (ahead[0], ahead[1]) == (state.time, self.dt)
+            and np.array_equal(ahead[2], state.positions)
+            and np.array_equal(ahead[3], state.velocities)
         ):
-            return ahead[3], drive
+            return ahead[4], drive
         velocities = state.velocities
         if drive is not None:
             velocities = body.scatter(body.gather(state.velocities)) + drive
