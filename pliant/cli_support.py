@@ -15,7 +15,6 @@ import sys
 from collections.abc import Callable
 from pathlib import Path
 
-import click
 import typer
 import typer.core
 from rich.console import Console
@@ -31,10 +30,10 @@ _stderr = Console(stderr=True, soft_wrap=True, highlight=False)
 
 
 def _kinds(name: str) -> tuple[type[Exception], ...]:
-    """click's exception class `name` and typer's copy of it (typer vendors click)."""
-    found = {getattr(click.exceptions, name)}
-    found.update(c for c in typer.BadParameter.__mro__ if c.__name__ == name)
-    found.update(c for c in (typer.Abort, typer.Exit) if c.__name__ == name)
+    """The click exception class `name` typer raises: click's own, or the copy of click that
+    recent typer versions carry (found from typer's classes, so click need not be installed)."""
+    found = {c for c in typer.BadParameter.__mro__ if c.__name__ == name}
+    found.update(c for c in typer.Abort.__mro__ if c.__name__ == name)
     return tuple(found)
 
 
