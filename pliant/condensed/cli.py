@@ -437,8 +437,8 @@ def control(
     console.print(f"saved {plot} and {folder / 'report.json'}")
 
 
-def _floats(text: str, what: str) -> list[float]:
-    return numbers_list(text, what)
+def _floats(text: str, what: str, *, count: int | None = None) -> list[float]:
+    return numbers_list(text, what, count=count)
 
 
 @app.command()
@@ -469,13 +469,14 @@ def calibrate(
     from pliant.condensed.parametric import ParametricCondensedModel
     from pliant.condensed.plots import plot_calibration
 
+    design = {k: _floats(v, f"--truth {k}", count=1)[0] for k, v in _assignments(truth).items()}
+    initial = {k: _floats(v, f"--start {k}", count=1)[0] for k, v in _assignments(start).items()}
+    pull = _floats(commands, "--commands")
     parametric = ParametricCondensedModel.load(model)
     plan = parametric.plan
-    design = {k: float(v) for k, v in _assignments(truth).items()}
-    pulls = np.zeros((len(_floats(commands, "commands")), len(plan.actuator_bounds)))
-    pulls[:, 0] = _floats(commands, "commands")
+    pulls = np.zeros((len(pull), len(plan.actuator_bounds)))
+    pulls[:, 0] = pull
     delta_a, observed = observe(plan, design, pulls)
-    initial = {k: float(v) for k, v in _assignments(start).items()}
     result = run_calibration(
         parametric,
         delta_a,
@@ -525,15 +526,14 @@ def design(
     from pliant.condensed.parametric import ParametricCondensedModel
     from pliant.condensed.plots import plot_design_study
 
+    gamma = _floats(weights, "--weights (dexterity, strength)", count=2)
+    pull = tuple(_floats(command, "--command"))
     parametric = ParametricCondensedModel.load(model)
-    gamma = _floats(weights, "weights")
-    if len(gamma) != 2:
-        raise typer.BadParameter(f"two weights (dexterity, strength), got {weights!r}")
     with Progress(console=console, transient=True) as bar:
         bar.add_task("grid search and refinements", total=None)
         study = design_study(
             parametric,
-            FingerObjectives(command=tuple(_floats(command, "command"))),
+            FingerObjectives(command=pull),
             counts=list(grid),
             weights=(gamma[0], gamma[1]),
             iterations=iterations,
