@@ -367,6 +367,8 @@ USAGE_ERRORS = [
     ["condensed", "control", "{file}", "--goals", "0"],
     ["condensed", "design", "{file}", "--grid", "0,1"],
     ["condensed", "evaluate"],
+    ["condensed", "design", "{file}", "--weights", "1,2,3"],
+    ["condensed", "calibrate", "{file}", "--truth", "poisson_ratio=abc", "--start", "x=1"],
     ["nosuch"],
 ]
 
