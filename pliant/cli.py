@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import time
+import warnings
 from pathlib import Path
 from typing import Annotated
 
@@ -14,13 +15,22 @@ from rich.progress import Progress
 from rich.table import Table
 
 from pliant import robots
+from pliant.cli_support import (
+    ErrorHandlingGroup,
+    at_least_one,
+    one_of,
+    output_file,
+    output_folder,
+    positive,
+)
 from pliant.condensed.cli import app as condensed_app
-from pliant.errors import PliantError
+from pliant.errors import UnreachableGoalWarning
 from pliant.planning.cli import plan
 from pliant.solvers import ImplicitEuler, StaticSolver
 from pliant.trajopt.cli import app as trajopt_app
 
 app = typer.Typer(
+    cls=ErrorHandlingGroup,
     add_completion=False,
     no_args_is_help=True,
     help="Simulate, control and benchmark FEM soft robots.",
@@ -29,6 +39,15 @@ console = Console()
 app.add_typer(condensed_app, name="condensed")
 app.command()(plan)
 app.add_typer(trajopt_app, name="trajopt")
+
+
+@app.callback()
+def main(
+    debug: Annotated[
+        bool, typer.Option("--debug", help="on failure, show the traceback (not one line)")
+    ] = False,
+) -> None:
+    """Simulate, control and benchmark FEM soft robots."""
 
 
 def _solver(model, solver: str, dt: float):
@@ -45,11 +64,15 @@ def run(
         str,
         typer.Argument(help=f"one of {', '.join(sorted(robots.ROBOTS))}, or a SOFA scene file"),
     ],
-    duration: Annotated[float, typer.Option(help="simulated seconds")] = 3.0,
-    dt: Annotated[float, typer.Option(help="time step")] = 0.01,
-    solver: Annotated[str, typer.Option(help="dynamic or static")] = "dynamic",
-    frames: Annotated[int, typer.Option(help="frames in the GIF and VTU series")] = 30,
-    out: Annotated[Path, typer.Option(help="output folder")] = Path("out"),
+    duration: Annotated[float, typer.Option(help="simulated seconds", callback=positive)] = 3.0,
+    dt: Annotated[float, typer.Option(help="time step", callback=positive)] = 0.01,
+    solver: Annotated[
+        str, typer.Option(help="dynamic or static", callback=one_of("dynamic", "static"))
+    ] = "dynamic",
+    frames: Annotated[
+        int, typer.Option(help="frames in the GIF and VTU series", callback=at_least_one)
+    ] = 30,
+    out: Annotated[Path, typer.Option(help="output folder", callback=output_folder)] = Path("out"),
     mesh_dir: Annotated[list[Path], typer.Option(help="where a scene's meshes are")] = [],  # noqa: B006
 ) -> None:
     """Simulate ROBOT (or a SOFA .scn / .py scene, under its commands) under its scripted
@@ -58,49 +81,45 @@ def run(
     from pliant.viz import VtuSeriesWriter, save_gif, save_png
     from pliant.viz.model_view import RobotCamera
 
-    try:
-        scene = None
-        if robot.endswith((".scn", ".xml", ".py")):
-            from pliant.sofa import load_scene
+    scene = None
+    if robot.endswith((".scn", ".xml", ".py")):
+        from pliant.sofa import load_scene
 
-            scene = load_scene(robot, mesh_dirs=mesh_dir)
-            entry, robot = scene.entry(), Path(robot).stem
-        else:
-            entry = robots.entry(robot)
-        model = entry.build()
-        # A scene runs SOFA's step (its time step, refactorised every step) unless told otherwise.
-        sim = scene.solver() if scene and solver == "dynamic" else _solver(model, solver, dt)
-        n_steps = max(1, round(duration / dt))
-        frames = max(1, min(frames, n_steps))
-        frame_steps = set(np.linspace(n_steps / frames, n_steps, frames).round().astype(int))
-        camera = RobotCamera(model, view=entry.view)
-        folder = out / robot
-        images = []
-        state = start = model.rest_state()
-        cell_type, cells, rows = model.body.vtk_cells()
-        rest = model.body.rest_positions[rows]
-        with (
-            VtuSeriesWriter(folder, robot, cells, cell_type) as vtu,
-            Progress(console=console) as bar,
-        ):
-            task = bar.add_task(f"{robot}: {n_steps} steps", total=n_steps)
-            for state in scripted(sim, start, entry.demo_actuation, n_steps):  # noqa: B020
-                bar.advance(task)
-                if state.step in frame_steps:
-                    images.append(camera.frame(state, title=f"{robot}  t = {state.time:.2f} s"))
-                    vtu.write(
-                        state.time,
-                        state.positions[rows],
-                        {
-                            "displacement": state.positions[rows] - rest,
-                            "velocity": state.velocities[rows],
-                        },
-                    )
-        gif = save_gif(images, folder / f"{robot}.gif", fps=15)
-        png = save_png(images[-1], folder / f"{robot}.png")
-    except PliantError as exc:
-        console.print(f"[red]error:[/red] {exc}")
-        raise typer.Exit(1) from exc
+        scene = load_scene(robot, mesh_dirs=mesh_dir)
+        entry, robot = scene.entry(), Path(robot).stem
+    else:
+        entry = robots.entry(robot)
+    model = entry.build()
+    # A scene runs SOFA's step (its time step, refactorised every step) unless told otherwise.
+    sim = scene.solver() if scene and solver == "dynamic" else _solver(model, solver, dt)
+    n_steps = max(1, round(duration / dt))
+    frames = max(1, min(frames, n_steps))
+    frame_steps = set(np.linspace(n_steps / frames, n_steps, frames).round().astype(int))
+    camera = RobotCamera(model, view=entry.view)
+    folder = out / robot
+    images = []
+    state = start = model.rest_state()
+    cell_type, cells, rows = model.body.vtk_cells()
+    rest = model.body.rest_positions[rows]
+    with (
+        VtuSeriesWriter(folder, robot, cells, cell_type) as vtu,
+        Progress(console=console) as bar,
+    ):
+        task = bar.add_task(f"{robot}: {n_steps} steps", total=n_steps)
+        for state in scripted(sim, start, entry.demo_actuation, n_steps):  # noqa: B020
+            bar.advance(task)
+            if state.step in frame_steps:
+                images.append(camera.frame(state, title=f"{robot}  t = {state.time:.2f} s"))
+                vtu.write(
+                    state.time,
+                    state.positions[rows],
+                    {
+                        "displacement": state.positions[rows] - rest,
+                        "velocity": state.velocities[rows],
+                    },
+                )
+    gif = save_gif(images, folder / f"{robot}.gif", fps=15)
+    png = save_png(images[-1], folder / f"{robot}.png")
     console.print(
         f"{model.body.label}, {n_steps} steps; actuation"
         f" {np.round(state.actuation, 2).tolist()} -> displacement"
@@ -115,48 +134,56 @@ def inverse(
     trajectory: Annotated[
         str, typer.Option(help="goal trajectory of the robot (circle, closing, ...)")
     ] = "",
-    goals: Annotated[int, typer.Option(help="number of goals")] = 30,
-    dt: Annotated[float, typer.Option(help="time step")] = 0.01,
-    solver: Annotated[str, typer.Option(help="dynamic or static")] = "dynamic",
-    max_steps: Annotated[int, typer.Option(help="steps at most per goal")] = 60,
-    out: Annotated[Path, typer.Option(help="output folder")] = Path("out"),
+    goals: Annotated[int, typer.Option(help="number of goals", callback=at_least_one)] = 30,
+    dt: Annotated[float, typer.Option(help="time step", callback=positive)] = 0.01,
+    solver: Annotated[
+        str, typer.Option(help="dynamic or static", callback=one_of("dynamic", "static"))
+    ] = "dynamic",
+    max_steps: Annotated[
+        int, typer.Option(help="steps at most per goal", callback=at_least_one)
+    ] = 60,
+    out: Annotated[Path, typer.Option(help="output folder", callback=output_folder)] = Path("out"),
 ) -> None:
     """Inverse control (QP, Eq. 2.15) of ROBOT's effector along a goal trajectory."""
     from pliant.scenario import track_goals
     from pliant.viz import plot_trajectory, save_gif
     from pliant.viz.model_view import RobotCamera
 
-    try:
-        entry = robots.entry(robot)
-        name = trajectory or next(iter(entry.trajectories))
-        if name not in entry.trajectories:
-            raise typer.BadParameter(
-                f"{robot} has trajectories {sorted(entry.trajectories)}, not {name!r}"
-            )
-        targets = entry.trajectories[name](goals)
-        model = entry.build()
-        sim = _solver(model, solver, dt)
-        camera = RobotCamera(model, view=entry.view)
-        folder = out / robot
-        images = []
-        with Progress(console=console) as bar:
-            task = bar.add_task(f"{robot} {name}", total=len(targets))
+    entry = robots.entry(robot)
+    if not entry.trajectories:
+        having = sorted(k for k, e in robots.ROBOTS.items() if e.trajectories)
+        raise typer.BadParameter(
+            f"{robot} has no goal trajectory for inverse control; robots with one:"
+            f" {', '.join(having)}"
+        )
+    name = trajectory or next(iter(entry.trajectories))
+    if name not in entry.trajectories:
+        raise typer.BadParameter(
+            f"{robot} has trajectories {sorted(entry.trajectories)}, not {name!r}"
+        )
+    targets = entry.trajectories[name](goals)
+    model = entry.build()
+    sim = _solver(model, solver, dt)
+    camera = RobotCamera(model, view=entry.view)
+    folder = out / robot
+    images = []
+    with Progress(console=console) as bar:
+        task = bar.add_task(f"{robot} {name}", total=len(targets))
 
-            def on_step(state, goal):
-                if state.step % 3 == 0:
-                    images.append(camera.frame(state, goals=goal, title=f"{robot} inverse: {name}"))
+        def on_step(state, goal):
+            if state.step % 3 == 0:
+                images.append(camera.frame(state, goals=goal, title=f"{robot} inverse: {name}"))
 
-            results = []
-            state = model.rest_state()
+        results = []
+        state = model.rest_state()
+        with warnings.catch_warnings():  # goals out of reach are counted below instead
+            warnings.simplefilter("ignore", UnreachableGoalWarning)
             for goal in targets:
                 res, state = track_goals(
                     model, sim, state, goal[None], max_steps=max_steps, on_step=on_step
                 )
                 results += res
                 bar.advance(task)
-    except PliantError as exc:
-        console.print(f"[red]error:[/red] {exc}")
-        raise typer.Exit(1) from exc
     table = Table(title=f"{robot}: reached vs goal ({name})")
     for col in ("#", "goal", "reached", "error", "steps"):
         table.add_column(col)
@@ -171,6 +198,12 @@ def inverse(
     console.print(table)
     errors = np.array([r.error for r in results])
     console.print(f"error: mean {errors.mean():.3f}, max {errors.max():.3f} (mm for robot scenes)")
+    far = [i for i, r in enumerate(results) if r.out_of_reach]
+    if far:
+        console.print(
+            f"{len(far)} of {len(results)} goals out of reach (#{', #'.join(map(str, far))}):"
+            " reached is the closest configuration within the actuators' bounds"
+        )
     plot = plot_trajectory(
         np.array([r.goal for r in results]),
         np.array([r.reached for r in results]),
@@ -187,6 +220,7 @@ def inverse(
                 "errors": errors.tolist(),
                 "mean_error": float(errors.mean()),
                 "max_error": float(errors.max()),
+                "out_of_reach": [r.out_of_reach for r in results],
             },
             indent=1,
         )
@@ -196,13 +230,23 @@ def inverse(
 
 @app.command()
 def bench(
-    meshes: Annotated[Path | None, typer.Option(help="folder of the reference SOFA meshes")] = None,
-    repeats: Annotated[int, typer.Option(help="timed repeats per scene (median reported)")] = 3,
+    meshes: Annotated[
+        Path | None,
+        typer.Option(help="folder of the reference SOFA meshes", exists=True, file_okay=False),
+    ] = None,
+    repeats: Annotated[
+        int, typer.Option(help="timed repeats per scene (median reported)", callback=at_least_one)
+    ] = 3,
     steps: Annotated[
-        int, typer.Option(help="steps per timed repeat (scaled down for big scenes)")
+        int,
+        typer.Option(
+            help="steps per timed repeat (scaled down for big scenes)", callback=at_least_one
+        ),
     ] = 100,
     quick: Annotated[bool, typer.Option(help="small scenes only (a smoke run)")] = False,
-    out: Annotated[Path, typer.Option(help="JSON results file")] = Path("bench-results/bench.json"),
+    out: Annotated[Path, typer.Option(help="JSON results file", callback=output_file)] = Path(
+        "bench-results/bench.json"
+    ),
     envs: Annotated[
         str,
         typer.Option(
@@ -244,13 +288,12 @@ def view(
 ) -> None:
     """Open ROBOT, ENV or RUN_DIR in the browser (viser): the simulation live, actuators on
     sliders, a goal to drag for inverse control, play/pause/step/reset, playback of a run."""
-    from pliant.viz.viewer import open_viewer
+    from pliant.viz.viewer import ViewerError, open_viewer
 
     try:
         viewer = open_viewer(target, host=host, port=port, dt=dt, policy=policy)
-    except PliantError as exc:
-        console.print(f"[red]error:[/red] {exc}")
-        raise typer.Exit(2) from exc
+    except ViewerError as exc:  # nothing to show: a usage error, before any server starts
+        raise typer.BadParameter(str(exc), param_hint="TARGET") from exc
     console.print(f"Pliant viewer of {target}: {viewer.url}  (Ctrl-C to stop)")
     viewer.start()
     try:

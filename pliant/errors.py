@@ -30,6 +30,11 @@ class MeshFileError(MeshError):
     """A mesh file is missing, unreadable or holds no tetrahedra."""
 
 
+class StateError(PliantError, ValueError):
+    """A state does not belong to the model it is used with (node count, array shapes, actuator
+    or rigid-body counts), holds non-finite values, or its file cannot be read or written."""
+
+
 class MaterialError(PliantError, ValueError):
     """Invalid material parameters (E <= 0, nu outside [0, 0.5), density <= 0, NaN)."""
 
@@ -60,7 +65,12 @@ class InfeasibleProblemError(PliantError):
 
 
 class SolverError(PliantError, RuntimeError):
-    """A linear or nonlinear solve failed."""
+    """A linear or nonlinear solve failed, or a solver was given invalid settings."""
+
+
+class UnreachableGoalWarning(UserWarning):
+    """Inverse control could not bring the effectors to their goals within the actuators'
+    bounds: the actuation applied is the closest reachable one (least squares)."""
 
 
 class DivergenceError(PliantError, RuntimeError):
@@ -77,6 +87,10 @@ class DivergenceError(PliantError, RuntimeError):
         self.cause = cause
 
 
+class TrainingError(PliantError, ValueError):
+    """A training run is given invalid settings, or cannot go on: its loss became non-finite."""
+
+
 class UnknownRobotError(PliantError, KeyError):
     """No robot builder is registered under this name."""
 
@@ -87,6 +101,11 @@ class UnknownRobotError(PliantError, KeyError):
 class DatasetError(PliantError, ValueError):
     """A condensed-model dataset is corrupt, incomplete or incompatible with what uses it, or a
     partial collection was started with other settings."""
+
+
+class WorkerError(PliantError, RuntimeError):
+    """A worker process of a long job died (killed, out of memory); what it finished is kept
+    and the same call resumes."""
 
 
 class LearnedModelError(PliantError, ValueError):

@@ -8,8 +8,11 @@ optimisation rely on.
 
 from __future__ import annotations
 
+import math
+import numbers
 import os
 import tempfile
+import zipfile
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -19,8 +22,9 @@ from pliant.constraints.attachment import Attachment
 from pliant.constraints.base import Actuator, Constraint
 from pliant.constraints.cable import CableActuator, CableBundle
 from pliant.constraints.contact import Contacts
+from pliant.constraints.control import commands
 from pliant.constraints.friction import ContactForces
-from pliant.errors import ModelError
+from pliant.errors import ModelError, StateError
 from pliant.fem.body import TetBody
 from pliant.fem.rigid import DrivenNodes, RigidBody
 from pliant.fem.rod import RodBody
@@ -63,6 +67,16 @@ class State:
     displacement_before: np.ndarray = field(default_factory=lambda: np.zeros(0))
 
     _RIGID = ("rigid_positions", "rigid_rotations", "rigid_velocities", "rigid_angular_velocities")
+    _FIELDS = (
+        "positions",
+        "velocities",
+        "time",
+        "step",
+        "actuation",
+        "displacement",
+        "contact_keys",
+        "contact_forces",
+    )
 
     def copy(self) -> State:
         return State(
@@ -85,43 +99,104 @@ class State:
         )
 
     def save(self, path: str | os.PathLike) -> None:
-        """Write the state to an .npz file atomically."""
+        """Write the state to an .npz file atomically: a reader finds the old file or the whole
+        new one, and a failed write leaves neither a partial file nor a temporary one.
+
+        Raises:
+            StateError: the folder does not exist or is not writable, or the disk is full.
+        """
         path = Path(path)
-        fd, tmp = tempfile.mkstemp(dir=path.parent, suffix=".npz")
-        os.close(fd)
-        np.savez(
-            tmp,
-            positions=self.positions,
-            velocities=self.velocities,
-            time=self.time,
-            step=self.step,
-            actuation=self.actuation,
-            displacement=self.displacement,
-            displacement_before=self.displacement_before,
-            contact_keys=self.contact_forces.keys,
-            contact_forces=self.contact_forces.forces,
-            **{name: getattr(self, name) for name in self._RIGID},
-        )
-        os.replace(tmp, path)
+        if path.is_dir():
+            raise StateError(f"cannot save the state to {str(path)!r}: it is a folder")
+        try:
+            fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".npz")
+        except OSError as exc:
+            raise StateError(f"cannot save the state to {str(path)!r}: {exc}") from exc
+        try:
+            with os.fdopen(fd, "wb") as file:
+                np.savez(
+                    file,
+                    positions=self.positions,
+                    velocities=self.velocities,
+                    time=self.time,
+                    step=self.step,
+                    actuation=self.actuation,
+                    displacement=self.displacement,
+                    displacement_before=self.displacement_before,
+                    contact_keys=self.contact_forces.keys,
+                    contact_forces=self.contact_forces.forces,
+                    **{name: getattr(self, name) for name in self._RIGID},
+                )
+            os.replace(tmp, path)
+        except OSError as exc:
+            raise StateError(f"cannot save the state to {str(path)!r}: {exc}") from exc
+        finally:
+            if os.path.exists(tmp):
+                os.remove(tmp)
 
     @classmethod
-    def load(cls, path: str | os.PathLike) -> State:
-        with np.load(path) as d:
-            return cls(
-                d["positions"],
-                d["velocities"],
-                float(d["time"]),
-                int(d["step"]),
-                d["actuation"],
-                d["displacement"],
-                ContactForces(d["contact_keys"], d["contact_forces"]),
-                # States saved before rigid bodies (or the lagged displacement) existed have none.
-                **{
-                    name: d[name]
-                    for name in (*cls._RIGID, "displacement_before")
-                    if name in d.files
-                },
-            )
+    def load(cls, path: str | os.PathLike, model: Model | None = None) -> State:
+        """Read a state written by :meth:`save`; with `model`, check that it belongs to it.
+
+        Raises:
+            StateError: the file is missing, unreadable, truncated or not a state file, or
+                the state does not fit `model` (see :meth:`Model.check_state`).
+        """
+        path = Path(path)
+        if not path.is_file():
+            raise StateError(f"no state file at {str(path)!r}")
+        try:
+            with np.load(path, allow_pickle=False) as d:
+                missing = [k for k in cls._FIELDS if k not in d.files]
+                if missing:
+                    raise StateError(f"{str(path)!r} is not a state file: it lacks {missing}")
+                state = cls(
+                    d["positions"],
+                    d["velocities"],
+                    float(d["time"]),
+                    int(d["step"]),
+                    d["actuation"],
+                    d["displacement"],
+                    ContactForces(d["contact_keys"], d["contact_forces"]),
+                    # States saved before rigid bodies (or the lagged displacement) existed
+                    # have none.
+                    **{
+                        name: d[name]
+                        for name in (*cls._RIGID, "displacement_before")
+                        if name in d.files
+                    },
+                )
+        except StateError:
+            raise
+        except (OSError, EOFError, ValueError, TypeError, KeyError, zipfile.BadZipFile) as exc:
+            raise StateError(
+                f"{str(path)!r} is not a readable state file (truncated or corrupt?): {exc}"
+            ) from exc
+        if model is not None:
+            state = model.check_state(state, what=f"the state in {str(path)!r}", strict=True)
+        return state
+
+
+def _real_array(value, what: str) -> np.ndarray:
+    """`value` as a float64 array (itself when it is one), finite; StateError otherwise."""
+    if type(value) is np.ndarray and value.dtype == np.float64:
+        array = value  # the usual case, without a conversion
+    else:
+        try:
+            array = np.asarray(value)
+        except (ValueError, TypeError) as exc:  # ragged nested sequences
+            raise StateError(f"{what} is not an array of numbers: {exc}") from None
+        if array.dtype.kind not in "iuf":
+            raise StateError(f"{what} must hold real numbers, got dtype {array.dtype}")
+        array = array.astype(np.float64)
+    # One pass: a finite sum shows every value finite (an overflowing one is told apart).
+    if (
+        array.size
+        and not math.isfinite(np.add.reduce(array, axis=None))
+        and not np.all(np.isfinite(array))
+    ):
+        raise StateError(f"{what} holds non-finite values (NaN or inf)")
+    return array
 
 
 @dataclass(frozen=True)
@@ -340,9 +415,86 @@ class Model:
             rigid_angular_velocities=np.array([x.angular_velocity for x in b]).reshape(-1, 3),
         )
 
+    def check_state(self, state: State, *, what: str = "the state", strict: bool = False) -> State:
+        """`state` if it belongs to this model, else StateError naming what differs.
+
+        The compiled kernels index the state's arrays by the model's nodes and elements: a
+        state of another model (other node count, columns, rigid-body count) or with
+        non-finite values must be refused before any of them runs. The last step's actuator
+        forces and displacements only start the next step: those of another actuator count (a
+        state of the same body under other actuators, released) are dropped, as for a state
+        that records none, unless `strict` (a state file loaded for this model), which
+        refuses them. Arrays of another real dtype (integers, float32) are accepted and
+        returned as float64 in a copy; the checks are O(1) but for one sum per array (a
+        finite sum shows every value finite).
+        """
+        if not isinstance(state, State):
+            raise StateError(f"{what} must be a pliant State, got {type(state).__name__}")
+        n = self.body.n_nodes
+        b = len(self.rigid_bodies)
+        expected = {
+            "positions": (n, 3),
+            "velocities": (n, 3),
+            "rigid_positions": (b, 3),
+            "rigid_rotations": (b, 3, 3),
+            "rigid_velocities": (b, 3),
+            "rigid_angular_velocities": (b, 3),
+        }
+        cast = {}
+        for name, shape in expected.items():
+            array = _real_array(getattr(state, name), f"{what}: {name}")
+            if array.shape != shape:
+                whose = "nodes" if name in ("positions", "velocities") else "rigid bodies"
+                raise StateError(
+                    f"{what}: {name} has shape {array.shape}, {self.name} needs {shape} (its"
+                    f" {whose}); was the state made for another model?"
+                )
+            cast[name] = array
+        for name in ("actuation", "displacement", "displacement_before"):
+            array = _real_array(getattr(state, name), f"{what}: {name}")
+            if array.ndim != 1 or array.size not in (0, self.n_actuators):
+                if strict or array.ndim != 1:
+                    raise StateError(
+                        f"{what}: {name} has shape {array.shape}, {self.name} has"
+                        f" {self.n_actuators} actuators; was the state made for another model?"
+                    )
+                array = np.zeros(0)
+            cast[name] = array
+        forces = state.contact_forces
+        if not isinstance(forces, ContactForces):
+            raise StateError(f"{what}: contact_forces must be ContactForces")
+        keys = np.asarray(forces.keys)
+        values = _real_array(forces.forces, f"{what}: contact forces")
+        if keys.ndim != 2 or keys.shape[1] != 3 or keys.dtype.kind not in "iu":
+            raise StateError(f"{what}: contact keys must be (k, 3) integers, got {keys.shape}")
+        if values.shape != keys.shape:
+            raise StateError(
+                f"{what}: {keys.shape[0]} contact keys but contact forces of shape {values.shape}"
+            )
+        if type(state.time) is not float and (
+            isinstance(state.time, bool) or not isinstance(state.time, numbers.Real)
+        ):
+            raise StateError(f"{what}: time must be a real number, got {state.time!r}")
+        if not math.isfinite(state.time):
+            raise StateError(f"{what}: time must be finite, got {state.time!r}")
+        if type(state.step) is not int and (
+            isinstance(state.step, bool) or not isinstance(state.step, numbers.Integral)
+        ):
+            raise StateError(f"{what}: step must be an integer, got {state.step!r}")
+        if state.step < 0:
+            raise StateError(f"{what}: step must be >= 0, got {state.step}")
+        if all(cast[name] is getattr(state, name) for name in cast) and values is forces.forces:
+            return state
+        return State(
+            time=float(state.time),
+            step=int(state.step),
+            contact_forces=ContactForces(keys.astype(np.int64), values),
+            **cast,
+        )
+
     def set_actuation(self, values: np.ndarray | list[float], mode: str | None = None) -> None:
         """Set every actuator's command (and, optionally, mode)."""
-        vals = np.asarray(values, dtype=float).reshape(-1)
+        vals = commands(values)
         if vals.size != self.n_actuators:
             raise ModelError(
                 f"{self.name} has {self.n_actuators} actuators, got {vals.size} commands"

@@ -303,16 +303,19 @@ def test_corrupt_and_incompatible_dataset_files_raise_dataset_error(dataset, tmp
     with pytest.raises(DatasetError, match=r"'test' group lacks \['w_triangle'\]"):
         edited("missing.h5", lambda f: f["test"].__delitem__("w_triangle"))
 
+    # Edits past the checksums (as in a file written before them) reach the validation.
     def other_layout(f) -> None:  # one more effector row than the file's W has columns for
         meta = json.loads(f.attrs["metadata"])
         meta["layout"]["effectors"][0]["goals"].append([0.0, 0.0, 0.0])
         f.attrs["metadata"] = json.dumps(meta)
+        del f.attrs["metadata_sha256"]
 
     with pytest.raises(DatasetError, match=r"w_triangle' has shape .* constraint layout"):
         edited("layout.h5", other_layout)
 
     def nan_sample(f) -> None:
         f["train/free_distance"][0, 0] = np.nan
+        del f["train/free_distance"].attrs["sha256"]
 
     with pytest.raises(DatasetError, match="non-finite"):
         edited("nan.h5", nan_sample)

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import math
 import warnings
 from pathlib import Path
 from typing import Annotated
@@ -14,9 +15,18 @@ import typer
 from rich.console import Console
 from rich.progress import Progress
 from rich.table import Table
+from rich.text import Text
 
 from pliant import robots
-from pliant.errors import PliantError
+from pliant.cli_support import (
+    at_least_one,
+    non_negative,
+    numbers_list,
+    one_of,
+    output_file,
+    output_folder,
+    positive,
+)
 
 app = typer.Typer(
     add_completion=False,
@@ -27,11 +37,6 @@ app = typer.Typer(
     ),
 )
 console = Console()
-
-
-def _fail(exc: Exception) -> typer.Exit:
-    console.print(f"[red]error:[/red] {exc}")
-    return typer.Exit(1)
 
 
 def _number_or_text(text: str) -> float | int | str | list:
@@ -50,6 +55,8 @@ def _interval(text: str) -> tuple[float, float]:
         low, high = (float(v) for v in text.split(":"))
     except ValueError:
         raise typer.BadParameter(f"expected LOW:HIGH, got {text!r}") from None
+    if not (math.isfinite(low) and math.isfinite(high) and low <= high):
+        raise typer.BadParameter(f"expected finite LOW <= HIGH, got {text!r}")
     return low, high
 
 
@@ -63,16 +70,36 @@ def _assignments(items: list[str]) -> dict[str, str]:
     return out
 
 
+def _widths(text: str) -> tuple[int, ...]:
+    """Option callback: comma-separated integers >= 1 (layer widths, grid counts)."""
+    try:
+        values = tuple(int(v) for v in text.split(","))
+    except ValueError:
+        raise typer.BadParameter(f"expected comma-separated integers, got {text!r}") from None
+    if not all(v >= 1 for v in values):
+        raise typer.BadParameter(f"every value must be >= 1, got {text!r}")
+    return values
+
+
+def _gains(text: str) -> tuple[float, ...]:
+    """Option callback: '' (no PID) or K,I,D, three finite numbers."""
+    return tuple(numbers_list(text, "K,I,D", count=3)) if text else ()
+
+
 @app.command()
 def collect(
     robot: Annotated[str, typer.Argument(help=f"one of {', '.join(sorted(robots.ROBOTS))}")],
-    out: Annotated[Path, typer.Option(help="HDF5 dataset to write")],
+    out: Annotated[Path, typer.Option(help="HDF5 dataset to write", callback=output_file)],
     bounds: Annotated[
         list[str],
         typer.Option(help="LOW:HIGH of the actuator displacements, once for all or per actuator"),
     ],
-    samples: Annotated[int, typer.Option(help="training samples (test: 25 %)")] = 6500,
-    test_fraction: Annotated[float, typer.Option(help="test samples / training samples")] = 0.25,
+    samples: Annotated[
+        int, typer.Option(help="training samples (test: 25 %)", callback=at_least_one)
+    ] = 6500,
+    test_fraction: Annotated[
+        float, typer.Option(help="test samples / training samples", callback=non_negative)
+    ] = 0.25,
     seed: Annotated[int, typer.Option(help="seed of the sampling")] = 0,
     set_: Annotated[
         list[str] | None,
@@ -82,12 +109,20 @@ def collect(
         list[str] | None, typer.Option(help="design parameter NAME=LOW:HIGH sampled with the rest")
     ] = None,
     samples_per_design: Annotated[
-        int, typer.Option(help="consecutive samples sharing one design (meshed once)")
+        int,
+        typer.Option(
+            help="consecutive samples sharing one design (meshed once)", callback=at_least_one
+        ),
     ] = 1,
     max_increment: Annotated[
-        float, typer.Option(help="largest command change per static step (halved on failure)")
+        float,
+        typer.Option(
+            help="largest command change per static step (halved on failure)", callback=positive
+        ),
     ] = 8.0,
-    chunk_size: Annotated[int, typer.Option(help="samples per saved chunk")] = 16,
+    chunk_size: Annotated[
+        int, typer.Option(help="samples per saved chunk", callback=at_least_one)
+    ] = 16,
     contacts: Annotated[
         str, typer.Option(help="mesh landmark of fixed contact points (§5.1.4), held and recorded")
     ] = "",
@@ -99,7 +134,11 @@ def collect(
         ),
     ] = None,
     sampling: Annotated[
-        str, typer.Option(help="box (Halton over the bounds) or gripper (inverse control)")
+        str,
+        typer.Option(
+            help="box (Halton over the bounds) or gripper (inverse control)",
+            callback=one_of("box", "gripper"),
+        ),
     ] = "box",
     consistent_tangent: Annotated[
         bool,
@@ -109,55 +148,65 @@ def collect(
         ),
     ] = True,
     workers: Annotated[
-        int | None, typer.Option(help="local processes (default: one per CPU)")
+        int | None,
+        typer.Option(help="local processes (default: one per CPU)", callback=at_least_one),
     ] = None,
     ray: Annotated[str | None, typer.Option(help="Ray cluster address (auto, ray://...)")] = None,
+    overwrite: Annotated[
+        bool,
+        typer.Option(
+            help="replace OUT if it exists (a finished or corrupt dataset); the saved chunks of"
+            " a partial collection of the same plan are kept and checked"
+        ),
+    ] = False,
 ) -> None:
     """Sample ROBOT's actuator displacements (scrambled Halton), solve each, write OUT.
 
     With --contacts, the contact points are held too, displaced rigidly by --object from where
     the actuators put them; --sampling gripper samples only the object's displacement, a cube
     held by three of the robot, the actuation found by inverse control (--bounds bound it).
-    Rerun the same command to resume an interrupted collection.
+    Rerun the same command to resume an interrupted collection (its saved chunks are
+    checked; corrupt ones are solved again).
     """
     from pliant.condensed.collect import collect as run_collection
     from pliant.condensed.dataset import CollectionPlan
 
-    try:
-        kwargs = {k: _number_or_text(v) for k, v in _assignments(set_ or []).items()}
-        n_act = robots.build(robot, **kwargs).n_actuators
-        intervals = [_interval(b) for b in bounds]
-        if len(intervals) == 1:
-            intervals *= n_act
-        if len(intervals) != n_act:
-            raise typer.BadParameter(f"{robot} has {n_act} actuators, got {len(intervals)} bounds")
-        plan = CollectionPlan(
-            robot,
-            tuple(intervals),
-            samples,
-            robot_kwargs=kwargs,
-            design_bounds={k: _interval(v) for k, v in _assignments(design or []).items()},
-            test_fraction=test_fraction,
-            seed=seed,
-            max_increment=max_increment,
-            samples_per_design=samples_per_design,
-            chunk_size=chunk_size,
-            contacts=contacts,
-            object_bounds=tuple(_interval(b) for b in object_ or []),
-            sampling=sampling,
-            consistent_tangent=consistent_tangent,
+    # Every option read before the robot is built (meshing takes seconds).
+    kwargs = {k: _number_or_text(v) for k, v in _assignments(set_ or []).items()}
+    intervals = [_interval(b) for b in bounds]
+    design_bounds = {k: _interval(v) for k, v in _assignments(design or []).items()}
+    object_bounds = tuple(_interval(b) for b in object_ or [])
+    n_act = robots.build(robot, **kwargs).n_actuators
+    if len(intervals) == 1:
+        intervals *= n_act
+    if len(intervals) != n_act:
+        raise typer.BadParameter(f"{robot} has {n_act} actuators, got {len(intervals)} bounds")
+    plan = CollectionPlan(
+        robot,
+        tuple(intervals),
+        samples,
+        robot_kwargs=kwargs,
+        design_bounds=design_bounds,
+        test_fraction=test_fraction,
+        seed=seed,
+        max_increment=max_increment,
+        samples_per_design=samples_per_design,
+        chunk_size=chunk_size,
+        contacts=contacts,
+        object_bounds=object_bounds,
+        sampling=sampling,
+        consistent_tangent=consistent_tangent,
+    )
+    with Progress(console=console) as bar:
+        task = bar.add_task(f"{robot}: sampled points", total=plan.n_train + plan.n_test)
+        dataset = run_collection(
+            plan,
+            out,
+            workers=workers,
+            ray_address=ray,
+            on_chunk=lambda done, total: bar.update(task, completed=done),
+            overwrite=overwrite,
         )
-        with Progress(console=console) as bar:
-            task = bar.add_task(f"{robot}: sampled points", total=plan.n_train + plan.n_test)
-            dataset = run_collection(
-                plan,
-                out,
-                workers=workers,
-                ray_address=ray,
-                on_chunk=lambda done, total: bar.update(task, completed=done),
-            )
-    except PliantError as exc:
-        raise _fail(exc) from exc
     failed = {s: int((~dataset.split(s).converged.astype(bool)).sum()) for s in ("train", "test")}
     console.print(
         f"saved {out}: {len(dataset.train)} training and {len(dataset.test)} test samples"
@@ -166,16 +215,40 @@ def collect(
 
 
 @app.command()
+def verify(
+    out: Annotated[Path, typer.Argument(help="HDF5 dataset (and its OUT.parts/ folder)")],
+) -> None:
+    """Check OUT and the saved chunks of its partial collection against their checksums.
+
+    Lists every corrupt part (exit 1), so that a corrupt dataset is collected again with
+    --overwrite and corrupt chunks are solved again by rerunning the same collect.
+    """
+    from pliant.condensed.collect import verify as find_problems
+    from pliant.errors import DatasetError
+
+    problems = find_problems(out)
+    for problem in problems[:-1]:
+        console.print(Text(f"bad: {problem}", style="red"), soft_wrap=True)
+    if problems:
+        raise DatasetError(f"{len(problems)} problem(s); last: {problems[-1]}")
+    console.print(
+        f"{out}: no corrupt part found (every checksum matches)", markup=False, soft_wrap=True
+    )
+
+
+@app.command()
 def train(
     dataset: Annotated[Path, typer.Argument(help="HDF5 dataset")],
-    out: Annotated[Path, typer.Option(help="learned model file to write (.pt)")],
-    epochs: Annotated[int, typer.Option()] = 1000,
-    batch_size: Annotated[int, typer.Option()] = 256,
-    learning_rate: Annotated[float, typer.Option()] = 1e-4,
+    out: Annotated[
+        Path, typer.Option(help="learned model file to write (.pt)", callback=output_file)
+    ],
+    epochs: Annotated[int, typer.Option(callback=at_least_one)] = 1000,
+    batch_size: Annotated[int, typer.Option(callback=at_least_one)] = 256,
+    learning_rate: Annotated[float, typer.Option(callback=positive)] = 1e-4,
     hidden: Annotated[
-        str, typer.Option(help="hidden layer widths, comma separated")
+        str, typer.Option(help="hidden layer widths, comma separated", callback=_widths)
     ] = "450,450,450",
-    dropout: Annotated[float, typer.Option()] = 0.0,
+    dropout: Annotated[float, typer.Option(callback=non_negative)] = 0.0,
     seed: Annotated[int, typer.Option()] = 0,
     log_dir: Annotated[Path | None, typer.Option(help="TensorBoard folder")] = None,
     checkpoint: Annotated[
@@ -191,39 +264,42 @@ def train(
     from pliant.condensed.parametric import train_parametric
     from pliant.condensed.train import TrainConfig, evaluate, train_condensed
 
-    try:
-        data = Dataset.load(dataset)
-        config = TrainConfig(
-            epochs=epochs,
-            batch_size=batch_size,
-            learning_rate=learning_rate,
-            hidden=tuple(int(h) for h in hidden.split(",")),
-            dropout=dropout,
-            seed=seed,
-            log_dir=log_dir,
-            checkpoint=checkpoint,
+    data = Dataset.load(dataset)
+    config = TrainConfig(
+        epochs=epochs,
+        batch_size=batch_size,
+        learning_rate=learning_rate,
+        hidden=tuple(hidden),
+        dropout=dropout,
+        seed=seed,
+        log_dir=log_dir,
+        checkpoint=checkpoint,
+    )
+    if data.plan.design_names:
+        design_config = dataclasses.replace(
+            config,
+            log_dir=None if log_dir is None else log_dir / "design",
+            checkpoint=None if checkpoint is None else checkpoint.with_suffix(".g.ckpt"),
         )
-        if data.plan.design_names:
-            design_config = dataclasses.replace(
-                config,
-                log_dir=None if log_dir is None else log_dir / "design",
-                checkpoint=None if checkpoint is None else checkpoint.with_suffix(".g.ckpt"),
-            )
-            parametric, _ = train_parametric(data, config, design_config)
-            parametric.save(out)
-            losses = parametric.training
-            console.print(
-                f"saved {out}: F test loss {losses['condensed']['test_loss']:.3g} (best epoch"
-                f" {losses['condensed']['best_epoch']}), G test loss"
-                f" {losses['design']['test_loss']:.3g} (best epoch"
-                f" {losses['design']['best_epoch']})"
-            )
-            return
-        learned, result = train_condensed(data, config)
-        learned.save(out)
-        scores = evaluate(learned, data.test)
-    except PliantError as exc:
-        raise _fail(exc) from exc
+        parametric, _ = train_parametric(data, config, design_config)
+        parametric.save(out)
+        losses = parametric.training
+        console.print(
+            f"saved {out}: F test loss {losses['condensed']['test_loss']:.3g} (best epoch"
+            f" {losses['condensed']['best_epoch']}), G test loss"
+            f" {losses['design']['test_loss']:.3g} (best epoch"
+            f" {losses['design']['best_epoch']})"
+        )
+        return
+    learned, result = train_condensed(data, config)
+    learned.save(out)
+    scores = evaluate(learned, data.test)
+    if not scores["samples"]:
+        console.print(
+            f"saved {out}: best epoch {result.best_epoch} by the training loss"
+            f" {result.best_test_loss:.3g} (no converged test sample to score it on)"
+        )
+        return
     console.print(
         f"saved {out}: best epoch {result.best_epoch}, standardised test loss"
         f" {scores['loss']:.3g} (constant-W0 baseline {scores['baseline_loss']:.3g})"
@@ -240,18 +316,15 @@ def evaluate(
     from pliant.condensed.learned import LearnedCondensedModel
     from pliant.condensed.train import evaluate as scores_of
 
-    try:
-        learned = LearnedCondensedModel.load(model)
-        data = Dataset.load(dataset)
-        learned.layout.check_matches(data.layout, str(dataset))
-        table = Table(title=f"{model.name} on {dataset.name}")
-        for col in ("split", "samples", "loss", "constant-W0 baseline"):
-            table.add_column(col)
-        for name in ("train", "test"):
-            s = scores_of(learned, data.split(name))
-            table.add_row(name, str(s["samples"]), f"{s['loss']:.3g}", f"{s['baseline_loss']:.3g}")
-    except PliantError as exc:
-        raise _fail(exc) from exc
+    learned = LearnedCondensedModel.load(model)
+    data = Dataset.load(dataset)
+    learned.layout.check_matches(data.layout, str(dataset))
+    table = Table(title=f"{model.name} on {dataset.name}")
+    for col in ("split", "samples", "loss", "constant-W0 baseline"):
+        table.add_column(col)
+    for name in ("train", "test"):
+        s = scores_of(learned, data.split(name))
+        table.add_row(name, str(s["samples"]), f"{s['loss']:.3g}", f"{s['baseline_loss']:.3g}")
     console.print(table)
 
 
@@ -259,14 +332,22 @@ def evaluate(
 def control(
     model: Annotated[Path, typer.Argument(help="learned model file")],
     trajectory: Annotated[str, typer.Option(help="goal trajectory of the robot")] = "",
-    goals: Annotated[int, typer.Option(help="number of goals")] = 30,
-    iterations: Annotated[int, typer.Option(help="control iterations per goal")] = 5,
-    pid: Annotated[str, typer.Option(help="K,I,D of the goal correction (Eq. 5.14)")] = "",
+    goals: Annotated[int, typer.Option(help="number of goals", callback=at_least_one)] = 30,
+    iterations: Annotated[
+        int, typer.Option(help="control iterations per goal", callback=at_least_one)
+    ] = 5,
+    pid: Annotated[
+        str, typer.Option(help="K,I,D of the goal correction (Eq. 5.14)", callback=_gains)
+    ] = "",
     exact: Annotated[bool, typer.Option(help="also control with the exact FEM matrices")] = True,
     embedded: Annotated[
-        int, typer.Option(help="also run the embedded loop this many iterations, report its rate")
+        int,
+        typer.Option(
+            help="also run the embedded loop this many iterations, report its rate",
+            min=0,
+        ),
     ] = 0,
-    out: Annotated[Path, typer.Option(help="output folder")] = Path("out"),
+    out: Annotated[Path, typer.Option(help="output folder", callback=output_folder)] = Path("out"),
 ) -> None:
     """Control the FEM robot with MODEL along a trajectory, beside the exact matrices.
 
@@ -283,56 +364,51 @@ def control(
     from pliant.condensed.plots import plot_reached
     from pliant.solvers import StaticSolver
 
-    try:
-        learned = LearnedCondensedModel.load(model)
-        plan = learned.plan
-        entry = robots.entry(plan.robot)
-        name = trajectory or next(iter(entry.trajectories))
-        if name not in entry.trajectories:
-            raise typer.BadParameter(
-                f"{plan.robot} has trajectories {sorted(entry.trajectories)}, not {name!r}"
-            )
-        targets = entry.trajectories[name](goals)
-        gains = [float(v) for v in pid.split(",")] if pid else []
+    learned = LearnedCondensedModel.load(model)
+    plan = learned.plan
+    entry = robots.entry(plan.robot)
+    if not entry.trajectories:
+        raise typer.BadParameter(f"{plan.robot} has no goal trajectory to control along")
+    name = trajectory or next(iter(entry.trajectories))
+    if name not in entry.trajectories:
+        raise typer.BadParameter(
+            f"{plan.robot} has trajectories {sorted(entry.trajectories)}, not {name!r}"
+        )
+    targets = entry.trajectories[name](goals)
+    gains = list(pid)
 
-        def controller() -> PID | None:
-            return PID(*gains) if gains else None
+    def controller() -> PID | None:
+        return PID(*gains) if gains else None
 
-        robot = robots.build(plan.robot, **plan.robot_kwargs)
-        reached = {}
-        with warnings.catch_warnings(record=True) as caught:
-            warnings.simplefilter("always", OutOfBoundsWarning)
-            result = follow_trajectory(
-                robot,
-                targets,
-                learned,
-                iterations=iterations,
-                pid=controller(),
-                course=learned.input_box,
-            )
-        reached["learned"] = result
-        if exact:
-            # The reference is the W the network learned (the plan's tangent).
-            reference = ExactCondensed(
-                robot, StaticSolver(robot, consistent=plan.consistent_tangent)
-            )
-            reached["exact"] = follow_trajectory(
-                robot,
-                targets,
-                reference,
-                iterations=iterations,
-                pid=controller(),
-                course=learned.input_box,
-            )
-        rate = None
-        if embedded:
-            with warnings.catch_warnings():
-                warnings.simplefilter("ignore", OutOfBoundsWarning)
-                rate = loop_frequency(
-                    EmbeddedController(learned, pid=controller()), targets, embedded
-                )
-    except PliantError as exc:
-        raise _fail(exc) from exc
+    robot = robots.build(plan.robot, **plan.robot_kwargs)
+    reached = {}
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", OutOfBoundsWarning)
+        result = follow_trajectory(
+            robot,
+            targets,
+            learned,
+            iterations=iterations,
+            pid=controller(),
+            course=learned.input_box,
+        )
+    reached["learned"] = result
+    if exact:
+        # The reference is the W the network learned (the plan's tangent).
+        reference = ExactCondensed(robot, StaticSolver(robot, consistent=plan.consistent_tangent))
+        reached["exact"] = follow_trajectory(
+            robot,
+            targets,
+            reference,
+            iterations=iterations,
+            pid=controller(),
+            course=learned.input_box,
+        )
+    rate = None
+    if embedded:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", OutOfBoundsWarning)
+            rate = loop_frequency(EmbeddedController(learned, pid=controller()), targets, embedded)
     folder = out / f"{plan.robot}_{name}"
     folder.mkdir(parents=True, exist_ok=True)
     plane = (0, 1) if plan.robot == "diamond" else (0, 2)
@@ -361,13 +437,8 @@ def control(
     console.print(f"saved {plot} and {folder / 'report.json'}")
 
 
-def _floats(text: str, what: str) -> list[float]:
-    try:
-        return [float(v) for v in text.split(",")]
-    except ValueError:
-        raise typer.BadParameter(
-            f"{what}: expected comma-separated numbers, got {text!r}"
-        ) from None
+def _floats(text: str, what: str, *, count: int | None = None) -> list[float]:
+    return numbers_list(text, what, count=count)
 
 
 @app.command()
@@ -384,9 +455,9 @@ def calibrate(
     commands: Annotated[
         str, typer.Option(help="displacements of the first actuator observed, comma separated")
     ] = "0,5,10",
-    learning_rate: Annotated[float, typer.Option()] = 0.01,
-    iterations: Annotated[int, typer.Option()] = 300,
-    out: Annotated[Path, typer.Option(help="output folder")] = Path("out"),
+    learning_rate: Annotated[float, typer.Option(callback=positive)] = 0.01,
+    iterations: Annotated[int, typer.Option(callback=at_least_one)] = 300,
+    out: Annotated[Path, typer.Option(help="output folder", callback=output_folder)] = Path("out"),
 ) -> None:
     """Calibrate MODEL to the FEM robot built with TRUTH (Eq. 5.15-5.16, Fig. 5.13).
 
@@ -398,25 +469,23 @@ def calibrate(
     from pliant.condensed.parametric import ParametricCondensedModel
     from pliant.condensed.plots import plot_calibration
 
-    try:
-        parametric = ParametricCondensedModel.load(model)
-        plan = parametric.plan
-        design = {k: float(v) for k, v in _assignments(truth).items()}
-        pulls = np.zeros((len(_floats(commands, "commands")), len(plan.actuator_bounds)))
-        pulls[:, 0] = _floats(commands, "commands")
-        delta_a, observed = observe(plan, design, pulls)
-        initial = {k: float(v) for k, v in _assignments(start).items()}
-        result = run_calibration(
-            parametric,
-            delta_a,
-            observed,
-            {**design, **initial},
-            fit=fit.split(","),
-            learning_rate=learning_rate,
-            iterations=iterations,
-        )
-    except PliantError as exc:
-        raise _fail(exc) from exc
+    design = {k: _floats(v, f"--truth {k}", count=1)[0] for k, v in _assignments(truth).items()}
+    initial = {k: _floats(v, f"--start {k}", count=1)[0] for k, v in _assignments(start).items()}
+    pull = _floats(commands, "--commands")
+    parametric = ParametricCondensedModel.load(model)
+    plan = parametric.plan
+    pulls = np.zeros((len(pull), len(plan.actuator_bounds)))
+    pulls[:, 0] = pull
+    delta_a, observed = observe(plan, design, pulls)
+    result = run_calibration(
+        parametric,
+        delta_a,
+        observed,
+        {**design, **initial},
+        fit=fit.split(","),
+        learning_rate=learning_rate,
+        iterations=iterations,
+    )
     out.mkdir(parents=True, exist_ok=True)
     report = {"truth": design, "start": initial, **dataclasses.asdict(result)}
     (out / "calibration.json").write_text(json.dumps(report, indent=1))
@@ -435,12 +504,18 @@ def design(
     model: Annotated[
         Path, typer.Argument(help="parametric Finger model (length, height, joint_height)")
     ],
-    grid: Annotated[str, typer.Option(help="grid values per design parameter")] = "10,6,10",
+    grid: Annotated[
+        str, typer.Option(help="grid values per design parameter", callback=_widths)
+    ] = "10,6,10",
     command: Annotated[str, typer.Option(help="actuator displacements of the pull")] = "10,0",
     weights: Annotated[str, typer.Option(help="gamma_1,gamma_2 of Eq. 5.20")] = "0.5,0.5",
-    iterations: Annotated[int, typer.Option(help="gradient steps per refinement")] = 200,
-    learning_rate: Annotated[float, typer.Option()] = 0.01,
-    out: Annotated[Path, typer.Option(help="output folder")] = Path("out/design"),
+    iterations: Annotated[
+        int, typer.Option(help="gradient steps per refinement", callback=at_least_one)
+    ] = 200,
+    learning_rate: Annotated[float, typer.Option(callback=positive)] = 0.01,
+    out: Annotated[Path, typer.Option(help="output folder", callback=output_folder)] = Path(
+        "out/design"
+    ),
 ) -> None:
     """Design the parametric Soft Finger with MODEL (Eq. 5.17-5.20, Fig. 5.15-5.17).
 
@@ -451,23 +526,19 @@ def design(
     from pliant.condensed.parametric import ParametricCondensedModel
     from pliant.condensed.plots import plot_design_study
 
-    try:
-        parametric = ParametricCondensedModel.load(model)
-        gamma = _floats(weights, "weights")
-        if len(gamma) != 2:
-            raise typer.BadParameter(f"two weights (dexterity, strength), got {weights!r}")
-        with Progress(console=console, transient=True) as bar:
-            bar.add_task("grid search and refinements", total=None)
-            study = design_study(
-                parametric,
-                FingerObjectives(command=tuple(_floats(command, "command"))),
-                counts=[int(v) for v in grid.split(",")],
-                weights=(gamma[0], gamma[1]),
-                iterations=iterations,
-                learning_rate=learning_rate,
-            )
-    except PliantError as exc:
-        raise _fail(exc) from exc
+    gamma = _floats(weights, "--weights (dexterity, strength)", count=2)
+    pull = tuple(_floats(command, "--command"))
+    parametric = ParametricCondensedModel.load(model)
+    with Progress(console=console, transient=True) as bar:
+        bar.add_task("grid search and refinements", total=None)
+        study = design_study(
+            parametric,
+            FingerObjectives(command=pull),
+            counts=list(grid),
+            weights=(gamma[0], gamma[1]),
+            iterations=iterations,
+            learning_rate=learning_rate,
+        )
     summary = study.summary()
     out.mkdir(parents=True, exist_ok=True)
     (out / "design.json").write_text(json.dumps(summary, indent=1))

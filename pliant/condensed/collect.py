@@ -9,18 +9,27 @@ computed, and the next call with the same plan solves only the missing chunks an
 same dataset.
 
 Chunks run on local processes (default), in this process (`workers=1`), or on a Ray cluster
-(`ray_address`, e.g. "auto" for the cluster this machine belongs to).
+(`ray_address`, e.g. "auto" for the cluster this machine belongs to). Local workers end with
+their parent (:mod:`pliant.processes`); a worker that dies ends the collection with a
+WorkerError, the chunks saved kept for the next call.
+
+Each chunk file holds a checksum of its values: a chunk found corrupt on resuming is solved
+again, and :func:`verify` names the bad ones.
 """
 
 from __future__ import annotations
 
 import functools
+import hashlib
 import json
 import multiprocessing
 import os
 import shutil
+import warnings
+import zipfile
 from collections.abc import Callable, Iterator
 from concurrent.futures import ProcessPoolExecutor, as_completed
+from concurrent.futures.process import BrokenProcessPool
 from contextlib import closing
 from dataclasses import fields
 from pathlib import Path
@@ -29,11 +38,25 @@ import numpy as np
 
 from pliant import robots
 from pliant.condensed.contact import ContactRobot, contact_points, failed_row, sample_row
-from pliant.condensed.dataset import SPLITS, CollectionPlan, Dataset, Split, atomic_write
+from pliant.condensed.dataset import (
+    SPLITS,
+    CollectionPlan,
+    Dataset,
+    Split,
+    atomic_write,
+    checksum,
+)
+from pliant.condensed.dataset import verify as verify_dataset
 from pliant.condensed.layout import Layout
 from pliant.condensed.manipulation import grasp_chunk
-from pliant.errors import DatasetError, DivergenceError
+from pliant.errors import DatasetError, DivergenceError, WorkerError
 from pliant.model import Model
+from pliant.processes import exit_with_parent
+
+
+class CorruptChunkWarning(UserWarning):
+    """A saved chunk of a partial collection failed its checksum: it is solved again."""
+
 
 ChunkKey = tuple[str, int, int]  # split, first sample, end
 
@@ -45,21 +68,39 @@ def collect(
     workers: int | None = None,
     ray_address: str | None = None,
     on_chunk: Callable[[int, int], None] | None = None,
+    overwrite: bool = False,
 ) -> Dataset:
     """Solve every sample of `plan` and write the dataset to `out` (HDF5); resume a partial
-    collection of the same plan if one is there.
+    collection of the same plan if one is there (its chunks checked, the corrupt ones solved
+    again).
 
     Args:
         workers: local worker processes (default: one per CPU); 1 solves in this process.
         ray_address: run the chunks on this Ray cluster instead ("auto", "ray://host:port").
         on_chunk: called with (samples done, samples in all) after each chunk is saved.
+        overwrite: replace `out` if it exists, and a partial collection of another plan.
+
+    Raises:
+        DatasetError: `out` exists (without `overwrite`), a partial collection of another plan
+            is there, or a chunk or the dataset cannot be written (disk full: the chunks saved
+            are kept, and the same call resumes).
+        WorkerError: a worker process died; the same call resumes.
     """
     out = Path(out)
-    if out.exists():
-        raise DatasetError(f"{out} already exists; remove it or write the dataset elsewhere")
+    if workers is not None and (
+        isinstance(workers, bool) or not isinstance(workers, int) or workers < 1
+    ):
+        raise DatasetError(f"workers must be None or an integer >= 1, got {workers!r}")
+    if out.exists() and not overwrite:
+        raise DatasetError(
+            f"{out} already exists; pass --overwrite (overwrite=True) to replace it, check it"
+            " with 'pliant condensed verify', or write the dataset elsewhere"
+        )
+    if out.is_dir():
+        raise DatasetError(f"{out} is a folder; the dataset is a file")
     model = _build(plan.robot, json.dumps(plan.robot_kwargs, sort_keys=True))
     layout = Layout.of(model, [contact_points(model, plan.contacts)] if plan.contacts else [])
-    parts = _parts_folder(out, plan)
+    parts = _parts_folder(out, plan, restart=overwrite)
     points = plan.points()
     chunks = [
         (split, start, min(start + plan.chunk_size, len(points[split])))
@@ -67,9 +108,9 @@ def collect(
         for start in range(0, len(points[split]), plan.chunk_size)
     ]
     total = sum(len(p) for p in points.values())
-    saved = {key for key in chunks if _chunk_path(parts, key).exists()}
-    done = sum(stop - start for _, start, stop in saved)
-    jobs = [(key, points[key[0]][key[1] : key[2]]) for key in chunks if key not in saved]
+    solved = {key: split for key in chunks if (split := _saved_chunk(parts, key)) is not None}
+    done = sum(stop - start for _, start, stop in solved)
+    jobs = [(key, points[key[0]][key[1] : key[2]]) for key in chunks if key not in solved]
     results = (
         _ray_chunks(plan, jobs, ray_address)
         if ray_address is not None
@@ -77,20 +118,49 @@ def collect(
     )
     with closing(results):
         for key, split in results:
-            _save_chunk(_chunk_path(parts, key), split)
+            _save_chunk(_chunk_path(parts, key), split, len(solved))
+            solved[key] = split
             done += key[2] - key[1]
             if on_chunk is not None:
                 on_chunk(done, total)
+    empty = Split.empty(Split.widths(plan, layout))
     splits = {
-        name: Split.concatenate(
-            [_load_chunk(_chunk_path(parts, k)) for k in chunks if k[0] == name]
-        )
+        name: Split.concatenate([empty, *(solved[k] for k in chunks if k[0] == name)])
         for name in SPLITS
     }
     dataset = Dataset(plan, layout, splits["train"], splits["test"])
-    dataset.save(out)
+    try:
+        dataset.save(out)
+    except OSError as exc:
+        raise DatasetError(
+            f"cannot write {out}: {exc}; every chunk is saved in {parts}: free space (or fix"
+            " the folder) and rerun the same command to write it"
+        ) from exc
     shutil.rmtree(parts)
     return dataset
+
+
+def verify(out: str | os.PathLike) -> list[str]:
+    """Problems found in the dataset file `out` and in the chunks of its partial collection
+    (`out`.parts/), one line each naming the part; empty when all is sound. A chunk listed is
+    solved again by the next `collect` of the same plan."""
+    out = Path(out)
+    parts = out.with_name(out.name + ".parts")
+    if not out.exists() and not parts.is_dir():
+        return [f"no dataset at {out} and no partial collection at {parts}"]
+    problems = verify_dataset(out) if out.exists() else []
+    if parts.is_dir():
+        plan_file = parts / "plan.json"
+        try:
+            CollectionPlan.from_dict(json.loads(plan_file.read_text()))
+        except (OSError, ValueError, TypeError, KeyError, DatasetError) as exc:
+            problems.append(f"{plan_file} is unreadable or not a plan: {exc}")
+        for path in sorted(parts.glob("*.npz")):
+            try:
+                _load_chunk(path)
+            except DatasetError as exc:
+                problems.append(str(exc))
+    return problems
 
 
 def load_or_collect(
@@ -184,12 +254,26 @@ def _local_chunks(
         for key, points in jobs:
             yield key, solve_chunk(plan, points)
         return
-    # spawn, not fork: gmsh and the BLAS threads of the parent must not be inherited
-    pool = ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("spawn"))
+    # spawn, not fork: gmsh and the BLAS threads of the parent must not be inherited; each
+    # worker ends with this process (killed, it would leave them solving for minutes)
+    pool = ProcessPoolExecutor(
+        workers,
+        mp_context=multiprocessing.get_context("spawn"),
+        initializer=exit_with_parent,
+        initargs=(os.getpid(),),
+    )
     try:
         futures = {pool.submit(solve_chunk, plan, points): key for key, points in jobs}
         for future in as_completed(futures):
-            yield futures[future], future.result()
+            try:
+                split = future.result()
+            except BrokenProcessPool as exc:
+                raise WorkerError(
+                    f"a worker process died while solving chunk {futures[future]} (killed, or"
+                    " out of memory?); the chunks finished are saved: rerun the same command"
+                    " to resume (fewer --workers if memory is short)"
+                ) from exc
+            yield futures[future], split
     finally:
         pool.shutdown(wait=True, cancel_futures=True)
 
@@ -215,27 +299,41 @@ def _ray_chunks(
             ray.cancel(ref)
 
 
-def _parts_folder(out: Path, plan: CollectionPlan) -> Path:
-    """OUT.parts/, holding plan.json and the finished chunks; refuses another plan's."""
+def _parts_folder(out: Path, plan: CollectionPlan, *, restart: bool = False) -> Path:
+    """OUT.parts/, holding plan.json and the finished chunks; refuses another plan's (starts
+    over with `restart`)."""
     parts = out.with_name(out.name + ".parts")
-    parts.mkdir(parents=True, exist_ok=True)
+    try:
+        parts.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise DatasetError(f"cannot make the folder {parts} for the chunks: {exc}") from exc
     plan_file = parts / "plan.json"
     wanted = json.loads(json.dumps(plan.to_dict()))
     if plan_file.exists():
         try:
             found = json.loads(plan_file.read_text())
         except ValueError as exc:
-            raise DatasetError(f"{plan_file} is corrupt: {exc}") from exc
+            if not restart:
+                raise DatasetError(
+                    f"{plan_file} is corrupt: {exc}; pass --overwrite to start over"
+                ) from exc
+            found = None
+        if found != wanted and restart:
+            shutil.rmtree(parts)
+            return _parts_folder(out, plan)
         if found != wanted:
             differs = sorted(
                 k for k in wanted.keys() | found.keys() if wanted.get(k) != found.get(k)
             )
             raise DatasetError(
                 f"the partial collection in {parts} was started with another plan (differs in"
-                f" {differs}); collect with the same settings or delete that folder"
+                f" {differs}); collect with the same settings, or pass --overwrite to start over"
             )
     else:
-        atomic_write(plan_file, lambda tmp: Path(tmp).write_text(json.dumps(wanted, indent=1)))
+        try:
+            atomic_write(plan_file, lambda tmp: Path(tmp).write_text(json.dumps(wanted, indent=1)))
+        except OSError as exc:
+            raise DatasetError(f"cannot write {plan_file}: {exc}") from exc
     return parts
 
 
@@ -244,15 +342,52 @@ def _chunk_path(parts: Path, key: ChunkKey) -> Path:
     return parts / f"{split}-{start:07d}-{stop:07d}.npz"
 
 
-def _save_chunk(path: Path, split: Split) -> None:
-    atomic_write(
-        path, lambda tmp: np.savez(tmp, **{f.name: getattr(split, f.name) for f in fields(Split)})
-    )
+def _chunk_checksum(arrays: dict[str, np.ndarray]) -> str:
+    digest = hashlib.sha256()
+    for name in sorted(arrays):
+        digest.update(f"{name}:{checksum(arrays[name])};".encode())
+    return digest.hexdigest()
+
+
+def _save_chunk(path: Path, split: Split, saved: int) -> None:
+    """Write a chunk atomically with its checksum; DatasetError (the `saved` chunks kept) if
+    it cannot be written."""
+    arrays = {f.name: getattr(split, f.name) for f in fields(Split)}
+    try:
+        atomic_write(path, lambda tmp: np.savez(tmp, sha256=_chunk_checksum(arrays), **arrays))
+    except OSError as exc:
+        raise DatasetError(
+            f"cannot save the chunk {path.name}: {exc}; the {saved} chunks saved in"
+            f" {path.parent} are kept: free space (or fix the folder) and rerun the same"
+            " command to resume"
+        ) from exc
 
 
 def _load_chunk(path: Path) -> Split:
+    """A saved chunk, its checksum verified (chunks saved before checksums: their zip CRCs)."""
     try:
-        with np.load(path) as data:
-            return Split(**{f.name: data[f.name] for f in fields(Split)})
-    except (OSError, KeyError, ValueError) as exc:
-        raise DatasetError(f"the saved chunk {path} is unreadable ({exc}); delete it") from exc
+        with np.load(path, allow_pickle=False) as data:
+            arrays = {f.name: data[f.name] for f in fields(Split)}
+            stored = str(data["sha256"]) if "sha256" in data.files else None
+    except (OSError, KeyError, ValueError, EOFError, zipfile.BadZipFile) as exc:
+        raise DatasetError(f"the saved chunk {path} is unreadable ({exc})") from exc
+    if stored is not None and stored != _chunk_checksum(arrays):
+        raise DatasetError(f"the saved chunk {path} fails its checksum (corrupt)")
+    return Split(**arrays)
+
+
+def _saved_chunk(parts: Path, key: ChunkKey) -> Split | None:
+    """The chunk `key` saved by an earlier call, or None: not saved, or corrupt (deleted, with
+    a warning, to be solved again)."""
+    path = _chunk_path(parts, key)
+    if not path.exists():
+        return None
+    try:
+        split = _load_chunk(path)
+        if len(split) != key[2] - key[1]:
+            raise DatasetError(f"the saved chunk {path} has {len(split)} samples, not {key}")
+    except DatasetError as exc:
+        warnings.warn(f"{exc}: solved again", CorruptChunkWarning, stacklevel=3)
+        path.unlink(missing_ok=True)
+        return None
+    return split

@@ -14,6 +14,8 @@ delta_a = W_aa lambda_a + delta_a_free. The robot is then driven in displacement
 from __future__ import annotations
 
 import dataclasses
+import math
+import numbers
 import time
 from dataclasses import dataclass, field
 from typing import Protocol
@@ -28,7 +30,7 @@ from pliant.condensed.sampling import Box
 from pliant.constraints.base import actuator_bounds
 from pliant.constraints.condensed import CondensedProblem
 from pliant.constraints.inverse import InverseSolution, solve_inverse
-from pliant.errors import LearnedModelError
+from pliant.errors import LearnedModelError, ModelError
 from pliant.model import Model, State
 from pliant.solvers import StaticSolver
 
@@ -186,6 +188,14 @@ class PID:
     derivative: float = 0.0
     _sum: np.ndarray | None = field(default=None, init=False, repr=False)
     _previous: np.ndarray | None = field(default=None, init=False, repr=False)
+
+    def __post_init__(self) -> None:
+        for name in ("proportional", "integral", "derivative"):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, numbers.Real):
+                raise ModelError(f"PID gain {name} must be a real number, got {value!r}")
+            if not math.isfinite(value):
+                raise ModelError(f"PID gain {name} must be finite, got {value!r}")
 
     def correct(self, goal: np.ndarray, measured: np.ndarray) -> np.ndarray:
         error = goal - measured

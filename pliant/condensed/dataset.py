@@ -6,14 +6,20 @@ W0 and delta0_free of its design (at lambda = 0), the design parameters and the 
 
 File layout (format_version 1): root attributes `format` and `format_version` and `metadata`
 (JSON: the collection plan, the constraint layout, the software version); groups `train` and
-`test` with one dataset per field of :class:`Split`, one row per sample. Samples whose static
+`test` with one dataset per field of :class:`Split`, one row per sample. Every dataset carries
+HDF5's Fletcher-32 checksum per storage chunk and a `sha256` attribute over its values, the
+metadata a `metadata_sha256`: a corrupt byte anywhere fails `Dataset.load` and `verify` names
+the part (files written before the checksums load unchecked). Samples whose static
 solve failed are kept, NaN-filled, with `converged` false, so that a plan always gives the same
 rows; learning uses the converged ones.
 """
 
 from __future__ import annotations
 
+import hashlib
 import json
+import math
+import numbers
 import os
 import tempfile
 from collections.abc import Callable
@@ -32,7 +38,10 @@ FORMAT = "pliant-condensed-dataset"
 FORMAT_VERSION = 1
 SPLITS = ("train", "test")
 SAMPLINGS = ("box", "gripper")
-GRIPPER_FINGERS = 3  # fingers of the gripper that "gripper" sampling holds its object with
+GRIPPER_FINGERS = 3
+FLOAT32_MAX = float(
+    np.finfo(np.float32).max
+)  # fingers of the gripper that "gripper" sampling holds its object with
 
 
 @dataclass(frozen=True)
@@ -99,6 +108,28 @@ class CollectionPlan:
     consistent_tangent: bool = True
 
     def __post_init__(self) -> None:
+        kinds = {
+            "n_train": numbers.Integral,
+            "chunk_size": numbers.Integral,
+            "newton_iterations": numbers.Integral,
+            "samples_per_design": numbers.Integral,
+            "seed": numbers.Integral,
+            "test_fraction": numbers.Real,
+            "max_increment": numbers.Real,
+            "tolerance": numbers.Real,
+        }
+        for name, kind in kinds.items():
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, kind):
+                what = "an integer" if kind is numbers.Integral else "a real number"
+                raise DatasetError(f"{name} must be {what}, got {value!r}")
+        if not all(
+            math.isfinite(getattr(self, name))
+            for name in ("test_fraction", "max_increment", "tolerance")
+        ):
+            raise DatasetError("test_fraction, max_increment and tolerance must be finite")
+        if not isinstance(self.robot, str):
+            raise DatasetError(f"robot must be a robot's name, got {self.robot!r}")
         if self.n_train < 1 or self.chunk_size < 1:
             raise DatasetError(
                 f"n_train and chunk_size must be >= 1, got {self.n_train}, {self.chunk_size}"
@@ -233,6 +264,14 @@ class Split:
         return len(self.converged)
 
     @classmethod
+    def empty(cls, widths: dict[str, int]) -> Split:
+        """No samples, with the columns of `widths` (:meth:`widths`): a split of zero rows."""
+        return cls(
+            **{name: np.zeros((0, n)) for name, n in widths.items()},
+            converged=np.zeros(0, dtype=bool),
+        )
+
+    @classmethod
     def concatenate(cls, parts: list[Split]) -> Split:
         return cls(
             **{f.name: np.concatenate([getattr(p, f.name) for p in parts]) for f in fields(cls)}
@@ -250,7 +289,8 @@ class Split:
         """Outputs of F: (W triangle, delta_free)."""
         return np.hstack([self.w_triangle, self.free_distance])
 
-    def widths(self, plan: CollectionPlan, layout: Layout) -> dict[str, int]:
+    @staticmethod
+    def widths(plan: CollectionPlan, layout: Layout) -> dict[str, int]:
         """Expected number of columns of each field."""
         counts = layout.counts
         return {
@@ -299,11 +339,16 @@ class Dataset:
         with h5py.File(filename, "w") as f:
             f.attrs["format"] = FORMAT
             f.attrs["format_version"] = FORMAT_VERSION
-            f.attrs["metadata"] = json.dumps(self.metadata())
+            metadata = json.dumps(self.metadata())
+            f.attrs["metadata"] = metadata
+            f.attrs["metadata_sha256"] = hashlib.sha256(metadata.encode()).hexdigest()
             for name in SPLITS:
                 group = f.create_group(name)
                 for fld in fields(Split):
-                    group.create_dataset(fld.name, data=getattr(self.split(name), fld.name))
+                    values = getattr(self.split(name), fld.name)
+                    # Fletcher-32 needs chunked storage, which needs at least one element.
+                    stored = group.create_dataset(fld.name, data=values, fletcher32=values.size > 0)
+                    stored.attrs["sha256"] = checksum(values)
 
     @classmethod
     def load(cls, path: str | os.PathLike) -> Dataset:
@@ -315,36 +360,47 @@ class Dataset:
             f = h5py.File(path, "r")
         except OSError as exc:
             raise DatasetError(f"{path} is not a readable HDF5 file (corrupt?): {exc}") from exc
-        with f:
-            fmt = f.attrs.get("format")
-            if fmt != FORMAT:
-                raise DatasetError(f"{path} is not a Pliant condensed dataset (format {fmt!r})")
-            version = int(f.attrs.get("format_version", -1))
-            if version != FORMAT_VERSION:
-                raise DatasetError(
-                    f"{path} has dataset format version {version}; this Pliant reads version"
-                    f" {FORMAT_VERSION}"
-                )
-            try:
-                meta = json.loads(f.attrs["metadata"])
-                plan = CollectionPlan.from_dict(meta["plan"])
-                layout = Layout.from_dict(meta["layout"])
-                version_made = meta["software_version"]
-            except (KeyError, TypeError, ValueError, LearnedModelError) as exc:
-                raise DatasetError(f"{path} has malformed metadata: {exc}") from exc
-            splits = {}
-            for name in SPLITS:
-                if name not in f:
-                    raise DatasetError(f"{path} has no '{name}' group")
-                missing = [fld.name for fld in fields(Split) if fld.name not in f[name]]
-                if missing:
-                    raise DatasetError(f"{path}: the '{name}' group lacks {missing}")
-                try:
-                    splits[name] = Split(
-                        **{fld.name: f[name][fld.name][()] for fld in fields(Split)}
-                    )
-                except OSError as exc:
-                    raise DatasetError(f"{path}: cannot read '{name}' (corrupt?): {exc}") from exc
+        try:
+            with f:
+                return cls._read(f, path)
+        except DatasetError:
+            raise
+        except Exception as exc:  # h5py raises many types on a damaged file's structure
+            raise DatasetError(f"{path} is damaged (corrupt HDF5 structure): {exc}") from exc
+
+    @classmethod
+    def _read(cls, f: h5py.File, path: Path) -> Dataset:
+        """The dataset in the open file `f`, every checksum verified."""
+        fmt = f.attrs.get("format")
+        if fmt != FORMAT:
+            raise DatasetError(f"{path} is not a Pliant condensed dataset (format {fmt!r})")
+        version = int(f.attrs.get("format_version", -1))
+        if version != FORMAT_VERSION:
+            raise DatasetError(
+                f"{path} has dataset format version {version}; this Pliant reads version"
+                f" {FORMAT_VERSION}"
+            )
+        stored = f.attrs.get("metadata_sha256")
+        metadata = f.attrs.get("metadata", "")
+        if stored is not None and stored != hashlib.sha256(str(metadata).encode()).hexdigest():
+            raise DatasetError(f"{path}: its metadata fail their checksum (corrupt file)")
+        try:
+            meta = json.loads(f.attrs["metadata"])
+            plan = CollectionPlan.from_dict(meta["plan"])
+            layout = Layout.from_dict(meta["layout"])
+            version_made = meta["software_version"]
+        except (KeyError, TypeError, ValueError, LearnedModelError) as exc:
+            raise DatasetError(f"{path} has malformed metadata: {exc}") from exc
+        splits = {}
+        for name in SPLITS:
+            if name not in f:
+                raise DatasetError(f"{path} has no '{name}' group")
+            missing = [fld.name for fld in fields(Split) if fld.name not in f[name]]
+            if missing:
+                raise DatasetError(f"{path}: the '{name}' group lacks {missing}")
+            splits[name] = Split(
+                **{fld.name: _read_checked(f[name], fld.name, path) for fld in fields(Split)}
+            )
         dataset = cls(plan, layout, splits["train"], splits["test"], version_made)
         dataset.validate(str(path))
         return dataset
@@ -370,6 +426,14 @@ class Dataset:
             good = split.converged_only()
             if not all(np.all(np.isfinite(getattr(good, f.name))) for f in fields(Split)):
                 raise DatasetError(f"{what}: '{name}' has non-finite values in converged samples")
+            # Learning runs in float32: a value beyond its range is an infinity there.
+            for f in fields(Split):
+                values = getattr(good, f.name)
+                if values.size and np.max(np.abs(values)) > FLOAT32_MAX:
+                    raise DatasetError(
+                        f"{what}: '{name}/{f.name}' holds {np.max(np.abs(values)):.3g}, beyond"
+                        f" float32's range ({FLOAT32_MAX:.3g}) in which learning runs (corrupt?)"
+                    )
 
 
 def atomic_write(path: Path, write: Callable[[str], object]) -> None:
@@ -383,3 +447,50 @@ def atomic_write(path: Path, write: Callable[[str], object]) -> None:
     finally:
         if os.path.exists(tmp):
             os.remove(tmp)
+
+
+def checksum(values: np.ndarray) -> str:
+    """SHA-256 of an array's dtype, shape and values (C order)."""
+    values = np.ascontiguousarray(values)
+    digest = hashlib.sha256(f"{values.dtype.str}{values.shape}".encode())
+    digest.update(values.tobytes())
+    return digest.hexdigest()
+
+
+def _read_checked(group: h5py.Group, name: str, path: Path) -> np.ndarray:
+    """The values of `group[name]`, their checksums verified (DatasetError naming the part)."""
+    where = f"{path}: '{group.name.strip('/')}/{name}'"
+    try:
+        values = group[name][()]
+    except OSError as exc:  # Fletcher-32 mismatch, unreadable chunk
+        raise DatasetError(f"{where} is unreadable (corrupt?): {exc}") from exc
+    stored = group[name].attrs.get("sha256")
+    if stored is not None and stored != checksum(values):
+        raise DatasetError(f"{where} fails its checksum: the file is corrupt")
+    return values
+
+
+def verify(path: str | os.PathLike) -> list[str]:
+    """Every problem found in the dataset file at `path` (empty: it is sound): each split's
+    fields read and checked against their checksums one by one, then the whole validated."""
+    path = Path(path)
+    try:
+        Dataset.load(path)
+    except DatasetError as exc:
+        first = str(exc)
+    else:
+        return []
+    problems = []
+    try:
+        with h5py.File(path, "r") as f:
+            for name in SPLITS:
+                for fld in fields(Split):
+                    try:
+                        _read_checked(f[name], fld.name, path)
+                    except DatasetError as exc:
+                        problems.append(str(exc))
+                    except Exception as exc:  # a damaged group or a missing dataset
+                        problems.append(f"{path}: '{name}/{fld.name}' is unreadable: {exc}")
+    except Exception:  # not even the structure reads: the first error says why
+        pass
+    return problems or [first]

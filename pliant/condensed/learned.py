@@ -18,7 +18,7 @@ import numpy as np
 import torch
 
 import pliant
-from pliant.condensed.dataset import CollectionPlan, Dataset
+from pliant.condensed.dataset import CollectionPlan, Dataset, atomic_write
 from pliant.condensed.layout import Layout
 from pliant.condensed.networks import StandardisedMLP
 from pliant.condensed.sampling import Box
@@ -86,6 +86,7 @@ class LearnedCondensedModel:
                 f"the network maps {network.n_inputs} -> {network.n_outputs} values; the"
                 f" layout needs {n_in} -> {n_out}"
             )
+        check_finite(network, "F")
         self.network = network.eval()
         self.layout = layout
         self.plan = plan
@@ -127,9 +128,14 @@ class LearnedCondensedModel:
         """W and delta_free (Eq. 5.2) at actuator (and contact) distances delta_a (delta_c),
         for the rest values `rest` (default: the training design's). Warns with
         OutOfBoundsWarning, giving the distance, outside the region of the training data."""
-        active = np.concatenate(
-            [np.ravel(delta_a), np.zeros(0) if delta_c is None else np.ravel(delta_c)]
-        )
+        try:
+            active = np.concatenate(
+                [np.ravel(delta_a), np.zeros(0) if delta_c is None else np.ravel(delta_c)]
+            ).astype(float)
+        except (TypeError, ValueError) as exc:
+            raise LearnedModelError(f"the distances must be numbers: {exc}") from None
+        if not np.all(np.isfinite(active)):
+            raise LearnedModelError(f"the distances must be finite, got {active.tolist()}")
         if active.size != self.input_box.dim:
             raise LearnedModelError(
                 f"the model takes {self.input_box.dim} actuator and contact distances, got"
@@ -157,9 +163,9 @@ class LearnedCondensedModel:
         return self.predict(state.displacement[:n_a], state.displacement[n_a:])
 
     def save(self, path: str | os.PathLike) -> Path:
-        path = Path(path)
-        path.parent.mkdir(parents=True, exist_ok=True)
-        torch.save(
+        """Write the model atomically (LearnedModelError, nothing left behind, on failure)."""
+        return write_model_file(
+            path,
             {
                 "format": FORMAT,
                 "format_version": FORMAT_VERSION,
@@ -172,9 +178,7 @@ class LearnedCondensedModel:
                 "rest": [r.tolist() for r in self.rest],
                 "training": self.training,
             },
-            path,
         )
-        return path
 
     @classmethod
     def load(cls, path: str | os.PathLike) -> LearnedCondensedModel:
@@ -193,6 +197,28 @@ class LearnedCondensedModel:
             )
         except (KeyError, TypeError, ValueError, RuntimeError) as exc:
             raise LearnedModelError(f"{path} is incomplete or inconsistent: {exc}") from exc
+
+
+def check_finite(network: torch.nn.Module, name: str) -> None:
+    """LearnedModelError if a weight of `network` is NaN or infinite (a diverged training):
+    its predictions would be NaN, reported later as anything but their cause."""
+    for key, value in network.state_dict().items():
+        if value.is_floating_point() and not bool(torch.isfinite(value).all()):
+            raise LearnedModelError(
+                f"{name} has non-finite weights ({key}): it comes from a diverged training;"
+                " train it again (a lower learning rate, or check the dataset)"
+            )
+
+
+def write_model_file(path: str | os.PathLike, data: dict) -> Path:
+    """torch.save `data` to `path` atomically; LearnedModelError if it cannot be written."""
+    path = Path(path)
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        atomic_write(path, lambda tmp: torch.save(data, tmp))
+    except (OSError, RuntimeError) as exc:  # torch reports a full disk as RuntimeError
+        raise LearnedModelError(f"cannot write the model file {path}: {exc}") from exc
+    return path
 
 
 def read_model_file(path: Path, fmt: str, version: int, kind: str) -> dict:

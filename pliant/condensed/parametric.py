@@ -19,7 +19,7 @@ from torch import Tensor
 import pliant
 from pliant.condensed.dataset import CollectionPlan, Dataset
 from pliant.condensed.layout import Layout
-from pliant.condensed.learned import read_model_file
+from pliant.condensed.learned import check_finite, read_model_file, write_model_file
 from pliant.condensed.mechanics import effector_displacement, symmetric
 from pliant.condensed.networks import ComposedNetwork, StandardisedMLP
 from pliant.condensed.sampling import Box
@@ -97,6 +97,8 @@ class ParametricCondensedModel:
                     f"{name} maps {network.n_inputs} -> {network.n_outputs} values; the layout"
                     f" and design need {n_in} -> {n_out}"
                 )
+        check_finite(condensed, "F")
+        check_finite(design, "G")
         self.network = ComposedNetwork(condensed, design).to(torch.float64).eval()
         self.layout = layout
         self.plan = plan
@@ -133,9 +135,9 @@ class ParametricCondensedModel:
         return torch.tensor([base], dtype=torch.float64)
 
     def save(self, path: str | os.PathLike) -> Path:
-        path = Path(path)
-        path.parent.mkdir(parents=True, exist_ok=True)
-        torch.save(
+        """Write the model atomically (LearnedModelError, nothing left behind, on failure)."""
+        return write_model_file(
+            path,
             {
                 "format": FORMAT,
                 "format_version": FORMAT_VERSION,
@@ -152,9 +154,7 @@ class ParametricCondensedModel:
                 "input_box": [self.input_box.low.tolist(), self.input_box.high.tolist()],
                 "training": self.training,
             },
-            path,
         )
-        return path
 
     @classmethod
     def load(cls, path: str | os.PathLike) -> ParametricCondensedModel:

@@ -24,8 +24,11 @@ class Box:
     high: np.ndarray
 
     def __post_init__(self) -> None:
-        low = np.asarray(self.low, dtype=float).reshape(-1)
-        high = np.asarray(self.high, dtype=float).reshape(-1)
+        try:
+            low = np.asarray(self.low, dtype=float).reshape(-1)
+            high = np.asarray(self.high, dtype=float).reshape(-1)
+        except (TypeError, ValueError) as exc:
+            raise DatasetError(f"box bounds must be numbers, got {self.low}, {self.high}") from exc
         if low.shape != high.shape:
             raise DatasetError(f"box bounds of {low.size} and {high.size} values")
         if not (np.all(np.isfinite(low)) and np.all(np.isfinite(high)) and np.all(low <= high)):

@@ -4,12 +4,16 @@ Adam with a learning rate reduced on plateaus, the best epoch kept.
 The loss is Eq. 5.5 averaged over samples and output elements (a mean squared error), so that
 its values compare across dataset sizes and robots, as the thesis' Tables 5.1-5.2 do. The best
 epoch is the one with the lowest test loss, the network the thesis keeps; the learning-rate
-schedule follows the training loss. A checkpoint written every few epochs lets an interrupted
-training go on where it stopped.
+schedule follows the training loss (and the best epoch too when there is no test sample). A
+checkpoint written every few epochs lets an interrupted training go on where it stopped; a
+loss that turns non-finite stops the run with a TrainingError naming the epoch, before the
+diverged weights can be saved.
 """
 
 from __future__ import annotations
 
+import math
+import numbers
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -21,7 +25,7 @@ from torch import Tensor
 from pliant.condensed.dataset import Dataset, Split, atomic_write
 from pliant.condensed.learned import LearnedCondensedModel
 from pliant.condensed.networks import StandardisedMLP
-from pliant.errors import DatasetError
+from pliant.errors import DatasetError, TrainingError
 
 
 @dataclass
@@ -46,6 +50,30 @@ class TrainConfig:
     checkpoint: Path | None = None
     checkpoint_every: int = 50
     progress: bool = True
+
+    def __post_init__(self) -> None:
+        counts = {
+            "epochs": self.epochs,
+            "batch_size": self.batch_size,
+            "lr_patience": self.lr_patience + 1,
+            "checkpoint_every": self.checkpoint_every,
+        }
+        for name, value in counts.items():
+            if isinstance(value, bool) or not isinstance(value, int) or value < 1:
+                raise TrainingError(f"{name} must be an integer >= 1, got {getattr(self, name)!r}")
+        if not self.hidden or not all(isinstance(h, int) and h >= 1 for h in self.hidden):
+            raise TrainingError(f"hidden widths must be integers >= 1, got {self.hidden!r}")
+        reals = {"learning_rate": self.learning_rate, "dropout": self.dropout}
+        reals["lr_factor"] = self.lr_factor
+        for name, value in reals.items():
+            if isinstance(value, bool) or not isinstance(value, numbers.Real):
+                raise TrainingError(f"{name} must be a real number, got {value!r}")
+        if not (math.isfinite(self.learning_rate) and self.learning_rate > 0):
+            raise TrainingError(f"learning_rate must be finite and > 0, got {self.learning_rate}")
+        if not (math.isfinite(self.dropout) and 0 <= self.dropout < 1):
+            raise TrainingError(f"dropout must lie in [0, 1), got {self.dropout}")
+        if not (math.isfinite(self.lr_factor) and 0 < self.lr_factor < 1):
+            raise TrainingError(f"lr_factor must lie in (0, 1), got {self.lr_factor}")
 
 
 @dataclass
@@ -94,12 +122,27 @@ def fit(
                 optimiser.step()
                 total += loss.item() * len(batch)
             train_loss = total / len(x_train)
+            lr = optimiser.param_groups[0]["lr"]
+            if not math.isfinite(train_loss):
+                raise TrainingError(
+                    f"epoch {epoch}: the training loss is {train_loss} (non-finite); likely"
+                    " causes: values in the data too large for float32 once squared, or a"
+                    f" learning rate ({lr:g}) too high. Nothing of this epoch was saved (a"
+                    " checkpoint keeps the last one written before it)"
+                )
             scheduler.step(train_loss)
             test_loss = evaluate_loss(network, *test)
-            lr = optimiser.param_groups[0]["lr"]
+            if len(test[0]) and not math.isfinite(test_loss):
+                raise TrainingError(
+                    f"epoch {epoch}: the test loss is {test_loss} (non-finite) while the"
+                    f" training loss is {train_loss:.3g}: the test data hold values the"
+                    " network maps out of float32's range (corrupt or extreme test samples?)"
+                )
+            # Without test samples the best epoch is the one of the lowest training loss.
+            score = test_loss if len(test[0]) else train_loss
             history.append({"epoch": epoch, "train": train_loss, "test": test_loss, "lr": lr})
-            if test_loss < best["loss"]:
-                best = {"epoch": epoch, "loss": test_loss, "state": _copy_state(network)}
+            if score < best["loss"]:
+                best = {"epoch": epoch, "loss": score, "state": _copy_state(network)}
             if writer is not None:
                 writer.add_scalars("loss", {"train": train_loss, "test": test_loss}, epoch)
                 writer.add_scalar("learning_rate", lr, epoch)
@@ -221,7 +264,13 @@ def _save_checkpoint(path, epoch, network, optimiser, scheduler, generator, best
         "best": best,
         "history": history,
     }
-    atomic_write(path, lambda tmp: torch.save(state, tmp))
+    try:
+        atomic_write(path, lambda tmp: torch.save(state, tmp))
+    except (OSError, RuntimeError) as exc:  # torch reports a full disk as RuntimeError
+        raise TrainingError(
+            f"epoch {epoch}: cannot write the checkpoint {path}: {exc}; the previous checkpoint"
+            " is kept: free space and rerun the same command to resume"
+        ) from exc
 
 
 def _resume(path, network, optimiser, scheduler, generator):

@@ -167,6 +167,16 @@ class Actuator(Constraint):
         self.max_force = _check_real("max_force", max_force)
         self.min_displacement = _check_real("min_displacement", min_displacement)
         self.max_displacement = _check_real("max_displacement", max_displacement)
+        if self.min_force == math.inf or self.max_force == -math.inf:
+            raise ConstraintError(
+                f"{name}: a force bound of {self.min_force} to {self.max_force} admits no finite"
+                " force (min_force < inf, max_force > -inf)"
+            )
+        if self.min_displacement == math.inf or self.max_displacement == -math.inf:
+            raise ConstraintError(
+                f"{name}: a displacement bound of {self.min_displacement} to"
+                f" {self.max_displacement} admits no finite displacement"
+            )
         if self.min_force > self.max_force:
             raise ConstraintError(
                 f"{name}: min_force {self.min_force} > max_force {self.max_force}:"

@@ -6,6 +6,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from pliant.errors import ConstraintError
+
 
 @dataclass(frozen=True)
 class CondensedProblem:
@@ -41,11 +43,19 @@ class CondensedProblem:
 
     def block(self, row: str, col: str) -> np.ndarray:
         """W_{row,col}, e.g. block("effector", "actuator") is W_ea."""
-        return self.compliance[self.slices[row], self.slices[col]]
+        return self.compliance[self._rows(row), self._rows(col)]
 
     def free(self, role: str) -> np.ndarray:
         """delta_free of one role."""
-        return self.free_distance[self.slices[role]]
+        return self.free_distance[self._rows(role)]
+
+    def _rows(self, role: str) -> slice:
+        try:
+            return self.slices[role]
+        except (KeyError, TypeError):
+            raise ConstraintError(
+                f"no constraint role {role!r}; the roles are {', '.join(map(repr, self.slices))}"
+            ) from None
 
     @property
     def n_actuators(self) -> int:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import numbers
 import warnings
 from dataclasses import dataclass
 
@@ -19,7 +20,12 @@ from pliant.constraints.friction import (
     solve_contact,
 )
 from pliant.constraints.inverse import solve_inverse, solve_inverse_with_contacts
-from pliant.errors import ContactConvergenceWarning, InfeasibleProblemError, ModelError
+from pliant.errors import (
+    ContactConvergenceWarning,
+    InfeasibleProblemError,
+    ModelError,
+    SolverError,
+)
 
 
 @dataclass
@@ -77,17 +83,35 @@ class InverseControl:
     seed_gap: with contacts, contacts whose gap is at most this distance start the QPCC's
     active set closed (with the ones that carried a force at the previous step), so that the
     QP may choose to close them; the rounds then open those it does not push on.
+    contact_time_limit: seconds the QPCC's rounds may take per step (None: no limit); past
+    it, the last feasible round's forces are applied with a ContactConvergenceWarning.
     """
 
     goals: list[np.ndarray] | np.ndarray | None = None
     regularisation: float = 1e-3
     course: str = "soft"
     seed_gap: float = 0.0
+    contact_time_limit: float | None = 10.0
     roles = ("actuator", "effector")
 
     def prepare(self, model) -> None:
-        if not (math.isfinite(self.seed_gap) and self.seed_gap >= 0.0):
-            raise ModelError(f"seed_gap must be finite and >= 0, got {self.seed_gap!r}")
+        # Checked here, where they enter: a NaN or negative weight would only show later as
+        # a QP that does not converge.
+        for name in ("seed_gap", "regularisation"):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, numbers.Real):
+                raise ModelError(f"{name} must be a real number, got {value!r}")
+            if not (math.isfinite(value) and value >= 0.0):
+                raise ModelError(f"{name} must be finite and >= 0, got {value!r}")
+        limit = self.contact_time_limit
+        if limit is not None and (
+            isinstance(limit, bool)
+            or not isinstance(limit, numbers.Real)
+            or not (math.isfinite(limit) and limit > 0)
+        ):
+            raise ModelError(f"contact_time_limit must be None or finite and > 0, got {limit!r}")
+        if self.course not in ("soft", "hard"):
+            raise ModelError(f"course must be 'soft' or 'hard', got {self.course!r}")
         if self.goals is None:
             return
         goals = [self.goals] if isinstance(self.goals, np.ndarray) else list(self.goals)
@@ -121,6 +145,7 @@ class InverseControl:
                 contact.friction,
                 regularisation=self.regularisation,
                 initial_active=closed,
+                time_limit=self.contact_time_limit,
             )
             actuation, rounds, settled = sol.forces[sa], sol.rounds, sol.settled
         except InfeasibleProblemError as exc:
@@ -134,9 +159,15 @@ class InverseControl:
             )
         else:
             if not settled:
+                late = (
+                    f" (stopped at the time limit, contact_time_limit={self.contact_time_limit:g}"
+                    " s)"
+                    if sol.timed_out
+                    else ""
+                )
                 warnings.warn(
                     f"the contact states of the inverse problem did not settle in {rounds}"
-                    " rounds; its last round's actuator forces are applied",
+                    f" rounds{late}; its last round's actuator forces are applied",
                     ContactConvergenceWarning,
                     stacklevel=3,
                 )
@@ -188,7 +219,23 @@ def as_control(control):
         return DirectControl()
     if hasattr(control, "actuation") and hasattr(control, "prepare"):
         return control
-    return DirectControl(np.asarray(control, dtype=float))
+    return DirectControl(commands(control))
+
+
+def commands(values) -> np.ndarray:
+    """Actuator commands as a 1-D float array: ModelError for text, complex numbers, nested
+    arrays (a (2, 2) array is not 4 commands) or anything else that is not a vector of reals."""
+    try:
+        array = np.asarray(values)
+    except (ValueError, TypeError) as exc:  # ragged nested sequences
+        raise ModelError(f"actuator commands must be a vector of numbers: {exc}") from None
+    if array.dtype.kind not in "iuf" or array.ndim > 1:
+        raise ModelError(
+            "actuator commands must be a number or a vector of real numbers (one per"
+            f" actuator), got {type(values).__name__} of dtype {array.dtype} and shape"
+            f" {array.shape}"
+        )
+    return array.astype(float).reshape(-1)
 
 
 def constraint_forces(
@@ -197,15 +244,21 @@ def constraint_forces(
     """lambda for every row of `problem` (effectors passive), the contact solver's report and
     the contact forces by identity (None and empty without contact rows)."""
     lam = np.zeros(problem.free_distance.size)
-    if contact is None:
-        lam[problem.slices["actuator"]] = control.actuation(problem, model, state)
-        return lam, None, ContactForces.empty()
-    solve = getattr(control, "actuation_with_contacts", None)
-    if solve is None:
-        raise ModelError(
-            f"{type(control).__name__} does not handle contacts, and {model.name} touches an"
-            " obstacle at this step; use DirectControl (commands) with contacts"
-        )
-    solution = solve(problem, model, state, contact)
+    try:
+        if contact is None:
+            lam[problem.slices["actuator"]] = control.actuation(problem, model, state)
+            return lam, None, ContactForces.empty()
+        solve = getattr(control, "actuation_with_contacts", None)
+        if solve is None:
+            raise ModelError(
+                f"{type(control).__name__} does not handle contacts, and {model.name} touches"
+                " an obstacle at this step; use DirectControl (commands) with contacts"
+            )
+        solution = solve(problem, model, state, contact)
+    except np.linalg.LinAlgError as exc:  # W singular: the step's solvers raise SolverError
+        raise SolverError(
+            f"the constraint problem is singular ({exc}): the constraints' compliance W has"
+            " no inverse (a time step too small for W to register, or redundant constraints)"
+        ) from exc
     forces = ContactForces.from_multipliers(contact.contacts, solution.contact_forces)
     return solution.forces, solution.report, forces

@@ -51,14 +51,7 @@ class PositionEffector(Constraint):
 
     @goals.setter
     def goals(self, goals: np.ndarray) -> None:
-        g = np.asarray(goals, dtype=float).reshape(-1, 3) if np.size(goals) else np.empty((0, 3))
-        if g.shape != (len(self.points), 3):
-            raise ConstraintError(
-                f"{self.name}: goals must have shape ({len(self.points)}, 3), got {np.shape(goals)}"
-            )
-        if not np.all(np.isfinite(g)):
-            raise ConstraintError(f"{self.name}: goals must be finite")
-        self._goals = g
+        self._goals = _goal_array(goals, len(self.points), self.name)
 
     @property
     def n_rows(self) -> int:
@@ -119,10 +112,7 @@ class RigidEffector(Constraint):
 
     @goals.setter
     def goals(self, goals: np.ndarray) -> None:
-        g = np.asarray(goals, dtype=float)
-        if g.size != 3 or not np.all(np.isfinite(g)):
-            raise ConstraintError(f"{self.name}: the goal must be 3 finite numbers, got {goals!r}")
-        self._goals = g.reshape(1, 3)
+        self._goals = _goal_array(goals, 1, self.name)
 
     @property
     def n_rows(self) -> int:
@@ -142,3 +132,21 @@ class RigidEffector(Constraint):
         rows = np.zeros((self.n_rows, 6 * n_bodies))
         rows[np.arange(self.n_rows), 6 * index + self.axes] = self.weight
         return rows
+
+
+def _goal_array(goals, k: int, name: str) -> np.ndarray:
+    """`goals` as a (k, 3) float array of finite values ((3,) or (3k,) accepted), else
+    ConstraintError: text, complex numbers and shapes of another point count are refused."""
+    try:
+        g = np.asarray(goals)
+    except (ValueError, TypeError) as exc:  # ragged nested sequences
+        raise ConstraintError(f"{name}: goals must be an array of numbers: {exc}") from None
+    if g.dtype.kind not in "iuf" or g.size != 3 * k or (g.ndim == 2 and g.shape != (k, 3)):
+        raise ConstraintError(
+            f"{name}: goals must be {k} point(s) of 3 real numbers, shape ({k}, 3); got"
+            f" {type(goals).__name__} of dtype {g.dtype} and shape {g.shape}"
+        )
+    g = g.astype(float).reshape(k, 3)
+    if not np.all(np.isfinite(g)):
+        raise ConstraintError(f"{name}: goals must be finite")
+    return g

@@ -2,12 +2,13 @@
 
 from __future__ import annotations
 
+import time
 import warnings
 from dataclasses import dataclass
 
 import numpy as np
 from proxsuite import proxqp
-from scipy.optimize import linprog
+from scipy.optimize import Bounds, LinearConstraint, linprog, minimize
 
 from pliant.constraints.base import Actuator, actuator_bounds
 from pliant.constraints.condensed import CondensedProblem
@@ -125,12 +126,15 @@ def solve_inverse(
     mu, z, status, iterations = _proxqp(
         hess, grad, c_mat, lower, upper, lo_box, hi_box, tolerance, max_iterations
     )
-    if status != proxqp.QPSolverOutput.PROXQP_SOLVED:
+    solved = status == proxqp.QPSolverOutput.PROXQP_SOLVED
+    if not solved:
         relax = _course_relaxation(c_mat, lower, upper, lo_box, hi_box)
         finite = np.abs(np.concatenate([lower, upper]))
         size = max(1.0, float(np.max(finite[np.isfinite(finite)], initial=0.0)))
-        if not np.any(relax > 1e-9 * size):
-            raise SolverError(f"ProxQP did not solve the inverse problem: {status}")
+        if not np.any(relax > 1e-9 * size):  # feasible: ProxQP lost its way (a far goal)
+            mu = _bounded_least_squares(hess, grad, c_mat, lower, upper, lo_box, hi_box)
+            lam = np.clip(mu / c, lo, hi)
+            return InverseSolution(lam, w_ea @ lam + de_free, iterations)
         worst = int(np.argmax(relax))
         message = (
             f"the course bounds cannot be met with the effort bounds at this step:"
@@ -146,10 +150,44 @@ def solve_inverse(
             hess, grad, c_mat, lower, upper, lo_box, hi_box, tolerance, max_iterations
         )
         if status != proxqp.QPSolverOutput.PROXQP_SOLVED:
-            raise SolverError(f"ProxQP did not solve the relaxed inverse problem: {status}")
+            mu = _bounded_least_squares(hess, grad, c_mat, lower, upper, lo_box, hi_box)
+            lam = np.clip(mu / c, lo, hi)
+            return InverseSolution(lam, w_ea @ lam + de_free, iterations)
     mu = _polish(hess, grad, c_mat, lower, upper, lo_box, hi_box, mu, z)
     lam = np.clip(mu / c, lo, hi)
     return InverseSolution(lam, w_ea @ lam + de_free, iterations)
+
+
+def _bounded_least_squares(hess, grad, c_mat, lower, upper, lo_box, hi_box) -> np.ndarray:
+    """The QP's minimiser by SLSQP where ProxQP gave up on a feasible problem: a goal far out
+    of reach makes the effector term dwarf the bounds, and ProxQP reports it infeasible. The
+    answer is the best effort, the closest configuration the bounds allow (least squares on
+    the effector error); SolverError if no point within the bounds is found."""
+    scale = max(float(np.max(np.abs(hess))), float(np.max(np.abs(grad))), 1e-300)
+    h, g = hess / scale, grad / scale
+    start = np.clip(np.zeros(g.size), lo_box, hi_box)
+    result = minimize(
+        lambda x: 0.5 * x @ h @ x + g @ x,
+        start,
+        jac=lambda x: h @ x + g,
+        method="SLSQP",
+        bounds=Bounds(lo_box, hi_box),
+        constraints=[LinearConstraint(c_mat, lower, upper)],
+        options={"maxiter": 1000, "ftol": 1e-14},
+    )
+    x = np.clip(result.x, lo_box, hi_box)
+    values = c_mat @ x
+    finite = np.abs(np.concatenate([lower, upper, values]))
+    slack = 1e-6 * max(1.0, float(np.max(finite[np.isfinite(finite)], initial=0.0)))
+    if not (
+        np.all(np.isfinite(x))
+        and np.all(values >= lower - slack)
+        and np.all(values <= upper + slack)
+    ):
+        raise SolverError(
+            f"the inverse problem has no solution within the bounds: {result.message}"
+        )
+    return x
 
 
 def _dense_qp(n: int, n_eq: int, n_in: int, tolerance: float, max_iterations: int):
@@ -189,6 +227,7 @@ class ContactInverseSolution:
     forces: np.ndarray
     rounds: int
     settled: bool
+    timed_out: bool = False  # the rounds stopped at the time limit
 
 
 _PROBE = 2  # slip state of a tangent axis with its slip left free (0 sticks, +-1 slides)
@@ -322,6 +361,7 @@ def solve_inverse_with_contacts(
     max_iterations: int = 1000,
     max_rounds: int = 30,
     initial_active: np.ndarray | None = None,
+    time_limit: float | None = None,
 ) -> ContactInverseSolution:
     """Eq. 2.15 with contacts (a QP with complementarity constraints, QPCC).
 
@@ -344,8 +384,11 @@ def solve_inverse_with_contacts(
     slip the QP holds back (active s delta_t <= 0) sticks. A change that makes the QP
     infeasible is undone and not tried again. The rounds stop when no change is left; the
     solution is then a local one (a QPCC is not convex: a contact that the QP has no reason to
-    close stays open, see thesis §3.3.2).
+    close stays open, see thesis §3.3.2). They also stop after `max_rounds`, or once
+    `time_limit` seconds have passed (one round of a dense QP over hundreds of contacts takes
+    seconds): the last feasible round's forces are returned, not settled, `timed_out` set.
     """
+    deadline = None if time_limit is None else time.monotonic() + time_limit
     sa, se, sc = (problem.slices[r] for r in ("actuator", "effector", "contact"))
     na, nc = sa.stop - sa.start, (sc.stop - sc.start) // 3
     if na == 0 or se.stop == se.start:
@@ -413,7 +456,7 @@ def solve_inverse_with_contacts(
     result = solve(closed, slip)
     rounds = 1
     tried_closing = np.zeros(nc, dtype=bool)
-    while result is None and rounds < max_rounds:
+    while result is None and rounds < max_rounds and not _past(deadline):
         leaving = closed & (d_rows[normal] > 0.0)
         falling = ~closed & ~tried_closing & (d_rows[normal] < 0.0)
         sticking = (closed & frictional)[:, None] & (slip != _PROBE)
@@ -434,15 +477,16 @@ def solve_inverse_with_contacts(
         result = solve(closed, slip)
         rounds += 1
     if result is None:
+        late = f" (time limit {time_limit:g} s)" if _past(deadline) else ""
         raise InfeasibleProblemError(
             f"the inverse problem with {nc} contacts found no contact states with a solution in"
-            f" {rounds} rounds"
+            f" {rounds} rounds{late}"
         )
     rejected: set[tuple] = set()
     probed: set[tuple[int, int]] = set()
     visited = {(closed.tobytes(), slip.tobytes())}
     settled = False
-    while rounds < max_rounds:
+    while rounds < max_rounds and not _past(deadline):
         mu, y, z, stick_rows, slide_rows, gap_rows = result
         delta = w_rows @ mu + d_rows
         scale = tolerance * max(1.0, float(np.abs(delta).max()))
@@ -527,4 +571,8 @@ def solve_inverse_with_contacts(
     forces = np.zeros(d.size)
     forces[rows] = mu / c
     forces[sa] = np.clip(forces[sa], lo, hi)
-    return ContactInverseSolution(forces, rounds, settled)
+    return ContactInverseSolution(forces, rounds, settled, not settled and _past(deadline))
+
+
+def _past(deadline: float | None) -> bool:
+    return deadline is not None and time.monotonic() > deadline

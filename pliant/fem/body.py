@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import functools
 import math
+import numbers
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Literal
@@ -62,17 +63,25 @@ def set_bulk_properties(
     value."""
     if (density is None) == (total_mass is None):
         raise MaterialError("give exactly one of density or total_mass")
+    given = ("density", density) if density is not None else ("total_mass", total_mass)
+    damping = (("rayleigh_mass", rayleigh_mass), ("rayleigh_stiffness", rayleigh_stiffness))
+    for name, val in (given, *damping):
+        if isinstance(val, bool) or not isinstance(val, numbers.Real):
+            raise MaterialError(f"{name} must be a real number, got {val!r}")
     rho = float(density) if density is not None else float(total_mass) / volume
     if not math.isfinite(rho) or rho <= 0:
         raise MaterialError(f"density must be finite and > 0, got {rho!r}")
     body.density = rho
     body.total_mass = rho * volume
-    for name, val in (("rayleigh_mass", rayleigh_mass), ("rayleigh_stiffness", rayleigh_stiffness)):
+    for name, val in damping:
         if not math.isfinite(val) or val < 0:
             raise MaterialError(f"{name} must be finite and >= 0, got {val!r}")
     body.rayleigh_mass = float(rayleigh_mass)
     body.rayleigh_stiffness = float(rayleigh_stiffness)
-    body.gravity = np.asarray(gravity, dtype=float)
+    try:
+        body.gravity = np.asarray(gravity, dtype=float)
+    except (TypeError, ValueError):
+        raise ModelError(f"gravity must be a finite 3-vector, got {gravity!r}") from None
     if body.gravity.shape != (3,) or not np.all(np.isfinite(body.gravity)):
         raise ModelError(f"gravity must be a finite 3-vector, got {gravity!r}")
 

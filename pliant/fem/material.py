@@ -7,6 +7,7 @@ compiled kernels (:mod:`pliant.fem.kernels`) dispatch on.
 from __future__ import annotations
 
 import math
+import numbers
 from dataclasses import dataclass
 from typing import ClassVar, Literal
 
@@ -34,13 +35,16 @@ class Material:
 
     def __post_init__(self) -> None:
         e, nu = self.young_modulus, self.poisson_ratio
-        if not (isinstance(e, (int, float)) and math.isfinite(e)) or e <= 0:
+        if not (_is_real(e) and math.isfinite(e)) or e <= 0:
             raise MaterialError(f"Young's modulus must be finite and > 0, got {e!r}")
-        if not (isinstance(nu, (int, float)) and math.isfinite(nu)) or not 0 <= nu < 0.5:
+        if not (_is_real(nu) and math.isfinite(nu)) or not 0 <= nu < 0.5:
             raise MaterialError(
                 f"Poisson's ratio must lie in [0, 0.5), got {nu!r}"
                 " (0.5 is incompressible and makes the Lamé parameter lambda infinite)"
             )
+        # NumPy scalars (np.float32(180), np.int64(180)) are numbers too: kept as floats.
+        object.__setattr__(self, "young_modulus", float(e))
+        object.__setattr__(self, "poisson_ratio", float(nu))
 
     @property
     def mu(self) -> float:
@@ -100,6 +104,11 @@ class NeoHookean(Material):
     """
 
     kernel_tag: ClassVar[int] = NEO_HOOKEAN
+
+
+def _is_real(value) -> bool:
+    """A real number of any kind (int, float, NumPy scalar), not a bool."""
+    return isinstance(value, numbers.Real) and not isinstance(value, bool)
 
 
 MATERIALS: dict[str, type[Material]] = {

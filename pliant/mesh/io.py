@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import contextlib
+import io
 import os
 import tempfile
 from pathlib import Path
@@ -28,10 +30,17 @@ def load_mesh(path: str | os.PathLike[str]) -> TetMesh:
     path = Path(path)
     if not path.is_file():
         raise MeshFileError(f"mesh file {str(path)!r} does not exist")
+    said = io.StringIO()
     try:
-        raw = meshio.read(path)
-    except Exception as exc:  # meshio signals malformed input with many exception types
-        raise MeshFileError(f"cannot read mesh file {str(path)!r}: {exc}") from exc
+        # meshio prints its complaints, and ends the interpreter (sys.exit) on some files it
+        # cannot parse: both become one MeshFileError.
+        with contextlib.redirect_stdout(said), contextlib.redirect_stderr(said):
+            raw = meshio.read(path)
+    except (Exception, SystemExit) as exc:  # meshio signals malformed input many ways
+        cause = " ".join(said.getvalue().split()) or f"{type(exc).__name__}: {exc}"
+        raise MeshFileError(
+            f"cannot read mesh file {str(path)!r} (empty, truncated or corrupt?): {cause}"
+        ) from None
 
     blocks = [block.data for block in raw.cells if block.type == "tetra"]
     if not blocks or sum(len(b) for b in blocks) == 0:
@@ -46,6 +55,11 @@ def load_mesh(path: str | os.PathLike[str]) -> TetMesh:
             f"mesh file {str(path)!r} has points of shape {points.shape}, expected (n, 3)"
         )
     tets = np.concatenate(blocks).astype(np.int64)
+    if tets.ndim != 2 or tets.shape[1] != 4 or tets.min() < 0 or tets.max() >= len(points):
+        raise MeshFileError(
+            f"mesh file {str(path)!r} has tetrahedra that name nodes it does not hold"
+            f" ({len(points)} nodes, indices {tets.min()} to {tets.max()}): corrupt?"
+        )
     points, tets = remove_unused_nodes(points, tets)
     tets = fix_orientation(points, tets)
     validate_mesh(points, tets)

@@ -23,6 +23,8 @@ RELATIVE_VOLUME_TOLERANCE = 1e-12
 # Shape quality below which an element is flat for any practical purpose. The reference SOFA
 # meshes bottom out around 3e-3, gmsh output around 1e-2.
 MIN_SHAPE_QUALITY = 1e-4
+# Nodes closer than this fraction of the bounding-box diagonal are one place (a crack).
+COINCIDENT_TOLERANCE = 1e-10
 
 # Node pairs of the six edges of a tetrahedron.
 _EDGES = np.array([[0, 1], [0, 2], [0, 3], [1, 2], [1, 3], [2, 3]])
@@ -129,6 +131,18 @@ def validate_mesh(
         )
 
     diagonal = float(np.linalg.norm(points.max(axis=0) - points.min(axis=0)))
+    # Two nodes at one place are a crack: the elements on either side share a face
+    # geometrically but not its nodes, so the body can open there without any strain.
+    cells = np.round(points / max(COINCIDENT_TOLERANCE * diagonal, np.finfo(float).tiny))
+    _, first, counts = np.unique(cells, axis=0, return_index=True, return_counts=True)
+    if np.any(counts > 1):
+        twin = int(first[np.flatnonzero(counts > 1)[0]])
+        others = np.flatnonzero(np.all(cells == cells[twin], axis=1))
+        raise MeshError(
+            f"{int(np.sum(counts[counts > 1]))} nodes coincide with another (first: nodes"
+            f" {others.tolist()} at {points[twin].tolist()}): the mesh has a crack there;"
+            " merge the coincident nodes"
+        )
     volumes = signed_volumes(points, tets)
     quality = shape_quality(points, tets)
     tiny = np.abs(volumes) <= RELATIVE_VOLUME_TOLERANCE * diagonal**3

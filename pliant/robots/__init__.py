@@ -7,12 +7,17 @@
 
 from __future__ import annotations
 
-from collections.abc import Callable
+import collections.abc
+import inspect
+import numbers
+import types
+import typing
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
 
-from pliant.errors import UnknownRobotError
+from pliant.errors import ModelError, PliantError, UnknownRobotError
 from pliant.model import Model
 from pliant.robots import bubble_motion as _bubble_motion
 from pliant.robots import cartstem as _cartstem
@@ -105,8 +110,97 @@ def entry(name: str) -> RobotEntry:
 
 
 def build(name: str, **kwargs) -> Model:
-    """Build a registered robot by name with keyword overrides of its defaults."""
-    return entry(name).build(**kwargs)
+    """Build a registered robot by name with keyword overrides of its defaults.
+
+    Each keyword is checked against the builder's signature and type hints (a float is a
+    real number, a Literal one of its values, a tuple of the right length, ...)
+    before anything is meshed, and ModelError names the keyword. A builder that still fails
+    on its keywords (a size that leaves no geometry) raises ModelError naming them too.
+    """
+    builder = entry(name).build
+    parameters = inspect.signature(builder).parameters
+    if not any(p.kind is p.VAR_KEYWORD for p in parameters.values()):
+        known = [
+            k for k, p in parameters.items() if p.kind in (p.KEYWORD_ONLY, p.POSITIONAL_OR_KEYWORD)
+        ]
+        unknown = sorted(set(kwargs) - set(known))
+        if unknown:
+            raise ModelError(
+                f"{name} has no builder keyword {', '.join(map(repr, unknown))}; its keywords:"
+                f" {', '.join(known)}"
+            )
+    try:
+        hints = typing.get_type_hints(builder)
+    except Exception:  # hints that do not resolve: the builder checks its keywords itself
+        hints = {}
+    for key, value in kwargs.items():
+        if key in hints and not _fits(value, hints[key]):
+            raise ModelError(f"{name}: {key} must be {_describe(hints[key])}, got {value!r}")
+    if not kwargs:
+        return builder()
+    try:
+        return builder(**kwargs)
+    except PliantError:
+        raise
+    except Exception as exc:  # e.g. gmsh failing on a size that leaves no geometry
+        raise ModelError(
+            f"{name} cannot be built with {kwargs}: {type(exc).__name__}: {exc}"
+        ) from exc
+
+
+def _fits(value, hint) -> bool:
+    """Whether `value` is of the type `hint` (float: a real number; int: an
+    integer; a Literal: one of its values; X | None; tuple[...]; classes); hints of other
+    forms are not checked here."""
+    origin, args = typing.get_origin(hint), typing.get_args(hint)
+    if hint is float:  # its range (NaN included) is the builder's to check
+        return _real(value)
+    if hint is int:
+        return isinstance(value, numbers.Integral) and not isinstance(value, (bool, np.bool_))
+    if hint is bool:
+        return isinstance(value, (bool, np.bool_))
+    if hint is str:
+        return isinstance(value, str)
+    if origin is typing.Literal:
+        return any(value == a and type(value) is type(a) for a in args)
+    if origin in (types.UnionType, typing.Union):
+        return any(_fits(value, a) for a in args)
+    if hint is type(None):
+        return value is None
+    if origin is tuple:
+        if isinstance(value, (str, bytes)) or not isinstance(value, Sequence | np.ndarray):
+            return False
+        if len(args) == 2 and args[1] is Ellipsis:
+            return all(_fits(v, args[0]) for v in value)
+        return len(value) == len(args) and all(
+            _fits(v, a) for v, a in zip(value, args, strict=True)
+        )
+    if origin is collections.abc.Callable or hint is collections.abc.Callable:
+        return callable(value)
+    if isinstance(hint, type):
+        return isinstance(value, hint)
+    return True
+
+
+def _real(value) -> bool:
+    return isinstance(value, numbers.Real) and not isinstance(value, (bool, np.bool_))
+
+
+def _describe(hint) -> str:
+    origin, args = typing.get_origin(hint), typing.get_args(hint)
+    if hint is float:
+        return "a real number"
+    if hint is int:
+        return "an integer"
+    if origin is typing.Literal:
+        return "one of " + ", ".join(map(repr, args))
+    if origin in (types.UnionType, typing.Union):
+        return " or ".join(_describe(a) for a in args)
+    if hint is type(None):
+        return "None"
+    if origin is tuple:
+        return f"a sequence of {len(args)} values ({', '.join(_describe(a) for a in args)})"
+    return getattr(hint, "__name__", str(hint))
 
 
 __all__ = [

@@ -3,13 +3,14 @@
 from __future__ import annotations
 
 import math
+import numbers
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from pliant.constraints.condensed import CondensedProblem
 from pliant.constraints.friction import ContactReport
-from pliant.errors import DivergenceError
+from pliant.errors import DivergenceError, SolverError
 from pliant.fem.body import Linearisation
 
 
@@ -23,6 +24,31 @@ class StepReport:
     factorisations: int = 0
     newton_iterations: int = 0
     contact: ContactReport | None = None  # None: no contact rows at this step
+
+
+def number_option(
+    value,
+    name: str,
+    *,
+    above: float | None = None,
+    at_least: float | None = None,
+    integer: bool = False,
+    error: type[Exception] = SolverError,
+) -> float | int:
+    """`value` as a float (an int with `integer`), checked where it enters: a real number
+    (any NumPy scalar, not a bool or a string), finite, > `above` or >= `at_least`; `error`
+    names the option otherwise, so that a bad setting is not reported later as a divergence."""
+    kind = numbers.Integral if integer else numbers.Real
+    if isinstance(value, bool) or not isinstance(value, kind):
+        what = "an integer" if integer else "a real number"
+        raise error(f"{name} must be {what}, got {value!r}")
+    if not math.isfinite(value):
+        raise error(f"{name} must be finite, got {value!r}")
+    if above is not None and not value > above:
+        raise error(f"{name} must be > {above:g}, got {value!r}")
+    if at_least is not None and not value >= at_least:
+        raise error(f"{name} must be >= {at_least:g}, got {value!r}")
+    return int(value) if integer else float(value)
 
 
 def check_linearisation(lin: Linearisation, step: int, dt: float | None) -> None:

@@ -56,10 +56,12 @@ from pliant.errors import DivergenceError, ModelError, SolverError
 from pliant.fem.body import PARALLEL_MIN_TETS
 from pliant.fem.rigid import RigidStep, integrate_poses
 from pliant.model import ConstraintSpace, Model, State
-from pliant.solvers.base import StepReport, check_linearisation, check_motion
+from pliant.solvers.base import StepReport, check_linearisation, check_motion, number_option
 from pliant.solvers.compliance import PointCompliance, PointRows
 from pliant.solvers.compliance_kernels import framed_block
 from pliant.solvers.system import LinearisedSystem, TangentPolicy
+
+MIN_DT = 1e-12  # s: the smallest time step accepted (see ImplicitEuler.__init__)
 
 
 class ImplicitEuler:
@@ -98,10 +100,15 @@ class ImplicitEuler:
         contact_screening: bool = True,
         screen_gap: float | None = None,
     ) -> None:
-        if not (np.isfinite(dt) and dt > 0):
-            raise SolverError(f"the time step must be finite and > 0, got {dt!r}")
+        if not isinstance(model, Model):
+            raise ModelError(f"ImplicitEuler steps a pliant Model, got {type(model).__name__}")
+        # Below MIN_DT, h^2 in W underflows next to the mass: the constraint problem is
+        # singular (1e-200 s), long before any step of use (SOFA's scenes: 1e-2 to 1e-4 s).
+        self.dt = number_option(dt, "the time step dt", at_least=MIN_DT)
+        rtol = number_option(rtol, "rtol", above=0.0)
+        if screen_gap is not None:
+            screen_gap = number_option(screen_gap, "screen_gap", at_least=0.0)
         self.model = model
-        self.dt = float(dt)
         self.system = LinearisedSystem(model.body, policy=tangent, rtol=rtol)
         self._objects, self._object_rows = self._find_objects()
         # Each attachment with its body's index.
@@ -117,8 +124,6 @@ class ImplicitEuler:
         self._row_points: dict[tuple[str, ...] | None, PointRows | None] = {}
         self._rows_on_points = point_compliance and tangent == "lagged"
         self.contact_screening = contact_screening
-        if screen_gap is not None and not (np.isfinite(screen_gap) and screen_gap >= 0):
-            raise SolverError(f"screen_gap must be finite and >= 0, got {screen_gap!r}")
         margin = model.contacts.margin if model.contacts is not None else 0.0
         self.screen_gap = 0.1 * margin if screen_gap is None else float(screen_gap)
         body = model.body
@@ -127,26 +132,32 @@ class ImplicitEuler:
         self._size = body.extent
         self._gravity = body.gravity_forces()
         self.last_report = StepReport()
+        # (time, dt, positions, velocities, linearisation) of the last state returned, checked
+        # before it was (see `step`); off while `condense` takes its passive step.
+        self._ahead: tuple | None = None
+        self._look_ahead = True
 
     def _coefficients(self) -> tuple[float, float]:
         b, h = self.model.body, self.dt
         return 1.0 + h * b.rayleigh_mass, h * b.rayleigh_stiffness + h * h
 
     def step(self, state: State, control=None) -> State:
-        """Advance one step; `control`: None, actuator commands, DirectControl or InverseControl."""
+        """Advance one step; `control`: None, actuator commands, DirectControl or InverseControl.
+
+        Raises:
+            StateError: `state` is not one of this model's (checked before any kernel runs).
+            DivergenceError: the step failed or its result is not a usable state.
+        """
         model, body, h = self.model, self.model.body, self.dt
+        state = model.check_state(state)
         ctrl = as_control(control)
         ctrl.prepare(model)
         begin = getattr(ctrl, "begin", None)
         if begin is not None:  # feedback controls: goals from the state the step starts from
             begin(model, state)
         step = state.step + 1
-        velocities, at = state.velocities, state.positions
-        if model.drivers:
-            drive = model.drive_velocities(state, h)
-            velocities = body.scatter(body.gather(state.velocities)) + drive
-            at = model.drive(state.positions, state.time + h)
-        lin = body.linearise(state.positions, velocities, time=state.time)
+        at = model.drive(state.positions, state.time + h) if model.drivers else state.positions
+        lin, drive = self._linearise(state)
         check_linearisation(lin, step, h)
         a_m, a_k = self._coefficients()
         try:  # on a small body, a refactorisation runs on while the step detects its contacts
@@ -217,6 +228,12 @@ class ImplicitEuler:
             new.rigid_angular_velocities = twists[:, 3:].copy()
             self._place_objects(new)
         check_motion(new.positions, new.velocities, dq, self._size, step, h)
+        if self._look_ahead:
+            # The next step's linearisation, now: a state with inverted elements is refused
+            # by the step that made it, never returned (the next step reuses it).
+            ahead, _ = self._linearise(new, reuse=False)
+            check_linearisation(ahead, step, h)
+            self._ahead = (new.time, h, new.positions.copy(), new.velocities.copy(), ahead)
         if model.contacts is not None:
             model.contacts.check_travel(positions, dq, step)
         self.last_report = StepReport(
@@ -227,6 +244,26 @@ class ImplicitEuler:
             contact=contact_report,
         )
         return new
+
+    def _linearise(self, state: State, *, reuse: bool = True):
+        """The body linearised at `state` with the velocities of a step from it (driven nodes
+        at their velocity over the step), and those drive velocities (None without drivers).
+        With `reuse`, the look-ahead of the last step when `state` holds what it returned."""
+        model, body = self.model, self.model.body
+        drive = model.drive_velocities(state, self.dt) if model.drivers else None
+        ahead = self._ahead
+        if (
+            reuse
+            and ahead is not None
+            and (ahead[0], ahead[1]) == (state.time, self.dt)
+            and np.array_equal(ahead[2], state.positions)
+            and np.array_equal(ahead[3], state.velocities)
+        ):
+            return ahead[4], drive
+        velocities = state.velocities
+        if drive is not None:
+            velocities = body.scatter(body.gather(state.velocities)) + drive
+        return body.linearise(state.positions, velocities, time=state.time), drive
 
     def _condense(self, at, roles, contact, rhs, v, rigid):
         """W and delta_free with every constraint column solved (one factorisation, one block
@@ -474,12 +511,13 @@ class ImplicitEuler:
 
     def condense(self, state: State) -> CondensedProblem:
         """Exact W and delta_free of the next step from `state` (fresh factorisation)."""
+        state = self.model.check_state(state)
         saved = self.system.policy
-        self.system.policy = "fresh"
+        self.system.policy, self._look_ahead = "fresh", False
         try:
             self.step(state.copy(), _Passive())
         finally:
-            self.system.policy = saved
+            self.system.policy, self._look_ahead = saved, True
         return self.last_report.problem
 
 

@@ -20,7 +20,7 @@ from pliant.constraints.control import as_control, constraint_forces
 from pliant.constraints.friction import ContactConstraint
 from pliant.errors import DivergenceError, ModelError, SolverError
 from pliant.model import Model, State
-from pliant.solvers.base import StepReport, check_linearisation, check_motion
+from pliant.solvers.base import StepReport, check_linearisation, check_motion, number_option
 from pliant.solvers.system import LinearisedSystem, TangentPolicy
 
 
@@ -63,6 +63,8 @@ class StaticSolver:
         consistent: bool = True,
         augmentation: float = 10.0,
     ) -> None:
+        if not isinstance(model, Model):
+            raise ModelError(f"StaticSolver solves a pliant Model, got {type(model).__name__}")
         if model.rigid_bodies:
             raise ModelError(
                 f"{model.name} has rigid bodies: the static solver cannot balance them (a body on"
@@ -83,8 +85,10 @@ class StaticSolver:
                 " nodes or components, or rest-shape springs, or use ImplicitEuler"
             )
         self.model = model
-        self.tolerance = tolerance
-        self.max_iterations = max_iterations
+        self.tolerance = number_option(tolerance, "tolerance", above=0.0)
+        self.max_iterations = number_option(
+            max_iterations, "max_iterations", at_least=1, integer=True
+        )
         self._geometric = consistent and model.geometric_pattern() is not None
         self._augmented = self._augmentation_pattern() if consistent else []
         pattern = None
@@ -102,7 +106,7 @@ class StaticSolver:
             extra_pattern=pattern,
             exact_tangent=consistent,
         )
-        self.augmentation = augmentation
+        self.augmentation = number_option(augmentation, "augmentation", at_least=0.0)
         self._row_stiffness: np.ndarray | None = None
         self._size = model.body.extent
         self._gravity = model.body.gravity_forces()
@@ -171,7 +175,10 @@ class StaticSolver:
         return CondensedProblem(0.5 * (w + w.T), delta_free, space.slices), dq_free, k_inv_ht
 
     def step(self, state: State, control=None) -> State:
+        """The equilibrium under `control` from `state`; StateError if `state` is not one of
+        this model's (checked before any kernel runs), DivergenceError if the solve fails."""
         model, body = self.model, self.model.body
+        state = model.check_state(state)
         ctrl = as_control(control)
         ctrl.prepare(model)
         begin = getattr(ctrl, "begin", None)
@@ -256,6 +263,7 @@ class StaticSolver:
         """Exact W = H K^-1 H^T and delta_free at `state` (with the contact rows detected
         there, if the model has obstacles)."""
         model = self.model
+        state = model.check_state(state)
         contact = model.contacts.constraint(state.positions, None) if model.contacts else None
         self._time = state.time
         problem, _, _ = self._condense(state.positions, state.step, None, contact, state.actuation)

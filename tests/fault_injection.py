@@ -1,0 +1,30 @@
+"""Faulty stand-ins for a collection worker's task, for tests/test_faults.py. They live in an
+importable module (not a test file) so that spawned worker processes can unpickle them."""
+
+from __future__ import annotations
+
+import os
+import signal
+import time
+
+import numpy as np
+
+from pliant.condensed.collect import solve_chunk
+
+DIE_AT_ENV = "PLIANT_FAULT_DIE_AT"  # "first sample" of the chunk whose worker is killed
+SLOW_ENV = "PLIANT_FAULT_SLOW"  # seconds each chunk takes at least
+
+
+def dying_solve_chunk(plan, points: np.ndarray):
+    """solve_chunk, but the worker is killed (SIGKILL, as by the out-of-memory killer) on the
+    chunk whose first point equals the plan's point named by DIE_AT_ENV."""
+    target = plan.points()["train"][int(os.environ[DIE_AT_ENV])]
+    if np.array_equal(np.atleast_2d(points)[0], target):
+        os.kill(os.getpid(), signal.SIGKILL)
+    return solve_chunk(plan, points)
+
+
+def slow_solve_chunk(plan, points: np.ndarray):
+    """solve_chunk taking at least SLOW_ENV seconds: a long job to kill the parent of."""
+    time.sleep(float(os.environ.get(SLOW_ENV, "1")))
+    return solve_chunk(plan, points)

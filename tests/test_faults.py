@@ -1,0 +1,367 @@
+"""Fault injection into the long jobs (issue 22): a worker killed, the parent killed, a chunk
+corrupted, the disk full, during `condensed collect` and during training. The job resumes or
+fails with a clear message, and nothing already written is lost."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import os
+import signal
+import subprocess
+import sys
+import textwrap
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+pytest.importorskip("torch")
+pytest.importorskip("h5py")
+
+import fault_injection  # noqa: E402
+import torch  # noqa: E402
+from typer.testing import CliRunner  # noqa: E402
+
+from pliant.cli import app  # noqa: E402
+from pliant.condensed import collect as collection  # noqa: E402
+from pliant.condensed.collect import CorruptChunkWarning, collect, verify  # noqa: E402
+from pliant.condensed.dataset import CollectionPlan, Dataset, Split  # noqa: E402
+from pliant.condensed.learned import LearnedCondensedModel  # noqa: E402
+from pliant.condensed.networks import StandardisedMLP  # noqa: E402
+from pliant.condensed.train import TrainConfig, fit, train_condensed  # noqa: E402
+from pliant.errors import DatasetError, LearnedModelError, TrainingError  # noqa: E402
+
+ROOT = Path(__file__).resolve().parents[1]
+# The coarse Finger, cables 0-4 mm: 16 + 4 samples in chunks of 2, a second on one core.
+PLAN = CollectionPlan("finger", ((0.0, 4.0), (0.0, 4.0)), 16, chunk_size=2, seed=3)
+TRAINING = TrainConfig(epochs=6, batch_size=4, learning_rate=1e-3, hidden=(16,), progress=False)
+
+
+def _assert_same(a: Dataset, b: Dataset) -> None:
+    for name in ("train", "test"):
+        for f in dataclasses.fields(Split):
+            np.testing.assert_array_equal(
+                getattr(a.split(name), f.name), getattr(b.split(name), f.name), err_msg=f.name
+            )
+
+
+@pytest.fixture(scope="module")
+def reference(tmp_path_factory) -> Dataset:
+    """The dataset of PLAN collected without faults."""
+    return collect(PLAN, tmp_path_factory.mktemp("reference") / "finger.h5", workers=1)
+
+
+def _parts(out: Path) -> Path:
+    return out.with_name(out.name + ".parts")
+
+
+def _start_collection(out: Path, task: str, **env: str) -> subprocess.Popen:
+    """`collect(PLAN, out, workers=2)` in a child process whose workers run fault_injection's
+    `task` instead of solve_chunk."""
+    code = f"""
+        import json, sys
+        import fault_injection
+        from pliant.condensed import collect as collection
+        from pliant.condensed.dataset import CollectionPlan
+        from pliant.errors import PliantError
+
+        collection.solve_chunk = fault_injection.{task}
+        plan = CollectionPlan.from_dict(json.loads({json.dumps(PLAN.to_dict())!r}))
+        try:
+            collection.collect(plan, {str(out)!r}, workers=2)
+        except PliantError as exc:
+            print(type(exc).__name__, exc, flush=True)
+            sys.exit(3)
+    """
+    path = os.pathsep.join([str(ROOT), str(ROOT / "tests"), os.environ.get("PYTHONPATH", "")])
+    return subprocess.Popen(
+        [sys.executable, "-c", textwrap.dedent(code)],
+        cwd=ROOT,
+        env={**os.environ, "PYTHONPATH": path, **env},
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT,
+        text=True,
+    )
+
+
+def _children(pid: int) -> list[int]:
+    """Live processes whose parent is `pid` (from /proc)."""
+    found = []
+    for entry in Path("/proc").iterdir():
+        if entry.name.isdigit():
+            try:
+                fields = (entry / "stat").read_text().rsplit(")", 1)[1].split()
+            except OSError:
+                continue
+            if int(fields[1]) == pid and fields[0] != "Z":
+                found.append(int(entry.name))
+    return found
+
+
+def _alive(pid: int) -> bool:
+    try:
+        state = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
+    except OSError:
+        return False
+    return state != "Z"  # a zombie has ended; only its parent's bookkeeping is left
+
+
+@pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="reads /proc")
+def test_a_killed_worker_ends_the_collection_with_a_worker_error_and_it_resumes(
+    reference, tmp_path
+) -> None:
+    out = tmp_path / "finger.h5"
+    child = _start_collection(out, "dying_solve_chunk", **{fault_injection.DIE_AT_ENV: "6"})
+    output, _ = child.communicate(timeout=240)
+    assert child.returncode == 3, output
+    assert "WorkerError" in output and "rerun the same command" in output
+    assert not out.exists()
+    saved = sorted(p.name for p in _parts(out).glob("*.npz"))
+    assert "train-0000006-0000008.npz" not in saved  # the chunk of the killed worker
+    done: list[int] = []
+    dataset = collect(PLAN, out, workers=1, on_chunk=lambda d, total: done.append(d))
+    assert done[0] == 2 * len(saved) + 2  # the saved chunks were not solved again
+    _assert_same(dataset, reference)
+    assert not _parts(out).exists()
+
+
+@pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="reads /proc")
+def test_workers_exit_when_their_parent_is_killed(tmp_path) -> None:
+    child = _start_collection(
+        tmp_path / "finger.h5", "slow_solve_chunk", **{fault_injection.SLOW_ENV: "30"}
+    )
+    workers: list[int] = []
+    try:
+        deadline = time.monotonic() + 120
+        while len(workers) < 2 and time.monotonic() < deadline:  # two workers and a tracker
+            time.sleep(0.2)
+            workers = [p for p in _children(child.pid) if p != child.pid]
+        assert len(workers) >= 2, "the workers did not start"
+        time.sleep(1.0)  # let them reach their task
+        os.kill(child.pid, signal.SIGKILL)
+        child.wait(timeout=30)
+        deadline = time.monotonic() + 10  # the watchdog polls twice a second
+        while any(_alive(p) for p in workers) and time.monotonic() < deadline:
+            time.sleep(0.1)
+        assert not any(_alive(p) for p in workers), "orphaned workers are still running"
+    finally:
+        for pid in workers:  # never leave a stray process behind a failed test
+            if _alive(pid):
+                os.kill(pid, signal.SIGKILL)
+        if child.poll() is None:
+            child.kill()
+
+
+def _interrupted(out: Path, chunks: int) -> None:
+    """Collect PLAN into `out` and stop it after `chunks` chunks (as a Ctrl-C would)."""
+    done: list[int] = []
+
+    def stop(d: int, total: int) -> None:
+        done.append(d)
+        if len(done) == chunks:
+            raise KeyboardInterrupt
+
+    with pytest.raises(KeyboardInterrupt):
+        collect(PLAN, out, workers=1, on_chunk=stop)
+
+
+def test_a_corrupt_chunk_is_named_by_verify_and_solved_again(reference, tmp_path) -> None:
+    out = tmp_path / "finger.h5"
+    _interrupted(out, 4)
+    chunk = _parts(out) / "train-0000002-0000004.npz"
+    data = np.load(chunk)
+    arrays = {k: data[k] for k in data.files}
+    arrays["w_triangle"][1, 2] += 1e-3  # a bit rot that the zip's own CRC would pass
+    np.savez(chunk, **arrays)
+    assert verify(out) == [f"the saved chunk {chunk} fails its checksum (corrupt)"]
+    result = CliRunner().invoke(app, ["condensed", "verify", str(out)])
+    assert result.exit_code == 1 and "train-0000002-0000004.npz" in result.output
+    with pytest.warns(CorruptChunkWarning, match="train-0000002"):
+        dataset = collect(PLAN, out, workers=1)
+    _assert_same(dataset, reference)
+    assert verify(out) == []
+
+
+def test_a_full_disk_during_collection_keeps_the_chunks_saved(
+    reference, tmp_path, monkeypatch
+) -> None:
+    out = tmp_path / "finger.h5"
+    real, calls = np.savez, []
+
+    def disk_fills_at_the_fourth_chunk(file, *args, **kwargs):
+        calls.append(file)
+        if len(calls) >= 4:
+            raise OSError(28, "No space left on device")
+        return real(file, *args, **kwargs)
+
+    monkeypatch.setattr(collection.np, "savez", disk_fills_at_the_fourth_chunk)
+    with pytest.raises(DatasetError, match="No space left on device.*rerun the same command"):
+        collect(PLAN, out, workers=1)
+    monkeypatch.undo()
+    files = sorted(p.name for p in _parts(out).iterdir())
+    assert files == ["plan.json", *(f"train-{i:07d}-{i + 2:07d}.npz" for i in (0, 2, 4))]
+    _assert_same(collect(PLAN, out, workers=1), reference)
+
+
+def test_a_full_disk_when_writing_the_dataset_keeps_every_chunk(
+    reference, tmp_path, monkeypatch
+) -> None:
+    out = tmp_path / "finger.h5"
+
+    def full(self, filename):
+        raise OSError(28, "No space left on device")
+
+    monkeypatch.setattr(Dataset, "_write", full)
+    with pytest.raises(DatasetError, match="every chunk is saved"):
+        collect(PLAN, out, workers=1)
+    monkeypatch.undo()
+    assert not out.exists() and len(list(_parts(out).glob("*.npz"))) == 10
+    assert not list(tmp_path.glob(".finger.h5*"))  # no temporary file left behind
+    _assert_same(collect(PLAN, out, workers=1), reference)
+
+
+def test_overwrite_replaces_a_finished_or_corrupt_dataset(reference, tmp_path) -> None:
+    out = tmp_path / "finger.h5"
+    out.write_bytes(b"a corrupt dataset")
+    with pytest.raises(DatasetError, match="--overwrite"):
+        collect(PLAN, out, workers=1)
+    assert verify(out)  # and verify says it is bad
+    _assert_same(collect(PLAN, out, workers=1, overwrite=True), reference)
+    assert verify(out) == []
+
+
+def test_a_4kb_random_overwrite_inside_the_dataset_fails_its_checksum(reference, tmp_path) -> None:
+    path = reference.save(tmp_path / "copy.h5")
+    data = bytearray(path.read_bytes())
+    rng = np.random.default_rng(7)
+    detected = 0
+    for trial in range(5):
+        damaged = bytearray(data)
+        start = int(rng.integers(0, len(data) - 4096))
+        damaged[start : start + 4096] = rng.integers(0, 256, 4096, dtype=np.uint8).tobytes()
+        bad = tmp_path / f"bad{trial}.h5"
+        bad.write_bytes(bytes(damaged))
+        with pytest.raises(DatasetError):
+            Dataset.load(bad)
+        detected += bool(verify(bad))
+    assert detected == 5
+
+
+@pytest.mark.parametrize(("samples", "fraction"), [(1, 0.25), (2, 0.25), (4, 0.0)])
+def test_collections_without_test_samples_finish(samples, fraction, tmp_path) -> None:
+    plan = dataclasses.replace(PLAN, n_train=samples, test_fraction=fraction)
+    out = tmp_path / "small.h5"
+    dataset = collect(plan, out, workers=1)
+    assert len(dataset.train) == samples and len(dataset.test) == plan.n_test == 0
+    assert Dataset.load(out).test.delta_a.shape == (0, 2)
+    assert not _parts(out).exists()
+
+
+def test_training_without_test_samples_keeps_its_best_training_epoch(tmp_path) -> None:
+    plan = dataclasses.replace(PLAN, n_train=4, test_fraction=0.0)
+    dataset = collect(plan, tmp_path / "small.h5", workers=1)
+    learned, result = train_condensed(dataset, TRAINING)
+    losses = [h["train"] for h in result.history]
+    assert result.best_epoch == 1 + int(np.argmin(losses)) and result.best_epoch > 0
+
+
+def test_a_failed_checkpoint_write_keeps_the_last_one_and_training_resumes(
+    reference, tmp_path, monkeypatch
+) -> None:
+    checkpoint = tmp_path / "run.ckpt"
+    config = dataclasses.replace(TRAINING, checkpoint=checkpoint, checkpoint_every=2)
+    _, uninterrupted = train_condensed(reference, dataclasses.replace(config, checkpoint=None))
+    real, calls = torch.save, []
+
+    def disk_fills_at_the_second_checkpoint(obj, f, *args, **kwargs):
+        calls.append(f)
+        if len(calls) == 2:
+            raise RuntimeError("PytorchStreamWriter failed writing file: No space left")
+        return real(obj, f, *args, **kwargs)
+
+    monkeypatch.setattr(torch, "save", disk_fills_at_the_second_checkpoint)
+    with pytest.raises(TrainingError, match="epoch 4: cannot write the checkpoint"):
+        train_condensed(reference, config)
+    monkeypatch.undo()
+    assert torch.load(checkpoint, weights_only=True)["epoch"] == 2  # the last one, intact
+    assert [p.name for p in tmp_path.iterdir()] == ["run.ckpt"]  # no temporary file
+    _, resumed = train_condensed(reference, config)
+    assert resumed.best_epoch == uninterrupted.best_epoch
+    np.testing.assert_allclose(
+        [h["train"] for h in resumed.history], [h["train"] for h in uninterrupted.history]
+    )
+
+
+def test_a_non_finite_loss_stops_training_naming_the_epoch(reference) -> None:
+    train = reference.train
+    x = torch.tensor(train.inputs(), dtype=torch.float32)
+    y = torch.tensor(train.outputs(), dtype=torch.float32)
+    network = StandardisedMLP(x, y, hidden=(16,))
+    y[3, 0] = float("nan")  # a sample the dataset's validation would have refused
+    with pytest.raises(TrainingError, match="epoch 1: the training loss is nan"):
+        fit(network, (x, y), (x[:0], y[:0]), TRAINING)
+
+
+def test_models_with_non_finite_weights_are_refused(reference, tmp_path) -> None:
+    learned, _ = train_condensed(reference, TRAINING)
+    path = learned.save(tmp_path / "model.pt")
+    data = torch.load(path, weights_only=True)
+    key = next(k for k in data["state"] if k.endswith("weight"))
+    data["state"][key][0, 0] = float("nan")
+    torch.save(data, path)
+    with pytest.raises(LearnedModelError, match="non-finite weights"):
+        LearnedCondensedModel.load(path)
+    reference.save(tmp_path / "data.h5")
+    result = CliRunner().invoke(
+        app, ["condensed", "evaluate", str(path), str(tmp_path / "data.h5")]
+    )
+    assert result.exit_code == 1 and "non-finite weights" in result.output
+
+
+def test_the_command_line_offers_overwrite_and_verify(tmp_path) -> None:
+    out = tmp_path / "finger.h5"
+    args = ["condensed", "collect", "finger", "--out", str(out), "--bounds", "0:4"]
+    args += ["--samples", "4", "--test-fraction", "0", "--chunk-size", "2", "--workers", "1"]
+    runner = CliRunner()
+    assert runner.invoke(app, args).exit_code == 0
+    again = runner.invoke(app, args)
+    assert again.exit_code == 1 and "--overwrite" in again.output
+    assert runner.invoke(app, [*args, "--overwrite"]).exit_code == 0
+    sound = runner.invoke(app, ["condensed", "verify", str(out)])
+    assert sound.exit_code == 0 and "no corrupt part" in sound.output
+
+
+def test_a_training_killed_mid_run_resumes_from_an_intact_checkpoint(reference, tmp_path) -> None:
+    data, checkpoint = tmp_path / "data.h5", tmp_path / "run.ckpt"
+    reference.save(data)
+    code = f"""
+        from pathlib import Path
+        from pliant.condensed.dataset import Dataset
+        from pliant.condensed.train import TrainConfig, train_condensed
+
+        config = TrainConfig(epochs=10**6, batch_size=4, hidden=(16,), progress=False,
+                             checkpoint=Path({str(checkpoint)!r}), checkpoint_every=1)
+        train_condensed(Dataset.load({str(data)!r}), config)
+    """
+    child = subprocess.Popen([sys.executable, "-c", textwrap.dedent(code)], cwd=ROOT)
+    try:
+        deadline = time.monotonic() + 120
+        while time.monotonic() < deadline:
+            time.sleep(0.2)
+            try:
+                if torch.load(checkpoint, weights_only=True)["epoch"] >= 3:
+                    break
+            except (OSError, RuntimeError, EOFError):
+                continue  # not written yet
+        os.kill(child.pid, signal.SIGKILL)  # mid-epoch, or mid-write
+        child.wait(timeout=30)
+    finally:
+        if child.poll() is None:
+            child.kill()
+    saved = torch.load(checkpoint, weights_only=True)["epoch"]  # whole, never torn
+    assert saved >= 3
+    config = dataclasses.replace(TRAINING, epochs=saved + 2, checkpoint=checkpoint)
+    _, resumed = train_condensed(reference, config)
+    assert [h["epoch"] for h in resumed.history] == list(range(1, saved + 3))
