@@ -92,3 +92,8 @@ class DatasetError(PliantError, ValueError):
 class LearnedModelError(PliantError, ValueError):
     """A learned condensed model cannot be used: unreadable file, or a robot whose constraint
     layout (actuators, effectors, contacts and their rows) differs from the one it learned."""
+
+
+class ReductionError(PliantError, ValueError):
+    """A reduced model cannot be built or used: snapshots with NaN, a basis or reduced model
+    that does not match the model's mesh, a tolerance outside its range."""
