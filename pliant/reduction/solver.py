@@ -304,6 +304,17 @@ class ReducedImplicitEuler:
         finally:
             numba.set_num_threads(saved)
 
+    def internal_forces(self, coordinates: np.ndarray) -> np.ndarray:
+        """f_r(alpha) = sum_RID xi_e Phi_e^T f_e(q0 + Phi alpha) (r,)."""
+        x = self._place(np.asarray(coordinates, dtype=float))
+        return self._element_forces(x, np.zeros_like(x), 0)[0]
+
+    def stiffness(self, coordinates: np.ndarray) -> np.ndarray:
+        """K_r(alpha) = -d f_r / d alpha (r, r), the tangent the step factorises."""
+        x = self._place(np.asarray(coordinates, dtype=float))
+        _, _, membrane_tangents = self._element_forces(x, np.zeros_like(x), 0)
+        return self._tangent(x, membrane_tangents)
+
     def _coefficients(self) -> tuple[float, float]:
         b, h = self.model.body, self.dt
         return 1.0 + h * b.rayleigh_mass, h * b.rayleigh_stiffness + h * h
