@@ -47,6 +47,14 @@ _register("CartStemContact", "pliant.envs.cartstem:CartStemContactEnv", 30, subs
 _register("SimpleMaze", "pliant.envs.maze:SimpleMazeEnv", 50, substeps=4)
 _register("Maze", "pliant.envs.maze:MazeEnv", 250, substeps=2, mesh_size=8.0)
 _register("Multigait", "pliant.envs.multigait:MultigaitEnv", 6, substeps=4, mesh_size=10.0)
+_register(
+    "ReducedMultigait",
+    "pliant.envs.reduced_multigait:ReducedMultigaitEnv",
+    6,
+    substeps=4,
+    mesh_size=10.0,
+    training={"sequences": 0, "phase": 0.2},
+)
 
 
 def make(env_id: str, **kwargs) -> gym.Env:

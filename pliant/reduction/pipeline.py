@@ -3,6 +3,10 @@ cases that train the Multigait's."""
 
 from __future__ import annotations
 
+import hashlib
+import json
+import os
+import tempfile
 import time
 from collections.abc import Callable, Sequence
 from pathlib import Path
@@ -11,7 +15,7 @@ import numpy as np
 
 from pliant.model import Model
 from pliant.reduction import snapshots as snap
-from pliant.reduction.basis import check_tolerance, pod
+from pliant.reduction.basis import check_tolerance, mesh_fingerprint, pod
 from pliant.reduction.ecsw import hyper_reduce
 from pliant.reduction.reduced import ReducedModel
 from pliant.reduction.snapshots import LoadCase
@@ -161,3 +165,34 @@ def multigait_cases(
             levels.append(level.copy())
         cases.append(LoadCase(f"actions_{seed}_{k}", ramped(levels, phase), 6 * phase))
     return cases
+
+
+def cache_folder() -> Path:
+    """Where reduced models built on demand are kept: $PLIANT_CACHE/reduction, by default
+    ~/.cache/pliant/reduction."""
+    root = os.environ.get("PLIANT_CACHE") or Path.home() / ".cache" / "pliant"
+    return Path(root) / "reduction"
+
+
+def cached(
+    model: Model,
+    cases: Sequence[LoadCase],
+    settings: dict,
+    *,
+    dt: float = 0.01,
+    **options,
+) -> ReducedModel:
+    """The reduced model of `model` trained on `cases`, built once and then read from the
+    cache (:func:`cache_folder`), under a name made of the mesh's fingerprint and a digest of
+    `settings` (everything that makes the snapshots: the builder's arguments, the cases'
+    parameters) and of `options` and `dt`."""
+    key = json.dumps({**settings, **options, "dt": dt}, sort_keys=True, default=str)
+    digest = hashlib.sha256(key.encode()).hexdigest()[:12]
+    folder = cache_folder()
+    path = folder / f"{model.name}_{mesh_fingerprint(model.body)}_{digest}.npz"
+    if path.exists():
+        return ReducedModel.load(path, model)
+    with tempfile.TemporaryDirectory(dir=folder.parent if folder.exists() else None) as work:
+        reduced = reduce(model, cases, work, dt=dt, metadata={"settings": key}, **options)
+    folder.mkdir(parents=True, exist_ok=True)
+    return ReducedModel.load(reduced.save(path), model)
