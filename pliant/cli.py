@@ -15,6 +15,7 @@ from rich.table import Table
 from pliant import robots
 from pliant.condensed.cli import app as condensed_app
 from pliant.errors import PliantError
+from pliant.reduction.cli import reduce_command
 from pliant.solvers import ImplicitEuler, StaticSolver
 
 app = typer.Typer(
@@ -24,6 +25,7 @@ app = typer.Typer(
 )
 console = Console()
 app.add_typer(condensed_app, name="condensed")
+app.command("reduce")(reduce_command)
 
 
 def _solver(model, solver: str, dt: float):
