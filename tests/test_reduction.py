@@ -11,6 +11,7 @@ import pytest
 
 from pliant.constraints.base import EmbeddedPoints
 from pliant.constraints.cable import CableActuator
+from pliant.constraints.cavity import CavityActuator
 from pliant.constraints.collision import Plane
 from pliant.constraints.contact import Contacts
 from pliant.errors import ReductionError
@@ -28,6 +29,7 @@ from pliant.reduction import (
     full_basis,
     greedy_nnls,
     hyper_reduce,
+    kernels,
     pod,
     snapshots,
 )
@@ -136,6 +138,29 @@ def test_ecsw_weights_reproduce_the_training_forces_within_tau(trained):
         assert np.all(selection.weights > 0)
         assert selection.elements.size < g.shape[2]
     assert domain.tets.elements.size < model.body.n_elements / 2
+
+
+def test_compiled_cavity_and_membrane_kernels_match_their_definitions(rng):
+    model = beam()
+    membrane = model.body.membranes[0].membrane
+    x = model.body.rest_positions + rng.normal(scale=1.0, size=model.body.rest_positions.shape)
+    forces, energy = membrane.element_forces(x)
+    t = len(membrane.triangles)
+    f, k = np.empty((t, 9)), np.empty((t, 9, 9))
+    e = kernels.membrane_forces_tangent(
+        x, membrane.triangles, membrane.grads, membrane.areas, membrane.mu, membrane.lam, f, k
+    )
+    np.testing.assert_allclose(f, forces.reshape(t, 9), rtol=1e-12, atol=1e-12 * np.abs(f).max())
+    np.testing.assert_allclose(k, membrane.element_stiffness(x), rtol=1e-12, atol=1e-9)
+    assert e == pytest.approx(energy, rel=1e-12)
+    cube = box_beam(10.0, 10.0, 10.0, 2, 2, 2)
+    cavity = CavityActuator(cube.boundary_triangles(), cube.points)
+    grad = kernels.gradient_buffer(cavity.triangles)
+    y = cube.points + rng.normal(scale=0.3, size=cube.points.shape)
+    volume = kernels.cavity_gradient(y, cavity.triangles, grad)
+    assert volume == pytest.approx(cavity.volume(y), rel=1e-12)
+    assert kernels.cavity_volume(y, cavity.triangles) == pytest.approx(volume, rel=1e-12)
+    np.testing.assert_allclose(grad.reshape(1, -1, 3), cavity.jacobian(y).values, rtol=1e-12)
 
 
 def test_greedy_nnls_stops_at_its_tolerance_with_non_negative_weights(rng):

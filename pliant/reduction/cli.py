@@ -53,9 +53,9 @@ def reduce_command(
         Path, typer.Option(help="folder of snapshots.h5, reduced.npz, report.json")
     ] = Path("out/reduction"),
     dt: Annotated[float, typer.Option(help="time step")] = 0.01,
-    pod_tolerance: Annotated[float, typer.Option(help="tail energy of the modes left out")] = 1e-4,
-    tau: Annotated[float, typer.Option(help="ECSW tolerance of the tetrahedra")] = 3e-3,
-    tau_membrane: Annotated[float, typer.Option(help="ECSW tolerance of the membranes")] = 3e-3,
+    pod_tolerance: Annotated[float, typer.Option(help="tail energy of the modes left out")] = 1e-3,
+    tau: Annotated[float, typer.Option(help="ECSW tolerance of the tetrahedra")] = 1e-3,
+    tau_membrane: Annotated[float, typer.Option(help="ECSW tolerance of the membranes")] = 1e-3,
     duration: Annotated[float, typer.Option(help="seconds of scripted actuation")] = 3.6,
     phase: Annotated[float, typer.Option(help="seconds of a ramp of the load cases")] = 0.6,
     sequences: Annotated[int, typer.Option(help="multigait: random action sequences")] = 3,

@@ -27,19 +27,20 @@ observations); :meth:`ReducedImplicitEuler.reduce` projects a full state on the 
 
 from __future__ import annotations
 
-import copy
 from dataclasses import dataclass, field
 
 import numba
 import numpy as np
 import scipy.linalg
 
+from pliant.constraints.cavity import CavityActuator
 from pliant.constraints.condensed import CondensedProblem
 from pliant.constraints.control import as_control, constraint_forces
 from pliant.constraints.friction import ContactForces
 from pliant.errors import DivergenceError, ReductionError, SolverError
-from pliant.fem import kernels
+from pliant.fem import kernels as fem_kernels
 from pliant.model import Model, State
+from pliant.reduction import kernels
 from pliant.reduction.basis import ReducedBasis
 from pliant.reduction.ecsw import IntegrationDomain
 from pliant.solvers.base import StepReport
@@ -156,17 +157,46 @@ class _ReducedTangent:
         return scipy.linalg.cho_solve(self._factor, rhs, check_finite=False)
 
 
+class _Cavity:
+    """A cavity's row read through the basis: delta = V(q) - V0 and H_r = dV/dq Phi, from the
+    compiled kernels on its walls."""
+
+    def __init__(self, cavity: CavityActuator, modes: np.ndarray) -> None:
+        self.cavity = cavity
+        self.triangles = np.ascontiguousarray(cavity.triangles)
+        self.gradient = kernels.gradient_buffer(self.triangles)
+        self.phi = np.ascontiguousarray(modes[self.triangles].reshape(-1, modes.shape[2]))
+
+    def rows(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        volume = kernels.cavity_gradient(x, self.triangles, self.gradient)
+        row = self.gradient.reshape(1, -1) @ self.phi
+        return np.array([volume - self.cavity.rest_volume]), row
+
+    def distance(self, x: np.ndarray) -> float:
+        return kernels.cavity_volume(x, self.triangles) - self.cavity.rest_volume
+
+
 class _Membrane:
     """The selected triangles of a membrane, their weights and the basis on their nodes."""
 
     def __init__(self, membrane, elements: np.ndarray, weights: np.ndarray, modes: np.ndarray):
-        sub = copy.copy(membrane)
-        for name in ("triangles", "areas", "grads", "dofs"):
-            setattr(sub, name, np.ascontiguousarray(getattr(membrane, name)[elements]))
-        self.membrane = sub
+        self.mu, self.lam = membrane.mu, membrane.lam
+        self.triangles = np.ascontiguousarray(membrane.triangles[elements])
+        self.grads = np.ascontiguousarray(membrane.grads[elements])
+        self.areas = np.ascontiguousarray(membrane.areas[elements])
         t, r = len(elements), modes.shape[2]
-        self.phi = np.ascontiguousarray(modes[sub.triangles].reshape(t, 9, r))
+        self.phi = np.ascontiguousarray(modes[self.triangles].reshape(t, 9, r))
         self.weighted = (weights[:, None, None] * self.phi).reshape(9 * t, r)
+        self.forces, self.tangents = np.empty((t, 9)), np.empty((t, 9, 9))
+
+    def evaluate(self, x: np.ndarray, v: np.ndarray) -> np.ndarray:
+        """(9 t, 2): the triangles' forces and K v (compiled kernel)."""
+        kernels.membrane_forces_tangent(
+            x, self.triangles, self.grads, self.areas, self.mu, self.lam, self.forces, self.tangents
+        )
+        local = v[self.triangles].reshape(-1, 9)
+        kv = np.einsum("trc,tc->tr", self.tangents, local)
+        return np.stack([self.forces.reshape(-1), kv.reshape(-1)], axis=1)
 
 
 class ReducedImplicitEuler:
@@ -181,6 +211,8 @@ class ReducedImplicitEuler:
         dt: time step h.
         tangent: "lagged" (the full solver's default policy, on the selected elements) or
             "fresh" (A_r rebuilt at every step).
+        lag_tolerance: largest change of a selected element's frame entry before the lagged
+            tangent is rebuilt (default: the body's, as the full solver).
     """
 
     def __init__(
@@ -191,6 +223,7 @@ class ReducedImplicitEuler:
         dt: float = 0.01,
         *,
         tangent: str = "lagged",
+        lag_tolerance: float | None = None,
     ) -> None:
         if not (np.isfinite(dt) and dt > 0):
             raise SolverError(f"the time step must be finite and > 0, got {dt!r}")
@@ -212,7 +245,9 @@ class ReducedImplicitEuler:
         flat = modes.reshape(-1, r)
         self.mass = flat[body.free_dofs].T @ body.mass_matvec(flat[body.free_dofs])
         self.gravity = flat.T @ body.gravity_forces().reshape(-1)
-        self.system = _ReducedTangent(tangent, body.lag_tolerance)
+        self.system = _ReducedTangent(
+            tangent, body.lag_tolerance if lag_tolerance is None else float(lag_tolerance)
+        )
         # The selected tetrahedra, with their arrays and the basis on their nodes.
         e, w = domain.tets.elements, domain.tets.weights
         self._tets = np.ascontiguousarray(body.tets[e])
@@ -232,9 +267,7 @@ class ReducedImplicitEuler:
         # The active nodes: those of the selected elements, of the constraints and of the
         # colliding points; positions are computed there only.
         rest = body.rest_positions
-        wanted = [self._tets.reshape(-1)] + [
-            s.membrane.triangles.reshape(-1) for s in self._membranes
-        ]
+        wanted = [self._tets.reshape(-1)] + [s.triangles.reshape(-1) for s in self._membranes]
         wanted += [c.jacobian(rest).nodes.reshape(-1) for c in model.constraints]
         if model.contacts is not None:
             wanted.append(model.contacts.points.nodes.reshape(-1))
@@ -242,6 +275,10 @@ class ReducedImplicitEuler:
         self._active_modes = np.ascontiguousarray(modes[self.active].reshape(-1, r))
         self._active_rest = rest[self.active]
         self._x, self._v = rest.copy(), np.zeros_like(rest)
+        # Cavities' rows from the compiled kernels; other constraints' from their own code.
+        self._cavities = {
+            id(c): _Cavity(c, modes) for c in model.constraints if isinstance(c, CavityActuator)
+        }
         self._size = body.extent
         self.last_report = StepReport()
 
@@ -376,7 +413,7 @@ class ReducedImplicitEuler:
             state.time + h,
             step,
             lam_a,
-            model.actuator_distances(self._place(alpha_new)),
+            self._actuator_distances(self._place(alpha_new)),
             contact_forces,
             self.basis,
         )
@@ -389,7 +426,7 @@ class ReducedImplicitEuler:
         """f_r and (K v)_r over the reduced integration domain, and the membranes' tangents."""
         body = self.model.body
         m = self._tets.shape[0]
-        kernels.internal_forces(
+        fem_kernels.internal_forces(
             x,
             v,
             self._tets,
@@ -419,13 +456,8 @@ class ReducedImplicitEuler:
         )
         tangents = []
         for part in self._membranes:
-            membrane = part.membrane
-            forces, _ = membrane.element_forces(x)
-            tangent = membrane.element_stiffness(x)
-            local = v[membrane.triangles].reshape(-1, 9)
-            kv = np.einsum("trc,tc->tr", tangent, local)
-            both += part.weighted.T @ np.stack([forces.reshape(-1), kv.reshape(-1)], axis=1)
-            tangents.append(tangent)
+            both += part.weighted.T @ part.evaluate(x, v)
+            tangents.append(part.tangents)
         if not np.all(np.isfinite(both)):
             raise DivergenceError(
                 f"step {step}: non-finite internal forces; reduce the time step",
@@ -440,7 +472,7 @@ class ReducedImplicitEuler:
         m, r = self._tets.shape[0], self.basis.n_modes
         out = np.zeros((r, r))
         if m:
-            kernels.element_stiffness(
+            fem_kernels.element_stiffness(
                 x,
                 self._tets,
                 self._grads,
@@ -458,6 +490,14 @@ class ReducedImplicitEuler:
             out += part.weighted.T @ np.matmul(tangent, part.phi).reshape(-1, r)
         return 0.5 * (out + out.T)
 
+    def _actuator_distances(self, x: np.ndarray) -> np.ndarray:
+        """delta of every actuator row at x."""
+        out = []
+        for c in self.model.actuators:
+            cavity = self._cavities.get(id(c))
+            out.append([cavity.distance(x)] if cavity is not None else c.distance(x))
+        return np.concatenate(out) if out else np.zeros(0)
+
     def _rows(self, x: np.ndarray, roles, contact):
         """delta, H_r = H Phi (rows, r) and the slices of the step's constraint rows, in the
         full step's order: actuators, effectors (those of `roles`), contacts."""
@@ -467,9 +507,14 @@ class ReducedImplicitEuler:
         modes, r = self.basis.modes, self.basis.n_modes
         distances, blocks, slices, start = [], [], {}, 0
         for c in cons:
-            delta, jac = c.distance_and_jacobian(x)
+            cavity = self._cavities.get(id(c))
+            if cavity is not None:
+                delta, block = cavity.rows(x)
+            else:
+                delta, jac = c.distance_and_jacobian(x)
+                block = np.einsum("rki,rkis->rs", jac.values, modes[jac.nodes])
             distances.append(delta)
-            blocks.append(np.einsum("rki,rkis->rs", jac.values, modes[jac.nodes]))
+            blocks.append(block)
             stop = start + c.n_rows
             role = slices.get(c.role)
             slices[c.role] = slice(start if role is None else role.start, stop)
