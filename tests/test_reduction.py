@@ -4,7 +4,9 @@ a nearby load case, the snapshot file and bad input."""
 
 from __future__ import annotations
 
+import re
 import warnings
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -272,3 +274,11 @@ def test_bad_input_raises_clear_errors(trained, tmp_path):
         snapshots.collect(other, [], path)
     with pytest.raises(ReductionError, match="another mesh"):
         snapshots.load(path, other)
+
+
+DOCS = Path(__file__).parents[1] / "docs" / "reduction.md"
+
+
+@pytest.mark.parametrize("code", re.findall(r"```python\n(.*?)```", DOCS.read_text(), flags=re.S))
+def test_docs_example_runs(code):
+    exec(compile(code, str(DOCS), "exec"), {})
