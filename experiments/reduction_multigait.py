@@ -84,9 +84,14 @@ def compare(model, full: dict, reduced: dict) -> dict:
 
 
 def reference_model(folder: Path):
+    """The SOFA reference mesh, its chambers' walls and collision points as the bench reads
+    them (pliant.bench.multigait_on_floor), with the Multigait builder's defaults (SofaGym's
+    scene: Neo-Hookean E 70 kPa, nu 0.05, volume-controlled chambers, paper membrane)."""
     from pliant.bench import multigait_on_floor
 
-    return multigait_on_floor(folder)
+    bench = multigait_on_floor(folder)
+    points = bench.contacts.points.positions(bench.body.rest_positions)
+    return multigait(mesh=bench.body.mesh, collision_points=points)
 
 
 def main() -> None:
@@ -96,6 +101,10 @@ def main() -> None:
     parser.add_argument("--pod", default="1e-3,1e-4,1e-5")
     parser.add_argument("--tau", default="0.01,0.003,0.001")
     parser.add_argument("--cycles", type=int, default=1)
+    parser.add_argument("--sequences", type=int, default=3, help="random training sequences")
+    parser.add_argument(
+        "--amplitude", default="4900,3300", help="centre and leg volume growth (mm^3)"
+    )
     parser.add_argument("--all-elements", action="store_true", help="also tau = 0")
     parser.add_argument("--out", type=Path, default=Path("experiments/results/reduction"))
     args = parser.parse_args()
@@ -105,12 +114,17 @@ def main() -> None:
         model, label = multigait(mesh_size=args.mesh_size), f"mesh{args.mesh_size:g}"
     cache = args.out / "cache" / label
     began = time.perf_counter()
-    path = snapshots.collect(model, multigait_cases(sequences=3), cache / "snapshots.h5", dt=DT)
+    amplitude = tuple(float(a) for a in args.amplitude.split(","))
+    cases = multigait_cases(amplitude=amplitude, sequences=args.sequences)
+    path = snapshots.collect(model, cases, cache / "snapshots.h5", dt=DT)
     collect_s = time.perf_counter() - began
     positions = np.concatenate([p for _, p in snapshots.load(path, model).values()])
-    held_out = multigait_cases(sequences=1, seed=1)[-1]
+    held_out = multigait_cases(amplitude=amplitude, sequences=1, seed=1)[-1]
     tests = {
-        "gait": (lambda t: demo_actuation(t), round(6 * 0.6 * args.cycles / DT)),
+        "gait": (
+            lambda t: demo_actuation(t, amplitude=amplitude),
+            round(6 * 0.6 * args.cycles / DT),
+        ),
         "held_out": (held_out.commands, round(held_out.duration / DT)),
     }
     full = {}
@@ -123,6 +137,7 @@ def main() -> None:
         )
     results = {
         "model": label,
+        "amplitude_mm3": list(amplitude),
         "tetrahedra": model.body.n_elements,
         "nodes": model.body.n_nodes,
         "membrane_triangles": [len(a.membrane.triangles) for a in model.body.membranes],
