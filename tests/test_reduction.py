@@ -4,6 +4,7 @@ a nearby load case, the snapshot file and bad input."""
 
 from __future__ import annotations
 
+import json
 import re
 import warnings
 from pathlib import Path
@@ -282,3 +283,20 @@ DOCS = Path(__file__).parents[1] / "docs" / "reduction.md"
 @pytest.mark.parametrize("code", re.findall(r"```python\n(.*?)```", DOCS.read_text(), flags=re.S))
 def test_docs_example_runs(code):
     exec(compile(code, str(DOCS), "exec"), {})
+
+
+def test_cli_reduces_a_robot_and_reports(tmp_path):
+    from typer.testing import CliRunner
+
+    from pliant.cli import app
+
+    args = ["reduce", "finger", "--duration", "0.2", "--phase", "0.1", "--check", "0.1"]
+    result = CliRunner().invoke(app, [*args, "--out", str(tmp_path)])
+    assert result.exit_code == 0, result.output
+    report = json.loads((tmp_path / "finger" / "report.json").read_text())
+    assert report["n_modes"] >= 1 and 0 < report["tets_selected"] < report["tets_total"]
+    # Within its training script (measured: 0.06 % of the finger's size over 0.1 s).
+    assert report["max_error_pct_size"] < 0.5
+    assert (tmp_path / "finger" / "reduced.npz").exists()
+    bad = CliRunner().invoke(app, ["reduce", "finger", "--tau", "1.5", "--out", str(tmp_path)])
+    assert bad.exit_code == 1 and "(0, 1)" in bad.output

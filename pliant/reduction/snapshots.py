@@ -11,8 +11,8 @@ appended to an HDF5 file, one group per case:
     attributes: done, steps; at the root: fingerprint, dt, every
 
 The collection is resumable: a finished case is skipped, an interrupted one continues from
-its checkpoint (the same steps as an uninterrupted run, to round-off: the factorisation lag
-restarts). Cases run one after the other in this process.
+its checkpoint (close to an uninterrupted run: only the lagged factorisation restarts there,
+1e-6 mm apart on the tests' beam). Cases run one after the other in this process.
 """
 
 from __future__ import annotations
