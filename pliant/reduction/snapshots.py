@@ -22,7 +22,6 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
-import h5py
 import numpy as np
 
 from pliant.constraints.friction import ContactForces
@@ -41,7 +40,19 @@ class LoadCase:
     duration: float
 
 
-def _write_state(group: h5py.Group, state: State) -> None:
+def _h5py():
+    """h5py, imported when snapshots are written or read (an optional dependency, in the
+    'learn' extra), with a clear error when it is missing."""
+    try:
+        import h5py
+    except ImportError as exc:
+        raise ReductionError(
+            "snapshots are stored with h5py: pip install h5py (or pliant[learn])"
+        ) from exc
+    return h5py
+
+
+def _write_state(group, state: State) -> None:
     if "checkpoint" in group:
         del group["checkpoint"]
     g = group.create_group("checkpoint")
@@ -52,7 +63,7 @@ def _write_state(group: h5py.Group, state: State) -> None:
     g.attrs["time"], g.attrs["step"] = state.time, state.step
 
 
-def _read_state(group: h5py.Group) -> State:
+def _read_state(group) -> State:
     g = group["checkpoint"]
     return State(
         g["positions"][()],
@@ -81,7 +92,7 @@ def collect(
     path.parent.mkdir(parents=True, exist_ok=True)
     fingerprint = mesh_fingerprint(model.body)
     n = model.body.n_nodes
-    with h5py.File(path, "a") as f:
+    with _h5py().File(path, "a") as f:
         settings = {"fingerprint": fingerprint, "dt": float(dt), "every": int(every)}
         for key, value in settings.items():
             if key in f.attrs and f.attrs[key] != value:
@@ -129,7 +140,7 @@ def load(path: str | Path, model: Model | None = None, cases: Sequence[str] | No
     if not path.exists():
         raise ReductionError(f"no snapshot file at {path}")
     out = {}
-    with h5py.File(path, "r") as f:
+    with _h5py().File(path, "r") as f:
         if model is not None and f.attrs.get("fingerprint") != mesh_fingerprint(model.body):
             raise ReductionError(
                 f"{path} holds snapshots of another mesh than {model.name}'s"
