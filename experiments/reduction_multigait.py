@@ -106,6 +106,13 @@ def main() -> None:
         "--amplitude", default="4900,3300", help="centre and leg volume growth (mm^3)"
     )
     parser.add_argument("--all-elements", action="store_true", help="also tau = 0")
+    parser.add_argument(
+        "--reuse-gait",
+        action="store_true",
+        help="the full gait is the training case's (recorded every 5 steps, as here), timed"
+        " over 60 steps only (for a slow full model; needs --cycles 1)",
+    )
+    parser.add_argument("--no-held-out", action="store_true", help="only the gait")
     parser.add_argument("--out", type=Path, default=Path("experiments/results/reduction"))
     args = parser.parse_args()
     if args.reference is not None:
@@ -127,9 +134,16 @@ def main() -> None:
         ),
         "held_out": (held_out.commands, round(held_out.duration / DT)),
     }
+    if args.no_held_out:
+        del tests["held_out"]
     full = {}
     for name, (commands, steps) in tests.items():
-        full[name] = run(ImplicitEuler(model, DT), model.rest_state(), commands, steps)
+        if name == "gait" and args.reuse_gait:
+            timed = run(ImplicitEuler(model, DT), model.rest_state(), commands, CHUNK)
+            recorded = snapshots.load(path, model, ["gait"])["gait"][1]
+            full[name] = {**timed, "positions": recorded[: steps // EVERY]}
+        else:
+            full[name] = run(ImplicitEuler(model, DT), model.rest_state(), commands, steps)
         print(
             f"full {name}: {full[name]['steps_per_s']:.1f} steps/s,"
             f" {full[name]['steps_per_cpu_s']:.1f} per CPU second",
@@ -185,6 +199,8 @@ def main() -> None:
 
 def plot(results: dict, path: Path) -> None:
     fig, axes = plt.subplots(1, 2, figsize=(10, 4))
+    if not results["reduced"]:
+        return
     for ax, key, ylabel in (
         (axes[0], "rms_error_pct_length", "RMS node error (% of length)"),
         (axes[1], "travel_error_pct", "travel error (%)"),
