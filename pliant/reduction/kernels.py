@@ -25,23 +25,26 @@ def cavity_volume(x, triangles):
 
 
 @njit(cache=True)
-def cavity_gradient(x, triangles, out):
-    """out (t, 3, 3): dV/dx of each triangle's vertices (x1 x x2, x2 x x0, x0 x x1) / 6;
+def cavity_gradient(x, triangles, local, out):
+    """out (k, 3): dV/dx summed on each of the wall's k nodes (`local`: the triangles'
+    vertices numbered 0..k-1), from each triangle's (x1 x x2, x2 x x0, x0 x x1) / 6;
     returns V(x)."""
+    out[:] = 0.0
     v = 0.0
     for t in range(triangles.shape[0]):
         for k in range(3):
             i, j = triangles[t, (k + 1) % 3], triangles[t, (k + 2) % 3]
-            out[t, k, 0] = (x[i, 1] * x[j, 2] - x[i, 2] * x[j, 1]) / 6.0
-            out[t, k, 1] = (x[i, 2] * x[j, 0] - x[i, 0] * x[j, 2]) / 6.0
-            out[t, k, 2] = (x[i, 0] * x[j, 1] - x[i, 1] * x[j, 0]) / 6.0
-        a = triangles[t, 0]
-        v += x[a, 0] * out[t, 0, 0] + x[a, 1] * out[t, 0, 1] + x[a, 2] * out[t, 0, 2]
+            g0 = (x[i, 1] * x[j, 2] - x[i, 2] * x[j, 1]) / 6.0
+            g1 = (x[i, 2] * x[j, 0] - x[i, 0] * x[j, 2]) / 6.0
+            g2 = (x[i, 0] * x[j, 1] - x[i, 1] * x[j, 0]) / 6.0
+            n = local[t, k]
+            out[n, 0] += g0
+            out[n, 1] += g1
+            out[n, 2] += g2
+            if k == 0:
+                a = triangles[t, 0]
+                v += x[a, 0] * g0 + x[a, 1] * g1 + x[a, 2] * g2
     return v
-
-
-def gradient_buffer(triangles: np.ndarray) -> np.ndarray:
-    return np.empty((triangles.shape[0], 3, 3))
 
 
 @njit(cache=True)

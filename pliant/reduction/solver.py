@@ -164,11 +164,13 @@ class _Cavity:
     def __init__(self, cavity: CavityActuator, modes: np.ndarray) -> None:
         self.cavity = cavity
         self.triangles = np.ascontiguousarray(cavity.triangles)
-        self.gradient = kernels.gradient_buffer(self.triangles)
-        self.phi = np.ascontiguousarray(modes[self.triangles].reshape(-1, modes.shape[2]))
+        nodes, local = np.unique(self.triangles, return_inverse=True)
+        self.local = np.ascontiguousarray(local.reshape(self.triangles.shape))
+        self.gradient = np.empty((nodes.size, 3))
+        self.phi = np.ascontiguousarray(modes[nodes].reshape(-1, modes.shape[2]))
 
     def rows(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        volume = kernels.cavity_gradient(x, self.triangles, self.gradient)
+        volume = kernels.cavity_gradient(x, self.triangles, self.local, self.gradient)
         row = self.gradient.reshape(1, -1) @ self.phi
         return np.array([volume - self.cavity.rest_volume]), row
 
