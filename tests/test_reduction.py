@@ -282,9 +282,10 @@ def test_bad_input_raises_clear_errors(trained, tmp_path):
 
 
 DOCS = Path(__file__).parents[1] / "docs" / "reduction.md"
+BLOCKS = re.findall(r"```python\n(.*?)```", DOCS.read_text(), flags=re.S)
 
 
-@pytest.mark.parametrize("code", re.findall(r"```python\n(.*?)```", DOCS.read_text(), flags=re.S))
+@pytest.mark.parametrize("code", BLOCKS, ids=[f"block{i}" for i in range(len(BLOCKS))])
 def test_docs_example_runs(code):
     exec(compile(code, str(DOCS), "exec"), {})
 
