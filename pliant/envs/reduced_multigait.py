@@ -28,7 +28,7 @@ from pliant.reduction import ReducedImplicitEuler, ReducedModel
 from pliant.reduction.pipeline import cached, multigait_cases
 
 #: training of a reduced model built on demand (multigait_cases' arguments and build's).
-TRAINING = {"sequences": 3, "cycles": 1, "phase": 0.6, "pod_tolerance": 1e-3, "tau": 1e-3}
+TRAINING = {"sequences": 3, "cycles": 1, "phase": 0.6, "pod_tolerance": 1e-3, "tau": 3e-3}
 
 
 class ReducedMultigaitEnv(MultigaitEnv):
