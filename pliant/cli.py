@@ -26,6 +26,7 @@ from pliant.cli_support import (
 from pliant.condensed.cli import app as condensed_app
 from pliant.errors import UnreachableGoalWarning
 from pliant.planning.cli import plan
+from pliant.reduction.cli import reduce_command
 from pliant.solvers import ImplicitEuler, StaticSolver
 from pliant.trajopt.cli import app as trajopt_app
 
@@ -39,6 +40,7 @@ console = Console()
 app.add_typer(condensed_app, name="condensed")
 app.command()(plan)
 app.add_typer(trajopt_app, name="trajopt")
+app.command("reduce")(reduce_command)
 
 
 @app.callback()

@@ -121,3 +121,8 @@ class PlanningError(PliantError, ValueError):
 class TrajectoryOptimisationError(PliantError, ValueError):
     """An optimal control problem is ill-posed (horizon, weights, shapes) or its solve failed
     to produce a trajectory (a diverging rollout from the initial guess)."""
+
+
+class ReductionError(PliantError, ValueError):
+    """A reduced model cannot be built or used: snapshots with NaN, a basis or reduced model
+    that does not match the model's mesh, a tolerance outside its range."""

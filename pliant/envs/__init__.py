@@ -73,6 +73,14 @@ _register(
     cube_sizes=(20.0, 30.0),
 )
 _register("Gripper", "pliant.envs.gripper:GripperEnv", 250, substeps=2, mesh_size=12.0)
+_register(
+    "ReducedMultigait",
+    "pliant.envs.reduced_multigait:ReducedMultigaitEnv",
+    6,
+    substeps=4,
+    mesh_size=10.0,
+    training={"sequences": 0, "phase": 0.2},
+)
 
 
 def make(env_id: str, **kwargs) -> gym.Env:

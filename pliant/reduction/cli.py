@@ -1,0 +1,154 @@
+"""``pliant reduce ROBOT``: snapshots of the full FEM -> POD basis -> ECSW -> a saved reduced
+model, with a report of its modes, selected elements, errors and speed."""
+
+from __future__ import annotations
+
+import json
+import time
+import warnings
+from pathlib import Path
+from typing import Annotated
+
+import numpy as np
+import typer
+from rich.console import Console
+from rich.progress import Progress
+from rich.table import Table
+
+from pliant import robots
+from pliant.errors import ContactConvergenceWarning, PliantError
+from pliant.reduction.pipeline import multigait_cases, ramped, reduce
+from pliant.reduction.snapshots import LoadCase
+from pliant.solvers import ImplicitEuler
+
+console = Console()
+
+
+def robot_cases(entry, duration: float, phase: float) -> list[LoadCase]:
+    """A robot's load cases: its scripted actuation over `duration`, then each actuator
+    alone ramped to the largest command the script gives it, held and released (one
+    `phase` each)."""
+    probe = entry.demo_actuation(0.0)
+    if not isinstance(probe, np.ndarray | list | tuple):
+        raise PliantError(
+            "this robot's scripted actuation is a control object, not commands: give its"
+            " load cases through pliant.reduction.reduce"
+        )
+    times = np.linspace(0.0, duration, 200)
+    peak = np.max(np.abs([np.asarray(entry.demo_actuation(t), dtype=float) for t in times]), axis=0)
+    cases = [LoadCase("demo", lambda t: np.asarray(entry.demo_actuation(t), float), duration)]
+    for i, level in enumerate(peak):
+        if level > 0:
+            target = np.zeros_like(peak)
+            target[i] = level
+            cases.append(
+                LoadCase(f"actuator_{i}", ramped([target, target, 0 * target], phase), 3 * phase)
+            )
+    return cases
+
+
+def reduce_command(
+    robot: Annotated[str, typer.Argument(help=f"one of {', '.join(sorted(robots.ROBOTS))}")],
+    out: Annotated[
+        Path, typer.Option(help="folder of snapshots.h5, reduced.npz, report.json")
+    ] = Path("out/reduction"),
+    dt: Annotated[float, typer.Option(help="time step")] = 0.01,
+    pod_tolerance: Annotated[float, typer.Option(help="tail energy of the modes left out")] = 1e-3,
+    tau: Annotated[float, typer.Option(help="ECSW tolerance of the tetrahedra")] = 3e-3,
+    tau_membrane: Annotated[float, typer.Option(help="ECSW tolerance of the membranes")] = 3e-3,
+    duration: Annotated[float, typer.Option(help="seconds of scripted actuation")] = 3.6,
+    phase: Annotated[float, typer.Option(help="seconds of a ramp of the load cases")] = 0.6,
+    sequences: Annotated[int, typer.Option(help="multigait: random action sequences")] = 3,
+    check: Annotated[float, typer.Option(help="seconds of scripted actuation to compare")] = 1.2,
+) -> None:
+    """Reduce ROBOT (thesis §3.1.2): full-FEM snapshots of its load cases (resumable),
+    POD basis, ECSW integration domain; save the reduced model and report its modes,
+    selected elements, errors against the full FEM and speed."""
+    try:
+        entry = robots.entry(robot)
+        model = entry.build()
+        if robot == "multigait":
+            cases = multigait_cases(phase=phase, sequences=sequences)
+        else:
+            cases = robot_cases(entry, duration, phase)
+        folder = out / robot
+        with Progress(console=console) as bar:
+            tasks: dict[str, int] = {}
+
+            def progress(name: str, step: int, steps: int) -> None:
+                if name not in tasks:
+                    tasks[name] = bar.add_task(f"full FEM: {name}", total=steps)
+                bar.update(tasks[name], completed=step)
+
+            reduced = reduce(
+                model,
+                cases,
+                folder,
+                dt=dt,
+                progress=progress,
+                pod_tolerance=pod_tolerance,
+                tau=tau,
+                tau_membrane=tau_membrane,
+            )
+        report = {**reduced.metadata, **compare(model, reduced, entry, dt, check)}
+    except PliantError as exc:
+        console.print(f"[red]error:[/red] {exc}")
+        raise typer.Exit(1) from exc
+    (folder / "report.json").write_text(json.dumps(report, indent=1))
+    table = Table(title=f"{robot}: reduced model ({folder / 'reduced.npz'})")
+    table.add_column("")
+    table.add_column("value")
+    rows = [
+        ("modes (translations)", f"{report['n_modes']} ({report['n_translation']})"),
+        ("tetrahedra selected", f"{report['tets_selected']} / {report['tets_total']}"),
+        (
+            "membrane triangles selected",
+            f"{report['triangles_selected']} / {report['triangles_total']}",
+        ),
+        (
+            "ECSW error (training)",
+            f"{report['ecsw_error_tets']:.2g} {report['ecsw_error_membranes']}",
+        ),
+        ("snapshot projection error, max", f"{report['projection_error_max_mm']:.3g}"),
+        (
+            f"error vs full over {check} s, max / RMS",
+            f"{report['max_error']:.3g} / {report['rms_error']:.3g}",
+        ),
+        (
+            "steps/s full / reduced",
+            f"{report['full_steps_per_s']:.1f} / {report['reduced_steps_per_s']:.1f}",
+        ),
+    ]
+    for row in rows:
+        table.add_row(*row)
+    console.print(table)
+    console.print(f"saved {folder / 'reduced.npz'} and {folder / 'report.json'}")
+
+
+def compare(model, reduced, entry, dt: float, seconds: float) -> dict:
+    """Node-position error of the reduced model against the full FEM under the scripted
+    actuation over `seconds` (model units), and the speed of both (steps/s)."""
+    steps = max(1, round(seconds / dt))
+    runs = {}
+    for name, solver, state in (
+        ("full", ImplicitEuler(model, dt), model.rest_state()),
+        ("reduced", (s := reduced.solver(model, dt)), s.rest_state()),
+    ):
+        positions = []
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", ContactConvergenceWarning)
+            began = time.perf_counter()
+            for _ in range(steps):
+                state = solver.step(state, entry.demo_actuation(state.time))
+                positions.append(np.array(state.positions))
+            runs[name] = (np.array(positions), steps / (time.perf_counter() - began))
+    error = np.linalg.norm(runs["reduced"][0] - runs["full"][0], axis=2)
+    length = float(np.linalg.norm(np.ptp(model.body.rest_positions, axis=0)))
+    return {
+        "check_seconds": seconds,
+        "max_error": float(error.max()),
+        "rms_error": float(np.sqrt(np.mean(error**2))),
+        "max_error_pct_size": 100 * float(error.max()) / length,
+        "full_steps_per_s": runs["full"][1],
+        "reduced_steps_per_s": runs["reduced"][1],
+    }
