@@ -358,6 +358,12 @@ class Model:
             out[driver.nodes] = driver.positions(t)
         return out
 
+    def trajectories_changed(self) -> None:
+        """Tell the kinematic bodies that carry driven nodes that their trajectories were
+        changed in place (their memoised poses are dropped)."""
+        for driver in self.drivers:
+            driver.carrier.forget()
+
     def drive_velocities(self, state: State, dt: float) -> np.ndarray:
         """(n, 3) velocity of each driven node over the step [t, t + h] from `state`,
         (p(t + h) - q) / h (for a rod's orientation, the spin from q to p(t + h) over h);

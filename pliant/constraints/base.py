@@ -232,7 +232,9 @@ def change_reference(actuators: list[Actuator], state) -> np.ndarray:
     """The displacement each actuator's largest change per step is measured from, for the step
     that starts from `state` (see :class:`Actuator`'s `change_reference`)."""
     last = state.displacement
-    before = state.displacement_before if state.displacement_before.size == last.size else last
+    # States that do not keep the displacement before (a reduced model's) measure from the last.
+    before = getattr(state, "displacement_before", last)
+    before = before if before.size == last.size else last
     lagged = np.array(
         [getattr(a, "change_reference", "last") == "lagged" for a in actuators], dtype=bool
     )

@@ -241,6 +241,7 @@ class SoftRobotEnv(gym.Env):
         super().reset(seed=seed)
         for r in self.ramps.values():
             r.reset()
+        self.model.trajectories_changed()
         self.state = self._initial.copy()
         self.commands = np.zeros(self.n_actuators)
         self.target_commands = self.commands.copy()
@@ -255,6 +256,8 @@ class SoftRobotEnv(gym.Env):
         action = self._check_action(action)
         self.target_commands = self.commands.copy()
         self._commands_from_action(action)
+        if self.ramps:  # retargeted in place: the poses the solver memoised are stale
+            self.model.trajectories_changed()
         start = self.commands.copy()
         target = np.asarray(self.target_commands, dtype=float)
         # The lagged tangent is rebuilt at each environment step: the step then depends on
@@ -336,6 +339,7 @@ class SoftRobotEnv(gym.Env):
         self._elapsed = snapshot.elapsed_steps
         last = snapshot.extra.get("last_obs")
         self._last_obs = None if last is None else last.copy()
+        self.model.trajectories_changed()
         self.sim.system.invalidate()
 
     # ------------------------------------------------------------------------ rendering

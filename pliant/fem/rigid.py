@@ -264,6 +264,11 @@ class KinematicBody:
         self.trajectory = trajectory if trajectory is not None else (lambda t: fixed)
         self._last_pose = None  # (trajectory, t, pose): a step asks for the same t repeatedly
 
+    def forget(self) -> None:
+        """Drop the memoised pose: after its trajectory was changed in place (an environment
+        retargeting a cart), the pose at a time asked before is no longer the same."""
+        self._last_pose = None
+
     def pose(self, t: float) -> tuple[np.ndarray, np.ndarray]:
         """The pose at t (read-only arrays)."""
         last = self._last_pose

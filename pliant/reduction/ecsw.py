@@ -81,6 +81,8 @@ def tet_contributions(body, basis: ReducedBasis, positions: np.ndarray) -> np.nd
             body.mu,
             body.lam,
             body.material.kernel_tag,
+            body.frame_nodes,
+            body.rest_frames,
             forces,
             np.empty((0, 4, 3)),
             frames,

@@ -256,6 +256,10 @@ class ReducedImplicitEuler:
         self._grads = np.ascontiguousarray(body.grads[e])
         self._volumes = np.ascontiguousarray(body.volumes[e])
         self._mu, self._lam = np.ascontiguousarray(body.mu[e]), np.ascontiguousarray(body.lam[e])
+        # SOFA's "large" frames (empty for the polar rotation) of the selected elements.
+        large = body.frame_nodes.shape[0] > 0
+        self._frame_nodes = np.ascontiguousarray(body.frame_nodes[e] if large else body.frame_nodes)
+        self._rest_frames = np.ascontiguousarray(body.rest_frames[e] if large else body.rest_frames)
         m = e.size
         self._phi = np.ascontiguousarray(modes[self._tets].reshape(m, 12, r))
         self._weighted = (w[:, None, None] * self._phi).reshape(12 * m, r)
@@ -437,6 +441,8 @@ class ReducedImplicitEuler:
             self._mu,
             self._lam,
             body.material.kernel_tag,
+            self._frame_nodes,
+            self._rest_frames,
             self._elem[:, :, :3],
             self._elem[:, :, 3:],
             self._frames,

@@ -231,9 +231,9 @@ class ImplicitEuler:
         if self._look_ahead:
             # The next step's linearisation, now: a state with inverted elements is refused
             # by the step that made it, never returned (the next step reuses it).
-            ahead, _ = self._linearise(new, reuse=False)
+            ahead, drive = self._linearise(new, reuse=False)
             check_linearisation(ahead, step, h)
-            self._ahead = (new.time, h, new.positions.copy(), new.velocities.copy(), ahead)
+            self._ahead = (new.time, h, new.positions.copy(), new.velocities.copy(), ahead, drive)
         if model.contacts is not None:
             model.contacts.check_travel(positions, dq, step)
         self.last_report = StepReport(
@@ -248,7 +248,9 @@ class ImplicitEuler:
     def _linearise(self, state: State, *, reuse: bool = True):
         """The body linearised at `state` with the velocities of a step from it (driven nodes
         at their velocity over the step), and those drive velocities (None without drivers).
-        With `reuse`, the look-ahead of the last step when `state` holds what it returned."""
+        With `reuse`, the look-ahead of the last step when `state` holds what it returned and
+        the drivers still move as they did then (a cart retargeted since has other drive
+        velocities, hence another linearisation)."""
         model, body = self.model, self.model.body
         drive = model.drive_velocities(state, self.dt) if model.drivers else None
         ahead = self._ahead
@@ -258,6 +260,7 @@ class ImplicitEuler:
             and (ahead[0], ahead[1]) == (state.time, self.dt)
             and np.array_equal(ahead[2], state.positions)
             and np.array_equal(ahead[3], state.velocities)
+            and (drive is None or np.array_equal(ahead[5], drive))
         ):
             return ahead[4], drive
         velocities = state.velocities
