@@ -15,6 +15,7 @@ from rich.table import Table
 from pliant import robots
 from pliant.condensed.cli import app as condensed_app
 from pliant.errors import PliantError
+from pliant.learn import cli as learn_cli
 from pliant.solvers import ImplicitEuler, StaticSolver
 
 app = typer.Typer(
@@ -24,6 +25,10 @@ app = typer.Typer(
 )
 console = Console()
 app.add_typer(condensed_app, name="condensed")
+app.command("train")(learn_cli.train)
+app.command("eval")(learn_cli.eval_)
+app.command("enjoy")(learn_cli.enjoy)
+app.command("tune")(learn_cli.tune)
 
 
 def _solver(model, solver: str, dt: float):

@@ -96,6 +96,7 @@ class RobustnessCallback(BaseCallback):
                         int(diverged),
                     ]
                 )
+                self._file.flush()
         self.logger.record("robust/diverged_episodes", self.counters.diverged)
         self.logger.record("robust/worker_restarts", self.counters.restarts)
         return True
@@ -184,7 +185,7 @@ class CheckpointCallback(BaseCallback):
     environment's snapshot and the callbacks' counters.
 
     Saved when a rollout starts, where the previous rollout is stored and trained on: nothing
-    is half done. Resuming from it (:func:`pliant.learn.train.train` with ``resume=True``)
+    is half done. Resuming from it (:func:`pliant.learn.training.train` with ``resume=True``)
     continues as if the run had not stopped.
     """
 
@@ -212,7 +213,10 @@ class CheckpointCallback(BaseCallback):
             self.save()
 
     def _on_training_end(self) -> None:
-        self.save()
+        # Only a run that reached its end is at a consistent point: one stopped by a callback
+        # stops mid-rollout; its last checkpoint stands.
+        if self.model.num_timesteps >= self.model._total_timesteps:
+            self.save()
 
     def save(self) -> Path | None:
         step = int(self.num_timesteps)

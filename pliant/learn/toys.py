@@ -99,3 +99,22 @@ def register() -> None:
             entry_point="pliant.learn.toys:PointReachEnv",
             max_episode_steps=20,
         )
+
+
+def point_reach_expert(env: gym.Env):
+    """The optimal PointReach policy (behaviour-cloning tests): full speed towards the goal,
+    the exact remaining distance on the last step; discrete: the axis with the largest gap."""
+    space = env.action_space
+
+    def act(obs: np.ndarray):
+        dim = len(obs) // 2
+        gap = obs[dim:] - obs[:dim]
+        speed = env.unwrapped.speed
+        if isinstance(space, gym.spaces.Discrete):
+            axis = int(np.argmax(np.abs(gap)))
+            if abs(gap[axis]) < speed / 2:
+                return np.int64(2 * dim)
+            return np.int64(2 * axis + (0 if gap[axis] > 0 else 1))
+        return np.clip(gap / speed, -1.0, 1.0).astype(np.float32)
+
+    return act
