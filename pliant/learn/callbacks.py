@@ -166,13 +166,15 @@ class EvalCallback(BaseCallback):
         return entry
 
     def _on_step(self) -> bool:
-        if self.freq > 0 and self.num_timesteps >= self.next_eval:
+        if self.freq > 0 and self.episodes > 0 and self.num_timesteps >= self.next_eval:
             while self.next_eval <= self.num_timesteps:
                 self.next_eval += self.freq
             self.evaluate()
         return True
 
     def _on_training_end(self) -> None:
+        if self.episodes <= 0:
+            return
         if not self.curve or self.curve[-1]["step"] != self.num_timesteps:
             self.evaluate()
             self.logger.dump(self.num_timesteps)
