@@ -257,12 +257,24 @@ def test_cli_train_eval_enjoy_on_cartstem(tmp_path):
     assert gif.stat().st_size > 0
 
 
-def test_ray_actor_workers_train(tmp_path):
-    """Two Ray actor workers behind the VecEnv interface run a short PPO training."""
+def test_ray_actor_workers_and_tune_sweep(tmp_path):
+    """Two Ray actor workers behind the VecEnv interface run a short PPO training; a Ray Tune
+    trial is an ordinary training run in its own folder."""
     ray = pytest.importorskip("ray", reason="Ray is not installed (optional extra pliant[ray])")
+    from pliant.learn.distributed import tune_sweep
+
     try:
         cfg = _config("PPO", 512, n_envs=2, vec_env="ray")
-        result = train(cfg, tmp_path)
+        result = train(cfg, tmp_path / "actors")
         assert result.summary["steps"] == 512
+        sweep = tmp_path / "sweep.yaml"
+        sweep.write_text(
+            "algo: PPO\nmetric: mean_return\nsearch:\n  seed: {grid: [1]}\n"
+            "base: {total_timesteps: 128, eval_episodes: 2, video_episodes: 0,"
+            " hyperparams: {policy: MlpPolicy, n_steps: 64, batch_size: 32}}\n"
+        )
+        rows = tune_sweep(TOY, sweep, out=tmp_path / "tune")
+        assert [(r["config"]["seed"], r["steps"]) for r in rows] == [(1, 128)]
+        assert (tmp_path / "tune" / "seed=1" / "final" / "model.zip").exists()
     finally:
         ray.shutdown()
