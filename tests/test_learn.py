@@ -119,6 +119,45 @@ def test_resume_after_interruption_gives_the_same_parameters(tmp_path, algo):
     np.testing.assert_array_equal(rms_a.mean, rms_b.mean)
 
 
+@pytest.mark.parametrize(
+    ("algo", "hyperparams"),
+    [
+        ("A2C", {"policy": "MlpPolicy"}),
+        ("DQN", {"policy": "MlpPolicy", "learning_starts": 50, "batch_size": 32}),
+        (
+            "RecurrentPPO",
+            {
+                "policy": "MlpLstmPolicy",
+                "n_steps": 64,
+                "batch_size": 32,
+                "policy_kwargs": {"lstm_hidden_size": 16, "net_arch": [16]},
+            },
+        ),
+    ],
+)
+def test_other_algorithms_resume_exactly(tmp_path, algo, hyperparams):
+    """The same exact resume for A2C, DQN (discrete actions) and RecurrentPPO (its LSTM states
+    in flight travel in the checkpoint)."""
+    from stable_baselines3.common.callbacks import BaseCallback
+
+    class Interrupt(BaseCallback):
+        def _on_step(self) -> bool:
+            return self.num_timesteps < 260
+
+    env_kwargs = {"action_type": "discrete"} if algo == "DQN" else {}
+    cfg = partial(
+        _config, algo, 320, checkpoint_freq=128, keep_checkpoints=10, seed=1,
+        env_kwargs=env_kwargs, hyperparams=hyperparams, eval_episodes=2,
+    )  # fmt: skip
+    whole = train(cfg(), tmp_path / "whole")
+    train(cfg(), tmp_path / "cut", extra_callbacks=[Interrupt()])
+    resumed = train(run_dir=tmp_path / "cut", resume=True)
+    assert 0 < resumed.summary["resumed_from"] < 260
+    a, b = parameters(whole.model), parameters(resumed.model)
+    for key in a:
+        np.testing.assert_array_equal(a[key], b[key], err_msg=key)
+
+
 @pytest.mark.parametrize("action_type", ["continuous", "discrete"])
 def test_behaviour_cloning_reproduces_the_expert(action_type):
     """BC of the optimal PointReach expert onto a PPO policy: on the expert's own data, the

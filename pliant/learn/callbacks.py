@@ -3,6 +3,7 @@ robust-training counters (diverged episodes, restarted workers) with the episode
 
 from __future__ import annotations
 
+import copy
 import csv
 import json
 import pickle
@@ -242,6 +243,8 @@ class CheckpointCallback(BaseCallback):
             "env_snapshots": None if any(s is None for s in snapshots) else snapshots,
             "vecnorm_returns": None if vecnorm is None else vecnorm.returns.copy(),
             "counters": vars(self.counters).copy(),
+            # RecurrentPPO's LSTM states in flight (its load re-creates them as zeros).
+            "lstm_states": copy.deepcopy(getattr(self.model, "_last_lstm_states", None)),
         }
         with open(tmp / "state.pkl", "wb") as f:
             pickle.dump(state, f)
@@ -274,6 +277,8 @@ def restore_checkpoint(model, folder: Path, counters: TrainingState) -> dict:
     while isinstance(inner, VecEnvWrapper):
         inner = inner.venv
     inner._reset_seeds()  # the seeds SB3's load gave the environments apply at reset only
+    if state.get("lstm_states") is not None:
+        model._last_lstm_states = state["lstm_states"]
     set_rng_state(model, state["rng"])
     for k, v in state["counters"].items():
         setattr(counters, k, v)
