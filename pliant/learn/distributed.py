@@ -214,6 +214,7 @@ def tune_sweep(
     metric = sweep.get("metric", "success_rate")
     out = Path(out).absolute()
     space = {key: _sample(spec) for key, spec in (sweep.get("search") or {}).items()}
+    samples = num_samples or sweep.get("num_samples", 1)
 
     def trial(params: dict) -> None:
         import copy
@@ -224,12 +225,15 @@ def tune_sweep(
         overrides = copy.deepcopy(base)
         for key, value in params.items():
             _set_dotted(overrides, key, value)
+        # Tune gives the trial its CPUs; stepping in the trial's process avoids a second pool.
         overrides.setdefault("vec_env", "dummy")
         config = load_config(env_id, algo, overrides=overrides)
         name = "_".join(
             f"{k.split('.')[-1]}={v:.4g}" if isinstance(v, float) else f"{k.split('.')[-1]}={v}"
             for k, v in sorted(params.items())
         )
+        if samples > 1:  # repeated grid points: the trial's id tells them apart
+            name = f"{name}_{tune.get_context().get_trial_id()}"
         result = train(config, out / (name or "trial"))
         final = result.summary["final_evaluation"] or {}
         score = final.get("success_rate")
@@ -246,9 +250,7 @@ def tune_sweep(
     tuner = tune.Tuner(
         tune.with_resources(trial, {"cpu": cpus_per_trial}),
         param_space=space,
-        tune_config=tune.TuneConfig(
-            num_samples=num_samples or sweep.get("num_samples", 1), metric=metric, mode="max"
-        ),
+        tune_config=tune.TuneConfig(num_samples=samples, metric=metric, mode="max"),
         run_config=tune.RunConfig(storage_path=str(out / "ray"), name="sweep"),
     )
     results = tuner.fit()
