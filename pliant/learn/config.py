@@ -90,11 +90,20 @@ class TrainConfig:
         return dataclasses.asdict(self)
 
     def save(self, path: Path) -> None:
-        path.write_text(yaml.safe_dump(self.to_dict(), sort_keys=False))
+        path.write_text(yaml.safe_dump(_plain(self.to_dict()), sort_keys=False))
 
     @classmethod
     def load(cls, path: Path) -> TrainConfig:
         return cls(**yaml.safe_load(Path(path).read_text()))
+
+
+def _plain(value):
+    """YAML-safe: tuples (e.g. an environment's ``cube_sizes``) become lists."""
+    if isinstance(value, dict):
+        return {k: _plain(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [_plain(v) for v in value]
+    return value
 
 
 def deep_merge(base: dict, update: dict) -> dict:
