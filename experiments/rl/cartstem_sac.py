@@ -38,6 +38,33 @@ def publish(run: Path, partial: bool, command: str) -> None:
     (RESULTS / "status.json").write_text(json.dumps(status, indent=1))
 
 
+def publish_partial(run: Path, episodes: int, command: str) -> None:
+    """A stopped run: its latest checkpoint's policy evaluated on `episodes` goals, a GIF,
+    the learning curve so far, all labelled partial."""
+    import pickle
+
+    from pliant.learn.callbacks import latest_checkpoint
+
+    checkpoint = latest_checkpoint(run)
+    with open(checkpoint / "state.pkl", "rb") as f:
+        state = pickle.load(f)
+    evaluation = evaluate_saved(
+        checkpoint, episodes=episodes, seed=20_000, gif=run / "eval.gif", gif_episodes=2
+    )
+    summary = {
+        "partial": True,
+        "env_id": "pliant/CartStemContact-v0",
+        "algo": "SAC, MLP 3x512",
+        "steps": state["num_timesteps"],
+        "wall_seconds": state["counters"]["wall_seconds"],
+        "diverged_episodes": state["counters"]["diverged"],
+        f"evaluation_{episodes}_goals": evaluation.to_dict(),
+        "thesis": {"algo": "SAC, MLP 3x512", "steps_to_solve": 200_000},
+    }
+    (run / "summary.json").write_text(json.dumps(summary, indent=1))
+    publish(run, partial=True, command=command)
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__)
     parser.add_argument("--steps", type=int, default=200_000)
@@ -56,7 +83,7 @@ def main() -> None:
     torch.set_num_threads(args.threads)
     command = f"PYTHONPATH=. python experiments/rl/cartstem_sac.py --steps {args.steps}"
     if args.publish_partial:
-        publish(RUN, partial=True, command=command)
+        publish_partial(RUN, args.final_episodes, command)
         return
     resume = (RUN / "checkpoints").exists() and any((RUN / "checkpoints").glob("step_*"))
     config = load_config(
