@@ -1,8 +1,9 @@
 """Learning throughput on CartStemContact: environment steps per second of SAC training
 (MLP 3 x 512, one gradient step per collection, batch 256) with 1 and 2 subprocess workers
-and with 2 local Ray actors, beside the environment alone.
+and with 2 local Ray actors, beside the environment alone. "1 worker" steps its environment
+in the learner's process (a worker process costs more than it saves for one environment).
 
-    PYTHONPATH=. python experiments/rl/throughput.py [--steps 300]
+    PYTHONPATH=. python experiments/rl/throughput.py [--steps 600]
 
 Timed from step 100 of each run (after the workers' start and the kernels' compilation);
 SAC's gradient steps start at step 100. Writes experiments/results/rl/throughput.json.
@@ -77,7 +78,7 @@ def training(n_envs: int, vec_env: str, steps: int) -> float:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__)
-    parser.add_argument("--steps", type=int, default=300)
+    parser.add_argument("--steps", type=int, default=600)
     parser.add_argument("--no-ray", action="store_true")
     args = parser.parse_args()
     torch.set_num_threads(1)
