@@ -25,6 +25,7 @@ from pliant.cli_support import (
 )
 from pliant.condensed.cli import app as condensed_app
 from pliant.errors import UnreachableGoalWarning
+from pliant.learn import cli as learn_cli
 from pliant.planning.cli import plan
 from pliant.reduction.cli import reduce_command
 from pliant.solvers import ImplicitEuler, StaticSolver
@@ -41,6 +42,10 @@ app.add_typer(condensed_app, name="condensed")
 app.command()(plan)
 app.add_typer(trajopt_app, name="trajopt")
 app.command("reduce")(reduce_command)
+app.command("train")(learn_cli.train)
+app.command("eval")(learn_cli.eval_)
+app.command("enjoy")(learn_cli.enjoy)
+app.command("tune")(learn_cli.tune)
 
 
 @app.callback()

@@ -1,0 +1,112 @@
+"""CartStemContact by SAC (thesis §3.3.2: MLP 3 x 512, solved after 2e5 steps).
+
+    PYTHONPATH=. python experiments/rl/cartstem_sac.py            # start, or resume if begun
+    PYTHONPATH=. python experiments/rl/cartstem_sac.py --steps 200000
+
+Checkpoints every 5000 steps in runs/cartstem_sac (not committed); a run stopped at any time
+resumes exactly from its latest checkpoint with the same command. The results (learning
+curve, evaluations, a GIF, summary.json with the final 100-goal evaluation) are copied to
+experiments/results/rl/cartstem_sac/.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import shutil
+import time
+from pathlib import Path
+
+import torch
+
+from pliant.learn import load_config, train
+from pliant.learn.evaluate import evaluate_saved
+from pliant.learn.plots import plot_learning_curve
+
+RESULTS = Path("experiments/results/rl/cartstem_sac")
+
+
+def publish(run: Path, partial: bool, command: str) -> None:
+    RESULTS.mkdir(parents=True, exist_ok=True)
+    for name in ("evaluations.json", "summary.json", "eval.gif", "config.yaml"):
+        if (run / name).exists():
+            shutil.copy(run / name, RESULTS / name)
+    if (run / "evaluations.json").exists():
+        title = "CartStemContact, SAC 3x512" + (" (partial run)" if partial else "")
+        plot_learning_curve(run, RESULTS / "learning_curve.png", title=title)
+    status = {"partial": partial, "resume_command": command}
+    (RESULTS / "status.json").write_text(json.dumps(status, indent=1))
+
+
+def publish_partial(run: Path, episodes: int, command: str) -> None:
+    """A stopped run: its latest checkpoint's policy evaluated on `episodes` goals, a GIF,
+    the learning curve so far, all labelled partial."""
+    import pickle
+
+    from pliant.learn.callbacks import latest_checkpoint
+
+    checkpoint = latest_checkpoint(run)
+    with open(checkpoint / "state.pkl", "rb") as f:
+        state = pickle.load(f)
+    evaluation = evaluate_saved(
+        checkpoint, episodes=episodes, seed=20_000, gif=run / "eval.gif", gif_episodes=2
+    )
+    summary = {
+        "partial": True,
+        "env_id": "pliant/CartStemContact-v0",
+        "algo": "SAC, MLP 3x512",
+        "steps": state["num_timesteps"],
+        "wall_seconds": state["counters"]["wall_seconds"],
+        "diverged_episodes": state["counters"]["diverged"],
+        f"evaluation_{episodes}_goals": evaluation.to_dict(),
+        "thesis": {"algo": "SAC, MLP 3x512", "steps_to_solve": 200_000},
+    }
+    (run / "summary.json").write_text(json.dumps(summary, indent=1))
+    publish(run, partial=True, command=command)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__)
+    parser.add_argument("--steps", type=int, default=200_000)
+    parser.add_argument("--n-envs", type=int, default=2)
+    parser.add_argument("--final-episodes", type=int, default=100)
+    parser.add_argument("--threads", type=int, default=1)
+    parser.add_argument("--eval-episodes", type=int, default=20)
+    parser.add_argument("--run", type=Path, default=Path("runs/cartstem_sac"))
+    parser.add_argument(
+        "--publish-partial",
+        action="store_true",
+        help="copy the results so far of a stopped run, labelled partial, and exit",
+    )
+    args = parser.parse_args()
+    RUN = args.run
+    torch.set_num_threads(args.threads)
+    command = f"PYTHONPATH=. python experiments/rl/cartstem_sac.py --steps {args.steps}"
+    if args.publish_partial:
+        publish_partial(RUN, args.final_episodes, command)
+        return
+    resume = (RUN / "checkpoints").exists() and any((RUN / "checkpoints").glob("step_*"))
+    config = load_config(
+        "pliant/CartStemContact-v0",
+        "SAC",
+        overrides={
+            "total_timesteps": args.steps,
+            "n_envs": args.n_envs,
+            "eval_episodes": args.eval_episodes,
+        },
+    )
+    clock = time.perf_counter()
+    result = train(config, RUN, resume=resume, total_timesteps=args.steps)
+    final = evaluate_saved(RUN / "final", episodes=args.final_episodes, seed=20_000)
+    summary = {
+        **result.summary,
+        "final_100_goals": final.to_dict(),
+        "wall_seconds_with_final_evaluation_this_session": time.perf_counter() - clock,
+        "thesis": {"algo": "SAC, MLP 3x512", "steps_to_solve": 200_000},
+    }
+    (RUN / "summary.json").write_text(json.dumps(summary, indent=1))
+    publish(RUN, partial=False, command=command)
+
+
+if __name__ == "__main__":
+    main()

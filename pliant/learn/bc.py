@@ -1,0 +1,213 @@
+"""Behaviour cloning: supervised pre-training of an SB3 policy on an expert's (observation,
+action) pairs (thesis §3.2.1: the Gripper's hand-designed 4-phase strategy, 3000 epochs,
+before PPO).
+
+A short loop rather than the ``imitation`` library: ``imitation`` (1.0) pins gymnasium 0.29
+and Stable-Baselines3 2.2 and pulls the old ``gym`` 0.21, which cannot live beside the
+gymnasium 1.x / SB3 2.9 stack here. The loss is ``imitation``'s BC loss: the negative
+log-likelihood of the expert's actions under the policy's distribution, minus a small entropy
+bonus; for SAC/TD3 actors the mean squared error of the deterministic action (in the
+policy's [-1, 1] scale), for DQN the cross-entropy of the Q-values.
+
+An expert is named ``module:function``; ``function(env)`` is called at the start of each
+episode with the (wrapped) environment and returns ``act(observation) -> action``, which may
+keep its own phase between calls and read the environment.
+"""
+
+from __future__ import annotations
+
+import importlib
+from collections.abc import Callable
+
+import gymnasium as gym
+import numpy as np
+import torch
+from stable_baselines3.common.policies import ActorCriticPolicy
+
+ExpertFactory = Callable[[gym.Env], Callable[[np.ndarray], np.ndarray]]
+
+
+def load_expert(name: str) -> ExpertFactory:
+    """``module:function`` -> the function."""
+    module, _, function = name.partition(":")
+    if not function:
+        raise ValueError(f"an expert is 'module:function', got {name!r}")
+    return getattr(importlib.import_module(module), function)
+
+
+def collect_expert(
+    env: gym.Env, expert: ExpertFactory, episodes: int, seed: int = 0
+) -> dict[str, np.ndarray]:
+    """Roll out the expert: ``observations``, ``actions``, ``episode_starts`` (True at each
+    episode's first step), ``returns`` (one per episode), ``successes``."""
+    obs_list, act_list, starts, returns, successes = [], [], [], [], []
+    for k in range(episodes):
+        obs, _ = env.reset(seed=seed + k)
+        act = expert(env)
+        done, total, first, info = False, 0.0, True, {}
+        while not done:
+            action = np.asarray(act(obs))
+            obs_list.append(np.asarray(obs).copy())
+            act_list.append(action.copy())
+            starts.append(first)
+            first = False
+            obs, reward, terminated, truncated, info = env.step(action)
+            total += float(reward)
+            done = terminated or truncated
+        returns.append(total)
+        successes.append(bool(info.get("is_success", False)))
+    return {
+        "observations": np.asarray(obs_list, dtype=np.float32),
+        "actions": np.asarray(act_list),
+        "episode_starts": np.asarray(starts),
+        "returns": np.asarray(returns),
+        "successes": np.asarray(successes),
+    }
+
+
+def _is_recurrent(policy) -> bool:
+    return hasattr(policy, "lstm_actor")
+
+
+def _loss(policy, obs: torch.Tensor, actions: torch.Tensor, ent_weight: float, starts=None):
+    if _is_recurrent(policy):
+        from sb3_contrib.common.recurrent.type_aliases import RNNStates
+
+        lstm = policy.lstm_actor
+        zeros = torch.zeros(lstm.num_layers, 1, lstm.hidden_size, device=obs.device)
+        states = RNNStates((zeros, zeros.clone()), (zeros.clone(), zeros.clone()))
+        _, log_prob, entropy = policy.evaluate_actions(obs, actions, states, starts)
+        return -log_prob.mean() - ent_weight * entropy.mean()
+    if isinstance(policy, ActorCriticPolicy):
+        _, log_prob, entropy = policy.evaluate_actions(obs, actions)
+        entropy = entropy if entropy is not None else -log_prob
+        return -log_prob.mean() - ent_weight * entropy.mean()
+    if hasattr(policy, "q_net"):  # DQN
+        return torch.nn.functional.cross_entropy(policy.q_net(obs), actions.long().flatten())
+    # SAC / TD3: the deterministic action in the policy's [-1, 1] scale.
+    target = torch.as_tensor(policy.scale_action(actions.cpu().numpy()), device=obs.device)
+    return torch.nn.functional.mse_loss(policy.actor(obs, deterministic=True), target)
+
+
+def _optimiser_parameters(policy):
+    if hasattr(policy, "q_net"):
+        return policy.q_net.parameters()
+    if hasattr(policy, "actor") and not isinstance(policy, ActorCriticPolicy):
+        return policy.actor.parameters()
+    return policy.parameters()
+
+
+def behaviour_clone(
+    policy,
+    observations: np.ndarray,
+    actions: np.ndarray,
+    *,
+    epochs: int = 100,
+    batch_size: int = 64,
+    learning_rate: float = 1e-3,
+    ent_weight: float = 1e-3,
+    episode_starts: np.ndarray | None = None,
+    seed: int = 0,
+) -> list[float]:
+    """Fit `policy` (an SB3 policy, in place) to the pairs; the mean loss of each epoch.
+
+    Observations are what the policy sees (normalised if the run normalises). A recurrent
+    policy is fitted one whole episode at a time (``episode_starts`` marks them), its LSTM
+    starting from zeros like at a reset.
+    """
+    generator = torch.Generator().manual_seed(seed)
+    device = policy.device
+    obs = torch.as_tensor(observations, dtype=torch.float32, device=device)
+    act = torch.as_tensor(actions, device=device)
+    if act.dtype == torch.float64:
+        act = act.float()
+    optimiser = torch.optim.Adam(_optimiser_parameters(policy), lr=learning_rate)
+    policy.set_training_mode(True)
+    recurrent = _is_recurrent(policy)
+    if recurrent:
+        if episode_starts is None:
+            raise ValueError("a recurrent policy needs the episode_starts of its data")
+        bounds = [*np.flatnonzero(episode_starts), len(observations)]
+        batches = [slice(a, b) for a, b in zip(bounds[:-1], bounds[1:], strict=True)]
+        starts = torch.as_tensor(np.asarray(episode_starts, np.float32), device=device)
+    history = []
+    for _ in range(epochs):
+        losses = []
+        if recurrent:
+            order = torch.randperm(len(batches), generator=generator).tolist()
+            chunks = [(batches[i], starts[batches[i]]) for i in order]
+        else:
+            perm = torch.randperm(len(obs), generator=generator).to(device)
+            chunks = [(perm[i : i + batch_size], None) for i in range(0, len(obs), batch_size)]
+        for index, chunk_starts in chunks:
+            loss = _loss(policy, obs[index], act[index], ent_weight, chunk_starts)
+            optimiser.zero_grad()
+            loss.backward()
+            optimiser.step()
+            losses.append(loss.item())
+        history.append(float(np.mean(losses)))
+    policy.set_training_mode(False)
+    return history
+
+
+def predict_actions(policy, observations: np.ndarray, episode_starts=None) -> np.ndarray:
+    """The policy's deterministic actions on a data set (recurrent policies: run through each
+    episode in order)."""
+    if not _is_recurrent(policy):
+        actions, _ = policy.predict(observations, deterministic=True)
+        return actions
+    out, state = [], None
+    for o, s in zip(observations, episode_starts, strict=True):
+        a, state = policy.predict(o, state=state, episode_start=np.array([s]), deterministic=True)
+        out.append(a)
+    return np.asarray(out)
+
+
+def pretrain(model, config) -> dict:
+    """`pliant train --bc-expert`: collect the expert's episodes, fit ``model.policy``, and
+    report the fit (loss per epoch, agreement with the expert on its data). With VecNormalize,
+    the expert's observations first update the normaliser, then are normalised as the policy
+    will see them."""
+    from pliant.learn.vec import make_env
+
+    bc = {"episodes": 20, "epochs": 100, "batch_size": 64, "learning_rate": 1e-3, **config.bc}
+    env = make_env(config.env_id, config.env_kwargs)
+    try:
+        data = collect_expert(env, load_expert(bc["expert"]), bc["episodes"], seed=config.seed)
+    finally:
+        env.close()
+    observations = data["observations"]
+    vecnorm = model.get_vec_normalize_env()
+    if vecnorm is not None and vecnorm.norm_obs:
+        vecnorm.obs_rms.update(observations)
+        observations = vecnorm.normalize_obs(observations)
+    history = behaviour_clone(
+        model.policy,
+        observations,
+        data["actions"],
+        epochs=bc["epochs"],
+        batch_size=bc["batch_size"],
+        learning_rate=bc["learning_rate"],
+        episode_starts=data["episode_starts"],
+        seed=config.seed,
+    )
+    predicted = predict_actions(model.policy, observations, data["episode_starts"])
+    return {
+        "expert": bc["expert"],
+        "pairs": len(observations),
+        "expert_mean_return": float(data["returns"].mean()),
+        "expert_success_rate": float(data["successes"].mean()),
+        "loss_first_epoch": history[0],
+        "loss_last_epoch": history[-1],
+        **agreement(predicted, data["actions"]),
+    }
+
+
+def agreement(predicted: np.ndarray, expert: np.ndarray) -> dict:
+    """How well cloned actions match the expert's: the fraction equal (discrete) or the mean
+    absolute error (continuous)."""
+    predicted = np.asarray(predicted).reshape(len(expert), -1)
+    expert = np.asarray(expert).reshape(len(expert), -1)
+    if np.issubdtype(expert.dtype, np.integer):
+        return {"action_accuracy": float(np.mean(np.all(predicted == expert, axis=1)))}
+    return {"action_mean_abs_error": float(np.mean(np.abs(predicted - expert)))}

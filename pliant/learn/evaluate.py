@@ -1,0 +1,201 @@
+"""Evaluation of a policy: success rate, returns, a GIF of episodes; loading saved models."""
+
+from __future__ import annotations
+
+import json
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from pliant.learn.config import ALGOS
+from pliant.learn.vec import make_env
+
+
+@dataclass
+class Evaluation:
+    episodes: int
+    success_rate: float | None  # None when the task has no success flag
+    mean_return: float
+    std_return: float
+    mean_length: float
+    diverged: int
+    returns: list[float] = field(default_factory=list)
+    successes: list[bool] = field(default_factory=list)
+
+    def to_dict(self, per_episode: bool = False) -> dict:
+        out = asdict(self)
+        if not per_episode:
+            del out["returns"], out["successes"]
+        return out
+
+
+def algorithm_class(algo: str):
+    if algo not in ALGOS:
+        raise ValueError(f"algo must be one of {', '.join(ALGOS)}, got {algo!r}")
+    if algo == "RecurrentPPO":
+        from sb3_contrib import RecurrentPPO
+
+        return RecurrentPPO
+    import stable_baselines3
+
+    return getattr(stable_baselines3, algo)
+
+
+def run_episodes(
+    model,
+    env,
+    n_episodes: int,
+    *,
+    normalize_obs=None,
+    deterministic: bool = True,
+    seed: int | None = 0,
+    frames: list | None = None,
+    frame_episodes: int = 0,
+) -> Evaluation:
+    """Run `n_episodes` of `model` on a single (non-vectorised) `env`. `normalize_obs`: the
+    training VecNormalize's ``normalize_obs`` where there was one. Episode k is reset with seed
+    ``seed + k`` (the same tasks at every evaluation). Frames of the first `frame_episodes`
+    episodes are appended to `frames` (``env`` made with ``render_mode="rgb_array"``)."""
+    returns, lengths, successes, diverged = [], [], [], 0
+    has_success = False
+    for k in range(n_episodes):
+        obs, _ = env.reset(seed=None if seed is None else seed + k)
+        state, start = None, np.ones((1,), dtype=bool)
+        total, length, done, info = 0.0, 0, False, {}
+        if frames is not None and k < frame_episodes:
+            frames.append(env.render())
+        while not done:
+            x = normalize_obs(obs) if normalize_obs is not None else obs
+            action, state = model.predict(
+                x, state=state, episode_start=start, deterministic=deterministic
+            )
+            start = np.zeros((1,), dtype=bool)
+            obs, reward, terminated, truncated, info = env.step(action)
+            total += float(reward)
+            length += 1
+            done = terminated or truncated
+            if frames is not None and k < frame_episodes:
+                frames.append(env.render())
+        returns.append(total)
+        lengths.append(length)
+        if "is_success" in info:
+            has_success = True
+        successes.append(bool(info.get("is_success", False)))
+        diverged += bool(info.get("diverged"))
+    return Evaluation(
+        episodes=n_episodes,
+        success_rate=float(np.mean(successes)) if has_success else None,
+        mean_return=float(np.mean(returns)),
+        std_return=float(np.std(returns)),
+        mean_length=float(np.mean(lengths)),
+        diverged=diverged,
+        returns=returns,
+        successes=successes,
+    )
+
+
+@dataclass
+class SavedPolicy:
+    """A saved model with what is needed to run it: the algorithm, the environment it was
+    trained on and its observation normaliser."""
+
+    model: object
+    algo: str
+    env_id: str | None
+    env_kwargs: dict
+    vecnormalize: object | None
+
+    @property
+    def normalize_obs(self):
+        return None if self.vecnormalize is None else self.vecnormalize.normalize_obs
+
+
+def save_policy(model, folder: Path, algo: str, env_id: str, env_kwargs: dict, vecnorm) -> None:
+    """model.zip, vecnormalize.pkl (if any) and meta.json in `folder`."""
+    folder.mkdir(parents=True, exist_ok=True)
+    model.save(folder / "model.zip")
+    if vecnorm is not None:
+        vecnorm.save(str(folder / "vecnormalize.pkl"))
+    meta = {"algo": algo, "env_id": env_id, "env_kwargs": env_kwargs}
+    (folder / "meta.json").write_text(json.dumps(meta, indent=1))
+
+
+def load_policy(path: str | Path, algo: str | None = None, device: str = "cpu") -> SavedPolicy:
+    """A model saved by training: a ``model.zip``, the folder holding it, or a run folder
+    (its ``final/``, else its latest checkpoint)."""
+    import pickle
+
+    path = Path(path)
+    if path.is_dir():
+        candidates = [path / "model.zip", path / "final" / "model.zip"]
+        checkpoints = sorted((path / "checkpoints").glob("step_*"), key=_step_of)
+        if checkpoints:
+            candidates.append(checkpoints[-1] / "model.zip")
+        path = next((c for c in candidates if c.exists()), candidates[0])
+    if not path.exists():
+        raise FileNotFoundError(f"no saved model at {path}")
+    folder = path.parent
+    meta = {}
+    if (folder / "meta.json").exists():
+        meta = json.loads((folder / "meta.json").read_text())
+    algo = algo or meta.get("algo")
+    if algo is None:
+        raise ValueError(f"{folder} has no meta.json: give the algorithm (--algo)")
+    model = algorithm_class(algo).load(path, device=device)
+    vecnorm = None
+    if (folder / "vecnormalize.pkl").exists():
+        with open(folder / "vecnormalize.pkl", "rb") as f:
+            vecnorm = pickle.load(f)
+        vecnorm.training = False
+    return SavedPolicy(model, algo, meta.get("env_id"), meta.get("env_kwargs") or {}, vecnorm)
+
+
+def _step_of(path: Path) -> int:
+    return int(path.name.split("_")[-1])
+
+
+def evaluate_saved(
+    path: str | Path,
+    env_id: str | None = None,
+    *,
+    episodes: int = 10,
+    env_kwargs: dict | None = None,
+    algo: str | None = None,
+    seed: int = 10_000,
+    deterministic: bool = True,
+    gif: Path | None = None,
+    gif_episodes: int = 1,
+) -> Evaluation:
+    """Evaluate a saved policy (``pliant eval``/``pliant enjoy``). The environment defaults to
+    the one it was trained on, with the same keyword arguments."""
+    saved = load_policy(path, algo)
+    env_id = env_id or saved.env_id
+    if env_id is None:
+        raise ValueError("give the environment: the model's meta.json does not name it")
+    kwargs = {**saved.env_kwargs, **(env_kwargs or {})}
+    env = make_env(env_id, kwargs, render_mode="rgb_array" if gif else None)
+    frames: list | None = [] if gif else None
+    try:
+        result = run_episodes(
+            saved.model,
+            env,
+            episodes,
+            normalize_obs=saved.normalize_obs,
+            deterministic=deterministic,
+            seed=seed,
+            frames=frames,
+            frame_episodes=gif_episodes,
+        )
+    finally:
+        env.close()
+    if gif and frames:
+        save_frames(frames, gif, fps=env.metadata.get("render_fps", 10))
+    return result
+
+
+def save_frames(frames: list, path: Path, fps: int = 10) -> None:
+    import imageio.v2 as imageio
+
+    path.parent.mkdir(parents=True, exist_ok=True)
+    imageio.mimsave(path, [np.asarray(f) for f in frames], duration=1000.0 / max(fps, 1), loop=0)

@@ -1,0 +1,211 @@
+"""``pliant train``: a Stable-Baselines3 run with vectorised workers, normalisation,
+evaluation, full-state checkpoints and exact resume.
+
+A run lives in one folder::
+
+    RUN/config.yaml          the resolved TrainConfig (what --resume reads)
+    RUN/checkpoints/step_N/  model.zip, replay_buffer.pkl, vecnormalize.pkl, state.pkl
+    RUN/tb/                  TensorBoard logs
+    RUN/evaluations.json     the learning curve (evaluation success rate and return)
+    RUN/episodes.csv         every training episode (step, return, length, success, diverged)
+    RUN/best/, RUN/final/    model.zip + vecnormalize.pkl + meta.json
+    RUN/summary.json, RUN/learning_curve.png, RUN/eval.gif
+
+Exact resume: ``train(config, run_dir, resume=True)`` loads the latest checkpoint and ends with
+the same parameters as an uninterrupted run, bit for bit, when the environments run in this
+process or in one worker (``n_envs=1``, tested). With several worker processes the result is
+the same too as long as each worker's environment is deterministic given its snapshot (Pliant's
+environments are); what is not reproducible is the wall-clock data (times in the Monitor
+logs), a worker restarted after a crash (its new environment is reset unseeded), and, with
+PyTorch, a different number of threads or another machine (floating-point reductions).
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from stable_baselines3.common.utils import set_random_seed
+from stable_baselines3.common.vec_env import VecNormalize
+
+from pliant.learn.callbacks import (
+    CheckpointCallback,
+    EvalCallback,
+    RobustnessCallback,
+    TrainingState,
+    latest_checkpoint,
+    restore_checkpoint,
+)
+from pliant.learn.config import OFF_POLICY, TrainConfig, sb3_kwargs
+from pliant.learn.evaluate import algorithm_class, save_policy
+from pliant.learn.vec import make_env, make_vec_env
+
+
+@dataclass
+class TrainResult:
+    model: object
+    run_dir: Path
+    summary: dict
+
+
+def _vec_normalize(venv, config: TrainConfig):
+    if not config.normalize:
+        return venv
+    kwargs = config.normalize if isinstance(config.normalize, dict) else {}
+    kwargs.setdefault("gamma", config.hyperparams.get("gamma", 0.99))
+    return VecNormalize(venv, **kwargs)
+
+
+def train(
+    config: TrainConfig | None = None,
+    run_dir: str | Path = "runs/run",
+    *,
+    resume: bool = False,
+    progress_bar: bool = False,
+    total_timesteps: int | None = None,
+    extra_callbacks: list | None = None,
+    verbose: int = 0,
+) -> TrainResult:
+    """Train (or, with `resume`, continue the run in `run_dir` from its latest checkpoint).
+
+    `total_timesteps` overrides the configuration's (on resume: extend or shorten the run).
+    """
+    run_dir = Path(run_dir)
+    checkpoint = None
+    if resume:
+        if not (run_dir / "config.yaml").exists():
+            raise FileNotFoundError(f"nothing to resume in {run_dir}: no config.yaml")
+        config = TrainConfig.load(run_dir / "config.yaml")
+        checkpoint = latest_checkpoint(run_dir)
+        if checkpoint is None:
+            raise FileNotFoundError(f"nothing to resume in {run_dir}: no checkpoint yet")
+    if config is None:
+        raise ValueError("give a TrainConfig, or resume=True with a run folder")
+    if total_timesteps is not None:
+        config.total_timesteps = int(total_timesteps)
+    run_dir.mkdir(parents=True, exist_ok=True)
+    config.save(run_dir / "config.yaml")
+
+    set_random_seed(config.seed)
+    venv = make_vec_env(
+        config.env_id,
+        config.n_envs,
+        env_kwargs=config.env_kwargs,
+        backend=config.vec_env,
+        ray_address=config.ray_address,
+    )
+    eval_env = make_env(config.env_id, config.eval_env_kwargs or config.env_kwargs)
+    algo_class = algorithm_class(config.algo)
+    counters = TrainingState()
+    try:
+        if checkpoint is not None:
+            if (checkpoint / "vecnormalize.pkl").exists():
+                venv = VecNormalize.load(str(checkpoint / "vecnormalize.pkl"), venv)
+            model = algo_class.load(
+                checkpoint / "model.zip",
+                env=venv,
+                device=config.device,
+                force_reset=False,
+                tensorboard_log=str(run_dir / "tb"),
+            )
+            state = restore_checkpoint(model, checkpoint, counters)
+            start_step = state["num_timesteps"]
+        else:
+            venv = _vec_normalize(venv, config)
+            model = algo_class(
+                env=venv,
+                seed=config.seed,
+                device=config.device,
+                tensorboard_log=str(run_dir / "tb"),
+                verbose=verbose,
+                **sb3_kwargs(config.hyperparams),
+            )
+            start_step = 0
+            if config.bc:
+                from pliant.learn.bc import pretrain
+
+                report = pretrain(model, config)
+                (run_dir / "bc.json").write_text(json.dumps(report, indent=1))
+
+        checkpoints = CheckpointCallback(
+            run_dir, config.checkpoint_freq, config.keep_checkpoints, config, counters
+        )
+        evaluation = EvalCallback(run_dir, eval_env, config.eval_freq, config.eval_episodes, config)
+        robust = RobustnessCallback(run_dir, counters)
+        if checkpoint is not None:
+            checkpoints.last_saved = start_step
+            if config.checkpoint_freq > 0:
+                checkpoints.next_save = (start_step // config.checkpoint_freq + 1) * (
+                    config.checkpoint_freq
+                )
+            evaluation.load_curve(start_step)
+            _truncate_episode_log(run_dir / "episodes.csv", start_step)
+        elif (run_dir / "episodes.csv").exists():
+            (run_dir / "episodes.csv").unlink()
+            (run_dir / "evaluations.json").unlink(missing_ok=True)
+
+        remaining = config.total_timesteps - model.num_timesteps
+        clock = time.perf_counter()
+        if remaining > 0:
+            model.learn(
+                remaining,
+                callback=[robust, evaluation, checkpoints, *(extra_callbacks or [])],
+                reset_num_timesteps=checkpoint is None,
+                tb_log_name="run",
+                progress_bar=progress_bar,
+            )
+        wall = time.perf_counter() - clock
+        vecnorm = model.get_vec_normalize_env()
+        save_policy(
+            model, run_dir / "final", config.algo, config.env_id, config.env_kwargs, vecnorm
+        )
+        summary = {
+            "env_id": config.env_id,
+            "algo": config.algo,
+            "steps": int(model.num_timesteps),
+            "resumed_from": start_step if checkpoint is not None else None,
+            "wall_seconds": counters.wall_seconds,
+            "wall_seconds_this_session": wall,
+            "steps_per_second_this_session": (model.num_timesteps - start_step) / max(wall, 1e-9),
+            "diverged_episodes": counters.diverged,
+            "worker_restarts": counters.restarts,
+            "final_evaluation": evaluation.curve[-1] if evaluation.curve else None,
+        }
+        (run_dir / "summary.json").write_text(json.dumps(summary, indent=1))
+        if evaluation.curve:
+            from pliant.learn.plots import plot_learning_curve
+
+            plot_learning_curve(run_dir)
+        if config.video_episodes > 0:
+            from pliant.learn.evaluate import evaluate_saved
+
+            evaluate_saved(
+                run_dir / "final",
+                episodes=config.video_episodes,
+                gif=run_dir / "eval.gif",
+                gif_episodes=config.video_episodes,
+            )
+        return TrainResult(model, run_dir, summary)
+    finally:
+        venv.close()
+        eval_env.close()
+
+
+def _truncate_episode_log(path: Path, step: int) -> None:
+    """Resume: drop the episodes logged after the checkpoint (the interrupted run's)."""
+    if not path.exists():
+        return
+    lines = path.read_text().splitlines()
+    kept = [lines[0]] + [line for line in lines[1:] if int(line.split(",")[0]) <= step]
+    path.write_text("\n".join(kept) + "\n")
+
+
+def parameters(model) -> dict[str, np.ndarray]:
+    """The policy's parameters as arrays (comparison of runs)."""
+    return {k: v.detach().cpu().numpy().copy() for k, v in model.policy.state_dict().items()}
+
+
+__all__ = ["OFF_POLICY", "TrainConfig", "TrainResult", "parameters", "train"]
