@@ -52,7 +52,7 @@ from pliant.constraints.contact import CoupledContact
 from pliant.constraints.control import as_control, constraint_forces
 from pliant.constraints.effector import RigidEffector
 from pliant.constraints.friction import ContactForces, ContactReport, ContactSolution
-from pliant.errors import DivergenceError, ModelError, SolverError
+from pliant.errors import ConstraintError, DivergenceError, ModelError, SolverError
 from pliant.fem.body import PARALLEL_MIN_TETS
 from pliant.fem.rigid import RigidStep, integrate_poses
 from pliant.model import ConstraintSpace, Model, State
@@ -231,9 +231,22 @@ class ImplicitEuler:
         if self._look_ahead:
             # The next step's linearisation, now: a state with inverted elements is refused
             # by the step that made it, never returned (the next step reuses it).
-            ahead, drive = self._linearise(new, reuse=False)
-            check_linearisation(ahead, step, h)
-            self._ahead = (new.time, h, new.positions.copy(), new.velocities.copy(), ahead, drive)
+            try:
+                ahead, drive = self._linearise(new, reuse=False)
+            except (ConstraintError, ModelError):
+                # A driver refuses its next pose (a servo told to leave its range): that is
+                # the next step's error, raised by it, not this step's.
+                self._ahead = None
+            else:
+                check_linearisation(ahead, step, h)
+                self._ahead = (
+                    new.time,
+                    h,
+                    new.positions.copy(),
+                    new.velocities.copy(),
+                    ahead,
+                    drive,
+                )
         if model.contacts is not None:
             model.contacts.check_travel(positions, dq, step)
         self.last_report = StepReport(
