@@ -189,15 +189,15 @@ def multigait_proxy(
 # --- Trunk on a translating base ------------------------------------------------------------
 
 TRUNK_PARAMETERS = {
-    # The thesis' calibrated values where they carry over (wave2_facts C.4: E1 14332 and
-    # E2 62718 kPa are SOFA Cosserat values of another section; here the start is the FEM's
-    # E), total length 195 mm as the FEM trunk's.
-    "lower_stiffness": 450.0,
-    "upper_stiffness": 450.0,
+    # The thesis' calibrated stiffnesses and max curvatures (wave2_facts C.4: a Cosserat rod
+    # of radius 10 mm, E in kPa, curvature in rad/mm); mass per length from the FEM trunk's
+    # 42 g, more at the base than at the tip (the thesis' two end values).
+    "lower_stiffness": 14332.0,
+    "upper_stiffness": 62718.0,
     "lower_density": 9e-7,
     "upper_density": 4.7e-7,
-    "lower_curvature": 0.01,
-    "upper_curvature": 0.02,
+    "lower_curvature": 0.01147,
+    "upper_curvature": 0.04999,
 }
 
 
