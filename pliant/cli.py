@@ -17,6 +17,7 @@ from pliant import robots
 from pliant.condensed.cli import app as condensed_app
 from pliant.errors import PliantError
 from pliant.planning.cli import plan
+from pliant.proxy.cli import app as proxy_app
 from pliant.solvers import ImplicitEuler, StaticSolver
 from pliant.trajopt.cli import app as trajopt_app
 
@@ -29,6 +30,7 @@ console = Console()
 app.add_typer(condensed_app, name="condensed")
 app.command()(plan)
 app.add_typer(trajopt_app, name="trajopt")
+app.add_typer(proxy_app, name="proxy")
 
 
 def _solver(model, solver: str, dt: float):

@@ -74,3 +74,22 @@ class CurvatureActuation:
             kappa[list(b.elements)] += value * b.max_curvature * np.asarray(b.axis)
         self.rod.set_rest_curvature(kappa)
         self.controls = u.copy()
+
+
+class ProxySolver:
+    """A solver of a proxy with Pliant's one solver interface: ``step(state, controls)``
+    applies the commands as the proxy's rest curvatures (and base) and steps `solver`, so
+    that controllers and environments drive a proxy as they drive a FEM robot. Everything
+    else (dt, model, system) is the wrapped solver's."""
+
+    def __init__(self, proxy, solver) -> None:
+        self.proxy = proxy
+        self.solver = solver
+
+    def step(self, state, controls=None):
+        if controls is not None:
+            self.proxy.apply(controls)
+        return self.solver.step(state)
+
+    def __getattr__(self, name: str):
+        return getattr(self.solver, name)
