@@ -218,3 +218,34 @@ def test_calibration_recovers_a_proxys_own_parameters(tmp_path) -> None:
     used = result.proxy_parameters
     assert used["upper_curvature"] == pytest.approx(0.9 * result.parameters["upper_curvature"])
     assert used["lower_stiffness"] == result.parameters["lower_stiffness"]
+
+
+def test_the_calibrate_command_fits_a_saved_reference_and_resumes(tmp_path) -> None:
+    """`pliant proxy calibrate multigait --reference REF`: a short reference (the default
+    proxy's own skinned underside corners, 20 steps of the rear legs bending) and 3 trials;
+    the report holds the errors and the safety-scaled curvatures; a second call with more
+    trials resumes the SQLite study."""
+    import json
+
+    from typer.testing import CliRunner
+
+    from pliant.cli import app
+    from pliant.proxy.references import Reference, setup
+
+    surface = np.array([[0.0, 29.0, 0.0], [136.0, -29.0, 0.0], [68.0, 0.0, 0.0]])
+    commands = np.tile([0.0, 0.0, 0.0, 1.0, 1.0], (20, 1))
+    draft = Reference(commands, np.zeros((20, 3, 3)), surface, 0.01)
+    points = setup("multigait").simulate(draft)(dict(multigait_proxy().parameters))
+    Reference(commands, points, surface, 0.01).save(tmp_path / "reference.npz")
+    runner = CliRunner()
+    args = ["proxy", "calibrate", "multigait", "--reference", str(tmp_path / "reference.npz")]
+    for trials in (2, 3):
+        result = runner.invoke(app, [*args, "--trials", str(trials), "--out", str(tmp_path)])
+        assert result.exit_code == 0, result.output
+    report = json.loads((tmp_path / "multigait_calibration.json").read_text())
+    assert report["trials"] == 3
+    assert np.isfinite(report["optimisation_error_mm"]) and np.isfinite(
+        report["validation_error_mm"]
+    )
+    for name in ("leg_curvature", "centre_curvature"):
+        assert report["proxy_parameters"][name] == pytest.approx(0.9 * report["parameters"][name])

@@ -90,7 +90,8 @@ def _around(values: dict[str, float], low: float, high: float) -> dict[str, tupl
 
 
 SETUPS = {
-    # Search box around the hand-found values (thesis: "restricted around hand-found values").
+    # Search box of 0.3x to 3x the values found so far (thesis: "restricted around
+    # hand-found values"); the first round's centre was hand-set.
     "multigait": Setup(
         multigait_proxy, _around(MULTIGAIT_PARAMETERS, 0.3, 3.0), multigait_reference
     ),
