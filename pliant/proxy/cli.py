@@ -22,7 +22,7 @@ console = Console()
 
 @app.command()
 def calibrate(
-    robot: Annotated[str, typer.Argument(help="multigait")],
+    robot: Annotated[str, typer.Argument(help="multigait or trunk")],
     trials: Annotated[int, typer.Option(help="trials the study is to hold")] = 40,
     safety: Annotated[float, typer.Option(help="factor on the calibrated max curvatures")] = 0.9,
     seed: Annotated[int, typer.Option(help="TPE sampler seed")] = 0,

@@ -1,6 +1,15 @@
 """The FEM robots' side of a calibration: the trajectory of matched points that a proxy is
 fitted to, and each robot's calibration set-up (search box, matched points, commands).
 
+Trunk (thesis L694: a 0.6 s trajectory of 2 actions, the points of the external mesh, no
+cube): the FEM Trunk (base fixed) pulls its cables in four 0.3 s phases (towards +x, then +y
+at the tip, then -x with the base half towards -y, then release); the matched points are its
+surface nodes. The proxy's commands follow from the cables by a linear correspondence, the
+assumption that this calibration's error measures: a beam bends towards a side by the pull of
+the cables on that side less the opposite ones, each over its longest course (70 mm long
+cables, 40 mm short ones); the long cables, which run the whole length, bend both beams, the
+short ones (to mid-length) the lower one: u_upper = dl / 70, u_lower = (dl / 70 + ds / 40) / 2.
+
 Multigait (thesis L694): the hand-defined gait (:func:`pliant.robots.multigait.demo_actuation`,
 every chamber inflated to its volume and deflated in turn) for 10.8 s at dt = 0.01 s, the
 matched points on the bottom face (the FEM's underside nodes, skinned on the proxy). A proxy
@@ -16,7 +25,7 @@ import numpy as np
 
 from pliant.errors import UnknownRobotError
 from pliant.mesh.multigait import CHAMBERS
-from pliant.proxy.builders import MULTIGAIT_PARAMETERS, Proxy, multigait_proxy
+from pliant.proxy.builders import MULTIGAIT_PARAMETERS, Proxy, multigait_proxy, trunk_proxy
 from pliant.proxy.calibrate import rollout
 from pliant.proxy.skinning import Skinning
 from pliant.solvers import ImplicitEuler
@@ -66,6 +75,51 @@ def multigait_reference(
     )
 
 
+#: the Trunk's calibration phases: cable shortenings (mm; cables 0-3 long, on +y, -x, -y,
+#: +x; 4-7 short, same sides), each reached at 1 mm a step and held to the phase's end.
+TRUNK_PHASES = (
+    (0.0, 0.0, 0.0, 20.0, 0.0, 0.0, 0.0, 15.0),
+    (20.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 15.0),
+    (0.0, 20.0, 0.0, 0.0, 0.0, 0.0, 15.0, 0.0),
+    (0.0,) * 8,
+)
+
+
+def trunk_commands(cables: np.ndarray) -> np.ndarray:
+    """(5,) the Trunk proxy's commands (lower_d1, lower_d2, upper_d1, upper_d2, base) for
+    cable shortenings (8,) (module docstring). Bending towards +x is +d2, towards +y -d1."""
+    c = np.asarray(cables, dtype=float)
+    long_x, long_y = (c[3] - c[1]) / 70.0, (c[0] - c[2]) / 70.0
+    short_x, short_y = (c[7] - c[5]) / 40.0, (c[4] - c[6]) / 40.0
+    lower_x, lower_y = 0.5 * (long_x + short_x), 0.5 * (long_y + short_y)
+    return np.clip([-lower_y, lower_x, -long_y, long_x, 0.0], -1.0, 1.0)
+
+
+def trunk_reference(*, phase: float = 0.3, dt: float = 0.01, mesh_size: float = 8.0) -> Reference:
+    """The FEM Trunk through :data:`TRUNK_PHASES`; matched points: its surface nodes."""
+    from pliant.robots.trunk import trunk
+
+    model = trunk(mesh_size=mesh_size)
+    nodes = np.unique(model.body.mesh.boundary_triangles())
+    solver, state = ImplicitEuler(model, dt), model.rest_state()
+    steps = int(round(phase / dt))
+    commands, points = [], []
+    for target in TRUNK_PHASES:
+        for _ in range(steps):
+            state = solver.step(state, np.array(target))
+            # What the cables reached (1 mm a step at most), not what was asked.
+            commands.append(trunk_commands(state.displacement))
+            points.append(state.positions[nodes].copy())
+    return Reference(
+        np.array(commands), np.array(points), model.body.rest_positions[nodes].copy(), dt
+    )
+
+
+def _trunk_alone(**parameters) -> Proxy:
+    """The Trunk proxy as calibrated: base fixed, neither cube nor floor in reach."""
+    return trunk_proxy(cube_position=None, floor_height=-1000.0, **parameters)
+
+
 @dataclass(frozen=True)
 class Setup:
     """How to calibrate one robot's proxy: its builder, the search box, the FEM reference."""
@@ -94,6 +148,21 @@ SETUPS = {
     # hand-found values"); the first round's centre was hand-set.
     "multigait": Setup(
         multigait_proxy, _around(MULTIGAIT_PARAMETERS, 0.3, 3.0), multigait_reference
+    ),
+    # Hand-set: from a third of the FEM's E (450 kPa) to the thesis' 14332 kPa (round 1 stopped
+    # at 4500, its best at the edge), its 42 g, and curvatures
+    # from a cable's pull over its distance to the axis.
+    "trunk": Setup(
+        _trunk_alone,
+        {
+            "lower_stiffness": (150.0, 15000.0),
+            "upper_stiffness": (150.0, 15000.0),
+            "lower_density": (2e-7, 2e-6),
+            "upper_density": (2e-7, 2e-6),
+            "lower_curvature": (0.005, 0.1),
+            "upper_curvature": (0.01, 0.15),
+        },
+        trunk_reference,
     ),
 }
 
