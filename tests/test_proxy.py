@@ -249,3 +249,18 @@ def test_the_calibrate_command_fits_a_saved_reference_and_resumes(tmp_path) -> N
     )
     for name in ("leg_curvature", "centre_curvature"):
         assert report["proxy_parameters"][name] == pytest.approx(0.9 * report["parameters"][name])
+
+
+def test_the_trunk_proxy_pushes_the_cube_in_its_environment() -> None:
+    """pliant/TrunkPushProxy-v0: bending both beams a little towards +x (the cube's side)
+    pushes the cube along +x; the reward's parts add up."""
+    import gymnasium as gym
+
+    import pliant.envs  # noqa: F401  (registers the environments)
+
+    env = gym.make("pliant/TrunkPushProxy-v0")
+    env.reset(seed=0)
+    start = env.unwrapped.cube().copy()
+    _, reward, _, _, info = env.step(np.array([0.0, 0.15, 0.0, 0.15, 0.0]))
+    assert env.unwrapped.cube()[0] > start[0] + 10.0
+    assert reward == pytest.approx(sum(info["reward_parts"].values()))
