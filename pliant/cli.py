@@ -27,6 +27,7 @@ from pliant.condensed.cli import app as condensed_app
 from pliant.errors import UnreachableGoalWarning
 from pliant.learn import cli as learn_cli
 from pliant.planning.cli import plan
+from pliant.proxy.cli import app as proxy_app
 from pliant.reduction.cli import reduce_command
 from pliant.solvers import ImplicitEuler, StaticSolver
 from pliant.trajopt.cli import app as trajopt_app
@@ -46,6 +47,7 @@ app.command("train")(learn_cli.train)
 app.command("eval")(learn_cli.eval_)
 app.command("enjoy")(learn_cli.enjoy)
 app.command("tune")(learn_cli.tune)
+app.add_typer(proxy_app, name="proxy")
 
 
 @app.callback()

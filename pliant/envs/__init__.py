@@ -47,6 +47,14 @@ _register("CartStemContact", "pliant.envs.cartstem:CartStemContactEnv", 30, subs
 _register("SimpleMaze", "pliant.envs.maze:SimpleMazeEnv", 50, substeps=4)
 _register("Maze", "pliant.envs.maze:MazeEnv", 250, substeps=2, mesh_size=8.0)
 _register("Multigait", "pliant.envs.multigait:MultigaitEnv", 6, substeps=4, mesh_size=10.0)
+_register("MultigaitProxy", "pliant.envs.multigait_proxy:MultigaitProxyEnv", 6, substeps=20)
+_register(
+    "TrunkPushProxy",
+    "pliant.envs.trunk_push_proxy:TrunkPushProxyEnv",
+    10,
+    substeps=5,
+    settle_steps=5,
+)
 _register("TrunkCup", "pliant.envs.trunk_cup:TrunkCupEnv", 250, settle_steps=5)
 _register("TrunkPush", "pliant.envs.trunk_push:TrunkPushEnv", 10, substeps=5, settle_steps=5)
 _register(

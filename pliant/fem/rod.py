@@ -154,6 +154,8 @@ class RodBody:
         gravity: Sequence[float] = (0.0, 0.0, 0.0),
         rayleigh_mass: float = 0.0,
         rayleigh_stiffness: float = 0.0,
+        young_moduli: Sequence[float] | None = None,
+        densities: Sequence[float] | None = None,
     ) -> None:
         x = np.ascontiguousarray(points, dtype=np.float64)
         if x.ndim != 2 or x.shape[1] != 3 or x.shape[0] < 2 or not np.all(np.isfinite(x)):
@@ -200,13 +202,16 @@ class RodBody:
         self.gamma0, self.kappa0 = rod_kernels.rest_strains(
             x, rotations, self.elements, self.offsets, lengths
         )
-        e, g = material.young_modulus, material.mu
-        i1, i2 = section.inertia
+        self.natural_curvature = self.kappa0.copy()
         m = len(pairs)
-        shear_stretch = np.tile(
-            [section.shear_coefficient * g * section.area] * 2 + [e * section.area], (m, 1)
-        )
-        bend_twist = np.tile([e * i1, e * i2, g * section.torsion], (m, 1))
+        e = np.full((m, 1), material.young_modulus)
+        if young_moduli is not None:
+            e = _per_element("young_moduli", young_moduli, m)[:, None]
+        g = e * (material.mu / material.young_modulus)
+        i1, i2 = section.inertia
+        shear = section.shear_coefficient * section.area * g
+        shear_stretch = np.ascontiguousarray(np.hstack([shear, shear, e * section.area]))
+        bend_twist = np.ascontiguousarray(np.hstack([e * i1, e * i2, g * section.torsion]))
         # What every element kernel reads: connectivity and offsets, rest lengths and strains,
         # C and B.
         self._elements = (
@@ -219,6 +224,11 @@ class RodBody:
             bend_twist,
         )
 
+        if densities is not None:
+            if density is not None or total_mass is not None:
+                raise MaterialError("give densities per element or one density, not both")
+            rho_e = _per_element("densities", densities, m)
+            total_mass = float(rho_e @ lengths) * section.area
         set_bulk_properties(
             self,
             section.area * float(lengths.sum()),
@@ -228,13 +238,13 @@ class RodBody:
             rayleigh_stiffness=rayleigh_stiffness,
             gravity=gravity,
         )
-        rho = self.density
+        if densities is None:
+            rho_e = np.full(m, self.density)
 
-        share = np.zeros(n)  # half of each adjacent element's length
-        np.add.at(share, pairs[:, 0], 0.5 * lengths)
-        np.add.at(share, pairs[:, 1], 0.5 * lengths)
-        rotary = rho * 0.5 * (i1 + i2)
-        self.node_masses = np.concatenate([rho * section.area * share, rotary * share])
+        share = np.zeros(n)  # half of each adjacent element's mass per area
+        np.add.at(share, pairs[:, 0], 0.5 * rho_e * lengths)
+        np.add.at(share, pairs[:, 1], 0.5 * rho_e * lengths)
+        self.node_masses = np.concatenate([section.area * share, 0.5 * (i1 + i2) * share])
 
         for label, nodes in (("clamped", clamped), ("pinned", pinned)):
             idx = np.asarray(nodes, dtype=np.int64).reshape(-1)
@@ -256,6 +266,17 @@ class RodBody:
         self.mass_data = np.zeros(self.pattern.nnz)
         self.mass_data[diagonal.astype(np.int64)] = self._mass_diagonal
         self._blocks = np.empty((m, 12, 12))
+
+    def set_rest_curvature(self, curvature: np.ndarray, elements: np.ndarray | None = None) -> None:
+        """Prescribe the rest curvature and twist kappa0 (k, 3) (material frame, rad per
+        length) of `elements` (default: all): the elastic energy l/2 (kappa - kappa0)^T B
+        (kappa - kappa0) then rests at that curvature, the next step's forces and tangents
+        included. :attr:`natural_curvature` holds the geometry's own."""
+        idx = np.arange(self.n_elements) if elements is None else np.asarray(elements, np.int64)
+        value = np.broadcast_to(np.asarray(curvature, dtype=float), (idx.size, 3))
+        if not np.all(np.isfinite(value)):
+            raise ModelError("a rest curvature must be finite")
+        self.kappa0[idx] = value  # in place: the element kernels read this very array
 
     # --- layout -----------------------------------------------------------------------------
     @property
@@ -484,6 +505,14 @@ class ClampedEnd:
         position, rotation = self.carrier.pose(t)
         point, frame = self._local
         return np.vstack([position + rotation @ point, _log(rotation @ frame)])
+
+
+def _per_element(name: str, values, m: int) -> np.ndarray:
+    """(m,) finite positive values, one per element."""
+    out = np.asarray(values, dtype=float).reshape(-1)
+    if out.shape != (m,) or not np.all(np.isfinite(out)) or out.min() <= 0:
+        raise MaterialError(f"{name} must be {m} finite values > 0, one per element")
+    return out
 
 
 def _check_elements(elements, n: int) -> np.ndarray:

@@ -1,0 +1,146 @@
+"""The Trunk on a translating base pushing a cube to a goal, on its beam-skeleton proxy
+(thesis §4.1.2, C.5): the task of :class:`pliant.envs.trunk_push.TrunkPushEnv` with the proxy
+of :func:`pliant.proxy.trunk_proxy` (calibrated on the FEM Trunk) in place of the FEM body.
+
+Observation (thesis: 16 points on the skeleton + cube centre + goal): 16 skeleton nodes spread
+along it, the cube's centre and the goal's (x, z), divided by the trunk's length (53 values).
+Action: continuous (thesis), Box(5) in [-1, 1]: the two bendings of each beam, targets
+reached linearly over the step, and the base's target in [base_low, base_high] mm, at most
+``base_speed`` mm/s; discrete: 10 actions, one bending moved by +-``bend_step`` or the base by
++-``base_step`` mm.
+Reward (thesis): -d / L - ``contact_weight`` d_c / L, d the cube-goal distance in the floor's
+plane, d_c the distance from the cube's centre to the nearest skeleton node; terminated when
+d < ``goal_tolerance`` (8 mm). Goal: the cube's start plus an offset in [goal_low, goal_high]
+(x, z). 10 steps of 30 x 0.01 s (0.3 s a step). The proxy starts settled under gravity.
+"""
+
+from __future__ import annotations
+
+import gymnasium as gym
+import numpy as np
+
+from pliant.envs.base import ActionType, SoftRobotEnv, scaled_box
+from pliant.envs.trunk import settled
+from pliant.model import Model, State
+from pliant.proxy import trunk_proxy
+from pliant.proxy.actuation import ProxySolver
+
+
+class TrunkPushProxyEnv(SoftRobotEnv):
+    name = "TrunkPushProxy"
+    version = 1
+    view = (60.0, -60.0)
+
+    def __init__(
+        self,
+        *,
+        dt: float = 0.01,
+        substeps: int = 30,
+        action_type: ActionType = "continuous",
+        bend_step: float = 0.25,
+        base_step: float = 5.0,
+        contact_weight: float = 0.2,
+        base_low: float = -40.0,
+        base_high: float = 40.0,
+        base_speed: float = 100.0,
+        goal_low: tuple[float, float] = (5.0, -30.0),
+        goal_high: tuple[float, float] = (40.0, 20.0),
+        goal_tolerance: float = 8.0,
+        n_points: int = 16,
+        settle_steps: int = 30,
+        render_mode: str | None = None,
+        tangent: str = "lagged",
+        **proxy_kwargs,
+    ) -> None:
+        if not base_low <= 0.0 <= base_high:
+            raise ValueError(f"need base_low <= 0 <= base_high, got {base_low}, {base_high}")
+        if not (np.isfinite(base_speed) and base_speed > 0):
+            raise ValueError(f"base_speed must be > 0, got {base_speed!r}")
+        self.contact_weight = float(contact_weight)
+        self.bend_step, self.base_step = float(bend_step), float(base_step)
+        self.base_low, self.base_high = float(base_low), float(base_high)
+        self.base_speed = float(base_speed)
+        self.goal_low, self.goal_high = np.asarray(goal_low), np.asarray(goal_high)
+        self.goal_tolerance = float(goal_tolerance)
+        self.n_points = int(n_points)
+        self.settle_steps = int(settle_steps)
+        self.proxy_kwargs = proxy_kwargs
+        super().__init__(
+            dt=dt,
+            substeps=substeps,
+            action_type=action_type,
+            render_mode=render_mode,
+            tangent=tangent,
+        )
+        self.sim = ProxySolver(self.proxy, self.sim)
+        self.n_actuators = self.proxy.n_controls
+        self.commands = np.zeros(self.n_actuators)
+        if action_type == "discrete":
+            self.action_space = gym.spaces.Discrete(2 * self.n_actuators)
+        else:
+            self.action_space = scaled_box(-1.0, 1.0, (self.n_actuators,))
+        self.observation_space = scaled_box(-3.0, 3.0, (3 * self.n_points + 5,))
+
+    def _build(self) -> Model:
+        self.proxy = trunk_proxy(base_limits=(self.base_low, self.base_high), **self.proxy_kwargs)
+        rod = self.proxy.rod
+        self.length = float(rod.lengths.sum())
+        self.nodes = np.unique(np.linspace(0, rod.n_centreline - 1, self.n_points).round())
+        self.nodes = self.nodes.astype(np.int64)
+        return self.proxy.model
+
+    def _initial_state(self) -> State:
+        return settled(self.model, self.sim, self.settle_steps)
+
+    def cube(self) -> np.ndarray:
+        return self.state.rigid_positions[0]
+
+    def distance(self) -> float:
+        gap = self.cube() - self.task["goal"]
+        return float(np.hypot(gap[0], gap[2]))
+
+    def contact_distance(self) -> float:
+        x = self.proxy.skeleton(self.state.positions)
+        return float(np.linalg.norm(x - self.cube(), axis=1).min())
+
+    def _reset_task(self, rng, options) -> None:
+        goal = (options or {}).get("goal")
+        if goal is None:
+            x, z = rng.uniform(self.goal_low, self.goal_high)
+            goal = self.cube() + [x, 0.0, z]
+        self.task["goal"] = np.asarray(goal, dtype=float).reshape(3)
+        self.task["distance"] = self.distance()
+
+    def _commands_from_action(self, action) -> None:
+        if self.action_type == "discrete":
+            target = self.commands.copy()
+            i, sign = action // 2, 1.0 if action % 2 == 0 else -1.0
+            step = self.base_step if i == self.n_actuators - 1 else self.bend_step
+            target[:-1] = np.clip(target[:-1] + (np.arange(4) == i) * sign * step, -1.0, 1.0)
+            base = target[-1] + (sign * step if i == self.n_actuators - 1 else 0.0)
+            base = float(np.clip(base, self.base_low, self.base_high))
+        else:
+            target = np.asarray(action, dtype=float).copy()
+            s = 0.5 * (target[-1] + 1.0)
+            base = self.base_low + s * (self.base_high - self.base_low)
+        now = self.commands[-1]
+        reach = self.base_speed * self.step_time
+        target[-1] = now + np.clip(base - now, -reach, reach)
+        self.target_commands = target
+
+    def _observe(self) -> np.ndarray:
+        x = self.proxy.skeleton(self.state.positions)[self.nodes]
+        goal = self.task["goal"][[0, 2]]
+        return np.concatenate([x.ravel(), self.cube(), goal]) / self.length
+
+    def _reward(self):
+        d = self.distance()
+        self.task["distance"] = d
+        parts = {
+            "goal": -d / self.length,
+            "contact": -self.contact_weight * self.contact_distance() / self.length,
+        }
+        return sum(parts.values()), d < self.goal_tolerance, parts
+
+    def _render_goal(self):
+        return self.task["goal"]

@@ -1,0 +1,155 @@
+"""Calibration of a proxy on its FEM robot (thesis §4.1.1, L637, L692-696): the max
+curvature, stiffness and mass of each beam group, chosen by Bayesian optimisation (Optuna's
+TPE) to minimise the distance between matched points of the two models following one
+actuation trajectory.
+
+The trajectory's recorded positions are split: every 5th is an optimisation position, the
+others validation positions, which check that the proxy interpolates between them (the
+authors' code). The loss is the mean over positions and matched points of the Euclidean
+distance. The study lives in a SQLite file when given one, and a run resumes it: it adds
+trials until the study holds the number asked for. The proxy then uses its calibrated max
+curvatures times a safety factor < 1, under-using the actuation range it was fitted on
+(thesis L694).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+import optuna
+
+from pliant.errors import ModelError, PliantError
+from pliant.proxy.builders import Proxy
+from pliant.solvers import ImplicitEuler
+
+# What a trial whose proxy diverged scores: worse than any finite distance it could reach.
+_FAILED = 1e9
+
+
+def split(n_positions: int, *, every: int = 5) -> tuple[np.ndarray, np.ndarray]:
+    """(optimisation, validation) indices of recorded positions: every `every`-th position
+    (0, 5, 10, ...) for the optimisation, the others for validation."""
+    index = np.arange(n_positions)
+    return index[index % every == 0], index[index % every != 0]
+
+
+def mean_distance(reference: np.ndarray, proxy: np.ndarray) -> float:
+    """Mean over positions and points of |reference - proxy| ((T, K, 3) each)."""
+    if reference.shape != proxy.shape:
+        raise ModelError(f"matched points differ in shape: {reference.shape} vs {proxy.shape}")
+    return float(np.linalg.norm(reference - proxy, axis=-1).mean())
+
+
+def rollout(
+    proxy: Proxy,
+    commands: np.ndarray,
+    points: Callable[[np.ndarray], np.ndarray],
+    *,
+    dt: float = 0.01,
+) -> np.ndarray:
+    """(T, K, 3) matched points of `proxy` after each of the steps commanded by `commands`
+    (T, n_controls), read from a state's positions by `points`."""
+    solver, state = ImplicitEuler(proxy.model, dt), proxy.model.rest_state()
+    out = []
+    for u in np.atleast_2d(commands):
+        proxy.apply(u)
+        state = solver.step(state)
+        out.append(points(state.positions))
+    return np.array(out)
+
+
+@dataclass(frozen=True)
+class CalibrationResult:
+    """The best trial's parameters, its errors (mm) on the optimisation and validation
+    positions, how many trials the study holds, and the parameters the proxy is to use (max
+    curvatures times the safety factor)."""
+
+    parameters: dict[str, float]
+    optimisation_error: float
+    validation_error: float
+    trials: int
+    safety: float
+
+    @property
+    def proxy_parameters(self) -> dict[str, float]:
+        return {
+            k: v * self.safety if k.endswith("curvature") else v for k, v in self.parameters.items()
+        }
+
+
+def calibrate(
+    simulate: Callable[[dict[str, float]], np.ndarray],
+    reference: np.ndarray,
+    space: Mapping[str, tuple[float, float]],
+    *,
+    trials: int = 20,
+    fixed: Mapping[str, float] | None = None,
+    storage: str | None = None,
+    study_name: str = "proxy",
+    seed: int = 0,
+    safety: float = 0.9,
+    startup_trials: int = 10,
+    every: int = 5,
+) -> CalibrationResult:
+    """Fit the parameters in `space` (name -> (low, high), sampled uniformly) so that
+    `simulate(parameters)` (T, K, 3) follows `reference` (T, K, 3) on the optimisation
+    positions; `fixed` adds parameters held at a value.
+
+    `storage`: an Optuna storage URL ("sqlite:///calibration.db") to keep and resume the
+    study `study_name`; None keeps it in memory. The study is run until it holds `trials`
+    finished trials. `safety` in (0, 1] scales the calibrated max curvatures
+    (:attr:`CalibrationResult.proxy_parameters`).
+    """
+    reference = np.asarray(reference, dtype=float)
+    if reference.ndim != 3 or reference.shape[-1] != 3 or len(reference) < every:
+        raise ModelError(f"reference must be (T >= {every}, K, 3) points, got {reference.shape}")
+    for name, (low, high) in space.items():
+        if not (math.isfinite(low) and math.isfinite(high) and low < high):
+            raise ModelError(f"search interval of {name} must be finite, low < high")
+    if not 0.0 < safety <= 1.0:
+        raise ModelError(f"the safety factor must lie in (0, 1], got {safety}")
+    optimisation, validation = split(len(reference), every=every)
+    fixed = dict(fixed or {})
+
+    def parameters(trial: optuna.trial.BaseTrial) -> dict[str, float]:
+        chosen = {name: trial.suggest_float(name, *bounds) for name, bounds in space.items()}
+        return {**fixed, **chosen}
+
+    def objective(trial: optuna.Trial) -> float:
+        try:
+            points = simulate(parameters(trial))
+        except PliantError as error:  # a diverging proxy: a bad corner of the box
+            trial.set_user_attr("failure", str(error))
+            return _FAILED
+        trial.set_user_attr(
+            "validation_error", mean_distance(reference[validation], points[validation])
+        )
+        return mean_distance(reference[optimisation], points[optimisation])
+
+    optuna.logging.set_verbosity(optuna.logging.WARNING)
+    study = optuna.create_study(
+        study_name=study_name,
+        storage=storage,
+        load_if_exists=True,
+        direction="minimize",
+        sampler=optuna.samplers.TPESampler(seed=seed, n_startup_trials=startup_trials),
+    )
+    done = sum(t.state == optuna.trial.TrialState.COMPLETE for t in study.trials)
+    if trials > done:
+        study.optimize(objective, n_trials=trials - done)
+    best = study.best_trial
+    return CalibrationResult(
+        {**fixed, **best.params},
+        float(best.value),
+        float(best.user_attrs.get("validation_error", math.nan)),
+        len(study.trials),
+        safety,
+    )
+
+
+def command_sequence(patterns: Sequence[Sequence[float]], steps: int) -> np.ndarray:
+    """(len(patterns) * steps, n) commands: each pattern held for `steps` steps."""
+    return np.repeat(np.asarray(patterns, dtype=float), steps, axis=0)

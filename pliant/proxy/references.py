@@ -1,0 +1,173 @@
+"""The FEM robots' side of a calibration: the trajectory of matched points that a proxy is
+fitted to, and each robot's calibration set-up (search box, matched points, commands).
+
+Trunk (thesis L694: a 0.6 s trajectory of 2 actions, the points of the external mesh, no
+cube): the FEM Trunk (base fixed) pulls its cables in four 0.3 s phases (towards +x, then +y
+at the tip, then -x with the base half towards -y, then release); the matched points are its
+surface nodes. The proxy's commands follow from the cables by a linear correspondence, the
+assumption that this calibration's error measures: a beam bends towards a side by the pull of
+the cables on that side less the opposite ones, each over its longest course (70 mm long
+cables, 40 mm short ones); the long cables, which run the whole length, bend both beams, the
+short ones (to mid-length) the lower one: u_upper = dl / 70, u_lower = (dl / 70 + ds / 40) / 2.
+
+Multigait (thesis L694): the hand-defined gait (:func:`pliant.robots.multigait.demo_actuation`,
+every chamber inflated to its volume and deflated in turn) for 10.8 s at dt = 0.01 s, the
+matched points on the bottom face (the FEM's underside nodes, skinned on the proxy). A proxy
+command is the FEM's volume command over its amplitude, in [0, 1].
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+from pliant.errors import UnknownRobotError
+from pliant.mesh.multigait import CHAMBERS
+from pliant.proxy.builders import MULTIGAIT_PARAMETERS, Proxy, multigait_proxy, trunk_proxy
+from pliant.proxy.calibrate import rollout
+from pliant.proxy.skinning import Skinning
+from pliant.solvers import ImplicitEuler
+
+
+@dataclass(frozen=True)
+class Reference:
+    """A FEM trajectory: proxy commands (T, n) of each step, the FEM's matched points (T, K,
+    3) after it, their rest positions (K, 3) and the time step."""
+
+    commands: np.ndarray
+    points: np.ndarray
+    surface: np.ndarray
+    dt: float
+
+    def save(self, path) -> None:
+        np.savez_compressed(
+            path, commands=self.commands, points=self.points, surface=self.surface, dt=self.dt
+        )
+
+    @classmethod
+    def load(cls, path) -> Reference:
+        data = np.load(path)
+        return cls(data["commands"], data["points"], data["surface"], float(data["dt"]))
+
+
+def multigait_reference(
+    *, duration: float = 10.8, dt: float = 0.01, mesh_size: float = 6.0, spacing: float = 10.0
+) -> Reference:
+    """The FEM Multigait walking its gait for `duration` s; matched points: its underside
+    nodes, one per `spacing` mm cell and along the outline."""
+    from pliant.robots.multigait import _underside_nodes, demo_actuation, multigait
+
+    model = multigait(mesh_size=mesh_size)
+    nodes = _underside_nodes(model.body.mesh, spacing)
+    centre, leg = 4900.0, 3300.0  # demo_actuation's amplitudes (mm^3 of volume growth)
+    amplitude = np.where(np.array(CHAMBERS) == "centre", centre, leg)
+    solver, state = ImplicitEuler(model, dt), model.rest_state()
+    commands, points = [], []
+    for _ in range(int(round(duration / dt))):
+        volume = demo_actuation(state.time, amplitude=(centre, leg))
+        state = solver.step(state, volume)
+        commands.append(volume / amplitude)
+        points.append(state.positions[nodes].copy())
+    return Reference(
+        np.array(commands), np.array(points), model.body.rest_positions[nodes].copy(), dt
+    )
+
+
+#: the Trunk's calibration phases: cable shortenings (mm; cables 0-3 long, on +y, -x, -y,
+#: +x; 4-7 short, same sides), each reached at 1 mm a step and held to the phase's end.
+TRUNK_PHASES = (
+    (0.0, 0.0, 0.0, 20.0, 0.0, 0.0, 0.0, 15.0),
+    (20.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 15.0),
+    (0.0, 20.0, 0.0, 0.0, 0.0, 0.0, 15.0, 0.0),
+    (0.0,) * 8,
+)
+
+
+def trunk_commands(cables: np.ndarray) -> np.ndarray:
+    """(5,) the Trunk proxy's commands (lower_d1, lower_d2, upper_d1, upper_d2, base) for
+    cable shortenings (8,) (module docstring). Bending towards +x is +d2, towards +y -d1."""
+    c = np.asarray(cables, dtype=float)
+    long_x, long_y = (c[3] - c[1]) / 70.0, (c[0] - c[2]) / 70.0
+    short_x, short_y = (c[7] - c[5]) / 40.0, (c[4] - c[6]) / 40.0
+    lower_x, lower_y = 0.5 * (long_x + short_x), 0.5 * (long_y + short_y)
+    return np.clip([-lower_y, lower_x, -long_y, long_x, 0.0], -1.0, 1.0)
+
+
+def trunk_reference(*, phase: float = 0.3, dt: float = 0.01, mesh_size: float = 8.0) -> Reference:
+    """The FEM Trunk through :data:`TRUNK_PHASES`; matched points: its surface nodes."""
+    from pliant.robots.trunk import trunk
+
+    model = trunk(mesh_size=mesh_size)
+    nodes = np.unique(model.body.mesh.boundary_triangles())
+    solver, state = ImplicitEuler(model, dt), model.rest_state()
+    steps = int(round(phase / dt))
+    commands, points = [], []
+    for target in TRUNK_PHASES:
+        for _ in range(steps):
+            state = solver.step(state, np.array(target))
+            # What the cables reached (1 mm a step at most), not what was asked.
+            commands.append(trunk_commands(state.displacement))
+            points.append(state.positions[nodes].copy())
+    return Reference(
+        np.array(commands), np.array(points), model.body.rest_positions[nodes].copy(), dt
+    )
+
+
+def _trunk_alone(**parameters) -> Proxy:
+    """The Trunk proxy as calibrated: base fixed, neither cube nor floor in reach."""
+    return trunk_proxy(cube_position=None, floor_height=-1000.0, **parameters)
+
+
+@dataclass(frozen=True)
+class Setup:
+    """How to calibrate one robot's proxy: its builder, the search box, the FEM reference."""
+
+    build: Callable[..., Proxy]
+    space: dict[str, tuple[float, float]]
+    reference: Callable[..., Reference]
+
+    def simulate(self, reference: Reference) -> Callable[[dict[str, float]], np.ndarray]:
+        """parameters -> (T, K, 3) the proxy's skinned matched points along `reference`."""
+
+        def run(parameters: dict[str, float]) -> np.ndarray:
+            proxy = self.build(**parameters)
+            skin = Skinning(proxy.rod, reference.surface, neighbours=2)
+            return rollout(proxy, reference.commands, skin.positions, dt=reference.dt)
+
+        return run
+
+
+def _around(values: dict[str, float], low: float, high: float) -> dict[str, tuple[float, float]]:
+    return {k: (low * v, high * v) for k, v in values.items()}
+
+
+SETUPS = {
+    # Search box of 0.3x to 3x the values found so far (thesis: "restricted around
+    # hand-found values"); the first round's centre was hand-set.
+    "multigait": Setup(
+        multigait_proxy, _around(MULTIGAIT_PARAMETERS, 0.3, 3.0), multigait_reference
+    ),
+    # Hand-set: from a third of the FEM's E (450 kPa) to the thesis' 14332 kPa (round 1 stopped
+    # at 4500, its best at the edge), its 42 g, and curvatures
+    # from a cable's pull over its distance to the axis.
+    "trunk": Setup(
+        _trunk_alone,
+        {
+            "lower_stiffness": (150.0, 15000.0),
+            "upper_stiffness": (150.0, 15000.0),
+            "lower_density": (2e-7, 2e-6),
+            "upper_density": (2e-7, 2e-6),
+            "lower_curvature": (0.005, 0.1),
+            "upper_curvature": (0.01, 0.15),
+        },
+        trunk_reference,
+    ),
+}
+
+
+def setup(robot: str) -> Setup:
+    if robot not in SETUPS:
+        raise UnknownRobotError(f"no proxy calibration for {robot!r}; known: {sorted(SETUPS)}")
+    return SETUPS[robot]
