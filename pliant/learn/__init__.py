@@ -1,0 +1,1 @@
+"""Learning: RL training and evaluation, behaviour cloning, the configuration-space graph."""
