@@ -22,7 +22,7 @@ import torch
 from torch import nn
 from torch.nn import functional as F
 
-from pliant.learn.graph.sac import SAC, ReplayBuffer, mlp
+from pliant.learn.graph.sac import SAC, ReplayBuffer, mlp, polyak
 
 #: External rewards [step still in S_i, reached the target node, reached another node] (D.2).
 EXTERNAL_REWARDS = (-1.0, 2.0, -2.0)
@@ -172,9 +172,7 @@ class Evaluator(nn.Module):
         self.optimiser.zero_grad()
         loss.backward()
         self.optimiser.step()
-        with torch.no_grad():
-            for p, p_target in zip(self.attention.parameters(), self.target.parameters()):
-                p_target.lerp_(p, self.tau)
+        polyak(self.attention, self.target, self.tau)
         return loss.item()
 
 

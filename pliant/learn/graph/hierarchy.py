@@ -249,8 +249,8 @@ class GraphAgent:
         self.rng.bit_generator.state = state["rng"]
         torch.set_rng_state(state["torch_rng"])
         for agent, saved in [
-            *zip(self.internal, state["internal"]),
-            *zip(self.external, state["external"]),
+            *zip(self.internal, state["internal"], strict=True),
+            *zip(self.external, state["external"], strict=True),
         ]:
             if saved is not None:
                 agent.sac.load_state_dict(saved["sac"])

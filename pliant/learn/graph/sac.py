@@ -21,10 +21,17 @@ def mlp(inputs: int, outputs: int, hidden: int, layers: int = 3) -> nn.Sequentia
     """``layers`` hidden layers of ``hidden`` units with ReLU (D.2: all the authors' MLPs)."""
     sizes = [inputs] + [hidden] * layers
     modules: list[nn.Module] = []
-    for a, b in zip(sizes[:-1], sizes[1:]):
+    for a, b in zip(sizes[:-1], sizes[1:], strict=True):
         modules += [nn.Linear(a, b), nn.ReLU()]
     modules.append(nn.Linear(sizes[-1], outputs))
     return nn.Sequential(*modules)
+
+
+@torch.no_grad()
+def polyak(net: nn.Module, target: nn.Module, tau: float) -> None:
+    """target <- (1 − τ) target + τ net."""
+    for p, p_target in zip(net.parameters(), target.parameters(), strict=True):
+        p_target.lerp_(p, tau)
 
 
 class ReplayBuffer:
@@ -152,7 +159,5 @@ class SAC(nn.Module):
         alpha_loss.backward()
         self.alpha_opt.step()
 
-        with torch.no_grad():
-            for p, p_target in zip(self.q.parameters(), self.q_target.parameters()):
-                p_target.lerp_(p, self.tau)
+        polyak(self.q, self.q_target, self.tau)
         return {"q_loss": q_loss.item(), "actor_loss": actor_loss.item()}
