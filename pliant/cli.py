@@ -16,6 +16,7 @@ from rich.table import Table
 from pliant import robots
 from pliant.condensed.cli import app as condensed_app
 from pliant.errors import PliantError
+from pliant.learn.graph.cli import app as graph_app
 from pliant.planning.cli import plan
 from pliant.solvers import ImplicitEuler, StaticSolver
 from pliant.trajopt.cli import app as trajopt_app
@@ -29,6 +30,7 @@ console = Console()
 app.add_typer(condensed_app, name="condensed")
 app.command()(plan)
 app.add_typer(trajopt_app, name="trajopt")
+app.add_typer(graph_app, name="graph")
 
 
 def _solver(model, solver: str, dt: float):

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import gymnasium as gym
 import numpy as np
 import torch
@@ -73,6 +75,18 @@ class FlatSAC:
                 if callback is not None:
                     callback(history[-1])
         return history
+
+    def save(self, path: str | Path) -> None:
+        state = {"steps": self.steps, "rng": self.rng.bit_generator.state}
+        state |= {"sac": self.sac.checkpoint(), "buffer": self.buffer.state_dict()}
+        torch.save(state | {"torch_rng": torch.get_rng_state()}, path)
+
+    def load(self, path: str | Path) -> None:
+        state = torch.load(path, weights_only=False)
+        self.steps, self.rng.bit_generator.state = state["steps"], state["rng"]
+        self.sac.restore(state["sac"])
+        self.buffer.load_state_dict(state["buffer"])
+        torch.set_rng_state(state["torch_rng"])
 
     def evaluate(self, env: gym.Env, episodes: int = 5, seed: int = 10_000) -> dict:
         runs = [self.run_episode(env, train=False, seed=seed + k) for k in range(episodes)]

@@ -233,14 +233,15 @@ class GraphAgent:
             "rng": self.rng.bit_generator.state,
             "torch_rng": torch.get_rng_state(),
             "internal": [
-                {"sac": a.sac.state_dict(), "buffer": a.buffer.state_dict()} if a.learned else None
+                {"sac": a.sac.checkpoint(), "buffer": a.buffer.state_dict()} if a.learned else None
                 for a in self.internal
             ],
             "external": [
-                {"sac": a.sac.state_dict(), "buffer": a.buffer.state_dict()} if a else None
+                {"sac": a.sac.checkpoint(), "buffer": a.buffer.state_dict()} if a else None
                 for a in self.external
             ],
             "evaluator": self.evaluator.state_dict(),
+            "evaluator_opt": self.evaluator.optimiser.state_dict(),
             "evaluator_buffer": self.evaluator_buffer.state_dict(),
         }
 
@@ -253,9 +254,10 @@ class GraphAgent:
             *zip(self.external, state["external"], strict=True),
         ]:
             if saved is not None:
-                agent.sac.load_state_dict(saved["sac"])
+                agent.sac.restore(saved["sac"])
                 agent.buffer.load_state_dict(saved["buffer"])
         self.evaluator.load_state_dict(state["evaluator"])
+        self.evaluator.optimiser.load_state_dict(state["evaluator_opt"])
         self.evaluator_buffer.load_state_dict(state["evaluator_buffer"])
 
     def save(self, path: str | Path) -> None:

@@ -93,6 +93,18 @@ class SAC(nn.Module):
         self.q_opt = torch.optim.Adam(self.q.parameters(), lr=lr)
         self.alpha_opt = torch.optim.Adam([self.log_alpha], lr=lr)
 
+    def checkpoint(self) -> dict:
+        """Parameters and optimiser states (resuming continues the same Adam moments)."""
+        optimisers = (self.actor_opt, self.q_opt, self.alpha_opt)
+        return {"net": self.state_dict(), "opt": [o.state_dict() for o in optimisers]}
+
+    def restore(self, checkpoint: dict) -> None:
+        self.load_state_dict(checkpoint["net"])
+        for o, saved in zip(
+            (self.actor_opt, self.q_opt, self.alpha_opt), checkpoint["opt"], strict=True
+        ):
+            o.load_state_dict(saved)
+
     @property
     def alpha(self) -> torch.Tensor:
         return self.log_alpha.exp().detach()
