@@ -135,7 +135,7 @@ class Evaluator(nn.Module):
         lr: float = 3e-4,
         gamma: float = 0.99,
         tau: float = 5e-3,
-        temperature: float = 0.2,
+        temperature: float = 0.5,
     ) -> None:
         super().__init__()
         self.reachable = torch.as_tensor(np.asarray(reachable, dtype=bool))

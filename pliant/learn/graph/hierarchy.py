@@ -50,7 +50,8 @@ class GraphConfig:
     option_limit: int = 30
     penalty: float = -1.0
     external_rewards: tuple[float, float, float] = EXTERNAL_REWARDS
-    evaluator_temperature: float = 0.2
+    evaluator_temperature: float = 0.5
+    evaluator_tau: float = 5e-3
 
 
 class GraphAgent:
@@ -102,7 +103,7 @@ class GraphAgent:
         ]  # fmt: skip
         self.evaluator = Evaluator(
             obs_dim, graph.reachable_mask(), d=c.d, hidden=c.hidden, lr=c.lr, gamma=c.gamma,
-            tau=c.tau, temperature=c.evaluator_temperature,
+            tau=c.evaluator_tau, temperature=c.evaluator_temperature,
         )  # fmt: skip
         self.evaluator_buffer = ReplayBuffer(
             c.buffer_size, obs=(obs_dim,), node=(), choice=(), reward=(), next_obs=(obs_dim,),
