@@ -188,3 +188,26 @@ def test_flat_sac_baseline_runs():
     baseline = FlatSAC(env.observation_space, env.action_space, FAST, seed=0)
     history = baseline.learn(env, 300, eval_every=250, eval_episodes=2)
     assert history and history[0]["steps"] >= 250 and baseline.steps >= 300
+
+
+def test_cli_trains_checkpoints_and_resumes(tmp_path):
+    import json
+    from dataclasses import asdict
+
+    from typer.testing import CliRunner
+
+    from pliant.cli import app
+
+    config = tmp_path / "config.json"
+    config.write_text(json.dumps({"agent": asdict(FAST) | {"learning_starts": 100}}))
+    out = tmp_path / "run"
+    args = ["graph", "train", "Corridor", "--config", str(config), "--out", str(out)]
+    args += ["--eval-every", "100", "--eval-episodes", "1"]
+    first = CliRunner().invoke(app, [*args, "--steps", "150"])
+    assert first.exit_code == 0, first.output
+    evaluations = json.loads((out / "history.json").read_text())["evaluations"]
+    assert (out / "checkpoint.pt").is_file() and len(evaluations) >= 1
+    second = CliRunner().invoke(app, [*args, "--steps", "300"])
+    assert second.exit_code == 0, second.output
+    resumed = json.loads((out / "history.json").read_text())["evaluations"]
+    assert resumed[: len(evaluations)] == evaluations and resumed[-1]["steps"] >= 300
