@@ -6,9 +6,13 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-import torch
 
-from pliant.learn.graph import (
+pytest.importorskip("torch")
+pytest.importorskip("networkx")
+
+import torch  # noqa: E402
+
+from pliant.learn.graph import (  # noqa: E402
     ConfigurationGraph,
     ControllerAgent,
     Evaluator,
@@ -23,8 +27,8 @@ from pliant.learn.graph import (
     external_reward,
     option_transitions,
 )
-from pliant.learn.graph.agents import update_internal
-from pliant.learn.graph.toy import CorridorEnv, corridor_controller, corridor_graph
+from pliant.learn.graph.agents import update_internal  # noqa: E402
+from pliant.learn.graph.toy import CorridorEnv, corridor_controller, corridor_graph  # noqa: E402
 
 FAST = GraphConfig(hidden=64, d=16, lr=1e-3, batch_size=64, learning_starts=200, option_limit=20)
 
