@@ -231,6 +231,7 @@ class GraphAgent:
     def state_dict(self) -> dict:
         return {
             "steps": self.steps,
+            "update_debt": self._update_debt,
             "rng": self.rng.bit_generator.state,
             "torch_rng": torch.get_rng_state(),
             "internal": [
@@ -247,7 +248,7 @@ class GraphAgent:
         }
 
     def load_state_dict(self, state: dict) -> None:
-        self.steps = state["steps"]
+        self.steps, self._update_debt = state["steps"], state["update_debt"]
         self.rng.bit_generator.state = state["rng"]
         torch.set_rng_state(state["torch_rng"])
         for agent, saved in [
