@@ -8,10 +8,10 @@ Evaluator, external and internal SAC agents per node), ``convex`` (internal agen
 a closed-form controller run until the node changes), ``sac`` (plain SAC). Every run trains
 through ``pliant graph train``'s ``train_run``: a run folder per (method, seed) holds its
 checkpoint and evaluation history, and rerunning the script resumes each run up to ``--steps``
-(a larger ``--steps`` continues the same runs). Writes ``<out>/<scene>/summary.json``: per
-method and seed the first evaluated step with success ≥ ``--solved`` ("iterations to solve"),
-the last return, and whether the budget is below the thesis' 250k (``partial``); and a plot of
-the learning curves (mean and min-max over seeds).
+(a larger ``--steps`` continues the same runs; ``--steps 0`` only summarises them). Writes
+``<out>/<scene>/summary.json``: per method and seed the first evaluated step with success ≥
+``--solved`` ("iterations to solve"), the last return, and whether the budget is below the
+thesis' 250k (``partial``); and a plot of the learning curves (mean and min-max over seeds).
 """
 
 from __future__ import annotations
@@ -86,6 +86,8 @@ def main() -> None:
     fig, ax = plt.subplots(figsize=(6, 3.5))
     for method in args.methods:
         curves = [runs[method, s] for s in args.seeds if runs[method, s]]
+        if not curves:
+            continue
         n = min(len(c) for c in curves)
         steps = np.array([h["steps"] for h in curves[0][:n]])
         returns = np.array([[h["return"] for h in c[:n]] for c in curves])
