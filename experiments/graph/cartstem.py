@@ -3,7 +3,7 @@
     python experiments/graph/cartstem.py [--scene CartStemContact] [--methods graph convex sac]
         [--seeds 0 1 2] [--steps 250000] [--eval-every 600] [--out experiments/results/graph]
 
-Methods (same SAC and hyper-parameters for all, thesis L827): ``graph`` (Selector by Eq. 4.7,
+Methods (same SAC and hyper-parameters for all, thesis L827): ``graph`` (node by Eq. 4.7,
 Evaluator, external and internal SAC agents per node), ``convex`` (internal agents replaced by
 a closed-form controller run until the node changes), ``sac`` (plain SAC). Every run trains
 through ``pliant graph train``'s ``train_run``: a run folder per (method, seed) holds its
