@@ -26,6 +26,7 @@ from pliant.cli_support import (
 from pliant.condensed.cli import app as condensed_app
 from pliant.errors import UnreachableGoalWarning
 from pliant.learn import cli as learn_cli
+from pliant.learn.graph.cli import app as graph_app
 from pliant.planning.cli import plan
 from pliant.proxy.cli import app as proxy_app
 from pliant.reduction.cli import reduce_command
@@ -48,6 +49,7 @@ app.command("eval")(learn_cli.eval_)
 app.command("enjoy")(learn_cli.enjoy)
 app.command("tune")(learn_cli.tune)
 app.add_typer(proxy_app, name="proxy")
+app.add_typer(graph_app, name="graph")
 
 
 @app.callback()

@@ -1,7 +1,8 @@
 """Reinforcement learning on Pliant's environments: training with Stable-Baselines3
 (:mod:`pliant.learn.training`), YAML configurations (:mod:`pliant.learn.config`), evaluation
 (:mod:`pliant.learn.evaluate`), behaviour cloning (:mod:`pliant.learn.bc`), robust vectorised
-workers (:mod:`pliant.learn.vec`) and Ray scale-out (:mod:`pliant.learn.distributed`).
+workers (:mod:`pliant.learn.vec`), Ray scale-out (:mod:`pliant.learn.distributed`), and the
+configuration-space graph of hierarchical agents (:mod:`pliant.learn.graph`).
 
 This package sees environments only through Gymnasium (``gymnasium.make`` of the registered
 ids); it never reaches into the simulation. Stable-Baselines3 and PyTorch load on first use of

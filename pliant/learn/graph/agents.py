@@ -1,0 +1,334 @@
+"""The agents of the configuration-space graph (thesis §4.2.1, Fig. 4.7; D.1, D.2).
+
+* :class:`Selector` — which space the state is in: attention between the encoded state and the
+  learned node identifiers h_i (Eq. 4.4), trained by cross-entropy on labelled states (Eq. 4.5).
+* :class:`Evaluator` — from which reachable node to solve the task: attention scores between the
+  encoded state and the identifiers of V_i ∪ {i}, a sampled choice, trained to maximise return.
+* :class:`ExternalAgent` — node i's option that moves the state to a neighbour S_j, a SAC on
+  [s | one-hot(j)], trained with hindsight relabelling (:func:`external_reward`).
+* :class:`InternalAgent` — solves the task inside S_i, a SAC whose target at boundary states
+  borrows the neighbour node's value (:func:`boundary_values`); :class:`ControllerAgent` puts a
+  convex-optimisation controller (an inverse QP) in its place.
+* :func:`option_transitions` — the transitions of Eq. 4.6.
+"""
+
+from __future__ import annotations
+
+import copy
+from collections.abc import Callable, Sequence
+
+import numpy as np
+import torch
+from torch import nn
+from torch.nn import functional as F
+
+from pliant.learn.graph.sac import SAC, ReplayBuffer, mlp, polyak
+
+#: External rewards [step still in S_i, reached the target node, reached another node] (D.2).
+EXTERNAL_REWARDS = (-1.0, 2.0, -2.0)
+
+
+class NodeAttention(nn.Module):
+    """Scores s -> F(s) Hᵀ/√d between an MLP encoding F(s) ∈ R^d and the node identifiers
+    H = [h_1 … h_N] (Eq. 4.4 before the softmax)."""
+
+    def __init__(self, obs_dim: int, n_nodes: int, d: int, hidden: int) -> None:
+        super().__init__()
+        self.d = d
+        self.encoder = mlp(obs_dim, d, hidden)
+        self.identifiers = nn.Parameter(torch.randn(n_nodes, d))
+
+    def forward(self, obs: torch.Tensor) -> torch.Tensor:
+        return self.encoder(obs) @ self.identifiers.T / np.sqrt(self.d)
+
+
+class Selector(nn.Module):
+    """Which configuration space a state is in: α = softmax(Q Kᵀ/√d), K = F(s_t) the encoded
+    state, Q the identifiers (Eq. 4.4); current space = argmax α. Trained on labelled states with
+    targets α_i = 1 for the true space, 0 elsewhere, i.e. cross-entropy (Eq. 4.5)."""
+
+    def __init__(self, obs_dim: int, n_nodes: int, *, d: int = 64, hidden: int = 256) -> None:
+        super().__init__()
+        self.n_nodes = n_nodes
+        self.attention = NodeAttention(obs_dim, n_nodes, d, hidden)
+
+    def forward(self, obs: torch.Tensor) -> torch.Tensor:
+        """Probabilities α (batch, N)."""
+        return self.attention(obs).softmax(-1)
+
+    @torch.no_grad()
+    def predict(self, obs: np.ndarray) -> np.ndarray:
+        obs_t = torch.as_tensor(np.asarray(obs, dtype=np.float32))
+        return self.attention(obs_t).argmax(-1).numpy()
+
+    def accuracy(self, obs: np.ndarray, labels: np.ndarray) -> float:
+        return float(np.mean(self.predict(obs) == np.asarray(labels)))
+
+    def fit(
+        self,
+        obs: np.ndarray,
+        labels: np.ndarray,
+        *,
+        epochs: int = 50,
+        batch_size: int = 64,
+        lr: float = 1e-4,
+        validation: float = 0.2,
+        balance: bool = True,
+        seed: int = 0,
+    ) -> dict[str, list[float]]:
+        """Supervised training (Eq. 4.5). ``validation`` of the data is held out (thesis 20 %);
+        ``balance`` subsamples every class to the smallest one (D.2). Keeps the parameters of
+        the best validation accuracy; returns the history."""
+        rng = np.random.default_rng(seed)
+        obs, labels = np.asarray(obs, dtype=np.float32), np.asarray(labels, dtype=np.int64)
+        if balance:
+            counts = np.bincount(labels, minlength=self.n_nodes)
+            smallest = counts[counts > 0].min()
+            keep = np.concatenate(
+                [rng.permutation(np.flatnonzero(labels == c))[:smallest] for c in np.unique(labels)]
+            )
+            obs, labels = obs[keep], labels[keep]
+        order = rng.permutation(len(labels))
+        n_val = int(round(validation * len(order)))
+        val, train = order[:n_val], order[n_val:]
+        x, y = torch.as_tensor(obs[train]), torch.as_tensor(labels[train])
+        optimiser = torch.optim.Adam(self.parameters(), lr=lr)
+        history: dict[str, list[float]] = {"loss": [], "val_accuracy": []}
+        best, best_state = -1.0, None
+        for _ in range(epochs):
+            perm = torch.as_tensor(rng.permutation(len(train)))
+            for start in range(0, len(train), batch_size):
+                index = perm[start : start + batch_size]
+                loss = F.cross_entropy(self.attention(x[index]), y[index])
+                optimiser.zero_grad()
+                loss.backward()
+                optimiser.step()
+            history["loss"].append(loss.item())
+            if n_val:
+                accuracy = self.accuracy(obs[val], labels[val])
+                history["val_accuracy"].append(accuracy)
+                if accuracy > best:
+                    best, best_state = accuracy, copy.deepcopy(self.state_dict())
+        if best_state is not None:
+            self.load_state_dict(best_state)
+        return history
+
+
+class Evaluator(nn.Module):
+    """Which node of V_i ∪ {i} to solve the task from (Eq. 4.3).
+
+    The scores of the reachable nodes are attention between the encoded state and the node
+    identifiers (Eq. 4.4), read as soft Q-values of the choice: the choice is sampled from
+    softmax(scores / temperature) over V_i ∪ {i} and the scores regress on the return of the
+    option that follows (semi-Markov soft Q-learning on the transitions of Eq. 4.6). The
+    thesis' authors instead feed SAC's tanh-Gaussian output to the softmax (D.2); both sample
+    the choice and maximise the return.
+    """
+
+    def __init__(
+        self,
+        obs_dim: int,
+        reachable: np.ndarray,
+        *,
+        d: int = 64,
+        hidden: int = 256,
+        lr: float = 3e-4,
+        gamma: float = 0.99,
+        tau: float = 5e-3,
+        temperature: float = 0.5,
+    ) -> None:
+        super().__init__()
+        self.reachable = torch.as_tensor(np.asarray(reachable, dtype=bool))
+        self.gamma, self.tau, self.temperature = gamma, tau, temperature
+        self.attention = NodeAttention(obs_dim, len(reachable), d, hidden)
+        self.target = copy.deepcopy(self.attention).requires_grad_(False)
+        self.optimiser = torch.optim.Adam(self.attention.parameters(), lr=lr)
+
+    def scores(self, obs: torch.Tensor, node: torch.Tensor, target: bool = False):
+        """Q(s, j) for every node j, −inf where j ∉ V_node ∪ {node}."""
+        q = (self.target if target else self.attention)(obs)
+        return q.masked_fill(~self.reachable[node.long()], -torch.inf)
+
+    @torch.no_grad()
+    def choose(self, obs: np.ndarray, node: int, rng: np.random.Generator, greedy=False) -> int:
+        q = self.scores(torch.as_tensor(np.asarray(obs, np.float32))[None], torch.tensor([node]))[0]
+        if greedy:
+            return int(q.argmax())
+        p = (q / self.temperature).softmax(-1).numpy().astype(float)
+        return int(rng.choice(len(p), p=p / p.sum()))
+
+    @torch.no_grad()
+    def value(self, obs: torch.Tensor, node: torch.Tensor) -> torch.Tensor:
+        """Soft value τ log Σ_j exp(Q(s, j)/τ) over the reachable nodes (target network)."""
+        q = self.scores(obs, node, target=True)
+        return self.temperature * torch.logsumexp(q / self.temperature, dim=-1)
+
+    def update(self, batch: dict[str, torch.Tensor]) -> float:
+        q = self.scores(batch["obs"], batch["node"]).gather(1, batch["choice"].long()[:, None])
+        next_value = self.value(batch["next_obs"], batch["next_node"])
+        discount = self.gamma ** batch["duration"]
+        y = batch["reward"] + discount * (1.0 - batch["done"]) * next_value
+        loss = F.mse_loss(q.squeeze(1), y)
+        self.optimiser.zero_grad()
+        loss.backward()
+        self.optimiser.step()
+        polyak(self.attention, self.target, self.tau)
+        return loss.item()
+
+
+def option_transitions(
+    observations: Sequence[np.ndarray], rewards: Sequence[float], done: bool
+) -> list[dict]:
+    """The transitions of one option (Eq. 4.6): for k ∈ [0, T−1],
+    (s_{t+k}, a_t, s_{t+T}, Σ_{t'=t+k}^{t+T−1} r_{t'}, δ), with its duration T − k for the
+    discount γ^{T−k} of the bootstrap. ``observations`` = s_t … s_{t+T} (T + 1 of them),
+    ``rewards`` = r_t … r_{t+T−1} (r_{t'} received on the step s_{t'} -> s_{t'+1}; the thesis'
+    upper bound t + T counts the same T − k rewards from 1), ``done`` = δ, the episode ended at
+    s_{t+T}. The option's action a_t is the caller's (the chosen node)."""
+    T = len(rewards)
+    if len(observations) != T + 1:
+        raise ValueError(f"{len(observations)} observations for {T} rewards (need T + 1)")
+    tails = np.cumsum(np.asarray(rewards, dtype=float)[::-1])[::-1]
+    return [
+        {
+            "obs": observations[k],
+            "next_obs": observations[T],
+            "reward": float(tails[k]),
+            "done": float(done),
+            "duration": T - k,
+        }
+        for k in range(T)
+    ]
+
+
+def external_reward(
+    node: int,
+    reached: torch.Tensor,
+    goal: torch.Tensor,
+    rewards: Sequence[float] = EXTERNAL_REWARDS,
+) -> tuple[torch.Tensor, torch.Tensor]:
+    """Hindsight rewards of node i's external agent for goal nodes ``goal`` (D.1, D.2): a step
+    that stays in S_i costs rewards[0]; one reaching S_goal earns rewards[1]; one reaching any
+    other space, rewards[2]. Leaving S_i ends the option (done = 1). A trajectory reaching S_k is
+    so rewarded for goal k and penalised for every other goal."""
+    stay, hit, miss = rewards
+    left = reached != node
+    reward = torch.where(left, torch.where(reached == goal, hit, miss), stay).float()
+    return reward, left.float()
+
+
+class ExternalAgent:
+    """Node i's option to a neighbour space: a SAC on [s | one-hot(target node)].
+
+    Trained off-policy on every transition that starts in S_i, whoever acted, each relabelled
+    for a target drawn among V_i (:func:`external_reward`)."""
+
+    def __init__(
+        self,
+        node: int,
+        neighbours: Sequence[int],
+        n_nodes: int,
+        obs_dim: int,
+        act_dim: int,
+        *,
+        rewards: Sequence[float] = EXTERNAL_REWARDS,
+        buffer_size: int = 100_000,
+        **sac_kwargs,
+    ) -> None:
+        self.node, self.neighbours, self.n_nodes = node, list(neighbours), n_nodes
+        self.rewards = tuple(rewards)
+        self.sac = SAC(obs_dim + n_nodes, act_dim, **sac_kwargs)
+        self.buffer = ReplayBuffer(
+            buffer_size, obs=(obs_dim,), action=(act_dim,), next_obs=(obs_dim,), next_node=(),
+            terminal=(),
+        )  # fmt: skip
+
+    def goal_input(self, obs: torch.Tensor, goal: torch.Tensor) -> torch.Tensor:
+        return torch.cat([obs, F.one_hot(goal.long(), self.n_nodes).float()], dim=-1)
+
+    def act(self, obs: np.ndarray, goal: int, deterministic: bool = False) -> np.ndarray:
+        x = self.goal_input(
+            torch.as_tensor(np.asarray(obs, np.float32))[None], torch.tensor([goal])
+        )
+        return self.sac.act(x[0].numpy(), deterministic)
+
+    def update(self, batch_size: int, rng: np.random.Generator) -> dict[str, float]:
+        b = self.buffer.sample(batch_size, rng)
+        goal = torch.as_tensor(rng.choice(self.neighbours, size=batch_size))
+        reward, left = external_reward(self.node, b["next_node"], goal, self.rewards)
+        done = torch.maximum(left, b["terminal"])
+        return self.sac.update(
+            self.goal_input(b["obs"], goal), b["action"], reward,
+            self.goal_input(b["next_obs"], goal), done,
+        )  # fmt: skip
+
+
+class InternalAgent:
+    """Node i's task solver with primitive actions: a SAC on the task reward, trained on every
+    transition that starts in S_i; at boundary states the bootstrap is the value of the node the
+    next state is in (:func:`boundary_values`)."""
+
+    learned = True
+
+    def __init__(
+        self, node: int, obs_dim: int, act_dim: int, *, buffer_size: int = 100_000, **sac_kwargs
+    ) -> None:
+        self.node = node
+        self.sac = SAC(obs_dim, act_dim, **sac_kwargs)
+        self.buffer = ReplayBuffer(
+            buffer_size, obs=(obs_dim,), action=(act_dim,), reward=(), next_obs=(obs_dim,),
+            next_node=(), terminal=(),
+        )  # fmt: skip
+
+    def act(self, obs: np.ndarray, deterministic: bool = False) -> np.ndarray:
+        return self.sac.act(obs, deterministic)
+
+    def value(self, obs: torch.Tensor) -> torch.Tensor:
+        return self.sac.soft_value(obs)
+
+
+class ControllerAgent:
+    """An internal agent replaced by a controller, e.g. convex optimisation (the inverse QP/QPCC
+    of :class:`pliant.constraints.control.InverseControl`): ``controller(obs)`` -> action in
+    [-1, 1]^m. The hierarchy runs it as an option until the node changes (or the episode ends,
+    or ``option_limit`` steps pass). It has no critic: boundary targets of its neighbours fall
+    back on their own."""
+
+    learned = False
+
+    def __init__(self, node: int, controller: Callable[[np.ndarray], np.ndarray]) -> None:
+        self.node, self.controller = node, controller
+
+    def act(self, obs: np.ndarray, deterministic: bool = True) -> np.ndarray:
+        return np.asarray(self.controller(obs), dtype=np.float32)
+
+
+def boundary_values(
+    agents: Sequence[InternalAgent | ControllerAgent],
+    node: int,
+    next_obs: torch.Tensor,
+    next_node: torch.Tensor,
+) -> torch.Tensor:
+    """Bootstrap values V(s') for node ``node``'s internal agent (thesis L821): inside S_node
+    its own critic; where s' lies in a neighbour space S_k (a boundary transition) the critic of
+    node k's internal agent, when it has one."""
+    values = torch.empty(len(next_obs))
+    for k in torch.unique(next_node.long()).tolist():
+        owner = agents[k] if agents[k].learned else agents[node]
+        rows = next_node.long() == k
+        values[rows] = owner.value(next_obs[rows])
+    return values
+
+
+def update_internal(
+    agents: Sequence[InternalAgent | ControllerAgent],
+    node: int,
+    batch_size: int,
+    rng: np.random.Generator,
+) -> dict[str, float]:
+    """One SAC step of node ``node``'s internal agent with boundary-borrowed targets."""
+    b = agents[node].buffer.sample(batch_size, rng)
+    next_value = boundary_values(agents, node, b["next_obs"], b["next_node"])
+    return agents[node].sac.update(
+        b["obs"], b["action"], b["reward"], b["next_obs"], b["terminal"], next_value
+    )

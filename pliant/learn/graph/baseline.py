@@ -1,0 +1,96 @@
+"""Plain SAC on the whole task, the thesis' baseline (same SAC, same hyper-parameters)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import gymnasium as gym
+import numpy as np
+import torch
+
+from pliant.learn.graph.hierarchy import GraphConfig
+from pliant.learn.graph.sac import SAC, ReplayBuffer
+
+
+class FlatSAC:
+    """One SAC agent with the :class:`GraphAgent` interface (learn, evaluate, save)."""
+
+    def __init__(
+        self,
+        observation_space: gym.spaces.Box,
+        action_space: gym.spaces.Box,
+        config: GraphConfig | None = None,
+        *,
+        seed: int = 0,
+    ) -> None:
+        torch.manual_seed(seed)
+        self.rng = np.random.default_rng(seed)
+        self.config = c = config or GraphConfig()
+        self.low, self.high = action_space.low, action_space.high
+        obs_dim, act_dim = observation_space.shape[0], action_space.shape[0]
+        self.sac = SAC(obs_dim, act_dim, hidden=c.hidden, lr=c.lr, gamma=c.gamma, tau=c.tau)
+        self.buffer = ReplayBuffer(
+            c.buffer_size, obs=(obs_dim,), action=(act_dim,), reward=(), next_obs=(obs_dim,),
+            done=(),
+        )  # fmt: skip
+        self.steps = 0
+
+    def run_episode(self, env: gym.Env, *, train: bool, seed: int | None = None) -> dict:
+        c = self.config
+        obs, _ = env.reset(seed=seed)
+        total, length, done, success = 0.0, 0, False, False
+        while not done:
+            if train and self.steps < c.learning_starts:
+                action = self.rng.uniform(-1.0, 1.0, size=self.low.shape).astype(np.float32)
+            else:
+                action = self.sac.act(obs, deterministic=not train)
+            scaled = self.low + 0.5 * (np.clip(action, -1, 1) + 1.0) * (self.high - self.low)
+            next_obs, reward, terminated, truncated, info = env.step(scaled)
+            total, length = total + float(reward), length + 1
+            done = terminated or truncated
+            success = success or bool(info.get("is_success", terminated))
+            if train:
+                self.buffer.add(obs=obs, action=action, reward=reward, next_obs=next_obs,
+                                done=float(terminated))  # fmt: skip
+                self.steps += 1
+                if self.steps >= c.learning_starts:
+                    for _ in range(max(1, round(c.updates_per_step))):
+                        b = self.buffer.sample(c.batch_size, self.rng)
+                        self.sac.update(
+                            b["obs"], b["action"], b["reward"], b["next_obs"], b["done"]
+                        )
+            obs = next_obs
+        return {"return": total, "length": length, "success": success}
+
+    def learn(self, env, total_steps, *, eval_env=None, eval_every=0, eval_episodes=5,
+              callback=None) -> list[dict]:  # fmt: skip
+        history, next_eval = [], self.steps + eval_every
+        while self.steps < total_steps:
+            self.run_episode(env, train=True, seed=int(self.rng.integers(2**31)))
+            if eval_every and self.steps >= next_eval:
+                next_eval += eval_every
+                history.append(
+                    {"steps": self.steps, **self.evaluate(eval_env or env, eval_episodes)}
+                )
+                if callback is not None:
+                    callback(history[-1])
+        return history
+
+    def save(self, path: str | Path) -> None:
+        state = {"steps": self.steps, "rng": self.rng.bit_generator.state}
+        state |= {"sac": self.sac.checkpoint(), "buffer": self.buffer.state_dict()}
+        torch.save(state | {"torch_rng": torch.get_rng_state()}, path)
+
+    def load(self, path: str | Path) -> None:
+        state = torch.load(path, weights_only=False)
+        self.steps, self.rng.bit_generator.state = state["steps"], state["rng"]
+        self.sac.restore(state["sac"])
+        self.buffer.load_state_dict(state["buffer"])
+        torch.set_rng_state(state["torch_rng"])
+
+    def evaluate(self, env: gym.Env, episodes: int = 5, seed: int = 10_000) -> dict:
+        runs = [self.run_episode(env, train=False, seed=seed + k) for k in range(episodes)]
+        return {
+            "return": float(np.mean([r["return"] for r in runs])),
+            "success": float(np.mean([r["success"] for r in runs])),
+        }

@@ -1,0 +1,269 @@
+"""The hierarchy that runs and trains the graph's agents on a Gymnasium environment
+(thesis §4.2.1, Fig. 4.7).
+
+At each decision the current node i comes from the graph's partition function (collision
+detection, geometry) or the Selector; the Evaluator picks j ∈ V_i ∪ {i}; j ≠ i runs node i's
+external agent towards S_j until the state leaves S_i (or ``option_limit`` steps, or the
+episode ends); j = i runs node i's internal agent for one step (T = 1), or, when it is a
+:class:`ControllerAgent`, until the node changes. Every primitive transition that starts in
+S_i feeds node i's internal and external buffers; every option feeds the Evaluator with the
+transitions of Eq. 4.6, penalised (``penalty``) when an internal agent changed the space.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+import gymnasium as gym
+import numpy as np
+import torch
+
+from pliant.learn.graph.agents import (
+    EXTERNAL_REWARDS,
+    ControllerAgent,
+    Evaluator,
+    ExternalAgent,
+    InternalAgent,
+    Selector,
+    option_transitions,
+    update_internal,
+)
+from pliant.learn.graph.graph import ConfigurationGraph
+from pliant.learn.graph.sac import ReplayBuffer
+
+
+@dataclass
+class GraphConfig:
+    """Hyper-parameters (defaults: D.2 where the authors' code gives them)."""
+
+    hidden: int = 256
+    d: int = 64
+    lr: float = 3e-4
+    gamma: float = 0.99
+    tau: float = 5e-3
+    batch_size: int = 256
+    buffer_size: int = 100_000
+    learning_starts: int = 500
+    updates_per_step: float = 1.0
+    option_limit: int = 30
+    penalty: float = -1.0
+    external_rewards: tuple[float, float, float] = EXTERNAL_REWARDS
+    evaluator_temperature: float = 0.5
+    evaluator_tau: float = 5e-3
+
+
+class GraphAgent:
+    """Selector (or partition), Evaluator, and one external and one internal agent per node.
+
+    Args:
+        graph: the configuration-space graph.
+        observation_space, action_space: the environment's (a Box action space).
+        config: hyper-parameters.
+        controllers: ``{node: controller}`` replaces those nodes' internal agents by
+            :class:`ControllerAgent` (convex optimisation).
+        selector: a trained :class:`Selector`, used where the graph has no partition function.
+        seed: seeds torch and the agent's random generator.
+    """
+
+    def __init__(
+        self,
+        graph: ConfigurationGraph,
+        observation_space: gym.spaces.Box,
+        action_space: gym.spaces.Box,
+        config: GraphConfig | None = None,
+        *,
+        controllers: dict[int, Callable[[np.ndarray], np.ndarray]] | None = None,
+        selector: Selector | None = None,
+        seed: int = 0,
+    ) -> None:
+        if graph.partition is None and selector is None:
+            raise ValueError("the graph has no partition function: give a trained Selector")
+        torch.manual_seed(seed)
+        self.rng = np.random.default_rng(seed)
+        self.graph, self.selector = graph, selector
+        self.config = c = config or GraphConfig()
+        self.low, self.high = action_space.low, action_space.high
+        n, obs_dim, act_dim = graph.n_nodes, observation_space.shape[0], action_space.shape[0]
+        sac = {"hidden": c.hidden, "lr": c.lr, "gamma": c.gamma, "tau": c.tau}
+        controllers = controllers or {}
+        self.internal = [
+            ControllerAgent(i, controllers[i])
+            if i in controllers
+            else InternalAgent(i, obs_dim, act_dim, buffer_size=c.buffer_size, **sac)
+            for i in range(n)
+        ]
+        self.external = [
+            ExternalAgent(
+                i, graph.neighbours(i), n, obs_dim, act_dim,
+                rewards=c.external_rewards, buffer_size=c.buffer_size, **sac,
+            ) if graph.neighbours(i) else None
+            for i in range(n)
+        ]  # fmt: skip
+        self.evaluator = Evaluator(
+            obs_dim, graph.reachable_mask(), d=c.d, hidden=c.hidden, lr=c.lr, gamma=c.gamma,
+            tau=c.evaluator_tau, temperature=c.evaluator_temperature,
+        )  # fmt: skip
+        self.evaluator_buffer = ReplayBuffer(
+            c.buffer_size, obs=(obs_dim,), node=(), choice=(), reward=(), next_obs=(obs_dim,),
+            next_node=(), done=(), duration=(),
+        )  # fmt: skip
+        self.steps = 0
+        self._update_debt = 0.0
+
+    # ---- acting -------------------------------------------------------------------------------
+    def node_of(self, obs: np.ndarray) -> int:
+        if self.graph.partition is not None:
+            return self.graph.node_of(obs)
+        return int(self.selector.predict(np.asarray(obs)[None])[0])
+
+    def _scale(self, action: np.ndarray) -> np.ndarray:
+        return self.low + 0.5 * (np.clip(action, -1.0, 1.0) + 1.0) * (self.high - self.low)
+
+    def _primitive(self, obs, node: int, choice: int, explore: bool) -> np.ndarray:
+        if choice == node and not self.internal[node].learned:
+            return self.internal[node].act(obs)
+        if explore and self.steps < self.config.learning_starts:
+            return self.rng.uniform(-1.0, 1.0, size=self.low.shape).astype(np.float32)
+        if choice == node:
+            return self.internal[node].act(obs, deterministic=not explore)
+        return self.external[node].act(obs, choice, deterministic=not explore)
+
+    def run_episode(self, env: gym.Env, *, train: bool, seed: int | None = None) -> dict:
+        """One episode; with ``train`` it explores, stores and learns. Returns its return,
+        length, success and the node sequence."""
+        obs, _ = env.reset(seed=seed)
+        node = self.node_of(obs)
+        total, length, nodes, done, success = 0.0, 0, [node], False, False
+        while not done:
+            choice = self.evaluator.choose(obs, node, self.rng, greedy=not train)
+            runs_option = choice != node or not self.internal[node].learned
+            observations, rewards = [obs], []
+            while True:
+                action = self._primitive(obs, node, choice, explore=train)
+                next_obs, reward, terminated, truncated, info = env.step(self._scale(action))
+                next_node = self.node_of(next_obs)
+                total, length = total + float(reward), length + 1
+                done = terminated or truncated
+                success = success or bool(info.get("is_success", terminated))
+                if train:
+                    self._store(obs, action, reward, next_obs, node, next_node, terminated)
+                observations.append(next_obs)
+                rewards.append(float(reward))
+                obs = next_obs
+                if (
+                    done
+                    or next_node != node
+                    or not runs_option
+                    or len(rewards) >= self.config.option_limit
+                ):
+                    break
+            if train:
+                if choice == node and next_node != node:
+                    rewards[-1] += self.config.penalty
+                for t in option_transitions(observations, rewards, terminated):
+                    self.evaluator_buffer.add(node=node, choice=choice, next_node=next_node, **t)
+            if next_node != node:
+                nodes.append(next_node)
+            node = next_node
+        return {"return": total, "length": length, "success": success, "nodes": nodes}
+
+    def _store(self, obs, action, reward, next_obs, node, next_node, terminated) -> None:
+        item = {"obs": obs, "action": action, "reward": reward, "next_obs": next_obs}
+        item |= {"next_node": next_node, "terminal": float(terminated)}
+        if self.internal[node].learned:
+            self.internal[node].buffer.add(**item)
+        if self.external[node] is not None:
+            self.external[node].buffer.add(**item)
+        self.steps += 1
+        if self.steps >= self.config.learning_starts:
+            self._update_debt += self.config.updates_per_step
+            while self._update_debt >= 1.0:
+                self._update_debt -= 1.0
+                self.update(node)
+
+    # ---- learning -----------------------------------------------------------------------------
+    def update(self, node: int) -> None:
+        """One gradient step of node ``node``'s internal and external agents (those of the node
+        the last transition started in: each agent learns as often as its node is visited) and
+        of the Evaluator, each once its buffer holds a batch."""
+        n = self.config.batch_size
+        if self.internal[node].learned and len(self.internal[node].buffer) >= n:
+            update_internal(self.internal, node, n, self.rng)
+        external = self.external[node]
+        if external is not None and len(external.buffer) >= n:
+            external.update(n, self.rng)
+        if len(self.evaluator_buffer) >= n:
+            self.evaluator.update(self.evaluator_buffer.sample(n, self.rng))
+
+    def learn(
+        self,
+        env: gym.Env,
+        total_steps: int,
+        *,
+        eval_env: gym.Env | None = None,
+        eval_every: int = 0,
+        eval_episodes: int = 5,
+        callback: Callable[[dict], None] | None = None,
+    ) -> list[dict]:
+        """Train until ``total_steps`` environment steps; evaluate every ``eval_every`` steps.
+        Returns the evaluations [{steps, return, success}]."""
+        history, next_eval = [], self.steps + eval_every
+        while self.steps < total_steps:
+            self.run_episode(env, train=True, seed=int(self.rng.integers(2**31)))
+            if eval_every and self.steps >= next_eval:
+                next_eval += eval_every
+                result = {"steps": self.steps, **self.evaluate(eval_env or env, eval_episodes)}
+                history.append(result)
+                if callback is not None:
+                    callback(result)
+        return history
+
+    def evaluate(self, env: gym.Env, episodes: int = 5, seed: int = 10_000) -> dict:
+        runs = [self.run_episode(env, train=False, seed=seed + k) for k in range(episodes)]
+        return {
+            "return": float(np.mean([r["return"] for r in runs])),
+            "success": float(np.mean([r["success"] for r in runs])),
+        }
+
+    # ---- checkpoints --------------------------------------------------------------------------
+    def state_dict(self) -> dict:
+        return {
+            "steps": self.steps,
+            "update_debt": self._update_debt,
+            "rng": self.rng.bit_generator.state,
+            "torch_rng": torch.get_rng_state(),
+            "internal": [
+                {"sac": a.sac.checkpoint(), "buffer": a.buffer.state_dict()} if a.learned else None
+                for a in self.internal
+            ],
+            "external": [
+                {"sac": a.sac.checkpoint(), "buffer": a.buffer.state_dict()} if a else None
+                for a in self.external
+            ],
+            "evaluator": self.evaluator.state_dict(),
+            "evaluator_opt": self.evaluator.optimiser.state_dict(),
+            "evaluator_buffer": self.evaluator_buffer.state_dict(),
+        }
+
+    def load_state_dict(self, state: dict) -> None:
+        self.steps, self._update_debt = state["steps"], state["update_debt"]
+        self.rng.bit_generator.state = state["rng"]
+        torch.set_rng_state(state["torch_rng"])
+        for agent, saved in [
+            *zip(self.internal, state["internal"], strict=True),
+            *zip(self.external, state["external"], strict=True),
+        ]:
+            if saved is not None:
+                agent.sac.restore(saved["sac"])
+                agent.buffer.load_state_dict(saved["buffer"])
+        self.evaluator.load_state_dict(state["evaluator"])
+        self.evaluator.optimiser.load_state_dict(state["evaluator_opt"])
+        self.evaluator_buffer.load_state_dict(state["evaluator_buffer"])
+
+    def save(self, path: str | Path) -> None:
+        torch.save(self.state_dict(), path)
+
+    def load(self, path: str | Path) -> None:
+        self.load_state_dict(torch.load(path, weights_only=False))
