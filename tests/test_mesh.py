@@ -448,3 +448,16 @@ def test_load_reference_meshes(name: str, nodes: int, tets: int) -> None:
     mesh = load_mesh(path)
     assert (mesh.n_nodes, mesh.n_tets) == (nodes, tets)
     assert mesh.signed_volumes().min() > 0
+
+
+def test_meshing_leaves_sigpipe_ignored() -> None:
+    """gmsh's initialisation restores SIGPIPE's default action (end the process); meshing gives
+    it back to Python, so that writing to a dead worker's pipe raises BrokenPipeError."""
+    import signal
+
+    from pliant.mesh import shapes
+
+    shapes.diamond(mesh_size=30.0)  # a gmsh session opened and closed
+    with open("/proc/self/status") as status:
+        ignored = next(int(line.split()[1], 16) for line in status if line.startswith("SigIgn"))
+    assert ignored & (1 << (signal.SIGPIPE - 1))

@@ -12,8 +12,6 @@ from __future__ import annotations
 
 import copy
 import multiprocessing as mp
-import signal
-import threading
 import warnings
 from collections.abc import Callable
 from functools import partial
@@ -101,11 +99,6 @@ class RestartingSubprocVecEnv(SubprocVecEnv):
     """
 
     def __init__(self, env_fns: list[Callable[[], gym.Env]], start_method: str = "spawn"):
-        # A send to a dead worker must raise BrokenPipeError (what the restart catches), not
-        # kill the learner: Python ignores SIGPIPE, but a native library loaded since may have
-        # restored the default action (seen in the full test run: the learner died with 141).
-        if threading.current_thread() is threading.main_thread():
-            signal.signal(signal.SIGPIPE, signal.SIG_IGN)
         self._env_fns = list(env_fns)
         self._ctx = mp.get_context(start_method)
         super().__init__(env_fns, start_method)

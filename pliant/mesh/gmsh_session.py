@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import signal
+import threading
 from collections.abc import Iterator
 from contextlib import contextmanager
 
@@ -35,6 +37,14 @@ _OPTIONS = {
 _SAVED_OPTIONS = [*_OPTIONS, "Mesh.MeshSizeMax", "Mesh.MeshSizeMin"]
 
 
+def _ignore_sigpipe() -> None:
+    """Give SIGPIPE back to Python: gmsh's initialisation restores its default action (end the
+    process), so a later write to a dead worker's pipe killed the process (exit 141) where
+    Python raises BrokenPipeError. Only the main thread may set a handler."""
+    if threading.current_thread() is threading.main_thread():
+        signal.signal(signal.SIGPIPE, signal.SIG_IGN)
+
+
 @contextmanager
 def gmsh_model(name: str) -> Iterator[None]:
     """Open an empty gmsh model with Pliant's meshing options; clean everything up afterwards.
@@ -46,6 +56,7 @@ def gmsh_model(name: str) -> Iterator[None]:
     if owns_session:
         # interruptible=False: no SIGINT handler, so this also works outside the main thread.
         gmsh.initialize(readConfigFiles=False, interruptible=False)
+        _ignore_sigpipe()
         previous_model, saved_options = None, {}
     else:
         previous_model = gmsh.model.getCurrent()
@@ -58,6 +69,7 @@ def gmsh_model(name: str) -> Iterator[None]:
     finally:
         if owns_session:
             gmsh.finalize()
+            _ignore_sigpipe()
         else:
             gmsh.model.remove()
             for key, value in saved_options.items():
