@@ -35,7 +35,42 @@ from pliant.model import Model
 from pliant.robots.trunk_cube import trunk_cube
 
 
-class TrunkPushEnv(TrunkEnv):
+class CubePushTask:
+    """The cube-pushing task shared by the FEM Trunk and its proxy: the cube (the model's first
+    rigid body), a goal on the floor drawn relative to it, the distance in the x-z plane, and
+    the reward: -d / length, plus (``contact=True``) -w d_contact / length, d_contact the
+    distance from the cube to the nearest observed trunk point (favours contact, §4.1.2).
+    Hosts define ``contact_distance()``, ``goal_low``, ``goal_high``, ``goal_tolerance`` and
+    ``contact_weight``."""
+
+    def cube(self) -> np.ndarray:
+        return self.state.rigid_positions[0]
+
+    def distance(self) -> float:
+        gap = self.cube() - self.task["goal"]
+        return float(np.hypot(gap[0], gap[2]))
+
+    def _draw_goal(self, rng, options) -> None:
+        goal = (options or {}).get("goal")
+        if goal is None:
+            x, z = rng.uniform(self.goal_low, self.goal_high)
+            goal = self.cube() + [x, 0.0, z]
+        self.task["goal"] = np.asarray(goal, dtype=float).reshape(3)
+        self.task["distance"] = self.distance()
+
+    def _push_reward(self, length: float, contact: bool):
+        d = self.distance()
+        self.task["distance"] = d
+        parts = {"goal": -d / length}
+        if contact:
+            parts["contact"] = -self.contact_weight * self.contact_distance() / length
+        return sum(parts.values()), d < self.goal_tolerance, parts
+
+    def _render_goal(self):
+        return self.task["goal"]
+
+
+class TrunkPushEnv(CubePushTask, TrunkEnv):
     name = "TrunkPush"
     version = 1
     view = (60.0, -60.0)
@@ -105,25 +140,13 @@ class TrunkPushEnv(TrunkEnv):
         self.fibre = neutral_fibre(model, self.n_points)
         return model
 
-    def cube(self) -> np.ndarray:
-        return self.state.rigid_positions[0]
-
-    def distance(self) -> float:
-        gap = self.cube() - self.task["goal"]
-        return float(np.hypot(gap[0], gap[2]))
-
     def contact_distance(self) -> float:
         points = self.fibre.positions(self.state.positions)
         return float(np.linalg.norm(points - self.cube(), axis=1).min())
 
     def _reset_task(self, rng, options) -> None:
-        goal = (options or {}).get("goal")
-        if goal is None:
-            x, z = rng.uniform(self.goal_low, self.goal_high)
-            goal = self.cube() + [x, 0.0, z]
-        self.task["goal"] = np.asarray(goal, dtype=float).reshape(3)
+        self._draw_goal(rng, options)
         self.task["base"] = 0.0
-        self.task["distance"] = self.distance()
 
     def _commands_from_action(self, action) -> None:
         n = self.n_actuators
@@ -153,12 +176,4 @@ class TrunkPushEnv(TrunkEnv):
         return pts / LENGTH
 
     def _reward(self):
-        d = self.distance()
-        self.task["distance"] = d
-        parts = {"goal": -d / LENGTH}
-        if self.reward_variant == "thesis":
-            parts["contact"] = -self.contact_weight * self.contact_distance() / LENGTH
-        return sum(parts.values()), d < self.goal_tolerance, parts
-
-    def _render_goal(self):
-        return self.task["goal"]
+        return self._push_reward(LENGTH, contact=self.reward_variant == "thesis")

@@ -21,12 +21,13 @@ import numpy as np
 
 from pliant.envs.base import ActionType, SoftRobotEnv, scaled_box
 from pliant.envs.trunk import settled
+from pliant.envs.trunk_push import CubePushTask
 from pliant.model import Model, State
 from pliant.proxy import trunk_proxy
 from pliant.proxy.actuation import ProxySolver
 
 
-class TrunkPushProxyEnv(SoftRobotEnv):
+class TrunkPushProxyEnv(CubePushTask, SoftRobotEnv):
     name = "TrunkPushProxy"
     version = 1
     view = (60.0, -60.0)
@@ -92,24 +93,12 @@ class TrunkPushProxyEnv(SoftRobotEnv):
     def _initial_state(self) -> State:
         return settled(self.model, self.sim, self.settle_steps)
 
-    def cube(self) -> np.ndarray:
-        return self.state.rigid_positions[0]
-
-    def distance(self) -> float:
-        gap = self.cube() - self.task["goal"]
-        return float(np.hypot(gap[0], gap[2]))
-
     def contact_distance(self) -> float:
         x = self.proxy.skeleton(self.state.positions)
         return float(np.linalg.norm(x - self.cube(), axis=1).min())
 
     def _reset_task(self, rng, options) -> None:
-        goal = (options or {}).get("goal")
-        if goal is None:
-            x, z = rng.uniform(self.goal_low, self.goal_high)
-            goal = self.cube() + [x, 0.0, z]
-        self.task["goal"] = np.asarray(goal, dtype=float).reshape(3)
-        self.task["distance"] = self.distance()
+        self._draw_goal(rng, options)
 
     def _commands_from_action(self, action) -> None:
         if self.action_type == "discrete":
@@ -134,13 +123,4 @@ class TrunkPushProxyEnv(SoftRobotEnv):
         return np.concatenate([x.ravel(), self.cube(), goal]) / self.length
 
     def _reward(self):
-        d = self.distance()
-        self.task["distance"] = d
-        parts = {
-            "goal": -d / self.length,
-            "contact": -self.contact_weight * self.contact_distance() / self.length,
-        }
-        return sum(parts.values()), d < self.goal_tolerance, parts
-
-    def _render_goal(self):
-        return self.task["goal"]
+        return self._push_reward(self.length, contact=True)
