@@ -25,6 +25,7 @@ from rich.console import Console
 from rich.table import Table
 
 from pliant import __version__, robots
+from pliant.bench_profile import PARTS, batch_throughput, default_error, step_breakdown
 from pliant.constraints.control import InverseControl
 from pliant.fem.body import TetBody, nodes_in_box
 from pliant.fem.material import Corotational
@@ -251,8 +252,18 @@ def time_steps(
 
 
 def run_benchmarks(
-    *, meshes: Path | None, repeats: int, steps: int, quick: bool, out: Path, console: Console
+    *,
+    meshes: Path | None,
+    repeats: int,
+    steps: int,
+    quick: bool,
+    out: Path,
+    console: Console,
+    profile: bool = True,
+    batch: tuple[int, ...] = (1, 8, 32),
 ) -> list[Measurement]:
+    """Time every scene (see the module docstring); with `profile`, each SPEC §5 scene also
+    gets the default step's error against the exact one and its time per part."""
     meshes = meshes or _default_meshes()
     results: list[Measurement] = []
 
@@ -266,8 +277,39 @@ def run_benchmarks(
         n_steps: int = steps,
         warmup: int = 10,
         sofa: float | None = None,
+        exact: str | None = "fresh",
         **extra,
     ) -> None:
+        """Time `model` under each policy; with `profile`, also the default's error against
+        the `exact` policy over 1 s from rest and the time per step of each part (lagged and
+        exact), :mod:`pliant.bench_profile`."""
+        step_control = control if callable(control) else (lambda s: control)
+        analysis = {}
+        if profile and exact is not None:
+            if cables is not None:
+                model.set_actuation(cables, mode="displacement")
+            analysis["default_error"] = default_error(model, step_control, exact=exact)
+            for policy in dict.fromkeys(("lagged", exact)):
+                analysis[f"breakdown_{policy}"] = step_breakdown(
+                    lambda p=policy: ImplicitEuler(model, 0.01, **POLICY_OPTIONS[p]),
+                    model.rest_state(),
+                    step_control,
+                    max(n_steps, 20) if model.body.n_elements < 20000 else n_steps,
+                    warmup,
+                )
+            err = analysis["default_error"]
+            console.print(
+                f"  {scene:<22} default vs {exact}: {err['error_end_mm']:.4f} mm after 1 s"
+                f" ({err['error_end_percent_of_motion']:.3f} % of the"
+                f" {err['motion_max_mm']:.1f} mm motion; {err['error_max_mm']:.4f} mm at most)"
+            )
+            for policy in dict.fromkeys(("lagged", exact)):
+                b = analysis[f"breakdown_{policy}"]
+                console.print(
+                    f"  {'':<22} {policy:<6} ms/step: "
+                    + ", ".join(f"{k} {b[k]:.3f}" for k in (*PARTS, "rest", "total"))
+                    + f" ({b['factorisations_per_step']:.2f} factorisations/step)"
+                )
         for policy in policies:
             if cables is not None:
                 model.set_actuation(cables, mode="displacement")
@@ -279,7 +321,7 @@ def run_benchmarks(
                 repeats,
                 warmup,
             )
-            details = dict(extra)
+            details = dict(extra) | analysis
             contact = ""
             if model.contacts is not None:
                 details["contact_sweeps_per_step"] = timing.sweeps_per_step
@@ -348,6 +390,7 @@ def run_benchmarks(
             else ("pcg", "lagged", "fresh"),
             n_steps=max(5, steps // (20 if big else 1)) if not big else 5,
             warmup=3 if big else 10,
+            exact="pcg" if model.body.mesh.n_tets > 5000 else "fresh",
         )
     if meshes is not None and not quick:
         measure(
@@ -357,6 +400,7 @@ def run_benchmarks(
             policies=("pcg", "lagged"),
             n_steps=5,
             warmup=3,
+            exact="pcg",
         )
     if meshes is not None and not quick:
         import warnings
@@ -398,6 +442,7 @@ def run_benchmarks(
                     policies=("lagged",),
                     n_steps=max(10, steps // 5),
                     warmup=warmup,
+                    exact=None,  # not SPEC §5 scenes
                 )
         cube_scene = trunk_cables_cube(meshes) if meshes is not None else None
         if cube_scene is not None:
@@ -422,8 +467,28 @@ def run_benchmarks(
             cables=np.array([5.0, 0.0]),
             policies=("pcg", "lagged"),
             n_steps=steps if res == "coarse" else max(10, steps // 5),
+            exact=None,
             thesis_sofa_fps=THESIS_FINGER_FPS[res],
         )
+
+    # Batched stepping (N copies, one call a step) against N single solvers in a loop.
+    batches = {}
+    if batch:
+        cases = [("cantilever-240", cantilever(2), None)]
+        if meshes is not None:
+            trunk = robots.trunk(mesh=load_mesh(meshes / "Trunk_trunk.vtk"))
+            cases.append(("trunk+cables", trunk, np.array([10.0, 0, 0, 0, 0, 0, 5.0, 0])))
+        for name, model, commands in cases:
+            if commands is not None:
+                model.set_actuation(np.zeros_like(commands), mode="displacement")
+            rows = batch_throughput(model, commands, batch, steps=max(10, steps // 4))
+            batches[name] = rows
+            for r in rows:
+                console.print(
+                    f"  batched {name:<15} N={r['copies']:<3} ({r['threads']} threads):"
+                    f" {r['batched']:8.1f} copy-steps/s, N single solvers {r['single_loop']:8.1f}"
+                    f" ({r['gain']:.2f}x)"
+                )
 
     # Static solve and inverse control step on the Diamond (Pliant's mesh in quick mode).
     dia = robots.diamond(mesh=reference_diamond(meshes)) if meshes is not None else robots.diamond()
@@ -461,6 +526,7 @@ def run_benchmarks(
         "scenes": [m.__dict__ | {"speedup_vs_sofa": m.speedup} for m in results],
         "static_solve_ms": statistics.median(static_times) * 1e3,
         "inverse_step_ms": inverse_ms,
+        "batched": batches,
         "peak_memory_mb": peak_mb,
     }
     out.parent.mkdir(parents=True, exist_ok=True)

@@ -18,6 +18,7 @@ from pliant import robots
 from pliant.cli_support import (
     ErrorHandlingGroup,
     at_least_one,
+    numbers_list,
     one_of,
     output_file,
     output_folder,
@@ -266,19 +267,48 @@ def bench(
             " the scenes) or comma-separated names"
         ),
     ] = "all",
+    profile: Annotated[
+        bool,
+        typer.Option(
+            help="per SPEC scene, the default step's error against the exact one over 1 s and"
+            " the time per step of each part (forces, assembly, factorisation, solves,"
+            " constraints, the rest)"
+        ),
+    ] = True,
+    batch: Annotated[
+        str,
+        typer.Option(help="batched stepping: comma-separated copy counts to time ('' skips)"),
+    ] = "1,8,32",
 ) -> None:
     """Median steps/s beside SOFA's measured figures; writes JSON and a log-log plot."""
     from pliant.bench import run_benchmarks
 
     if envs != "only":
         run_benchmarks(
-            meshes=meshes, repeats=repeats, steps=steps, quick=quick, out=out, console=console
+            meshes=meshes,
+            repeats=repeats,
+            steps=steps,
+            quick=quick,
+            out=out,
+            console=console,
+            profile=profile,
+            batch=_copy_counts(batch),
         )
     if envs != "none":
         from pliant.envs.speed import report_envs
 
         names = None if envs in ("all", "only") else [n.strip() for n in envs.split(",")]
         report_envs(names, quick=quick, out=out.with_name("envs.json"), console=console)
+
+
+def _copy_counts(text: str) -> tuple[int, ...]:
+    """`--batch`: comma-separated copy counts (integers >= 1), or '' for none."""
+    if not text.strip():
+        return ()
+    counts = numbers_list(text, "--batch")
+    if any(c < 1 or c != int(c) for c in counts):
+        raise typer.BadParameter(f"--batch: copy counts must be integers >= 1, got {text!r}")
+    return tuple(int(c) for c in counts)
 
 
 @app.command()

@@ -72,7 +72,7 @@ def test_bench_quick_writes_results(tmp_path, monkeypatch) -> None:
     monkeypatch.delenv("PLIANT_REFERENCE_MESHES", raising=False)
     out = tmp_path / "bench.json"
     result, output = _invoke(
-        "bench", "--quick", "--repeats", "1", "--steps", "3", "--out", str(out)
+        "bench", "--quick", "--repeats", "1", "--steps", "3", "--batch", "1,2", "--out", str(out)
     )
     assert result.exit_code == 0, output
     report = json.loads(out.read_text())
@@ -80,6 +80,17 @@ def test_bench_quick_writes_results(tmp_path, monkeypatch) -> None:
     for scene in report["scenes"]:
         assert scene["steps_per_s"] > 0.0 and len(scene["repeats"]) == 1, scene
     assert report["inverse_step_ms"] > 0.0
+    # Each cantilever: the default's error against the exact step over 1 s, and where the
+    # time of a step goes (the parts sum to at most the step).
+    cantilever = next(s for s in report["scenes"] if s["scene"] == "cantilever-240")
+    error = cantilever["extra"]["default_error"]
+    assert error["steps"] == 100 and 0.0 <= error["error_end_mm"] < 0.01 * error["motion_max_mm"]
+    parts = cantilever["extra"]["breakdown_lagged"]
+    assert parts["forces"] > 0.0 and parts["solves"] > 0.0
+    assert parts["forces"] + parts["solves"] <= parts["total"] * 1.5
+    rows = report["batched"]["cantilever-240"]
+    assert [r["copies"] for r in rows] == [1, 2]
+    assert all(r["batched"] > 0.0 and r["single_loop"] > 0.0 for r in rows)
 
 
 @pytest.mark.parametrize("command", ["run", "inverse"])

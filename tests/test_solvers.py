@@ -90,11 +90,17 @@ def _trajectory(model: Model, name: str, tangent: str, steps: int, dt: float = 0
     return np.array(positions)
 
 
-@pytest.mark.parametrize("name", ["diamond", "trunk"])
+# Every robot without contact (with contact, "pcg" and "fresh" agree to the contact solver's
+# tolerance, which test_contact_solver checks), but the stem pendulum, whose rod's rotation
+# coordinates wrap at +-pi (the two policies agree there modulo 2 pi: a position difference is
+# no measure of it).
+@pytest.mark.parametrize("name", ["cartstem", "diamond", "finger", "pneunet", "trunk"])
 def test_tangent_policies_agree(name, robot_models) -> None:
     """ "pcg" solves each step's system to rtol 1e-10, so it follows "fresh" to round-off
-    (measured 3e-11 mm over 30 steps); "lagged" keeps an older factorisation as the system
-    itself, a first-order-accurate linearisation (measured 0.12 % and 0.36 % of the motion)."""
+    (measured 3e-11 mm over 30 steps on the Diamond); "lagged" keeps an older factorisation as
+    the system itself, a first-order-accurate linearisation (measured 0.12 % and 0.36 % of the
+    motion on the Diamond and the Trunk; 2.7 % and 1.6 % during the Finger's and the PneuNet's
+    fast demo transients, whose bounds are looser)."""
     model = robot_models[name]
     fresh = _trajectory(model, name, "fresh", 30)
     motion = np.abs(fresh - model.body.rest_positions).max()
@@ -102,7 +108,8 @@ def test_tangent_policies_agree(name, robot_models) -> None:
     pcg = _trajectory(model, name, "pcg", 30)
     assert np.abs(pcg - fresh).max() < 1e-8 * motion
     lagged = _trajectory(model, name, "lagged", 30)
-    assert np.abs(lagged - fresh).max() < 1e-2 * motion
+    bound = {"finger": 3e-2, "pneunet": 2e-2}.get(name, 1e-2)
+    assert np.abs(lagged - fresh).max() < bound * motion
 
 
 @pytest.mark.parametrize("dt", [0.01, 0.03, 0.1])

@@ -33,6 +33,7 @@ import scipy.sparse as sp
 
 from pliant.errors import SolverError
 from pliant.fem.body import Linearisation, TetBody
+from pliant.fem.kernels import max_abs_difference
 from pliant.fem.rod import RodBody
 from pliant.fem.sparsity import StiffnessPattern
 from pliant.solvers.linear import SparseCholesky, block_pcg, sparse_cholesky
@@ -127,8 +128,8 @@ class LinearisedSystem:
             or self._factor_coefs != (mass_coef, stiffness_coef)
         )
         if not needs and self.policy == "lagged":
-            drift = np.max(np.abs(lin.frames - self._factor_frames))
-            needs = drift > self.lag_tolerance
+            drift = max_abs_difference(lin.frames, self._factor_frames)
+            needs = not drift <= self.lag_tolerance  # NaN frames refactorise (and fail there)
         if needs:
             self.refactorise(background=background)
 
