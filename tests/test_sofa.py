@@ -366,3 +366,80 @@ def test_large_frames_keep_the_file_order_of_reoriented_elements(tmp_path, rng) 
         moved, tets, mesh.points, material.mu, material.lam, "corotational", rotation="large"
     )
     assert np.abs(body.linearise(moved).forces - forces).max() < 1e-10 * np.abs(forces).max()
+
+
+# ---------------------------------------------------------------------------------------------
+# The hyperelastic force field
+
+
+HYPERELASTIC_SCENE = """<Node name="root" dt="0.01" gravity="0 0 0">
+<Node name="Body">
+  <StaticSolver/>
+  <MeshVTKLoader name="loader" filename="body.vtu"/>
+  <MeshTopology src="@loader"/>
+  <MechanicalObject name="dofs"/>
+  <UniformMass totalMass="0.001"/>
+  <TetrahedronHyperelasticityFEMForceField {material}/>
+  <BoxROI name="clamp" box="-1 -1 -1 0.1 11 11"/>
+  <FixedConstraint indices="@clamp.indices"/>
+  <BoxROI name="tip" box="39.9 -1 -1 41 11 11"/>
+  <ConstantForceField indices="@tip.indices" force="0 0 -1500"/>
+</Node></Node>"""
+
+
+def test_a_hyperelastic_scene_bends_like_the_neo_hookean_model(tmp_path) -> None:
+    """SOFA's NeoHookean (ParameterSet = mu lambda, Bonet and Wood's law) on a cantilever
+    under a tip load: the loaded scene's static deflection is Pliant's NeoHookean model's with
+    the same Lame parameters (mu = 3448.2759, lambda = 31034.483: E = 1e4, nu = 0.45, the
+    values of SOFA's own example scene), to the Newton tolerance."""
+    import meshio
+
+    from pliant.fem.loads import NodalForces
+    from pliant.fem.material import NeoHookean
+
+    mesh = box_beam(40.0, 10.0, 10.0, 4, 1, 1)
+    meshio.write(tmp_path / "body.vtu", meshio.Mesh(mesh.points, [("tetra", mesh.tets)]))
+    scene = tmp_path / "hyper.scn"
+    scene.write_text(
+        HYPERELASTIC_SCENE.format(
+            material='materialName="NeoHookean" ParameterSet="3448.2759 31034.483"'
+        )
+    )
+    loaded = load_scene(scene)
+    material = loaded.model.body.material
+    assert isinstance(material, NeoHookean)
+    assert abs(material.mu - 3448.2759) < 1e-8 and abs(material.lam - 31034.483) < 1e-7
+    by_scene = loaded.simulate(1).positions
+    x = mesh.points
+    tip = np.flatnonzero(x[:, 0] > 39.9)
+    body = TetBody(
+        mesh,
+        NeoHookean(1e4, 0.45),
+        total_mass=0.001,
+        mass="uniform",
+        fixed_nodes=np.flatnonzero(x[:, 0] < 0.1),
+        loads=[NodalForces(tip, [0.0, 0.0, -1500.0])],
+    )
+    by_model = StaticSolver(Model(body)).step(Model(body).rest_state()).positions
+    deflection = -(by_model - x)[tip, 2].mean()
+    assert deflection > 1.0
+    assert np.abs(by_scene - by_model).max() < 1e-6 * deflection
+
+
+@pytest.mark.parametrize(
+    ("material", "message"),
+    [
+        ('materialName="Ogden" ParameterSet="1 2 3"', "'Ogden' has no Pliant law"),
+        ('ParameterSet="1 2"', "SOFA's default is ArrudaBoyce"),
+        ('materialName="NeoHookean" ParameterSet="1"', "takes 2 values \\(mu lambda\\)"),
+    ],
+)
+def test_unsupported_hyperelastic_materials_are_named(tmp_path, material, message) -> None:
+    import meshio
+
+    mesh = box_beam(40.0, 10.0, 10.0, 4, 1, 1)
+    meshio.write(tmp_path / "body.vtu", meshio.Mesh(mesh.points, [("tetra", mesh.tets)]))
+    scene = tmp_path / "hyper.scn"
+    scene.write_text(HYPERELASTIC_SCENE.format(material=material))
+    with pytest.raises(SceneError, match=message):
+        load_scene(scene)

@@ -36,7 +36,7 @@ from pliant.constraints.contact import Contacts
 from pliant.constraints.effector import PositionEffector
 from pliant.fem.body import TetBody, fixed_components, nodes_in_box
 from pliant.fem.loads import Load, NodalForces, RestShapeSprings
-from pliant.fem.material import Corotational
+from pliant.fem.material import Corotational, Material, NeoHookean
 from pliant.fem.rigid import RigidBody
 from pliant.mesh.quality import signed_volumes
 from pliant.mesh.tetmesh import TetMesh
@@ -86,7 +86,11 @@ IGNORED = frozenset(
     }
 )
 MESH_LOADERS = frozenset({"MeshVTKLoader", "MeshGmshLoader", "MeshSTLLoader", "MeshOBJLoader"})
-FEM = frozenset({"TetrahedronFEMForceField"})
+HYPERELASTIC = "TetrahedronHyperelasticityFEMForceField"
+FEM = frozenset({"TetrahedronFEMForceField", HYPERELASTIC})
+# SOFA's hyperelastic materials that Pliant has a law for: the same strain energy, and the
+# meaning of each ParameterSet entry (SOFA's material headers).
+HYPERELASTIC_MATERIALS = {"NeoHookean": ("mu", "lambda")}
 HANDLED = frozenset(
     {
         *MESH_LOADERS,
@@ -475,7 +479,8 @@ class _Builder:
         nodes = [n for n in self.root.walk() if any(o.type in FEM for o in n.objects)]
         if not nodes:
             raise SceneError(
-                f"{self.path.name} has no deformable body (no TetrahedronFEMForceField)"
+                f"{self.path.name} has no deformable body (no TetrahedronFEMForceField or"
+                " TetrahedronHyperelasticityFEMForceField)"
             )
         if len(nodes) > 1:
             raise SceneError(
@@ -511,21 +516,26 @@ class _Builder:
         fem = self._one(node, FEM, "FEM force fields")
         loader = self._mesh_loader(node)
         points, tets = self._read_mesh(loader)
-        method = str(fem.attrs.get("method", "large")).lower()
-        if method not in ("large", "polar", "svd"):
-            raise SceneError(
-                f"{fem.path}: method {method!r} is not supported (large, polar or svd)"
+        if fem.type == HYPERELASTIC:
+            material: Material = self._hyperelastic(fem)
+            rotation = "none"
+        else:
+            method = str(fem.attrs.get("method", "large")).lower()
+            if method not in ("large", "polar", "svd"):
+                raise SceneError(
+                    f"{fem.path}: method {method!r} is not supported (large, polar or svd)"
+                )
+            large = method == "large" and self.choices.rotation == "scene"
+            rotation = "large" if large else "polar"
+            material = Corotational(
+                _float(fem, "youngModulus", 5000.0), _float(fem, "poissonRatio", 0.45), rotation
             )
-        rotation = "large" if method == "large" and self.choices.rotation == "scene" else "polar"
         # SOFA takes elements in either orientation; Pliant's are positive. The "large" frame
         # stays the file's first three nodes of each element.
         frame_nodes = tets[:, :3].copy()
         negative = signed_volumes(points, tets) < 0.0
         tets[negative] = tets[negative][:, [0, 2, 1, 3]]
         mesh = TetMesh(points, tets)
-        material = Corotational(
-            _float(fem, "youngModulus", 5000.0), _float(fem, "poissonRatio", 0.45), rotation
-        )
         mass_kwargs = self._mass(node, points.shape[0])
         solver_kind, rayleigh = self._ode_solver(node)
         fixed = self._fixed_nodes(node, points)
@@ -542,6 +552,31 @@ class _Builder:
             **mass_kwargs,
         )
         return body, mesh, solver_kind
+
+    def _hyperelastic(self, fem: SceneObject) -> Material:
+        """SOFA's TetrahedronHyperelasticityFEMForceField: ``materialName`` (SOFA's default
+        is ArrudaBoyce) and ``ParameterSet``. SOFA's NeoHookean is Bonet and Wood's
+        compressible law, psi = mu/2 (tr C - 3) - mu ln J + lambda/2 (ln J)^2, with
+        ParameterSet = "mu lambda" (the Lame parameters): Pliant's NeoHookean, given the same
+        mu and lambda through E = mu (3 lambda + 2 mu) / (lambda + mu), nu = lambda / (2
+        (lambda + mu))."""
+        name = str(fem.attrs.get("materialName", "ArrudaBoyce"))
+        if name not in HYPERELASTIC_MATERIALS:
+            raise SceneError(
+                f"{fem.path}: materialName {name!r} has no Pliant law (supported:"
+                f" {', '.join(HYPERELASTIC_MATERIALS)}; SOFA's default is ArrudaBoyce)"
+            )
+        wanted = HYPERELASTIC_MATERIALS[name]
+        params = _floats(fem.attrs.get("ParameterSet", ""), f"{fem.path}.ParameterSet")
+        if params.size != len(wanted):
+            raise SceneError(
+                f"{fem.path}.ParameterSet: {name} takes {len(wanted)} values"
+                f" ({' '.join(wanted)}), got {params.size}"
+            )
+        mu, lam = params
+        if not (mu > 0.0 and lam >= 0.0):
+            raise SceneError(f"{fem.path}.ParameterSet: mu > 0 and lambda >= 0, got {mu}, {lam}")
+        return NeoHookean(mu * (3.0 * lam + 2.0 * mu) / (lam + mu), lam / (2.0 * (lam + mu)))
 
     def _mesh_loader(self, node: SceneNode) -> SceneObject:
         """The loader the body's topology reads (``src="@loader"``), or the node's only one."""
