@@ -15,6 +15,7 @@ from pliant.errors import ModelError
 from pliant.fem.body import TetBody, fixed_components
 from pliant.fem.loads import NodalForces, RestShapeSprings, SurfacePressure, SurfaceTraction
 from pliant.fem.material import Corotational
+from pliant.fem.supports import OnLine, OnPlane
 from pliant.mesh import box_beam
 from pliant.model import Model
 from pliant.solvers import ImplicitEuler, StaticSolver
@@ -193,3 +194,104 @@ def test_a_body_held_too_little_names_its_free_rigid_motions() -> None:
     )
     with pytest.raises(ModelError, match="every rigid motion"):
         StaticSolver(Model(free, actuators=[cable]))
+
+
+def _tip_model(projections, loads, **kwargs) -> Model:
+    mesh = box_beam(30.0, 10.0, 10.0, 3, 1, 1)
+    x = mesh.points
+    body = TetBody(
+        mesh,
+        Corotational(E, NU),
+        density=1e-6,
+        fixed_nodes=np.flatnonzero(x[:, 0] < 1e-9),
+        projections=projections,
+        loads=loads,
+        rayleigh_mass=20.0,
+        **kwargs,
+    )
+    return Model(body)
+
+
+def _solve(model: Model, solver: str):
+    if solver == "static":
+        return StaticSolver(model).step(model.rest_state())
+    sim, state = ImplicitEuler(model, 0.01), model.rest_state()  # the default lagged tangent
+    for _ in range(60):
+        state = sim.step(state)
+    return state
+
+
+@pytest.mark.parametrize("solver", ["static", "dynamic"])
+def test_nodes_on_an_inclined_plane_stay_on_it_and_slide_freely(solver) -> None:
+    """The tip face held on the plane through it with normal (0, 1, 1)/sqrt 2, pulled down
+    and sideways: the nodes stay on the plane to round-off (every increment is projected),
+    they move along it, and at the static equilibrium the plane pushes only along its
+    normal: the net force on each held node (elastic + load) is parallel to n."""
+    mesh = box_beam(30.0, 10.0, 10.0, 3, 1, 1)
+    tip = np.flatnonzero(mesh.points[:, 0] > 30.0 - 1e-9)
+    n = np.array([0.0, 1.0, 1.0]) / np.sqrt(2.0)
+    load = NodalForces(tip, [5.0, 10.0, -30.0])
+    model = _tip_model([OnPlane(tip, n)], [load])
+    state = _solve(model, solver)
+    u = state.positions - model.body.rest_positions
+    motion = np.abs(u[tip]).max()
+    assert motion > 0.1
+    assert np.abs(u[tip] @ n).max() < 1e-12 * motion
+    if solver == "static":
+        net = model.body.linearise(state.positions).forces[tip]
+        along = net - np.outer(net @ n, n)
+        assert np.abs(along).max() < 1e-8 * np.abs(net).max()
+
+
+def test_a_node_on_a_line_stays_on_it_in_both_solvers() -> None:
+    """The tip face held on lines along (1, 1, -1)/sqrt 3 through its nodes: the tip moves
+    only along that direction, the same equilibrium in the static solve and as the damped
+    dynamics' steady state."""
+    mesh = box_beam(30.0, 10.0, 10.0, 3, 1, 1)
+    tip = np.flatnonzero(mesh.points[:, 0] > 30.0 - 1e-9)
+    d = np.array([1.0, 1.0, -1.0]) / np.sqrt(3.0)
+    model = _tip_model([OnLine(tip, d)], [NodalForces(tip, [0.0, 20.0, -20.0])])
+    static, dynamic = _solve(model, "static"), _solve(model, "dynamic")
+    for state in (static, dynamic):
+        u = (state.positions - model.body.rest_positions)[tip]
+        across = u - np.outer(u @ d, d)
+        assert np.abs(across).max() < 1e-12 * np.abs(u).max()
+    assert (
+        np.abs(static.positions - dynamic.positions).max()
+        < 1e-3 * np.abs(static.positions - model.body.rest_positions).max()
+    )
+
+
+def test_a_plane_along_an_axis_is_the_held_component() -> None:
+    """OnPlane with normal x is fixed_components(..., (True, False, False)): the same static
+    equilibrium to the Newton tolerance."""
+    mesh = box_beam(30.0, 10.0, 10.0, 3, 1, 1)
+    tip = np.flatnonzero(mesh.points[:, 0] > 30.0 - 1e-9)
+    load = NodalForces(tip, [5.0, 10.0, -30.0])
+    projected = _solve(_tip_model([OnPlane(tip, [1.0, 0.0, 0.0])], [load]), "static")
+    held = _solve(
+        _tip_model([], [load], fixed_dofs=fixed_components(tip, (True, False, False))), "static"
+    )
+    assert np.abs(projected.positions - held.positions).max() < 1e-10
+
+
+def test_a_body_held_only_by_planes_names_what_they_leave_free() -> None:
+    """The x = 0 face on planes of normal (1, 1, 0)/sqrt 2: it can still slide along
+    (1, -1, 0) and along z, and turn about the normal."""
+    mesh = box_beam(30.0, 10.0, 10.0, 3, 1, 1)
+    face = np.flatnonzero(mesh.points[:, 0] < 1e-9)
+    body = TetBody(
+        mesh, Corotational(E, NU), density=1e-6, projections=[OnPlane(face, [1.0, 1.0, 0.0])]
+    )
+    with pytest.raises(ModelError) as err:
+        StaticSolver(Model(body))
+    message = str(err.value)
+    assert "translation along (0, 0, 1)" in message
+    assert "rotation about the axis (0.707, 0.707, 0)" in message
+    with pytest.raises(ModelError, match="two lines or planes"):
+        TetBody(
+            mesh,
+            Corotational(E, NU),
+            density=1e-6,
+            projections=[OnPlane(face, [1.0, 0.0, 0.0]), OnLine(face[:1], [0.0, 1.0, 0.0])],
+        )

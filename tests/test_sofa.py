@@ -443,3 +443,92 @@ def test_unsupported_hyperelastic_materials_are_named(tmp_path, material, messag
     scene.write_text(HYPERELASTIC_SCENE.format(material=material))
     with pytest.raises(SceneError, match=message):
         load_scene(scene)
+
+
+# ---------------------------------------------------------------------------------------------
+# Nodes on a plane or a line (ProjectToPlaneConstraint, ProjectToLineConstraint)
+
+
+PROJECTED_SCENE = """<Node name="root" dt="0.01" gravity="0 0 0">
+<Node name="Body">
+  <StaticSolver/>
+  <MeshVTKLoader name="loader" filename="body.vtu"/>
+  <MechanicalObject name="dofs"/>
+  <UniformMass totalMass="0.001"/>
+  <TetrahedronFEMForceField youngModulus="1000" poissonRatio="0.3" method="polar"/>
+  <BoxROI name="clamp" box="-1 -1 -1 0.1 11 11"/>
+  <FixedConstraint indices="@clamp.indices"/>
+  <{kind} indices="{indices}" {axis} origin="{origin}"/>
+  <ConstantForceField indices="{indices}" force="5 10 -30"/>
+</Node></Node>"""
+
+
+@pytest.mark.parametrize(
+    ("kind", "axis", "origin", "projection"),
+    [
+        # The plane y + z = 10 holds the edges (x, 0, 10) and (x, 10, 0) of the last two
+        # cross-sections; the line along (1, 1, -1) through the tip corner (30, 10, 10).
+        ("ProjectToPlaneConstraint", (0.0, 1.0, 1.0), (0.0, 0.0, 10.0), "plane"),
+        ("ProjectToLineProjectiveConstraint", (1.0, 1.0, -1.0), (30.0, 10.0, 10.0), "line"),
+    ],
+)
+def test_scenes_hold_nodes_on_planes_and_lines(tmp_path, kind, axis, origin, projection) -> None:
+    """The loader maps SOFA's projections onto a plane (origin, normal) and a line (origin,
+    direction): the held nodes stay on them under a load that pulls them off, and the scene
+    ends where the model built with OnPlane / OnLine does."""
+    import meshio
+
+    from pliant.fem.loads import NodalForces
+    from pliant.fem.supports import OnLine, OnPlane
+
+    mesh = box_beam(30.0, 10.0, 10.0, 3, 1, 1)
+    meshio.write(tmp_path / "body.vtu", meshio.Mesh(mesh.points, [("tetra", mesh.tets)]))
+    x = mesh.points
+    if projection == "plane":
+        held_nodes = np.flatnonzero((np.abs((x - origin) @ axis) < 1e-9) & (x[:, 0] > 15.0))
+    else:
+        held_nodes = np.flatnonzero(np.linalg.norm(x - origin, axis=1) < 1e-9)
+    key = "normal" if projection == "plane" else "direction"
+    scene = tmp_path / "projected.scn"
+    scene.write_text(
+        PROJECTED_SCENE.format(
+            kind=kind,
+            indices=" ".join(map(str, held_nodes)),
+            axis=f'{key}="{" ".join(map(str, axis))}"',
+            origin=" ".join(map(str, origin)),
+        )
+    )
+    loaded = load_scene(scene)
+    (held,) = loaded.model.body.projections
+    assert held.kind == projection and list(held.nodes) == sorted(held_nodes)
+    by_scene = loaded.simulate(1).positions
+    made = (OnPlane if projection == "plane" else OnLine)(held_nodes, axis)
+    body = TetBody(
+        mesh,
+        Corotational(1000.0, 0.3),
+        total_mass=0.001,
+        mass="uniform",
+        fixed_nodes=np.flatnonzero(x[:, 0] < 0.1),
+        projections=[made],
+        loads=[NodalForces(held_nodes, [5.0, 10.0, -30.0])],
+    )
+    by_model = StaticSolver(Model(body)).step(Model(body).rest_state()).positions
+    u = (by_scene - x)[held_nodes]
+    assert np.abs(u).max() > 0.01
+    assert np.abs(np.einsum("kmi,ki->km", made.held_directions(), u)).max() < 1e-12
+    assert np.abs(by_scene - by_model).max() < 1e-10
+
+
+def test_a_node_off_its_plane_is_named(tmp_path) -> None:
+    import meshio
+
+    mesh = box_beam(30.0, 10.0, 10.0, 3, 1, 1)
+    meshio.write(tmp_path / "body.vtu", meshio.Mesh(mesh.points, [("tetra", mesh.tets)]))
+    scene = tmp_path / "projected.scn"
+    scene.write_text(
+        PROJECTED_SCENE.format(
+            kind="ProjectToPlaneConstraint", indices="15", axis='normal="1 0 0"', origin="29 0 0"
+        )
+    )
+    with pytest.raises(SceneError, match="lies 1 off the plane"):
+        load_scene(scene)

@@ -34,10 +34,12 @@ from pliant.constraints.cavity import CavityActuator, enclosed_volume
 from pliant.constraints.collision import Box, Plane, TriangleMesh
 from pliant.constraints.contact import Contacts
 from pliant.constraints.effector import PositionEffector
+from pliant.errors import ModelError
 from pliant.fem.body import TetBody, fixed_components, nodes_in_box
 from pliant.fem.loads import Load, NodalForces, RestShapeSprings
 from pliant.fem.material import Corotational, Material, NeoHookean
 from pliant.fem.rigid import RigidBody
+from pliant.fem.supports import OnLine, OnPlane, Projection
 from pliant.mesh.quality import signed_volumes
 from pliant.mesh.tetmesh import TetMesh
 from pliant.model import Model, State
@@ -91,6 +93,14 @@ FEM = frozenset({"TetrahedronFEMForceField", HYPERELASTIC})
 # SOFA's hyperelastic materials that Pliant has a law for: the same strain energy, and the
 # meaning of each ParameterSet entry (SOFA's material headers).
 HYPERELASTIC_MATERIALS = {"NeoHookean": ("mu", "lambda")}
+# SOFA's projective constraints onto a plane (origin, normal) and a line (origin,
+# direction), under their old and new names.
+PROJECTIONS = {
+    "ProjectToPlaneConstraint": ("normal", OnPlane),
+    "ProjectToPlaneProjectiveConstraint": ("normal", OnPlane),
+    "ProjectToLineConstraint": ("direction", OnLine),
+    "ProjectToLineProjectiveConstraint": ("direction", OnLine),
+}
 HANDLED = frozenset(
     {
         *MESH_LOADERS,
@@ -103,6 +113,7 @@ HANDLED = frozenset(
         "FixedProjectiveConstraint",
         "PartialFixedConstraint",
         "PartialFixedProjectiveConstraint",
+        *PROJECTIONS,
         "ConstantForceField",
         "RestShapeSpringsForceField",
         "EulerImplicitSolver",
@@ -546,6 +557,7 @@ class _Builder:
             fixed_dofs=self._fixed_components(node, points),
             frame_nodes=frame_nodes if rotation == "large" else None,
             loads=self._loads(node, points),
+            projections=self._projections(node, points),
             gravity=tuple(gravity),
             rayleigh_mass=rayleigh[0],
             rayleigh_stiffness=rayleigh[1],
@@ -706,6 +718,30 @@ class _Builder:
                 axes = _floats(obj.attrs.get("fixedDirections", "1 1 1"), f"{obj.path}")
                 dofs.append(fixed_components(idx, tuple(bool(a) for a in axes)))
         return np.concatenate(dofs)
+
+    def _projections(self, node: SceneNode, points: np.ndarray) -> list[Projection]:
+        """ProjectToPlane/LineConstraint: nodes that slide on the plane through `origin` with
+        `normal`, or on the line through it along `direction`. SOFA moves a node that is off
+        it there at the start; Pliant asks for a mesh whose nodes lie on it."""
+        found: list[Projection] = []
+        size = float(np.linalg.norm(np.ptp(points, axis=0)))
+        for obj in node.objects:
+            if obj.type not in PROJECTIONS:
+                continue
+            key, kind = PROJECTIONS[obj.type]
+            idx = self._indices(node, obj, "indices", points)
+            if idx is None:
+                raise SceneError(f"{obj.path}: no indices")
+            default = "0 0 1" if key == "normal" else "1 0 0"
+            axis = _floats(obj.attrs.get(key, default), f"{obj.path}.{key}")
+            origin = _floats(obj.attrs.get("origin", "0 0 0"), f"{obj.path}.origin")
+            try:
+                projection = kind(idx, axis)
+                projection.check_on(points, origin, tolerance=1e-9 * size)
+            except ModelError as exc:
+                raise SceneError(f"{obj.path}: {exc}") from exc
+            found.append(projection)
+        return found
 
     def _loads(self, node: SceneNode, points: np.ndarray) -> list[Load]:
         loads: list[Load] = []
