@@ -75,6 +75,8 @@ IGNORED = frozenset(
         "GenericConstraintSolver",
         "ProjectedGaussSeidelConstraintSolver",
         "LCPConstraintSolver",
+        # SoftRobots' inverse solver: `pliant inverse` solves the inverse problem (Eq. 2.15).
+        "QPInverseProblemSolver",
         "LinearSolverConstraintCorrection",
         "GenericConstraintCorrection",
         "UncoupledConstraintCorrection",
@@ -182,6 +184,22 @@ class SofaScene:
             return StaticSolver(self.model)
         return ImplicitEuler(self.model, self.dt, tangent=tangent)
 
+    def goal_path(self, n_goals: int) -> np.ndarray:
+        """(n_goals, 3) goals on the straight line from the first effector point's rest
+        position to the goal the scene gives it (its PositionEffector's ``effectorGoal``), the
+        last one the scene's; for ``pliant inverse``."""
+        if not self.model.effectors:
+            raise SceneError(f"{self.path.name} has no PositionEffector to control")
+        effector = self.model.effectors[0]
+        start = effector.position(self.model.body.rest_positions)[0]
+        goal = np.asarray(effector.goals, dtype=float)[0]
+        if np.linalg.norm(goal - start) <= 1e-12 * max(self.model.body.extent, 1e-300):
+            raise SceneError(
+                f"{self.path.name}: the effector {effector.name!r} has no goal away from its"
+                " rest position (give PositionEffector an effectorGoal)"
+            )
+        return start + np.linspace(0.0, 1.0, n_goals + 1)[1:, None] * (goal - start)
+
     def commands(self) -> np.ndarray:
         """The actuators' commands as the scene sets them."""
         return np.array([a.value for a in self.model.actuators])
@@ -192,7 +210,8 @@ class SofaScene:
         from pliant.robots import RobotEntry
 
         commands = self.commands()
-        return RobotEntry(lambda: self.model, lambda t: commands, {}, (20.0, -60.0))
+        goals = {"goal": self.goal_path} if self.model.effectors else {}
+        return RobotEntry(lambda: self.model, lambda t: commands, goals, (20.0, -60.0))
 
     def simulate(self, n_steps: int, state: State | None = None) -> State:
         """Run `n_steps` steps under the scene's commands; returns the last state."""
@@ -604,8 +623,24 @@ class _Builder:
         return loader
 
     def _link(self, node: SceneNode, link: str) -> SceneObject | None:
-        """The component a link such as ``@loader``, ``@boxROI.indices``, ``@../loader`` names."""
-        target = link.strip().lstrip("@").split("/")[-1].split(".")[0]
+        """The component a link such as ``@loader``, ``@boxROI.indices``, ``@../loader`` or
+        ``@../../goal/goalMO.position`` names: by its path from `node` (or from the root for
+        ``@/...``) where the path leads to it, else by its name here or in an ancestor."""
+        path = link.strip().lstrip("@")
+        parts = path.split("/")
+        target = parts[-1].split(".")[0]
+        at: SceneNode | None = self.root if path.startswith("/") else node
+        for part in parts[:-1]:
+            if at is None:
+                break
+            if part == "..":
+                at = at.parent
+            elif part not in ("", "."):
+                at = next((c for c in at.children if c.name == part), None)
+        if at is not None and len(parts) > 1:
+            found = next((o for o in at.objects if o.name == target), None)
+            if found is not None:
+                return found
         return node.find(target)
 
     def _loaded(self, loader: SceneObject) -> tuple[np.ndarray, dict[str, np.ndarray]]:
