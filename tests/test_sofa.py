@@ -38,7 +38,9 @@ DOCS = Path(__file__).parents[1] / "docs" / "sofa.md"
 
 @needs_reference
 @pytest.mark.parametrize(
-    "code", re.findall(r"```python\n(.*?)```", DOCS.read_text(), flags=re.S), ids=["port", "choice"]
+    "code",
+    re.findall(r"```python\n(.*?)```", DOCS.read_text(), flags=re.S),
+    ids=["port", "choice", "supports"],
 )
 def test_docs_examples_run(code: str) -> None:
     exec(compile(code, str(DOCS), "exec"), {})
