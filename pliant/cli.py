@@ -142,7 +142,13 @@ def run(
 
 @app.command()
 def inverse(
-    robot: Annotated[str, typer.Argument(help=f"one of {', '.join(sorted(robots.ROBOTS))}")],
+    robot: Annotated[
+        str,
+        typer.Argument(
+            help=f"one of {', '.join(sorted(robots.ROBOTS))}, or a SOFA scene file with a"
+            " PositionEffector"
+        ),
+    ],
     trajectory: Annotated[
         str, typer.Option(help="goal trajectory of the robot (circle, closing, ...)")
     ] = "",
@@ -155,13 +161,24 @@ def inverse(
         int, typer.Option(help="steps at most per goal", callback=at_least_one)
     ] = 60,
     out: Annotated[Path, typer.Option(help="output folder", callback=output_folder)] = Path("out"),
+    mesh_dir: Annotated[list[Path], typer.Option(help="where a scene's meshes are")] = [],  # noqa: B006
 ) -> None:
-    """Inverse control (QP, Eq. 2.15) of ROBOT's effector along a goal trajectory."""
+    """Inverse control (QP, Eq. 2.15) of ROBOT's effector along a goal trajectory (a scene's:
+    `goal`, GOALS steps on the line from the effector to its effectorGoal)."""
     from pliant.scenario import track_goals
     from pliant.viz import plot_trajectory, save_gif
     from pliant.viz.model_view import RobotCamera
 
-    entry = robots.entry(robot)
+    scene = None
+    if robot.endswith((".scn", ".xml", ".py")):
+        from pliant.sofa import load_scene
+
+        scene = load_scene(robot, mesh_dirs=mesh_dir)
+        entry, robot = scene.entry(), Path(robot).stem
+    else:
+        entry = robots.entry(robot)
+    if not entry.trajectories and scene is not None:
+        raise typer.BadParameter(f"{robot} has no PositionEffector to control")
     if not entry.trajectories:
         having = sorted(k for k, e in robots.ROBOTS.items() if e.trajectories)
         raise typer.BadParameter(
@@ -175,7 +192,7 @@ def inverse(
         )
     targets = entry.trajectories[name](goals)
     model = entry.build()
-    sim = _solver(model, solver, dt)
+    sim = scene.solver() if scene and solver == "dynamic" else _solver(model, solver, dt)
     camera = RobotCamera(model, view=entry.view)
     folder = out / robot
     images = []

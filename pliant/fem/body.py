@@ -24,6 +24,7 @@ from pliant.fem.loads import Load, LoadAssembly
 from pliant.fem.material import COROTATIONAL, COROTATIONAL_LARGE, Material
 from pliant.fem.membrane import Membrane, MembraneAssembly
 from pliant.fem.sparsity import StiffnessPattern
+from pliant.fem.supports import Projection
 from pliant.mesh.quality import validate_mesh
 from pliant.mesh.tetmesh import TetMesh
 
@@ -152,6 +153,10 @@ class TetBody:
         frame_nodes: (m, 3) the nodes whose edges give each element's frame under
             ``Corotational(rotation="large")`` (default: its first three; a SOFA mesh whose
             element was reoriented keeps its file order here, see :mod:`pliant.sofa`).
+        projections: nodes held on a plane or a line of any direction through their rest
+            positions (:class:`pliant.fem.supports.OnPlane`, :class:`~pliant.fem.supports.OnLine`;
+            SOFA's ProjectToPlaneConstraint and ProjectToLineConstraint): the solvers project
+            their increments (:mod:`pliant.fem.supports`).
     """
 
     # Largest change of an element frame entry before the "lagged" policy refactorises: on
@@ -175,6 +180,7 @@ class TetBody:
         fixed_dofs: np.ndarray | None = None,
         loads: Sequence[Load] = (),
         frame_nodes: np.ndarray | None = None,
+        projections: Sequence[Projection] = (),
     ) -> None:
         # Inverted, degenerate, disconnected or malformed meshes raise their MeshError here.
         validate_mesh(mesh.points, mesh.tets)
@@ -235,6 +241,8 @@ class TetBody:
         self.pattern = StiffnessPattern.build(self.tets, self.free_index)
         self.membranes = [MembraneAssembly(m, n, self.free_index, self.pattern) for m in membranes]
         self.loads = [LoadAssembly(load, n, self.free_index, self.pattern) for load in loads]
+        self.projections = list(projections)
+        self.projection = self._projection_matrix()
 
         self.mass_type: MassType = mass
         self.node_masses = self._node_masses(mass)
@@ -310,9 +318,9 @@ class TetBody:
         return out.reshape(self.n_nodes, 3, *free.shape[1:])
 
     def free_rigid_motions(self) -> list[str]:
-        """The rigid motions that nothing holds (neither held DoFs nor rest-shape springs):
-        along them the elastic stiffness is singular and a static equilibrium is not unique.
-        Empty when the body is held."""
+        """The rigid motions that nothing holds (neither held DoFs, lines and planes, nor
+        rest-shape springs): along them the elastic stiffness is singular and a static
+        equilibrium is not unique. Empty when the body is held."""
         from pliant.fem.loads import RestShapeSprings
 
         x = self.rest_positions
@@ -329,6 +337,11 @@ class TetBody:
             if isinstance(assembly.load, RestShapeSprings):
                 held[(3 * assembly.load.groups[:, :1] + np.arange(3)).ravel()] = True
         rows = modes.reshape(-1, 6)[held]
+        for projection in self.projections:
+            # A node held on a plane or a line: its motion along each held direction h.
+            directions = projection.held_directions()
+            held_rows = np.einsum("kmi,kij->kmj", directions, modes[projection.nodes])
+            rows = np.vstack([rows, held_rows.reshape(-1, 6)])
         if rows.shape[0] == 0:
             return ["every rigid motion (translations along x, y, z, rotations about x, y, z)"]
         _, sing, vt = np.linalg.svd(rows, full_matrices=True)
@@ -364,6 +377,27 @@ class TetBody:
                     f" ({point[0]:g}, {point[1]:g}, {point[2]:g})"
                 )
         return names
+
+    def _projection_matrix(self) -> sp.csr_matrix | None:
+        """P on the free DoFs: each projected node's block, the identity elsewhere."""
+        if not self.projections:
+            return None
+        nodes = np.concatenate([p.nodes for p in self.projections])
+        if nodes.max() >= self.n_nodes:
+            raise ModelError(f"projected node indices must lie in [0, {self.n_nodes})")
+        if np.unique(nodes).size != nodes.size:
+            raise ModelError("a node is held on two lines or planes: give it one projection")
+        dofs = self.free_index[3 * nodes[:, None] + np.arange(3)]
+        if np.any(dofs < 0):
+            raise ModelError(
+                "a node held on a line or a plane has a fixed component: hold it one way"
+            )
+        blocks = np.concatenate([p.matrices for p in self.projections])
+        rest = np.setdiff1d(np.arange(self.n_free), dofs.ravel())
+        rows = np.concatenate([np.repeat(dofs, 3, axis=1).ravel(), rest])
+        cols = np.concatenate([np.tile(dofs, (1, 3)).ravel(), rest])
+        values = np.concatenate([blocks.reshape(-1), np.ones(rest.size)])
+        return sp.csr_matrix((values, (rows, cols)), shape=(self.n_free, self.n_free))
 
     # --- mass -------------------------------------------------------------------------------
     def _node_masses(self, mass: str) -> np.ndarray:

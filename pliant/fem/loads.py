@@ -1,6 +1,7 @@
 """External loads on a tetrahedral body and elastic supports: nodal forces (SOFA's
-ConstantForceField), surface pressure and traction (SurfacePressureForceField-like), springs to
-the rest shape (RestShapeSpringsForceField).
+ConstantForceField), surface pressure and traction (SurfacePressureForceField-like), a point
+force that turns with the body (a follower force in the frame of the element carrying it),
+springs to the rest shape (RestShapeSpringsForceField).
 
 A load gives nodal forces f(x, t) on groups of nodes (one node, or the three of a triangle)
 and, when they depend on the positions, the groups' tangent blocks K = -df/dx. The body adds
@@ -17,6 +18,8 @@ import numpy as np
 import scipy.sparse as sp
 
 from pliant.errors import ModelError
+from pliant.mesh.locate import locate_points
+from pliant.mesh.tetmesh import TetMesh
 
 Schedule = Callable[[float], float]
 
@@ -148,6 +151,76 @@ class SurfacePressure(Load):
             for a in range(3):
                 blocks[:, 3 * a : 3 * a + 3, 3 * b : 3 * b + 3] = coef * d[:, b]
         return blocks
+
+
+class FollowerForce(Load):
+    """A force at a point carried by the body, given at rest and turning with the body: the
+    point is embedded in the element that contains it (barycentric weights w_a), and the force
+    turns with that element's frame, f(x) = Q(x) Q(X)^T f0, Q the orthonormal frame of its
+    edges (first axis along x1 - x0, third normal to the plane of x0, x1, x2: the frame of
+    SOFA's "large" rotation). Node a of the element carries w_a f.
+
+    The frame is the element's rigid rotation up to its strain (exactly the polar rotation
+    when the element turns rigidly), so the force follows a rigid motion of the body exactly.
+    Its tangent K_ab = -w_a df/dx_b (closed form below) is not symmetric: the body assembles
+    its symmetric part, the forces stay exact.
+
+    Args:
+        mesh: the body's mesh (its rest positions).
+        point: (3,) where the force acts, in or on the mesh.
+        force: (3,) the force at rest, in world coordinates.
+        schedule: f(t) scaling the force.
+    """
+
+    def __init__(self, mesh: TetMesh, point, force, *, schedule: Schedule | None = None) -> None:
+        element, weights = locate_points(mesh, np.asarray(point, dtype=float).reshape(1, 3))
+        self.groups = mesh.tets[element].astype(np.int64)  # (1, 4); frame: its first three
+        self.weights = weights[0]
+        f0 = np.asarray(force, dtype=float).reshape(-1)
+        if f0.shape != (3,) or not np.all(np.isfinite(f0)):
+            raise ModelError(f"FollowerForce: the force must be a finite 3-vector, got {force!r}")
+        # The force's components in the element's rest frame.
+        self.components = _edge_frame(mesh.points[self.groups[0]])[0].T @ f0
+        self.schedule = schedule
+
+    def direction(self, x: np.ndarray) -> np.ndarray:
+        """f(x) / scale: Q(x) g, g the rest components."""
+        return _edge_frame(x[self.groups[0]])[0] @ self.components
+
+    def group_forces(self, x, time):
+        force = self.scale(time) * self.direction(x)
+        return (self.weights[:, None] * force)[None]
+
+    def group_tangents(self, x, time):
+        # With a = x1 - x0, b = x2 - x0, c = a x b: e1 = a/|a|, e3 = c/|c|, e2 = e3 x e1, and
+        # f = g1 e1 + g2 e2 + g3 e3. Then de1 = P1 da / |a|, de3 = P3 dc / |c| (P = I - e e^T),
+        # dc = -[b]x da + [a]x db, de2 = -[e1]x de3 + [e3]x de1, so
+        # df = (g1 I + g2 [e3]x) de1 + (g3 I - g2 [e1]x) de3 = A1 da + A3 dc with
+        # A1 = (g1 I + g2 [e3]x) P1 / |a|, A3 = (g3 I - g2 [e1]x) P3 / |c|:
+        # df/dx1 = A1 - A3 [b]x, df/dx2 = A3 [a]x, df/dx0 = -(df/dx1 + df/dx2).
+        frame, a, b = _edge_frame(x[self.groups[0]])
+        e1, e3 = frame[:, 0], frame[:, 2]
+        g1, g2, g3 = self.scale(time) * self.components
+        c = np.cross(a, b)
+        eye = np.eye(3)
+        a1 = (g1 * eye + g2 * _skew(e3)) @ (eye - np.outer(e1, e1)) / np.linalg.norm(a)
+        a3 = (g3 * eye - g2 * _skew(e1)) @ (eye - np.outer(e3, e3)) / np.linalg.norm(c)
+        d1 = a1 - a3 @ _skew(b)
+        d2 = a3 @ _skew(a)
+        derivative = np.zeros((3, 12))  # df/dx over the element's four nodes
+        derivative[:, 0:3], derivative[:, 3:6], derivative[:, 6:9] = -(d1 + d2), d1, d2
+        blocks = -np.repeat(self.weights, 3)[:, None] * np.tile(derivative, (4, 1))
+        return blocks[None]
+
+
+def _edge_frame(p: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The orthonormal frame (columns e1, e2, e3) of nodes p0, p1, p2 (rows of p), and the
+    edges a = p1 - p0, b = p2 - p0 it is built from."""
+    a, b = p[1] - p[0], p[2] - p[0]
+    e1 = a / np.linalg.norm(a)
+    c = np.cross(a, b)
+    e3 = c / np.linalg.norm(c)
+    return np.column_stack([e1, np.cross(e3, e1), e3]), a, b
 
 
 class RestShapeSprings(Load):

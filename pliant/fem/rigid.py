@@ -32,7 +32,7 @@ the speeds, they act only if the gap would close within the step).
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -141,6 +141,32 @@ class AttachedPoints:
         return twist_jacobian(self.local_points @ rotation.T)
 
 
+class BodyForce:
+    """A force fixed in a rigid body's frame, so that it turns with the body (a follower
+    force): `force` at `point`, both in body coordinates (the point from the centre of mass).
+    In the world: F = R f and the torque about the centre of mass tau = (R r) x (R f) =
+    R (r x f). The step takes it at the start of the step, like gravity (the free motion,
+    module docstring).
+    """
+
+    def __init__(self, point, force) -> None:
+        self.point = np.asarray(point, dtype=float).reshape(-1)
+        self.force = np.asarray(force, dtype=float).reshape(-1)
+        for label, v in (("point", self.point), ("force", self.force)):
+            if v.shape != (3,) or not np.all(np.isfinite(v)):
+                raise ModelError(f"BodyForce: the {label} must be a finite 3-vector")
+
+    def wrench(self, rotation: np.ndarray) -> np.ndarray:
+        """(6,) the world force F and torque tau about the centre of mass."""
+        return np.concatenate([rotation @ self.force, rotation @ np.cross(self.point, self.force)])
+
+    def tangent(self, rotation: np.ndarray) -> np.ndarray:
+        """(6, 3) K = -d(F, tau)/d theta for a turn R -> exp([theta]x) R: dF = theta x F, so
+        K = [[F]x; [tau]x]."""
+        wrench = self.wrench(rotation)
+        return np.vstack([skew(wrench[:3]), skew(wrench[3:])])
+
+
 def _check_friction(friction: float, name: str) -> float:
     if not np.isscalar(friction):
         raise ModelError(f"{name}: the friction coefficient must be one number")
@@ -169,6 +195,7 @@ class RigidBody:
             torque -c I w, e.g. the drag of a fluid or of an air table (as Bullet's damping).
         position, rotation, velocity, angular_velocity: the initial state (default: the
             shape's pose, at rest).
+        forces: forces fixed in the body's frame (:class:`BodyForce`), turning with it.
     """
 
     def __init__(
@@ -185,8 +212,10 @@ class RigidBody:
         velocity=(0.0, 0.0, 0.0),
         angular_velocity=(0.0, 0.0, 0.0),
         name: str = "body",
+        forces: Sequence[BodyForce] = (),
     ) -> None:
         self.name = name
+        self.forces = list(forces)
         if shape.bounds() is None:
             raise ModelError(
                 f"{name}: a rigid body needs a bounded shape, got a {type(shape).__name__}"
@@ -397,11 +426,16 @@ def free_twists(
     dt: float,
 ) -> np.ndarray:
     """(n, 6) twists u_free = (v + h g, w_free) after a step without contact (module
-    docstring)."""
+    docstring), plus h M^-1 (F, tau) of the bodies' own forces (:class:`BodyForce`)."""
     twists = np.zeros((len(bodies), 6))
     for i, b in enumerate(bodies):
         twists[i, :3] = velocities[i] + dt * np.asarray(gravity)
         twists[i, 3:] = free_angular_velocity(b.inertia, rotations[i], angular_velocities[i], dt)
+        if b.forces:
+            wrench = sum(f.wrench(rotations[i]) for f in b.forces)
+            twists[i, :3] += dt * wrench[:3] / b.mass
+            world_inverse = rotations[i] @ b.inverse_inertia @ rotations[i].T
+            twists[i, 3:] += dt * world_inverse @ wrench[3:]
         twists[i, :3] /= 1.0 + dt * b.linear_damping
         twists[i, 3:] /= 1.0 + dt * b.angular_damping
     return twists

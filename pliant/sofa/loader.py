@@ -34,10 +34,12 @@ from pliant.constraints.cavity import CavityActuator, enclosed_volume
 from pliant.constraints.collision import Box, Plane, TriangleMesh
 from pliant.constraints.contact import Contacts
 from pliant.constraints.effector import PositionEffector
+from pliant.errors import ModelError
 from pliant.fem.body import TetBody, fixed_components, nodes_in_box
 from pliant.fem.loads import Load, NodalForces, RestShapeSprings
-from pliant.fem.material import Corotational
+from pliant.fem.material import Corotational, Material, NeoHookean
 from pliant.fem.rigid import RigidBody
+from pliant.fem.supports import OnLine, OnPlane, Projection
 from pliant.mesh.quality import signed_volumes
 from pliant.mesh.tetmesh import TetMesh
 from pliant.model import Model, State
@@ -73,6 +75,8 @@ IGNORED = frozenset(
         "GenericConstraintSolver",
         "ProjectedGaussSeidelConstraintSolver",
         "LCPConstraintSolver",
+        # SoftRobots' inverse solver: `pliant inverse` solves the inverse problem (Eq. 2.15).
+        "QPInverseProblemSolver",
         "LinearSolverConstraintCorrection",
         "GenericConstraintCorrection",
         "UncoupledConstraintCorrection",
@@ -86,7 +90,19 @@ IGNORED = frozenset(
     }
 )
 MESH_LOADERS = frozenset({"MeshVTKLoader", "MeshGmshLoader", "MeshSTLLoader", "MeshOBJLoader"})
-FEM = frozenset({"TetrahedronFEMForceField"})
+HYPERELASTIC = "TetrahedronHyperelasticityFEMForceField"
+FEM = frozenset({"TetrahedronFEMForceField", HYPERELASTIC})
+# SOFA's hyperelastic materials that Pliant has a law for: the same strain energy, and the
+# meaning of each ParameterSet entry (SOFA's material headers).
+HYPERELASTIC_MATERIALS = {"NeoHookean": ("mu", "lambda")}
+# SOFA's projective constraints onto a plane (origin, normal) and a line (origin,
+# direction), under their old and new names.
+PROJECTIONS = {
+    "ProjectToPlaneConstraint": ("normal", OnPlane),
+    "ProjectToPlaneProjectiveConstraint": ("normal", OnPlane),
+    "ProjectToLineConstraint": ("direction", OnLine),
+    "ProjectToLineProjectiveConstraint": ("direction", OnLine),
+}
 HANDLED = frozenset(
     {
         *MESH_LOADERS,
@@ -99,6 +115,7 @@ HANDLED = frozenset(
         "FixedProjectiveConstraint",
         "PartialFixedConstraint",
         "PartialFixedProjectiveConstraint",
+        *PROJECTIONS,
         "ConstantForceField",
         "RestShapeSpringsForceField",
         "EulerImplicitSolver",
@@ -167,6 +184,22 @@ class SofaScene:
             return StaticSolver(self.model)
         return ImplicitEuler(self.model, self.dt, tangent=tangent)
 
+    def goal_path(self, n_goals: int) -> np.ndarray:
+        """(n_goals, 3) goals on the straight line from the first effector point's rest
+        position to the goal the scene gives it (its PositionEffector's ``effectorGoal``), the
+        last one the scene's; for ``pliant inverse``."""
+        if not self.model.effectors:
+            raise SceneError(f"{self.path.name} has no PositionEffector to control")
+        effector = self.model.effectors[0]
+        start = effector.position(self.model.body.rest_positions)[0]
+        goal = np.asarray(effector.goals, dtype=float)[0]
+        if np.linalg.norm(goal - start) <= 1e-12 * max(self.model.body.extent, 1e-300):
+            raise SceneError(
+                f"{self.path.name}: the effector {effector.name!r} has no goal away from its"
+                " rest position (give PositionEffector an effectorGoal)"
+            )
+        return start + np.linspace(0.0, 1.0, n_goals + 1)[1:, None] * (goal - start)
+
     def commands(self) -> np.ndarray:
         """The actuators' commands as the scene sets them."""
         return np.array([a.value for a in self.model.actuators])
@@ -177,7 +210,8 @@ class SofaScene:
         from pliant.robots import RobotEntry
 
         commands = self.commands()
-        return RobotEntry(lambda: self.model, lambda t: commands, {}, (20.0, -60.0))
+        goals = {"goal": self.goal_path} if self.model.effectors else {}
+        return RobotEntry(lambda: self.model, lambda t: commands, goals, (20.0, -60.0))
 
     def simulate(self, n_steps: int, state: State | None = None) -> State:
         """Run `n_steps` steps under the scene's commands; returns the last state."""
@@ -475,7 +509,8 @@ class _Builder:
         nodes = [n for n in self.root.walk() if any(o.type in FEM for o in n.objects)]
         if not nodes:
             raise SceneError(
-                f"{self.path.name} has no deformable body (no TetrahedronFEMForceField)"
+                f"{self.path.name} has no deformable body (no TetrahedronFEMForceField or"
+                " TetrahedronHyperelasticityFEMForceField)"
             )
         if len(nodes) > 1:
             raise SceneError(
@@ -511,21 +546,26 @@ class _Builder:
         fem = self._one(node, FEM, "FEM force fields")
         loader = self._mesh_loader(node)
         points, tets = self._read_mesh(loader)
-        method = str(fem.attrs.get("method", "large")).lower()
-        if method not in ("large", "polar", "svd"):
-            raise SceneError(
-                f"{fem.path}: method {method!r} is not supported (large, polar or svd)"
+        if fem.type == HYPERELASTIC:
+            material: Material = self._hyperelastic(fem)
+            rotation = "none"
+        else:
+            method = str(fem.attrs.get("method", "large")).lower()
+            if method not in ("large", "polar", "svd"):
+                raise SceneError(
+                    f"{fem.path}: method {method!r} is not supported (large, polar or svd)"
+                )
+            large = method == "large" and self.choices.rotation == "scene"
+            rotation = "large" if large else "polar"
+            material = Corotational(
+                _float(fem, "youngModulus", 5000.0), _float(fem, "poissonRatio", 0.45), rotation
             )
-        rotation = "large" if method == "large" and self.choices.rotation == "scene" else "polar"
         # SOFA takes elements in either orientation; Pliant's are positive. The "large" frame
         # stays the file's first three nodes of each element.
         frame_nodes = tets[:, :3].copy()
         negative = signed_volumes(points, tets) < 0.0
         tets[negative] = tets[negative][:, [0, 2, 1, 3]]
         mesh = TetMesh(points, tets)
-        material = Corotational(
-            _float(fem, "youngModulus", 5000.0), _float(fem, "poissonRatio", 0.45), rotation
-        )
         mass_kwargs = self._mass(node, points.shape[0])
         solver_kind, rayleigh = self._ode_solver(node)
         fixed = self._fixed_nodes(node, points)
@@ -536,12 +576,38 @@ class _Builder:
             fixed_dofs=self._fixed_components(node, points),
             frame_nodes=frame_nodes if rotation == "large" else None,
             loads=self._loads(node, points),
+            projections=self._projections(node, points),
             gravity=tuple(gravity),
             rayleigh_mass=rayleigh[0],
             rayleigh_stiffness=rayleigh[1],
             **mass_kwargs,
         )
         return body, mesh, solver_kind
+
+    def _hyperelastic(self, fem: SceneObject) -> Material:
+        """SOFA's TetrahedronHyperelasticityFEMForceField: ``materialName`` (SOFA's default
+        is ArrudaBoyce) and ``ParameterSet``. SOFA's NeoHookean is Bonet and Wood's
+        compressible law, psi = mu/2 (tr C - 3) - mu ln J + lambda/2 (ln J)^2, with
+        ParameterSet = "mu lambda" (the Lame parameters): Pliant's NeoHookean, given the same
+        mu and lambda through E = mu (3 lambda + 2 mu) / (lambda + mu), nu = lambda / (2
+        (lambda + mu))."""
+        name = str(fem.attrs.get("materialName", "ArrudaBoyce"))
+        if name not in HYPERELASTIC_MATERIALS:
+            raise SceneError(
+                f"{fem.path}: materialName {name!r} has no Pliant law (supported:"
+                f" {', '.join(HYPERELASTIC_MATERIALS)}; SOFA's default is ArrudaBoyce)"
+            )
+        wanted = HYPERELASTIC_MATERIALS[name]
+        params = _floats(fem.attrs.get("ParameterSet", ""), f"{fem.path}.ParameterSet")
+        if params.size != len(wanted):
+            raise SceneError(
+                f"{fem.path}.ParameterSet: {name} takes {len(wanted)} values"
+                f" ({' '.join(wanted)}), got {params.size}"
+            )
+        mu, lam = params
+        if not (mu > 0.0 and lam >= 0.0):
+            raise SceneError(f"{fem.path}.ParameterSet: mu > 0 and lambda >= 0, got {mu}, {lam}")
+        return NeoHookean(mu * (3.0 * lam + 2.0 * mu) / (lam + mu), lam / (2.0 * (lam + mu)))
 
     def _mesh_loader(self, node: SceneNode) -> SceneObject:
         """The loader the body's topology reads (``src="@loader"``), or the node's only one."""
@@ -557,8 +623,24 @@ class _Builder:
         return loader
 
     def _link(self, node: SceneNode, link: str) -> SceneObject | None:
-        """The component a link such as ``@loader``, ``@boxROI.indices``, ``@../loader`` names."""
-        target = link.strip().lstrip("@").split("/")[-1].split(".")[0]
+        """The component a link such as ``@loader``, ``@boxROI.indices``, ``@../loader`` or
+        ``@../../goal/goalMO.position`` names: by its path from `node` (or from the root for
+        ``@/...``) where the path leads to it, else by its name here or in an ancestor."""
+        path = link.strip().lstrip("@")
+        parts = path.split("/")
+        target = parts[-1].split(".")[0]
+        at: SceneNode | None = self.root if path.startswith("/") else node
+        for part in parts[:-1]:
+            if at is None:
+                break
+            if part == "..":
+                at = at.parent
+            elif part not in ("", "."):
+                at = next((c for c in at.children if c.name == part), None)
+        if at is not None and len(parts) > 1:
+            found = next((o for o in at.objects if o.name == target), None)
+            if found is not None:
+                return found
         return node.find(target)
 
     def _loaded(self, loader: SceneObject) -> tuple[np.ndarray, dict[str, np.ndarray]]:
@@ -671,6 +753,30 @@ class _Builder:
                 axes = _floats(obj.attrs.get("fixedDirections", "1 1 1"), f"{obj.path}")
                 dofs.append(fixed_components(idx, tuple(bool(a) for a in axes)))
         return np.concatenate(dofs)
+
+    def _projections(self, node: SceneNode, points: np.ndarray) -> list[Projection]:
+        """ProjectToPlane/LineConstraint: nodes that slide on the plane through `origin` with
+        `normal`, or on the line through it along `direction`. SOFA moves a node that is off
+        it there at the start; Pliant asks for a mesh whose nodes lie on it."""
+        found: list[Projection] = []
+        size = float(np.linalg.norm(np.ptp(points, axis=0)))
+        for obj in node.objects:
+            if obj.type not in PROJECTIONS:
+                continue
+            key, kind = PROJECTIONS[obj.type]
+            idx = self._indices(node, obj, "indices", points)
+            if idx is None:
+                raise SceneError(f"{obj.path}: no indices")
+            default = "0 0 1" if key == "normal" else "1 0 0"
+            axis = _floats(obj.attrs.get(key, default), f"{obj.path}.{key}")
+            origin = _floats(obj.attrs.get("origin", "0 0 0"), f"{obj.path}.origin")
+            try:
+                projection = kind(idx, axis)
+                projection.check_on(points, origin, tolerance=1e-9 * size)
+            except ModelError as exc:
+                raise SceneError(f"{obj.path}: {exc}") from exc
+            found.append(projection)
+        return found
 
     def _loads(self, node: SceneNode, points: np.ndarray) -> list[Load]:
         loads: list[Load] = []

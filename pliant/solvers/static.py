@@ -70,7 +70,10 @@ class StaticSolver:
                 f"{model.name} has rigid bodies: the static solver cannot balance them (a body on"
                 " contacts is singular without inertia); use ImplicitEuler"
             )
-        if np.all(model.body.free_index >= 0) and not getattr(model.body, "loads", None):
+        held_otherwise = getattr(model.body, "loads", None) or getattr(
+            model.body, "projections", None
+        )
+        if np.all(model.body.free_index >= 0) and not held_otherwise:
             raise ModelError(
                 f"{model.name}'s body holds no node: its stiffness is singular (rigid motions"
                 " cost no energy), so it has no unique static equilibrium; give it fixed nodes"

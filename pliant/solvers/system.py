@@ -16,6 +16,11 @@ Three policies:
 
 The static solver uses "fresh" by default: its Newton iterations then converge quadratically.
 
+A body with nodes held on lines or planes (``TetBody(projections=...)``) has its system
+projected: A is replaced by P A P + s (I - P) and each solve by P A^-1 P
+(:mod:`pliant.fem.supports`), so every increment, and every column of the constraints'
+compliance, moves those nodes only along their lines and planes.
+
 A factorisation may run in the background (``prepare(..., background=True)``): CHOLMOD
 releases the GIL, so on a small body (one compiled thread) the step detects its contacts and
 builds its constraint rows on the other core meanwhile; the first solve waits for it.
@@ -96,6 +101,8 @@ class LinearisedSystem:
         self._extra_pattern = extra_pattern
         self._merged = None if extra_pattern is None else _merge(body.pattern, *extra_pattern)
         self._pending: Future | None = None  # a background factorisation
+        self._projection = getattr(body, "projection", None)
+        self._shift = 1.0  # s of P A P + s (I - P)
 
     def invalidate(self) -> None:
         """Forget the factorisation (after a state restore, to stay reproducible)."""
@@ -160,15 +167,37 @@ class LinearisedSystem:
         body = self.body
         data = self.stiffness_coef * body.stiffness_data(self.lin, exact=exact)
         data += self.mass_coef * body.mass_data
-        if self._merged is None:
-            return data
-        _, indices, body_slots, extra_slots = self._merged
-        merged = np.zeros(indices.size)
-        merged[body_slots] = data
-        merged += self.stiffness_coef * np.bincount(
-            extra_slots, weights=self.extra, minlength=indices.size
-        )
-        return merged
+        if self._merged is not None:
+            _, indices, body_slots, extra_slots = self._merged
+            merged = np.zeros(indices.size)
+            merged[body_slots] = data
+            merged += self.stiffness_coef * np.bincount(
+                extra_slots, weights=self.extra, minlength=indices.size
+            )
+            data = merged
+        return data if self._projection is None else self._project(data)
+
+    def _pattern_arrays(self) -> tuple[np.ndarray, np.ndarray]:
+        pattern = self.body.pattern
+        return (pattern.indptr, pattern.indices) if self._merged is None else self._merged[:2]
+
+    def _project(self, data: np.ndarray) -> np.ndarray:
+        """P A P + s (I - P) on A's own pattern (P is block-diagonal by node, so the product
+        stays in it), with s the mean magnitude of A's diagonal."""
+        indptr, indices = self._pattern_arrays()
+        n, p = self.body.n_free, self._projection
+        a = sp.csr_matrix((data, indices, indptr), shape=(n, n))
+        self._shift = float(np.mean(np.abs(a.diagonal()))) or 1.0
+        projected = (p @ a @ p + self._shift * (sp.identity(n, format="csr") - p)).tocoo()
+        rows = np.repeat(np.arange(n), np.diff(indptr)).astype(np.int64)
+        keys = rows * n + indices
+        wanted = projected.row.astype(np.int64) * n + projected.col
+        slots = np.searchsorted(keys, wanted)
+        inside = slots < keys.size
+        inside[inside] = keys[slots[inside]] == wanted[inside]
+        if not np.all(inside | (projected.data == 0.0)):
+            raise SolverError("the projected system left its sparsity pattern")
+        return np.bincount(slots[inside], weights=projected.data[inside], minlength=keys.size)
 
     def _wait(self) -> None:
         """Finish a background factorisation, raising its error here."""
@@ -182,15 +211,19 @@ class LinearisedSystem:
 
     def _factorise(self, data: np.ndarray) -> None:
         if self._cholesky is None:
-            pattern = self.body.pattern
-            indptr, indices = (
-                (pattern.indptr, pattern.indices) if self._merged is None else self._merged[:2]
-            )
-            self._cholesky = sparse_cholesky(indptr, indices)
+            self._cholesky = sparse_cholesky(*self._pattern_arrays())
         self._cholesky.factorize(data)
 
     def apply(self, u: np.ndarray) -> np.ndarray:
-        """A u with the current tangent (matrix-free)."""
+        """A u with the current tangent (matrix-free; projected where the body has lines and
+        planes)."""
+        if self._projection is None:
+            return self._apply(u)
+        p = self._projection
+        pu = p @ u
+        return p @ self._apply(pu) + self._shift * (u - pu)
+
+    def _apply(self, u: np.ndarray) -> np.ndarray:
         exact = self.exact_tangent and not self.last_fallback
         out = self.stiffness_coef * self.body.stiffness_matvec(self.lin, u, exact=exact)
         if self._merged is not None:
@@ -203,7 +236,14 @@ class LinearisedSystem:
         return out
 
     def solve(self, rhs: np.ndarray) -> np.ndarray:
-        """A^-1 rhs for rhs (n_free,) or (n_free, k)."""
+        """A^-1 rhs for rhs (n_free,) or (n_free, k); P A^-1 P rhs where the body has nodes
+        on lines and planes."""
+        if self._projection is None:
+            return self._solve(rhs)
+        p = self._projection
+        return p @ self._solve(p @ rhs)
+
+    def _solve(self, rhs: np.ndarray) -> np.ndarray:
         self._wait()
         if self._fresh or self.policy == "lagged":
             self.last_iterations = 0
