@@ -43,8 +43,10 @@ pneunet_state, pneunet_rows = sweep(pneunet, lambda s: np.array([30.0 * s]), n_s
 
 for name, rows in (("finger", finger_rows), ("pneunet", pneunet_rows)):
     u, dx, _, dz, force, delta = rows[-1]
-    print(f"{name}: command {u:.1f}, tip moved ({dx:.1f}, {dz:.1f}) mm (x, z),"
-          f" lambda {force:.1f}, delta {delta:.1f}")
+    print(
+        f"{name}: command {u:.1f}, tip moved ({dx:.1f}, {dz:.1f}) mm (x, z),"
+        f" lambda {force:.1f}, delta {delta:.1f}"
+    )
 
 fig = offscreen_figure(10.0, 7.0)
 for col, (model, state, rows, what) in enumerate(
