@@ -15,3 +15,11 @@ def out(name: str) -> Path:
     path = OUT / "tutorials" / name
     path.parent.mkdir(parents=True, exist_ok=True)
     return path
+
+
+def save_figure(fig, name: str) -> Path:
+    """Write a Matplotlib figure as a PNG under the tutorials' pictures."""
+    path = out(name)
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+    return path

@@ -86,9 +86,12 @@ def run(
     ] = 30,
     out: Annotated[Path, typer.Option(help="output folder", callback=output_folder)] = Path("out"),
     mesh_dir: Annotated[list[Path], typer.Option(help="where a scene's meshes are")] = [],  # noqa: B006
+    states: Annotated[
+        bool, typer.Option(help="also save the state at each frame (states/, for pliant view)")
+    ] = False,
 ) -> None:
     """Simulate ROBOT (or a SOFA .scn / .py scene, under its commands) under its scripted
-    actuation; save a GIF, a PNG and a VTU time series."""
+    actuation; save a GIF, a PNG and a VTU time series (and the states, with --states)."""
     from pliant.scenario import scripted
     from pliant.viz import VtuSeriesWriter, save_gif, save_png
     from pliant.viz.model_view import RobotCamera
@@ -113,6 +116,11 @@ def run(
     state = start = model.rest_state()
     cell_type, cells, rows = model.body.vtk_cells()
     rest = model.body.rest_positions[rows]
+    if states:
+        from pliant.viz.viewer import SERIES_FILE
+
+        (folder / "states").mkdir(parents=True, exist_ok=True)
+        (folder / "states" / SERIES_FILE).write_text(json.dumps({"robot": robot, "dt": dt}))
     with (
         VtuSeriesWriter(folder, robot, cells, cell_type) as vtu,
         Progress(console=console) as bar,
@@ -130,6 +138,8 @@ def run(
                         "velocity": state.velocities[rows],
                     },
                 )
+                if states:
+                    state.save(folder / "states" / f"state_{state.step:06d}.npz")
     gif = save_gif(images, folder / f"{robot}.gif", fps=15)
     png = save_png(images[-1], folder / f"{robot}.png")
     console.print(
@@ -334,7 +344,8 @@ def view(
         str,
         typer.Argument(
             help="a robot (live, sliders and a draggable goal), an environment id"
-            " (pliant/Name-v0: an episode) or a folder `pliant run` wrote (playback)"
+            " (pliant/Name-v0: an episode), a folder `pliant run` wrote or saved states"
+            " (.npz file or folder) (playback)"
         ),
     ],
     port: Annotated[int, typer.Option(help="port (the next free one if taken)")] = 8080,
@@ -343,13 +354,16 @@ def view(
     policy: Annotated[
         Path | None, typer.Option(help="a Stable-Baselines3 model (.zip) to act in an environment")
     ] = None,
+    robot: Annotated[
+        str | None, typer.Option(help="the robot of saved states (default: their series.json)")
+    ] = None,
 ) -> None:
     """Open ROBOT, ENV or RUN_DIR in the browser (viser): the simulation live, actuators on
     sliders, a goal to drag for inverse control, play/pause/step/reset, playback of a run."""
     from pliant.viz.viewer import ViewerError, open_viewer
 
     try:
-        viewer = open_viewer(target, host=host, port=port, dt=dt, policy=policy)
+        viewer = open_viewer(target, host=host, port=port, dt=dt, policy=policy, robot=robot)
     except ViewerError as exc:  # nothing to show: a usage error, before any server starts
         raise typer.BadParameter(str(exc), param_hint="TARGET") from exc
     console.print(f"Pliant viewer of {target}: {viewer.url}  (Ctrl-C to stop)")

@@ -39,7 +39,13 @@ def test_site_builds_strictly(tmp_path):
 
 @pytest.mark.parametrize("script", TUTORIALS, ids=lambda p: p.stem)
 def test_tutorial_runs(script, tmp_path):
-    env = {**os.environ, "PLIANT_TUTORIAL_QUICK": "1", "PLIANT_TUTORIAL_OUT": str(tmp_path)}
+    path = os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")])  # this checkout's pliant
+    env = {
+        **os.environ,
+        "PYTHONPATH": path,
+        "PLIANT_TUTORIAL_QUICK": "1",
+        "PLIANT_TUTORIAL_OUT": str(tmp_path),
+    }
     result = subprocess.run(
         [sys.executable, str(script)], cwd=ROOT, capture_output=True, text=True, env=env
     )

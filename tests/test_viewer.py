@@ -14,7 +14,13 @@ import pytest
 from typer.testing import CliRunner
 
 from pliant.cli import app
-from pliant.viz.viewer import PlaybackViewer, ViewerError, free_port, open_viewer
+from pliant.viz.viewer import (
+    PlaybackViewer,
+    StatePlaybackViewer,
+    ViewerError,
+    free_port,
+    open_viewer,
+)
 
 CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
 playwright = pytest.importorskip("playwright.sync_api", reason="playwright not installed")
@@ -98,7 +104,9 @@ def test_taken_port_moves_to_the_next_free_one():
 
 def test_playback_of_a_run_folder(tmp_path):
     result = CliRunner().invoke(
-        app, ["run", "diamond", "--duration", "0.03", "--frames", "3", "--out", str(tmp_path)]
+        app,
+        ["run", "diamond", "--duration", "0.03", "--frames", "3", "--out", str(tmp_path)]
+        + ["--states"],
     )
     assert result.exit_code == 0, result.output
     v = PlaybackViewer(tmp_path / "diamond", port=free_port(8830))
@@ -110,3 +118,24 @@ def test_playback_of_a_run_folder(tmp_path):
         v.stop()
     with pytest.raises(ViewerError, match="no ParaView series"):
         PlaybackViewer(tmp_path)
+
+    # The saved states play back on the model (named by states/series.json), in time order.
+    v = open_viewer(str(tmp_path / "diamond"), port=free_port(8840), playing=False)
+    try:
+        assert isinstance(v, StatePlaybackViewer) and [s.step for s in v.states] == [1, 2, 3]
+        v.slider.value = 2
+        assert v.frame == 2 and "step 3" in v.label.content
+        v.playing = True
+        v.advance()  # the last frame: playing stops there
+        assert not v.playing and v.frame == 2
+        v.reset()
+        assert v.frame == 0
+    finally:
+        v.stop()
+    one = tmp_path / "diamond" / "states" / "state_000002.npz"
+    with pytest.raises(ViewerError, match="give --robot"):
+        open_viewer(str(one.rename(tmp_path / "one.npz")))
+    v = open_viewer(str(tmp_path / "one.npz"), robot="diamond", port=free_port(8850))
+    v.stop()
+    with pytest.raises(ViewerError, match="does not fit|not fit|nodes"):
+        open_viewer(str(tmp_path / "one.npz"), robot="trunk", port=free_port(8850))

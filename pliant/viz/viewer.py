@@ -9,14 +9,17 @@ Three sources:
   SoftRobots.Inverse experience); play, pause, step and reset;
 * an environment (:class:`EnvironmentViewer`): an episode with random actions or a trained
   Stable-Baselines3 policy; play, pause, step and reset;
-* a saved run (:class:`PlaybackViewer`): the ParaView series ``pliant run`` writes (a folder
-  with a ``.pvd``), with a time slider.
+* a saved run: the ParaView series ``pliant run`` writes (a folder with a ``.pvd``,
+  :class:`PlaybackViewer`), or a series of saved states (``State.save`` files, which
+  ``pliant run --states`` writes, :class:`StatePlaybackViewer`: drawn with the model, so cables,
+  effectors and rigid bodies too), with a time slider and play, step and reset.
 
 Scenes are in mm; the viewer shows them in metres (three.js' camera and grid expect it).
 """
 
 from __future__ import annotations
 
+import json
 import socket
 import threading
 import time
@@ -27,8 +30,8 @@ import numpy as np
 
 from pliant.constraints.cable import CableActuator
 from pliant.constraints.control import InverseControl
-from pliant.errors import PliantError
-from pliant.model import Model
+from pliant.errors import PliantError, StateError
+from pliant.model import Model, State
 from pliant.viz.shapes import shape_surface
 
 #: mm -> m for display.
@@ -40,6 +43,10 @@ RIGID_RGB = (224, 148, 74)
 
 class ViewerError(PliantError, ValueError):
     """The viewer cannot show what it was given (unknown name, unreadable run folder)."""
+
+
+#: the file beside a series of states that names the robot they belong to.
+SERIES_FILE = "series.json"
 
 
 def free_port(preferred: int, host: str = "127.0.0.1", tries: int = 50) -> int:
@@ -380,6 +387,79 @@ class PlaybackViewer:
         self.server.stop()
 
 
+def state_files(target: Path) -> list[Path]:
+    """The state files of `target`: itself (an ``.npz``), the ``.npz`` files of a folder, or
+    those of its ``states/`` folder (a ``pliant run --states`` folder); [] if none."""
+    target = Path(target)
+    if target.is_file():
+        return [target] if target.suffix == ".npz" else []
+    for folder in (target / "states", target):
+        files = sorted(folder.glob("*.npz")) if folder.is_dir() else []
+        if files:
+            return files
+    return []
+
+
+def read_states(files: list[Path], model: Model) -> list[State]:
+    """The states in `files`, checked against `model`, in the order of their time."""
+    try:
+        states = [State.load(f, model) for f in files]
+    except StateError as exc:
+        raise ViewerError(str(exc)) from None
+    return sorted(states, key=lambda s: (s.time, s.step))
+
+
+def series_robot(files: list[Path]) -> str | None:
+    """The robot named by the ``series.json`` beside the state files, if there is one."""
+    sidecar = files[0].parent / SERIES_FILE
+    if not sidecar.is_file():
+        return None
+    try:
+        return str(json.loads(sidecar.read_text())["robot"])
+    except (OSError, ValueError, KeyError, TypeError) as exc:
+        raise ViewerError(f"{sidecar}: not a readable series description ({exc})") from None
+
+
+class StatePlaybackViewer(_Viewer):
+    """A series of saved states of `model`, played back with a time slider (and play, step,
+    reset); each frame is drawn as a live one is: body, cables, effectors, rigid bodies."""
+
+    def __init__(
+        self, model: Model, states: list[State], *, host: str = "127.0.0.1", port: int = 8080
+    ) -> None:
+        if not states:
+            raise ViewerError("no state to play back")
+        super().__init__(model, host=host, port=port)
+        self.states = states
+        self.times = [s.time for s in states]
+        self.frame = 0
+        self._playback_buttons()
+        self.slider = self.server.gui.add_slider(
+            "frame", min=0, max=max(1, len(states) - 1), step=1, initial_value=0
+        )
+        self.label = self.server.gui.add_markdown("")
+        self.slider.on_update(lambda _e: self.show_frame(int(self.slider.value)))
+        self.show_frame(0)
+
+    def show_frame(self, k: int) -> None:
+        self.frame = min(max(k, 0), len(self.states) - 1)
+        state = self.states[self.frame]
+        self.label.content = f"t = {state.time:.3f} s (step {state.step})"
+        self.show(state)
+
+    def advance(self) -> None:
+        """The next frame (a playing series stops at its end)."""
+        if self.frame + 1 >= len(self.states):
+            self.playing = False
+            return
+        self.slider.value = self.frame + 1  # its callback draws the frame
+        self.steps += 1
+        time.sleep(0.05)
+
+    def reset(self) -> None:
+        self.slider.value = 0
+
+
 def load_policy(path: Path):
     """``obs -> action`` of a Stable-Baselines3 model saved by ``model.save`` (any algorithm)."""
     import stable_baselines3 as sb3
@@ -404,9 +484,13 @@ def open_viewer(
     dt: float = 0.01,
     policy: Path | None = None,
     playing: bool = True,
+    robot: str | None = None,
 ):
-    """The viewer of a robot name, an environment id or a run folder (checked before any server
-    starts)."""
+    """The viewer of a robot name, an environment id, a run folder or saved states (checked
+    before any server starts).
+
+    Saved states (an ``.npz`` file, a folder of them, or a run folder with ``states/``) are
+    drawn with the model of `robot`, by default the one their ``series.json`` names."""
     from pliant import robots
     from pliant.solvers import ImplicitEuler
 
@@ -424,9 +508,20 @@ def open_viewer(
         return EnvironmentViewer(
             envs.make(env_id), policy=act, host=host, port=port, playing=playing
         )
+    files = state_files(Path(target))
+    if files:
+        name = robot or series_robot(files)
+        if name not in robots.ROBOTS:
+            raise ViewerError(
+                f"{target}: saved states need their robot: give --robot"
+                f" ({', '.join(sorted(robots.ROBOTS))})"
+                + ("" if name is None else f", not {name!r}")
+            )
+        model = robots.build(name)
+        return StatePlaybackViewer(model, read_states(files, model), host=host, port=port)
     if Path(target).is_dir():
         return PlaybackViewer(Path(target), host=host, port=port)
     raise ViewerError(
         f"{target!r} is not a robot ({', '.join(sorted(robots.ROBOTS))}), an environment"
-        f" ({', '.join(sorted(names))}) or a folder of a run"
+        f" ({', '.join(sorted(names))}), a folder of a run or saved states (.npz)"
     )
