@@ -544,19 +544,28 @@ def _print_table(results: list[Measurement], console: Console) -> None:
     policies = ("pcg", "lagged", "fresh", "sofa-algorithm")
     for col in ("scene", "tets", "SOFA", "pcg (exact)", "lagged", "fresh", "SOFA's algorithm"):
         table.add_column(col, justify="right")
-    table.add_column("best / SOFA", justify="right")
+    for col in ("default / SOFA", "exact / SOFA", "default error after 1 s"):
+        table.add_column(col, justify="right")
     scenes = dict.fromkeys(m.scene for m in results)
     for scene in scenes:
         ms = {m.policy: m for m in results if m.scene == scene}
         any_m = next(iter(ms.values()))
-        best = max(m.steps_per_s for m in ms.values())
         cells = [f"{ms[p].steps_per_s:.1f}" if p in ms else "-" for p in policies]
+        sofa = any_m.sofa
+        exact = max((ms[p].steps_per_s for p in ("pcg", "fresh") if p in ms), default=None)
+        error = next(
+            (m.extra["default_error"] for m in ms.values() if "default_error" in m.extra), None
+        )
         table.add_row(
             scene,
             str(any_m.tets),
-            f"{any_m.sofa}" if any_m.sofa else "-",
+            f"{sofa}" if sofa else "-",
             *cells,
-            f"{best / any_m.sofa:.1f}x" if any_m.sofa else "-",
+            f"{ms['lagged'].steps_per_s / sofa:.1f}x" if sofa and "lagged" in ms else "-",
+            f"{exact / sofa:.1f}x" if sofa and exact else "-",
+            f"{error['error_end_mm']:.3g} mm ({error['error_end_percent_of_motion']:.2g} %)"
+            if error
+            else "-",
         )
     console.print(table)
     for scene in scenes:
