@@ -228,6 +228,61 @@ def test_ray_actors_exit_when_their_driver_is_killed() -> None:
         cluster.wait(timeout=60)
 
 
+# A learner whose two environment workers are in a long step (a FEM step under load can take
+# seconds): they notice a dead learner only at their next message, unless they watch it.
+SLOW_LEARNER = """
+import os, time
+import gymnasium as gym
+import numpy as np
+from pliant.learn.vec import RestartingSubprocVecEnv
+
+class Slow(gym.Env):
+    observation_space = gym.spaces.Box(-1.0, 1.0, (1,))
+    action_space = gym.spaces.Box(-1.0, 1.0, (1,))
+
+    def reset(self, seed=None, options=None):
+        return np.zeros(1, np.float32), {}
+
+    def step(self, action):
+        time.sleep(120)
+        return np.zeros(1, np.float32), 0.0, False, False, {}
+
+venv = RestartingSubprocVecEnv([Slow, Slow])
+venv.reset()
+venv.step_async(np.zeros((2, 1)))
+print("WORKERS", *[p.pid for p in venv.processes], flush=True)
+time.sleep(600)
+"""
+
+
+@pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="reads /proc")
+def test_environment_workers_in_a_long_step_exit_when_their_learner_is_killed() -> None:
+    path = os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")])
+    learner = subprocess.Popen(
+        [sys.executable, "-c", SLOW_LEARNER],
+        cwd=ROOT,
+        env={**os.environ, "PYTHONPATH": path},
+        stdout=subprocess.PIPE,
+        text=True,
+    )
+    workers: list[int] = []
+    try:
+        workers = [int(pid) for pid in _line(learner, "WORKERS", 60)]
+        time.sleep(0.5)  # into their step
+        os.kill(learner.pid, signal.SIGKILL)
+        learner.wait(timeout=30)
+        deadline = time.monotonic() + 5  # the watchdog polls twice a second
+        while any(_alive(pid) for pid in workers) and time.monotonic() < deadline:
+            time.sleep(0.1)
+        assert not [pid for pid in workers if _alive(pid)], "workers outlived their learner"
+    finally:
+        for pid in workers:
+            if _alive(pid):
+                os.kill(pid, signal.SIGKILL)
+        if learner.poll() is None:
+            learner.kill()
+
+
 def test_the_watchdog_tells_its_driver_from_a_process_that_reuses_its_id() -> None:
     ended = subprocess.Popen([sys.executable, "-c", "pass"])
     ended.wait()

@@ -370,6 +370,14 @@ USAGE_ERRORS = [
     ["condensed", "design", "{file}", "--weights", "1,2,3"],
     ["condensed", "calibrate", "{file}", "--truth", "poisson_ratio=abc", "--start", "x=1"],
     ["nosuch"],
+    ["reduce", "diamond", "--pod-tolerance", "2", "--out", "{folder}"],
+    ["trajopt", "diamond", "--horizon", "-1", "--out", "{folder}"],
+    ["trajopt", "diamond", "--backend", "torch", "--out", "{folder}"],
+    ["trajopt", "diamond-mpc", "--steps", "0", "--out", "{folder}"],
+    ["proxy", "calibrate", "multigait", "--trials", "0", "--out", "{folder}"],
+    ["proxy", "calibrate", "octopus", "--out", "{folder}"],
+    ["graph", "train", "nosuch", "--out", "{folder}"],
+    ["graph", "train", "Corridor", "--config", "{file}", "--out", "{folder}"],
 ]
 
 RUNTIME_ERRORS = [
