@@ -575,3 +575,36 @@ def test_a_static_step_whose_feedback_control_diverges_holds_the_start() -> None
     assert solver.last_report.held
     np.testing.assert_allclose(state.positions, start.positions, atol=1e-6)
     np.testing.assert_allclose(state.displacement, start.displacement, atol=1e-9)
+
+
+@pytest.mark.parametrize(
+    ("option", "named"),
+    [
+        (["--env-kwarg", "bogus=3"], "bogus"),
+        (["--hyper", "batch_size=abc"], "batch_size"),
+        (["--hyper", "learning_rate=-1"], "learning_rate"),
+    ],
+)
+def test_training_options_refused_by_the_environment_or_sb3_are_named(
+    option, named, tmp_path
+) -> None:
+    """The re-run of issue 22 found these: a worker's traceback and 'Connection reset by
+    peer' for an unknown environment keyword, 'unexpected TypeError/ValueError' for SB3's."""
+    args = ["train", "pliant-test/PointReach-v0", *option, "--steps", "64"]
+    result = runner.invoke(app, [*args, "--out", str(tmp_path / "run")])
+    lines = [line for line in result.output.splitlines() if line.strip()]
+    assert result.exit_code == 1 and "Traceback" not in result.output, result.output
+    assert lines[-1].startswith("error: ") and named in lines[-1] and "bug" not in lines[-1]
+
+
+def test_a_bad_environment_action_is_a_pliant_error_and_gymnasiums() -> None:
+    import gymnasium as gym
+
+    from pliant.envs import make
+
+    env = make("pliant/Diamond-v0")
+    env.reset(seed=0)
+    for action in (np.nan, "left", np.zeros(3)):
+        with pytest.raises(PliantError) as info:
+            env.step(action)
+        assert isinstance(info.value, gym.error.InvalidAction)

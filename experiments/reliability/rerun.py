@@ -169,6 +169,39 @@ def class1() -> None:
         )
 
 
+def class1_more() -> None:
+    api(
+        1,
+        "an environment restored from another environment's state",
+        """
+        from pliant.envs import make
+        d, t = make("pliant/Diamond-v0"), make("pliant/Trunk-v0")
+        d.reset(seed=0); t.reset(seed=0)
+        report(lambda: d.unwrapped.set_state(t.unwrapped.get_state()))
+    """,
+    )
+
+
+def class2_more() -> None:
+    api(
+        2,
+        "an environment action of NaN, text, or the wrong shape",
+        """
+        from pliant.envs import make
+        env = make("pliant/Diamond-v0"); env.reset(seed=1)
+        def call():
+            for action in (float("nan"), "up", np.zeros(2)):
+                try:
+                    env.step(action)
+                except PliantError:
+                    continue
+                raise AssertionError(f"{action!r} accepted")
+        report(call)
+    """,
+        expect="ok",
+    )
+
+
 def class2() -> None:
     api(
         2,
@@ -283,6 +316,9 @@ def class3() -> None:
     cli(3, "plan of an unknown env", ["plan", "pliant/Nosuch-v0"], 2)
     cli(3, "train of an unknown algo", ["train", "pliant/Diamond-v0", "--algo", "XYZ"], 2)
     cli(3, "eval of a missing run", ["eval", str(TMP / "norun")], 1)
+    toy = ["train", "pliant-test/PointReach-v0", "--steps", "64"]
+    for option in (["--env-kwarg", "bogus=3"], ["--hyper", "batch_size=abc"]):
+        cli(3, f"train {' '.join(option)}", [*toy, *option, "--out", str(TMP / "t")], 1)
     cli(
         3,
         "reduce --pod-tolerance 2",
@@ -791,6 +827,8 @@ if __name__ == "__main__":
     chosen = [int(a) for a in sys.argv[1:]] or list(range(1, 11))
     for k in chosen:
         globals()[f"class{k}"]()
+        if f"class{k}_more" in globals():
+            globals()[f"class{k}_more"]()
     fails = [r for r in RESULTS if not r[2]]
     print(f"\n{len(RESULTS)} cases, {len(RESULTS) - len(fails)} pass, {len(fails)} fail")
     for cls, name, _, detail in fails:
