@@ -230,9 +230,7 @@ class SoftRobotEnv(gym.Env):
             )
         a = a.astype(float)
         if a.shape != space.shape:
-            raise ActionError(
-                f"{self.name}: action shape must be {space.shape}, got {a.shape}"
-            )
+            raise ActionError(f"{self.name}: action shape must be {space.shape}, got {a.shape}")
         if not np.all(np.isfinite(a)):
             raise ActionError(f"{self.name}: action must be finite, got {a}")
         return np.clip(a, space.low, space.high)
