@@ -118,6 +118,8 @@ positive = _check(lambda v: math.isfinite(v) and v > 0, "finite and > 0")
 non_negative = _check(lambda v: math.isfinite(v) and v >= 0, "finite and >= 0")
 at_least_one = _check(lambda v: v >= 1, ">= 1")
 finite = _check(math.isfinite, "finite")
+open_fraction = _check(lambda v: math.isfinite(v) and 0 < v < 1, "in (0, 1)")
+fraction = _check(lambda v: math.isfinite(v) and 0 < v <= 1, "in (0, 1]")
 
 
 def one_of(*names: str) -> Callable:

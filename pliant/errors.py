@@ -73,6 +73,11 @@ class UnreachableGoalWarning(UserWarning):
     bounds: the actuation applied is the closest reachable one (least squares)."""
 
 
+class InverseConvergenceWarning(UserWarning):
+    """A static step's feedback control (inverse control) and the equilibrium did not converge
+    together: the actuators were held where the last iteration put them, a best effort."""
+
+
 class DivergenceError(PliantError, RuntimeError):
     """The simulation diverged: non-finite state, inverted elements, energy blow-up.
 

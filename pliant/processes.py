@@ -7,27 +7,107 @@ thread polls :func:`os.getppid`, which changes when the parent dies (the orphan 
 init or a subreaper), and ends the worker at once. Polling, not Linux's PR_SET_PDEATHSIG,
 which fires when the parent *thread* that started the worker ends, and pools start workers
 from helper threads.
+
+A Ray actor is not a child of the driver that created it (the node's raylet starts it), so it
+watches the driver by identity instead: :func:`driver_identity` in the driver, passed to the
+actor, and :func:`exit_with_process` there. Ray also ends a dead driver's actors itself (its
+job is marked finished); the watchdog makes that independent of the cluster's bookkeeping,
+covers detached actors, and ends them even if the cluster cannot tell.
 """
 
 from __future__ import annotations
 
 import os
+import socket
 import threading
 import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
 
 ORPHAN_EXIT = 70  # exit status of a worker whose parent died (EX_SOFTWARE)
+_watched: set[ProcessIdentity] = set()  # one watchdog per process watched (reused Tune actors)
+
+
+def _watch(alive: Callable[[], bool], interval: float) -> None:
+    def watch() -> None:
+        while alive():
+            time.sleep(interval)
+        os._exit(ORPHAN_EXIT)  # no cleanup: the process that would read the results is gone
+
+    threading.Thread(target=watch, name="parent-watchdog", daemon=True).start()
 
 
 def exit_with_parent(parent: int, interval: float = 0.5) -> None:
     """End this process within `interval` seconds once `parent` is no longer its parent.
 
     Use as a pool's initializer: ``ProcessPoolExecutor(initializer=exit_with_parent,
-    initargs=(os.getpid(),))`` (a Ray actor or an environment worker calls it first thing).
+    initargs=(os.getpid(),))`` (an environment worker calls it first thing; a Ray actor uses
+    :func:`exit_with_process`).
     """
+    _watch(lambda: os.getppid() == parent, interval)
 
-    def watch() -> None:
-        while os.getppid() == parent:
-            time.sleep(interval)
-        os._exit(ORPHAN_EXIT)  # no cleanup: the parent that would read the results is gone
 
-    threading.Thread(target=watch, name="parent-watchdog", daemon=True).start()
+@dataclass(frozen=True)
+class ProcessIdentity:
+    """A process told apart from a later one that reuses its id: the machine (its boot id, or
+    its host name where there is no /proc), the pid and the start time (clock ticks since
+    boot; None where there is no /proc)."""
+
+    machine: str
+    pid: int
+    start: int | None
+
+
+def _machine() -> str:
+    try:
+        return Path("/proc/sys/kernel/random/boot_id").read_text().strip()
+    except OSError:
+        return socket.gethostname()
+
+
+def _start_time(pid: int) -> tuple[int, str] | None:
+    """(start time, state) of `pid` from /proc, or None where it cannot be read."""
+    try:
+        fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+    except (OSError, IndexError):
+        return None
+    return int(fields[19]), fields[0]  # stat fields 22 (starttime) and 3 (state)
+
+
+def driver_identity(pid: int | None = None) -> ProcessIdentity:
+    """The identity of process `pid` (this one by default), to hand to a worker that is not
+    its child (a Ray actor) so that it can :func:`exit_with_process` it."""
+    pid = os.getpid() if pid is None else pid
+    found = _start_time(pid)
+    return ProcessIdentity(_machine(), pid, None if found is None else found[0])
+
+
+def is_running(identity: ProcessIdentity) -> bool:
+    """Whether the process `identity` (on this machine) still runs."""
+    if identity.start is not None:
+        found = _start_time(identity.pid)
+        # gone, a zombie (killed, not yet reaped), or another process with a reused id
+        return found is not None and found[1] != "Z" and found[0] == identity.start
+    try:
+        os.kill(identity.pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:  # it exists, under another user
+        return True
+    return True
+
+
+def exit_with_process(identity: ProcessIdentity, interval: float = 0.5) -> bool:
+    """End this process within `interval` seconds once the process `identity` has ended.
+
+    A process on another machine cannot be watched: returns False and watches nothing (Ray
+    ends a dead driver's actors on other nodes through its own job bookkeeping). Returns True
+    when the watchdog runs.
+    """
+    if identity.machine != _machine():
+        return False
+    if identity not in _watched:
+        _watched.add(identity)
+        _watch(lambda: is_running(identity), interval)
+    return True

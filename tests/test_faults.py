@@ -24,6 +24,7 @@ import fault_injection  # noqa: E402
 import torch  # noqa: E402
 from typer.testing import CliRunner  # noqa: E402
 
+from pliant import processes  # noqa: E402
 from pliant.cli import app  # noqa: E402
 from pliant.condensed import collect as collection  # noqa: E402
 from pliant.condensed.collect import CorruptChunkWarning, collect, verify  # noqa: E402
@@ -32,6 +33,7 @@ from pliant.condensed.learned import LearnedCondensedModel  # noqa: E402
 from pliant.condensed.networks import StandardisedMLP  # noqa: E402
 from pliant.condensed.train import TrainConfig, fit, train_condensed  # noqa: E402
 from pliant.errors import DatasetError, LearnedModelError, TrainingError  # noqa: E402
+from pliant.processes import driver_identity, exit_with_process  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 # The coarse Finger, cables 0-4 mm: 16 + 4 samples in chunks of 2, a second on one core.
@@ -152,6 +154,145 @@ def test_workers_exit_when_their_parent_is_killed(tmp_path) -> None:
                 os.kill(pid, signal.SIGKILL)
         if child.poll() is None:
             child.kill()
+
+
+# A Ray cluster that outlives the driver (as `ray start` gives), so that its actors end only
+# if the cluster or their own watchdog ends them; SIGTERM shuts it down cleanly.
+RAY_CLUSTER = """
+import signal, sys, time
+import ray
+signal.signal(signal.SIGTERM, lambda *_: sys.exit(0))
+context = ray.init(address="local", num_cpus=3, include_dashboard=False, log_to_driver=False)
+print("ADDRESS", context.address_info["address"], flush=True)
+while True:
+    time.sleep(1)
+"""
+# The driver: two environment actors behind RayVecEnv, and one detached actor, which Ray keeps
+# after its driver's death by design, so that only the watchdog ends it.
+RAY_DRIVER = """
+import os, sys, time
+from functools import partial
+import ray
+from pliant.learn.distributed import EnvWorker, RayVecEnv
+from pliant.learn.vec import make_env
+from pliant.processes import driver_identity
+
+ray.init(address=sys.argv[1], log_to_driver=False)
+factory = partial(make_env, "pliant-test/PointReach-v0")
+venv = RayVecEnv([factory, factory])
+detached = ray.remote(num_cpus=1)(EnvWorker).options(lifetime="detached")
+actors = [*venv.workers, detached.remote(factory, driver_identity())]
+pids = ray.get([a.__ray_call__.remote(lambda worker: os.getpid()) for a in actors])
+print("ACTORS", *pids, flush=True)
+while True:
+    time.sleep(1)
+"""
+
+
+def _line(process: subprocess.Popen, prefix: str, timeout: float) -> list[str]:
+    deadline = time.monotonic() + timeout
+    for line in process.stdout:
+        if line.startswith(prefix):
+            return line.split()[1:]
+        assert time.monotonic() < deadline, f"no {prefix} line in {timeout} s"
+    raise AssertionError(f"the process ended before printing {prefix}")
+
+
+@pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="reads /proc")
+def test_ray_actors_exit_when_their_driver_is_killed() -> None:
+    pytest.importorskip("ray", reason="Ray is not installed (optional extra pliant[ray])")
+    path = os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")])
+    # token authentication would have the driver look for the cluster's token on disk
+    env = {**os.environ, "PYTHONPATH": path, "RAY_AUTH_MODE": "disabled"}
+    run = {"cwd": ROOT, "env": env, "stdout": subprocess.PIPE, "text": True}
+    cluster = subprocess.Popen([sys.executable, "-c", RAY_CLUSTER], **run)
+    driver, actors = None, []
+    try:
+        (address,) = _line(cluster, "ADDRESS", 60)
+        driver = subprocess.Popen([sys.executable, "-c", RAY_DRIVER, address], **run)
+        actors = [int(pid) for pid in _line(driver, "ACTORS", 60)]
+        assert len(actors) == 3 and all(_alive(pid) for pid in actors)
+        os.kill(driver.pid, signal.SIGKILL)
+        driver.wait(timeout=30)
+        deadline = time.monotonic() + 5  # the watchdog polls twice a second
+        while any(_alive(pid) for pid in actors) and time.monotonic() < deadline:
+            time.sleep(0.1)
+        assert not [pid for pid in actors if _alive(pid)], "actors outlived their driver"
+    finally:
+        for pid in actors:  # never leave a stray process behind a failed test
+            if _alive(pid):
+                os.kill(pid, signal.SIGKILL)
+        if driver is not None and driver.poll() is None:
+            driver.kill()
+        cluster.terminate()
+        cluster.wait(timeout=60)
+
+
+# A learner whose two environment workers are in a long step (a FEM step under load can take
+# seconds): they notice a dead learner only at their next message, unless they watch it.
+SLOW_LEARNER = """
+import os, time
+import gymnasium as gym
+import numpy as np
+from pliant.learn.vec import RestartingSubprocVecEnv
+
+class Slow(gym.Env):
+    observation_space = gym.spaces.Box(-1.0, 1.0, (1,))
+    action_space = gym.spaces.Box(-1.0, 1.0, (1,))
+
+    def reset(self, seed=None, options=None):
+        return np.zeros(1, np.float32), {}
+
+    def step(self, action):
+        time.sleep(120)
+        return np.zeros(1, np.float32), 0.0, False, False, {}
+
+venv = RestartingSubprocVecEnv([Slow, Slow])
+venv.reset()
+venv.step_async(np.zeros((2, 1)))
+print("WORKERS", *[p.pid for p in venv.processes], flush=True)
+time.sleep(600)
+"""
+
+
+@pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="reads /proc")
+def test_environment_workers_in_a_long_step_exit_when_their_learner_is_killed() -> None:
+    path = os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")])
+    learner = subprocess.Popen(
+        [sys.executable, "-c", SLOW_LEARNER],
+        cwd=ROOT,
+        env={**os.environ, "PYTHONPATH": path},
+        stdout=subprocess.PIPE,
+        text=True,
+    )
+    workers: list[int] = []
+    try:
+        workers = [int(pid) for pid in _line(learner, "WORKERS", 60)]
+        time.sleep(0.5)  # into their step
+        os.kill(learner.pid, signal.SIGKILL)
+        learner.wait(timeout=30)
+        deadline = time.monotonic() + 5  # the watchdog polls twice a second
+        while any(_alive(pid) for pid in workers) and time.monotonic() < deadline:
+            time.sleep(0.1)
+        assert not [pid for pid in workers if _alive(pid)], "workers outlived their learner"
+    finally:
+        for pid in workers:
+            if _alive(pid):
+                os.kill(pid, signal.SIGKILL)
+        if learner.poll() is None:
+            learner.kill()
+
+
+def test_the_watchdog_tells_its_driver_from_a_process_that_reuses_its_id() -> None:
+    ended = subprocess.Popen([sys.executable, "-c", "pass"])
+    ended.wait()
+    assert not processes.is_running(driver_identity(ended.pid))
+    me = driver_identity()
+    assert processes.is_running(me)
+    if me.start is not None:  # the same pid, started later: another process
+        assert not processes.is_running(dataclasses.replace(me, start=me.start + 1))
+    # a driver on another machine is left to Ray's own bookkeeping
+    assert not exit_with_process(dataclasses.replace(me, machine="another machine"))
 
 
 def _interrupted(out: Path, chunks: int) -> None:

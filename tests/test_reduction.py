@@ -304,4 +304,4 @@ def test_cli_reduces_a_robot_and_reports(tmp_path):
     assert report["max_error_pct_size"] < 0.5
     assert (tmp_path / "finger" / "reduced.npz").exists()
     bad = CliRunner().invoke(app, ["reduce", "finger", "--tau", "1.5", "--out", str(tmp_path)])
-    assert bad.exit_code == 1 and "(0, 1)" in bad.output
+    assert bad.exit_code == 2 and "(0, 1)" in bad.output  # a usage error, before work

@@ -370,6 +370,14 @@ USAGE_ERRORS = [
     ["condensed", "design", "{file}", "--weights", "1,2,3"],
     ["condensed", "calibrate", "{file}", "--truth", "poisson_ratio=abc", "--start", "x=1"],
     ["nosuch"],
+    ["reduce", "diamond", "--pod-tolerance", "2", "--out", "{folder}"],
+    ["trajopt", "diamond", "--horizon", "-1", "--out", "{folder}"],
+    ["trajopt", "diamond", "--backend", "torch", "--out", "{folder}"],
+    ["trajopt", "diamond-mpc", "--steps", "0", "--out", "{folder}"],
+    ["proxy", "calibrate", "multigait", "--trials", "0", "--out", "{folder}"],
+    ["proxy", "calibrate", "octopus", "--out", "{folder}"],
+    ["graph", "train", "nosuch", "--out", "{folder}"],
+    ["graph", "train", "Corridor", "--config", "{file}", "--out", "{folder}"],
 ]
 
 RUNTIME_ERRORS = [
@@ -446,27 +454,62 @@ def test_the_reliability_page_examples_run(code, capsys) -> None:
     assert "another model" in printed[0] and "dt must be a real number" in printed[1]
 
 
-@pytest.mark.parametrize("offset", [(300.0, 0.0, 0.0), (1e4, 1e4, 0.0)])
-def test_a_goal_out_of_reach_gives_the_closest_configuration_and_says_so(offset) -> None:
-    """Issue 22, class 7: ProxQP reported these goals PRIMAL_INFEASIBLE within a few steps.
+@pytest.mark.parametrize(
+    ("robot", "solver", "offset"),
+    [
+        ("diamond", "dynamic", (300.0, 0.0, 0.0)),
+        ("diamond", "dynamic", (1e4, 1e4, 0.0)),
+        ("diamond", "static", (300.0, 0.0, 0.0)),
+        ("diamond", "static", (1e4, 1e4, 0.0)),
+        ("trunk", "static", (1e4, 300.0, 0.0)),
+    ],
+)
+def test_a_goal_out_of_reach_gives_the_closest_configuration_and_says_so(
+    robot, solver, offset
+) -> None:
+    """Issue 22, class 7: ProxQP reported these goals PRIMAL_INFEASIBLE within a few steps,
+    and the static solver's Newton iterations cycled with the QP's answer (a DivergenceError).
     The best effort moves the effector towards the goal, bounds held, and reports the goal
     out of reach once it settles."""
     from pliant.errors import UnreachableGoalWarning
     from pliant.scenario import track_goals
 
-    model = robots.build("diamond")
+    model = robots.build(robot)
     rest = model.effectors[0].goals[0].copy()
     goal = rest + np.array(offset)
+    step = ImplicitEuler(model, 0.01) if solver == "dynamic" else StaticSolver(model)
     with pytest.warns(UnreachableGoalWarning, match="out of reach"):
-        (result,), state = track_goals(
-            model, ImplicitEuler(model, 0.01), model.rest_state(), goal[None], max_steps=60
-        )
+        (result,), state = track_goals(model, step, model.rest_state(), goal[None], max_steps=60)
     assert result.out_of_reach and np.all(np.isfinite(state.positions))
     moved = result.reached - rest
     assert np.dot(moved, goal - rest) > 0  # towards the goal
     assert result.error < np.linalg.norm(goal - rest)
-    for actuator, force in zip(model.actuators, state.actuation, strict=True):
+    for actuator, force, course in zip(
+        model.actuators, state.actuation, state.displacement, strict=True
+    ):
         assert actuator.min_force - 1e-9 <= force <= actuator.max_force + 1e-9
+        # a cable cannot push: only its largest pull is a bound it can hold (within the
+        # linearisation error of a step, as in test_robots)
+        assert course <= actuator.max_displacement + 0.05
+
+
+def test_a_static_step_whose_inverse_problem_cycles_holds_the_actuators() -> None:
+    """The Diamond's Newton iterations towards a goal 300 mm sideways stalled at a 1e-4 mm
+    update, the QP's answer at each iterate moving the equilibrium; after 100 iterations the
+    step raised DivergenceError. Now the actuators are held where the last iteration put them
+    and Newton converges on that equilibrium, with a warning and `last_report.held`."""
+    from pliant.constraints.control import InverseControl
+    from pliant.errors import InverseConvergenceWarning
+
+    model = robots.build("diamond")
+    goal = model.effectors[0].goals[0] + np.array([300.0, 0.0, 0.0])
+    commands = [a.value for a in model.actuators]
+    solver = StaticSolver(model)
+    with pytest.warns(InverseConvergenceWarning, match="best effort"):
+        state = solver.step(model.rest_state(), InverseControl(goals=[goal[None]]))
+    assert solver.last_report.held and np.all(np.isfinite(state.positions))
+    assert solver.last_report.newton_iterations < solver.max_iterations
+    assert [a.value for a in model.actuators] == commands  # the model's commands are kept
 
 
 def test_unknown_roles_and_infinite_lower_bounds_are_named() -> None:
@@ -505,3 +548,63 @@ def test_builder_keywords_of_the_wrong_type_are_named(keyword, value) -> None:
     fails on a value of the right type (1e30 mm: gmsh cannot mesh it) is a ModelError too."""
     with pytest.raises(ModelError, match=keyword if value != 1e30 else "cannot be built"):
         robots.build("finger", **{keyword: value})
+
+
+def test_a_static_step_whose_feedback_control_diverges_holds_the_start() -> None:
+    """A feedback control whose answer inverts elements (a pull the bounds allow) does not end
+    the static step in a DivergenceError: the actuators are held where the step started."""
+    from pliant.errors import InverseConvergenceWarning
+    from tests.conftest import two_cable_beam
+
+    class Yank:
+        """Pulls the top cable with a force no beam can take."""
+
+        roles = ("actuator",)
+
+        def prepare(self, model) -> None:
+            pass
+
+        def actuation(self, problem, model, state) -> np.ndarray:
+            return np.array([1e9, 0.0])
+
+    model = two_cable_beam()
+    start = StaticSolver(model).step(model.rest_state(), [0.5, 0.0])
+    solver = StaticSolver(model)
+    with pytest.warns(InverseConvergenceWarning, match="held where the step started"):
+        state = solver.step(start, Yank())
+    assert solver.last_report.held
+    np.testing.assert_allclose(state.positions, start.positions, atol=1e-6)
+    np.testing.assert_allclose(state.displacement, start.displacement, atol=1e-9)
+
+
+@pytest.mark.parametrize(
+    ("option", "named"),
+    [
+        (["--env-kwarg", "bogus=3"], "bogus"),
+        (["--hyper", "batch_size=abc"], "batch_size"),
+        (["--hyper", "learning_rate=-1"], "learning_rate"),
+    ],
+)
+def test_training_options_refused_by_the_environment_or_sb3_are_named(
+    option, named, tmp_path
+) -> None:
+    """The re-run of issue 22 found these: a worker's traceback and 'Connection reset by
+    peer' for an unknown environment keyword, 'unexpected TypeError/ValueError' for SB3's."""
+    args = ["train", "pliant-test/PointReach-v0", *option, "--steps", "64"]
+    result = runner.invoke(app, [*args, "--out", str(tmp_path / "run")])
+    lines = [line for line in result.output.splitlines() if line.strip()]
+    assert result.exit_code == 1 and "Traceback" not in result.output, result.output
+    assert lines[-1].startswith("error: ") and named in lines[-1] and "bug" not in lines[-1]
+
+
+def test_a_bad_environment_action_is_a_pliant_error_and_gymnasiums() -> None:
+    import gymnasium as gym
+
+    from pliant.envs import make
+
+    env = make("pliant/Diamond-v0")
+    env.reset(seed=0)
+    for action in (np.nan, "left", np.zeros(3)):
+        with pytest.raises(PliantError) as info:
+            env.step(action)
+        assert isinstance(info.value, gym.error.InvalidAction)

@@ -265,7 +265,7 @@ def test_cli_writes_plots_gif_and_report(tmp_path):
     mpc = json.loads((tmp_path / "diamond_mpc.json").read_text())
     assert mpc["bound_violation"] == 0.0 and mpc["loop_rate_hz"] > 0
     result = runner.invoke(app, ["trajopt", "diamond", "--horizon", "0", *common])
-    assert result.exit_code == 1 and "horizon" in result.output
+    assert result.exit_code == 2 and "horizon" in result.output  # a usage error, before work
 
 
 def test_change_bound_optimum_against_a_qp_solver():

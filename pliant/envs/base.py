@@ -45,6 +45,11 @@ class EnvStateError(PliantError, ValueError):
     """A snapshot given to ``set_state`` belongs to another environment, version or model."""
 
 
+class ActionError(PliantError, gym.error.InvalidAction):
+    """An action of the wrong type, shape or range, or not finite: Gymnasium's InvalidAction,
+    and a PliantError like every input Pliant refuses."""
+
+
 class Ramp:
     """A kinematic input q(t) in R^n moved linearly from its value at ``start`` to a target over
     ``duration`` and held there: the builders' ``cart_motion``, ``tilt`` and the like.
@@ -209,27 +214,25 @@ class SoftRobotEnv(gym.Env):
         if isinstance(space, gym.spaces.Discrete):
             a = np.asarray(action)
             if a.shape not in ((), (1,)) or not np.issubdtype(a.dtype, np.integer):
-                raise gym.error.InvalidAction(
+                raise ActionError(
                     f"{self.name}: a discrete action is one integer in [0, {space.n}), got"
                     f" {action!r}"
                 )
             a = int(a.reshape(-1)[0])
             if not 0 <= a < space.n:
-                raise gym.error.InvalidAction(f"{self.name}: action {a} outside [0, {space.n})")
+                raise ActionError(f"{self.name}: action {a} outside [0, {space.n})")
             return a
         a = np.asarray(action)
         if not (np.issubdtype(a.dtype, np.floating) or np.issubdtype(a.dtype, np.integer)):
-            raise gym.error.InvalidAction(
+            raise ActionError(
                 f"{self.name}: a continuous action is a float array of shape {space.shape},"
                 f" got dtype {a.dtype}"
             )
         a = a.astype(float)
         if a.shape != space.shape:
-            raise gym.error.InvalidAction(
-                f"{self.name}: action shape must be {space.shape}, got {a.shape}"
-            )
+            raise ActionError(f"{self.name}: action shape must be {space.shape}, got {a.shape}")
         if not np.all(np.isfinite(a)):
-            raise gym.error.InvalidAction(f"{self.name}: action must be finite, got {a}")
+            raise ActionError(f"{self.name}: action must be finite, got {a}")
         return np.clip(a, space.low, space.high)
 
     def _clip_observation(self, obs: np.ndarray) -> np.ndarray:

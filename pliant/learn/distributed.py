@@ -24,6 +24,8 @@ import numpy as np
 from stable_baselines3.common.vec_env import VecEnv
 from stable_baselines3.common.vec_env.subproc_vec_env import _stack_obs
 
+from pliant.processes import ProcessIdentity, driver_identity, exit_with_process
+
 
 def require_ray():
     try:
@@ -37,9 +39,18 @@ def require_ray():
 
 class EnvWorker:
     """One environment and SB3's worker protocol (auto-reset, terminal observation), as a Ray
-    actor (``ray.remote(EnvWorker)``)."""
+    actor (``ray.remote(EnvWorker)``).
 
-    def __init__(self, factory: Callable[[], gym.Env]) -> None:
+    driver: the process that drives it (:func:`pliant.processes.driver_identity`); on the same
+    machine, the actor ends within half a second of its death (before the environment is
+    built: meshing can take a while).
+    """
+
+    def __init__(
+        self, factory: Callable[[], gym.Env], driver: ProcessIdentity | None = None
+    ) -> None:
+        if driver is not None:
+            exit_with_process(driver)
         self.env = factory()
 
     def spaces(self):
@@ -100,7 +111,8 @@ class RayVecEnv(VecEnv):
                 ray.init(address=address, include_dashboard=False, log_to_driver=False)
         self._ray = ray
         actor = ray.remote(num_cpus=num_cpus_per_env)(EnvWorker)
-        self.workers = [actor.remote(fn) for fn in env_fns]
+        driver = driver_identity()
+        self.workers = [actor.remote(fn, driver) for fn in env_fns]
         observation_space, action_space = ray.get(self.workers[0].spaces.remote())
         super().__init__(len(env_fns), observation_space, action_space)
         self._pending = None
@@ -215,12 +227,15 @@ def tune_sweep(
     out = Path(out).absolute()
     space = {key: _sample(spec) for key, spec in (sweep.get("search") or {}).items()}
     samples = num_samples or sweep.get("num_samples", 1)
+    driver = driver_identity()
 
     def trial(params: dict) -> None:
         import copy
 
         from pliant.learn.config import load_config
         from pliant.learn.training import train
+
+        exit_with_process(driver)  # a trial on this machine ends with the sweep's driver
 
         overrides = copy.deepcopy(base)
         for key, value in params.items():

@@ -31,6 +31,7 @@ import numpy as np
 from stable_baselines3.common.utils import set_random_seed
 from stable_baselines3.common.vec_env import VecNormalize
 
+from pliant.errors import TrainingError
 from pliant.learn.callbacks import (
     CheckpointCallback,
     EvalCallback,
@@ -57,6 +58,14 @@ def _vec_normalize(venv, config: TrainConfig):
     kwargs = config.normalize if isinstance(config.normalize, dict) else {}
     kwargs.setdefault("gamma", config.hyperparams.get("gamma", 0.99))
     return VecNormalize(venv, **kwargs)
+
+
+def _environment(env_id: str, env_kwargs: dict | None):
+    """`make_env`, with keywords the environment does not take named in a TrainingError."""
+    try:
+        return make_env(env_id, env_kwargs)
+    except TypeError as exc:  # gymnasium.make re-raises the constructor's, with the keywords
+        raise TrainingError(f"cannot make {env_id} with {env_kwargs or {}}: {exc}") from exc
 
 
 def train(
@@ -90,6 +99,11 @@ def train(
     config.save(run_dir / "config.yaml")
 
     set_random_seed(config.seed)
+    # The environment keywords are checked here, in the learner, before any worker starts: a
+    # worker that cannot build its environment dies with a traceback of its own.
+    eval_env = _environment(config.env_id, config.eval_env_kwargs or config.env_kwargs)
+    if config.eval_env_kwargs and config.eval_env_kwargs != config.env_kwargs:
+        _environment(config.env_id, config.env_kwargs).close()
     venv = make_vec_env(
         config.env_id,
         config.n_envs,
@@ -97,7 +111,6 @@ def train(
         backend=config.vec_env,
         ray_address=config.ray_address,
     )
-    eval_env = make_env(config.env_id, config.eval_env_kwargs or config.env_kwargs)
     algo_class = algorithm_class(config.algo)
     counters = TrainingState()
     try:
@@ -115,14 +128,20 @@ def train(
             start_step = state["num_timesteps"]
         else:
             venv = _vec_normalize(venv, config)
-            model = algo_class(
-                env=venv,
-                seed=config.seed,
-                device=config.device,
-                tensorboard_log=str(run_dir / "tb"),
-                verbose=verbose,
-                **sb3_kwargs(config.hyperparams),
-            )
+            try:
+                model = algo_class(
+                    env=venv,
+                    seed=config.seed,
+                    device=config.device,
+                    tensorboard_log=str(run_dir / "tb"),
+                    verbose=verbose,
+                    **sb3_kwargs(config.hyperparams),
+                )
+            except (TypeError, ValueError, AssertionError) as exc:  # SB3's and torch's checks
+                raise TrainingError(
+                    f"{config.algo} cannot be built with the hyper-parameters"
+                    f" {config.hyperparams}: {exc}"
+                ) from exc
             start_step = 0
             if config.bc:
                 from pliant.learn.bc import pretrain

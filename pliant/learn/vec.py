@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import copy
 import multiprocessing as mp
+import os
 import warnings
 from collections.abc import Callable
 from functools import partial
@@ -23,6 +24,8 @@ from stable_baselines3.common.monitor import Monitor
 from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecEnv
 from stable_baselines3.common.vec_env.base_vec_env import CloudpickleWrapper
 from stable_baselines3.common.vec_env.subproc_vec_env import _stack_obs, _worker
+
+from pliant.processes import exit_with_parent
 
 WORKER_ERRORS = (EOFError, BrokenPipeError, ConnectionResetError)
 
@@ -88,6 +91,14 @@ def make_env(
     return Resumable(Monitor(gym.make(env_id, disable_env_checker=True, **kwargs)))
 
 
+def _orphan_safe(parent: int, factory: Callable[[], gym.Env]) -> gym.Env:
+    """`factory`'s environment, in a worker that ends with its learner `parent`: a worker in
+    the middle of a long step would otherwise notice its parent's death only at the next
+    message (seconds to minutes for FEM environments)."""
+    exit_with_parent(parent)
+    return factory()
+
+
 class RestartingSubprocVecEnv(SubprocVecEnv):
     """SubprocVecEnv that restarts a worker that died and goes on.
 
@@ -95,11 +106,12 @@ class RestartingSubprocVecEnv(SubprocVecEnv):
     observation that worker sent as ``terminal_observation``, ``TimeLimit.truncated`` (so that
     value-based learners bootstrap rather than treat it as a terminal state) and
     ``info["worker_restarted"] = True``; the new worker's environment is reset (unseeded).
-    ``restarts`` counts them.
+    ``restarts`` counts them. Each worker ends within half a second of its learner's death.
     """
 
     def __init__(self, env_fns: list[Callable[[], gym.Env]], start_method: str = "spawn"):
-        self._env_fns = list(env_fns)
+        env_fns = [partial(_orphan_safe, os.getpid(), fn) for fn in env_fns]
+        self._env_fns = env_fns
         self._ctx = mp.get_context(start_method)
         super().__init__(env_fns, start_method)
         self.remotes, self.work_remotes = list(self.remotes), list(self.work_remotes)

@@ -16,6 +16,7 @@ from rich.progress import Progress
 from rich.table import Table
 
 from pliant import robots
+from pliant.cli_support import at_least_one, non_negative, open_fraction, output_folder, positive
 from pliant.errors import ContactConvergenceWarning, PliantError
 from pliant.reduction.pipeline import multigait_cases, ramped, reduce
 from pliant.reduction.snapshots import LoadCase
@@ -50,50 +51,63 @@ def robot_cases(entry, duration: float, phase: float) -> list[LoadCase]:
 def reduce_command(
     robot: Annotated[str, typer.Argument(help=f"one of {', '.join(sorted(robots.ROBOTS))}")],
     out: Annotated[
-        Path, typer.Option(help="folder of snapshots.h5, reduced.npz, report.json")
+        Path,
+        typer.Option(
+            help="folder of snapshots.h5, reduced.npz, report.json", callback=output_folder
+        ),
     ] = Path("out/reduction"),
-    dt: Annotated[float, typer.Option(help="time step")] = 0.01,
-    pod_tolerance: Annotated[float, typer.Option(help="tail energy of the modes left out")] = 1e-3,
-    tau: Annotated[float, typer.Option(help="ECSW tolerance of the tetrahedra")] = 3e-3,
-    tau_membrane: Annotated[float, typer.Option(help="ECSW tolerance of the membranes")] = 3e-3,
-    duration: Annotated[float, typer.Option(help="seconds of scripted actuation")] = 3.6,
-    phase: Annotated[float, typer.Option(help="seconds of a ramp of the load cases")] = 0.6,
-    sequences: Annotated[int, typer.Option(help="multigait: random action sequences")] = 3,
-    check: Annotated[float, typer.Option(help="seconds of scripted actuation to compare")] = 1.2,
+    dt: Annotated[float, typer.Option(help="time step", callback=positive)] = 0.01,
+    pod_tolerance: Annotated[
+        float, typer.Option(help="tail energy of the modes left out", callback=open_fraction)
+    ] = 1e-3,
+    tau: Annotated[
+        float, typer.Option(help="ECSW tolerance of the tetrahedra", callback=open_fraction)
+    ] = 3e-3,
+    tau_membrane: Annotated[
+        float, typer.Option(help="ECSW tolerance of the membranes", callback=open_fraction)
+    ] = 3e-3,
+    duration: Annotated[
+        float, typer.Option(help="seconds of scripted actuation", callback=positive)
+    ] = 3.6,
+    phase: Annotated[
+        float, typer.Option(help="seconds of a ramp of the load cases", callback=non_negative)
+    ] = 0.6,
+    sequences: Annotated[
+        int, typer.Option(help="multigait: random action sequences", callback=at_least_one)
+    ] = 3,
+    check: Annotated[
+        float, typer.Option(help="seconds of scripted actuation to compare", callback=positive)
+    ] = 1.2,
 ) -> None:
     """Reduce ROBOT (thesis §3.1.2): full-FEM snapshots of its load cases (resumable),
     POD basis, ECSW integration domain; save the reduced model and report its modes,
     selected elements, errors against the full FEM and speed."""
-    try:
-        entry = robots.entry(robot)
-        model = entry.build()
-        if robot == "multigait":
-            cases = multigait_cases(phase=phase, sequences=sequences)
-        else:
-            cases = robot_cases(entry, duration, phase)
-        folder = out / robot
-        with Progress(console=console) as bar:
-            tasks: dict[str, int] = {}
+    entry = robots.entry(robot)
+    model = entry.build()
+    if robot == "multigait":
+        cases = multigait_cases(phase=phase, sequences=sequences)
+    else:
+        cases = robot_cases(entry, duration, phase)
+    folder = out / robot
+    with Progress(console=console) as bar:
+        tasks: dict[str, int] = {}
 
-            def progress(name: str, step: int, steps: int) -> None:
-                if name not in tasks:
-                    tasks[name] = bar.add_task(f"full FEM: {name}", total=steps)
-                bar.update(tasks[name], completed=step)
+        def progress(name: str, step: int, steps: int) -> None:
+            if name not in tasks:
+                tasks[name] = bar.add_task(f"full FEM: {name}", total=steps)
+            bar.update(tasks[name], completed=step)
 
-            reduced = reduce(
-                model,
-                cases,
-                folder,
-                dt=dt,
-                progress=progress,
-                pod_tolerance=pod_tolerance,
-                tau=tau,
-                tau_membrane=tau_membrane,
-            )
-        report = {**reduced.metadata, **compare(model, reduced, entry, dt, check)}
-    except PliantError as exc:
-        console.print(f"[red]error:[/red] {exc}")
-        raise typer.Exit(1) from exc
+        reduced = reduce(
+            model,
+            cases,
+            folder,
+            dt=dt,
+            progress=progress,
+            pod_tolerance=pod_tolerance,
+            tau=tau,
+            tau_membrane=tau_membrane,
+        )
+    report = {**reduced.metadata, **compare(model, reduced, entry, dt, check)}
     (folder / "report.json").write_text(json.dumps(report, indent=1))
     table = Table(title=f"{robot}: reduced model ({folder / 'reduced.npz'})")
     table.add_column("")

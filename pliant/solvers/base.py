@@ -24,6 +24,9 @@ class StepReport:
     factorisations: int = 0
     newton_iterations: int = 0
     contact: ContactReport | None = None  # None: no contact rows at this step
+    # The static solver held the actuators where a feedback control's last iterate put them,
+    # the control and the equilibrium cycling instead of converging together (a best effort).
+    held: bool = False
 
 
 def number_option(

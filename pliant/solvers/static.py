@@ -5,6 +5,16 @@ iteration from the condensed problem delta = W lambda + delta_free, W = H K_s^-1
 delta_free = delta(q) + H K_s^-1 (f_ext + f(q)). At convergence the residual vanishes and the
 constraints hold exactly.
 
+A feedback control (inverse control) chooses lambda again at each iteration from the iterate's
+W; for a goal far out of reach its answer can swing between active sets (a cable slack at one
+iterate, pulled at the next), or creep, and the iterations do not converge. Once the updates
+stop shrinking (STAGNATION_ITERATIONS), the actuators are held where the last iterate put them
+(displacement-controlled ones at their displacement, the others at their force: the direct
+problem of those commands, bounds held) and Newton converges on that equilibrium. Where the
+control's answer diverges (a pull the bounds allow inverts elements), they are held where the
+step started. Both are a best effort, reported by `last_report.held` and an
+InverseConvergenceWarning, where they used to be a DivergenceError.
+
 Driven nodes (:class:`pliant.fem.rigid.DrivenNodes`) are held where their carrier puts them at
 the state's time: the step solves the equilibrium of the free nodes around them. Rigid bodies
 have no static equilibrium of their own here (a body resting on contacts is singular without
@@ -13,15 +23,34 @@ inertia): models with rigid bodies use the dynamic step.
 
 from __future__ import annotations
 
+import warnings
+from collections.abc import Iterator
+from contextlib import contextmanager
+
 import numpy as np
 
 from pliant.constraints.condensed import CondensedProblem
-from pliant.constraints.control import as_control, constraint_forces
+from pliant.constraints.control import DirectControl, as_control, constraint_forces
 from pliant.constraints.friction import ContactConstraint
-from pliant.errors import DivergenceError, ModelError, SolverError
+from pliant.errors import DivergenceError, InverseConvergenceWarning, ModelError, SolverError
 from pliant.model import Model, State
 from pliant.solvers.base import StepReport, check_linearisation, check_motion, number_option
 from pliant.solvers.system import LinearisedSystem, TangentPolicy
+
+# Newton's updates shrink quadratically; a feedback control whose last iterations have not
+# brought the update ten times below the smallest before them is cycling between active sets
+# (or creeping to a fixed point at a linear rate above 0.8).
+STAGNATION_ITERATIONS = 10
+
+
+@contextmanager
+def _kept_commands(model: Model) -> Iterator[None]:
+    """The model's actuator commands as they are now, restored after a step that held them."""
+    saved = [a.value for a in model.actuators]
+    try:
+        yield
+    finally:
+        model.set_actuation(saved)
 
 
 class StaticSolver:
@@ -180,7 +209,7 @@ class StaticSolver:
     def step(self, state: State, control=None) -> State:
         """The equilibrium under `control` from `state`; StateError if `state` is not one of
         this model's (checked before any kernel runs), DivergenceError if the solve fails."""
-        model, body = self.model, self.model.body
+        model = self.model
         state = model.check_state(state)
         ctrl = as_control(control)
         ctrl.prepare(model)
@@ -195,6 +224,55 @@ class StaticSolver:
         # Each iteration chooses the total constraint forces; the previous iterate's warm-start
         # the next (course bounds still refer to the state the step starts from).
         guide = state.copy()
+        feedback = not isinstance(ctrl, DirectControl)
+        with _kept_commands(model):
+            try:
+                q, it, held, problem, contact_report = self._iterate(q, ctrl, guide, step, feedback)
+            except DivergenceError as exc:
+                if not feedback:
+                    raise
+                # The control's answer carried the body where it cannot go (inverted elements
+                # under a pull the bounds allow, a QP with no answer): the actuators stay where
+                # the step started, the closest configuration known to be valid.
+                self._hold(
+                    state.displacement,
+                    state.actuation,
+                    f"{exc}; the actuators are held where the step started (a best effort)",
+                )
+                guide = state.copy()
+                q, it, _, problem, contact_report = self._iterate(
+                    model.drive(state.positions, state.time), DirectControl(), guide, step, False
+                )
+                held = True
+        self.last_report = StepReport(
+            problem,
+            guide.actuation,
+            self.system.last_iterations,
+            self.system.factorisations,
+            it,
+            contact_report,
+            held,
+        )
+        return State(
+            q,
+            np.zeros_like(q),
+            state.time,
+            step,
+            guide.actuation,
+            model.actuator_distances(q),
+            guide.contact_forces,
+            displacement_before=state.displacement,
+        )
+
+    def _iterate(
+        self, q: np.ndarray, ctrl, guide: State, step: int, feedback: bool
+    ) -> tuple[np.ndarray, int, bool, CondensedProblem, object]:
+        """Newton iterations from `q` to the equilibrium: the positions, the iterations,
+        whether the actuators were held (a feedback control cycled), the last iteration's
+        condensed problem and contact report. `guide` carries the forces from one iteration
+        to the next."""
+        model, body = self.model, self.model.body
+        updates, held = [], False
         for it in range(1, self.max_iterations + 1):  # noqa: B007 (reported after the loop)
             contact = model.contacts.constraint(q, None) if model.contacts else None
             try:
@@ -224,8 +302,22 @@ class StaticSolver:
             if contact is not None:
                 # Updates below the contact solver's tolerance are its own noise.
                 limit = max(limit, model.contacts.tolerance)
-            if np.max(np.abs(dq)) <= limit:
+            update = float(np.max(np.abs(dq)))
+            if update <= limit:
                 break
+            updates.append(update)
+            recent, before = updates[-STAGNATION_ITERATIONS:], updates[:-STAGNATION_ITERATIONS]
+            if feedback and not held and before and min(recent) > 0.1 * min(before):
+                self._hold(
+                    model.actuator_distances(q),
+                    lam_a,
+                    f"step {step}: {type(ctrl).__name__} and the static equilibrium did not"
+                    f" converge together in {it} Newton iterations (its answer swings between"
+                    " active sets, as for a goal far out of reach); the actuators are held where"
+                    " the last iteration put them, bounds kept (a best effort)",
+                    stacklevel=4,
+                )
+                ctrl, held = DirectControl(), True
         else:
             raise DivergenceError(
                 f"step {step}: the static solve did not converge in {self.max_iterations} Newton"
@@ -234,24 +326,23 @@ class StaticSolver:
                 step=step,
                 cause="solver",
             )
-        self.last_report = StepReport(
-            problem,
-            lam_a,
-            self.system.last_iterations,
-            self.system.factorisations,
-            it,
-            contact_report,
+        return q, it, held, problem, contact_report
+
+    def _hold(
+        self, displacement: np.ndarray, actuation: np.ndarray, why: str, stacklevel: int = 3
+    ) -> None:
+        """Command each actuator in its own mode: a displacement-controlled one at
+        `displacement`, the others at the force `actuation` gives them; warn `why`."""
+        model = self.model
+        if actuation.size != model.n_actuators:  # a state released from other actuators
+            actuation = np.zeros(model.n_actuators)
+        model.set_actuation(
+            [
+                d if a.mode == "displacement" else f
+                for a, d, f in zip(model.actuators, displacement, actuation, strict=True)
+            ]
         )
-        return State(
-            q,
-            np.zeros_like(q),
-            state.time,
-            step,
-            lam_a,
-            model.actuator_distances(q),
-            contact_forces,
-            displacement_before=state.displacement,
-        )
+        warnings.warn(why, InverseConvergenceWarning, stacklevel=stacklevel + 1)
 
     def _rest_row_stiffness(self) -> np.ndarray:
         """1 / W_ii of the augmented cables' rows at rest: the scale of rho_i."""

@@ -11,7 +11,7 @@ import typer
 from rich.console import Console
 from rich.table import Table
 
-from pliant.errors import PliantError
+from pliant.cli_support import at_least_one, non_negative, one_of, output_folder, positive
 
 app = typer.Typer(
     add_completion=False,
@@ -19,6 +19,7 @@ app = typer.Typer(
     help="Trajectory optimisation with condensed FEM dynamics (thesis §5.2).",
 )
 console = Console()
+BACKENDS = ("numpy", "crocoddyl")
 
 
 def summary(name: str, result, scenario) -> dict:
@@ -40,15 +41,30 @@ def diamond(
     nonlinear: Annotated[
         bool, typer.Option(help="also solve with the non-linear part of Eq. 5.27")
     ] = True,
-    backend: Annotated[str, typer.Option(help="backward pass: numpy or crocoddyl")] = "numpy",
-    mesh_size: Annotated[float, typer.Option(help="Diamond mesh size (mm)")] = 20.0,
-    dt: Annotated[float, typer.Option(help="time step (s)")] = 0.02,
-    horizon: Annotated[int, typer.Option(help="nodes N")] = 100,
-    max_iterations: Annotated[int, typer.Option(help="DDP iterations at most")] = 100,
-    tolerance: Annotated[float, typer.Option(help="relative cost decrease to stop")] = 1e-4,
-    frames: Annotated[int, typer.Option(help="frames in the GIF (0: no GIF)")] = 25,
-    settle: Annotated[float, typer.Option(help="seconds of constant tensions per goal")] = 3.0,
-    out: Annotated[Path, typer.Option(help="output folder")] = Path("out/trajopt"),
+    backend: Annotated[
+        str,
+        typer.Option(help="backward pass: numpy or crocoddyl", callback=one_of(*BACKENDS)),
+    ] = "numpy",
+    mesh_size: Annotated[
+        float, typer.Option(help="Diamond mesh size (mm)", callback=positive)
+    ] = 20.0,
+    dt: Annotated[float, typer.Option(help="time step (s)", callback=positive)] = 0.02,
+    horizon: Annotated[int, typer.Option(help="nodes N", callback=at_least_one)] = 100,
+    max_iterations: Annotated[
+        int, typer.Option(help="DDP iterations at most", callback=at_least_one)
+    ] = 100,
+    tolerance: Annotated[
+        float, typer.Option(help="relative cost decrease to stop", callback=non_negative)
+    ] = 1e-4,
+    frames: Annotated[
+        int, typer.Option(help="frames in the GIF (0: no GIF)", callback=non_negative)
+    ] = 25,
+    settle: Annotated[
+        float, typer.Option(help="seconds of constant tensions per goal", callback=non_negative)
+    ] = 3.0,
+    out: Annotated[Path, typer.Option(help="output folder", callback=output_folder)] = Path(
+        "out/trajopt"
+    ),
 ) -> None:
     """The Diamond's effector to two successive goals (Fig. 5.20), linear part of the state
     derivative and, with --nonlinear, the non-linear one (the thesis' lift)."""
@@ -58,23 +74,17 @@ def diamond(
 
     runs = {"linear": False, "non-linear": True} if nonlinear else {"linear": False}
     reports, trajectories = [], {}
-    try:
-        solver = BoxDDP(max_iterations=max_iterations, tolerance=tolerance, backend=backend)
-        for name, part in runs.items():
-            scenario = diamond_two_goals(
-                mesh_size=mesh_size, dt=dt, horizon=horizon, nonlinear=part, settle=settle
-            )
-            with console.status(f"diamond, {name} state derivative"):
-                result = solver.solve(
-                    scenario.dynamics, scenario.start, scenario.cost, scenario.bounds
-                )
-            reports.append(summary(name, result, scenario))
-            trajectories[name] = (result.xs, result.us)
-            if name == "linear":
-                best, best_scenario = result, scenario
-    except PliantError as exc:
-        console.print(f"[red]error:[/red] {exc}")
-        raise typer.Exit(1) from exc
+    solver = BoxDDP(max_iterations=max_iterations, tolerance=tolerance, backend=backend)
+    for name, part in runs.items():
+        scenario = diamond_two_goals(
+            mesh_size=mesh_size, dt=dt, horizon=horizon, nonlinear=part, settle=settle
+        )
+        with console.status(f"diamond, {name} state derivative"):
+            result = solver.solve(scenario.dynamics, scenario.start, scenario.cost, scenario.bounds)
+        reports.append(summary(name, result, scenario))
+        trajectories[name] = (result.xs, result.us)
+        if name == "linear":
+            best, best_scenario = result, scenario
     table = Table(title="Diamond, two goals: box-DDP on condensed FEM dynamics")
     for col in ("run", "iterations", "converged", "cost", "wall (s)", "end error (mm)"):
         table.add_column(col)
@@ -124,13 +134,23 @@ def diamond(
 
 @app.command("diamond-mpc")
 def diamond_mpc(
-    horizon: Annotated[int, typer.Option(help="prediction nodes")] = 20,
-    iterations: Annotated[int, typer.Option(help="DDP iterations per control step")] = 3,
-    mesh_size: Annotated[float, typer.Option(help="Diamond mesh size (mm)")] = 20.0,
-    dt: Annotated[float, typer.Option(help="time step (s)")] = 0.02,
-    steps: Annotated[int, typer.Option(help="control steps (the task's nodes)")] = 100,
-    settle: Annotated[float, typer.Option(help="seconds of constant tensions per goal")] = 3.0,
-    out: Annotated[Path, typer.Option(help="output folder")] = Path("out/trajopt"),
+    horizon: Annotated[int, typer.Option(help="prediction nodes", callback=at_least_one)] = 20,
+    iterations: Annotated[
+        int, typer.Option(help="DDP iterations per control step", callback=at_least_one)
+    ] = 3,
+    mesh_size: Annotated[
+        float, typer.Option(help="Diamond mesh size (mm)", callback=positive)
+    ] = 20.0,
+    dt: Annotated[float, typer.Option(help="time step (s)", callback=positive)] = 0.02,
+    steps: Annotated[
+        int, typer.Option(help="control steps (the task's nodes)", callback=at_least_one)
+    ] = 100,
+    settle: Annotated[
+        float, typer.Option(help="seconds of constant tensions per goal", callback=non_negative)
+    ] = 3.0,
+    out: Annotated[Path, typer.Option(help="output folder", callback=output_folder)] = Path(
+        "out/trajopt"
+    ),
 ) -> None:
     """The Diamond's two-goal task by receding-horizon MPC on the condensed dynamics frozen at
     each FEM state, the loop closed on the FEM: loop rate and tracking error."""
@@ -138,20 +158,16 @@ def diamond_mpc(
     from pliant.trajopt.plots import plot_trajectory
     from pliant.trajopt.scenarios import diamond_two_goals
 
-    try:
-        scenario = diamond_two_goals(mesh_size=mesh_size, dt=dt, horizon=steps, settle=settle)
-        mpc = CondensedMPC(
-            scenario.dynamics,
-            scenario.cost,
-            scenario.bounds,
-            horizon=horizon,
-            max_iterations=iterations,
-        )
-        with console.status("diamond MPC"):
-            result = mpc.run(scenario.start)
-    except PliantError as exc:
-        console.print(f"[red]error:[/red] {exc}")
-        raise typer.Exit(1) from exc
+    scenario = diamond_two_goals(mesh_size=mesh_size, dt=dt, horizon=steps, settle=settle)
+    mpc = CondensedMPC(
+        scenario.dynamics,
+        scenario.cost,
+        scenario.bounds,
+        horizon=horizon,
+        max_iterations=iterations,
+    )
+    with console.status("diamond MPC"):
+        result = mpc.run(scenario.start)
     goals = scenario.goals
     errors = np.linalg.norm(result.xs[:, : goals.shape[1]] - goals, axis=1)
     report = {

@@ -9,6 +9,7 @@ from dataclasses import dataclass
 import gymnasium as gym
 import numpy as np
 
+from pliant.errors import ModelError
 from pliant.learn.graph.graph import ConfigurationGraph, cartstem_graph
 from pliant.learn.graph.toy import CorridorEnv, corridor_controller, corridor_graph
 
@@ -49,4 +50,4 @@ def make_scene(name: str, **env_kwargs) -> Scene:
 
         env = make("pliant/CartStemContact-v0", **env_kwargs)
         return Scene(env, cartstem_graph(), dict.fromkeys(range(3), cartstem_controller(env)))
-    raise ValueError(f"no graph for scene {name!r}: Corridor or CartStemContact")
+    raise ModelError(f"no graph for scene {name!r}: Corridor or CartStemContact")
