@@ -15,7 +15,7 @@ from pliant.viz.video import atomic_path
 def plot_trajectory(
     times: np.ndarray,
     runs: dict[str, tuple[np.ndarray, np.ndarray]],
-    goals: np.ndarray,
+    goals: np.ndarray | dict[str, np.ndarray],
     bounds: tuple[np.ndarray, np.ndarray],
     path: str | os.PathLike,
     *,
@@ -23,17 +23,19 @@ def plot_trajectory(
     units: tuple[str, str, str] = ("mm", "mm/s", "mN"),
 ) -> Path:
     """One column per run (name -> (xs (N + 1, 2m), us (N, n_a))): positions with the goals
-    (dashed), velocities, actuation with its bounds (dotted)."""
+    (dashed; one array for every run, or one per run's name), velocities, actuation with its
+    bounds (dotted)."""
     fig = Figure(figsize=(5.0 * len(runs), 8.0))
     axes = fig.subplots(3, len(runs), squeeze=False, sharex=True)
     colours = ("tab:red", "tab:green", "tab:blue", "tab:purple", "tab:orange", "tab:brown")
     for col, (name, (xs, us)) in enumerate(runs.items()):
         m = xs.shape[1] // 2
+        run_goals = goals[name] if isinstance(goals, dict) else goals
         ax_p, ax_v, ax_u = axes[:, col]
         for i in range(m):
             c = colours[i % len(colours)]
             ax_p.plot(times, xs[:, i], color=c, label="xyz"[i % 3] if m <= 3 else f"p{i}")
-            ax_p.plot(times, goals[:, i], color=c, linestyle="--", linewidth=0.8)
+            ax_p.plot(times, run_goals[:, i], color=c, linestyle="--", linewidth=0.8)
             ax_v.plot(times, xs[:, m + i], color=c)
         for j in range(us.shape[1]):
             ax_u.step(times[:-1], us[:, j], where="post", label=f"u{j}")
