@@ -137,8 +137,9 @@ def demo_actuation(t: float) -> np.ndarray:
     return 0.2 * min(t, 1.0) * np.sin(2.0 * math.pi * t - phase)
 
 
-def spiral(n: int = 40, *, radius: float = 5.0, turns: float = 2.0, rise: float = 5.0):
-    """Goals round the rest handle (0, 0, ~70 mm), a spiral of growing radius (inverse control)."""
+def spiral(n: int = 40, *, radius: float = 4.0, turns: float = 2.0, drop: float = 2.0):
+    """Goals round the rest handle (0, 0, 70 mm), a spiral of growing radius going down by
+    `drop` (inverse control; the motors cannot lift the handle much above its rest)."""
     s = np.linspace(0.0, 1.0, n)
     a = 2.0 * math.pi * turns * s
-    return np.column_stack([radius * s * np.cos(a), radius * s * np.sin(a), 66.0 + rise * s])
+    return np.column_stack([radius * s * np.cos(a), radius * s * np.sin(a), 70.0 - drop * s])
