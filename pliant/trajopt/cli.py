@@ -271,6 +271,7 @@ def run_scenario(
             out / f"{command}.png",
             title=f"{command}: box-DDP, full-FEM forward pass",
             units=units,
+            relative=True,
         )
     ]
     if frames > 0:
