@@ -202,9 +202,26 @@ def scenario_report(name: str, result, scenario) -> dict:
     gap = np.where(np.isfinite(goals), result.xs[:, :m] - np.nan_to_num(goals), 0.0)
     scored = np.any(np.isfinite(goals), axis=1)
     errors = np.linalg.norm(gap, axis=1)[scored]
+    orientation = {}
+    points = goals[-1].reshape(-1, 3)
+    held = np.flatnonzero(np.all(np.isfinite(points), axis=1))
+    if held.size == 2:  # two effectors with goals: the angle of the line through them
+        reached = result.xs[-1, :m].reshape(-1, 3)[held]
+        start = result.xs[0, :m].reshape(-1, 3)[held]
+        lines = [p[0] - p[1] for p in (points[held], reached, start)]
+
+        def angle(a, b):
+            c = a @ b / (np.linalg.norm(a) * np.linalg.norm(b))
+            return float(np.degrees(np.arccos(np.clip(c, -1.0, 1.0))))
+
+        orientation = {
+            "final_orientation_error_deg": angle(lines[0], lines[1]),
+            "goal_rotation_deg": angle(lines[0], lines[2]),
+        }
     return {
         "run": name,
         **result.report(),
+        **orientation,
         "final_error": float(errors[-1]),
         "rms_tracking_error": float(np.sqrt(np.mean(errors**2))),
         "max_tracking_error": float(errors.max()),
