@@ -6,7 +6,8 @@ pressurised chamber lengthens its side of the module and bends it away. Here eac
 carries a membrane (:class:`pliant.fem.membrane.Membrane`) of hoop fibres (round the chamber's
 axis, stretch stiffness `fibre_stiffness`) on a soft isotropic skin: the fibres take the hoop
 stress, the wall stays free to stretch along the chamber. Without them the coarse chambers
-balloon sideways and the module bends far less for the same pressure.
+balloon sideways and the module bends far less for the same pressure
+(30 kPa in one pair of the base module: the tip moves 4.31 mm with the fibres, 1.57 without).
 
 Units: mm, kg, s, so forces in mN and pressures in kPa (mN/mm^2); 1 bar = 100 kPa. Pressure
 bounds are given in bar (`max_pressure_bar`) and converted.
