@@ -118,3 +118,39 @@ def test_a_membrane_off_the_mesh_edges_is_refused(slab) -> None:
     far = Membrane(x, np.array([corners]), stretch_stiffness=Y, poisson_ratio=NU)
     with pytest.raises(ModelError, match="share no tetrahedron"):
         TetBody(mesh, NeoHookean(70.0, 0.3), density=1e-6, membranes=[far])
+
+
+def test_fibres_resist_stretch_along_them_only(rng, slab) -> None:
+    """Fibres along x of stiffness Y_f add A Y_f / 2 (E_xx)^2 (closed form, A = 200 mm^2) and
+    nothing to a stretch across them (E_xx = 0); forces and tangent = finite differences."""
+    mesh, underside = slab
+    y_f = 1e5
+    membrane = Membrane(
+        mesh.points,
+        underside,
+        stretch_stiffness=Y,
+        poisson_ratio=NU,
+        fibres=np.tile([1.0, 0.0, 0.0], (len(underside), 1)),
+        fibre_stiffness=y_f,
+    )
+    plain = _membrane(slab)
+    along = mesh.points * [1.1, 1.0, 1.0]
+    e_xx = 0.5 * (1.1**2 - 1.0)
+    extra = membrane.element_forces(along)[1] - plain.element_forces(along)[1]
+    assert extra == pytest.approx(200.0 * 0.5 * y_f * e_xx**2, rel=1e-12)
+    across = mesh.points * [1.0, 1.1, 1.0]
+    assert membrane.element_forces(across)[1] == pytest.approx(plain.element_forces(across)[1])
+    x = mesh.points * [1.05, 1.04, 1.0] + 0.05 * rng.standard_normal(mesh.points.shape)
+    forces, _ = membrane.element_forces(x)
+    tangent = membrane.element_stiffness(x)
+    eps = 1e-5
+    d = rng.standard_normal(x.shape)
+    energies = [membrane.element_forces(x + s * eps * d)[1] for s in (1, -1)]
+    local = d[membrane.triangles]
+    assert (energies[0] - energies[1]) / (2 * eps) == pytest.approx(
+        -np.sum(forces * local), rel=1e-7
+    )
+    plus, minus = (membrane.element_forces(x + s * eps * d)[0] for s in (1, -1))
+    ku = np.einsum("trc,tc->tr", tangent, local.reshape(-1, 9))
+    fd_ku = -(plus - minus).reshape(-1, 9) / (2 * eps)
+    assert np.linalg.norm(ku - fd_ku) < 1e-6 * np.linalg.norm(fd_ku)

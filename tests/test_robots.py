@@ -180,3 +180,99 @@ def test_degenerate_mesh_is_rejected(meshes) -> None:
     bad = TetMesh(points, finger_mesh.tets, finger_mesh.surfaces, finger_mesh.landmarks)
     with pytest.raises(DegenerateElementError):
         robots.build("finger", mesh=bad)
+
+
+def test_stiff_flop_chamber_bends_the_module_away_from_it() -> None:
+    """Pressure in pair j alone lengthens that side: by the module's symmetry about the pair's
+    azimuthal plane the tip moves in that plane, away from the pair, -(cos, sin)(120 j deg),
+    and rises. Measured at 30 kPa in module 0: 0.28 and 0.34 deg off that direction for pairs
+    0 and 1. The hoop fibres make it bend more than the bare silicone (4.31 vs 1.57 mm, which
+    also strays 2.5-5 deg: its coarse chambers balloon unevenly).
+    """
+
+    from pliant.robots.stiff_flop import stiff_flop
+
+    model = stiff_flop()
+    bare = stiff_flop(mesh=model.body.mesh, fibre_stiffness=0.0)
+    from pliant.trajopt import ForceControl as control
+
+    shifts = {}
+    for name, m in (("fibres", model), ("bare", bare)):
+        static = StaticSolver(m)
+        rest = m.effectors[0].position(static.step(m.rest_state(), control(np.zeros(6))).positions)
+        for j in (0, 1) if name == "fibres" else (0,):
+            u = np.zeros(6)
+            u[j] = 30.0  # kPa, module 0 (its bend carries the tip module with it)
+            tip = m.effectors[0].position(static.step(m.rest_state(), control(u)).positions)
+            shifts[name, j] = (tip - rest)[0]
+    for j in (0, 1):
+        a = 2 * math.pi * j / 3
+        away = -np.array([math.cos(a), math.sin(a)])
+        d = shifts["fibres", j]
+        cosine = d[:2] @ away / np.linalg.norm(d[:2])
+        assert cosine > math.cos(math.radians(3.0)), (j, d)
+        assert d[2] > 0.0
+    assert np.linalg.norm(shifts["fibres", 0][:2]) > 1.5 * np.linalg.norm(shifts["bare", 0][:2])
+
+
+@pytest.mark.parametrize("name", ["stiff_flop", "lianford"])
+def test_new_robots_inverse_control_reaches_a_reachable_goal(name) -> None:
+    """A goal made by known actuation (pressures / motor torques) is reached by closed-loop
+    inverse control from the rest equilibrium (measured 0.001 mm in 7 steps for the
+    Stiff-Flop, 0.011 mm in 3 for the Lianford's servos)."""
+    from pliant.trajopt import ForceControl
+
+    model = robots.build(name)
+    u = np.zeros(model.n_actuators)
+    if name == "lianford":
+        u[[0, 3]] = 1e4, -1e4  # mN mm
+    else:
+        u[[1, 4]] = 30.0  # kPa
+    static = StaticSolver(model)
+    goal = model.effectors[0].position(static.step(model.rest_state(), ForceControl(u)).positions)
+    start = static.step(model.rest_state(), ForceControl(np.zeros_like(u)))
+    assert np.linalg.norm(model.effectors[0].position(start.positions) - goal) > 3.0
+    results, _ = track_goals(
+        model, ImplicitEuler(model, 0.02), start, goal, max_steps=80, tolerance=0.01
+    )
+    assert results[0].error < 0.05, results[0]
+
+
+def test_lianford_leg_is_a_bent_rod() -> None:
+    """One Lianford leg (the builder's section, material and elements), clamped at its motor
+    end, under an end moment M about the motor axis: the elastica is a circular arc of
+    curvature k = M / EI, so the end rotates by kL and moves (1 - cos kL)/k across the leg
+    and L - sin(kL)/k along it (exact for large rotations). Measured with the 6 elements:
+    across to 1e-4, along 0.7 % short (the end turned by 0.66 rad)."""
+    import inspect
+
+    from pliant.constraints.joint import RotationActuator
+    from pliant.fem.material import Material
+    from pliant.fem.rod import RodBody, RodSection
+    from pliant.model import Model
+    from pliant.robots.lianford import leg_nodes, lianford
+    from pliant.trajopt import ForceControl
+
+    d = {k: p.default for k, p in inspect.signature(lianford).parameters.items()}
+    points, _, _, axes = leg_nodes(1, d["elements"], d["base_radius"], d["top_radius"], d["height"])
+    leg = points[1:]
+    rod = RodBody(
+        leg,
+        RodSection.circle(d["leg_radius"]),
+        Material(d["young_modulus"], d["poisson_ratio"]),
+        density=d["density"],
+        clamped=[0],
+    )
+    end = len(leg) - 1
+    moment = RotationActuator(rod, end, axes[0], mode="force")
+    model = Model(rod, actuators=[moment])
+    torque = 2000.0  # mN mm: the end turns by 0.66 rad
+    state = StaticSolver(model).step(model.rest_state(), ForceControl(np.array([torque])))
+    length = np.linalg.norm(leg[-1] - leg[0])
+    along = (leg[-1] - leg[0]) / length
+    across = np.cross(axes[0], along)  # the way a positive turn about the axis swings the end
+    ei = d["young_modulus"] * RodSection.circle(d["leg_radius"]).inertia[0]
+    k = torque / ei
+    moved = state.positions[end] - leg[-1]
+    assert moved @ across == pytest.approx((1 - math.cos(k * length)) / k, rel=1e-3)
+    assert moved @ along == pytest.approx(-(length - math.sin(k * length) / k), rel=1e-2)

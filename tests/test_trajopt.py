@@ -365,3 +365,28 @@ def test_several_effectors_and_selected_axes(diamond):
         dyn, start, cost, ActuationBounds(np.zeros(4), np.full(4, 500.0))
     )
     assert result.cost < result.history[0]["cost"] and result.bound_violation == 0.0
+
+
+@pytest.mark.parametrize(
+    "command", ["stiff-flop", "lianford-spiral", "lianford-pick-place", "lianford-orientation"]
+)
+def test_scenarios_quick_mode_writes_reports_within_bounds(command, tmp_path) -> None:
+    """Each `pliant trajopt SCENARIO --quick` (short horizon, 2 DDP iterations) writes its plot,
+    GIF and JSON report; every returned control meets its bounds, the cost did not rise."""
+    from pliant.trajopt.cli import run_scenario
+
+    report = run_scenario(
+        command, quick=True, frames=2 if command == "stiff-flop" else 0, out=tmp_path
+    )
+    assert (tmp_path / f"{command}.png").stat().st_size > 0
+    assert (tmp_path / f"{command}.json").exists()
+    assert report["quick"] and report["runs"]
+    for run in report["runs"]:
+        assert run["bound_violation"] == 0.0
+        low, high = run["actuation_range"]
+        assert min(run["bounds"][0]) <= low and high <= max(run["bounds"][1])
+        assert run["cost"] <= run["cost_history"][0] + 1e-9
+        assert np.isfinite(run["final_error"])
+    if command == "stiff-flop":
+        assert {r["run"] for r in report["runs"]} == {"stiff-flop-middle", "stiff-flop-tip"}
+        assert (tmp_path / "stiff-flop-tip.gif").exists()

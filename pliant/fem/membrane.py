@@ -13,6 +13,11 @@ triangle's plane; mu_s = Y / (2 (1 + nu)), lam_s = Y nu / (1 - nu^2) with Y = E_
 membrane's stretch stiffness (force per length). The tangent drops the compressive part of the
 second Piola stress from its geometric term (a membrane under compression wrinkles instead of
 resisting), which keeps it positive semi-definite.
+
+Fibres (optional): inextensible-ish threads wound in the membrane's plane along a direction a
+per triangle (a fibre-reinforced chamber's hoop winding) add psi_f = A Y_f / 2 (a^T E a)^2,
+so S_f = Y_f (a^T E a) a a^T; the threads resist stretch along a only, and the wall stays
+free to stretch across them (a chamber elongates instead of ballooning).
 """
 
 from __future__ import annotations
@@ -34,6 +39,8 @@ class Membrane:
         stretch_stiffness: Young's modulus times thickness, Y = E t > 0 (force per length:
             kPa mm = N/m in mm-kg-s scenes).
         poisson_ratio: in-plane Poisson ratio, 0 <= nu < 1 (plane stress).
+        fibres: (t, 3) a direction per triangle (projected onto its plane) of fibres of
+            stretch stiffness `fibre_stiffness` (force per length), or None.
     """
 
     def __init__(
@@ -43,6 +50,8 @@ class Membrane:
         *,
         stretch_stiffness: float,
         poisson_ratio: float,
+        fibres: np.ndarray | None = None,
+        fibre_stiffness: float = 0.0,
     ) -> None:
         y, nu = stretch_stiffness, poisson_ratio
         if not (math.isfinite(y) and y > 0):
@@ -70,6 +79,21 @@ class Membrane:
         # F = sum_a x_a g_a^T, g_a the gradient of node a's shape function in the plane.
         self.grads = np.stack([-d_inv[:, 0] - d_inv[:, 1], d_inv[:, 0], d_inv[:, 1]], axis=1)
         self.dofs = (3 * self.triangles[:, :, None] + np.arange(3)).reshape(-1, 9)
+        self.fibre_stiffness = float(fibre_stiffness)
+        if not (math.isfinite(self.fibre_stiffness) and self.fibre_stiffness >= 0):
+            raise MaterialError(f"a fibre stiffness must be >= 0, got {fibre_stiffness!r}")
+        self.fibres = None
+        if fibres is not None and self.fibre_stiffness > 0:
+            a = np.asarray(fibres, dtype=float).reshape(-1, 3)
+            if a.shape[0] != len(self.triangles):
+                raise ModelError(f"fibres need one direction per triangle, got {a.shape}")
+            plane = np.column_stack([(a * u).sum(axis=1), (a * w).sum(axis=1)])
+            length = np.linalg.norm(plane, axis=1)
+            if np.any(length <= 1e-9 * np.linalg.norm(a, axis=1)) or not np.all(
+                np.isfinite(length)
+            ):
+                raise ModelError("a fibre direction is normal to its triangle (or not finite)")
+            self.fibres = plane / length[:, None]
 
     def deformation_gradients(self, positions: np.ndarray) -> np.ndarray:
         """(t, 3, 2) F of each triangle at `positions` (n, 3)."""
@@ -79,7 +103,12 @@ class Membrane:
         """Green strain and second Piola stress (t, 2, 2)."""
         strain = 0.5 * (np.einsum("tki,tkj->tij", f, f) - np.eye(2))
         trace = strain[:, 0, 0] + strain[:, 1, 1]
-        return strain, 2.0 * self.mu * strain + self.lam * trace[:, None, None] * np.eye(2)
+        stress = 2.0 * self.mu * strain + self.lam * trace[:, None, None] * np.eye(2)
+        if self.fibres is not None:
+            a = self.fibres
+            stretch = np.einsum("ti,tij,tj->t", a, strain, a)
+            stress += self.fibre_stiffness * stretch[:, None, None] * np.einsum("ti,tj->tij", a, a)
+        return strain, stress
 
     def element_forces(self, positions: np.ndarray) -> tuple[np.ndarray, float]:
         """(t, 3, 3) forces on each triangle's nodes, -A P g_a with P = F S, and the energy."""
@@ -89,6 +118,9 @@ class Membrane:
         forces = -self.areas[:, None, None] * np.einsum("tij,taj->tai", piola, self.grads)
         trace = strain[:, 0, 0] + strain[:, 1, 1]
         density = self.mu * (strain * strain).sum(axis=(1, 2)) + 0.5 * self.lam * trace**2
+        if self.fibres is not None:
+            stretch = np.einsum("ti,tij,tj->t", self.fibres, strain, self.fibres)
+            density = density + 0.5 * self.fibre_stiffness * stretch**2
         return forces, float(self.areas @ density)
 
     def element_stiffness(self, positions: np.ndarray) -> np.ndarray:
@@ -110,6 +142,11 @@ class Membrane:
         trace = np.einsum("tbjkk->tbj", fg)
         d_stress = self.mu * (fg + np.swapaxes(fg, -1, -2))
         d_stress += self.lam * trace[..., None, None] * np.eye(2)
+        if self.fibres is not None:
+            a = self.fibres
+            # d(a^T E a) = a^T sym(F^T dF) a = a^T (F^T dF) a.
+            d_stretch = np.einsum("tk,tbjkl,tl->tbj", a, fg, a)
+            d_stress += self.fibre_stiffness * np.einsum("tbj,tk,tl->tbjkl", d_stretch, a, a)
         d_piola = np.einsum("tik,tbjkl->tbjil", f, d_stress)
         k += np.einsum("tbjil,tal->taibj", d_piola, g)
         return self.areas[:, None, None] * k.reshape(-1, 9, 9)

@@ -572,3 +572,106 @@ def _cavity_surfaces(
         surfaces[f"cavity_{n}"] = boundary[on_wall][:, [0, 2, 1]]
     surfaces["cavity"] = np.concatenate([surfaces[f"cavity_{n}"] for n in range(len(cavities))])
     return surfaces
+
+
+def stiff_flop(
+    *,
+    module_length: float = 50.0,
+    radius: float = 15.0,
+    n_modules: int = 2,
+    chamber_radius: float = 2.5,
+    chamber_offset: float = 8.0,
+    pair_spacing: float = 7.0,
+    cap: float = 3.0,
+    mesh_size: float = 8.0,
+) -> TetMesh:
+    """The Stiff-Flop (Cianchetti et al. 2014): a silicone cylinder along +z from z = 0 of
+    `n_modules` modules, each with three pairs of cylindrical chambers.
+
+    Pair j of module i sits at azimuth 2 pi j / 3 (+x first), its two chambers `pair_spacing`
+    apart across that azimuth, at `chamber_offset` from the axis; each chamber is closed by
+    `cap` of material at both ends of its module. The chambers' walls are meshed with five
+    elements round (their meshed volume below the cylinder's), the body with `mesh_size`.
+
+    Surfaces: 'cavity_{i}_{j}' the walls of pair j of module i (both chambers, oriented out of
+    the air into the material).
+    Landmarks: 'chamber_axes_{i}_{j}' (2, 2) the xy centres of the pair's two chambers;
+    'effector_tip' and 'effector_middle' (1, 3) on the axis at the tip and between the
+    modules; 'fixed_box' (2, 3) around the base face z = 0.
+    """
+    _require_positive(
+        module_length=module_length,
+        radius=radius,
+        chamber_radius=chamber_radius,
+        chamber_offset=chamber_offset,
+        pair_spacing=pair_spacing,
+        cap=cap,
+        mesh_size=mesh_size,
+    )
+    if int(n_modules) != n_modules or n_modules < 1:
+        raise ModelError(f"n_modules must be a positive integer, got {n_modules!r}")
+    reach = math.hypot(chamber_offset, pair_spacing / 2) + chamber_radius
+    if not (reach < radius - 1.0 and pair_spacing > 2 * chamber_radius + 1.0):
+        raise ModelError(
+            f"chambers of radius {chamber_radius} mm at {chamber_offset} mm, {pair_spacing} mm"
+            f" apart, do not fit with walls of 1 mm in a cylinder of radius {radius} mm"
+        )
+    if not 2 * cap < module_length:
+        raise ModelError(f"caps of {cap} mm leave no chamber in a {module_length} mm module")
+    length = n_modules * module_length
+    centres: dict[tuple[int, int], np.ndarray] = {}
+    for j in range(3):
+        a = 2 * math.pi * j / 3
+        radial = np.array([math.cos(a), math.sin(a)])
+        tangent = np.array([-radial[1], radial[0]])
+        centres[j] = np.array(
+            [chamber_offset * radial + s * pair_spacing / 2 * tangent for s in (-1, 1)]
+        )
+    with gmsh_model("stiff_flop"):
+        occ = gmsh.model.occ
+        body = occ.addCylinder(0, 0, 0, 0, 0, length, radius)
+        holes = [
+            (
+                3,
+                occ.addCylinder(
+                    *c, i * module_length + cap, 0, 0, module_length - 2 * cap, chamber_radius
+                ),
+            )
+            for i in range(n_modules)
+            for j in range(3)
+            for c in centres[j]
+        ]
+        occ.cut([(3, body)], holes)
+        occ.removeAllDuplicates()
+        occ.synchronize()
+        # Five elements round each chamber, whatever the body's size: coarser, a chamber's
+        # section collapses (its wall pinched onto a chord shared by four faces).
+        chamber_size = min(mesh_size, 2 * math.pi * chamber_radius / 5)
+        for dim, tag in gmsh.model.getEntities(0):
+            x, y, _ = gmsh.model.getValue(dim, tag, [])
+            if math.hypot(x, y) < radius - 0.5:
+                gmsh.model.mesh.setSize([(dim, tag)], chamber_size)
+        points, tets = mesh_volumes(mesh_size)
+    boundary = TetMesh(points=points, tets=tets).boundary_triangles()
+    corners = points[boundary]  # (t, 3, 3): a wall triangle has its three corners on the wall
+    tol = 1e-6 * length
+    surfaces: dict[str, np.ndarray] = {}
+    landmarks: dict[str, np.ndarray] = {}
+    for i in range(n_modules):
+        z0, z1 = i * module_length + cap - tol, (i + 1) * module_length - cap + tol
+        in_module = np.all((corners[..., 2] > z0) & (corners[..., 2] < z1), axis=1)
+        for j in range(3):
+            near = np.zeros(len(boundary), dtype=bool)
+            for c in centres[j]:
+                gap = np.linalg.norm(corners[..., :2] - c, axis=2)
+                near |= np.all(gap < chamber_radius + tol, axis=1)
+            walls = boundary[in_module & near]
+            if len(walls) < 8:
+                raise MeshError(f"chamber pair {j} of module {i} has no walls: lower mesh_size")
+            # Boundary normals point into the air on a cavity wall: flip them.
+            surfaces[f"cavity_{i}_{j}"] = walls[:, [0, 2, 1]]
+            landmarks[f"chamber_axes_{i}_{j}"] = centres[j]
+    landmarks["effector_tip"] = [0.0, 0.0, length]
+    landmarks["effector_middle"] = [0.0, 0.0, length / 2]
+    landmarks["fixed_box"] = _box([-radius - 1, -radius - 1, -1.0], [radius + 1, radius + 1, 1e-3])
+    return _finish(points, tets, landmarks, surfaces)

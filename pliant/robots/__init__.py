@@ -25,11 +25,13 @@ from pliant.robots import catch_object as _catch_object
 from pliant.robots import diamond as _diamond
 from pliant.robots import finger as _finger
 from pliant.robots import gripper as _gripper
+from pliant.robots import lianford as _lianford
 from pliant.robots import multigait as _multigait
 from pliant.robots import pneunet as _pneunet
 from pliant.robots import rod_manipulator as _rod_manipulator
 from pliant.robots import simple_maze as _simple_maze
 from pliant.robots import stem_pendulum as _stem_pendulum
+from pliant.robots import stiff_flop as _stiff_flop
 from pliant.robots import tripod as _tripod
 from pliant.robots import trunk as _trunk
 from pliant.robots import trunk_cube as _trunk_cube
@@ -96,6 +98,15 @@ ROBOTS: dict[str, RobotEntry] = {
     "tripod_maze": RobotEntry(_tripod.tripod_maze, _tripod.demo_actuation, {}, (35.0, -70.0)),
     "simple_maze": RobotEntry(
         _simple_maze.simple_maze, _simple_maze.demo_actuation, {}, (45.0, -70.0)
+    ),
+    "lianford": RobotEntry(
+        _lianford.lianford, _lianford.demo_actuation, {"spiral": _lianford.spiral}, (30.0, -60.0)
+    ),
+    "stiff_flop": RobotEntry(
+        _stiff_flop.stiff_flop,
+        _stiff_flop.demo_actuation,
+        {"circle": _stiff_flop.circle},
+        (20.0, -60.0),
     ),
 }
 
