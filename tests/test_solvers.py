@@ -94,7 +94,9 @@ def _trajectory(model: Model, name: str, tangent: str, steps: int, dt: float = 0
 # tolerance, which test_contact_solver checks), but the stem pendulum, whose rod's rotation
 # coordinates wrap at +-pi (the two policies agree there modulo 2 pi: a position difference is
 # no measure of it).
-@pytest.mark.parametrize("name", ["cartstem", "diamond", "finger", "pneunet", "trunk"])
+@pytest.mark.parametrize(
+    "name", ["cartstem", "diamond", "finger", "lianford", "pneunet", "stiff_flop", "trunk"]
+)
 def test_tangent_policies_agree(name, robot_models) -> None:
     """ "pcg" solves each step's system to rtol 1e-10, so it follows "fresh" to round-off
     (measured 3e-11 mm over 30 steps on the Diamond); "lagged" keeps an older factorisation as
@@ -104,7 +106,7 @@ def test_tangent_policies_agree(name, robot_models) -> None:
     model = robot_models[name]
     fresh = _trajectory(model, name, "fresh", 30)
     motion = np.abs(fresh - model.body.rest_positions).max()
-    assert motion > 1.0
+    assert motion > 0.5  # mm: the demos move (the Lianford 0.95 mm in 30 steps)
     pcg = _trajectory(model, name, "pcg", 30)
     assert np.abs(pcg - fresh).max() < 1e-8 * motion
     lagged = _trajectory(model, name, "lagged", 30)

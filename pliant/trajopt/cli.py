@@ -336,25 +336,32 @@ def run_scenario(
 def _command(command: str, doc: str) -> None:
     def run(
         quick: Annotated[bool, typer.Option(help="short horizon, 2 iterations (tests)")] = False,
-        horizon: Annotated[int, typer.Option(help="nodes N (0: the scenario's)")] = 0,
-        max_iterations: Annotated[int, typer.Option(help="DDP iterations at most")] = 100,
-        tolerance: Annotated[float, typer.Option(help="relative cost decrease to stop")] = 1e-4,
-        frames: Annotated[int, typer.Option(help="frames in each GIF (0: no GIF)")] = 20,
-        out: Annotated[Path, typer.Option(help="output folder")] = Path("out/trajopt"),
+        horizon: Annotated[
+            int, typer.Option(help="nodes N (0: the scenario's)", callback=non_negative)
+        ] = 0,
+        max_iterations: Annotated[
+            int, typer.Option(help="DDP iterations at most", callback=at_least_one)
+        ] = 100,
+        tolerance: Annotated[
+            float, typer.Option(help="relative cost decrease to stop", callback=non_negative)
+        ] = 1e-4,
+        frames: Annotated[
+            int, typer.Option(help="frames in each GIF (0: no GIF)", callback=non_negative)
+        ] = 20,
+        out: Annotated[Path, typer.Option(help="output folder", callback=output_folder)] = Path(
+            "out/trajopt"
+        ),
     ) -> None:
-        try:
-            run_scenario(
-                command,
-                quick=quick,
-                horizon=horizon or None,
-                max_iterations=max_iterations,
-                tolerance=tolerance,
-                frames=frames,
-                out=out,
-            )
-        except PliantError as exc:
-            console.print(f"[red]error:[/red] {exc}")
-            raise typer.Exit(1) from exc
+        # Errors reach the command line's handler: one line, exit 1 (pliant.cli_support).
+        run_scenario(
+            command,
+            quick=quick,
+            horizon=horizon or None,
+            max_iterations=max_iterations,
+            tolerance=tolerance,
+            frames=frames,
+            out=out,
+        )
 
     run.__doc__ = doc
     app.command(command)(run)
