@@ -61,6 +61,14 @@ def replay(env_id: str, actions: list[int], **kwargs) -> dict:
     }
 
 
+def run_env_kwargs(run: Path) -> dict:
+    """The environment arguments the run trained with (its config.yaml): the same reduced
+    model (e.g. its training load cases) for the replays."""
+    import yaml
+
+    return yaml.safe_load((run / "config.yaml").read_text()).get("env_kwargs") or {}
+
+
 def learned_actions(run: Path) -> list[int]:
     """The saved policy's deterministic actions over one episode of the reduced model."""
     from pliant.learn.evaluate import load_policy
@@ -68,7 +76,7 @@ def learned_actions(run: Path) -> list[int]:
     # The best evaluated policy (evaluations are this deterministic episode), else the last.
     folder = run / "best" if (run / "best" / "model.zip").exists() else run / "final"
     policy = load_policy(folder)
-    env = gym.make("pliant/ReducedMultigait-v0")
+    env = gym.make("pliant/ReducedMultigait-v0", **run_env_kwargs(run))
     obs, _ = env.reset(seed=0)
     actions, done = [], False
     normalize = policy.normalize_obs
@@ -135,13 +143,20 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--run", type=Path, default=Path("runs/table_3_2_ppo"))
     parser.add_argument("--out", type=Path, default=Path("experiments/results/reduction"))
+    parser.add_argument("--name", default="table_3_2", help="stem of the JSON and PNG written")
     args = parser.parse_args()
     learned = learned_actions(args.run)
-    results = {"thesis_cm": THESIS, "learning_curve": learning_curve(args.run)}
+    env_kwargs = run_env_kwargs(args.run)
+    results = {
+        "run": str(args.run),
+        "reduced_env_kwargs": env_kwargs,
+        "thesis_cm": THESIS,
+        "learning_curve": learning_curve(args.run),
+    }
     for name, actions in (("hand", HAND), ("learned", learned)):
         results[name] = {
             "actions": actions,
-            "reduced": replay("pliant/ReducedMultigait-v0", actions),
+            "reduced": replay("pliant/ReducedMultigait-v0", actions, **env_kwargs),
             "full": replay("pliant/Multigait-v0", actions, reward="sofagym"),
         }
     summary = (
@@ -154,8 +169,8 @@ def main() -> None:
         results["learned"]["full"]["final_travel_mm"] > results["hand"]["full"]["final_travel_mm"]
     )
     args.out.mkdir(parents=True, exist_ok=True)
-    (args.out / "table_3_2.json").write_text(json.dumps(results, indent=1))
-    plot(results, args.out / "table_3_2.png")
+    (args.out / f"{args.name}.json").write_text(json.dumps(results, indent=1))
+    plot(results, args.out / f"{args.name}.png")
     for name in ("hand", "learned"):
         r = results[name]
         print(

@@ -36,6 +36,15 @@ def summary(name: str, result, scenario) -> dict:
     }
 
 
+# Options the scenario commands share.
+MaxIterations = Annotated[int, typer.Option(help="DDP iterations at most", callback=at_least_one)]
+Tolerance = Annotated[
+    float, typer.Option(help="relative cost decrease to stop", callback=non_negative)
+]
+Frames = Annotated[int, typer.Option(help="frames in each GIF (0: no GIF)", callback=non_negative)]
+Out = Annotated[Path, typer.Option(help="output folder", callback=output_folder)]
+
+
 @app.command()
 def diamond(
     nonlinear: Annotated[
@@ -50,21 +59,13 @@ def diamond(
     ] = 20.0,
     dt: Annotated[float, typer.Option(help="time step (s)", callback=positive)] = 0.02,
     horizon: Annotated[int, typer.Option(help="nodes N", callback=at_least_one)] = 100,
-    max_iterations: Annotated[
-        int, typer.Option(help="DDP iterations at most", callback=at_least_one)
-    ] = 100,
-    tolerance: Annotated[
-        float, typer.Option(help="relative cost decrease to stop", callback=non_negative)
-    ] = 1e-4,
-    frames: Annotated[
-        int, typer.Option(help="frames in the GIF (0: no GIF)", callback=non_negative)
-    ] = 25,
+    max_iterations: MaxIterations = 100,
+    tolerance: Tolerance = 1e-4,
+    frames: Frames = 25,
     settle: Annotated[
         float, typer.Option(help="seconds of constant tensions per goal", callback=non_negative)
     ] = 3.0,
-    out: Annotated[Path, typer.Option(help="output folder", callback=output_folder)] = Path(
-        "out/trajopt"
-    ),
+    out: Out = Path("out/trajopt"),
 ) -> None:
     """The Diamond's effector to two successive goals (Fig. 5.20), linear part of the state
     derivative and, with --nonlinear, the non-linear one (the thesis' lift)."""
@@ -148,9 +149,7 @@ def diamond_mpc(
     settle: Annotated[
         float, typer.Option(help="seconds of constant tensions per goal", callback=non_negative)
     ] = 3.0,
-    out: Annotated[Path, typer.Option(help="output folder", callback=output_folder)] = Path(
-        "out/trajopt"
-    ),
+    out: Out = Path("out/trajopt"),
 ) -> None:
     """The Diamond's two-goal task by receding-horizon MPC on the condensed dynamics frozen at
     each FEM state, the loop closed on the FEM: loop rate and tracking error."""
@@ -339,18 +338,10 @@ def _command(command: str, doc: str) -> None:
         horizon: Annotated[
             int, typer.Option(help="nodes N (0: the scenario's)", callback=non_negative)
         ] = 0,
-        max_iterations: Annotated[
-            int, typer.Option(help="DDP iterations at most", callback=at_least_one)
-        ] = 100,
-        tolerance: Annotated[
-            float, typer.Option(help="relative cost decrease to stop", callback=non_negative)
-        ] = 1e-4,
-        frames: Annotated[
-            int, typer.Option(help="frames in each GIF (0: no GIF)", callback=non_negative)
-        ] = 20,
-        out: Annotated[Path, typer.Option(help="output folder", callback=output_folder)] = Path(
-            "out/trajopt"
-        ),
+        max_iterations: MaxIterations = 100,
+        tolerance: Tolerance = 1e-4,
+        frames: Frames = 20,
+        out: Out = Path("out/trajopt"),
     ) -> None:
         # Errors reach the command line's handler: one line, exit 1 (pliant.cli_support).
         run_scenario(
