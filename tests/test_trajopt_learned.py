@@ -115,3 +115,22 @@ def test_short_learned_loop_moves_the_tip_toward_the_goal(learned, scenario):
     after = np.linalg.norm(result.xs[-1, :3] - goal)
     assert scenario.bounds.violation(result.us) == 0.0
     assert after < 0.5 * before
+
+
+def test_cli_finger_mpc_learned_writes_its_report(tmp_path):
+    import json
+
+    from typer.testing import CliRunner
+
+    from pliant.cli import app
+
+    result = CliRunner().invoke(
+        app,
+        ["trajopt", "finger-mpc-learned", "--model", str(MODEL), "--steps", "4"]
+        + ["--horizon", "5", "--out", str(tmp_path)],
+    )
+    assert result.exit_code == 0, result.output
+    report = json.loads((tmp_path / "finger_mpc_learned.json").read_text())
+    assert not report["learned_model"]["trained_now"]
+    assert all(r["bound_violation"] == 0.0 for r in report["runs"].values())
+    assert (tmp_path / "finger_mpc_learned.png").stat().st_size > 0
