@@ -372,3 +372,209 @@ _command(
     "lianford-orientation",
     "Two effectors on the Lianford's ring at once: the handle's orientation (Fig. 5.22).",
 )
+
+
+# Learned condensed models the learned MPC commands use, and how a missing one is made:
+# a short collection around the task's actuator distances and a small network.
+LEARNED_MODELS = Path("experiments/results/trajopt/learned")
+_ROBOT_KWARGS = {"diamond": {"mesh_size": 20.0}, "finger": {"resolution": "coarse"}}
+
+
+def distance_box(model, states) -> list[tuple[float, float]]:
+    """Bounds of each actuator distance over `states` (a trajectory of the task), widened by
+    20 % of their span and 0.5 mm: the region a model for the task must cover."""
+    d = np.array([model.actuator_distances(s.positions) for s in states])
+    low, high = d.min(axis=0), d.max(axis=0)
+    pad = 0.2 * (high - low) + 0.5
+    return [(float(lo), float(hi)) for lo, hi in zip(low - pad, high + pad, strict=True)]
+
+
+def learned_model(robot: str, path: Path, box, *, samples: int, epochs: int):
+    """The learned condensed model at `path`, or, if there is none, one collected (`samples`
+    Halton samples of the actuator distances in `box`, one worker) and trained (3 x 128,
+    `epochs` epochs) there now, as `pliant condensed collect` and `train` would."""
+    from pliant.condensed.collect import load_or_collect
+    from pliant.condensed.dataset import CollectionPlan
+    from pliant.condensed.learned import LearnedCondensedModel
+    from pliant.condensed.train import TrainConfig, evaluate, train_condensed
+
+    if path.is_file():
+        return LearnedCondensedModel.load(path), False
+    console.print(
+        f"no learned model at {path}: collecting {samples} samples and training {epochs} epochs"
+    )
+    plan = CollectionPlan(robot, tuple(box), samples, robot_kwargs=_ROBOT_KWARGS[robot])
+    dataset = load_or_collect(plan, path.with_suffix(".h5"), workers=1)
+    config = TrainConfig(
+        epochs=epochs, batch_size=16, learning_rate=1e-3, hidden=(128, 128, 128), progress=False
+    )
+    learned, _ = train_condensed(dataset, config)
+    learned.training["test"] = evaluate(learned, dataset.test)
+    learned.save(path)
+    return learned, True
+
+
+def run_learned_mpc(
+    robot: str,
+    *,
+    model: Path | None = None,
+    horizon: int = 20,
+    iterations: int = 3,
+    steps: int = 100,
+    samples: int = 300,
+    epochs: int = 1000,
+    out: Path = Path("out/trajopt"),
+) -> dict:
+    """The two-goal task of `robot` three ways, each closed on (or run on) the full FEM: the
+    full-FEM DDP (offline), the MPC on the condensed dynamics frozen at each FEM state, and the
+    MPC whose prediction is the learned condensed model; `{robot}_mpc_learned.{json,png}`."""
+    import time
+
+    from pliant.trajopt.ddp import BoxDDP
+    from pliant.trajopt.learned import LearnedMPC
+    from pliant.trajopt.mpc import CondensedMPC
+    from pliant.trajopt.plots import plot_trajectory
+    from pliant.trajopt.scenarios import SCENARIOS
+
+    scenario = SCENARIOS[robot](horizon=steps)
+    goals, m = scenario.goals, scenario.goals.shape[1]
+    runs, reports = {}, {}
+    with console.status(f"{robot}: full-FEM DDP"):
+        ddp = BoxDDP(max_iterations=100, tolerance=1e-4).solve(
+            scenario.dynamics, scenario.start, scenario.cost, scenario.bounds
+        )
+    runs["full-FEM DDP"] = (ddp.xs, ddp.us)
+    reports["full-FEM DDP"] = {
+        "iterations": ddp.iterations,
+        "wall_time_s": ddp.wall_time,
+        "rollouts": ddp.rollouts,
+    }
+    path = model or LEARNED_MODELS / f"{robot}.pt"
+    box = distance_box(scenario.model, ddp.rollout.states)
+    learned, trained = learned_model(robot, path, box, samples=samples, epochs=epochs)
+    controllers = {
+        f"MPC, frozen FEM condensed (H = {horizon})": CondensedMPC,
+        f"MPC, learned prediction (H = {horizon})": lambda dyn, *a, **k: LearnedMPC(
+            dyn, learned, *a, **k
+        ),
+    }
+    for name, make in controllers.items():
+        mpc = make(
+            scenario.dynamics,
+            scenario.cost,
+            scenario.bounds,
+            horizon=horizon,
+            max_iterations=iterations,
+        )
+        clock = time.perf_counter()
+        with console.status(f"{robot}: {name}"):
+            result = mpc.run(scenario.start)
+        runs[name] = (result.xs, result.us)
+        reports[name] = {**result.report(), "wall_time_s": time.perf_counter() - clock}
+        if isinstance(mpc, LearnedMPC):
+            reports[name]["largest_extrapolation_mm"] = mpc.extrapolation
+    for name, (xs, us) in runs.items():
+        errors = np.linalg.norm(xs[:, :m] - goals, axis=1)
+        reports[name].update(
+            {
+                "cost": scenario.cost.value(xs, us),
+                "rms_to_goals_mm": float(np.sqrt(np.mean(errors**2))),
+                "end_error_mm": float(errors[-1]),
+                "rms_to_ddp_mm": float(
+                    np.sqrt(np.mean(np.sum((xs[:, :m] - ddp.xs[:, :m]) ** 2, axis=1)))
+                ),
+                "bound_violation": scenario.bounds.violation(us),
+            }
+        )
+    table = Table(title=f"{robot}: two goals, MPC with the learned condensed model")
+    for col in ("run", "loop (Hz)", "with FEM (Hz)", "RMS goals", "RMS to DDP", "end", "wall"):
+        table.add_column(col)
+    for name, r in reports.items():
+        table.add_row(
+            name,
+            f"{r['loop_rate_hz']:.0f}" if "loop_rate_hz" in r else "-",
+            f"{r['closed_loop_rate_hz']:.0f}" if "closed_loop_rate_hz" in r else "-",
+            f"{r['rms_to_goals_mm']:.2f}",
+            f"{r['rms_to_ddp_mm']:.2f}",
+            f"{r['end_error_mm']:.3f}",
+            f"{r['wall_time_s']:.1f}",
+        )
+    console.print(table)
+    out.mkdir(parents=True, exist_ok=True)
+    dt = scenario.dynamics.dt
+    plot = plot_trajectory(
+        np.arange(steps + 1) * dt,
+        runs,
+        goals,
+        (scenario.bounds.lower, scenario.bounds.upper),
+        out / f"{robot}_mpc_learned.png",
+        title=f"{robot}: full-FEM DDP, MPC frozen condensed, MPC learned (closed on the FEM)",
+        relative=True,
+    )
+    report = {
+        "scenario": f"{robot}-mpc-learned",
+        "horizon": horizon,
+        "iterations_per_step": iterations,
+        "steps": steps,
+        "dt": dt,
+        "learned_model": {
+            "path": str(path),
+            "trained_now": trained,
+            "samples": learned.plan.n_train,
+            "box": [learned.input_box.low.tolist(), learned.input_box.high.tolist()],
+            "hidden": list(learned.network.hidden),
+            **learned.training,
+        },
+        "runs": reports,
+    }
+    path_json = out / f"{robot}_mpc_learned.json"
+    path_json.write_text(json.dumps(report, indent=1))
+    console.print(f"saved {plot}, {path_json}")
+    return report
+
+
+def _learned_command(robot: str) -> None:
+    def run(
+        model: Annotated[
+            Path | None,
+            typer.Option(
+                help="learned condensed model (default: experiments/results/trajopt/learned/"
+                "ROBOT.pt, collected and trained there first if missing)"
+            ),
+        ] = None,
+        horizon: Annotated[int, typer.Option(help="prediction nodes", callback=at_least_one)] = 20,
+        iterations: Annotated[
+            int, typer.Option(help="DDP iterations per control step", callback=at_least_one)
+        ] = 3,
+        steps: Annotated[
+            int, typer.Option(help="control steps (the task's nodes)", callback=at_least_one)
+        ] = 100,
+        samples: Annotated[
+            int, typer.Option(help="samples if a model is collected", callback=at_least_one)
+        ] = 300,
+        epochs: Annotated[
+            int, typer.Option(help="epochs if a model is trained", callback=at_least_one)
+        ] = 1000,
+        out: Out = Path("out/trajopt"),
+    ) -> None:
+        run_learned_mpc(
+            robot,
+            model=model,
+            horizon=horizon,
+            iterations=iterations,
+            steps=steps,
+            samples=samples,
+            epochs=epochs,
+            out=out,
+        )
+
+    run.__doc__ = (
+        f"The {robot.capitalize()}'s two-goal task by MPC whose prediction is the learned"
+        " condensed model (§6.2.1), closed on the full FEM, beside the full-FEM DDP and the MPC"
+        " on the frozen FEM condensed dynamics: loop rates and tracking errors."
+    )
+    app.command(f"{robot}-mpc-learned")(run)
+
+
+_learned_command("diamond")
+_learned_command("finger")

@@ -95,13 +95,22 @@ class CondensedMPC:
             self.cost.control_reference,
         )
 
+    def _prediction(self, state: State, x: np.ndarray, w_ea: np.ndarray, free: np.ndarray):
+        """The horizon's model and its start from the FEM state reached (effector state x,
+        W_ea and free motion of the last FEM step): here the condensed dynamics frozen there."""
+        h, m = self.dynamics.dt, self.dynamics.n_positions
+        eye, zero = np.eye(m), np.zeros((m, m))
+        a = np.block([[eye, h * eye], [zero, eye]])
+        b = np.vstack([w_ea, w_ea / h])
+        drift = np.concatenate([h * free, free])
+        return LinearDynamics(a, b, np.tile(drift, (self.horizon, 1))), x
+
     def run(self, start: State, steps: int | None = None, *, on_step=None) -> MPCResult:
         """Close the loop on the FEM from `start` for `steps` control steps (default: the
         cost's horizon)."""
-        dyn, h = self.dynamics, self.dynamics.dt
+        dyn = self.dynamics
         steps = self.cost.horizon if steps is None else int(steps)
         n_a, hz = dyn.n_controls, self.horizon
-        m = dyn.n_positions
         previous = self.bounds.previous if self.bounds.previous is not None else np.zeros(n_a)
         # The first prediction needs a W_ea: one FEM step from the start, not applied.
         _, w_ea, free = dyn.step(start, previous)
@@ -109,17 +118,13 @@ class CondensedMPC:
         xs = [dyn.effector_state(start)]
         us, solve_times, plant_times, iterations = [], [], [], []
         plan = np.tile(previous, (hz, 1))
-        eye, zero = np.eye(m), np.zeros((m, m))
-        a = np.block([[eye, h * eye], [zero, eye]])
         for k in range(steps):
             clock = time.perf_counter()
-            b = np.vstack([w_ea, w_ea / h])
-            drift = np.concatenate([h * free, free])
-            model = LinearDynamics(a, b, np.tile(drift, (hz, 1)))
+            model, x0 = self._prediction(state, xs[-1], w_ea, free)
             bounds = ActuationBounds(
                 self.bounds.lower, self.bounds.upper, self.bounds.max_change, previous
             )
-            result = self.solver.solve(model, xs[-1], self._window(k), bounds, plan)
+            result = self.solver.solve(model, x0, self._window(k), bounds, plan)
             solve_times.append(time.perf_counter() - clock)
             iterations.append(result.iterations)
             u = result.us[0]

@@ -51,30 +51,99 @@ def diamond_two_goals(
     where the effector is after `settle` seconds under constant cable tensions (600, 0, 0, 200) and
     (0, 500, 400, 0) mN, so both are reachable within the bounds 0 <= u <= max_force (mN),
     |u_k - u_{k-1}| <= max_change (mN per step)."""
-    model = robots.diamond(mesh_size=mesh_size)
-    start = StaticSolver(model).step(model.rest_state(), ForceControl(np.zeros(4)))
+    return _two_goals(
+        "diamond",
+        robots.diamond(mesh_size=mesh_size),
+        np.array([[600.0, 0.0, 0.0, 200.0], [0.0, 500.0, 400.0, 0.0]]),
+        dt=dt,
+        horizon=horizon,
+        nonlinear=nonlinear,
+        lift=lift,
+        max_force=max_force,
+        max_change=max_change,
+        position_weight=position_weight,
+        velocity_weight=velocity_weight,
+        control_weight=control_weight,
+        settle=settle,
+    )
+
+
+def finger_two_goals(
+    *,
+    resolution: str = "coarse",
+    dt: float = 0.02,
+    horizon: int = 100,
+    max_force: float = 3000.0,
+    max_change: float = 100.0,
+    position_weight: float = 1.0,
+    velocity_weight: float = 1e-3,
+    control_weight: float = 1e-6,
+    settle: float = 3.0,
+) -> Scenario:
+    """The Finger's tip to two successive goals, one per half horizon: where it is after
+    `settle` seconds under cable tensions (1200, 0) mN (closing, cable 0) and (0, 1000) mN
+    (opening up, cable 1), from its equilibrium under gravity with slack cables. Tensions
+    0 <= u <= max_force (mN), |u_k - u_{k-1}| <= max_change (mN per step)."""
+    return _two_goals(
+        "finger",
+        robots.build("finger", resolution=resolution),
+        np.array([[1200.0, 0.0], [0.0, 1000.0]]),
+        dt=dt,
+        horizon=horizon,
+        max_force=max_force,
+        max_change=max_change,
+        position_weight=position_weight,
+        velocity_weight=velocity_weight,
+        control_weight=control_weight,
+        settle=settle,
+    )
+
+
+def _two_goals(
+    name: str,
+    model: Model,
+    holds: np.ndarray,
+    *,
+    dt: float,
+    horizon: int,
+    max_force: float,
+    max_change: float,
+    position_weight: float,
+    velocity_weight: float,
+    control_weight: float,
+    settle: float,
+    nonlinear: bool = False,
+    lift: str = "pseudo-inverse",
+) -> Scenario:
+    """Two goals, each where the effector is after `settle` seconds under a row of `holds`
+    from the static equilibrium with no actuation (reachable by construction)."""
+    n_a = model.n_actuators
+    start = StaticSolver(model).step(model.rest_state(), ForceControl(np.zeros(n_a)))
     dyn = CondensedDynamics(model, dt, nonlinear=nonlinear, lift=lift)
-    holds = np.array([[600.0, 0.0, 0.0, 200.0], [0.0, 500.0, 400.0, 0.0]])
     steps = max(1, round(settle / dt))
-    targets = [dyn.rollout(start, np.tile(u, (steps, 1))).xs[-1, :3] for u in holds]
-    goals = np.empty((horizon + 1, 3))
+    m = dyn.n_positions
+    targets = [dyn.rollout(start, np.tile(u, (steps, 1))).xs[-1, :m] for u in holds]
+    goals = np.empty((horizon + 1, m))
     half = horizon // 2
     goals[: half + 1] = targets[0]
     goals[half + 1 :] = targets[1]
     cost = tracking_cost(
         goals,
-        n_controls=4,
+        n_controls=n_a,
         position_weight=position_weight,
         velocity_weight=velocity_weight,
         control_weight=control_weight,
     )
     bounds = ActuationBounds(
-        np.zeros(4), np.full(4, max_force), max_change=np.full(4, max_change), previous=np.zeros(4)
+        np.zeros(n_a),
+        np.full(n_a, max_force),
+        max_change=np.full(n_a, max_change),
+        previous=np.zeros(n_a),
     )
-    return Scenario("diamond", model, dyn, start, cost, bounds, goals, holds)
+    return Scenario(name, model, dyn, start, cost, bounds, goals, holds)
 
 
-SCENARIOS = {"diamond": diamond_two_goals}
+SCENARIOS = {"diamond": diamond_two_goals, "finger": finger_two_goals}
 
 
 def _rest_positions(model: Model, holds: np.ndarray) -> tuple[State, list[np.ndarray]]:
