@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import multiprocessing
 import os
+import pickle
 import socket
 import threading
 import time
@@ -185,16 +186,22 @@ def _ray_jobs(
     ray.init(
         address=address, ignore_reinit_error=True, include_dashboard=False, log_to_driver=False
     )
-    remote = ray.remote(function)
+    # The arguments travel pickled: Ray would hand their NumPy arrays to the task read-only
+    # (views of its object store), and a model's work arrays are written in place.
+    remote = ray.remote(_unpickled_call)
     waiting = list(jobs)
     pending: dict = {}
     try:
         while waiting or pending:
             while waiting and (workers is None or len(pending) < workers):
                 key, args = waiting.pop(0)
-                pending[remote.remote(*args)] = key
+                pending[remote.remote(function, ray.cloudpickle.dumps(args))] = key
             (ready,), _ = ray.wait(list(pending), num_returns=1)
             yield pending.pop(ready), ray.get(ready)
     finally:
         for ref in pending:
             ray.cancel(ref)
+
+
+def _unpickled_call(function: Callable[..., Any], arguments: bytes) -> Any:
+    return function(*pickle.loads(arguments))

@@ -388,7 +388,9 @@ def test_cli_reduces_a_robot_and_reports(tmp_path):
 
     from pliant.cli import app
 
+    # The load cases on two local workers: the scripted and ramped commands pickle.
     args = ["reduce", "finger", "--duration", "0.2", "--phase", "0.1", "--check", "0.1"]
+    args += ["--workers", "2"]
     result = CliRunner().invoke(app, [*args, "--out", str(tmp_path)])
     assert result.exit_code == 0, result.output
     report = json.loads((tmp_path / "finger" / "report.json").read_text())
