@@ -319,6 +319,20 @@ def test_a_serial_collection_cut_mid_case_resumes_on_workers_to_the_same_file(
     assert_same_file(path, serial_pulls)
 
 
+def test_a_finished_case_that_fails_its_checksum_is_collected_again(serial_pulls, tmp_path):
+    h5py = pytest.importorskip("h5py")
+    path = tmp_path / "s.h5"
+    path.write_bytes(serial_pulls.read_bytes())
+    with h5py.File(path, "r") as f:
+        chunk = f[f"cases/{PULLS[1].name}/positions"].id.get_chunk_info(2)
+    with path.open("r+b") as raw:  # flip bytes inside one recorded configuration
+        raw.seek(chunk.byte_offset + 40)
+        raw.write(b"\xff" * 8)
+    with pytest.warns(snapshots.CorruptCaseWarning, match=PULLS[1].name):
+        snapshots.collect(beam(floor=0.2), PULLS, path, every=3)
+    assert_same_file(path, serial_pulls)
+
+
 def test_ray_tasks_give_the_same_snapshots(serial_pulls, tmp_path):
     ray = pytest.importorskip("ray", reason="Ray is not installed (optional extra pliant[ray])")
     try:
