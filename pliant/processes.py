@@ -13,17 +13,27 @@ watches the driver by identity instead: :func:`driver_identity` in the driver, p
 actor, and :func:`exit_with_process` there. Ray also ends a dead driver's actors itself (its
 job is marked finished); the watchdog makes that independent of the cluster's bookkeeping,
 covers detached actors, and ends them even if the cluster cannot tell.
+
+:func:`run_jobs` runs independent jobs (the chunks of a long collection) on such workers, or
+as Ray tasks, and hands back each result as it comes.
 """
 
 from __future__ import annotations
 
+import multiprocessing
 import os
+import pickle
 import socket
 import threading
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Hashable, Iterator, Sequence
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
+
+from pliant.errors import WorkerError
 
 ORPHAN_EXIT = 70  # exit status of a worker whose parent died (EX_SOFTWARE)
 _watched: set[ProcessIdentity] = set()  # one watchdog per process watched (reused Tune actors)
@@ -111,3 +121,87 @@ def exit_with_process(identity: ProcessIdentity, interval: float = 0.5) -> bool:
         _watched.add(identity)
         _watch(lambda: is_running(identity), interval)
     return True
+
+
+def run_jobs(
+    function: Callable[..., Any],
+    jobs: Sequence[tuple[Hashable, tuple]],
+    *,
+    workers: int | None = None,
+    ray_address: str | None = None,
+    what: str = "chunk",
+) -> Iterator[tuple[Hashable, Any]]:
+    """(key, function(*args)) for each (key, args) of `jobs`, in the order they finish.
+
+    In this process when `workers` is 1; on `workers` local processes (default: one per CPU)
+    started by spawn, not fork (gmsh, numba's OpenMP and the parent's BLAS threads must not be
+    inherited), each ending with this process (:func:`exit_with_parent`; killed, it would
+    leave them computing for minutes); or as Ray tasks on `ray_address` ("auto", "local",
+    "ray://host:port"), at most `workers` at a time when it is given. `function` and the
+    arguments must pickle. A local worker that dies raises WorkerError naming the `what` it
+    was running; the results already handed back are the caller's to keep.
+    """
+    if ray_address is not None:
+        yield from _ray_jobs(function, jobs, ray_address, workers)
+        return
+    workers = min(workers or os.cpu_count() or 1, max(1, len(jobs)))
+    if workers == 1:
+        for key, args in jobs:
+            yield key, function(*args)
+        return
+    pool = ProcessPoolExecutor(
+        workers,
+        mp_context=multiprocessing.get_context("spawn"),
+        initializer=exit_with_parent,
+        initargs=(os.getpid(),),
+    )
+    try:
+        futures = {pool.submit(function, *args): key for key, args in jobs}
+        for future in as_completed(futures):
+            try:
+                result = future.result()
+            except BrokenProcessPool as exc:
+                raise WorkerError(
+                    f"a worker process died while running {what} {futures[future]} (killed, or"
+                    f" out of memory?); the {what}s finished are saved: rerun the same command"
+                    " to resume (fewer --workers if memory is short)"
+                ) from exc
+            yield futures[future], result
+    finally:
+        pool.shutdown(wait=True, cancel_futures=True)
+
+
+def _ray_jobs(
+    function: Callable[..., Any],
+    jobs: Sequence[tuple[Hashable, tuple]],
+    address: str,
+    workers: int | None,
+) -> Iterator[tuple[Hashable, Any]]:
+    try:
+        import ray
+    except ImportError as exc:
+        raise ImportError(
+            "running on Ray needs the 'ray' package: pip install 'pliant[ray]'"
+        ) from exc
+    ray.init(
+        address=address, ignore_reinit_error=True, include_dashboard=False, log_to_driver=False
+    )
+    # The arguments travel pickled: Ray would hand their NumPy arrays to the task read-only
+    # (views of its object store), and a model's work arrays are written in place.
+    remote = ray.remote(_unpickled_call)
+    waiting = list(jobs)
+    pending: dict = {}
+    try:
+        while waiting or pending:
+            while waiting and (workers is None or len(pending) < workers):
+                key, args = waiting.pop(0)
+                pending[remote.remote(function, ray.cloudpickle.dumps(args))] = key
+            (ready,), _ = ray.wait(list(pending), num_returns=1)
+            yield pending.pop(ready), ray.get(ready)
+    finally:
+        for ref in pending:
+            ray.cancel(ref)
+
+
+def _unpickled_call(function: Callable[..., Any], arguments: bytes) -> Any:
+    return function(*pickle.loads(arguments))

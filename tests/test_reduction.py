@@ -1,6 +1,6 @@
 """Model order reduction (pliant.reduction): the reduced step against the full one, ECSW
 against its training forces, the reduced tangent against differences of the reduced forces,
-a nearby load case, the snapshot file and bad input."""
+a nearby load case, the snapshot file (serial, parallel, on Ray, interrupted) and bad input."""
 
 from __future__ import annotations
 
@@ -37,7 +37,7 @@ from pliant.reduction import (
     snapshots,
 )
 from pliant.reduction.ecsw import membrane_contributions, tet_contributions
-from pliant.reduction.pipeline import build
+from pliant.reduction.pipeline import RampedCommands, build
 from pliant.solvers import ImplicitEuler
 
 
@@ -244,6 +244,113 @@ def test_snapshots_resume_after_an_interruption(tmp_path):
     np.testing.assert_allclose(resumed, once, rtol=0, atol=1e-6)
 
 
+# Three load cases on the beam resting on a floor (contact forces in the checkpoints), their
+# commands values that pickle: cable pulls ramped over 0.1 s and held 0.1 s.
+PULLS = [
+    LoadCase(f"pull_{level}", RampedCommands([np.array([level])] * 2, 0.1), 0.2)
+    for level in (0.5, 1.0, 1.5)
+]
+
+
+def file_contents(path: Path) -> dict:
+    """Every dataset's values and every attribute of an HDF5 file, by name."""
+    h5py = pytest.importorskip("h5py")
+    out = {}
+    with h5py.File(path, "r") as f:
+
+        def visit(name, item):
+            out.update({f"{name}@{key}": value for key, value in item.attrs.items()})
+            if isinstance(item, h5py.Dataset):
+                out[name] = item[()]
+
+        f.visititems(visit)
+    return out
+
+
+def assert_same_file(a: Path, b: Path) -> None:
+    found, wanted = file_contents(a), file_contents(b)
+    assert sorted(found) == sorted(wanted)
+    for name, value in wanted.items():
+        np.testing.assert_array_equal(found[name], value, err_msg=name)
+
+
+@pytest.fixture(scope="module")
+def serial_pulls(tmp_path_factory) -> Path:
+    """PULLS collected in this process, in one go."""
+    path = tmp_path_factory.mktemp("serial") / "s.h5"
+    return snapshots.collect(beam(floor=0.2), PULLS, path, every=3)
+
+
+def test_parallel_snapshots_equal_serial_ones_bit_for_bit(serial_pulls, tmp_path):
+    path = snapshots.collect(beam(floor=0.2), PULLS, tmp_path / "p.h5", every=3, workers=2)
+    assert_same_file(path, serial_pulls)
+
+
+def test_an_interrupted_parallel_collection_resumes_to_the_same_file(serial_pulls, tmp_path):
+    model, path, written = beam(floor=0.2), tmp_path / "p.h5", []
+
+    def stop(name, step, steps):
+        written.append(name)
+        raise KeyboardInterrupt
+
+    with pytest.raises(KeyboardInterrupt):
+        snapshots.collect(model, PULLS, path, every=3, workers=2, progress=stop)
+    assert len(written) == 1
+    snapshots.collect(
+        model, PULLS, path, every=3, workers=2, progress=lambda name, *_: written.append(name)
+    )
+    assert written[0] not in written[1:]  # a finished case is not collected again
+    assert_same_file(path, serial_pulls)
+
+
+def test_a_serial_collection_cut_mid_case_resumes_on_workers_to_the_same_file(
+    serial_pulls, tmp_path
+):
+    model, path = beam(floor=0.2), tmp_path / "p.h5"
+
+    def stop(name, step, steps):
+        if name == PULLS[1].name and step == 12:
+            raise KeyboardInterrupt
+
+    with pytest.raises(KeyboardInterrupt):
+        snapshots.collect(model, PULLS, path, every=3, progress=stop)
+    # The unfinished case runs again from rest on a worker (not from its checkpoint).
+    snapshots.collect(model, PULLS, path, every=3, workers=2)
+    assert_same_file(path, serial_pulls)
+
+
+def test_a_finished_case_that_fails_its_checksum_is_collected_again(serial_pulls, tmp_path):
+    h5py = pytest.importorskip("h5py")
+    path = tmp_path / "s.h5"
+    path.write_bytes(serial_pulls.read_bytes())
+    with h5py.File(path, "r") as f:
+        chunk = f[f"cases/{PULLS[1].name}/positions"].id.get_chunk_info(2)
+    with path.open("r+b") as raw:  # flip bytes inside one recorded configuration
+        raw.seek(chunk.byte_offset + 40)
+        raw.write(b"\xff" * 8)
+    with pytest.warns(snapshots.CorruptCaseWarning, match=PULLS[1].name):
+        snapshots.collect(beam(floor=0.2), PULLS, path, every=3)
+    assert_same_file(path, serial_pulls)
+
+
+def test_ray_tasks_give_the_same_snapshots(serial_pulls, tmp_path):
+    ray = pytest.importorskip("ray", reason="Ray is not installed (optional extra pliant[ray])")
+    try:
+        path = snapshots.collect(
+            beam(floor=0.2), PULLS, tmp_path / "r.h5", every=3, workers=2, ray_address="local"
+        )
+    finally:
+        ray.shutdown()
+    assert_same_file(path, serial_pulls)
+
+
+def test_local_workers_need_commands_that_pickle(tmp_path):
+    with pytest.raises(ReductionError, match="do not pickle"):
+        snapshots.collect(beam(), [LoadCase("pull", pull(1.0), 0.02)], tmp_path / "s.h5", workers=2)
+    with pytest.raises(ReductionError, match="workers"):
+        snapshots.collect(beam(), PULLS, tmp_path / "s.h5", workers=0)
+
+
 def test_save_and_load_keep_the_reduced_model(trained, tmp_path):
     model, _, reduced = trained
     path = reduced.save(tmp_path / "beam.npz")
@@ -295,7 +402,9 @@ def test_cli_reduces_a_robot_and_reports(tmp_path):
 
     from pliant.cli import app
 
+    # The load cases on two local workers: the scripted and ramped commands pickle.
     args = ["reduce", "finger", "--duration", "0.2", "--phase", "0.1", "--check", "0.1"]
+    args += ["--workers", "2"]
     result = CliRunner().invoke(app, [*args, "--out", str(tmp_path)])
     assert result.exit_code == 0, result.output
     report = json.loads((tmp_path / "finger" / "report.json").read_text())

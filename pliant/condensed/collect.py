@@ -22,14 +22,11 @@ from __future__ import annotations
 import functools
 import hashlib
 import json
-import multiprocessing
 import os
 import shutil
 import warnings
 import zipfile
-from collections.abc import Callable, Iterator
-from concurrent.futures import ProcessPoolExecutor, as_completed
-from concurrent.futures.process import BrokenProcessPool
+from collections.abc import Callable
 from contextlib import closing
 from dataclasses import fields
 from pathlib import Path
@@ -49,9 +46,9 @@ from pliant.condensed.dataset import (
 from pliant.condensed.dataset import verify as verify_dataset
 from pliant.condensed.layout import Layout
 from pliant.condensed.manipulation import grasp_chunk
-from pliant.errors import DatasetError, DivergenceError, WorkerError
+from pliant.errors import DatasetError, DivergenceError
 from pliant.model import Model
-from pliant.processes import exit_with_parent
+from pliant.processes import run_jobs
 
 
 class CorruptChunkWarning(UserWarning):
@@ -110,11 +107,9 @@ def collect(
     total = sum(len(p) for p in points.values())
     solved = {key: split for key in chunks if (split := _saved_chunk(parts, key)) is not None}
     done = sum(stop - start for _, start, stop in solved)
-    jobs = [(key, points[key[0]][key[1] : key[2]]) for key in chunks if key not in solved]
-    results = (
-        _ray_chunks(plan, jobs, ray_address)
-        if ray_address is not None
-        else _local_chunks(plan, jobs, workers)
+    jobs = [(key, (plan, points[key[0]][key[1] : key[2]])) for key in chunks if key not in solved]
+    results = run_jobs(
+        solve_chunk, jobs, workers=None if ray_address else workers, ray_address=ray_address
     )
     with closing(results):
         for key, split in results:
@@ -244,59 +239,6 @@ def _training_goals(robot: str, kwargs_json: str) -> tuple[np.ndarray, ...]:
 def _build(robot: str, kwargs_json: str) -> Model:
     """The robot, built once per process and design (meshing is the costly part)."""
     return robots.build(robot, **json.loads(kwargs_json))
-
-
-def _local_chunks(
-    plan: CollectionPlan, jobs: list[tuple[ChunkKey, np.ndarray]], workers: int | None
-) -> Iterator[tuple[ChunkKey, Split]]:
-    workers = min(workers or os.cpu_count() or 1, max(1, len(jobs)))
-    if workers == 1:
-        for key, points in jobs:
-            yield key, solve_chunk(plan, points)
-        return
-    # spawn, not fork: gmsh and the BLAS threads of the parent must not be inherited; each
-    # worker ends with this process (killed, it would leave them solving for minutes)
-    pool = ProcessPoolExecutor(
-        workers,
-        mp_context=multiprocessing.get_context("spawn"),
-        initializer=exit_with_parent,
-        initargs=(os.getpid(),),
-    )
-    try:
-        futures = {pool.submit(solve_chunk, plan, points): key for key, points in jobs}
-        for future in as_completed(futures):
-            try:
-                split = future.result()
-            except BrokenProcessPool as exc:
-                raise WorkerError(
-                    f"a worker process died while solving chunk {futures[future]} (killed, or"
-                    " out of memory?); the chunks finished are saved: rerun the same command"
-                    " to resume (fewer --workers if memory is short)"
-                ) from exc
-            yield futures[future], split
-    finally:
-        pool.shutdown(wait=True, cancel_futures=True)
-
-
-def _ray_chunks(
-    plan: CollectionPlan, jobs: list[tuple[ChunkKey, np.ndarray]], address: str
-) -> Iterator[tuple[ChunkKey, Split]]:
-    try:
-        import ray
-    except ImportError as exc:
-        raise ImportError(
-            "collecting on Ray needs the 'ray' package: pip install 'pliant[ray]'"
-        ) from exc
-    ray.init(address=address, ignore_reinit_error=True, log_to_driver=False)
-    remote = ray.remote(solve_chunk)
-    pending = {remote.remote(plan, points): key for key, points in jobs}
-    try:
-        while pending:
-            (ready,), _ = ray.wait(list(pending), num_returns=1)
-            yield pending.pop(ready), ray.get(ready)
-    finally:
-        for ref in pending:
-            ray.cancel(ref)
 
 
 def _parts_folder(out: Path, plan: CollectionPlan, *, restart: bool = False) -> Path:

@@ -18,7 +18,7 @@ from rich.table import Table
 from pliant import robots
 from pliant.cli_support import at_least_one, non_negative, open_fraction, output_folder, positive
 from pliant.errors import ContactConvergenceWarning, PliantError
-from pliant.reduction.pipeline import multigait_cases, ramped, reduce
+from pliant.reduction.pipeline import RampedCommands, multigait_cases, reduce
 from pliant.reduction.snapshots import LoadCase
 from pliant.solvers import ImplicitEuler
 
@@ -37,13 +37,15 @@ def robot_cases(entry, duration: float, phase: float) -> list[LoadCase]:
         )
     times = np.linspace(0.0, duration, 200)
     peak = np.max(np.abs([np.asarray(entry.demo_actuation(t), dtype=float) for t in times]), axis=0)
-    cases = [LoadCase("demo", lambda t: np.asarray(entry.demo_actuation(t), float), duration)]
+    cases = [LoadCase("demo", entry.demo_actuation, duration)]
     for i, level in enumerate(peak):
         if level > 0:
             target = np.zeros_like(peak)
             target[i] = level
             cases.append(
-                LoadCase(f"actuator_{i}", ramped([target, target, 0 * target], phase), 3 * phase)
+                LoadCase(
+                    f"actuator_{i}", RampedCommands([target, target, 0 * target], phase), 3 * phase
+                )
             )
     return cases
 
@@ -78,6 +80,12 @@ def reduce_command(
     check: Annotated[
         float, typer.Option(help="seconds of scripted actuation to compare", callback=positive)
     ] = 1.2,
+    workers: Annotated[
+        int, typer.Option(help="local processes running the load cases", callback=at_least_one)
+    ] = 1,
+    ray: Annotated[
+        str | None, typer.Option(help="run the load cases on this Ray cluster (auto, ray://...)")
+    ] = None,
 ) -> None:
     """Reduce ROBOT (thesis §3.1.2): full-FEM snapshots of its load cases (resumable),
     POD basis, ECSW integration domain; save the reduced model and report its modes,
@@ -102,6 +110,8 @@ def reduce_command(
             cases,
             folder,
             dt=dt,
+            workers=workers,
+            ray_address=ray,
             progress=progress,
             pod_tolerance=pod_tolerance,
             tau=tau,

@@ -3,12 +3,14 @@ cases that train the Multigait's."""
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import json
 import os
 import tempfile
 import time
 from collections.abc import Callable, Sequence
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -86,15 +88,25 @@ def reduce(
     *,
     dt: float = 0.01,
     every: int = 5,
+    workers: int = 1,
+    ray_address: str | None = None,
     progress: Callable[[str, int, int], None] | None = None,
     **options,
 ) -> ReducedModel:
-    """Collect the snapshots of `cases` (resumable, `folder`/snapshots.h5), build the reduced
-    model (:func:`build`, `options`) and save it as `folder`/reduced.npz."""
+    """Collect the snapshots of `cases` (resumable, `folder`/snapshots.h5; on `workers` local
+    processes or on the Ray cluster `ray_address`: :func:`pliant.reduction.snapshots.collect`),
+    build the reduced model (:func:`build`, `options`) and save it as `folder`/reduced.npz."""
     folder = Path(folder)
     began = time.perf_counter()
     path = snap.collect(
-        model, cases, folder / "snapshots.h5", dt=dt, every=every, progress=progress
+        model,
+        cases,
+        folder / "snapshots.h5",
+        dt=dt,
+        every=every,
+        workers=workers,
+        ray_address=ray_address,
+        progress=progress,
     )
     recorded = snap.load(path, model, [c.name for c in cases])
     positions = np.concatenate([p for _, p in recorded.values()])
@@ -108,19 +120,23 @@ def reduce(
     return reduced
 
 
-def ramped(levels: Sequence[np.ndarray], phase: float) -> Callable[[float], np.ndarray]:
+@dataclass(frozen=True, eq=False)
+class RampedCommands:
     """Commands moving linearly from one level to the next over each `phase` seconds
-    (starting from zero), then held: the environments' ramped actions."""
-    points = [np.zeros_like(np.asarray(levels[0], dtype=float)), *map(np.asarray, levels)]
+    (starting from zero), then held: the environments' ramped actions. A value, so that a
+    load case driven by it runs on another process."""
 
-    def commands(t: float) -> np.ndarray:
-        k, frac = divmod(t / phase, 1.0)
+    levels: Sequence[np.ndarray]
+    phase: float
+
+    def __call__(self, t: float) -> np.ndarray:
+        first = np.zeros_like(np.asarray(self.levels[0], dtype=float))
+        points = [first, *map(np.asarray, self.levels)]
+        k, frac = divmod(t / self.phase, 1.0)
         k = int(k)
         if k >= len(points) - 1:
             return points[-1].copy()
         return points[k] + frac * (points[k + 1] - points[k])
-
-    return commands
 
 
 def multigait_cases(
@@ -145,7 +161,7 @@ def multigait_cases(
     cases = [
         LoadCase(
             "gait",
-            lambda t: demo_actuation(t, amplitude=amplitude, phase=phase),
+            functools.partial(demo_actuation, amplitude=amplitude, phase=phase),
             6 * phase * cycles,
         )
     ]
@@ -153,7 +169,9 @@ def multigait_cases(
         level = mask * full
         cases.append(
             LoadCase(
-                f"only_{g[0].split('_')[0]}", ramped([level, level, 0 * level], phase), 3 * phase
+                f"only_{g[0].split('_')[0]}",
+                RampedCommands([level, level, 0 * level], phase),
+                3 * phase,
             )
         )
     rng = np.random.default_rng(seed)
@@ -163,7 +181,7 @@ def multigait_cases(
             mask = masks[action // 2]
             level = np.where(mask > 0, full if action % 2 == 0 else 0.0, level)
             levels.append(level.copy())
-        cases.append(LoadCase(f"actions_{seed}_{k}", ramped(levels, phase), 6 * phase))
+        cases.append(LoadCase(f"actions_{seed}_{k}", RampedCommands(levels, phase), 6 * phase))
     return cases
 
 
