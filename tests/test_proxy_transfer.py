@@ -99,3 +99,28 @@ def test_a_short_multigait_transfer_moves_the_fem_as_the_proxy(short_multigait) 
     assert np.all(a >= np.array(loop.gains.lower)) and np.all(a <= np.array(loop.gains.upper))
     assert a[3:].min() > 0.0  # the rear chambers inflated
     assert result.failed_inverse_steps == 0
+
+
+def test_the_transfer_command_writes_both_trajectories_and_refuses_bad_actions(tmp_path) -> None:
+    """`pliant proxy transfer trunk` on two steps bending onto the cube: JSON and PNG written,
+    the FEM's cube pushed along +x as the proxy's; a Multigait action outside Discrete(6) is
+    refused before any work (exit 2)."""
+    import json
+
+    from typer.testing import CliRunner
+
+    from pliant.cli import app
+
+    runner = CliRunner()
+    actions = "0,0.05,0,0.05,0;0,0.1,0,0.1,0"
+    args = ["proxy", "transfer", "trunk", "--actions", actions, "--out", str(tmp_path)]
+    result = runner.invoke(app, args)
+    assert result.exit_code == 0, result.output
+    report = json.loads((tmp_path / "trunk_transfer.json").read_text())
+    assert (tmp_path / "trunk_transfer.png").stat().st_size > 0
+    assert len(report["steps"]) == 2 and report["failed_inverse_steps"] == 0
+    start = report["start"]
+    proxy, fem = report["steps"][-1]["proxy_position"], report["steps"][-1]["fem_position"]
+    assert proxy[0] > start[0] + 5.0 and fem[0] > start[0] + 5.0
+    bad = runner.invoke(app, ["proxy", "transfer", "multigait", "--actions", "4,7"])
+    assert bad.exit_code == 2

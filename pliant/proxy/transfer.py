@@ -247,6 +247,7 @@ class TransferResult:
             "proxy_return": self.proxy_return,
             "fem_return": self.fem_return,
             "relative_difference": self.relative_difference,
+            "start": self.start,
             "final_gap_mm": self.final_gap,
             "fem_travel_mm": self.fem_travel,
             "final_gap_over_travel": self.final_gap / max(self.fem_travel, 1e-12),
