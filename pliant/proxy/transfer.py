@@ -22,7 +22,8 @@ a position effector of the FEM robot on the same points, and for each sub-step:
 Realignment (registration): every ``time_register`` proxy steps the FEM's relevant positions
 are imposed on the proxy, which plans its next steps from what really happened: the
 Multigait's robot points (the skeleton's nodes take the FEM's matched points, their frames
-turned by the best rigid fit of the skeleton onto them), the Trunk's cube (pose and velocity).
+turned by the best rigid fit of the skeleton onto them), the Trunk's cube (pose and velocity,
+moved out of the proxy's trunk where they overlap).
 
 The Multigait's actuation correction (thesis Fig. 4.2.2: the corrector adds the contact
 points' incidence angles observed in the proxy, which the inverse model's mean error over all
@@ -32,8 +33,9 @@ leg's last segment (its tip's incidence on the floor) in each model. The thesis 
 the corrector's form nor its gain; ``angle_gain`` 0 leaves it out.
 
 The transfer drives the proxy environments (:mod:`pliant.envs.multigait_proxy`,
-:mod:`pliant.envs.trunk_push_proxy`) through their Gymnasium API, get_state and set_state,
-and steps the FEM robots with the ordinary solvers: a controller above both.
+:mod:`pliant.envs.trunk_push_proxy`) through their Gymnasium API, get_state and set_state
+(and, inside the package, their solver, to read the sub-steps, and their observation after a
+realignment), and steps the FEM robots with the ordinary solvers: a controller above both.
 """
 
 from __future__ import annotations
