@@ -76,3 +76,99 @@ def calibrate(
     }
     (out / f"{robot}_calibration.json").write_text(json.dumps(report, indent=2))
     console.print_json(json.dumps(report))
+
+
+def _actions(robot: str, text: str | None) -> list:
+    """The action sequence: Multigait "4,0,0,2" (discrete), Trunk "0,0.2,0,0.2,0;..." (one
+    continuous action of 5 values per group); None: the robot's default sequence."""
+    from pliant.cli_support import numbers_list
+    from pliant.proxy.transfer import SEQUENCES
+
+    if text is None:
+        return list(SEQUENCES[robot])
+    if robot == "multigait":
+        values = numbers_list(text, "--actions")
+        if not all(v.is_integer() and 0 <= v < 6 for v in values):
+            raise typer.BadParameter(f"--actions: Multigait actions are integers in [0, 6): {text}")
+        return [int(v) for v in values]
+    return [numbers_list(group, "--actions", count=5) for group in text.split(";")]
+
+
+@app.command()
+def transfer(
+    robot: Annotated[
+        str, typer.Argument(help="multigait or trunk", callback=one_of("multigait", "trunk"))
+    ],
+    actions: Annotated[
+        str | None,
+        typer.Option(
+            help="action sequence on the proxy: multigait '4,0,0,2,5,1,3,4' (the default),"
+            " trunk 'a1;a2;...' with 5 values each (default: bend onto the cube, push along x)"
+        ),
+    ] = None,
+    policy: Annotated[
+        Path | None, typer.Option(help="an SB3 PPO policy (.zip) trained on the proxy env")
+    ] = None,
+    steps: Annotated[int, typer.Option(help="steps of --policy", callback=at_least_one)] = 8,
+    time_register: Annotated[
+        int | None, typer.Option(help="proxy steps between realignments (0: never)")
+    ] = None,
+    inverse_steps: Annotated[
+        int | None, typer.Option(help="steps of the inverse look-ahead", callback=at_least_one)
+    ] = None,
+    angle_gain: Annotated[
+        float | None, typer.Option(help="Multigait corrector's gain (0: no correction)")
+    ] = None,
+    gif: Annotated[bool, typer.Option(help="also write a GIF (FEM beside proxy)")] = False,
+    out: Annotated[Path, typer.Option(help="output folder", callback=output_folder)] = Path(
+        "out/proxy"
+    ),
+) -> None:
+    """Transfer ROBOT's proxy strategy to its FEM model (thesis §4.1.1, Fig. 4.2): inverse QP
+    on the matched points, realignment, actuation correction; OUT/ROBOT_transfer.json and .png
+    (and .gif)."""
+    import dataclasses
+    import sys
+
+    from pliant.proxy.transfer import GAINS, TRANSFERS, frame, plot_transfer
+
+    sequence = None if policy is not None else _actions(robot, actions)
+    changes = {
+        k: v
+        for k, v in (
+            ("time_register", time_register),
+            ("inverse_steps", inverse_steps),
+            ("angle_gain", angle_gain),
+        )
+        if v is not None
+    }
+    loop = TRANSFERS[robot](gains=dataclasses.replace(GAINS[robot], **changes))
+    chooser = None
+    if policy is not None:
+        from stable_baselines3 import PPO
+
+        agent = PPO.load(policy)
+        chooser = lambda obs: agent.predict(obs, deterministic=True)[0]  # noqa: E731
+    frames, cameras = [], {}
+
+    def progress(k: int, record) -> None:
+        console.print(
+            f"step {k}: proxy {record.proxy_reward:+.4f}  FEM {record.fem_reward:+.4f}"
+            f"  tracking {record.tracking_error:.2f} mm" + ("  (realigned)" * record.realigned)
+        )
+        if gif:
+            frames.append(frame(loop, cameras))
+
+    result = loop.run(sequence, policy=chooser, steps=steps, progress=progress)
+    out.mkdir(parents=True, exist_ok=True)
+    report = {"command": "pliant " + " ".join(sys.argv[1:]), **result.to_dict()}
+    (out / f"{robot}_transfer.json").write_text(json.dumps(report, indent=1))
+    plot_transfer(result, out / f"{robot}_transfer.png")
+    if gif and frames:
+        from pliant.viz.video import save_gif
+
+        save_gif(frames, out / f"{robot}_transfer.gif", fps=2)
+    console.print(
+        f"proxy {result.proxy_return:+.4f}  FEM {result.fem_return:+.4f}  relative difference"
+        f" {100 * result.relative_difference:.1f} %  ({result.wall_time:.0f} s)"
+    )

@@ -1,0 +1,634 @@
+"""Transfer of a strategy found on a proxy to its FEM robot (thesis §4.1.1, Fig. 4.2; the
+authors' ``ControllerWithProxy``): the FEM robot follows the proxy's trajectory by closed-loop
+inverse control on matched points, inside two outer loops.
+
+Each proxy step (one step of the proxy environment: ``scale`` sub-steps, its action from a
+policy or a fixed sequence), the proxy's matched points after each sub-step are the goals g of
+a position effector of the FEM robot on the same points, and for each sub-step:
+
+1. goal correction (proportional): g' = g + Kp (g - p), p the FEM's points now;
+2. the inverse model: the QP of Eq. 2.15 (with complementarity where the robot touches
+   something) stepped ``inverse_steps`` times towards g' from a copy of the FEM's state, a
+   look-ahead that gives the actuation reaching the goal rather than the part of it one step
+   affords; its actuator displacements (volume growths, cable shortenings) are a_inv. The
+   look-ahead's contacts are frictionless: with the Multigait's friction (0.7) the QPCC's
+   active set found no feasible contact state in its 30 rounds at any step, even for goals
+   where the points already are, and kept the previous actuation; frictionless, it solves.
+   The FEM's own step (4.) keeps its friction;
+3. the actuation correction, a robot's own term added to a_inv (the Multigait's, below);
+4. the filter: a <- clip(a + f (s a_inv - a), lower, upper), and the FEM takes one step under
+   a (direct control, its actuators in displacement mode).
+
+Realignment (registration): every ``time_register`` proxy steps the FEM's relevant positions
+are imposed on the proxy, which plans its next steps from what really happened: the
+Multigait's robot points (the skeleton's nodes take the FEM's matched points, their frames
+turned by the best rigid fit of the skeleton onto them), the Trunk's cube (pose and velocity,
+moved out of the proxy's trunk where they overlap).
+
+The Multigait's actuation correction (thesis Fig. 4.2.2: the corrector adds the contact
+points' incidence angles observed in the proxy, which the inverse model's mean error over all
+points ignores) is read here as a proportional term on each leg's chamber:
+``angle_gain * (theta_proxy - theta_FEM) * upper``, theta the angle under the floor of the
+leg's last segment (its tip's incidence on the floor) in each model. The thesis gives neither
+the corrector's form nor its gain; ``angle_gain`` 0 leaves it out.
+
+The transfer drives the proxy environments (:mod:`pliant.envs.multigait_proxy`,
+:mod:`pliant.envs.trunk_push_proxy`) through their Gymnasium API, get_state and set_state
+(and, inside the package, their solver, to read the sub-steps, and their observation after a
+realignment), and steps the FEM robots with the ordinary solvers: a controller above both.
+"""
+
+from __future__ import annotations
+
+import time
+import warnings
+from collections.abc import Callable, Sequence
+from dataclasses import asdict, dataclass, field, replace
+
+import numpy as np
+
+from pliant.constraints.base import EmbeddedPoints
+from pliant.constraints.control import InverseControl
+from pliant.constraints.effector import PositionEffector
+from pliant.envs.base import Ramp, SoftRobotEnv
+from pliant.errors import ModelError, PliantError
+from pliant.fem.rotation import exp_map, log_map
+from pliant.mesh.multigait import CHAMBERS
+from pliant.model import Model, State
+from pliant.solvers import ImplicitEuler
+
+FORWARD = np.array([-1.0, 0.0, 0.0])  # the Multigait's forward direction (its environments')
+
+
+@dataclass(frozen=True)
+class TransferGains:
+    """The transfer loop's parameters (wave2_facts C.6).
+
+    Args:
+        scale: sub-steps of a proxy step (the proxy environment's substeps).
+        time_register: proxy steps between realignments (0: never).
+        rate: the filter's f in (0, 1].
+        kp: the goal correction's proportional gain.
+        lower, upper: the FEM actuation's bounds (actuator displacement units).
+        inverse_steps: steps of the inverse model's look-ahead.
+        gain: s, the scale on the inverse model's actuation.
+        angle_gain: the Multigait corrector's gain (fraction of `upper` per radian).
+    """
+
+    scale: int
+    time_register: int
+    rate: float
+    kp: float
+    lower: tuple[float, ...]
+    upper: tuple[float, ...]
+    inverse_steps: int = 3
+    gain: float = 1.0
+    angle_gain: float = 0.0
+
+    def __post_init__(self) -> None:
+        if self.scale < 1 or self.inverse_steps < 1 or self.time_register < 0:
+            raise ModelError("scale and inverse_steps must be >= 1, time_register >= 0")
+        if not 0.0 < self.rate <= 1.0:
+            raise ModelError(f"the filter's rate must lie in (0, 1], got {self.rate}")
+        if len(self.lower) != len(self.upper) or np.any(np.greater(self.lower, self.upper)):
+            raise ModelError("the actuation bounds need lower <= upper, one pair per actuator")
+
+
+# The thesis' Multigait bounds (volume growth, SofaGym's mesh): [0, 2050] for the centre and
+# [0, 1600] for a leg, 1.025 and 1.067 times its commands 2000 and 1500; the same ratios on
+# this mesh's commands (4900 and 3300 mm^3, pliant.robots.multigait.demo_actuation).
+MULTIGAIT_GAINS = TransferGains(
+    scale=60,
+    time_register=7,
+    rate=0.3,
+    kp=0.5,
+    lower=(0.0,) * 5,
+    upper=tuple(4900.0 * 2050 / 2000 if c == "centre" else 3300.0 * 1600 / 1500 for c in CHAMBERS),
+)
+# The thesis' cables lie in [0, 1000] (its unit); Pliant's Trunk cables' courses: 70 mm for
+# the long ones, 40 for the short.
+TRUNK_GAINS = TransferGains(
+    scale=30,
+    time_register=10,
+    rate=1.0,
+    kp=0.0,
+    lower=(0.0,) * 8,
+    upper=(70.0,) * 4 + (40.0,) * 4,
+)
+#: the thesis' Multigait test sequence (Discrete(6): 2 g inflates group g of centre, front,
+#: rear; 2 g + 1 deflates it): rear, centre, centre, front, rear off, centre off, front off, rear.
+MULTIGAIT_SEQUENCE = (4, 0, 0, 2, 5, 1, 3, 4)
+
+
+class ActuationFilter:
+    """a <- clip(a + rate (gain a_inv - a), lower, upper), from a = clip(0)."""
+
+    def __init__(self, lower, upper, *, rate: float, gain: float = 1.0) -> None:
+        self.lower = np.asarray(lower, dtype=float)
+        self.upper = np.asarray(upper, dtype=float)
+        self.rate, self.gain = float(rate), float(gain)
+        self.value = np.clip(np.zeros_like(self.lower), self.lower, self.upper)
+
+    def update(self, target: np.ndarray) -> np.ndarray:
+        a = self.value + self.rate * (self.gain * np.asarray(target, dtype=float) - self.value)
+        self.value = np.clip(a, self.lower, self.upper)
+        return self.value.copy()
+
+
+class _Recorder:
+    """A solver that keeps the states it steps to and the commands of each step (the proxy's
+    sub-steps)."""
+
+    def __init__(self, solver) -> None:
+        self.solver = solver
+        self.states: list[State] = []
+        self.commands: list[np.ndarray] = []
+
+    def step(self, state, controls=None):
+        state = self.solver.step(state, controls)
+        self.states.append(state)
+        self.commands.append(np.asarray(controls, dtype=float))
+        return state
+
+    def __getattr__(self, name: str):
+        return getattr(self.solver, name)
+
+
+def with_effector(model: Model, points: EmbeddedPoints, name: str = "matched") -> Model:
+    """`model` with one position effector on `points` in place of its effectors."""
+    effector = PositionEffector(points, model.body.rest_positions, name=name)
+    return Model(
+        model.body,
+        actuators=model.actuators,
+        effectors=[effector],
+        contacts=model.contacts,
+        drivers=model.drivers,
+        rigid_bodies=model.rigid_bodies,
+        attachments=model.attachments,
+        name=model.name,
+    )
+
+
+def rigid_fit(source: np.ndarray, target: np.ndarray) -> np.ndarray:
+    """The rotation R minimising sum |R (s - mean s) - (t - mean t)|^2 (Kabsch)."""
+    a, b = source - source.mean(axis=0), target - target.mean(axis=0)
+    u, _, vt = np.linalg.svd(b.T @ a)
+    d = np.sign(np.linalg.det(u @ vt))
+    return u @ np.diag([1.0, 1.0, d]) @ vt
+
+
+def impose_points(rod, state: State, points: np.ndarray, velocities: np.ndarray) -> State:
+    """`state` of a rod whose centreline nodes are moved to `points` (with `velocities`), their
+    frames (and spins) turned by the best rigid fit of the old centreline onto `points`."""
+    n = rod.n_centreline
+    turn = rigid_fit(rod.centreline(state.positions), points)
+    positions, speeds = state.positions.copy(), state.velocities.copy()
+    positions[:n], speeds[:n] = points, velocities
+    positions[n:] = [log_map(turn @ exp_map(v)) for v in state.positions[n:]]
+    speeds[n:] = state.velocities[n:] @ turn.T
+    return replace(state, positions=positions, velocities=speeds)
+
+
+@dataclass
+class StepRecord:
+    """One proxy step of a transfer: rewards and positions of both models after it, the mean
+    distance between their matched points, and whether the proxy was realigned before it."""
+
+    action: list
+    proxy_reward: float
+    fem_reward: float
+    proxy_position: list[float]
+    fem_position: list[float]
+    tracking_error: float
+    realigned: bool
+
+
+@dataclass
+class TransferResult:
+    """A transfer's steps, the sub-step trajectories (time, proxy and FEM positions), the
+    gains and the wall time."""
+
+    robot: str
+    gains: TransferGains
+    steps: list[StepRecord] = field(default_factory=list)
+    times: list[float] = field(default_factory=list)
+    proxy_trajectory: list[list[float]] = field(default_factory=list)
+    fem_trajectory: list[list[float]] = field(default_factory=list)
+    failed_inverse_steps: int = 0
+    wall_time: float = 0.0
+    start: list[float] = field(default_factory=list)
+
+    @property
+    def final_gap(self) -> float:
+        """|x_proxy - x_FEM| of the two models' positions after the last step (mm)."""
+        last = self.steps[-1]
+        return float(np.linalg.norm(np.subtract(last.proxy_position, last.fem_position)))
+
+    @property
+    def fem_travel(self) -> float:
+        """|x_FEM - x_start|: how far the FEM's position went (mm)."""
+        return float(np.linalg.norm(np.subtract(self.steps[-1].fem_position, self.start)))
+
+    @property
+    def proxy_return(self) -> float:
+        return float(sum(s.proxy_reward for s in self.steps))
+
+    @property
+    def fem_return(self) -> float:
+        return float(sum(s.fem_reward for s in self.steps))
+
+    @property
+    def relative_difference(self) -> float:
+        """|R_proxy - R_FEM| / |R_FEM| of the summed rewards."""
+        return abs(self.proxy_return - self.fem_return) / max(abs(self.fem_return), 1e-12)
+
+    def to_dict(self) -> dict:
+        return {
+            "robot": self.robot,
+            "gains": asdict(self.gains),
+            "proxy_return": self.proxy_return,
+            "fem_return": self.fem_return,
+            "relative_difference": self.relative_difference,
+            "start": self.start,
+            "final_gap_mm": self.final_gap,
+            "fem_travel_mm": self.fem_travel,
+            "final_gap_over_travel": self.final_gap / max(self.fem_travel, 1e-12),
+            "failed_inverse_steps": self.failed_inverse_steps,
+            "wall_time_s": self.wall_time,
+            "steps": [asdict(s) for s in self.steps],
+            "times": self.times,
+            "proxy_trajectory": self.proxy_trajectory,
+            "fem_trajectory": self.fem_trajectory,
+        }
+
+
+class Transfer:
+    """The transfer loop of one proxy environment to one FEM model (module docstring).
+
+    Args:
+        env: the proxy environment (reset by the caller), whose ``proxy`` is the skeleton.
+        fem: the FEM robot with a position effector on the matched points
+            (:func:`with_effector`).
+        state: the FEM's starting state.
+        gains: the loop's parameters; ``gains.scale`` must be the environment's substeps.
+        proxy_points: proxy positions -> (K, 3) matched points.
+        base: the FEM's translating base (its builder's trajectory), set from the proxy's.
+    """
+
+    robot = "robot"
+
+    def __init__(
+        self,
+        env: SoftRobotEnv,
+        fem: Model,
+        state: State,
+        gains: TransferGains,
+        proxy_points: Callable[[np.ndarray], np.ndarray],
+        *,
+        base: Ramp | None = None,
+    ) -> None:
+        if env.substeps != gains.scale:
+            raise ModelError(f"the proxy takes {env.substeps} sub-steps, the gains {gains.scale}")
+        if len(fem.effectors) != 1 or len(gains.upper) != fem.n_actuators:
+            raise ModelError("the FEM model needs one effector and a bound pair per actuator")
+        self.env, self.fem, self.state, self.gains = env, fem, state, gains
+        self.proxy_points = proxy_points
+        self.points = fem.effectors[0].points
+        self.base = base
+        self.solver = ImplicitEuler(fem, dt=env.dt)
+        self.filter = ActuationFilter(gains.lower, gains.upper, rate=gains.rate, gain=gains.gain)
+        self.recorder = _Recorder(env.sim)
+        env.sim = self.recorder
+        self.result = TransferResult(self.robot, gains)
+
+    # ------------------------------------------------------------------ robot-specific parts
+    def proxy_position(self, state: State) -> np.ndarray:
+        """(3,) the proxy's position that the task measures."""
+        raise NotImplementedError
+
+    def fem_position(self, state: State) -> np.ndarray:
+        raise NotImplementedError
+
+    def reward(self, before: np.ndarray, after: np.ndarray, points: np.ndarray) -> float:
+        """The task's reward from a model's position before and after a step and its matched
+        points after it (the same function for both models)."""
+        raise NotImplementedError
+
+    def realign(self) -> None:
+        """Impose the FEM's relevant positions on the proxy environment."""
+        raise NotImplementedError
+
+    def correction(self, goal: np.ndarray, points: np.ndarray) -> np.ndarray:
+        """What the actuation corrector adds to the inverse model's actuation."""
+        return np.zeros(self.fem.n_actuators)
+
+    # ------------------------------------------------------------------------- the loop
+    def observation(self) -> np.ndarray:
+        """The proxy environment's observation of its present state (after a realignment)."""
+        return self.env._clip_observation(self.env._observe())
+
+    def follow(self, goal: np.ndarray) -> None:
+        """One FEM step towards the proxy's matched points `goal` (K, 3)."""
+        g = self.gains
+        now = self.points.positions(self.state.positions)
+        target = goal + g.kp * (goal - now)
+        look = self.state.copy()
+        contacts = self.fem.contacts
+        friction = None if contacts is None else contacts.friction
+        try:
+            with warnings.catch_warnings():  # a far goal widens the course: expected here
+                warnings.simplefilter("ignore")
+                if contacts is not None:  # the look-ahead's contacts are frictionless
+                    contacts.friction = np.zeros_like(friction)
+                for _ in range(g.inverse_steps):
+                    look = self.solver.step(look, InverseControl(goals=target))
+            inverse = look.displacement
+        except PliantError:  # no inverse step: keep the actuation
+            self.result.failed_inverse_steps += 1
+            inverse = self.filter.value / max(g.gain, 1e-12)
+        finally:
+            if contacts is not None:
+                contacts.friction = friction
+        inverse = inverse + self.correction(goal, now)
+        self.state = self.solver.step(self.state, self.filter.update(inverse))
+
+    def step(self, action, *, realigned: bool = False) -> StepRecord:
+        """One proxy step under `action`, the FEM following each of its sub-steps
+        (`realigned`: the proxy was realigned just before, for the record)."""
+        proxy_before = self.proxy_position(self.env.state)
+        fem_before = self.fem_position(self.state)
+        self.recorder.states.clear()
+        self.recorder.commands.clear()
+        _, _, _, truncated, info = self.env.step(action)
+        if truncated and "diverged" in info:
+            raise ModelError(f"the proxy diverged: {info['diverged']}")
+        for sub, commands in zip(self.recorder.states, self.recorder.commands, strict=True):
+            if self.base is not None:  # where the proxy's base went in this sub-step
+                target = np.clip(commands[-1], *self.env.proxy.base.limits)
+                self.base.retarget(self.state.time, target, self.env.dt)
+                self.fem.trajectories_changed()
+            self.follow(self.proxy_points(sub.positions))
+            self.result.times.append(float(self.state.time))
+            self.result.proxy_trajectory.append(self.proxy_position(sub).tolist())
+            self.result.fem_trajectory.append(self.fem_position(self.state).tolist())
+        proxy_points = self.proxy_points(self.env.state.positions)
+        fem_points = self.points.positions(self.state.positions)
+        proxy_after = self.proxy_position(self.env.state)
+        fem_after = self.fem_position(self.state)
+        record = StepRecord(
+            np.asarray(action).tolist(),
+            self.reward(proxy_before, proxy_after, proxy_points),
+            self.reward(fem_before, fem_after, fem_points),
+            proxy_after.tolist(),
+            fem_after.tolist(),
+            float(np.linalg.norm(proxy_points - fem_points, axis=1).mean()),
+            realigned,
+        )
+        self.result.steps.append(record)
+        return record
+
+    def run(
+        self,
+        actions: Sequence | None = None,
+        *,
+        policy: Callable[[np.ndarray], object] | None = None,
+        steps: int | None = None,
+        progress: Callable[[int, StepRecord], None] | None = None,
+    ) -> TransferResult:
+        """Transfer a fixed action sequence, or `steps` actions of `policy` (observation ->
+        action) chosen on the proxy after each realignment."""
+        if (actions is None) == (policy is None):
+            raise ModelError("give either an action sequence or a policy")
+        count = len(actions) if actions is not None else steps
+        if count is None or count < 1:
+            raise ModelError("a policy needs a number of steps >= 1")
+        clock = time.perf_counter()
+        self.result.start = self.fem_position(self.state).tolist()
+        every = self.gains.time_register
+        for k in range(count):
+            due = every > 0 and k > 0 and k % every == 0
+            if due:  # the policy re-plans from what the FEM did
+                self.realign()
+            action = actions[k] if policy is None else policy(self.observation())
+            record = self.step(action, realigned=due)
+            if progress is not None:
+                progress(k, record)
+        self.result.wall_time = time.perf_counter() - clock
+        return self.result
+
+
+class MultigaitTransfer(Transfer):
+    """The Multigait: matched points the 19 skeleton nodes (embedded in the FEM body where
+    the proxy's rest skeleton lies, at mid-thickness); position: the centre of mass; reward:
+    its forward displacement over the step; realignment: the robot's points; corrector: the
+    legs' tip angles."""
+
+    robot = "multigait"
+    # The skeleton's nodes of each leg, root to tip (pliant.proxy.builders.multigait_proxy).
+    LEGS = {name: np.arange(3 + 4 * k, 7 + 4 * k) for k, name in enumerate(CHAMBERS[1:])}
+
+    def proxy_position(self, state: State) -> np.ndarray:
+        rod = self.env.proxy.rod
+        masses = rod.node_masses[: rod.n_centreline]
+        return masses @ rod.centreline(state.positions) / masses.sum()
+
+    def fem_position(self, state: State) -> np.ndarray:
+        masses = self.fem.body.node_masses
+        return masses @ state.positions / masses.sum()
+
+    def reward(self, before, after, points) -> float:
+        return float((after - before) @ FORWARD)
+
+    def realign(self) -> None:
+        snapshot = self.env.get_state()
+        snapshot.state = impose_points(
+            self.env.proxy.rod,
+            snapshot.state,
+            self.points.positions(self.state.positions),
+            self.points.positions(self.state.velocities),
+        )
+        self.env.set_state(snapshot)
+
+    @classmethod
+    def tip_angles(cls, points: np.ndarray) -> np.ndarray:
+        """(4,) each leg's last segment's angle under the horizontal (rad)."""
+        angles = []
+        for nodes in cls.LEGS.values():
+            segment = points[nodes[-1]] - points[nodes[-2]]
+            angles.append(np.arctan2(-segment[2], np.linalg.norm(segment[:2])))
+        return np.array(angles)
+
+    def correction(self, goal, points) -> np.ndarray:
+        out = np.zeros(self.fem.n_actuators)
+        gap = self.tip_angles(goal) - self.tip_angles(points)
+        out[1:] = self.gains.angle_gain * gap * np.asarray(self.gains.upper[1:])
+        return out
+
+
+class TrunkTransfer(Transfer):
+    """The Trunk on its base pushing the cube: matched points the skeleton's 30 nodes (on the
+    FEM Trunk's axis); position: the cube's centre; reward: the environment's,
+    -d / L - w d_c / L; realignment: the cube's pose and velocity."""
+
+    robot = "trunk"
+
+    def proxy_position(self, state: State) -> np.ndarray:
+        return state.rigid_positions[0].copy()
+
+    def fem_position(self, state: State) -> np.ndarray:
+        return state.rigid_positions[0].copy()
+
+    def reward(self, before, after, points) -> float:
+        env = self.env
+        goal = env.task["goal"]
+        d = float(np.hypot(after[0] - goal[0], after[2] - goal[2]))
+        contact = float(np.linalg.norm(points[env.nodes] - after, axis=1).min())
+        return -(d + env.contact_weight * contact) / env.length
+
+    def realign(self) -> None:
+        """The FEM's cube imposed on the proxy, moved out of the proxy's trunk where they
+        overlap: the proxy touches with balls of its radius (10 mm) all along, where the FEM
+        Trunk tapers to 2 mm at its tip, so the FEM's cube may sit inside the proxy, whose
+        contact would throw it out (measured: 40 mm in one step)."""
+        snapshot = self.env.get_state()
+        s = self.state
+        centre = s.rigid_positions[0].copy()
+        rotation = s.rigid_rotations[0]
+        half = np.asarray(self.env.model.rigid_bodies[0].shape.half_extents, dtype=float)
+        radius = self.env.model.contacts.thickness
+        nodes = self.env.proxy.skeleton(snapshot.state.positions)
+        for _ in range(3):  # the overlap along the floor, from the nearest node outwards
+            local = (nodes - centre) @ rotation
+            outside = np.linalg.norm(np.maximum(np.abs(local) - half, 0.0), axis=1)
+            inside = np.minimum(np.max(np.abs(local) - half, axis=1), 0.0)
+            clearance = outside + inside - radius
+            k = int(np.argmin(clearance))
+            if clearance[k] >= 0.0:
+                break
+            away = centre - nodes[k]
+            away[1] = 0.0
+            centre += -clearance[k] * away / max(float(np.linalg.norm(away)), 1e-12)
+        snapshot.state = replace(
+            snapshot.state,
+            rigid_positions=centre[None, :],
+            rigid_rotations=s.rigid_rotations.copy(),
+            rigid_velocities=s.rigid_velocities.copy(),
+            rigid_angular_velocities=s.rigid_angular_velocities.copy(),
+        )
+        self.env.set_state(snapshot)
+
+
+def multigait_transfer(
+    *,
+    gains: TransferGains = MULTIGAIT_GAINS,
+    mesh_size: float = 6.0,
+    dt: float = 0.01,
+    seed: int = 0,
+) -> MultigaitTransfer:
+    """The Multigait proxy environment (calibrated proxy) and the FEM Multigait (default
+    mesh, volume-controlled chambers), both from rest."""
+    from pliant.envs.multigait_proxy import MultigaitProxyEnv
+    from pliant.robots.multigait import multigait
+
+    env = MultigaitProxyEnv(dt=dt, substeps=gains.scale)
+    env.reset(seed=seed)
+    rod = env.proxy.rod
+    robot = multigait(mesh_size=mesh_size)
+    # Skeleton nodes that fall in a chamber's slot follow the nearest element (SOFA's mapping).
+    points = EmbeddedPoints(
+        robot.body.mesh, rod.centreline(rod.rest_positions), tolerance=5.0, outside="keep"
+    )
+    fem = with_effector(robot, points)
+    return MultigaitTransfer(env, fem, fem.rest_state(), gains, rod.centreline)
+
+
+#: the Trunk's push along x: both beams bent towards +x (the cube's side; +d2) by 0.02 more
+#: at each step up to 0.1, then held, the base still (continuous actions of
+#: TrunkPushProxy-v0). On the proxy the cube goes 23 mm along x (and 11 mm back along z, as
+#: the curling trunk sweeps it), then stays.
+TRUNK_SEQUENCE = tuple((0.0, u, 0.0, u, 0.0) for u in (0.02, 0.04, 0.06, 0.08) + (0.1,) * 8)
+
+
+def trunk_transfer(
+    *,
+    gains: TransferGains = TRUNK_GAINS,
+    mesh_size: float = 8.0,
+    dt: float = 0.01,
+    goal_offset: tuple[float, float] = (25.0, -10.0),
+    seed: int = 0,
+) -> TrunkTransfer:
+    """The Trunk-and-cube proxy environment (calibrated proxy, goal the cube's start plus
+    `goal_offset` in (x, z)) and the FEM Trunk on its base (mesh 8 mm), both settled under
+    gravity."""
+    from pliant.envs.trunk import settled
+    from pliant.envs.trunk_push_proxy import TrunkPushProxyEnv
+    from pliant.robots.trunk_cube import trunk_cube
+
+    env = TrunkPushProxyEnv(dt=dt, substeps=gains.scale)
+    start = env.state.rigid_positions[0]
+    goal = start + np.array([goal_offset[0], 0.0, goal_offset[1]])
+    env.reset(seed=seed, options={"goal": goal})
+    rod = env.proxy.rod
+    base = Ramp(0.0)
+    robot = trunk_cube(mesh_size=mesh_size, base_motion=base.scalar)
+    fem = with_effector(robot, EmbeddedPoints(robot.body.mesh, rod.centreline(rod.rest_positions)))
+    state = settled(fem, ImplicitEuler(fem, dt=dt), env.settle_steps)
+    return TrunkTransfer(env, fem, state, gains, rod.centreline, base=base)
+
+
+TRANSFERS = {"multigait": multigait_transfer, "trunk": trunk_transfer}
+GAINS = {"multigait": MULTIGAIT_GAINS, "trunk": TRUNK_GAINS}
+SEQUENCES = {"multigait": MULTIGAIT_SEQUENCE, "trunk": TRUNK_SEQUENCE}
+
+
+def plot_transfer(result: TransferResult, path) -> None:
+    """PNG of both trajectories: the Multigait's forward position of its centre of mass, the
+    Trunk's cube (x and z), against time; and both models' summed rewards per proxy step."""
+    from pliant.viz.render import offscreen_figure
+    from pliant.viz.video import atomic_path
+
+    fig = offscreen_figure(10.0, 4.0)
+    left, right = fig.subplots(1, 2)
+    t = np.asarray(result.times)
+    proxy, fem = np.asarray(result.proxy_trajectory), np.asarray(result.fem_trajectory)
+    if result.robot == "multigait":
+        series = {"forward (mm)": (proxy - proxy[0]) @ FORWARD}
+        femseries = {"forward (mm)": (fem - fem[0]) @ FORWARD}
+    else:
+        series = {"cube x (mm)": proxy[:, 0], "cube z (mm)": proxy[:, 2]}
+        femseries = {"cube x (mm)": fem[:, 0], "cube z (mm)": fem[:, 2]}
+    for (name, values), style in zip(femseries.items(), ("-", "--"), strict=False):
+        left.plot(t, series[name], "C0" + style, label=f"proxy {name}")
+        left.plot(t, values, "C1" + style, label=f"FEM {name}")
+    for k, s in enumerate(result.steps):
+        if s.realigned:
+            left.axvline(t[k * result.gains.scale], color="0.7", lw=0.8)
+    left.set_xlabel("time (s)")
+    left.set_title(f"{result.robot}: trajectories (grey: realignment)")
+    left.legend(fontsize=8)
+    steps = np.arange(1, len(result.steps) + 1)
+    right.plot(steps, np.cumsum([s.proxy_reward for s in result.steps]), "C0o-", label="proxy")
+    right.plot(steps, np.cumsum([s.fem_reward for s in result.steps]), "C1s-", label="FEM")
+    right.set_xlabel("proxy step")
+    right.set_title(f"summed reward (relative difference {100 * result.relative_difference:.1f} %)")
+    right.legend(fontsize=8)
+    fig.tight_layout()
+    with atomic_path(path) as tmp:
+        fig.savefig(tmp, format="png", dpi=120)
+
+
+def frame(transfer: Transfer, cameras: dict) -> np.ndarray:
+    """The FEM robot and the proxy side by side (one frame of a GIF)."""
+    from pliant.viz.model_view import RobotCamera
+
+    env = transfer.env
+    if not cameras:
+        cameras["fem"] = RobotCamera(transfer.fem, view=env.view, size=(400, 300))
+        cameras["proxy"] = RobotCamera(env.model, view=env.view, size=(400, 300))
+    t = transfer.state.time
+    return np.hstack(
+        [
+            cameras["fem"].frame(transfer.state, title=f"FEM  t = {t:.2f} s"),
+            cameras["proxy"].frame(env.state, title="proxy"),
+        ]
+    )

@@ -1,0 +1,126 @@
+"""Transfer of a proxy's strategy to the FEM robot (pliant.proxy.transfer, thesis §4.1.1):
+the actuation filter's recurrence and bounds, realignment imposing the FEM's points (and
+cube) on the proxy, and a short Multigait transfer in which the FEM moves as the proxy."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from pliant.errors import ModelError
+from pliant.fem.rotation import axis_angle
+from pliant.proxy.transfer import (
+    MULTIGAIT_GAINS,
+    ActuationFilter,
+    TransferGains,
+    multigait_transfer,
+    rigid_fit,
+)
+
+
+def test_the_filter_follows_its_recurrence_inside_the_bounds_and_clips_outside() -> None:
+    """a_{k+1} = a_k + f (s a_inv - a_k) (a first-order lag towards s a_inv), clipped."""
+    lower, upper = np.array([0.0, -1.0]), np.array([10.0, 1.0])
+    filt = ActuationFilter(lower, upper, rate=0.3, gain=2.0)
+    a = filt.update([1.0, 0.1])
+    np.testing.assert_allclose(a, [0.6, 0.06])  # 0.3 * 2 * a_inv from 0
+    np.testing.assert_allclose(filt.update([1.0, 0.1]), a + 0.3 * (2.0 * np.array([1, 0.1]) - a))
+    rng = np.random.default_rng(0)
+    for _ in range(200):  # any inverse actuation, however wild: the actuation stays in bounds
+        a = filt.update(rng.normal(scale=100.0, size=2))
+        assert np.all(a >= lower) and np.all(a <= upper)
+    for _ in range(100):  # a target beyond the bound: the actuation sits on it
+        a = filt.update([1e6, -1e6])
+    np.testing.assert_array_equal(a, [10.0, -1.0])
+    one = ActuationFilter(lower, upper, rate=1.0)  # the Trunk's f = 1: a = s a_inv at once
+    np.testing.assert_allclose(one.update([4.0, 0.5]), [4.0, 0.5])
+
+
+def test_gains_refuse_a_rate_outside_0_1_and_crossed_bounds() -> None:
+    with pytest.raises(ModelError, match="rate"):
+        dataclasses.replace(MULTIGAIT_GAINS, rate=1.5)
+    with pytest.raises(ModelError, match="lower <= upper"):
+        TransferGains(scale=1, time_register=0, rate=1.0, kp=0.0, lower=(1.0,), upper=(0.0,))
+
+
+def test_rigid_fit_recovers_a_rotation() -> None:
+    rng = np.random.default_rng(1)
+    points = rng.normal(size=(10, 3))
+    turn = axis_angle([1.0, 2.0, 0.5], 0.7)
+    np.testing.assert_allclose(rigid_fit(points, points @ turn.T + 3.0), turn, atol=1e-12)
+
+
+@pytest.fixture(scope="module")
+def short_multigait():
+    """A coarse FEM Multigait (mesh 9 mm) under the proxy's 0.1 s steps (scale 10)."""
+    gains = dataclasses.replace(MULTIGAIT_GAINS, scale=10, time_register=2, inverse_steps=2)
+    return multigait_transfer(gains=gains, mesh_size=9.0)
+
+
+def test_realignment_sets_the_proxy_skeleton_to_the_fem_points(short_multigait) -> None:
+    """The FEM moved rigidly (a turn about z and a shift): after realignment the proxy's
+    nodes are the FEM's matched points, and its frames turned by that very rotation."""
+    loop = short_multigait
+    saved_env, saved_fem = loop.env.get_state(), loop.state.copy()
+    rod = loop.env.proxy.rod
+    turn = axis_angle([0.0, 0.0, 1.0], 0.2)
+    moved = loop.state.copy()
+    moved.positions = loop.state.positions @ turn.T + np.array([5.0, -3.0, 0.0])
+    loop.state = moved
+    frames = rod.frames(loop.env.state.positions)
+    loop.realign()
+    np.testing.assert_allclose(
+        rod.centreline(loop.env.state.positions),
+        loop.points.positions(moved.positions),
+        atol=1e-12,
+    )
+    # The proxy sat at rest where the FEM's matched points lie at rest: the fit is the turn.
+    np.testing.assert_allclose(rod.frames(loop.env.state.positions), turn @ frames, atol=1e-9)
+    loop.env.set_state(saved_env)
+    loop.state = saved_fem
+
+
+def test_a_short_multigait_transfer_moves_the_fem_as_the_proxy(short_multigait) -> None:
+    """Inflate the rear legs for three 0.1 s proxy steps (realigned after two): the rear legs
+    curl and their tips draw in; the FEM's matched points move the way the proxy's do
+    (cosine of the two displacement fields > 0.7; measured 0.79), within the filter's bounds."""
+    loop = short_multigait
+    rest = loop.points.positions(loop.state.positions)
+    proxy_rest = loop.env.proxy.skeleton(loop.env.state.positions)
+    result = loop.run([4, 4, 4])
+    assert [s.realigned for s in result.steps] == [False, False, True]
+    fem = loop.points.positions(loop.state.positions) - rest
+    proxy = loop.env.proxy.skeleton(loop.env.state.positions) - proxy_rest
+    cosine = float(np.sum(fem * proxy) / (np.linalg.norm(fem) * np.linalg.norm(proxy)))
+    assert cosine > 0.7
+    a = loop.filter.value
+    assert np.all(a >= np.array(loop.gains.lower)) and np.all(a <= np.array(loop.gains.upper))
+    assert a[3:].min() > 0.0  # the rear chambers inflated
+    assert result.failed_inverse_steps == 0
+
+
+def test_the_transfer_command_writes_both_trajectories_and_refuses_bad_actions(tmp_path) -> None:
+    """`pliant proxy transfer trunk` on two steps bending onto the cube: JSON and PNG written,
+    the FEM's cube pushed along +x as the proxy's; a Multigait action outside Discrete(6) is
+    refused before any work (exit 2)."""
+    import json
+
+    from typer.testing import CliRunner
+
+    from pliant.cli import app
+
+    runner = CliRunner()
+    actions = "0,0.05,0,0.05,0;0,0.1,0,0.1,0"
+    args = ["proxy", "transfer", "trunk", "--actions", actions, "--out", str(tmp_path)]
+    result = runner.invoke(app, args)
+    assert result.exit_code == 0, result.output
+    report = json.loads((tmp_path / "trunk_transfer.json").read_text())
+    assert (tmp_path / "trunk_transfer.png").stat().st_size > 0
+    assert len(report["steps"]) == 2 and report["failed_inverse_steps"] == 0
+    start = report["start"]
+    proxy, fem = report["steps"][-1]["proxy_position"], report["steps"][-1]["fem_position"]
+    assert proxy[0] > start[0] + 5.0 and fem[0] > start[0] + 5.0
+    bad = runner.invoke(app, ["proxy", "transfer", "multigait", "--actions", "4,7"])
+    assert bad.exit_code == 2
