@@ -43,6 +43,14 @@ Tolerance = Annotated[
 ]
 Frames = Annotated[int, typer.Option(help="frames in each GIF (0: no GIF)", callback=non_negative)]
 Out = Annotated[Path, typer.Option(help="output folder", callback=output_folder)]
+# ... and the MPC commands'.
+Horizon = Annotated[int, typer.Option(help="prediction nodes", callback=at_least_one)]
+Iterations = Annotated[
+    int, typer.Option(help="DDP iterations per control step", callback=at_least_one)
+]
+ControlSteps = Annotated[
+    int, typer.Option(help="control steps (the task's nodes)", callback=at_least_one)
+]
 
 
 @app.command()
@@ -135,17 +143,13 @@ def diamond(
 
 @app.command("diamond-mpc")
 def diamond_mpc(
-    horizon: Annotated[int, typer.Option(help="prediction nodes", callback=at_least_one)] = 20,
-    iterations: Annotated[
-        int, typer.Option(help="DDP iterations per control step", callback=at_least_one)
-    ] = 3,
+    horizon: Horizon = 20,
+    iterations: Iterations = 3,
     mesh_size: Annotated[
         float, typer.Option(help="Diamond mesh size (mm)", callback=positive)
     ] = 20.0,
     dt: Annotated[float, typer.Option(help="time step (s)", callback=positive)] = 0.02,
-    steps: Annotated[
-        int, typer.Option(help="control steps (the task's nodes)", callback=at_least_one)
-    ] = 100,
+    steps: ControlSteps = 100,
     settle: Annotated[
         float, typer.Option(help="seconds of constant tensions per goal", callback=non_negative)
     ] = 3.0,
@@ -542,13 +546,9 @@ def _learned_command(robot: str) -> None:
                 "ROBOT.pt, collected and trained there first if missing)"
             ),
         ] = None,
-        horizon: Annotated[int, typer.Option(help="prediction nodes", callback=at_least_one)] = 20,
-        iterations: Annotated[
-            int, typer.Option(help="DDP iterations per control step", callback=at_least_one)
-        ] = 3,
-        steps: Annotated[
-            int, typer.Option(help="control steps (the task's nodes)", callback=at_least_one)
-        ] = 100,
+        horizon: Horizon = 20,
+        iterations: Iterations = 3,
+        steps: ControlSteps = 100,
         samples: Annotated[
             int, typer.Option(help="samples if a model is collected", callback=at_least_one)
         ] = 300,
