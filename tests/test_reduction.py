@@ -36,6 +36,7 @@ from pliant.reduction import (
     pod,
     snapshots,
 )
+from pliant.reduction.cavity import CavityPolynomial, WallCavity, reduced_cavity
 from pliant.reduction.ecsw import membrane_contributions, tet_contributions
 from pliant.reduction.pipeline import RampedCommands, build
 from pliant.solvers import ImplicitEuler
@@ -143,7 +144,7 @@ def test_ecsw_weights_reproduce_the_training_forces_within_tau(trained):
     assert domain.tets.elements.size < model.body.n_elements / 2
 
 
-def test_compiled_cavity_and_membrane_kernels_match_their_definitions(rng):
+def test_compiled_membrane_kernel_matches_its_definition(rng):
     model = beam()
     membrane = model.body.membranes[0].membrane
     x = model.body.rest_positions + rng.normal(scale=1.0, size=model.body.rest_positions.shape)
@@ -156,18 +157,42 @@ def test_compiled_cavity_and_membrane_kernels_match_their_definitions(rng):
     np.testing.assert_allclose(f, forces.reshape(t, 9), rtol=1e-12, atol=1e-12 * np.abs(f).max())
     np.testing.assert_allclose(k, membrane.element_stiffness(x), rtol=1e-12, atol=1e-9)
     assert e == pytest.approx(energy, rel=1e-12)
+
+
+@pytest.mark.parametrize("kind", [CavityPolynomial, WallCavity])
+def test_reduced_cavity_is_the_volume_on_the_basis(kind, rng):
+    """Both evaluations of a cavity's row (the exact cubic polynomial of alpha, the compiled
+    kernels on the walls) equal the walls' volume at q0 + Phi alpha and dV/dq Phi, to
+    round-off, far from the rest shape."""
     cube = box_beam(10.0, 10.0, 10.0, 2, 2, 2)
     cavity = CavityActuator(cube.boundary_triangles(), cube.points)
-    nodes, local = np.unique(cavity.triangles, return_inverse=True)
-    grad = np.empty((nodes.size, 3))
-    y = cube.points + rng.normal(scale=0.3, size=cube.points.shape)
-    volume = kernels.cavity_gradient(y, cavity.triangles, local.reshape(-1, 3), grad)
-    assert volume == pytest.approx(cavity.volume(y), rel=1e-12)
-    assert kernels.cavity_volume(y, cavity.triangles) == pytest.approx(volume, rel=1e-12)
-    jac = cavity.jacobian(y)
-    expected = np.zeros((cube.points.shape[0], 3))
-    np.add.at(expected, jac.nodes.reshape(-1), jac.values.reshape(-1, 3))
-    np.testing.assert_allclose(grad, expected[nodes], rtol=1e-12, atol=1e-12)
+    n, r = cube.points.shape[0], 7
+    modes = np.linalg.qr(rng.normal(size=(3 * n, r)))[0].reshape(n, 3, r)
+    reduced = kind(cavity.triangles, cube.points, modes)
+    assert reduced.rest_volume == pytest.approx(cavity.rest_volume, rel=1e-13)
+    for scale in (0.1, 3.0):
+        alpha = rng.normal(scale=scale, size=r)
+        y = cube.points + modes @ alpha
+        change, gradient = reduced.change_and_gradient(alpha, y)
+        assert change + reduced.rest_volume == pytest.approx(cavity.volume(y), rel=1e-12)
+        assert reduced.change(alpha, y) == pytest.approx(change, rel=1e-12, abs=1e-12)
+        jac = cavity.jacobian(y)
+        dv = np.zeros((n, 3))
+        np.add.at(dv, jac.nodes.reshape(-1), jac.values.reshape(-1, 3))
+        expected = dv.reshape(-1) @ modes.reshape(-1, r)
+        scale_g = np.abs(expected).max()
+        np.testing.assert_allclose(gradient, expected, rtol=1e-11, atol=1e-11 * scale_g)
+
+
+def test_the_cheaper_cavity_evaluation_is_chosen(rng):
+    cube = box_beam(10.0, 10.0, 10.0, 2, 2, 2)
+    cavity = CavityActuator(cube.boundary_triangles(), cube.points)
+    n = cube.points.shape[0]
+    wall = np.unique(cavity.triangles).size
+    few = rng.normal(size=(n, 3, 2))
+    many = rng.normal(size=(n, 3, int(np.sqrt(3 * wall)) + 1))
+    assert isinstance(reduced_cavity(cavity, cube.points, few), CavityPolynomial)
+    assert isinstance(reduced_cavity(cavity, cube.points, many), WallCavity)
 
 
 def test_greedy_nnls_stops_at_its_tolerance_with_non_negative_weights(rng):

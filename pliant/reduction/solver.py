@@ -42,6 +42,7 @@ from pliant.fem import kernels as fem_kernels
 from pliant.model import Model, State
 from pliant.reduction import kernels
 from pliant.reduction.basis import ReducedBasis
+from pliant.reduction.cavity import reduced_cavity
 from pliant.reduction.ecsw import IntegrationDomain
 from pliant.solvers.base import StepReport
 
@@ -157,27 +158,6 @@ class _ReducedTangent:
         return scipy.linalg.cho_solve(self._factor, rhs, check_finite=False)
 
 
-class _Cavity:
-    """A cavity's row read through the basis: delta = V(q) - V0 and H_r = dV/dq Phi, from the
-    compiled kernels on its walls."""
-
-    def __init__(self, cavity: CavityActuator, modes: np.ndarray) -> None:
-        self.cavity = cavity
-        self.triangles = np.ascontiguousarray(cavity.triangles)
-        nodes, local = np.unique(self.triangles, return_inverse=True)
-        self.local = np.ascontiguousarray(local.reshape(self.triangles.shape))
-        self.gradient = np.empty((nodes.size, 3))
-        self.phi = np.ascontiguousarray(modes[nodes].reshape(-1, modes.shape[2]))
-
-    def rows(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        volume = kernels.cavity_gradient(x, self.triangles, self.local, self.gradient)
-        row = self.gradient.reshape(1, -1) @ self.phi
-        return np.array([volume - self.cavity.rest_volume]), row
-
-    def distance(self, x: np.ndarray) -> float:
-        return kernels.cavity_volume(x, self.triangles) - self.cavity.rest_volume
-
-
 class _Membrane:
     """The selected triangles of a membrane, their weights and the basis on their nodes."""
 
@@ -274,17 +254,25 @@ class ReducedImplicitEuler:
         # colliding points; positions are computed there only.
         rest = body.rest_positions
         wanted = [self._tets.reshape(-1)] + [s.triangles.reshape(-1) for s in self._membranes]
-        wanted += [c.jacobian(rest).nodes.reshape(-1) for c in model.constraints]
+        # Cavities from their walls or as exact polynomials of alpha, whichever is cheaper
+        # (pliant.reduction.cavity); a polynomial's walls need no positions.
+        self._cavities = {
+            id(c): reduced_cavity(c, rest, modes)
+            for c in model.constraints
+            if isinstance(c, CavityActuator)
+        }
+        wanted += [c.nodes for c in self._cavities.values()]
+        wanted += [
+            c.jacobian(rest).nodes.reshape(-1)
+            for c in model.constraints
+            if id(c) not in self._cavities
+        ]
         if model.contacts is not None:
             wanted.append(model.contacts.points.nodes.reshape(-1))
         self.active = np.unique(np.concatenate(wanted)) if wanted else np.zeros(0, np.int64)
         self._active_modes = np.ascontiguousarray(modes[self.active].reshape(-1, r))
         self._active_rest = rest[self.active]
         self._x, self._v = rest.copy(), np.zeros_like(rest)
-        # Cavities' rows from the compiled kernels; other constraints' from their own code.
-        self._cavities = {
-            id(c): _Cavity(c, modes) for c in model.constraints if isinstance(c, CavityActuator)
-        }
         self._size = body.extent
         self.last_report = StepReport()
 
@@ -386,7 +374,7 @@ class ReducedImplicitEuler:
         du_free = self.system.solve(rhs)
         roles = getattr(ctrl, "roles", None)
         contact = model.contacts.constraint(x, h) if model.contacts is not None else None
-        distance, rows, slices = self._rows(x, roles, contact)
+        distance, rows, slices = self._rows(alpha, x, roles, contact)
         columns = self.system.solve(rows.T)
         w = h * h * (rows @ columns)
         problem = CondensedProblem(0.5 * (w + w.T), distance + h * (rows @ (u + du_free)), slices)
@@ -419,7 +407,7 @@ class ReducedImplicitEuler:
             state.time + h,
             step,
             lam_a,
-            self._actuator_distances(self._place(alpha_new)),
+            self._actuator_distances(alpha_new),
             contact_forces,
             self.basis,
         )
@@ -498,17 +486,24 @@ class ReducedImplicitEuler:
             out += part.weighted.T @ np.matmul(tangent, part.phi).reshape(-1, r)
         return 0.5 * (out + out.T)
 
-    def _actuator_distances(self, x: np.ndarray) -> np.ndarray:
-        """delta of every actuator row at x."""
-        out = []
+    def _actuator_distances(self, coordinates: np.ndarray) -> np.ndarray:
+        """delta of every actuator row at q0 + Phi alpha."""
+        out, x = [], None
         for c in self.model.actuators:
             cavity = self._cavities.get(id(c))
-            out.append([cavity.distance(x)] if cavity is not None else c.distance(x))
+            if x is None and (cavity is None or cavity.nodes.size):
+                x = self._place(coordinates)
+            if cavity is not None:
+                change = cavity.change(coordinates, x)
+                out.append([change + cavity.rest_volume - c.rest_volume])
+            else:
+                out.append(c.distance(x))
         return np.concatenate(out) if out else np.zeros(0)
 
-    def _rows(self, x: np.ndarray, roles, contact):
-        """delta, H_r = H Phi (rows, r) and the slices of the step's constraint rows, in the
-        full step's order: actuators, effectors (those of `roles`), contacts."""
+    def _rows(self, coordinates: np.ndarray, x: np.ndarray, roles, contact):
+        """delta, H_r = H Phi (rows, r) and the slices of the step's constraint rows at alpha
+        (x: the active nodes placed there), in the full step's order: actuators, effectors
+        (those of `roles`), contacts."""
         cons = [c for c in self.model.constraints if roles is None or c.role in roles]
         if contact is not None:
             cons.append(contact)
@@ -517,7 +512,9 @@ class ReducedImplicitEuler:
         for c in cons:
             cavity = self._cavities.get(id(c))
             if cavity is not None:
-                delta, block = cavity.rows(x)
+                change, gradient = cavity.change_and_gradient(coordinates, x)
+                delta = np.array([change + cavity.rest_volume - c.rest_volume])
+                block = gradient[None, :]
             else:
                 delta, jac = c.distance_and_jacobian(x)
                 block = np.einsum("rki,rkis->rs", jac.values, modes[jac.nodes])
