@@ -424,3 +424,31 @@ def test_object_effector_rows_predict_the_carried_object_exactly(monkeypatch) ->
         state = new
     assert coupled > 30  # the box rested on the cube: its rows were coupled to the contacts
     assert abs(state.rigid_positions[0, 0] - 10.0) > 0.01  # the pulled cube carried it
+
+
+def test_inverse_control_of_a_walker_resting_with_friction_keeps_its_contacts_sticking():
+    """The Multigait resting on the floor (45 contacts, friction 0.7), asked to stay where it
+    is: the QPCC solves from the previous step's friction states (89 axes sticking, one
+    sliding). ProxQP once called that QP primal infeasible at its first iteration (its
+    default 1e-4 certificate on W ~ 1e-4 mm/N), and the step kept the previous actuation with
+    a warning; frictionless, the same step always solved."""
+    from pliant.constraints.base import EmbeddedPoints
+    from pliant.errors import ContactConvergenceWarning
+    from pliant.proxy.transfer import with_effector
+    from pliant.robots.multigait import multigait
+
+    robot = multigait(mesh_size=6.0)
+    rest = robot.body.rest_positions
+    tips = rest[np.argsort(rest[:, 2])[:4]] + [0.0, 0.0, 2.0]  # just above the feet
+    model = with_effector(robot, EmbeddedPoints(robot.body.mesh, tips))
+    solver = ImplicitEuler(model, dt=0.01)
+    state = model.rest_state()
+    for _ in range(20):
+        state = solver.step(state, np.zeros(model.n_actuators))
+    assert np.count_nonzero(state.contact_forces.forces.reshape(-1, 3)[:, 0] > 0) > 10
+    goals = model.effectors[0].points.positions(state.positions)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", ContactConvergenceWarning)
+        after = solver.step(state, InverseControl(goals=goals))
+    moved = model.effectors[0].points.positions(after.positions) - goals
+    assert np.abs(moved).max() < 0.05

@@ -136,7 +136,13 @@ class InverseControl:
         previous = state.contact_forces.warm_start(contact.contacts)
         gap = contact.contacts.gap
         touching = gap <= model.contacts.tolerance
-        closed = touching & (previous.reshape(-1, 3)[:, 0] > 0.0) | (gap <= self.seed_gap)
+        forces = previous.reshape(-1, 3)
+        closed = touching & (forces[:, 0] > 0.0) | (gap <= self.seed_gap)
+        # Friction states from the previous step's forces: an axis whose force reaches the
+        # pyramid slides with it, the others stick.
+        pyramid = np.broadcast_to(contact.friction, gap.shape) / np.sqrt(2.0)
+        binds = np.abs(forces[:, 1:]) >= (pyramid * forces[:, 0])[:, None] * (1.0 - 1e-6)
+        slip = np.where(binds & (forces[:, :1] > 0.0), np.sign(forces[:, 1:]), 0).astype(int)
         try:
             sol = solve_inverse_with_contacts(
                 problem,
@@ -145,6 +151,7 @@ class InverseControl:
                 contact.friction,
                 regularisation=self.regularisation,
                 initial_active=closed,
+                initial_slip=slip,
                 time_limit=self.contact_time_limit,
             )
             actuation, rounds, settled = sol.forces[sa], sol.rounds, sol.settled

@@ -190,12 +190,25 @@ def _bounded_least_squares(hess, grad, c_mat, lower, upper, lo_box, hi_box) -> n
     return x
 
 
+#: ProxQP's tolerance on infeasibility certificates (see _dense_qp).
+INFEASIBILITY_TOLERANCE = 1e-12
+
+
 def _dense_qp(n: int, n_eq: int, n_in: int, tolerance: float, max_iterations: int):
-    """A ProxQP dense QP with box constraints, absolute tolerance only."""
+    """A ProxQP dense QP with box constraints, absolute tolerance only.
+
+    ProxQP's infeasibility certificates are tested against 1e-4 by default, relative to the
+    problem's unscaled data: on the compliance rows of a resting Multigait (45 sticking
+    contacts, W ~ 1e-4 mm/N) it declared a feasible QP primal infeasible at its first
+    iteration, and the QPCC then rejected the contact states the robot was in. A certificate
+    must now be tight; a truly infeasible QP ends at `max_iterations` instead.
+    """
     qp = proxqp.dense.QP(n, n_eq, n_in, True)
     qp.settings.eps_abs = tolerance
     qp.settings.eps_rel = 0.0
     qp.settings.max_iter = max_iterations
+    qp.settings.eps_primal_inf = INFEASIBILITY_TOLERANCE
+    qp.settings.eps_dual_inf = INFEASIBILITY_TOLERANCE
     return qp
 
 
@@ -342,12 +355,16 @@ class _ContactQP:
         return mu, qp.results.y.copy(), qp.results.z.copy(), stick_rows, slide_rows, gap_rows
 
 
-def _slip_against(slip_displacement: float, scale: float) -> int:
-    """The state of a tangent axis whose slip over the step is `slip_displacement`: sticks
-    (0) if it does not slip, else slides with the friction against the slip."""
-    if abs(slip_displacement) <= scale:
-        return 0
-    return -1 if slip_displacement > 0 else 1
+def _settle_probe(tangent: float, normal: float, pyramid: float) -> int:
+    """The state of a probed tangent axis (its slip was free, its force inside the pyramid)
+    from the force the QP gave it: on the pyramid, it slides against the force's direction
+    (lambda_t = s p lambda_n, s delta_t <= 0); inside, it sticks. A slip with the force inside
+    the pyramid is not Coulomb's law, whichever way the free slip went: deciding by the slip
+    sent every axis of a resting body, creeping by 1e-5 mm, to slide at full friction, a state
+    without solution (the Multigait on the floor, friction 0.7)."""
+    if normal > 0.0 and abs(tangent) >= pyramid * normal * (1.0 - 1e-6):
+        return 1 if tangent > 0 else -1
+    return 0
 
 
 def solve_inverse_with_contacts(
@@ -361,6 +378,7 @@ def solve_inverse_with_contacts(
     max_iterations: int = 1000,
     max_rounds: int = 30,
     initial_active: np.ndarray | None = None,
+    initial_slip: np.ndarray | None = None,
     time_limit: float | None = None,
 ) -> ContactInverseSolution:
     """Eq. 2.15 with contacts (a QP with complementarity constraints, QPCC).
@@ -380,13 +398,18 @@ def solve_inverse_with_contacts(
     From a solved round: a closed contact whose normal force the QP drives to zero opens; an
     open one whose gap the QP closes closes; a sticking axis whose pyramid binds slides; a
     sticking axis on which the objective pulls (non-zero multiplier of delta_t = 0) is probed
-    once with its slip free, and then slides against the slip the QP chose; a sliding axis whose
-    slip the QP holds back (active s delta_t <= 0) sticks. A change that makes the QP
+    once with its slip free, and then slides (against the force) if the QP put its friction on
+    the pyramid, else sticks; a sliding axis whose slip the QP holds back (active
+    s delta_t <= 0) sticks. A change that makes the QP
     infeasible is undone and not tried again. The rounds stop when no change is left; the
     solution is then a local one (a QPCC is not convex: a contact that the QP has no reason to
     close stays open, see thesis §3.3.2). They also stop after `max_rounds`, or once
     `time_limit` seconds have passed (one round of a dense QP over hundreds of contacts takes
     seconds): the last feasible round's forces are returned, not settled, `timed_out` set.
+
+    `initial_active` (nc,) and `initial_slip` (nc, 2: 0 sticks, +-1 slides with
+    lambda_t = +-p lambda_n) seed the contact states, e.g. from the previous step's contact
+    forces; without them every contact starts closed with its slip probed.
     """
     deadline = None if time_limit is None else time.monotonic() + time_limit
     sa, se, sc = (problem.slices[r] for r in ("actuator", "effector", "contact"))
@@ -446,15 +469,24 @@ def solve_inverse_with_contacts(
     )
     solve = qp.solve
 
-    # A first feasible state. Closed contacts start with their slip free (probed: the rounds
-    # then make each axis stick or slide against the slip); while the QP has no solution,
+    # A first feasible state: the closed contacts' friction states of `initial_slip` (the
+    # previous step's, where the caller knows them), else (or if that has no solution) their
+    # slip free (probed: the rounds then make each axis stick or slide); while the QP has no
+    # solution,
     # free the slip of sticking axes, open the closed contacts that the free motion opens
     # (farthest first), close those it carries into their obstacle, and as a last resort open
     # contacts one by one.
     frictional = pyramid > 0.0
-    slip[closed & frictional] = _PROBE
-    result = solve(closed, slip)
-    rounds = 1
+    result, rounds = None, 0
+    if initial_slip is not None:
+        seeded = closed & frictional
+        slip[seeded] = np.asarray(initial_slip, dtype=int)[seeded]
+        result = solve(closed, slip)
+        rounds = 1
+    if result is None:
+        slip[closed & frictional] = _PROBE
+        result = solve(closed, slip)
+        rounds += 1
     tried_closing = np.zeros(nc, dtype=bool)
     while result is None and rounds < max_rounds and not _past(deadline):
         leaving = closed & (d_rows[normal] > 0.0)
@@ -501,8 +533,8 @@ def solve_inverse_with_contacts(
             elif closed[k] and frictional[k]:
                 for t in (1, 2):
                     s = slip[k, t - 1]
-                    if s == _PROBE:  # slide against the slip the QP chose, or stick
-                        to = _slip_against(delta[j + t], scale)
+                    if s == _PROBE:  # slide if the QP put the friction on the pyramid
+                        to = _settle_probe(mu[j + t], mu[j], pyramid[k])
                     elif s == 0 and abs(mu[j + t]) >= pyramid[k] * mu[j] * (1 - 1e-9) > 0:
                         to = 1 if mu[j + t] > 0 else -1  # the pyramid binds
                     elif s == 0 and (k, t) not in probed and abs(y[stick_rows[k, t]]) > yscale:
@@ -544,7 +576,10 @@ def solve_inverse_with_contacts(
         scale = tolerance * max(1.0, float(np.abs(delta).max()))
         tk, tt = np.nonzero(probing)
         for fixed in (
-            [_slip_against(delta[normal[k] + 1 + t], scale) for k, t in zip(tk, tt, strict=True)],
+            [
+                _settle_probe(result[0][normal[k] + 1 + t], result[0][normal[k]], pyramid[k])
+                for k, t in zip(tk, tt, strict=True)
+            ],
             [0] * len(tk),
         ):
             trial_slip = slip.copy()
