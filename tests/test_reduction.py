@@ -17,7 +17,7 @@ from pliant.constraints.cable import CableActuator
 from pliant.constraints.cavity import CavityActuator
 from pliant.constraints.collision import Plane
 from pliant.constraints.contact import Contacts
-from pliant.errors import ReductionError
+from pliant.errors import ReductionError, SolverError
 from pliant.fem.body import TetBody
 from pliant.fem.material import NeoHookean
 from pliant.fem.membrane import Membrane
@@ -120,6 +120,24 @@ def test_every_mode_and_element_reproduce_the_full_step(floor):
         np.testing.assert_allclose(
             b[-1].contact_forces.forces, a[-1].contact_forces.forces, rtol=1e-6, atol=1e-12
         )
+
+
+def test_contact_compliance_lets_a_contact_give_way_by_its_fraction():
+    """With every mode, the beam sagging on the floor: a relative contact compliance c lets
+    each contact sink by about c times its mean response, and c = 0 is the contact law."""
+    model = beam(floor=0.2)
+    basis = full_basis(model.body)
+    runs = {}
+    for c in (0.0, 1e-2):
+        solver = ReducedImplicitEuler(model, basis, None, 0.01, contact_compliance=c)
+        runs[c] = trajectory(solver, solver.rest_state(), pull(0.0), 30)[-1]
+    floor_z = model.contacts.points.positions(runs[0.0].positions)[:, 2].min()
+    soft_z = model.contacts.points.positions(runs[1e-2].positions)[:, 2].min()
+    assert np.abs(runs[1e-2].contact_forces.forces).max() > 0
+    assert soft_z < floor_z  # the compliant contact gives way
+    assert floor_z - soft_z < 0.05 * np.ptp(model.body.rest_positions[:, 2])
+    with pytest.raises(SolverError, match="contact compliance"):
+        ReducedImplicitEuler(model, basis, None, 0.01, contact_compliance=-1.0)
 
 
 def test_ecsw_weights_reproduce_the_training_forces_within_tau(trained):
