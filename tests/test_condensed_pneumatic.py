@@ -1,6 +1,7 @@
-"""The learned condensed model of a pneumatic robot (thesis §5.1.5, the Stiff-Flop): collection
-imposes the cavities' volume changes, the plant is driven in pressure, and Algorithm 2 runs on
-the model's own volumes delta_a = W_aa lambda_a + delta_a_free. On a coarse PneuNet (one
+"""The learned condensed model of a pneumatic robot (thesis §5.1.5, the Stiff-Flop): W is the
+compliance to a change of pressure, collection imposes the cavities' volume changes, the plant
+is driven in pressure, and Algorithm 2 runs on the model's own volumes
+delta_a = W_aa lambda_a + delta_a_free. On a coarse PneuNet (one
 cavity, 329 nodes) at pressures below 4 kPa, where its unreinforced chambers still converge."""
 
 from __future__ import annotations
@@ -38,7 +39,6 @@ PLAN = CollectionPlan(
     robot_kwargs=COARSE,
     max_increment=1200.0,
     chunk_size=6,
-    consistent_tangent=False,
 )
 MAX_PRESSURE_STEP = 4.0  # kPa, the plant's force load steps
 
@@ -50,9 +50,9 @@ def dataset(tmp_path_factory) -> Dataset:
 
 def test_pressure_load_step_holds_the_pressure_and_w_predicts_the_motion() -> None:
     model = robots.build("pneunet", **COARSE)
-    # W of the material tangent, the thesis' (and PLAN's): it leaves out the pressure's load
-    # stiffness, which costs it 3 % of the effector's motion per kPa here
-    solver = StaticSolver(model, consistent=False)
+    # the consistent tangent, with the pressure's load stiffness -lambda d^2V/dx^2 (SOFA's
+    # material tangent leaves it out and misses 4 % of the tip's motion here)
+    solver = StaticSolver(model)
     pressure, step = 1.0, 0.02
     state = load_step(
         model, solver, rest_equilibrium(model, solver), np.array([pressure]), 4.0, mode="force"
@@ -64,10 +64,10 @@ def test_pressure_load_step_holds_the_pressure_and_w_predicts_the_motion() -> No
     np.testing.assert_allclose(nudged.actuation, [pressure + step])
     sa, se = problem.slices["actuator"], problem.slices["effector"]
     volume = nudged.displacement - state.displacement
-    np.testing.assert_allclose(volume, problem.compliance[sa, sa] @ [step], rtol=0.01)
+    np.testing.assert_allclose(volume, problem.compliance[sa, sa] @ [step], rtol=1e-3)
     moved = (effector_positions(model, nudged) - effector_positions(model, state)).ravel()
     np.testing.assert_allclose(
-        moved, problem.compliance[se, sa] @ [step], atol=0.05 * np.abs(moved).max()
+        moved, problem.compliance[se, sa] @ [step], atol=1e-3 * np.abs(moved).max()
     )
 
 
@@ -87,7 +87,7 @@ def test_pressure_controlled_tracking_learned_close_to_exact(dataset) -> None:
     )
     learned = train_condensed(dataset, config)[0]
     model = robots.build("pneunet", **COARSE)
-    solver = StaticSolver(model, consistent=False)
+    solver = StaticSolver(model)
     rest = rest_equilibrium(model, solver)
     # goals the robot reaches at pressures inside the data's volumes
     goals = np.vstack(
@@ -102,7 +102,7 @@ def test_pressure_controlled_tracking_learned_close_to_exact(dataset) -> None:
     exact = follow_trajectory(
         model,
         goals,
-        ExactCondensed(model, StaticSolver(model, consistent=False)),
+        ExactCondensed(model, StaticSolver(model)),
         iterations=4,
         regularisation=1e-6,
         max_increment=MAX_PRESSURE_STEP,
