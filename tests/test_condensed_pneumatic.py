@@ -6,6 +6,7 @@ cavity, 329 nodes) at pressures below 4 kPa, where its unreinforced chambers sti
 
 from __future__ import annotations
 
+import json
 import warnings
 
 import numpy as np
@@ -14,7 +15,10 @@ import pytest
 pytest.importorskip("torch")
 pytest.importorskip("h5py")
 
+from typer.testing import CliRunner  # noqa: E402
+
 from pliant import robots  # noqa: E402
+from pliant.cli import app  # noqa: E402
 from pliant.condensed.collect import collect  # noqa: E402
 from pliant.condensed.control import (  # noqa: E402
     PID,
@@ -123,3 +127,37 @@ def test_pressure_controlled_tracking_learned_close_to_exact(dataset) -> None:
     assert by_learned.errors.max() < 0.1 * motion, (by_learned.errors, motion)
     # its pressures hold the volumes it predicts (no volume sensing)
     np.testing.assert_allclose(controller.displacement, by_learned.displacements[-1], rtol=0.05)
+
+
+def test_control_command_drives_the_stiff_flop_in_pressure(tmp_path) -> None:
+    """`pliant condensed control MODEL --pressure` on a Stiff-Flop model of 8 samples: both
+    controllers run the spiral in pressure and report their distance to the goals."""
+    plan = CollectionPlan("stiff_flop", ((0.0, 30.0),) * 6, 8, max_increment=30.0, chunk_size=8)
+    dataset = collect(plan, tmp_path / "stiff_flop.h5", workers=1)
+    config = TrainConfig(epochs=20, batch_size=4, learning_rate=1e-3, hidden=(32,), progress=False)
+    train_condensed(dataset, config)[0].save(tmp_path / "stiff_flop.pt")
+    result = CliRunner().invoke(
+        app,
+        [
+            "condensed",
+            "control",
+            str(tmp_path / "stiff_flop.pt"),
+            "--trajectory",
+            "spiral",
+            "--goals",
+            "2",
+            "--iterations",
+            "1",
+            "--pid",
+            "0.5,0.1,0",
+            "--pressure",
+            "--out",
+            str(tmp_path),
+        ],
+    )
+    assert result.exit_code == 0, result.output
+    report = json.loads((tmp_path / "stiff_flop_spiral" / "report.json").read_text())
+    for source in ("learned", "exact"):
+        assert len(report[source]["errors"]) == 2
+        assert np.all(np.isfinite(report[source]["errors"]))
+    assert (tmp_path / "stiff_flop_spiral" / "reached.png").is_file()
