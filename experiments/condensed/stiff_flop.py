@@ -25,7 +25,6 @@ interruption); the table (JSON) and the trajectory plots (PNG) to --out.
 from __future__ import annotations
 
 import json
-import time
 import warnings
 from pathlib import Path
 from typing import Annotated
@@ -124,9 +123,7 @@ def main(
     out.mkdir(parents=True, exist_ok=True)
     work.mkdir(parents=True, exist_ok=True)
     the_plan = plan(samples)
-    start = time.perf_counter()
     dataset = load_or_collect(the_plan, work / f"stiff_flop_{samples}.h5", workers=workers)
-    collected = time.perf_counter() - start
     model_path = work / f"stiff_flop_{samples}.pt"
     if model_path.exists():
         learned = LearnedCondensedModel.load(model_path)
@@ -156,7 +153,6 @@ def main(
         "volume_bounds_mm3": list(VOLUME_BOUNDS),
         "failed_samples": failed,
         "largest_volume_short_of_command_mm3": clipped,
-        "collection_seconds_this_call": collected,
         "test_loss": scores["loss"],
         "constant_w0_baseline": scores["baseline_loss"],
         "best_epoch": learned.training["best_epoch"],
