@@ -6,8 +6,9 @@ Thesis: 50000 samples, the chambers' volume change sampled in [0, 30] mm^3, test
 (best epoch 37070 of 50000). Here each chamber pair's volume change in [0, 100] mm^3: this
 Stiff-Flop's chambers are larger than the thesis' model's, and 30 mm^3 moves its tip less than
 0.6 mm (0.3 mm of it the sag under gravity); 100 mm^3 is about 0.4 bar in one pair, the tip
-about 6 mm off the axis. 2400 training + 600 test samples (0.24 s of CPU a sample: 18 minutes
-on a core shared with two other jobs), then training on one thread (about a minute):
+about 6 mm off the axis. 4800 training + 1200 test samples (0.24 s of CPU a sample; about
+33 minutes on a core shared with two other jobs), then training on one thread (2 minutes) and
+the spiral (2 minutes):
 
     OPENBLAS_NUM_THREADS=1 OMP_NUM_THREADS=1 NUMBA_NUM_THREADS=1 \
         python experiments/condensed/stiff_flop.py --work out/condensed_stiff_flop
@@ -106,7 +107,7 @@ def track(
 
 
 def main(
-    samples: Annotated[int, typer.Option(help="training samples (test: a quarter more)")] = 2400,
+    samples: Annotated[int, typer.Option(help="training samples (test: a quarter more)")] = 4800,
     epochs: Annotated[int, typer.Option()] = 800,
     learning_rate: Annotated[float, typer.Option()] = 1e-3,
     batch_size: Annotated[int, typer.Option()] = 64,
