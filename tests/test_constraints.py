@@ -208,6 +208,40 @@ def test_cable_geometric_stiffness_matches_finite_differences(rng) -> None:
     assert worst < 1e-7 * np.abs(k).max(), worst
 
 
+@pytest.mark.parametrize("embedded", [False, True])
+def test_cavity_load_stiffness_matches_finite_differences(embedded, rng) -> None:
+    """The pressure's load stiffness is -d(H^T lambda)/dx, H = dV/dx (V of Gauss'
+    theorem), against central differences of the pressure forces at a distorted state, on
+    the cavity's own nodes and on points embedded in the elements."""
+    mesh = box_beam(30.0, 10.0, 10.0, 3, 1, 1)
+    x0 = mesh.points
+    triangles = mesh.boundary_triangles()
+    points = EmbeddedPoints(mesh, 0.98 * (x0 - x0.mean(0)) + x0.mean(0)) if embedded else None
+    cavity = CavityActuator(triangles, x0, points=points)
+    x = x0 + 0.3 * rng.standard_normal(x0.shape)
+    pressure = 1.7
+
+    def forces(y: np.ndarray) -> np.ndarray:
+        jac = cavity.jacobian(y)
+        out = np.zeros(y.size)
+        dofs = (3 * jac.nodes[0][:, None] + np.arange(3)).ravel()
+        np.add.at(out, dofs, pressure * jac.values[0].ravel())
+        return out
+
+    ni, nj = cavity.load_stiffness_pairs()
+    blocks = cavity.load_stiffness(x, pressure)
+    assert blocks.shape == (ni.size, 3, 3)
+    k = np.zeros((x.size, x.size))
+    for e in range(ni.size):
+        k[3 * ni[e] : 3 * ni[e] + 3, 3 * nj[e] : 3 * nj[e] + 3] += blocks[e]
+    np.testing.assert_allclose(k, k.T, atol=1e-12 * np.abs(k).max())
+    eps = 1e-6
+    steps = eps * np.eye(x.size).reshape(-1, *x.shape)
+    fd = np.column_stack([-(forces(x + d) - forces(x - d)) / (2 * eps) for d in steps])
+    # V is cubic in x: central differences are exact up to round-off
+    assert np.abs(fd - k).max() < 1e-7 * np.abs(k).max()
+
+
 @pytest.mark.parametrize("material", sorted(MATERIALS))
 def test_dynamic_compliance_predicts_perturbed_steps(material) -> None:
     """W = h^2 H A^-1 H^T, A = (1 + h alpha) M + (h beta + h^2) K_s: the change of every row over

@@ -45,6 +45,7 @@ _WHERE = {
     "PID": "control",
     "EmbeddedController": "control",
     "ExactCondensed": "control",
+    "follow_embedded": "control",
     "follow_trajectory": "control",
     "loop_frequency": "control",
 }

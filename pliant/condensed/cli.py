@@ -347,6 +347,13 @@ def control(
             min=0,
         ),
     ] = 0,
+    pressure: Annotated[
+        bool,
+        typer.Option(
+            help="drive the actuators in force (pressure control): the learned model runs"
+            " Algorithm 2 on its own actuator displacements, no actuator sensing"
+        ),
+    ] = False,
     out: Annotated[Path, typer.Option(help="output folder", callback=output_folder)] = Path("out"),
 ) -> None:
     """Control the FEM robot with MODEL along a trajectory, beside the exact matrices.
@@ -357,6 +364,7 @@ def control(
         PID,
         EmbeddedController,
         ExactCondensed,
+        follow_embedded,
         follow_trajectory,
         loop_frequency,
     )
@@ -381,17 +389,32 @@ def control(
         return PID(*gains) if gains else None
 
     robot = robots.build(plan.robot, **plan.robot_kwargs)
+    # the plant's load steps: the collection's in displacement, the whole force range in force
+    spans = [a.max_force - a.min_force for a in learned.layout.actuators]
+    step = max(spans) if pressure and np.all(np.isfinite(spans)) else plan.max_increment
+    drive = "force" if pressure else "displacement"
     reached = {}
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", OutOfBoundsWarning)
-        result = follow_trajectory(
-            robot,
-            targets,
-            learned,
-            iterations=iterations,
-            pid=controller(),
-            course=learned.input_box,
-        )
+        if pressure:
+            result = follow_embedded(
+                robot,
+                targets,
+                EmbeddedController(learned, pid=controller()),
+                iterations=iterations,
+                closed_loop=bool(gains),
+                max_increment=step,
+            )
+        else:
+            result = follow_trajectory(
+                robot,
+                targets,
+                learned,
+                iterations=iterations,
+                pid=controller(),
+                course=learned.input_box,
+                max_increment=step,
+            )
     reached["learned"] = result
     if exact:
         # The reference is the W the network learned (the plan's tangent).
@@ -403,6 +426,8 @@ def control(
             iterations=iterations,
             pid=controller(),
             course=learned.input_box,
+            max_increment=step,
+            drive=drive,
         )
     rate = None
     if embedded:

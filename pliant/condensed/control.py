@@ -6,9 +6,12 @@ for the actuator forces (ProxQP), and turn them into actuator displacements
 delta_a = W_aa lambda_a + delta_a_free. The robot is then driven in displacement:
 
 * `follow_trajectory`: the FEM robot as the plant, open loop or with the PID goal correction
-  of Eq. 5.14 (thesis Fig. 5.4: learned against exact matrices);
+  of Eq. 5.14 (thesis Fig. 5.4: learned against exact matrices); driven in displacement, or
+  in force (a pressure-controlled pneumatic robot: the QP's pressures go to the plant);
 * `EmbeddedController`: Algorithm 2, the network and the QP alone, no FEM in the loop, on a
-  ProxQP model kept between iterations and warm-started (`WarmInverse`).
+  ProxQP model kept between iterations and warm-started (`WarmInverse`);
+* `follow_embedded`: Algorithm 2 driving the FEM robot in force, its actuator displacements
+  its own prediction (no actuator sensing: the thesis' pressure-controlled Stiff-Flop).
 """
 
 from __future__ import annotations
@@ -18,7 +21,7 @@ import math
 import numbers
 import time
 from dataclasses import dataclass, field
-from typing import Protocol
+from typing import Literal, Protocol
 
 import numpy as np
 from proxsuite import proxqp
@@ -240,23 +243,24 @@ def follow_trajectory(
     max_increment: float = 8.0,
     tolerance: float = 1e-8,
     regularisation: float = 1e-3,
+    drive: Literal["displacement", "force"] = "displacement",
 ) -> TrajectoryResult:
     """Drive the FEM robot through `goals` with condensed matrices from `source`.
 
     For each goal, `iterations` times: W and delta_free at the robot's state, the goal moved
     by Eq. 5.6 (corrected by `pid` from the measured effector, Eq. 5.14, if given), the QP,
-    and the resulting actuator displacements imposed on the FEM robot (load stepped).
+    and the resulting actuator displacements imposed on the FEM robot (load stepped); with
+    `drive="force"`, the QP's actuator forces instead (pressure control).
 
     Args:
         goals: (n, 3) for a single effector point, or (n, points, 3).
         course: a box of actuator displacements the controller keeps to.
-        max_increment, tolerance: the plant's load stepping (`load_step`) and Newton
-            tolerance (relative to the body size).
+        max_increment, tolerance: the plant's load stepping (`load_step`, in the units of
+            the commands it is driven with) and Newton tolerance (relative to the body size).
     """
     layout = source.layout
     layout.check(model)
-    goals = np.asarray(goals, dtype=float)
-    goals = goals.reshape(len(goals), -1, 3)
+    goals = _goal_points(goals)
     solver = StaticSolver(model, tolerance=tolerance, max_iterations=60)
     state = rest_equilibrium(model, solver)
     actuators = within(layout.actuators, course)
@@ -269,7 +273,7 @@ def follow_trajectory(
                 target = pid.correct(
                     goal_rows, layout.effector_rows(effector_positions(model, state))
                 )
-            _, displacement = inverse_step(
+            solution, displacement = inverse_step(
                 source.problem(state),
                 layout,
                 target,
@@ -277,10 +281,55 @@ def follow_trajectory(
                 state.displacement,
                 regularisation=regularisation,
             )
-            state = load_step(model, solver, state, displacement, max_increment)
+            command = displacement if drive == "displacement" else solution.actuation
+            state = load_step(model, solver, state, command, max_increment, mode=drive)
         reached.append(effector_positions(model, state))
         displacements.append(state.displacement)
     return TrajectoryResult(goals, np.array(reached), np.array(displacements))
+
+
+def follow_embedded(
+    model: Model,
+    goals: np.ndarray,
+    controller: EmbeddedController,
+    *,
+    iterations: int = 5,
+    closed_loop: bool = False,
+    max_increment: float = 8.0,
+    tolerance: float = 1e-8,
+) -> TrajectoryResult:
+    """Drive the FEM robot, pressure-controlled, through `goals` with Algorithm 2.
+
+    For each goal, `iterations` controller steps; each one's actuator forces lambda_a are
+    imposed on the FEM robot (load stepped in force), while the controller queries its model
+    at its own delta_a = W_aa lambda_a + delta_a_free (no actuator sensing). Closed loop, its
+    PID reads the FEM's effector; open loop, the model's prediction of it.
+
+    Args:
+        max_increment, tolerance: the plant's force load stepping (`load_step`) and Newton
+            tolerance (relative to the body size).
+    """
+    controller.layout.check(model)
+    goals = _goal_points(goals)
+    solver = StaticSolver(model, tolerance=tolerance, max_iterations=60)
+    state = rest_equilibrium(model, solver)
+    reached, displacements = [], []
+    for goal in goals:
+        for _ in range(iterations):
+            measured = effector_positions(model, state) if closed_loop else None
+            controller.step(goal, measured)
+            state = load_step(
+                model, solver, state, controller.actuation, max_increment, mode="force"
+            )
+        reached.append(effector_positions(model, state))
+        displacements.append(state.displacement)
+    return TrajectoryResult(goals, np.array(reached), np.array(displacements))
+
+
+def _goal_points(goals: np.ndarray) -> np.ndarray:
+    """Goals as (n, points, 3), from (n, 3) for a single effector point."""
+    goals = np.asarray(goals, dtype=float)
+    return goals.reshape(len(goals), -1, 3)
 
 
 class EmbeddedController:

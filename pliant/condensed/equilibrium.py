@@ -1,4 +1,5 @@
-"""Quasi-static equilibria for imposed actuator displacements, reached by adaptive load stepping.
+"""Quasi-static equilibria for imposed actuator displacements (or forces: pressures of a
+pneumatic robot), reached by adaptive load stepping.
 
 The static solver's Newton iterations use the consistent tangent (exact material tangent plus
 the cables' geometric stiffness) and converge quadratically, in about six iterations whatever
@@ -7,6 +8,8 @@ at once, and halves a step only where Newton fails.
 """
 
 from __future__ import annotations
+
+from typing import Literal
 
 import numpy as np
 
@@ -29,21 +32,26 @@ def load_step(
     max_increment: float,
     *,
     min_increment: float | None = None,
+    mode: Literal["displacement", "force"] = "displacement",
 ) -> State:
-    """Equilibrium for the imposed actuator displacements `target`, reached from `state`.
+    """Equilibrium for the imposed actuator displacements `target` (with mode "force", the
+    actuator forces: a pressure-controlled robot), reached from `state`.
 
     Static steps change no command by more than `max_increment`; where a step fails (Newton
     diverges, or the actuators' constraint QP does not converge within it), it and the steps
     after it are halved, down to `min_increment` (default max_increment / 16).
     Raises DivergenceError, naming the command where it stopped, if a smallest step fails.
     """
+    if mode not in ("displacement", "force"):
+        raise ValueError(f"mode must be 'displacement' or 'force', got {mode!r}")
     smallest = max_increment / 16 if min_increment is None else min_increment
     if not 0 < smallest <= max_increment:
         raise ValueError(
             f"need 0 < min_increment <= max_increment, got {smallest}, {max_increment}"
         )
     target = np.asarray(target, dtype=float)
-    reached = state.displacement.copy()
+    # the commands `state` was solved for: its displacements, or the forces of its last step
+    reached = (state.displacement if mode == "displacement" else state.actuation).copy()
     increment = max_increment
     while True:
         change = target - reached
@@ -52,7 +60,7 @@ def load_step(
             return state
         fraction = min(1.0, increment / size)
         command = target if fraction == 1.0 else reached + fraction * change
-        model.set_actuation(command, mode="displacement")
+        model.set_actuation(command, mode=mode)
         try:
             state = solver.step(state)
         except (DivergenceError, SolverError) as exc:

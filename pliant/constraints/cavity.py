@@ -7,6 +7,23 @@ import numpy as np
 from pliant.constraints.base import Actuator, EmbeddedPoints, JacobianRows
 from pliant.errors import ConstraintError
 
+# Ordered vertex pairs (a, b) of a triangle, its third vertex c and the sign s of
+# d^2 V / dx_a dx_b = s [x_c]_x / 6, for V = x0 . (x1 x x2) / 6: the derivative of
+# dV/dx0 = x1 x x2 / 6 along x1 is -[x2]_x / 6, and likewise round the triangle.
+_PAIR_A = np.array([0, 1, 2, 1, 2, 0])
+_PAIR_B = np.array([1, 2, 0, 0, 1, 2])
+_PAIR_C = np.array([2, 0, 1, 2, 0, 1])
+_PAIR_SIGN = np.array([-1.0, -1.0, -1.0, 1.0, 1.0, 1.0])
+
+
+def _skew(v: np.ndarray) -> np.ndarray:
+    """[v]_x, the cross-product matrices of vectors (..., 3) -> (..., 3, 3)."""
+    out = np.zeros((*v.shape, 3))
+    out[..., 0, 1], out[..., 0, 2] = -v[..., 2], v[..., 1]
+    out[..., 1, 0], out[..., 1, 2] = v[..., 2], -v[..., 0]
+    out[..., 2, 0], out[..., 2, 1] = -v[..., 1], v[..., 0]
+    return out
+
 
 def enclosed_volume(x: np.ndarray, triangles: np.ndarray) -> float:
     """Volume enclosed by a closed triangulated surface: sum x0 . (x1 x x2) / 6 (Gauss)."""
@@ -102,3 +119,27 @@ class CavityActuator(Actuator):
         np.add.at(per_vertex, self.triangles, grad)
         values = per_vertex[:, None, :] * self.points.weights[:, :, None]
         return JacobianRows(self._nodes, values.reshape(1, -1, 3))
+
+    def load_stiffness_pairs(self) -> tuple[np.ndarray, np.ndarray]:
+        """Node pairs of :meth:`load_stiffness`, block for block: the ordered pairs of each
+        triangle's vertices (of the nodes carrying them, for embedded points)."""
+        a, b = self.triangles[:, _PAIR_A], self.triangles[:, _PAIR_B]
+        if self.points is None:
+            return a.ravel(), b.ravel()
+        na, nb = self.points.nodes[a], self.points.nodes[b]  # (t, 6, 4)
+        na, nb = np.broadcast_arrays(na[..., :, None], nb[..., None, :])
+        return na.ravel(), nb.ravel()
+
+    def load_stiffness(self, x: np.ndarray, pressure: float) -> np.ndarray:
+        """(E, 3, 3) -d(H^T lambda)/dx = -lambda d^2 V/dx^2: the pressure's follower load
+        turning and stretching with the walls (the diagonal blocks vanish, V being linear in
+        each vertex). With it, the static solver's consistent tangent is the Hessian of the
+        whole potential, and W = H K^-1 H^T the compliance under pressure control."""
+        p = self._vertices(x)[self.triangles]  # (t, 3, 3)
+        blocks = (-pressure / 6.0) * _PAIR_SIGN[None, :, None, None] * _skew(p[:, _PAIR_C])
+        if self.points is None:
+            return blocks.reshape(-1, 3, 3)
+        w = self.points.weights
+        wa, wb = w[self.triangles[:, _PAIR_A]], w[self.triangles[:, _PAIR_B]]  # (t, 6, 4)
+        scale = wa[..., :, None] * wb[..., None, :]  # (t, 6, 4, 4)
+        return (scale[..., None, None] * blocks[:, :, None, None]).reshape(-1, 3, 3)

@@ -105,7 +105,7 @@ ROBOTS: dict[str, RobotEntry] = {
     "stiff_flop": RobotEntry(
         _stiff_flop.stiff_flop,
         _stiff_flop.demo_actuation,
-        {"circle": _stiff_flop.circle},
+        {"circle": _stiff_flop.circle, "spiral": _stiff_flop.spiral},
         (20.0, -60.0),
     ),
 }

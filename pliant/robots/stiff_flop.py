@@ -137,3 +137,16 @@ def circle(n: int = 20, *, radius: float = 8.0, height: float = 100.5) -> np.nda
     99.7 at rest); goals 3 mm lower were out of reach by ~3.5 mm."""
     a = np.linspace(0.0, 2.0 * math.pi, n, endpoint=False)
     return np.column_stack([radius * np.cos(a), radius * np.sin(a), np.full(n, height)])
+
+
+def spiral(
+    n: int = 40, *, radius: float = 1.8, turns: float = 2.0, height: float = 99.71
+) -> np.ndarray:
+    """Goals on a spiral round the axis, out from it to `radius` in `turns` turns, in the
+    plane z = `height` (thesis §5.1.5, 40 goals): 0.29 mm below the unloaded tip, where the
+    tip sagging under gravity moves when each chamber pair's volume grows by 0-100 mm^3 (its
+    reach there is 2-3 mm off the axis, least between the pairs)."""
+    t = np.linspace(0.0, 1.0, n)
+    a = 2.0 * math.pi * turns * t
+    r = radius * (0.1 + 0.9 * t)
+    return np.column_stack([r * np.cos(a), r * np.sin(a), np.full(n, height)])
