@@ -119,6 +119,10 @@ def transfer(
     angle_gain: Annotated[
         float | None, typer.Option(help="Multigait corrector's gain (0: no correction)")
     ] = None,
+    lookahead_friction: Annotated[
+        bool | None,
+        typer.Option(help="friction in the inverse look-ahead (default: the robot's gains)"),
+    ] = None,
     gif: Annotated[bool, typer.Option(help="also write a GIF (FEM beside proxy)")] = False,
     out: Annotated[Path, typer.Option(help="output folder", callback=output_folder)] = Path(
         "out/proxy"
@@ -139,6 +143,7 @@ def transfer(
             ("time_register", time_register),
             ("inverse_steps", inverse_steps),
             ("angle_gain", angle_gain),
+            ("lookahead_friction", lookahead_friction),
         )
         if v is not None
     }

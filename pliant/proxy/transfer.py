@@ -73,6 +73,8 @@ class TransferGains:
         inverse_steps: steps of the inverse model's look-ahead.
         gain: s, the scale on the inverse model's actuation.
         angle_gain: the Multigait corrector's gain (fraction of `upper` per radian).
+        lookahead_friction: keep the contacts' friction in the inverse look-ahead (the QPCC
+            with Coulomb friction); off: frictionless look-ahead, the FEM's step keeps it.
     """
 
     scale: int
@@ -84,6 +86,7 @@ class TransferGains:
     inverse_steps: int = 3
     gain: float = 1.0
     angle_gain: float = 0.0
+    lookahead_friction: bool = False
 
     def __post_init__(self) -> None:
         if self.scale < 1 or self.inverse_steps < 1 or self.time_register < 0:
@@ -338,7 +341,7 @@ class Transfer:
         try:
             with warnings.catch_warnings():  # a far goal widens the course: expected here
                 warnings.simplefilter("ignore")
-                if contacts is not None:  # the look-ahead's contacts are frictionless
+                if contacts is not None and not g.lookahead_friction:
                     contacts.friction = np.zeros_like(friction)
                 for _ in range(g.inverse_steps):
                     look = self.solver.step(look, InverseControl(goals=target))
