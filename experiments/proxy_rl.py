@@ -5,6 +5,8 @@ Trunk), with Pliant's training stack (checkpoints, evaluation curve, VecNormaliz
     python experiments/proxy_rl.py multigait [--env-steps 3000] [--seed 0] [--points-only]
     python experiments/proxy_rl.py trunk [--env-steps 6700] [--seed 0]
 
+``--noise LEVEL`` learns on a degraded proxy (experiments/proxy_robustness.py).
+
 Multigait (pliant/MultigaitProxy-v0, 12 steps of 0.6 s, Discrete(6)): the greedy policy's
 forward travel over an episode beside the hand gait's (rear, centre, front inflated, then
 deflated in that order) and random actions'. Trunk (pliant/TrunkPushProxy-v0, 10 steps of
@@ -20,6 +22,7 @@ from __future__ import annotations
 import argparse
 import json
 import shutil
+import sys
 import warnings
 from pathlib import Path
 
@@ -55,7 +58,7 @@ SETTINGS = {
     },
     "trunk": {
         "env_id": "pliant/TrunkPushProxy-v0",
-        "env_kwargs": {},
+        "env_kwargs": {"bend_limit": 0.2},
         "normalize": {"norm_obs": True, "norm_reward": True},
         "hyperparams": {
             "policy": "MlpPolicy",
@@ -120,13 +123,91 @@ def evaluate(robot: str, policy_dir: Path, env_kwargs: dict, seed: int) -> dict:
     out = {}
     for name, choose in (("learned", greedy), ("still", lambda o, k: still), ("random", random)):
         rows = [episode(env, choose, s) for s in goals]
+        if name == "learned":
+            out["learned_actions_first_goal"] = actions[: rows[0]["length"]]
         out[name] = {
             "mean_final_distance_mm": float(np.mean([r["distance"] for r in rows])),
             "solved": float(np.mean([r["solved"] for r in rows])),
             "mean_return": float(np.mean([r["return"] for r in rows])),
         }
-    out["learned_actions_first_goal"] = actions[:10]
     return out
+
+
+def degraded(robot: str, level: float, seed: int) -> dict:
+    """The calibrated proxy's parameters p turned into p (1 + level U(-1, 1)) (thesis
+    §4.1.3's degraded proxies; the authors' noise): the proxy builder's keywords."""
+    from pliant.proxy.builders import MULTIGAIT_PARAMETERS, TRUNK_PARAMETERS
+
+    reference = MULTIGAIT_PARAMETERS if robot == "multigait" else TRUNK_PARAMETERS
+    rng = np.random.default_rng(seed)
+    return {k: float(v * (1.0 + level * rng.uniform(-1.0, 1.0))) for k, v in reference.items()}
+
+
+def learn(
+    robot: str,
+    *,
+    env_steps: int | None = None,
+    seed: int = 0,
+    points_only: bool = False,
+    noise: float = 0.0,
+    bend_limit: float | None = None,
+    tag: str = "",
+    resume: bool = False,
+    command: str = "",
+) -> dict:
+    """Train PPO on ROBOT's proxy (its parameters degraded by `noise`), evaluate the final
+    policy, and write the results folder; the report."""
+    warnings.simplefilter("ignore")
+    torch.set_num_threads(1)
+    s = SETTINGS[robot]
+    env_kwargs = dict(s["env_kwargs"])
+    if points_only:
+        env_kwargs.pop("observe_commands", None)
+    if noise > 0.0:
+        env_kwargs.update(degraded(robot, noise, seed))
+    if bend_limit is not None:
+        env_kwargs["bend_limit"] = bend_limit
+    name = f"rl_{robot}{tag}"
+    run_dir = Path("runs") / f"proxy_{name}"
+    out = Path("experiments/results/proxy") / name
+    config = TrainConfig(
+        env_id=s["env_id"],
+        algo="PPO",
+        total_timesteps=env_steps or s["env_steps"],
+        seed=seed,
+        env_kwargs=env_kwargs,
+        n_envs=1,
+        vec_env="dummy",
+        normalize=dict(s["normalize"]),
+        eval_freq=s["eval_freq"],
+        eval_episodes=s["eval_episodes"],
+        checkpoint_freq=s["eval_freq"],
+        video_episodes=0,
+        hyperparams=s["hyperparams"],
+    )
+    result = train(None if resume else config, run_dir, resume=resume)
+    substeps = make_env(s["env_id"], env_kwargs).unwrapped.substeps
+    report = {
+        "robot": robot,
+        "command": command,
+        "env_id": s["env_id"],
+        "env_kwargs": env_kwargs,
+        "proxy_noise": noise,
+        "env_steps": result.summary["steps"],
+        "simulation_steps": result.summary["steps"] * substeps,
+        "training_seconds": result.summary["wall_seconds"],
+        "hyperparams": s["hyperparams"],
+        "normalize": s["normalize"],
+        "seed": seed,
+        "evaluation": evaluate(robot, run_dir / "final", env_kwargs, seed),
+        "curve": json.loads((run_dir / "evaluations.json").read_text()),
+    }
+    out.mkdir(parents=True, exist_ok=True)
+    for f in ("model.zip", "vecnormalize.pkl", "meta.json"):
+        shutil.copy(run_dir / "final" / f, out / f)
+    shutil.copy(run_dir / "learning_curve.png", out / "learning_curve.png")
+    (out / "report.json").write_text(json.dumps(report, indent=1))
+    return report
 
 
 def main() -> None:
@@ -135,61 +216,23 @@ def main() -> None:
     parser.add_argument("--env-steps", type=int, default=None)
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--points-only", action="store_true", help="the thesis' observation")
+    parser.add_argument("--noise", type=float, default=0.0, help="degraded proxy's level")
+    parser.add_argument("--bend-limit", type=float, default=None, help="trunk (default 0.2)")
     parser.add_argument("--resume", action="store_true")
     parser.add_argument("--tag", default="", help="suffix of the run and result folders")
     args = parser.parse_args()
-    warnings.simplefilter("ignore")
-    torch.set_num_threads(1)
-    s = SETTINGS[args.robot]
-    env_kwargs = dict(s["env_kwargs"])
-    if args.points_only:
-        env_kwargs.pop("observe_commands", None)
-    name = f"rl_{args.robot}{args.tag}"
-    run_dir = Path("runs") / f"proxy_{name}"
-    out = Path("experiments/results/proxy") / name
-    config = TrainConfig(
-        env_id=s["env_id"],
-        algo="PPO",
-        total_timesteps=args.env_steps or s["env_steps"],
+    report = learn(
+        args.robot,
+        env_steps=args.env_steps,
         seed=args.seed,
-        env_kwargs=env_kwargs,
-        n_envs=1,
-        vec_env="dummy",
-        normalize=s["normalize"],
-        eval_freq=s["eval_freq"],
-        eval_episodes=s["eval_episodes"],
-        checkpoint_freq=s["eval_freq"],
-        video_episodes=0,
-        hyperparams=s["hyperparams"],
+        points_only=args.points_only,
+        noise=args.noise,
+        bend_limit=args.bend_limit,
+        tag=args.tag,
+        resume=args.resume,
+        command="python experiments/proxy_rl.py " + " ".join(sys.argv[1:]),
     )
-    result = train(None if args.resume else config, run_dir, resume=args.resume)
-    report = {
-        "robot": args.robot,
-        "command": "python experiments/proxy_rl.py " + " ".join(_argv()),
-        "env_id": s["env_id"],
-        "env_kwargs": env_kwargs,
-        "env_steps": result.summary["steps"],
-        "simulation_steps": result.summary["steps"]
-        * make_env(s["env_id"], env_kwargs).unwrapped.substeps,
-        "training_seconds": result.summary["wall_seconds"],
-        "hyperparams": s["hyperparams"],
-        "normalize": s["normalize"],
-        "seed": args.seed,
-        "evaluation": evaluate(args.robot, run_dir / "final", env_kwargs, args.seed),
-        "curve": json.loads((run_dir / "evaluations.json").read_text()),
-    }
-    out.mkdir(parents=True, exist_ok=True)
-    for f in ("model.zip", "vecnormalize.pkl", "meta.json"):
-        shutil.copy(run_dir / "final" / f, out / f)
-    shutil.copy(run_dir / "learning_curve.png", out / "learning_curve.png")
-    (out / "report.json").write_text(json.dumps(report, indent=1))
     print(json.dumps({k: v for k, v in report.items() if k != "curve"}, indent=1))
-
-
-def _argv() -> list[str]:
-    import sys
-
-    return sys.argv[1:]
 
 
 if __name__ == "__main__":

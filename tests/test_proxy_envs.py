@@ -96,3 +96,16 @@ def test_trunk_push_proxy_reward_on_a_hand_placed_cube() -> None:
         assert parts["contact"] == pytest.approx(-env.contact_weight * d_c / L)
         assert reward == pytest.approx(parts["goal"] + parts["contact"])
         assert terminated is solved
+
+
+def test_trunk_push_proxy_bend_limit_scales_the_bending_actions() -> None:
+    """An action of +-1 on a bending is a command of +-bend_limit (the thesis' a priori
+    amplitude limit); the base's action keeps its range."""
+    env = gym.make(
+        "pliant/TrunkPushProxy-v0", **{**ENVS["TrunkPushProxy"].quick, "bend_limit": 0.2}
+    ).unwrapped
+    env.reset(seed=0)
+    env.step(np.array([1.0, -1.0, 0.5, 0.0, 0.0]))
+    np.testing.assert_allclose(env.commands[:4], [0.2, -0.2, 0.1, 0.0])
+    with pytest.raises(ValueError, match="bend_limit"):
+        gym.make("pliant/TrunkPushProxy-v0", bend_limit=0.0)
