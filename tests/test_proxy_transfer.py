@@ -124,3 +124,32 @@ def test_the_transfer_command_writes_both_trajectories_and_refuses_bad_actions(t
     assert proxy[0] > start[0] + 5.0 and fem[0] > start[0] + 5.0
     bad = runner.invoke(app, ["proxy", "transfer", "multigait", "--actions", "4,7"])
     assert bad.exit_code == 2
+
+
+def test_the_transfer_command_runs_a_trained_policy_with_its_normaliser(tmp_path) -> None:
+    """`--policy` takes a folder saved by the training stack (model, VecNormalize, the
+    environment's keywords): one step of an untrained PPO on the Trunk proxy with
+    bend_limit 0.2 towards --goal; --goal is refused for the Multigait (exit 2)."""
+    import json
+
+    import gymnasium as gym
+    from stable_baselines3 import PPO
+    from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
+    from typer.testing import CliRunner
+
+    import pliant.envs  # noqa: F401  (registers the environments)
+    from pliant.cli import app
+    from pliant.learn.evaluate import save_policy
+
+    kwargs = {"bend_limit": 0.2}
+    venv = VecNormalize(DummyVecEnv([lambda: gym.make("pliant/TrunkPushProxy-v0", **kwargs)]))
+    model = PPO("MlpPolicy", venv, n_steps=16, seed=0)
+    save_policy(model, tmp_path / "policy", "PPO", "pliant/TrunkPushProxy-v0", kwargs, venv)
+    runner = CliRunner()
+    args = ["proxy", "transfer", "trunk", "--policy", str(tmp_path / "policy"), "--steps", "1"]
+    result = runner.invoke(app, [*args, "--goal=10,5", "--out", str(tmp_path)])
+    assert result.exit_code == 0, result.output
+    report = json.loads((tmp_path / "trunk_transfer.json").read_text())
+    assert len(report["steps"]) == 1 and report["failed_inverse_steps"] == 0
+    multigait = ["proxy", "transfer", "multigait", "--goal=10,5"]
+    assert runner.invoke(app, multigait).exit_code == 2

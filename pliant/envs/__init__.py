@@ -47,7 +47,7 @@ _register("CartStemContact", "pliant.envs.cartstem:CartStemContactEnv", 30, subs
 _register("SimpleMaze", "pliant.envs.maze:SimpleMazeEnv", 50, substeps=4)
 _register("Maze", "pliant.envs.maze:MazeEnv", 250, substeps=2, mesh_size=8.0)
 _register("Multigait", "pliant.envs.multigait:MultigaitEnv", 6, substeps=4, mesh_size=10.0)
-_register("MultigaitProxy", "pliant.envs.multigait_proxy:MultigaitProxyEnv", 6, substeps=20)
+_register("MultigaitProxy", "pliant.envs.multigait_proxy:MultigaitProxyEnv", 12, substeps=20)
 _register(
     "TrunkPushProxy",
     "pliant.envs.trunk_push_proxy:TrunkPushProxyEnv",

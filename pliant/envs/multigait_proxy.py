@@ -2,18 +2,22 @@
 :class:`pliant.envs.multigait.MultigaitEnv` with the proxy of
 :func:`pliant.proxy.multigait_proxy` in place of the FEM body.
 
-Observation: 20 points spread uniformly on the skeleton (farthest-point sampling of its nodes
-and element middles at rest), relative to its rest centre, divided by its length. Action: the
+Observation (thesis): 20 points spread uniformly on the skeleton (farthest-point sampling of its
+nodes and element middles at rest), relative to its rest centre, divided by its length;
+``observe_commands=True`` (a departure) appends the chambers' commands in [0, 1], which the
+points show only through the small shape changes they cause. Action: the
 FEM environment's (by default SofaGym's Discrete(6): the centre, the front pair or the rear
 pair bent fully or released, all or nothing and symmetric, as the thesis restricts them);
 each chamber's command is its beam's bending in [0, 1]. Reward: the forward displacement of
-the skeleton's centre of mass over the step. 0.6 s a step (60 x 0.01 s).
+the skeleton's centre of mass over the step. 0.6 s a step (60 x 0.01 s); 12 steps an episode
+(the authors' timer, ``max_episode_steps`` of the registration).
 """
 
 from __future__ import annotations
 
 import numpy as np
 
+from pliant.envs.base import scaled_box
 from pliant.envs.multigait import FORWARD, MultigaitEnv, farthest_points
 from pliant.model import Model
 from pliant.proxy import multigait_proxy
@@ -24,12 +28,15 @@ class MultigaitProxyEnv(MultigaitEnv):
     name = "MultigaitProxy"
     version = 1
 
-    def __init__(self, **kwargs) -> None:
+    def __init__(self, *, observe_commands: bool = False, **kwargs) -> None:
         kwargs.setdefault("amplitude", (1.0, 1.0))
+        self.observe_commands = bool(observe_commands)
         super().__init__(**kwargs)
         self.sim = ProxySolver(self.proxy, self.sim)
         self.n_actuators = self.proxy.n_controls
         self.commands = np.zeros(self.n_actuators)
+        if self.observe_commands:
+            self.observation_space = scaled_box(-3.0, 3.0, (3 * self.n_points + self.n_actuators,))
 
     def _build(self) -> Model:
         self.robot_kwargs.pop("mesh_size", None)
@@ -55,4 +62,7 @@ class MultigaitProxyEnv(MultigaitEnv):
     def _observe(self) -> np.ndarray:
         x = self._skeleton()
         points = 0.5 * (x[self.point_pairs[:, 0]] + x[self.point_pairs[:, 1]])
-        return ((points - self.centre0) / self.length).ravel()
+        obs = ((points - self.centre0) / self.length).ravel()
+        if self.observe_commands:
+            obs = np.concatenate([obs, self.commands])
+        return obs

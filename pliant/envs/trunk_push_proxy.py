@@ -7,7 +7,10 @@ along it, the cube's centre and the goal's (x, z), divided by the trunk's length
 Action: continuous (thesis), Box(5) in [-1, 1]: the two bendings of each beam, targets
 reached linearly over the step, and the base's target in [base_low, base_high] mm, at most
 ``base_speed`` mm/s; discrete: 10 actions, one bending moved by +-``bend_step`` or the base by
-+-``base_step`` mm.
++-``base_step`` mm. The bendings' commands stay within +-``bend_limit`` (an action of 1 is a
+command of ``bend_limit``): the thesis' a priori amplitude limit (§4.1.1), 1 by default (the
+calibrated maximum curvatures), where a command of 0.1 already pushes the cube 20 mm and
+larger ones sweep it away.
 Reward (thesis): -d / L - ``contact_weight`` d_c / L, d the cube-goal distance in the floor's
 plane, d_c the distance from the cube's centre to the nearest skeleton node; terminated when
 d < ``goal_tolerance`` (8 mm). Goal: the cube's start plus an offset in [goal_low, goal_high]
@@ -39,6 +42,7 @@ class TrunkPushProxyEnv(CubePushTask, SoftRobotEnv):
         substeps: int = 30,
         action_type: ActionType = "continuous",
         bend_step: float = 0.25,
+        bend_limit: float = 1.0,
         base_step: float = 5.0,
         contact_weight: float = 0.2,
         base_low: float = -40.0,
@@ -57,6 +61,9 @@ class TrunkPushProxyEnv(CubePushTask, SoftRobotEnv):
             raise ValueError(f"need base_low <= 0 <= base_high, got {base_low}, {base_high}")
         if not (np.isfinite(base_speed) and base_speed > 0):
             raise ValueError(f"base_speed must be > 0, got {base_speed!r}")
+        if not 0.0 < bend_limit <= 1.0:
+            raise ValueError(f"bend_limit must lie in (0, 1], got {bend_limit!r}")
+        self.bend_limit = float(bend_limit)
         self.contact_weight = float(contact_weight)
         self.bend_step, self.base_step = float(bend_step), float(base_step)
         self.base_low, self.base_high = float(base_low), float(base_high)
@@ -105,11 +112,13 @@ class TrunkPushProxyEnv(CubePushTask, SoftRobotEnv):
             target = self.commands.copy()
             i, sign = action // 2, 1.0 if action % 2 == 0 else -1.0
             step = self.base_step if i == self.n_actuators - 1 else self.bend_step
-            target[:-1] = np.clip(target[:-1] + (np.arange(4) == i) * sign * step, -1.0, 1.0)
+            bend = target[:-1] + (np.arange(4) == i) * sign * step
+            target[:-1] = np.clip(bend, -self.bend_limit, self.bend_limit)
             base = target[-1] + (sign * step if i == self.n_actuators - 1 else 0.0)
             base = float(np.clip(base, self.base_low, self.base_high))
         else:
             target = np.asarray(action, dtype=float).copy()
+            target[:-1] *= self.bend_limit
             s = 0.5 * (target[-1] + 1.0)
             base = self.base_low + s * (self.base_high - self.base_low)
         now = self.commands[-1]

@@ -107,7 +107,11 @@ def transfer(
         ),
     ] = None,
     policy: Annotated[
-        Path | None, typer.Option(help="an SB3 PPO policy (.zip) trained on the proxy env")
+        Path | None,
+        typer.Option(
+            help="a policy trained on the proxy env by `pliant train` (its folder or model.zip,"
+            " with meta.json and vecnormalize.pkl beside it) or a bare SB3 PPO .zip"
+        ),
     ] = None,
     steps: Annotated[int, typer.Option(help="steps of --policy", callback=at_least_one)] = 8,
     time_register: Annotated[
@@ -122,6 +126,10 @@ def transfer(
     lookahead_friction: Annotated[
         bool | None,
         typer.Option(help="friction in the inverse look-ahead (default: the robot's gains)"),
+    ] = None,
+    goal: Annotated[
+        str | None,
+        typer.Option(help="trunk: the goal's offset from the cube's start, 'x,z' mm (25,-10)"),
     ] = None,
     gif: Annotated[bool, typer.Option(help="also write a GIF (FEM beside proxy)")] = False,
     out: Annotated[Path, typer.Option(help="output folder", callback=output_folder)] = Path(
@@ -147,13 +155,25 @@ def transfer(
         )
         if v is not None
     }
-    loop = TRANSFERS[robot](gains=dataclasses.replace(GAINS[robot], **changes))
+    options: dict = {"gains": dataclasses.replace(GAINS[robot], **changes)}
+    if goal is not None:
+        if robot != "trunk":
+            raise typer.BadParameter("--goal is the trunk's")
+        from pliant.cli_support import numbers_list
+
+        options["goal_offset"] = tuple(numbers_list(goal, "--goal", count=2))
     chooser = None
     if policy is not None:
-        from stable_baselines3 import PPO
+        from pliant.learn.evaluate import load_policy
 
-        agent = PPO.load(policy)
-        chooser = lambda obs: agent.predict(obs, deterministic=True)[0]  # noqa: E731
+        saved = load_policy(policy, algo="PPO")
+        options["env_kwargs"] = saved.env_kwargs
+        normalize = saved.normalize_obs or (lambda obs: obs)
+
+        def chooser(obs):
+            return saved.model.predict(normalize(obs), deterministic=True)[0]
+
+    loop = TRANSFERS[robot](**options)
     frames, cameras = [], {}
 
     def progress(k: int, record) -> None:

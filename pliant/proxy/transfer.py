@@ -527,13 +527,15 @@ def multigait_transfer(
     mesh_size: float = 6.0,
     dt: float = 0.01,
     seed: int = 0,
+    env_kwargs: dict | None = None,
 ) -> MultigaitTransfer:
-    """The Multigait proxy environment (calibrated proxy) and the FEM Multigait (default
-    mesh, volume-controlled chambers), both from rest."""
+    """The Multigait proxy environment (calibrated proxy; `env_kwargs` those of the policy's
+    training) and the FEM Multigait (default mesh, volume-controlled chambers), both from
+    rest."""
     from pliant.envs.multigait_proxy import MultigaitProxyEnv
     from pliant.robots.multigait import multigait
 
-    env = MultigaitProxyEnv(dt=dt, substeps=gains.scale)
+    env = MultigaitProxyEnv(**{**(env_kwargs or {}), "dt": dt, "substeps": gains.scale})
     env.reset(seed=seed)
     rod = env.proxy.rod
     robot = multigait(mesh_size=mesh_size)
@@ -559,15 +561,16 @@ def trunk_transfer(
     dt: float = 0.01,
     goal_offset: tuple[float, float] = (25.0, -10.0),
     seed: int = 0,
+    env_kwargs: dict | None = None,
 ) -> TrunkTransfer:
     """The Trunk-and-cube proxy environment (calibrated proxy, goal the cube's start plus
-    `goal_offset` in (x, z)) and the FEM Trunk on its base (mesh 8 mm), both settled under
-    gravity."""
+    `goal_offset` in (x, z); `env_kwargs` those of the policy's training) and the FEM Trunk on
+    its base (mesh 8 mm), both settled under gravity."""
     from pliant.envs.trunk import settled
     from pliant.envs.trunk_push_proxy import TrunkPushProxyEnv
     from pliant.robots.trunk_cube import trunk_cube
 
-    env = TrunkPushProxyEnv(dt=dt, substeps=gains.scale)
+    env = TrunkPushProxyEnv(**{**(env_kwargs or {}), "dt": dt, "substeps": gains.scale})
     start = env.state.rigid_positions[0]
     goal = start + np.array([goal_offset[0], 0.0, goal_offset[1]])
     env.reset(seed=seed, options={"goal": goal})

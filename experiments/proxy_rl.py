@@ -1,0 +1,239 @@
+"""PPO on the beam-skeleton proxies (thesis §4.1.3: "the PPO algorithm determines a strategy on
+the proxy that solves the task", about 2e4 simulation steps for the Multigait, 2e5 for the
+Trunk), with Pliant's training stack (checkpoints, evaluation curve, VecNormalize).
+
+    python experiments/proxy_rl.py multigait [--env-steps 3000] [--seed 0] [--points-only]
+    python experiments/proxy_rl.py trunk [--env-steps 6700] [--seed 0]
+
+``--noise LEVEL`` learns on a degraded proxy (experiments/proxy_robustness.py).
+
+Multigait (pliant/MultigaitProxy-v0, 12 steps of 0.6 s, Discrete(6)): the greedy policy's
+forward travel over an episode beside the hand gait's (rear, centre, front inflated, then
+deflated in that order) and random actions'. Trunk (pliant/TrunkPushProxy-v0, 10 steps of
+0.3 s, Box(5), goal drawn in (x, z)): on 20 fixed goals, the final cube-goal distance and the
+share solved (< 8 mm) beside doing nothing and random actions.
+
+The run folder (checkpoints, ``--resume``) is runs/proxy_rl_ROBOT; the final policy, the
+report (JSON) and the learning curve (PNG) go to experiments/results/proxy/rl_ROBOT/.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import shutil
+import sys
+import warnings
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from pliant.learn.config import TrainConfig
+from pliant.learn.evaluate import load_policy
+from pliant.learn.training import train
+from pliant.learn.vec import make_env
+
+#: the Multigait's hand gait (Discrete(6): 2 g inflates group g of centre, front, rear; 2 g + 1
+#: deflates it), twice over the 12-step episode.
+HAND_GAIT = [4, 0, 2, 5, 1, 3] * 2
+
+SETTINGS = {
+    "multigait": {
+        "env_id": "pliant/MultigaitProxy-v0",
+        "env_kwargs": {"observe_commands": True},
+        "normalize": {"norm_obs": True, "norm_reward": False},
+        "hyperparams": {
+            "policy": "MlpPolicy",
+            "n_steps": 120,
+            "batch_size": 60,
+            "gamma": 0.95,
+            "ent_coef": 0.01,
+            "learning_rate": 1e-3,
+            "policy_kwargs": {"net_arch": [64, 64]},
+        },
+        "eval_freq": 240,
+        "eval_episodes": 1,
+        "env_steps": 3000,
+    },
+    "trunk": {
+        "env_id": "pliant/TrunkPushProxy-v0",
+        "env_kwargs": {"bend_limit": 0.2},
+        "normalize": {"norm_obs": True, "norm_reward": True},
+        "hyperparams": {
+            "policy": "MlpPolicy",
+            "n_steps": 200,
+            "batch_size": 50,
+            "gamma": 0.95,
+            "ent_coef": 0.0,
+            "learning_rate": 3e-4,
+            "policy_kwargs": {"net_arch": [128, 128]},
+        },
+        "eval_freq": 1000,
+        "eval_episodes": 10,
+        "env_steps": 6700,
+    },
+}
+
+
+def episode(env, choose, seed: int, options: dict | None = None) -> dict:
+    """One episode; `choose(obs, k)` gives the k-th action."""
+    obs, _ = env.reset(seed=seed, options=options)
+    total, k, info = 0.0, 0, {}
+    while True:
+        obs, reward, terminated, truncated, info = env.step(choose(obs, k))
+        total, k = total + reward, k + 1
+        if terminated or truncated:
+            break
+    base = env.unwrapped
+    out = {"return": total, "length": k}
+    if hasattr(base, "distance"):
+        out.update(distance=base.distance(), solved=bool(terminated))
+    else:
+        out["travel_mm"] = info["travelled"]
+    return out
+
+
+def evaluate(robot: str, policy_dir: Path, env_kwargs: dict, seed: int) -> dict:
+    """The greedy learned policy beside the baselines (module docstring)."""
+    saved = load_policy(policy_dir)
+    env = make_env(SETTINGS[robot]["env_id"], env_kwargs)
+    env.action_space.seed(seed)
+    actions: list = []
+
+    def greedy(obs, k):
+        action = saved.model.predict(saved.normalize_obs(obs), deterministic=True)[0]
+        actions.append(action.tolist())
+        return action
+
+    def random(obs, k):
+        return env.action_space.sample()
+
+    if robot == "multigait":
+        return {
+            "learned": episode(env, greedy, 0),
+            "learned_actions": actions,
+            "hand_gait": episode(env, lambda obs, k: HAND_GAIT[k], 0),
+            "random_mean_of_5_travel_mm": float(
+                np.mean([episode(env, random, s)["travel_mm"] for s in range(5)])
+            ),
+        }
+    still = np.zeros(env.action_space.shape)
+    goals = range(1000, 1020)
+    out = {}
+    for name, choose in (("learned", greedy), ("still", lambda o, k: still), ("random", random)):
+        rows = [episode(env, choose, s) for s in goals]
+        if name == "learned":
+            out["learned_actions_first_goal"] = actions[: rows[0]["length"]]
+        out[name] = {
+            "mean_final_distance_mm": float(np.mean([r["distance"] for r in rows])),
+            "solved": float(np.mean([r["solved"] for r in rows])),
+            "mean_return": float(np.mean([r["return"] for r in rows])),
+        }
+    return out
+
+
+def degraded(robot: str, level: float, seed: int) -> dict:
+    """The calibrated proxy's parameters p turned into p (1 + level U(-1, 1)) (thesis
+    §4.1.3's degraded proxies; the authors' noise): the proxy builder's keywords."""
+    from pliant.proxy.builders import MULTIGAIT_PARAMETERS, TRUNK_PARAMETERS
+
+    reference = MULTIGAIT_PARAMETERS if robot == "multigait" else TRUNK_PARAMETERS
+    rng = np.random.default_rng(seed)
+    return {k: float(v * (1.0 + level * rng.uniform(-1.0, 1.0))) for k, v in reference.items()}
+
+
+def learn(
+    robot: str,
+    *,
+    env_steps: int | None = None,
+    seed: int = 0,
+    points_only: bool = False,
+    noise: float = 0.0,
+    bend_limit: float | None = None,
+    tag: str = "",
+    resume: bool = False,
+    command: str = "",
+) -> dict:
+    """Train PPO on ROBOT's proxy (its parameters degraded by `noise`), evaluate the final
+    policy, and write the results folder; the report."""
+    warnings.simplefilter("ignore")
+    torch.set_num_threads(1)
+    s = SETTINGS[robot]
+    env_kwargs = dict(s["env_kwargs"])
+    if points_only:
+        env_kwargs.pop("observe_commands", None)
+    if noise > 0.0:
+        env_kwargs.update(degraded(robot, noise, seed))
+    if bend_limit is not None:
+        env_kwargs["bend_limit"] = bend_limit
+    name = f"rl_{robot}{tag}"
+    run_dir = Path("runs") / f"proxy_{name}"
+    out = Path("experiments/results/proxy") / name
+    config = TrainConfig(
+        env_id=s["env_id"],
+        algo="PPO",
+        total_timesteps=env_steps or s["env_steps"],
+        seed=seed,
+        env_kwargs=env_kwargs,
+        n_envs=1,
+        vec_env="dummy",
+        normalize=dict(s["normalize"]),
+        eval_freq=s["eval_freq"],
+        eval_episodes=s["eval_episodes"],
+        checkpoint_freq=s["eval_freq"],
+        video_episodes=0,
+        hyperparams=s["hyperparams"],
+    )
+    result = train(None if resume else config, run_dir, resume=resume)
+    substeps = make_env(s["env_id"], env_kwargs).unwrapped.substeps
+    report = {
+        "robot": robot,
+        "command": command,
+        "env_id": s["env_id"],
+        "env_kwargs": env_kwargs,
+        "proxy_noise": noise,
+        "env_steps": result.summary["steps"],
+        "simulation_steps": result.summary["steps"] * substeps,
+        "training_seconds": result.summary["wall_seconds"],
+        "hyperparams": s["hyperparams"],
+        "normalize": s["normalize"],
+        "seed": seed,
+        "evaluation": evaluate(robot, run_dir / "final", env_kwargs, seed),
+        "curve": json.loads((run_dir / "evaluations.json").read_text()),
+    }
+    out.mkdir(parents=True, exist_ok=True)
+    for f in ("model.zip", "vecnormalize.pkl", "meta.json"):
+        shutil.copy(run_dir / "final" / f, out / f)
+    shutil.copy(run_dir / "learning_curve.png", out / "learning_curve.png")
+    (out / "report.json").write_text(json.dumps(report, indent=1))
+    return report
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser()
+    parser.add_argument("robot", choices=sorted(SETTINGS))
+    parser.add_argument("--env-steps", type=int, default=None)
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--points-only", action="store_true", help="the thesis' observation")
+    parser.add_argument("--noise", type=float, default=0.0, help="degraded proxy's level")
+    parser.add_argument("--bend-limit", type=float, default=None, help="trunk (default 0.2)")
+    parser.add_argument("--resume", action="store_true")
+    parser.add_argument("--tag", default="", help="suffix of the run and result folders")
+    args = parser.parse_args()
+    report = learn(
+        args.robot,
+        env_steps=args.env_steps,
+        seed=args.seed,
+        points_only=args.points_only,
+        noise=args.noise,
+        bend_limit=args.bend_limit,
+        tag=args.tag,
+        resume=args.resume,
+        command="python experiments/proxy_rl.py " + " ".join(sys.argv[1:]),
+    )
+    print(json.dumps({k: v for k, v in report.items() if k != "curve"}, indent=1))
+
+
+if __name__ == "__main__":
+    main()
