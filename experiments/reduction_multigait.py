@@ -6,10 +6,11 @@
 Training: the full FEM (ImplicitEuler, dt 0.01 s) runs the Multigait's load cases
 (pliant.reduction.multigait_cases: one hand-gait cycle, each symmetric group alone, three
 random sequences of six discrete environment actions), positions every 5 steps, into
-`cache/` (HDF5, resumable, not committed; the full runs of the tests are kept there too). Evaluation: the hand gait (`--cycles` cycles: the
-first is in the training set) and a held-out sequence of six actions (another seed), full
-FEM against each reduced model of the grid of POD tolerances x ECSW tolerances (the same tau for the
-tetrahedra and the membrane; and with every element, tau = 0): node-position error (max and
+`cache/` (HDF5, resumable, not committed; the full runs of the tests are kept there too).
+Evaluation: the hand gait (`--cycles` cycles: the first is in the training set) and a
+held-out sequence of six actions (another seed), full FEM against each reduced model of the
+grid of POD tolerances x ECSW tolerances (the same tau for the tetrahedra and the membrane;
+and with every element, tau = 0): node-position error (max and
 RMS over nodes and recorded steps, mm and % of the body length), centre-of-mass travel along
 x and its error, steps/s of both (median of chunks of 60 steps, wall clock; the machine is a
 2-core one shared with other jobs, so timings are noisy and low: the steps per second of the
