@@ -117,22 +117,26 @@ class CavityPolynomial:
         # Only the symmetric part enters C(alpha, alpha, alpha).
         self.cubic = sum(cubic.transpose(p) for p in itertools.permutations(range(3))) / 6.0
         self._cubic_flat = self.cubic.reshape(r, r * r)
+        self._last: tuple[np.ndarray, float, np.ndarray] | None = None
 
     def change(self, coordinates: np.ndarray, x: np.ndarray | None = None) -> float:
         """V(alpha) - V(0) (x, the positions, is not needed)."""
-        a = coordinates
-        cubic = (self._cubic_flat @ np.outer(a, a).reshape(-1)) @ a
-        return float((self.linear @ a + a @ self.quadratic @ a + cubic) / 6.0)
+        return self.change_and_gradient(coordinates)[0]
 
     def change_and_gradient(
         self, coordinates: np.ndarray, x: np.ndarray | None = None
     ) -> tuple[float, np.ndarray]:
-        """V(alpha) - V(0) and dV/dalpha (r,)."""
+        """V(alpha) - V(0) and dV/dalpha (r,). The last evaluation is kept: a step asks for
+        the volume at its end, and the next step for its row at the same coordinates."""
         a = coordinates
+        if self._last is not None and np.array_equal(a, self._last[0]):
+            return self._last[1], self._last[2].copy()
         ca = self._cubic_flat @ np.outer(a, a).reshape(-1)  # C(alpha, alpha, .)
         qa = self.quadratic @ a
-        change = (self.linear @ a + a @ qa + ca @ a) / 6.0
-        return float(change), (self.linear + 2.0 * qa + 3.0 * ca) / 6.0
+        change = float((self.linear @ a + a @ qa + ca @ a) / 6.0)
+        gradient = (self.linear + 2.0 * qa + 3.0 * ca) / 6.0
+        self._last = (np.array(a, dtype=float), change, gradient)
+        return change, gradient.copy()
 
 
 def _cross_columns(u: np.ndarray, y: np.ndarray) -> np.ndarray:

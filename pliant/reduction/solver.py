@@ -285,6 +285,7 @@ class ReducedImplicitEuler:
         self._active_modes = np.ascontiguousarray(modes[self.active].reshape(-1, r))
         self._active_rest = rest[self.active]
         self._x, self._v = rest.copy(), np.zeros_like(rest)
+        self._placed: np.ndarray | None = None  # the coordinates self._x holds
         self._size = body.extent
         self.contact_compliance = float(contact_compliance)
         self.last_report = StepReport()
@@ -326,8 +327,13 @@ class ReducedImplicitEuler:
         return state
 
     def _place(self, coordinates: np.ndarray) -> np.ndarray:
-        """The work positions with the active nodes at q0 + Phi alpha."""
-        self._x[self.active] = self._active_rest + (self._active_modes @ coordinates).reshape(-1, 3)
+        """The work positions with the active nodes at q0 + Phi alpha (kept while alpha is the
+        same: a step places its end, the next one its start, at the same coordinates)."""
+        if self._placed is None or not np.array_equal(coordinates, self._placed):
+            self._x[self.active] = self._active_rest + (self._active_modes @ coordinates).reshape(
+                -1, 3
+            )
+            self._placed = np.array(coordinates, dtype=float)
         return self._x
 
     def _move(self, rates: np.ndarray) -> np.ndarray:
