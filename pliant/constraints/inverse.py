@@ -479,8 +479,13 @@ def solve_inverse_with_contacts(
     frictional = pyramid > 0.0
     result, rounds = None, 0
     if initial_slip is not None:
+        initial_slip = np.asarray(initial_slip)
+        if initial_slip.shape != (nc, 2) or not np.isin(initial_slip, (-1, 0, 1)).all():
+            raise SolverError(
+                f"initial_slip must be ({nc}, 2) of -1, 0 or 1, got shape {initial_slip.shape}"
+            )
         seeded = closed & frictional
-        slip[seeded] = np.asarray(initial_slip, dtype=int)[seeded]
+        slip[seeded] = initial_slip.astype(int)[seeded]
         result = solve(closed, slip)
         rounds = 1
     if result is None:
