@@ -164,6 +164,24 @@ def test_cart_stem_ends_when_the_cart_runs_away():
     assert term and steps < 20
 
 
+def test_cart_stem_contact_whipping_off_an_obstacle_misses_no_contact():
+    """Bang-bang carts drag the beam over an obstacle and release it; its tip then whips at
+    up to 0.9 m/s. The environment's margin must cover a step's travel (the robot's default
+    3 mm warned 53 times over these episodes)."""
+    from pliant.errors import ContactMarginWarning
+
+    env = gym.make("pliant/CartStemContact-v0")
+    rng = np.random.default_rng(0)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", ContactMarginWarning)
+        for episode in range(4):
+            env.reset(seed=episode)
+            for k in range(30):
+                if k % 5 == 0:
+                    action = rng.choice([-1.0, 1.0], size=1)
+                env.step(action)
+
+
 DOCS = Path(__file__).parents[1] / "docs" / "environments.md"
 
 

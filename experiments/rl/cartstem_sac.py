@@ -3,9 +3,11 @@
     PYTHONPATH=. python experiments/rl/cartstem_sac.py            # start, or resume if begun
     PYTHONPATH=. python experiments/rl/cartstem_sac.py --steps 200000
 
-Checkpoints every 5000 steps in runs/cartstem_sac (not committed); a run stopped at any time
-resumes exactly from its latest checkpoint with the same command. The results (learning
-curve, evaluations, a GIF, summary.json with the final 100-goal evaluation) are copied to
+With ``--stop-at 0.9`` the run stops at the first evaluation (20 goals) made in this session
+whose success rate reaches 0.9; the final 100-goal evaluation then decides. Checkpoints every
+5000 steps in runs/cartstem_sac (not committed); a run stopped at any time resumes exactly from
+its latest checkpoint with the same command. The results (learning curve, evaluations, a GIF,
+summary.json with the final 100-goal evaluation) are copied to
 experiments/results/rl/cartstem_sac/.
 """
 
@@ -18,12 +20,36 @@ import time
 from pathlib import Path
 
 import torch
+from stable_baselines3.common.callbacks import BaseCallback
 
 from pliant.learn import load_config, train
 from pliant.learn.evaluate import evaluate_saved
 from pliant.learn.plots import plot_learning_curve
 
 RESULTS = Path("experiments/results/rl/cartstem_sac")
+
+
+class StopAtSuccess(BaseCallback):
+    """Stops training at the first evaluation written in this session (the learning curve in
+    ``evaluations.json``) whose success rate reaches `threshold`."""
+
+    def __init__(self, run: Path, threshold: float) -> None:
+        super().__init__()
+        self.path = run / "evaluations.json"
+        self.threshold = threshold
+        self.seen = len(json.loads(self.path.read_text())) if self.path.exists() else 0
+        self.mtime = self.path.stat().st_mtime if self.path.exists() else 0.0
+
+    def _on_step(self) -> bool:
+        if not self.path.exists() or self.path.stat().st_mtime == self.mtime:
+            return True
+        self.mtime = self.path.stat().st_mtime
+        curve = json.loads(self.path.read_text())
+        latest = curve[-1]
+        if len(curve) > self.seen and (latest.get("success_rate") or 0.0) >= self.threshold:
+            print(f"step {latest['step']}: success {latest['success_rate']:.2f}, stopping")
+            return False
+        return True
 
 
 def publish(run: Path, partial: bool, command: str) -> None:
@@ -72,6 +98,12 @@ def main() -> None:
     parser.add_argument("--final-episodes", type=int, default=100)
     parser.add_argument("--threads", type=int, default=1)
     parser.add_argument("--eval-episodes", type=int, default=20)
+    parser.add_argument(
+        "--stop-at",
+        type=float,
+        default=None,
+        help="stop at the first evaluation of this session with this success rate",
+    )
     parser.add_argument("--run", type=Path, default=Path("runs/cartstem_sac"))
     parser.add_argument(
         "--publish-partial",
@@ -82,6 +114,8 @@ def main() -> None:
     RUN = args.run
     torch.set_num_threads(args.threads)
     command = f"PYTHONPATH=. python experiments/rl/cartstem_sac.py --steps {args.steps}"
+    if args.stop_at is not None:
+        command += f" --stop-at {args.stop_at}"
     if args.publish_partial:
         publish_partial(RUN, args.final_episodes, command)
         return
@@ -96,7 +130,8 @@ def main() -> None:
         },
     )
     clock = time.perf_counter()
-    result = train(config, RUN, resume=resume, total_timesteps=args.steps)
+    stop = [] if args.stop_at is None else [StopAtSuccess(RUN, args.stop_at)]
+    result = train(config, RUN, resume=resume, total_timesteps=args.steps, extra_callbacks=stop)
     final = evaluate_saved(RUN / "final", episodes=args.final_episodes, seed=20_000)
     summary = {
         **result.summary,
