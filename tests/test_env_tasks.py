@@ -164,6 +164,22 @@ def test_cart_stem_ends_when_the_cart_runs_away():
     assert term and steps < 20
 
 
+def test_cart_stem_contact_starts_at_rest_on_a_random_cart_between_the_obstacles():
+    env = make("CartStemContact")
+    carts = []
+    for seed in range(6):
+        obs, _ = env.reset(seed=seed)
+        carts.append(env.unwrapped.cart_x())
+        assert obs[0] == pytest.approx(obs[1], abs=1e-6)  # cart and tip on one vertical
+    assert max(np.abs(carts)) <= 10.0 and np.ptp(carts) > 5.0
+    env.reset(options={"cart": 7.0, "goal": -20.0})
+    for _ in range(3):  # holding the cart where it starts leaves the beam still
+        obs, *_ = env.step(np.array([7.0 / 40.0]))
+    assert obs[1] * 100.0 == pytest.approx(7.0, abs=0.01)
+    with pytest.raises(ValueError, match="cart_range"):
+        make("CartStemContact", cart_range=15.0)
+
+
 def test_cart_stem_contact_whipping_off_an_obstacle_misses_no_contact():
     """Bang-bang carts drag the beam over an obstacle and release it; its tip then whips at
     up to 0.9 m/s. The environment's margin must cover a step's travel (the robot's default

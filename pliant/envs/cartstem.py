@@ -10,7 +10,9 @@ size); ``observation="sofagym"`` gives SofaGym's 8: [x_cart, x_tip, x_left, x_ri
 sizes (3), x_goal]. Action: Box(1) in [-1, 1], the cart's target ``max_move * a``, reached at
 most at ``max_speed`` (mm/s); ``action_type="discrete"``: 3 actions (left, stay, right: the
 target moves by ``max_speed`` x step time). Reward: thesis -|x_tip - x_goal| / length;
-``reward="sofagym"``: max(-max_dist, -|x_tip - x_goal|) / max_dist. Terminated when
+``reward="sofagym"``: max(-max_dist, -|x_tip - x_goal|) / max_dist. The cart starts at rest
+anywhere in [-cart_range, cart_range] (thesis: random goal and cart), the beam straight and
+between the obstacles; ``options={"goal": g, "cart": c}`` pins either. Terminated when
 |x_tip - x_goal| < ``goal_tolerance`` (thesis: 1 % of the beam's length). 30 steps of
 30 x 0.01 s. Goal drawn uniformly on [-goal_range, goal_range].
 """
@@ -44,6 +46,7 @@ class CartStemContactEnv(SoftRobotEnv):
         max_speed: float = 40.0,
         goal_range: float = 35.0,
         goal_tolerance: float = 1.0,
+        cart_range: float = 10.0,
         stem: Literal["tetrahedra", "rod"] = "tetrahedra",
         length: float = 100.0,
         render_mode: str | None = None,
@@ -63,6 +66,7 @@ class CartStemContactEnv(SoftRobotEnv):
         self.max_speed = float(max_speed)
         self.goal_range = float(goal_range)
         self.goal_tolerance = float(goal_tolerance)
+        self.cart_range = float(cart_range)
         self.stem = stem
         self.length = float(length)
         # Released from an obstacle, the beam whips back on its first bending mode (about 7 Hz
@@ -86,6 +90,13 @@ class CartStemContactEnv(SoftRobotEnv):
         boxes = self.model.contacts.shapes
         self.obstacles = np.array([b.position for b in boxes])
         self.obstacle_size = 2.0 * np.asarray(boxes[0].half_extents, dtype=float)
+        clearance = self.obstacles[1, 0] - 0.5 * self.obstacle_size[0]
+        clearance -= float(np.abs(self._initial.positions[:, 0]).max())
+        if not (np.isfinite(self.cart_range) and 0.0 <= self.cart_range < clearance):
+            raise ValueError(
+                f"cart_range must be in [0, {clearance:.3g}) (the beam starts between the"
+                f" obstacles, clear of them), got {cart_range!r}"
+            )
 
     def _build(self) -> Model:
         self.cart = self.ramp("cart", 0.0)
@@ -104,7 +115,15 @@ class CartStemContactEnv(SoftRobotEnv):
         if goal is None:
             goal = rng.uniform(-self.goal_range, self.goal_range)
         self.task["goal"] = float(goal)
-        self.task["target"] = 0.0
+        cart = (options or {}).get("cart")
+        if cart is None:
+            cart = rng.uniform(-self.cart_range, self.cart_range)
+        # The beam starts straight and at rest on the cart, wherever the cart is.
+        self.cart.source[:] = cart
+        self.cart.target[:] = cart
+        self.model.trajectories_changed()
+        self.state.positions[:, 0] += cart
+        self.task["target"] = float(cart)
 
     def _commands_from_action(self, action) -> None:
         reach = self.max_speed * self.step_time
