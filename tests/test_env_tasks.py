@@ -211,6 +211,41 @@ def test_docs_table_lists_every_registered_environment():
     assert set(ENVS) <= rows
 
 
+def test_space_debris_success_counts_the_cube_faces_the_trunk_presses_on():
+    from pliant.constraints.friction import ContactForces
+
+    env = make("TrunkSpaceDebris", cube_sizes=(30.0,))
+    env.reset(seed=0)
+    base = env.unwrapped
+    colliding = base.model.contacts.points.nodes[:, 0]  # the trunk's points are its nodes
+    a, b, c = 10, 40, 70
+    q = np.sqrt(0.5)
+    turn = np.array([[q, -q, 0.0], [q, q, 0.0], [0.0, 0.0, 1.0]])  # 45 deg about z
+    centre = np.array([60.0, 0.0, 150.0])
+    base.state.rigid_rotations[0] = turn
+    base.state.rigid_positions[0] = centre
+    # In the cube's frame a and b beyond its +x face (in the world, one is beyond the cube's
+    # extent in x, the other in y: faces are told in the cube's frame), c beyond its +z face.
+    for point, local in ((a, [15.2, 10.0, 0.0]), (b, [15.2, -10.0, 1.0]), (c, [0.0, 3.0, 15.3])):
+        base.state.positions[colliding[point]] = centre + turn @ np.array(local)
+    cube = len(base.model.contacts.shapes)  # rigid bodies are numbered after the shapes
+
+    def pressing(keys, forces):
+        base.state.contact_forces = ContactForces(
+            np.array(keys, dtype=np.int64).reshape(-1, 3), np.array(forces, dtype=float)
+        )
+        return base.faces_in_contact(), base._info()["is_success"]
+
+    push = [[1.0, 0.0, 0.0], [0.0, 2.0, 0.0], [0.0, 0.0, 3.0]]
+    assert pressing([], np.zeros((0, 3))) == (0, False)
+    assert pressing([[a, cube, 0], [b, cube, 0]], push[:2]) == (1, False)  # one face: touching
+    assert pressing([[a, cube, 0], [b, cube, 0], [c, cube, 0]], push) == (2, True)  # wrapped
+    assert pressing([[a, cube, 0], [c, cube, 0]], [push[0], [0.0] * 3]) == (1, False)  # no force
+    assert pressing([[a, 0, 0], [b, 0, 0]], push[:2]) == (0, False)  # on the hull, not the cube
+    with pytest.raises(ValueError, match="grasp_faces"):
+        make("TrunkSpaceDebris", grasp_faces=0)
+
+
 def test_space_debris_refuses_a_snapshot_of_a_cube_size_it_does_not_have():
     env = make("TrunkSpaceDebris", cube_sizes=(25.0,))
     env.reset(seed=0)

@@ -23,6 +23,13 @@ by ``action_scale`` mm (16 actions). Reward: Eq. 3.3,
 r_t = -|PM_t| / |PM_0| - |DN_t| / |DN_0| - |CT_t| / |CT_0| (the three phases: approach,
 deformation, wrapping), its three terms in ``info["reward_parts"]``. Terminated when the cube
 has drifted more than ``escape_distance`` mm from T (lost). 50 steps of 10 x 0.01 s.
+
+Success (thesis: "the trunk achieves distributed contacts, and the cube is kept close to it";
+no threshold given): the trunk presses on at least ``grasp_faces`` different faces of the cube
+(2 by default: wrapped, not merely touching one side). ``info["faces"]`` counts the faces under
+a positive contact force at each step, ``info["is_success"]`` is that count reaching
+``grasp_faces``; an evaluation reads it at the episode's last step, so a cube caught and then
+dropped counts as a failure, as in the thesis' 400 tests.
 """
 
 from __future__ import annotations
@@ -61,6 +68,7 @@ class TrunkSpaceDebrisEnv(TrunkEnv):
         azimuth_range: float = np.radians(30.0),
         proximal: float = 0.25,
         escape_distance: float = 250.0,
+        grasp_faces: int = 2,
         n_points: int = 21,
         mesh_size: float = 8.0,
         render_mode: str | None = None,
@@ -78,6 +86,9 @@ class TrunkSpaceDebrisEnv(TrunkEnv):
         self.azimuth_range = float(azimuth_range)
         self.proximal = float(proximal)
         self.escape_distance = float(escape_distance)
+        if not 1 <= int(grasp_faces) <= 6:
+            raise ValueError(f"grasp_faces must be in 1..6 (a cube's faces), got {grasp_faces!r}")
+        self.grasp_faces = int(grasp_faces)
         self._tangent = tangent
         self._scenes: dict[float, tuple[Model, ImplicitEuler, State]] = {}
         super().__init__(
@@ -204,9 +215,25 @@ class TrunkSpaceDebrisEnv(TrunkEnv):
         lost = bool(self._distances()[2] > self.escape_distance)
         return sum(parts.values()), lost, parts
 
+    def faces_in_contact(self) -> int:
+        """How many faces of the cube the trunk presses on (contact force > 0): each touching
+        point of the trunk is assigned the face it lies beyond, in the cube's frame."""
+        forces = self.state.contact_forces
+        cube = len(self.model.contacts.shapes)  # rigid bodies follow the shapes
+        pressing = (forces.keys[:, 1] == cube) & (np.linalg.norm(forces.forces, axis=1) > 0.0)
+        if not pressing.any():
+            return 0
+        points = self.model.contacts.points.positions(self.state.positions)
+        local = (points[forces.keys[pressing, 0]] - self.cube()) @ self.state.rigid_rotations[0]
+        axis = np.argmax(np.abs(local), axis=1)
+        side = np.sign(local[np.arange(len(axis)), axis])
+        return len(set(zip(axis.tolist(), side.tolist(), strict=True)))
+
     def _info(self):
         distances = self._distances()
-        return dict(zip(("PM", "DN", "CT"), distances.tolist(), strict=True))
+        faces = self.faces_in_contact()
+        info = dict(zip(("PM", "DN", "CT"), distances.tolist(), strict=True))
+        return {**info, "faces": faces, "is_success": faces >= self.grasp_faces}
 
     def _render_goal(self):
         return self.cube_faces()
