@@ -18,7 +18,6 @@ if "NUMBA_THREADING_LAYER" not in _os.environ:
 _os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
 
 
-
 def _limit_blas_threads() -> None:
     """NumPy's and SciPy's OpenBLAS on one thread (unless OPENBLAS_NUM_THREADS or
     PLIANT_BLAS_THREADS says otherwise; PLIANT_BLAS_THREADS=keep leaves them alone).
