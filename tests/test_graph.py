@@ -215,3 +215,12 @@ def test_cli_trains_checkpoints_and_resumes(tmp_path):
     assert second.exit_code == 0, second.output
     resumed = json.loads((out / "history.json").read_text())["evaluations"]
     assert resumed[: len(evaluations)] == evaluations and resumed[-1]["steps"] >= 300
+    from tensorboard.backend.event_processing.event_accumulator import EventAccumulator
+
+    logged = []
+    for events in sorted((out / "tb").glob("events.out.tfevents.*")):
+        accumulator = EventAccumulator(str(events))
+        accumulator.Reload()
+        logged += [(e.step, e.value) for e in accumulator.Scalars("eval/success_rate")]
+    assert [step for step, _ in logged] == [e["steps"] for e in resumed]
+    assert [value for _, value in logged] == pytest.approx([e["success"] for e in resumed])

@@ -239,4 +239,10 @@ def expert_action(env: gym.Env, *, grasp: float | None = None, tolerance: float 
     return {0: (0, 1), 1: (2, 3), 2: (5, 4), 3: (7, 6)}[axis][int(amount > 0)]
 
 
-__all__ = ["GripperEnv", "expert_action"]
+def expert(env: gym.Env):
+    """:func:`expert_action` as an expert for behaviour cloning (:mod:`pliant.learn.bc`,
+    ``--bc-expert pliant.envs.gripper:expert``): ``act(observation) -> action`` reading `env`."""
+    return lambda observation: expert_action(env)
+
+
+__all__ = ["GripperEnv", "expert", "expert_action"]

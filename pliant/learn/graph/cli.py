@@ -1,5 +1,6 @@
 """``pliant graph train SCENE``: train the configuration-space graph (or the plain-SAC
-baseline) with checkpoints, resume and periodic evaluation."""
+baseline) with checkpoints, resume and periodic evaluation, its evaluations logged to
+TensorBoard through Stable-Baselines3's logger (``OUT/tb``), as ``pliant train`` logs them."""
 
 from __future__ import annotations
 
@@ -68,8 +69,11 @@ def train_run(
     resume: bool = True,
 ) -> list[dict]:
     """Train one learner; ``out`` holds ``checkpoint.pt`` and ``history.json`` (evaluations:
-    steps, mean return, success rate, wall time), rewritten at every evaluation. With
-    ``resume`` an existing checkpoint is continued up to ``steps``."""
+    steps, mean return, success rate, wall time), rewritten at every evaluation, and ``tb/``
+    (TensorBoard: ``eval/mean_reward``, ``eval/success_rate``, ``time/wall_s`` against the
+    environment steps). With ``resume`` an existing checkpoint is continued up to ``steps``."""
+    from stable_baselines3.common.logger import configure
+
     from pliant.learn.graph import GraphConfig
     from pliant.learn.graph.scenes import make_scene
 
@@ -88,17 +92,25 @@ def train_run(
         learner.load(checkpoint)
         history = json.loads(history_file.read_text())["evaluations"]
     start = time.perf_counter() - (history[-1]["wall_s"] if history else 0.0)
+    logger = configure(str(out / "tb"), ["tensorboard"])
 
     def record(result: dict) -> None:
         history.append({**result, "wall_s": time.perf_counter() - start})
+        logger.record("eval/mean_reward", result["return"])
+        logger.record("eval/success_rate", result["success"])
+        logger.record("time/wall_s", history[-1]["wall_s"])
+        logger.dump(result["steps"])
         learner.save(checkpoint)
         meta = {"scene": scene_name, "method": method, "seed": seed, "config": config or {}}
         history_file.write_text(json.dumps({**meta, "evaluations": history}, indent=1))
         console.print(f"{method} seed {seed}: {result}")
 
-    learner.learn(
-        scene.env, steps, eval_every=eval_every, eval_episodes=eval_episodes, callback=record
-    )
+    try:
+        learner.learn(
+            scene.env, steps, eval_every=eval_every, eval_episodes=eval_episodes, callback=record
+        )
+    finally:
+        logger.close()
     return history
 
 
