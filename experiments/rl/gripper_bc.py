@@ -74,7 +74,11 @@ def run(name: str, bc: bool, args) -> dict:
         "video_episodes": 0,
     }
     if bc:
-        overrides["bc"] = {"expert": "pliant.envs.gripper:expert", "episodes": 20, "epochs": 3000}
+        overrides["bc"] = {
+            "expert": "pliant.envs.gripper:expert",
+            "episodes": 20,
+            "epochs": args.bc_epochs,
+        }
     config = load_config("pliant/Gripper-v0", "RecurrentPPO", overrides=overrides)
     start = EvaluateAtStart(folder, args.eval_episodes, config.env_id, config.env_kwargs)
     result = train(
@@ -120,6 +124,7 @@ def main() -> None:
     parser.add_argument("--eval-freq", type=int, default=10_000)
     parser.add_argument("--eval-episodes", type=int, default=10)
     parser.add_argument("--threshold", type=float, default=0.8)
+    parser.add_argument("--bc-epochs", type=int, default=3000)
     parser.add_argument("--threads", type=int, default=1)
     parser.add_argument("--runs", type=Path, default=Path("runs"))
     parser.add_argument(
