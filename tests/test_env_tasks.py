@@ -246,6 +246,17 @@ def test_space_debris_success_counts_the_cube_faces_the_trunk_presses_on():
         make("TrunkSpaceDebris", grasp_faces=0)
 
 
+def test_space_debris_losing_the_cube_is_charged_the_steps_left():
+    # An escape distance below the cube's start: lost at the first step, 49 steps left of 50.
+    env = make("TrunkSpaceDebris", cube_sizes=(30.0,), escape_distance=1.0, horizon=50)
+    env.reset(seed=0)
+    _, reward, terminated, _, info = env.step(np.zeros(8, dtype=np.float32))
+    parts = info["reward_parts"]
+    step = parts["approach"] + parts["deformation"] + parts["wrapping"]
+    assert terminated and step < 0.0
+    assert parts["lost"] == pytest.approx(49 * step) and reward == pytest.approx(50 * step)
+
+
 def test_space_debris_refuses_a_snapshot_of_a_cube_size_it_does_not_have():
     env = make("TrunkSpaceDebris", cube_sizes=(25.0,))
     env.reset(seed=0)

@@ -22,7 +22,11 @@ in [0, max] (``"absolute"``) or increments (``"increment"``), as
 by ``action_scale`` mm (16 actions). Reward: Eq. 3.3,
 r_t = -|PM_t| / |PM_0| - |DN_t| / |DN_0| - |CT_t| / |CT_0| (the three phases: approach,
 deformation, wrapping), its three terms in ``info["reward_parts"]``. Terminated when the cube
-has drifted more than ``escape_distance`` mm from T (lost). 50 steps of 10 x 0.01 s.
+has drifted more than ``escape_distance`` mm from T (lost); that step's reward is then
+charged once for each step left of the ``horizon`` (``reward_parts["lost"]``), as if the
+episode went on with the cube gone: Eq. 3.3 is negative at every step, and an episode that
+ended free of charge when the cube was thrown away taught PPO to throw it. 50 steps of 10 x
+0.01 s.
 
 Success (thesis: "the trunk achieves distributed contacts, and the cube is kept close to it";
 no threshold given): the trunk presses on at least ``grasp_faces`` different faces of the cube
@@ -69,6 +73,7 @@ class TrunkSpaceDebrisEnv(TrunkEnv):
         proximal: float = 0.25,
         escape_distance: float = 250.0,
         grasp_faces: int = 2,
+        horizon: int = 50,
         n_points: int = 21,
         mesh_size: float = 8.0,
         render_mode: str | None = None,
@@ -89,6 +94,9 @@ class TrunkSpaceDebrisEnv(TrunkEnv):
         if not 1 <= int(grasp_faces) <= 6:
             raise ValueError(f"grasp_faces must be in 1..6 (a cube's faces), got {grasp_faces!r}")
         self.grasp_faces = int(grasp_faces)
+        if int(horizon) < 1:
+            raise ValueError(f"horizon must be >= 1 steps, got {horizon!r}")
+        self.horizon = int(horizon)
         self._tangent = tangent
         self._scenes: dict[float, tuple[Model, ImplicitEuler, State]] = {}
         super().__init__(
@@ -213,6 +221,11 @@ class TrunkSpaceDebrisEnv(TrunkEnv):
         ratios = self._distances() / self.task["d0"]
         parts = dict(zip(("approach", "deformation", "wrapping"), (-ratios).tolist(), strict=True))
         lost = bool(self._distances()[2] > self.escape_distance)
+        if lost:
+            # The episode ends, but the rewards it would have collected with the cube gone,
+            # this step's for each step left, are charged at once: ending an episode of negative
+            # rewards early by throwing the cube away must not pay (PPO learnt just that).
+            parts["lost"] = sum(parts.values()) * max(self.horizon - self._elapsed, 0)
         return sum(parts.values()), lost, parts
 
     def faces_in_contact(self) -> int:
