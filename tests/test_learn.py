@@ -186,6 +186,25 @@ def test_behaviour_cloning_reproduces_the_expert(action_type):
     assert cloned.success_rate >= expert_success - 0.1
 
 
+def test_successful_episodes_keep_whole_episodes_of_the_expert():
+    from pliant.learn.bc import successful_episodes
+
+    data = {
+        "observations": np.arange(7.0)[:, None],
+        "actions": np.arange(7) * 10,
+        "episode_starts": np.array([1, 0, 0, 1, 0, 1, 0], dtype=bool),
+        "returns": np.array([1.0, 2.0, 3.0]),
+        "successes": np.array([True, False, True]),
+    }
+    kept = successful_episodes(data)
+    assert kept["observations"].ravel().tolist() == [0.0, 1.0, 2.0, 5.0, 6.0]
+    assert kept["actions"].tolist() == [0, 10, 20, 50, 60]
+    assert kept["episode_starts"].tolist() == [True, False, False, True, False]
+    assert kept["returns"].tolist() == [1.0, 3.0] and kept["successes"].all()
+    with pytest.raises(ValueError, match="none"):
+        successful_episodes({**data, "successes": np.zeros(3, dtype=bool)})
+
+
 def test_bc_pretraining_through_train(tmp_path):
     cfg = _config(
         "PPO",

@@ -65,6 +65,23 @@ def collect_expert(
     }
 
 
+def successful_episodes(data: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+    """The expert's data restricted to its successful episodes (an expert that sometimes
+    fails spends most of its pairs failing: its failed episodes run to the time limit)."""
+    successes = np.asarray(data["successes"], dtype=bool)
+    if not successes.any():
+        raise ValueError("the expert succeeded in none of its episodes: nothing to clone")
+    episode = np.cumsum(data["episode_starts"]) - 1  # the episode of each pair
+    keep = successes[episode]
+    return {
+        "observations": data["observations"][keep],
+        "actions": data["actions"][keep],
+        "episode_starts": data["episode_starts"][keep],
+        "returns": data["returns"][successes],
+        "successes": successes[successes],
+    }
+
+
 def _is_recurrent(policy) -> bool:
     return hasattr(policy, "lstm_actor")
 
@@ -176,6 +193,9 @@ def pretrain(model, config) -> dict:
         data = collect_expert(env, load_expert(bc["expert"]), bc["episodes"], seed=config.seed)
     finally:
         env.close()
+    expert_success = float(data["successes"].mean())
+    if bc.get("successful_only"):
+        data = successful_episodes(data)
     observations = data["observations"]
     vecnorm = model.get_vec_normalize_env()
     if vecnorm is not None and vecnorm.norm_obs:
@@ -195,8 +215,10 @@ def pretrain(model, config) -> dict:
     return {
         "expert": bc["expert"],
         "pairs": len(observations),
+        "expert_episodes": int(bc["episodes"]),
+        "episodes_cloned": len(data["returns"]),
         "expert_mean_return": float(data["returns"].mean()),
-        "expert_success_rate": float(data["successes"].mean()),
+        "expert_success_rate": expert_success,
         "loss_first_epoch": history[0],
         "loss_last_epoch": history[-1],
         **agreement(predicted, data["actions"]),

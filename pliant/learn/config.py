@@ -70,7 +70,8 @@ class TrainConfig:
     #: keyword arguments of the SB3 algorithm (``policy`` included).
     hyperparams: dict = field(default_factory=dict)
     #: behaviour-cloning pre-training (:mod:`pliant.learn.bc`): ``expert`` ("module:function"),
-    #: ``epochs``, ``episodes``, ``batch_size``, ``learning_rate``.
+    #: ``epochs``, ``episodes``, ``batch_size``, ``learning_rate``, ``successful_only`` (clone
+    #: the expert's successful episodes only).
     bc: dict | None = None
 
     def __post_init__(self) -> None:
