@@ -257,6 +257,19 @@ def test_space_debris_losing_the_cube_is_charged_the_steps_left():
     assert parts["lost"] == pytest.approx(49 * step) and reward == pytest.approx(50 * step)
 
 
+@pytest.mark.parametrize("cables", [(0, 6), (0, 4), (0, 1, 5)])
+def test_space_debris_cables_at_their_limits_invert_no_element(cables):
+    env = gym.make("pliant/TrunkSpaceDebris-v0", continuous_mode="increment", cube_sizes=(20.0,))
+    env.reset(seed=0)
+    pull = np.zeros(8, dtype=np.float32)
+    pull[list(cables)] = 1.0  # 2 mm a step: every cable at its limit within 18 steps
+    for _ in range(22):
+        _, _, _, truncated, info = env.step(pull)
+        assert not truncated, info.get("diverged")
+    limits = env.unwrapped.max_commands
+    assert np.allclose(env.unwrapped.commands[list(cables)], limits[list(cables)])
+
+
 def test_space_debris_refuses_a_snapshot_of_a_cube_size_it_does_not_have():
     env = make("TrunkSpaceDebris", cube_sizes=(25.0,))
     env.reset(seed=0)

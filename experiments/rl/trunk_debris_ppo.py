@@ -8,13 +8,14 @@ x 512 for the policy and the value, VecNormalize, 2 workers) on pliant/TrunkSpac
 the cables driven by increments (``continuous_mode="increment"``, 2 mm a step at most): with
 absolute targets an untrained policy pulls antagonist cables together to 60 mm, which crushes
 the trunk until elements invert (8 of 12 random episodes diverged within 20 steps; 0 of 12 with
-increments). Checkpointing every 5000 steps in runs/trunk_debris_ppo (not committed; the same
-command resumes a stopped run). Then runs the final policy, deterministic, on `--tests`
-episodes of random cube sizes and positions (seeds 30000 on, not seen in training) and records
-for each: success at the end (the trunk presses on two faces of the cube, the environment's
-definition), whether it held the cube so at any step before (a catch then a drop), the cube's
-size, the diverged episodes. Writes experiments/results/rl/trunk_debris_ppo/ (summary.json,
-tests.json, the learning curve, a GIF of two test episodes).
+increments), and within the environment's cable courses (35 and 25 mm, where no pull inverts an
+element of the coarse mesh). Checkpointing every 5000 steps in runs/trunk_debris_ppo (not
+committed; the same command resumes a stopped run). Then runs the final policy, deterministic,
+on `--tests` episodes of random cube sizes and positions (seeds 30000 on, not seen in training)
+and records for each: success at the end (the trunk presses on two faces of the cube, the
+environment's definition), whether it held the cube so at any step before (a catch then a
+drop), the cube's size, the diverged episodes. Writes experiments/results/rl/trunk_debris_ppo/
+(summary.json, tests.json, the learning curve, a GIF of two test episodes).
 """
 
 from __future__ import annotations
