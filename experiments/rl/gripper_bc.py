@@ -26,7 +26,7 @@ import torch
 from stable_baselines3.common.callbacks import BaseCallback
 
 from pliant.learn import load_config, train
-from pliant.learn.evaluate import run_episodes
+from pliant.learn.evaluate import evaluate_saved, run_episodes
 from pliant.learn.vec import make_env
 
 RESULTS = Path("experiments/results/rl/gripper_bc")
@@ -149,6 +149,12 @@ def main() -> None:
     }
     summary_path.write_text(json.dumps(summary, indent=1))
     plot(summary["runs"], args.threshold, RESULTS / "success.png")
+    for name in summary["runs"]:  # one evaluation episode of each final policy
+        evaluate_saved(
+            args.runs / f"gripper_{name}" / "final",
+            episodes=1,
+            gif=RESULTS / f"{name}.gif",
+        )
     print(json.dumps({k: r["steps_to_threshold"] for k, r in summary["runs"].items()}))
 
 
