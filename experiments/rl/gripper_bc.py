@@ -18,6 +18,7 @@ experiments/results/rl/gripper_bc/.
 from __future__ import annotations
 
 import argparse
+import csv
 import json
 import shutil
 from pathlib import Path
@@ -65,6 +66,18 @@ def steps_to(curve: list[dict], threshold: float) -> int | None:
     return next((e["step"] for e in curve if (e.get("success_rate") or 0.0) >= threshold), None)
 
 
+def training_steps_to(episodes_csv: Path, threshold: float, window: int = 20) -> int | None:
+    """The step at which the success rate of the last `window` training episodes (stochastic
+    policy, in ``episodes.csv``) first reaches `threshold`: a finer clock than evaluations."""
+    with open(episodes_csv) as f:
+        rows = list(csv.DictReader(f))
+    success = [r["success"] == "1" for r in rows]
+    for k in range(window, len(rows) + 1):
+        if sum(success[k - window : k]) >= threshold * window:
+            return int(float(rows[k - 1]["step"]))
+    return None
+
+
 def run(name: str, bc: bool, args) -> dict:
     folder = args.runs / f"gripper_{name}"
     resume = (folder / "checkpoints").exists() and any((folder / "checkpoints").glob("step_*"))
@@ -95,6 +108,7 @@ def run(name: str, bc: bool, args) -> dict:
             {k: e[k] for k in ("step", "success_rate", "mean_return", "mean_length")} for e in curve
         ],
         "steps_to_threshold": steps_to(curve, args.threshold),
+        "training_steps_to_threshold": training_steps_to(folder / "episodes.csv", args.threshold),
         "training": result.summary,
     }
     shutil.copy(folder / "evaluations.json", RESULTS / f"evaluations_{name}.json")
@@ -155,7 +169,14 @@ def main() -> None:
             episodes=1,
             gif=RESULTS / f"{name}.gif",
         )
-    print(json.dumps({k: r["steps_to_threshold"] for k, r in summary["runs"].items()}))
+    print(
+        json.dumps(
+            {
+                name: [r["steps_to_threshold"], r["training_steps_to_threshold"]]
+                for name, r in summary["runs"].items()
+            }
+        )
+    )
 
 
 if __name__ == "__main__":
