@@ -23,6 +23,7 @@ import json
 import shutil
 from pathlib import Path
 
+import numpy as np
 import torch
 from stable_baselines3.common.callbacks import BaseCallback
 
@@ -78,8 +79,15 @@ def training_steps_to(episodes_csv: Path, threshold: float, window: int = 20) ->
     return None
 
 
+RUNS = Path("runs")
+
+
+def folder_of(name: str) -> Path:
+    return RUNS / f"gripper_{name}"
+
+
 def run(name: str, bc: bool, args) -> dict:
-    folder = args.runs / f"gripper_{name}"
+    folder = folder_of(name)
     resume = (folder / "checkpoints").exists() and any((folder / "checkpoints").glob("step_*"))
     overrides = {
         "total_timesteps": args.steps,
@@ -122,12 +130,18 @@ def plot(runs: dict, threshold: float, path: Path) -> None:
     import matplotlib.pyplot as plt
 
     fig, ax = plt.subplots(figsize=(6, 3.6))
-    for name, r in runs.items():
+    for (name, r), colour in zip(runs.items(), ("C0", "C1"), strict=False):
         steps = [e["step"] for e in r["curve"]]
-        ax.plot(steps, [100 * (e["success_rate"] or 0.0) for e in r["curve"]], "o-", label=name)
+        success = [100 * (e["success_rate"] or 0.0) for e in r["curve"]]
+        ax.plot(steps, success, "o-", color=colour, label=f"{name}: evaluations")
+        with open(folder_of(name) / "episodes.csv") as f:
+            rows = list(csv.DictReader(f))
+        won = np.convolve([r["success"] == "1" for r in rows], np.ones(20) / 20, mode="valid")
+        done = [float(r["step"]) for r in rows][19:]
+        ax.plot(done, 100 * won, color=colour, lw=0.8, alpha=0.6, label=f"{name}: last 20 episodes")
     ax.axhline(100 * threshold, color="0.5", lw=0.8, ls="--")
     ax.set_xlabel("environment steps")
-    ax.set_ylabel("evaluation success (%)")
+    ax.set_ylabel("success (%)")
     ax.set_title("Gripper, RecurrentPPO (LSTM 128)")
     ax.legend(fontsize=8)
     fig.tight_layout()
@@ -148,6 +162,8 @@ def main() -> None:
         "--only", choices=("bc", "scratch"), default=None, help="run one of the two"
     )
     args = parser.parse_args()
+    global RUNS
+    RUNS = args.runs
     torch.set_num_threads(args.threads)
     RESULTS.mkdir(parents=True, exist_ok=True)
     summary_path = RESULTS / "summary.json"
@@ -165,7 +181,7 @@ def main() -> None:
     plot(summary["runs"], args.threshold, RESULTS / "success.png")
     for name in summary["runs"]:  # one evaluation episode of each final policy
         evaluate_saved(
-            args.runs / f"gripper_{name}" / "final",
+            folder_of(name) / "final",
             episodes=1,
             gif=RESULTS / f"{name}.gif",
         )
