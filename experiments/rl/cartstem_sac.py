@@ -75,9 +75,32 @@ def publish(run: Path, partial: bool, command: str) -> None:
     (RESULTS / "status.json").write_text(json.dumps(status, indent=1))
 
 
+def goal_evaluations(run: Path, episodes: int) -> dict:
+    """The final and the best (by the 20-goal evaluations) policies on the same `episodes`
+    goals and carts (seed 20000), acting deterministically (the mean action) and by sampling
+    (SAC's policy as it trains: an episode ends at the first step within 1 mm, which a
+    sampled action's jitter reaches more often)."""
+    results = {}
+    for name in ("best", "final"):
+        folder = run / name
+        if not folder.exists():
+            continue
+        step = {}
+        if name == "best":  # saved at the evaluation with the best score (EvalCallback)
+            curve = json.loads((run / "evaluations.json").read_text())
+            best = max(curve, key=lambda e: (e["success_rate"] or 0.0) + 1e-9 * e["mean_return"])
+            step = {"step": best["step"]}
+        for mode in ("deterministic", "stochastic"):
+            evaluation = evaluate_saved(
+                folder, episodes=episodes, seed=20_000, deterministic=mode == "deterministic"
+            )
+            results[f"{name}_{mode}"] = {**step, **evaluation.to_dict()}
+    return results
+
+
 def publish_partial(run: Path, episodes: int, command: str) -> None:
     """A stopped run: its latest checkpoint's policy evaluated on `episodes` goals, a GIF,
-    the learning curve so far, all labelled partial."""
+    the learning curve so far, all labelled partial; the best policy's goals as well."""
     import pickle
 
     from pliant.learn.callbacks import latest_checkpoint
@@ -96,6 +119,12 @@ def publish_partial(run: Path, episodes: int, command: str) -> None:
         "wall_seconds": state["counters"]["wall_seconds"],
         "diverged_episodes": state["counters"]["diverged"],
         f"evaluation_{episodes}_goals": evaluation.to_dict(),
+        f"{episodes}_goals": goal_evaluations(run, episodes),
+        "stop_checks": (
+            json.loads((run / "stop_checks.json").read_text())
+            if (run / "stop_checks.json").exists()
+            else []
+        ),
         "thesis": {"algo": "SAC, MLP 3x512", "steps_to_solve": 200_000},
     }
     (run / "summary.json").write_text(json.dumps(summary, indent=1))
@@ -147,6 +176,7 @@ def main() -> None:
     summary = {
         **result.summary,
         "final_100_goals": final.to_dict(),
+        f"{args.final_episodes}_goals": goal_evaluations(RUN, args.final_episodes),
         "wall_seconds_with_final_evaluation_this_session": time.perf_counter() - clock,
         "thesis": {"algo": "SAC, MLP 3x512", "steps_to_solve": 200_000},
     }
