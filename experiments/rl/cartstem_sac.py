@@ -75,14 +75,14 @@ def publish(run: Path, partial: bool, command: str) -> None:
     (RESULTS / "status.json").write_text(json.dumps(status, indent=1))
 
 
-def goal_evaluations(run: Path, episodes: int) -> dict:
+def goal_evaluations(run: Path, episodes: int, last: Path | None = None) -> dict:
     """The final and the best (by the 20-goal evaluations) policies on the same `episodes`
     goals and carts (seed 20000), acting deterministically (the mean action) and by sampling
     (SAC's policy as it trains: an episode ends at the first step within 1 mm, which a
-    sampled action's jitter reaches more often)."""
+    sampled action's jitter reaches more often). `last`: the policy to report as the last one
+    (default the run's final policy; a stopped run's latest checkpoint)."""
     results = {}
-    for name in ("best", "final"):
-        folder = run / name
+    for name, folder in (("best", run / "best"), ("last", last or run / "final")):
         if not folder.exists():
             continue
         step = {}
@@ -119,7 +119,7 @@ def publish_partial(run: Path, episodes: int, command: str) -> None:
         "wall_seconds": state["counters"]["wall_seconds"],
         "diverged_episodes": state["counters"]["diverged"],
         f"evaluation_{episodes}_goals": evaluation.to_dict(),
-        f"{episodes}_goals": goal_evaluations(run, episodes),
+        f"{episodes}_goals": goal_evaluations(run, episodes, last=checkpoint),
         "stop_checks": (
             json.loads((run / "stop_checks.json").read_text())
             if (run / "stop_checks.json").exists()
