@@ -178,6 +178,9 @@ def test_cart_stem_contact_starts_at_rest_on_a_random_cart_between_the_obstacles
     assert obs[1] * 100.0 == pytest.approx(7.0, abs=0.01)
     with pytest.raises(ValueError, match="cart_range"):
         make("CartStemContact", cart_range=15.0)
+    for bad in (20.0, float("nan")):
+        with pytest.raises(ValueError, match="options\\['cart'\\]"):
+            env.reset(options={"cart": bad})
 
 
 def test_cart_stem_contact_whipping_off_an_obstacle_misses_no_contact():

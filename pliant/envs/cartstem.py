@@ -92,6 +92,7 @@ class CartStemContactEnv(SoftRobotEnv):
         self.obstacle_size = 2.0 * np.asarray(boxes[0].half_extents, dtype=float)
         clearance = self.obstacles[1, 0] - 0.5 * self.obstacle_size[0]
         clearance -= float(np.abs(self._initial.positions[:, 0]).max())
+        self._clearance = clearance
         if not (np.isfinite(self.cart_range) and 0.0 <= self.cart_range < clearance):
             raise ValueError(
                 f"cart_range must be in [0, {clearance:.3g}) (the beam starts between the"
@@ -118,6 +119,11 @@ class CartStemContactEnv(SoftRobotEnv):
         cart = (options or {}).get("cart")
         if cart is None:
             cart = rng.uniform(-self.cart_range, self.cart_range)
+        elif not (np.isfinite(cart) and abs(cart) < self._clearance):
+            raise ValueError(
+                f"options['cart'] must be within +-{self._clearance:.3g} mm (the beam between"
+                f" the obstacles), got {cart!r}"
+            )
         # The beam starts straight and at rest on the cart, wherever the cart is.
         self.cart.source[:] = cart
         self.cart.target[:] = cart
