@@ -79,15 +79,12 @@ def training_steps_to(episodes_csv: Path, threshold: float, window: int = 20) ->
     return None
 
 
-RUNS = Path("runs")
-
-
-def folder_of(name: str) -> Path:
-    return RUNS / f"gripper_{name}"
+def folder_of(runs: Path, name: str) -> Path:
+    return runs / f"gripper_{name}"
 
 
 def run(name: str, bc: bool, args) -> dict:
-    folder = folder_of(name)
+    folder = folder_of(args.runs, name)
     resume = (folder / "checkpoints").exists() and any((folder / "checkpoints").glob("step_*"))
     overrides = {
         "total_timesteps": args.steps,
@@ -123,7 +120,7 @@ def run(name: str, bc: bool, args) -> dict:
     return out
 
 
-def plot(runs: dict, threshold: float, path: Path) -> None:
+def plot(runs: dict, folder: Path, threshold: float, path: Path) -> None:
     import matplotlib
 
     matplotlib.use("Agg")
@@ -134,7 +131,7 @@ def plot(runs: dict, threshold: float, path: Path) -> None:
         steps = [e["step"] for e in r["curve"]]
         success = [100 * (e["success_rate"] or 0.0) for e in r["curve"]]
         ax.plot(steps, success, "o-", color=colour, label=f"{name}: evaluations")
-        with open(folder_of(name) / "episodes.csv") as f:
+        with open(folder_of(folder, name) / "episodes.csv") as f:
             rows = list(csv.DictReader(f))
         won = np.convolve([r["success"] == "1" for r in rows], np.ones(20) / 20, mode="valid")
         done = [float(r["step"]) for r in rows][19:]
@@ -162,8 +159,6 @@ def main() -> None:
         "--only", choices=("bc", "scratch"), default=None, help="run one of the two"
     )
     args = parser.parse_args()
-    global RUNS
-    RUNS = args.runs
     torch.set_num_threads(args.threads)
     RESULTS.mkdir(parents=True, exist_ok=True)
     summary_path = RESULTS / "summary.json"
@@ -178,10 +173,10 @@ def main() -> None:
         "command": f"PYTHONPATH=. python experiments/rl/gripper_bc.py --steps {args.steps}",
     }
     summary_path.write_text(json.dumps(summary, indent=1))
-    plot(summary["runs"], args.threshold, RESULTS / "success.png")
+    plot(summary["runs"], args.runs, args.threshold, RESULTS / "success.png")
     for name in summary["runs"]:  # one evaluation episode of each final policy
         evaluate_saved(
-            folder_of(name) / "final",
+            folder_of(args.runs, name) / "final",
             episodes=1,
             gif=RESULTS / f"{name}.gif",
         )

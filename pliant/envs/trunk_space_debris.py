@@ -225,9 +225,10 @@ class TrunkSpaceDebrisEnv(TrunkEnv):
         return np.concatenate([pts.ravel(), [self.cube_size]]) / LENGTH
 
     def _reward(self):
-        ratios = self._distances() / self.task["d0"]
+        distances = self._distances()
+        ratios = distances / self.task["d0"]
         parts = dict(zip(("approach", "deformation", "wrapping"), (-ratios).tolist(), strict=True))
-        lost = bool(self._distances()[2] > self.escape_distance)
+        lost = bool(distances[2] > self.escape_distance)
         if lost:
             # The episode ends, but the rewards it would have collected with the cube gone,
             # this step's for each step left, are charged at once: ending an episode of negative
