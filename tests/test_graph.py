@@ -175,6 +175,34 @@ def test_hierarchy_with_convex_internal_agents():
     assert agent.evaluate(env, 10)["success"] >= 0.9
 
 
+def test_cartstem_fem_inverse_reaches_a_goal_behind_the_obstacle_it_bends_over():
+    """The convex internal agent on the FEM statics: the beam pressed on the right obstacle
+    (node 2), the goal behind the left one. The tip moves against the cart there: the FEM's
+    sensitivity takes the cart right and reaches the goal, the rigid closed form takes it left
+    into node 1 and stalls."""
+    from pliant.envs import make
+    from pliant.learn.graph.scenes import CartStemStaticInverse, cartstem_controller
+
+    env = make("pliant/CartStemContact-v0")
+    reached = {}
+    for name, controller in (
+        ("fem", CartStemStaticInverse(env)),
+        ("rigid", cartstem_controller(env)),
+    ):
+        obs, _ = env.reset(seed=1, options={"goal": -28.0, "cart": 0.0})
+        for _ in range(3):  # cart right, onto the right obstacle
+            obs, *_ = env.step(np.array([0.6], dtype=np.float32))
+        assert cartstem_partition(obs) == 2
+        for _ in range(6):
+            obs, _, terminated, _, info = env.step(controller(obs))
+            if terminated:
+                break
+        reached[name] = info["distance"]
+        if name == "fem":
+            assert np.all(np.abs(controller(obs)) <= 1.0)
+    assert reached["fem"] < 1.0 < 10.0 < reached["rigid"]
+
+
 def test_checkpoint_round_trip(tmp_path):
     env, agent = _corridor_agent()
     agent.learn(env, 300)

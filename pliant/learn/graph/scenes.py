@@ -25,8 +25,9 @@ class Scene:
 def cartstem_controller(env: gym.Env) -> Callable[[np.ndarray], np.ndarray]:
     """Cart target that puts the tip over the goal if the beam's tip followed the cart rigidly
     (∂x_tip/∂x_cart = 1): argmin over |target| ≤ max_move of (x_tip + target − x_cart − x_goal)²,
-    in closed form. A stand-in for the inverse QP/QPCC (which needs the model, not the
-    observation the learners see)."""
+    in closed form from the observation. Exact with no contact; wrong where the beam is bent
+    over an obstacle (the tip then moves against the cart). :class:`CartStemStaticInverse` is
+    the scene's convex agent; this one is kept as the reference it is compared with."""
     base = env.unwrapped
 
     def controller(obs: np.ndarray) -> np.ndarray:
@@ -35,6 +36,88 @@ def cartstem_controller(env: gym.Env) -> Callable[[np.ndarray], np.ndarray]:
         return np.clip([target / base.max_move], -1.0, 1.0)
 
     return controller
+
+
+class CartStemStaticInverse:
+    """The convex internal agent of CartStemContact on the FEM: the cart position that puts
+    the beam's tip over the goal at static equilibrium, with the obstacles' contacts.
+
+    The issue's inverse QP with the cart as the one actuator and the tip's x as the effector:
+    min_c (x_tip(c) - x_goal)^2 over |c| <= max_move, by Gauss-Newton on the FEM statics.
+    Each iteration solves the equilibrium (:class:`pliant.solvers.StaticSolver`, Signorini
+    contacts with the obstacles) at the cart's position and ``probe`` mm further, which gives
+    the tip's sensitivity dx_tip/dc there, contact response included (about 2 on the far side
+    of an obstacle the beam is bent over, 1 with no contact); the step of the linearised,
+    box-bounded least squares (a one-variable QP) is halved until the tip gets closer to the
+    goal. It reads the environment's state (the FEM positions it starts each solve from), so
+    it acts on the environment it was made for; ``iterations`` equilibria pairs a decision.
+    Returned as the environment's action: the cart's target over ``max_move``."""
+
+    def __init__(self, env: gym.Env, *, iterations: int = 3, probe: float = 0.5) -> None:
+        from pliant.robots.cartstem import cartstem_contact
+        from pliant.solvers import StaticSolver
+
+        self.base = env.unwrapped
+        self.iterations, self.probe = int(iterations), float(probe)
+        self._cart = [0.0]  # the planning model's cart, set before each solve
+        base = self.base
+        self.model = cartstem_contact(
+            stem=base.stem, length=base.length, cart_motion=lambda t: self._cart[0],
+            **base.robot_kwargs,
+        )  # fmt: skip
+        self.solver = StaticSolver(self.model)
+        self.solves = 0
+
+    def equilibrium(self, cart: float, positions: np.ndarray) -> tuple[float, np.ndarray] | None:
+        """The tip's x and the positions at equilibrium with the cart at `cart`, Newton started
+        from `positions`; None where the solve fails (the step is then refused)."""
+        from pliant.errors import DivergenceError
+
+        self._cart[0] = float(cart)
+        self.model.trajectories_changed()
+        state = self.model.rest_state()
+        state.positions[:] = positions
+        self.solves += 1
+        try:
+            out = self.solver.step(state)
+        except DivergenceError:
+            return None
+        return float(self.model.effectors[0].position(out.positions)[0, 0]), out.positions
+
+    def target(self, goal: float) -> float:
+        """The cart position this decision chooses for a tip goal `goal` (mm)."""
+        base = self.base
+        bound = base.max_move
+        cart = float(np.clip(base.cart_x(), -bound, bound))
+        found = self.equilibrium(cart, base.state.positions)
+        if found is None:
+            return cart
+        tip, positions = found
+        for _ in range(self.iterations):
+            error = tip - goal
+            if abs(error) < 0.25 * base.goal_tolerance:
+                break
+            direction = -np.sign(error) or 1.0
+            probe = self.equilibrium(cart + direction * self.probe, positions)
+            if probe is None:
+                break
+            slope = (probe[0] - tip) / (direction * self.probe)
+            if abs(slope) < 1e-3:  # the tip does not follow the cart here
+                break
+            step = float(np.clip(cart - error / slope, -bound, bound)) - cart
+            for _ in range(5):  # halve the step until the tip gets closer to the goal
+                trial = self.equilibrium(cart + step, positions)
+                if trial is not None and abs(trial[0] - goal) < abs(error):
+                    cart, (tip, positions) = cart + step, trial
+                    break
+                step *= 0.5
+            else:
+                break
+        return cart
+
+    def __call__(self, obs: np.ndarray) -> np.ndarray:
+        goal = float(obs[6]) * self.base.length
+        return np.array([self.target(goal) / self.base.max_move], dtype=np.float32)
 
 
 def make_scene(name: str, **env_kwargs) -> Scene:
@@ -49,5 +132,6 @@ def make_scene(name: str, **env_kwargs) -> Scene:
         from pliant.envs import make
 
         env = make("pliant/CartStemContact-v0", **env_kwargs)
-        return Scene(env, cartstem_graph(), dict.fromkeys(range(3), cartstem_controller(env)))
+        inverse = CartStemStaticInverse(env)  # one planning model for the three nodes
+        return Scene(env, cartstem_graph(), dict.fromkeys(range(3), inverse))
     raise ModelError(f"no graph for scene {name!r}: Corridor or CartStemContact")
