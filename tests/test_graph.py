@@ -16,6 +16,7 @@ from pliant.learn.graph import (  # noqa: E402
     ConfigurationGraph,
     ControllerAgent,
     Evaluator,
+    ExpertOption,
     FlatSAC,
     GraphAgent,
     GraphConfig,
@@ -28,7 +29,12 @@ from pliant.learn.graph import (  # noqa: E402
     option_transitions,
 )
 from pliant.learn.graph.agents import update_internal  # noqa: E402
-from pliant.learn.graph.toy import CorridorEnv, corridor_controller, corridor_graph  # noqa: E402
+from pliant.learn.graph.toy import (  # noqa: E402
+    CorridorEnv,
+    corridor_controller,
+    corridor_graph,
+    corridor_partition,
+)
 
 FAST = GraphConfig(hidden=64, d=16, lr=1e-3, batch_size=64, learning_starts=200, option_limit=20)
 
@@ -201,6 +207,60 @@ def test_cartstem_fem_inverse_reaches_a_goal_behind_the_obstacle_it_bends_over()
         if name == "fem":
             assert np.all(np.abs(controller(obs)) <= 1.0)
     assert reached["fem"] < 1.0 < 10.0 < reached["rigid"]
+
+
+def _walled_corridor(seed=0):
+    """The corridor where node 0's internal agent stands still and node 0 has no neighbour:
+    only the expert option (eight full steps right, penalised) leaves it."""
+    env = CorridorEnv()
+    graph = ConfigurationGraph(
+        ["left", "middle", "right"], [[0], [0, 1, 2], [1, 2]], partition=corridor_partition, start=0
+    )
+    controllers = {0: lambda obs: np.zeros(1), 1: corridor_controller(), 2: corridor_controller()}
+    dash = ExpertOption("dash", np.ones((8, 1)), start_nodes=[0], penalty=-0.5)
+    agent = GraphAgent(
+        graph, env.observation_space, env.action_space, FAST,
+        controllers=controllers, experts=[dash], seed=seed,
+    )  # fmt: skip
+    return env, agent
+
+
+def test_expert_option_runs_its_actions_through_the_nodes_it_crosses():
+    env, agent = _walled_corridor()
+    # The Evaluator may choose the expert (choice 3) in node 0 only.
+    rng = np.random.default_rng(0)
+    agent.evaluator.temperature = 100.0
+    assert {agent.evaluator.choose(np.zeros(2), 0, rng) for _ in range(100)} == {0, 3}
+    assert {agent.evaluator.choose(np.zeros(2), 1, rng) for _ in range(100)} == {0, 1, 2}
+    agent.evaluator.choose = lambda obs, node, rng, greedy=False: 3 if node == 0 else node
+    start = env.reset(seed=5)[0][0]
+    run = agent.run_episode(env, train=True, seed=5)
+    # x from about -0.75: 8 steps of 0.1 cross node 1 (at step 5) into node 2, then the
+    # controller of node 2 finishes.
+    assert run["nodes"][:3] == [0, 1, 2] and run["success"]
+    buffer = agent.evaluator_buffer
+    stored = {k: v[: len(buffer)] for k, v in buffer.data.items()}
+    first = stored["choice"] == 3
+    assert int(first.sum()) == 8  # Eq. 4.6: one transition per step of the 8-step option
+    durations = sorted(stored["duration"][first].tolist())
+    assert durations == list(range(1, 9))
+    assert abs(start + 0.8 - float(stored["next_obs"][first][0, 0])) < 1e-5
+    with pytest.raises(ValueError, match="within"):
+        ExpertOption("bad", [[2.0]], start_nodes=[0])
+    with pytest.raises(ValueError, match="action values"):
+        GraphAgent(
+            corridor_graph(), env.observation_space, env.action_space, FAST,
+            experts=[ExpertOption("wide", np.zeros((2, 3)), [0])],
+        )  # fmt: skip
+
+
+def test_evaluator_learns_to_use_the_only_expert_that_leaves_a_node():
+    env, agent = _walled_corridor()
+    untrained = [agent.run_episode(env, train=False, seed=200 + k) for k in range(10)]
+    assert np.mean([r["success"] for r in untrained]) == 0.0  # it stands still in node 0
+    agent.learn(env, 800)
+    runs = [agent.run_episode(env, train=False, seed=200 + k) for k in range(10)]
+    assert np.mean([r["success"] for r in runs]) >= 0.9
 
 
 def test_checkpoint_round_trip(tmp_path):

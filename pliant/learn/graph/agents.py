@@ -138,14 +138,16 @@ class Evaluator(nn.Module):
         temperature: float = 0.5,
     ) -> None:
         super().__init__()
+        # (nodes, choices): the nodes V_i ∪ {i}, then any expert options available in node i.
         self.reachable = torch.as_tensor(np.asarray(reachable, dtype=bool))
         self.gamma, self.tau, self.temperature = gamma, tau, temperature
-        self.attention = NodeAttention(obs_dim, len(reachable), d, hidden)
+        self.attention = NodeAttention(obs_dim, self.reachable.shape[1], d, hidden)
         self.target = copy.deepcopy(self.attention).requires_grad_(False)
         self.optimiser = torch.optim.Adam(self.attention.parameters(), lr=lr)
 
     def scores(self, obs: torch.Tensor, node: torch.Tensor, target: bool = False):
-        """Q(s, j) for every node j, −inf where j ∉ V_node ∪ {node}."""
+        """Q(s, j) for every choice j (the nodes, then the expert options), −inf where j is
+        not available in ``node``."""
         q = (self.target if target else self.attention)(obs)
         return q.masked_fill(~self.reachable[node.long()], -torch.inf)
 
@@ -301,6 +303,36 @@ class ControllerAgent:
 
     def act(self, obs: np.ndarray, deterministic: bool = True) -> np.ndarray:
         return np.asarray(self.controller(obs), dtype=np.float32)
+
+
+class ExpertOption:
+    """An expert trajectory used as an external option (thesis §4.2.2: the RodManipulator's
+    re-contact sequences, which move the fingers away and bring them back on the rod from the
+    other side): an open-loop sequence of actions in the agents' scale, [-1, 1]^m, which the
+    Evaluator may choose in any node of ``start_nodes``. It runs to its last action (or the
+    episode's end) through whatever nodes it crosses, its primitive transitions feeding the
+    agents of the nodes they start in, and its return is charged ``penalty`` once (the thesis
+    penalises using them). The Evaluator scores it with an identifier of its own, beside the
+    nodes'."""
+
+    def __init__(
+        self, name: str, actions, start_nodes: Sequence[int], penalty: float = 0.0
+    ) -> None:
+        actions = np.asarray(actions, dtype=np.float32)
+        if actions.ndim != 2 or actions.shape[0] == 0:
+            raise ValueError(f"expert {name!r}: actions must be a non-empty (T, m) array")
+        if not np.all(np.isfinite(actions)) or np.abs(actions).max() > 1.0:
+            raise ValueError(f"expert {name!r}: actions must be finite and within [-1, 1]")
+        if not start_nodes:
+            raise ValueError(f"expert {name!r}: give the nodes it may start from")
+        if not np.isfinite(penalty):
+            raise ValueError(f"expert {name!r}: penalty must be finite, got {penalty!r}")
+        self.name, self.actions = name, actions
+        self.start_nodes = tuple(int(i) for i in start_nodes)
+        self.penalty = float(penalty)
+
+    def __len__(self) -> int:
+        return len(self.actions)
 
 
 def boundary_values(

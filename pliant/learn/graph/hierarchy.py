@@ -12,7 +12,7 @@ transitions of Eq. 4.6, penalised (``penalty``) when an internal agent changed t
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -24,6 +24,7 @@ from pliant.learn.graph.agents import (
     EXTERNAL_REWARDS,
     ControllerAgent,
     Evaluator,
+    ExpertOption,
     ExternalAgent,
     InternalAgent,
     Selector,
@@ -64,6 +65,8 @@ class GraphAgent:
         controllers: ``{node: controller}`` replaces those nodes' internal agents by
             :class:`ControllerAgent` (convex optimisation).
         selector: a trained :class:`Selector`, used where the graph has no partition function.
+        experts: :class:`ExpertOption` s, more choices of the Evaluator in their start nodes
+            (choice ``n_nodes + k`` is expert k).
         seed: seeds torch and the agent's random generator.
     """
 
@@ -76,10 +79,20 @@ class GraphAgent:
         *,
         controllers: dict[int, Callable[[np.ndarray], np.ndarray]] | None = None,
         selector: Selector | None = None,
+        experts: Sequence[ExpertOption] = (),
         seed: int = 0,
     ) -> None:
         if graph.partition is None and selector is None:
             raise ValueError("the graph has no partition function: give a trained Selector")
+        self.experts = list(experts)
+        for expert in self.experts:
+            if expert.actions.shape[1] != action_space.shape[0]:
+                raise ValueError(
+                    f"expert {expert.name!r} has {expert.actions.shape[1]} action values, the"
+                    f" environment {action_space.shape[0]}"
+                )
+            if not all(0 <= i < graph.n_nodes for i in expert.start_nodes):
+                raise ValueError(f"expert {expert.name!r}: start nodes outside the graph")
         torch.manual_seed(seed)
         self.rng = np.random.default_rng(seed)
         self.graph, self.selector = graph, selector
@@ -101,8 +114,12 @@ class GraphAgent:
             ) if graph.neighbours(i) else None
             for i in range(n)
         ]  # fmt: skip
+        choices = np.zeros((n, n + len(self.experts)), dtype=bool)
+        choices[:, :n] = graph.reachable_mask()
+        for k, expert in enumerate(self.experts):
+            choices[list(expert.start_nodes), n + k] = True
         self.evaluator = Evaluator(
-            obs_dim, graph.reachable_mask(), d=c.d, hidden=c.hidden, lr=c.lr, gamma=c.gamma,
+            obs_dim, choices, d=c.d, hidden=c.hidden, lr=c.lr, gamma=c.gamma,
             tau=c.evaluator_tau, temperature=c.evaluator_temperature,
         )  # fmt: skip
         self.evaluator_buffer = ReplayBuffer(
@@ -134,24 +151,35 @@ class GraphAgent:
         """One episode; with ``train`` it explores, stores and learns. Returns its return,
         length, success and the node sequence."""
         obs, _ = env.reset(seed=seed)
-        node = self.node_of(obs)
+        node, n = self.node_of(obs), self.graph.n_nodes
         total, length, nodes, done, success = 0.0, 0, [node], False, False
         while not done:
             choice = self.evaluator.choose(obs, node, self.rng, greedy=not train)
+            expert = self.experts[choice - n] if choice >= n else None
             runs_option = choice != node or not self.internal[node].learned
-            observations, rewards = [obs], []
+            observations, rewards, current = [obs], [], node
             while True:
-                action = self._primitive(obs, node, choice, explore=train)
+                if expert is not None:
+                    action = expert.actions[len(rewards)]
+                else:
+                    action = self._primitive(obs, node, choice, explore=train)
                 next_obs, reward, terminated, truncated, info = env.step(self._scale(action))
                 next_node = self.node_of(next_obs)
                 total, length = total + float(reward), length + 1
                 done = terminated or truncated
                 success = success or bool(info.get("is_success", terminated))
                 if train:
-                    self._store(obs, action, reward, next_obs, node, next_node, terminated)
+                    self._store(obs, action, reward, next_obs, current, next_node, terminated)
                 observations.append(next_obs)
                 rewards.append(float(reward))
                 obs = next_obs
+                if expert is not None:  # runs to its end, through the nodes it crosses
+                    if next_node != current:
+                        nodes.append(next_node)
+                    current = next_node
+                    if done or len(rewards) >= len(expert):
+                        break
+                    continue
                 if (
                     done
                     or next_node != node
@@ -162,9 +190,11 @@ class GraphAgent:
             if train:
                 if choice == node and next_node != node:
                     rewards[-1] += self.config.penalty
+                if expert is not None:
+                    rewards[-1] += expert.penalty
                 for t in option_transitions(observations, rewards, terminated):
                     self.evaluator_buffer.add(node=node, choice=choice, next_node=next_node, **t)
-            if next_node != node:
+            if expert is None and next_node != node:
                 nodes.append(next_node)
             node = next_node
         return {"return": total, "length": length, "success": success, "nodes": nodes}
