@@ -156,7 +156,28 @@ def test_divergence_truncates_with_the_last_finite_observation(monkeypatch):
     monkeypatch.setattr(env.unwrapped.sim, "step", diverge)
     obs, r, term, trunc, info = env.step(0)
     np.testing.assert_array_equal(obs, obs0)
+    # Eq. 3.2 where the step began: no progress.
     assert trunc and not term and r == 0.0 and "blown up" in info["diverged"]
+
+
+def test_a_diverged_step_is_rewarded_as_staying_where_it_began(monkeypatch):
+    # CartStemContact's reward is -|x_tip - x_goal| / L: a reward of 0 would pay the agent for
+    # breaking the simulation; it gets the reward of the state the step began in.
+    env = make("CartStemContact")
+    obs0, _ = env.reset(seed=0)
+    base = env.unwrapped
+    start = base.state
+    expected = -abs(base.tip_x() - base.task["goal"]) / base.length
+
+    def diverge(state, control=None):
+        raise DivergenceError("blown up", step=state.step, cause="energy")
+
+    monkeypatch.setattr(base.sim, "step", diverge)
+    obs, r, term, trunc, info = env.step(np.array([1.0], dtype=np.float32))
+    np.testing.assert_array_equal(obs, obs0)
+    assert trunc and not term and "blown up" in info["diverged"]
+    assert expected < 0.0 and r == pytest.approx(expected)
+    assert base.state is start
 
 
 def test_rewards_of_the_thesis_and_sofagym_variants():

@@ -267,23 +267,21 @@ class SoftRobotEnv(gym.Env):
         # the snapshot and the action only (module docstring).
         self.sim.system.invalidate()
         clock = time.perf_counter()
+        before = self.state
         try:
             for k in range(1, self.substeps + 1):
                 cmd = start + (target - start) * (k / self.substeps)
                 self.state = self.sim.step(self.state, cmd if self.n_actuators else None)
             self.commands = target
         except (DivergenceError, SolverError, ConstraintError) as exc:
-            # The last finite observation, the episode truncated and the cause in info.
             self.sim_seconds += time.perf_counter() - clock
-            self._elapsed += 1
-            info = {"diverged": f"{type(exc).__name__}: {exc}", "reward_parts": {}}
-            return self._last_obs.copy(), 0.0, False, True, info
+            return self._diverged(before, f"{type(exc).__name__}: {exc}")
         self.sim_seconds += time.perf_counter() - clock
         self._elapsed += 1
         obs = self._observe()
         if not np.all(np.isfinite(obs)):
-            info = {"diverged": "non-finite observation", "reward_parts": {}}
-            return self._last_obs.copy(), 0.0, False, True, info
+            self._elapsed -= 1
+            return self._diverged(before, "non-finite observation")
         obs = self._clip_observation(obs)
         self._last_obs = obs
         reward, terminated, parts = self._reward()
@@ -291,6 +289,18 @@ class SoftRobotEnv(gym.Env):
         if self.render_mode == "human":
             self.render()
         return obs.copy(), float(reward), bool(terminated), False, info
+
+    def _diverged(self, before: State, cause: str):
+        """A step the simulation could not take: the state goes back to where the step began
+        (the last finite observation), the episode is truncated with the cause in
+        ``info["diverged"]``, and the reward is that state's, as if the robot had stayed
+        there. A learner bootstraps from a truncation; a reward of 0 instead would pay an
+        agent of negative rewards (distances) for making the simulation fail."""
+        self.state = before
+        self._elapsed += 1
+        reward, _, parts = self._reward()
+        info = {"diverged": cause, "reward_parts": parts}
+        return self._last_obs.copy(), float(reward), False, True, info
 
     def _info(self) -> dict[str, Any]:
         return {}
