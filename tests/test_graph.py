@@ -94,6 +94,8 @@ def test_selector_learns_the_corridor_partition():
     history = selector.fit(train, label(train[:, 0]), epochs=40, lr=3e-3, seed=0)
     assert len(history["val_accuracy"]) == 40
     assert selector.accuracy(test, label(test[:, 0])) >= 0.99
+    with pytest.raises(ValueError, match="schedule"):
+        selector.fit(train[:10], label(train[:10, 0]), epochs=1, schedule="step")
     probabilities = selector(torch.as_tensor(test[:5], dtype=torch.float32))
     assert torch.allclose(probabilities.sum(-1), torch.ones(5))
 

@@ -2,6 +2,7 @@
 > 99.7 % on 50000 test samples, 20 % of the labelled data for validation).
 
     python experiments/graph/selector.py [--train 50000] [--test 50000] [--epochs 30]
+        [--batch-size 64] [--schedule constant|cosine] [--lr 1e-3]
 
 The states are drawn, not simulated: x_cart uniform on the cart's range (±0.45 beam lengths),
 obstacles at random positions and sizes around the scene's (x_left ∈ [−0.35, −0.15],
@@ -42,6 +43,8 @@ def main() -> None:
     parser.add_argument("--epochs", type=int, default=30)
     parser.add_argument("--hidden", type=int, default=256)
     parser.add_argument("--lr", type=float, default=1e-3)
+    parser.add_argument("--batch-size", type=int, default=64)
+    parser.add_argument("--schedule", choices=["constant", "cosine"], default="constant")
     parser.add_argument("--out", type=Path, default=Path("experiments/results/graph"))
     args = parser.parse_args()
     torch.set_num_threads(1)
@@ -51,13 +54,18 @@ def main() -> None:
     label = lambda s: np.array([cartstem_partition(x) for x in s])  # noqa: E731
     selector = Selector(7, 3, d=64, hidden=args.hidden)
     start = time.perf_counter()
-    history = selector.fit(data, label(data), epochs=args.epochs, lr=args.lr, seed=0)
+    history = selector.fit(
+        data, label(data), epochs=args.epochs, lr=args.lr, batch_size=args.batch_size,
+        schedule=args.schedule, seed=0,
+    )  # fmt: skip
     result = {
         "train_states": args.train,
         "validation_fraction": 0.2,
         "epochs": args.epochs,
         "hidden": args.hidden,
         "lr": args.lr,
+        "batch_size": args.batch_size,
+        "schedule": args.schedule,
         "best_validation_accuracy": max(history["val_accuracy"]),
         "test_states": args.test,
         "test_accuracy": selector.accuracy(test, label(test)),
