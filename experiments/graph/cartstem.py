@@ -10,8 +10,9 @@ through ``pliant graph train``'s ``train_run``: a run folder per (method, seed) 
 checkpoint and evaluation history, and rerunning the script resumes each run up to ``--steps``
 (a larger ``--steps`` continues the same runs; ``--steps 0`` only summarises them). Writes
 ``<out>/<scene>/summary.json``: per method and seed the first evaluated step with success ≥
-``--solved`` ("iterations to solve"), the last return, and whether the budget is below the
-thesis' 250k (``partial``); and a plot of the learning curves (mean and min-max over seeds).
+``--solved`` ("iterations to solve"), its steps and last evaluation, and whether a budget is
+below the thesis' 250k (``partial``), over every run folder of the scene (not only those this
+call trained); and a plot of the learning curves (mean and min-max over seeds).
 """
 
 from __future__ import annotations
@@ -37,6 +38,7 @@ CONFIGS = {
                  "option_limit": 20},
 }  # fmt: skip
 THESIS_STEPS = 250_000
+METHODS = ("graph", "convex", "sac")
 
 
 def first_solved(history: list[dict], solved: float) -> int | None:
@@ -64,28 +66,36 @@ def main() -> None:
                 config=CONFIGS[args.scene], eval_every=args.eval_every,
                 eval_episodes=args.eval_episodes,
             )  # fmt: skip
+    # The summary covers every run folder of the scene, whichever this call trained.
+    for folder in sorted(root.glob("*_seed*")):
+        method, _, seed = folder.name.rpartition("_seed")
+        if method in METHODS and (folder / "history.json").exists() and seed.isdigit():
+            history = json.loads((folder / "history.json").read_text())["evaluations"]
+            runs.setdefault((method, int(seed)), history)
+    methods = [m for m in METHODS if any(key[0] == m for key in runs)]
     summary = {
         "scene": args.scene,
-        "steps": args.steps,
-        "partial": args.steps < THESIS_STEPS,
+        "partial": any(h and h[-1]["steps"] < THESIS_STEPS for h in runs.values()),
         "solved_success": args.solved,
         "config": CONFIGS[args.scene],
         "thesis_iterations_to_solve": {"sac": 140_000, "graph": 80_000, "convex": 40_000},
         "runs": {
             method: {
                 str(seed): {
-                    "iterations_to_solve": first_solved(runs[method, seed], args.solved),
-                    "last": runs[method, seed][-1] if runs[method, seed] else None,
+                    "steps": history[-1]["steps"] if history else 0,
+                    "iterations_to_solve": first_solved(history, args.solved),
+                    "last": history[-1] if history else None,
                 }
-                for seed in args.seeds
+                for (m, seed), history in sorted(runs.items())
+                if m == method
             }
-            for method in args.methods
+            for method in methods
         },
     }
     (root / "summary.json").write_text(json.dumps(summary, indent=1))
     fig, ax = plt.subplots(figsize=(6, 3.5))
-    for method in args.methods:
-        curves = [runs[method, s] for s in args.seeds if runs[method, s]]
+    for method in methods:
+        curves = [h for (m, _), h in sorted(runs.items()) if m == method and h]
         if not curves:
             continue
         n = min(len(c) for c in curves)
