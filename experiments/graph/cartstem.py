@@ -48,7 +48,10 @@ def first_solved(history: list[dict], solved: float) -> int | None:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--scene", default="CartStemContact")
-    parser.add_argument("--methods", nargs="+", default=["graph", "convex", "sac"])
+    parser.add_argument(
+        "--methods", nargs="*", default=["graph", "convex", "sac"],
+        help="methods to train (none: only summarise the run folders there)",
+    )  # fmt: skip
     parser.add_argument("--seeds", nargs="+", type=int, default=[0, 1, 2])
     parser.add_argument("--steps", type=int, default=THESIS_STEPS)
     parser.add_argument("--eval-every", type=int, default=600)
