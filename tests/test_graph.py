@@ -249,6 +249,28 @@ def test_expert_option_runs_its_actions_through_the_nodes_it_crosses():
     assert abs(start + 0.8 - float(stored["next_obs"][first][0, 0])) < 1e-5
     with pytest.raises(ValueError, match="within"):
         ExpertOption("bad", [[2.0]], start_nodes=[0])
+    with pytest.raises(ValueError, match="steps"):
+        ExpertOption("policy", lambda obs, k: obs, start_nodes=[0])
+
+
+def test_closed_loop_expert_acts_on_the_state_it_meets():
+    """An expert given as a policy: steer to x = 0.5 from wherever the option starts, 16 steps
+    (x starts in [-0.9, -0.6]; a step moves it by 0.1 at most: 14 steps reach 0.5)."""
+    env, agent = _walled_corridor()
+    to_half = ExpertOption(
+        "to_half", lambda obs, k: [(0.5 - obs[0]) / 0.1], start_nodes=[0], steps=16, action_dim=1
+    )
+    agent = GraphAgent(
+        agent.graph, env.observation_space, env.action_space, FAST,
+        controllers={i: lambda obs: np.zeros(1) for i in range(3)}, experts=[to_half],
+    )  # fmt: skip
+    agent.evaluator.choose = lambda obs, node, rng, greedy=False: 3 if node == 0 else node
+    env.reset(seed=3)
+    agent.run_episode(env, train=False, seed=3)
+    assert abs(env.x - 0.5) < 1e-6  # then node 2's controller stands still
+    bad = ExpertOption("nan", lambda obs, k: [np.nan], start_nodes=[0], steps=2, action_dim=1)
+    with pytest.raises(ValueError, match="finite"):
+        bad.act(np.zeros(2), 0)
     with pytest.raises(ValueError, match="action values"):
         GraphAgent(
             corridor_graph(), env.observation_space, env.action_space, FAST,

@@ -320,31 +320,57 @@ class ControllerAgent:
 class ExpertOption:
     """An expert trajectory used as an external option (thesis §4.2.2: the RodManipulator's
     re-contact sequences, which move the fingers away and bring them back on the rod from the
-    other side): an open-loop sequence of actions in the agents' scale, [-1, 1]^m, which the
-    Evaluator may choose in any node of ``start_nodes``. It runs to its last action (or the
-    episode's end) through whatever nodes it crosses, its primitive transitions feeding the
-    agents of the nodes they start in, and its return is charged ``penalty`` once (the thesis
-    penalises using them). The Evaluator scores it with an identifier of its own, beside the
-    nodes'."""
+    other side), in the agents' action scale, [-1, 1]^m, which the Evaluator may choose in any
+    node of ``start_nodes``. ``actions`` is the open-loop sequence, a (T, m) array (the
+    authors' experts), or a callable ``(obs, k) -> action`` for step k of ``steps`` (an expert
+    that places the robot from where it is, e.g. an inverse controller with its own goals).
+    It runs for its T steps (or to the episode's end) through whatever nodes it crosses, its
+    primitive transitions feeding the agents of the nodes they start in, and its return is
+    charged ``penalty`` once (the thesis penalises using them). The Evaluator scores it with
+    an identifier of its own, beside the nodes'."""
 
     def __init__(
-        self, name: str, actions, start_nodes: Sequence[int], penalty: float = 0.0
+        self,
+        name: str,
+        actions,
+        start_nodes: Sequence[int],
+        penalty: float = 0.0,
+        *,
+        steps: int | None = None,
+        action_dim: int | None = None,
     ) -> None:
-        actions = np.asarray(actions, dtype=np.float32)
-        if actions.ndim != 2 or actions.shape[0] == 0:
-            raise ValueError(f"expert {name!r}: actions must be a non-empty (T, m) array")
-        if not np.all(np.isfinite(actions)) or np.abs(actions).max() > 1.0:
-            raise ValueError(f"expert {name!r}: actions must be finite and within [-1, 1]")
+        if callable(actions):
+            if steps is None or action_dim is None or steps < 1 or action_dim < 1:
+                raise ValueError(f"expert {name!r}: a policy needs steps >= 1 and action_dim")
+            self.policy, self.steps, self.action_dim = actions, int(steps), int(action_dim)
+        else:
+            table = np.asarray(actions, dtype=np.float32)
+            if table.ndim != 2 or table.shape[0] == 0:
+                raise ValueError(f"expert {name!r}: actions must be a non-empty (T, m) array")
+            if not np.all(np.isfinite(table)) or np.abs(table).max() > 1.0:
+                raise ValueError(f"expert {name!r}: actions must be finite and within [-1, 1]")
+            self.policy = lambda obs, k: table[k]
+            self.steps, self.action_dim = table.shape
         if not start_nodes:
             raise ValueError(f"expert {name!r}: give the nodes it may start from")
         if not np.isfinite(penalty):
             raise ValueError(f"expert {name!r}: penalty must be finite, got {penalty!r}")
-        self.name, self.actions = name, actions
+        self.name = name
         self.start_nodes = tuple(int(i) for i in start_nodes)
         self.penalty = float(penalty)
 
     def __len__(self) -> int:
-        return len(self.actions)
+        return self.steps
+
+    def act(self, obs: np.ndarray, k: int) -> np.ndarray:
+        """The action of step k (0-based) from observation ``obs``."""
+        action = np.asarray(self.policy(obs, k), dtype=np.float32).reshape(-1)
+        if action.shape != (self.action_dim,) or not np.all(np.isfinite(action)):
+            raise ValueError(
+                f"expert {self.name!r}: step {k} gave {action!r}, not {self.action_dim} finite"
+                " values"
+            )
+        return np.clip(action, -1.0, 1.0)
 
 
 def boundary_values(

@@ -86,9 +86,9 @@ class GraphAgent:
             raise ValueError("the graph has no partition function: give a trained Selector")
         self.experts = list(experts)
         for expert in self.experts:
-            if expert.actions.shape[1] != action_space.shape[0]:
+            if expert.action_dim != action_space.shape[0]:
                 raise ValueError(
-                    f"expert {expert.name!r} has {expert.actions.shape[1]} action values, the"
+                    f"expert {expert.name!r} has {expert.action_dim} action values, the"
                     f" environment {action_space.shape[0]}"
                 )
             if not all(0 <= i < graph.n_nodes for i in expert.start_nodes):
@@ -160,7 +160,7 @@ class GraphAgent:
             observations, rewards, current = [obs], [], node
             while True:
                 if expert is not None:
-                    action = expert.actions[len(rewards)]
+                    action = expert.act(obs, len(rewards))
                 else:
                     action = self._primitive(obs, node, choice, explore=train)
                 next_obs, reward, terminated, truncated, info = env.step(self._scale(action))
