@@ -5,7 +5,8 @@ At each decision the current node i comes from the graph's partition function (c
 detection, geometry) or the Selector; the Evaluator picks j ∈ V_i ∪ {i}; j ≠ i runs node i's
 external agent towards S_j until the state leaves S_i (or ``option_limit`` steps, or the
 episode ends); j = i runs node i's internal agent for one step (T = 1), or, when it is a
-:class:`ControllerAgent`, until the node changes. Every primitive transition that starts in
+:class:`ControllerAgent`, until the node changes; a choice j ≥ N (N nodes) runs expert option
+j − N (:class:`ExpertOption`) to its end. Every primitive transition that starts in
 S_i feeds node i's internal and external buffers; every option feeds the Evaluator with the
 transitions of Eq. 4.6, penalised (``penalty``) when an internal agent changed the space.
 """
