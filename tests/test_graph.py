@@ -12,6 +12,7 @@ pytest.importorskip("networkx")
 
 import torch  # noqa: E402
 
+from pliant.errors import ModelError  # noqa: E402
 from pliant.learn.graph import (  # noqa: E402
     ConfigurationGraph,
     ControllerAgent,
@@ -209,6 +210,8 @@ def test_cartstem_fem_inverse_reaches_a_goal_behind_the_obstacle_it_bends_over()
         if name == "fem":
             assert np.all(np.abs(controller(obs)) <= 1.0)
     assert reached["fem"] < 1.0 < 10.0 < reached["rigid"]
+    with pytest.raises(ModelError, match="probe"):
+        CartStemStaticInverse(env, probe=float("nan"))
 
 
 def _walled_corridor(seed=0):

@@ -277,11 +277,10 @@ class SoftRobotEnv(gym.Env):
             self.sim_seconds += time.perf_counter() - clock
             return self._diverged(before, f"{type(exc).__name__}: {exc}")
         self.sim_seconds += time.perf_counter() - clock
-        self._elapsed += 1
         obs = self._observe()
         if not np.all(np.isfinite(obs)):
-            self._elapsed -= 1
             return self._diverged(before, "non-finite observation")
+        self._elapsed += 1
         obs = self._clip_observation(obs)
         self._last_obs = obs
         reward, terminated, parts = self._reward()

@@ -57,8 +57,12 @@ class CartStemStaticInverse:
         from pliant.robots.cartstem import cartstem_contact
         from pliant.solvers import StaticSolver
 
+        if isinstance(iterations, bool) or not isinstance(iterations, int) or iterations < 0:
+            raise ModelError(f"iterations must be an integer >= 0, got {iterations!r}")
+        if not (np.isfinite(probe) and probe > 0):
+            raise ModelError(f"probe must be a finite distance > 0 (mm), got {probe!r}")
         self.base = env.unwrapped
-        self.iterations, self.probe = int(iterations), float(probe)
+        self.iterations, self.probe = iterations, float(probe)
         self._cart = [0.0]  # the planning model's cart, set before each solve
         base = self.base
         self.model = cartstem_contact(
@@ -66,7 +70,6 @@ class CartStemStaticInverse:
             **base.robot_kwargs,
         )  # fmt: skip
         self.solver = StaticSolver(self.model)
-        self.solves = 0
 
     def equilibrium(self, cart: float, positions: np.ndarray) -> tuple[float, np.ndarray] | None:
         """The tip's x and the positions at equilibrium with the cart at `cart`, Newton started
@@ -77,7 +80,6 @@ class CartStemStaticInverse:
         self.model.trajectories_changed()
         state = self.model.rest_state()
         state.positions[:] = positions
-        self.solves += 1
         try:
             out = self.solver.step(state)
         except DivergenceError:
