@@ -436,3 +436,82 @@ def test_an_unknown_rotation_is_a_material_error() -> None:
 
     with pytest.raises(MaterialError, match="'polar' or 'large'"):
         Corotational(E, NU, rotation="small")
+
+
+def test_inversion_needs_the_large_frame_and_a_known_policy() -> None:
+    from pliant.errors import MaterialError
+
+    with pytest.raises(MaterialError, match="reflection"):
+        Corotational(E, NU, inversion="tolerate")
+    with pytest.raises(MaterialError, match="'refuse' or 'tolerate'"):
+        Corotational(E, NU, rotation="large", inversion="ignore")
+
+
+# ---------------------------------------------------------------------------------------------
+# Inverted elements under the large frame. SOFA's method="large" has no inversion check: the edge
+# frame is a rotation whatever the element's orientation, and an inverted element keeps the
+# force of psi = mu |sym(R^T F) - I|^2 + lam/2 tr(R^T F - I)^2, which pushes it back.
+
+
+def _inverted_state(small_beam) -> np.ndarray:
+    """The beam's positions (30 x 10 x 10 mm, cells of 10 mm) with its tip corner node pushed
+    15 mm inwards, through the elements around it."""
+    x = small_beam.points.copy()
+    tip = np.flatnonzero(x[:, 0] >= x[:, 0].max() - 1e-9)
+    corner = tip[np.argmax(x[tip, 1] + x[tip, 2])]
+    x[corner, 0] -= 15.0
+    return x
+
+
+def test_an_inverted_element_keeps_sofas_large_frame_force_when_tolerated(small_beam) -> None:
+    from pliant.errors import DivergenceError
+    from pliant.solvers.base import check_linearisation
+
+    x = _inverted_state(small_beam)
+    tolerant = Corotational(E, NU, rotation="large", inversion="tolerate")
+    lin = clamped_body(small_beam, tolerant).linearise(x)
+    assert lin.n_inverted > 0 and lin.dets.min() < 0.0
+    forces, energy = reference.internal_forces(
+        x, small_beam.tets, small_beam.points, tolerant.mu, tolerant.lam, "corotational", "large"
+    )
+    assert np.abs(lin.forces - forces).max() < 1e-10 * np.abs(forces).max()
+    assert lin.energy == pytest.approx(energy, rel=1e-12)
+    check_linearisation(lin, 1, 0.01)  # tolerated: no error
+    # The same state under the refusing law: the inverted elements give no force and the
+    # step reports them.
+    refused = clamped_body(small_beam, _large()).linearise(x)
+    assert refused.n_inverted == lin.n_inverted
+    assert np.abs(refused.forces - forces).max() > 1e-3 * np.abs(forces).max()
+    with pytest.raises(DivergenceError, match="inverted") as info:
+        check_linearisation(refused, 1, 0.01)
+    assert info.value.cause == "inverted"
+    # Away from inversion the two laws are one.
+    x_ok = small_beam.points + 0.01 * (x - small_beam.points)
+    a = clamped_body(small_beam, tolerant).linearise(x_ok)
+    b = clamped_body(small_beam, _large()).linearise(x_ok)
+    np.testing.assert_array_equal(a.forces, b.forces)
+
+
+def test_a_tolerated_inverted_element_is_pulled_back_to_the_rest_shape(small_beam) -> None:
+    """Released from the inverted state, the damped beam returns to its rest shape with every
+    element the right way out; the refusing law stops at the first step."""
+    from pliant.errors import DivergenceError
+    from pliant.model import State
+    from pliant.solvers import ImplicitEuler
+
+    x = _inverted_state(small_beam)
+    tolerant = Corotational(E, NU, rotation="large", inversion="tolerate")
+    body = clamped_body(small_beam, tolerant, rayleigh_mass=5.0, rayleigh_stiffness=0.01)
+    model = Model(body)
+    solver = ImplicitEuler(model, 0.01)
+    rest = model.rest_state()
+    state = State(x, np.zeros_like(x))
+    assert body.linearise(state.positions).n_inverted > 0
+    for _ in range(200):
+        state = solver.step(state)
+    assert body.linearise(state.positions).n_inverted == 0
+    assert np.abs(state.positions - rest.positions).max() < 0.03  # mm
+
+    refusing = Model(clamped_body(small_beam, _large(), rayleigh_mass=5.0))
+    with pytest.raises(DivergenceError, match="inverted"):
+        ImplicitEuler(refusing, 0.01).step(State(x, np.zeros_like(x)))

@@ -21,7 +21,12 @@ import scipy.sparse as sp
 from pliant.errors import MaterialError, ModelError
 from pliant.fem import kernels
 from pliant.fem.loads import Load, LoadAssembly
-from pliant.fem.material import COROTATIONAL, COROTATIONAL_LARGE, Material
+from pliant.fem.material import (
+    COROTATIONAL,
+    COROTATIONAL_LARGE,
+    COROTATIONAL_LARGE_INVERTIBLE,
+    Material,
+)
 from pliant.fem.membrane import Membrane, MembraneAssembly
 from pliant.fem.sparsity import StiffnessPattern
 from pliant.fem.supports import Projection
@@ -99,6 +104,7 @@ class Linearisation:
     stiffness_velocity: np.ndarray | None = None  # K_s v (n, 3) when linearised with v
     membrane_tangents: tuple[np.ndarray, ...] = ()  # (t, 9, 9) per membrane of the body
     load_tangents: tuple[np.ndarray | None, ...] = ()  # per load, its symmetric blocks or None
+    tolerates_inversion: bool = False  # inverted elements keep their force (see Corotational)
 
     @property
     def n_inverted(self) -> int:
@@ -190,7 +196,7 @@ class TetBody:
         self.tets = np.ascontiguousarray(mesh.tets, dtype=np.int64)
         self.volumes, self.grads = kernels.rest_gradients(self.rest_positions, self.tets)
         # SOFA's "large" rotation compares each element's edge frame with its rest one.
-        large = material.kernel_tag == COROTATIONAL_LARGE
+        large = material.kernel_tag in (COROTATIONAL_LARGE, COROTATIONAL_LARGE_INVERTIBLE)
         nodes = self.tets[:, :3] if frame_nodes is None else np.asarray(frame_nodes, np.int64)
         if large and frame_nodes is not None:
             ordered = np.sort(nodes, axis=1) if nodes.ndim == 2 else nodes
@@ -507,7 +513,15 @@ class TetBody:
             if kv is not None and tangent is not None:
                 kv += self.scatter(assembly.matvec(tangent, self.gather(v)[:, None])[:, 0])
         return Linearisation(
-            x, forces, float(energy), frames, dets, kv, tuple(tangents), tuple(load_tangents)
+            x,
+            forces,
+            float(energy),
+            frames,
+            dets,
+            kv,
+            tuple(tangents),
+            tuple(load_tangents),
+            self.material.tolerates_inversion,
         )
 
     def _tangent_args(self, lin: Linearisation, exact: bool) -> tuple:
@@ -547,7 +561,8 @@ class TetBody:
         """Tangent stiffness on the free DoFs, as data aligned with `self.pattern`."""
         data = np.zeros(self.pattern.nnz)
         tag = self.material.kernel_tag
-        if (tag == COROTATIONAL_LARGE or (tag == COROTATIONAL and not exact)) and self.tets.shape[
+        large = tag in (COROTATIONAL_LARGE, COROTATIONAL_LARGE_INVERTIBLE)
+        if (large or (tag == COROTATIONAL and not exact)) and self.tets.shape[
             0
         ] < PARALLEL_MIN_TETS:
             # SOFA's tangent in closed form, scattered as it is computed, on one thread: on the
@@ -559,6 +574,7 @@ class TetBody:
                 self.volumes,
                 self.mu,
                 self.lam,
+                tag,
                 lin.frames,
                 lin.dets,
                 self.pattern.scatter,

@@ -87,6 +87,14 @@ def polar_rotation(f):
 
 
 @njit(cache=True, inline="always")
+def _active(det, tag):
+    """Whether an element contributes force and stiffness: det F > 0, or any finite det F
+    for the inversion-tolerant large-frame law (tag 3), whose edge frame is a rotation
+    whatever the element's orientation; its energy then pulls the element back."""
+    return det > 0.0 or (tag == 3 and det == det)
+
+
+@njit(cache=True, inline="always")
 def _edge_frame(x, tet, q):
     """q = the edge frame of the nodes tet[0], tet[1], tet[2] (an element's first three in
     SOFA's "large" method), columns e_0, e_1, e_2: e_0 along x_1 - x_0, e_2 along
@@ -174,10 +182,11 @@ def internal_forces(
 
     Writes -V P g_a into `elem_forces` (m, 4, 3) (sum them per node with `gather_nodal`), the
     linearisation frame (R for corotational, F^-1 for Neo-Hookean) into `frames` (m, 3, 3)
-    (tag 2: R = Q(x) Q(X)^T with Q the edge frame of the nodes `frame_nodes` (m, 3) and Q(X)
+    (tags 2 and 3: R = Q(x) Q(X)^T with Q the edge frame of the nodes `frame_nodes` (m, 3) and Q(X)
     read from `rest_frames`)
-    and det F into `dets`. An element with det F <= 0 contributes no force; its det is recorded
-    so that the caller reports the inversion instead of a NaN. When `v` (n, 3) is not empty,
+    and det F into `dets`. An element with det F <= 0 contributes no force (except under tag 3,
+    see `_active`); its det is recorded so that the caller reports the inversion instead of a
+    NaN. When `v` (n, 3) is not empty,
     also writes the element contributions of K_s v (default tangent, the one assembled) into
     `elem_kv` (m, 4, 3), in the same pass: an implicit step needs both. Returns the energy.
     """
@@ -200,7 +209,7 @@ def internal_forces(
             _gradient(x, tets[e], g, f)
             det = _det3(f)
             dets[e] = det
-            if not det > 0.0:
+            if not _active(det, tag):
                 elem_forces[e] = 0.0
                 if with_v:
                     elem_kv[e] = 0.0
@@ -305,7 +314,7 @@ def _gather_by_node(elem_values, incidence_ptr, incidence, out):
 def _piola_differential(df, frame, f, det, mu, lam, tag, exact, dp, w1, w2):
     """dp = dP for a variation dF of the deformation gradient (w1, w2 are scratch).
 
-    Corotational (tags 0 and 2): SOFA's tangent R (2 mu sym(R^T dF) + lam tr(R^T dF) I), plus,
+    Corotational (tags 0, 2 and 3): SOFA's tangent R (2 mu sym(R^T dF) + lam tr(R^T dF) I), plus,
     when `exact` and the rotation is polar (tag 0), the variation of R:
     (lam tr(S - I) - 2 mu) dR with dR = R [w]x and (tr(S) I - S) w = axial(R^T dF - dF^T R).
     Neo-Hookean (frame = F^-1): mu dF + (mu - lam ln J) F^-T dF^T F^-T + lam tr(F^-1 dF) F^-T.
@@ -398,7 +407,7 @@ def stiffness_matvec(
         w2 = np.empty((3, 3))
         ue = np.empty((4, 3))
         for e in range(bounds[c], bounds[c + 1]):
-            if not dets[e] > 0.0:
+            if not _active(dets[e], tag):
                 elem_out[e] = 0.0
                 continue
             g = grads[e]
@@ -480,12 +489,12 @@ def element_stiffness(x, tets, grads, vols, mu, lam, tag, frames, dets, exact, b
         w2 = np.empty((3, 3))
         rg = np.empty((4, 3))
         for e in range(bounds[c], bounds[c + 1]):
-            if not dets[e] > 0.0:
+            if not _active(dets[e], tag):
                 blocks[e] = 0.0
                 continue
             g = grads[e]
             v = vols[e]
-            if tag == 2 or (tag == 0 and not exact):
+            if tag >= 2 or (tag == 0 and not exact):
                 _corotational_blocks(g, frames[e], v, mu[e], lam[e], rg, blocks[e])
                 continue
             _gradient(x, tets[e], g, f)
@@ -506,14 +515,14 @@ def element_stiffness(x, tets, grads, vols, mu, lam, tag, frames, dets, exact, b
 
 
 @njit(cache=True, nogil=True)
-def corotational_assembly(grads, vols, mu, lam, frames, dets, scatter, data):
+def corotational_assembly(grads, vols, mu, lam, tag, frames, dets, scatter, data):
     """data[scatter[e, r, c]] += K_e[r, c]: SOFA's corotational tangent assembled element by
     element without storing the blocks (`element_stiffness` then `scatter_add` for tag 0,
     not exact; the same sums in the same order)."""
     rg = np.empty((4, 3))
     block = np.empty((12, 12))
     for e in range(grads.shape[0]):
-        if not dets[e] > 0.0:
+        if not _active(dets[e], tag):
             continue
         _corotational_blocks(grads[e], frames[e], vols[e], mu[e], lam[e], rg, block)
         for r in range(12):

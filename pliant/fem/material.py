@@ -16,8 +16,10 @@ from pliant.errors import MaterialError
 COROTATIONAL = 0
 NEO_HOOKEAN = 1
 COROTATIONAL_LARGE = 2
+COROTATIONAL_LARGE_INVERTIBLE = 3  # "large" frames, inverted elements keep their force
 
 Rotation = Literal["polar", "large"]
+Inversion = Literal["refuse", "tolerate"]
 
 
 @dataclass(frozen=True)
@@ -32,6 +34,7 @@ class Material:
     young_modulus: float
     poisson_ratio: float
     kernel_tag: ClassVar[int] = -1
+    tolerates_inversion: ClassVar[bool] = False
 
     def __post_init__(self) -> None:
         e, nu = self.young_modulus, self.poisson_ratio
@@ -75,6 +78,15 @@ class Corotational(Material):
       motions, stretches along the frame's axes), and to first order in the strain
       elsewhere.
 
+    ``inversion="tolerate"`` (large frames only) is SOFA's behaviour at an inverted element
+    (det F <= 0): the edge frame is a rotation whatever the element's orientation, so the
+    element keeps its force, which pulls it back towards its rest shape, and the step goes on.
+    With ``"refuse"`` (the default) an inverted element is a divergence (``DivergenceError``,
+    cause ``"inverted"``): its state is not a deformation. Tolerating it lets a coarse mesh
+    follow a load that locally exceeds what its elements can represent (a cable's last
+    point pulled on one node), as SOFA's scenes do; the polar frame of an inverted F is a
+    reflection, so ``"polar"`` cannot tolerate inversion.
+
     The linearisation used by the dynamic step is SOFA's R K0 R^T (symmetric positive definite)
     for both. The exact tangent of the polar law, which adds the variation of R, is what the
     static Newton solve factorises (``StaticSolver(consistent=True)``); the large-frame forces
@@ -83,6 +95,7 @@ class Corotational(Material):
     """
 
     rotation: Rotation = "polar"
+    inversion: Inversion = "refuse"
 
     def __post_init__(self) -> None:
         super().__post_init__()
@@ -90,10 +103,23 @@ class Corotational(Material):
             raise MaterialError(
                 f"the corotational rotation is 'polar' or 'large', got {self.rotation!r}"
             )
+        if self.inversion not in ("refuse", "tolerate"):
+            raise MaterialError(f"inversion is 'refuse' or 'tolerate', got {self.inversion!r}")
+        if self.inversion == "tolerate" and self.rotation != "large":
+            raise MaterialError(
+                "inversion='tolerate' needs rotation='large': the polar rotation of an inverted"
+                " element is a reflection"
+            )
 
     @property
     def kernel_tag(self) -> int:  # type: ignore[override]
-        return COROTATIONAL_LARGE if self.rotation == "large" else COROTATIONAL
+        if self.rotation == "polar":
+            return COROTATIONAL
+        return COROTATIONAL_LARGE_INVERTIBLE if self.inversion == "tolerate" else COROTATIONAL_LARGE
+
+    @property
+    def tolerates_inversion(self) -> bool:
+        return self.inversion == "tolerate"
 
 
 @dataclass(frozen=True)

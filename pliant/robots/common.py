@@ -11,18 +11,30 @@ from pliant.constraints.cable import CableActuator
 from pliant.constraints.effector import PositionEffector
 from pliant.errors import ModelError
 from pliant.fem.body import TetBody, nodes_in_box
-from pliant.fem.material import MATERIALS, Material
+from pliant.fem.material import MATERIALS, Corotational, Material
 from pliant.mesh.quality import validate_mesh
 from pliant.mesh.tetmesh import TetMesh
 
-MaterialName = Literal["corotational", "neo-hookean"]
+MaterialName = Literal[
+    "corotational", "corotational-large", "corotational-large-tolerant", "neo-hookean"
+]
+
+# Variants of the corotational law by name: SOFA's "large" element frames, and the same
+# frames with inverted elements kept in the step, as SOFA runs them (see `Corotational`).
+_VARIANTS = {
+    "corotational-large": {"rotation": "large"},
+    "corotational-large-tolerant": {"rotation": "large", "inversion": "tolerate"},
+}
 
 
 def make_material(name: str, young_modulus: float, poisson_ratio: float) -> Material:
+    if name in _VARIANTS:
+        return Corotational(young_modulus, poisson_ratio, **_VARIANTS[name])
     try:
         cls = MATERIALS[name]
     except KeyError:
-        raise ModelError(f"unknown material {name!r}; choose one of {sorted(MATERIALS)}") from None
+        names = sorted([*MATERIALS, *_VARIANTS])
+        raise ModelError(f"unknown material {name!r}; choose one of {names}") from None
     return cls(young_modulus, poisson_ratio)
 
 

@@ -68,7 +68,7 @@ def check_linearisation(lin: Linearisation, step: int, dt: float | None) -> None
         and math.isfinite(lin.energy)
     ):
         return  # the usual case, in two passes over the arrays
-    if lin.n_inverted:
+    if lin.n_inverted and not lin.tolerates_inversion:
         first = int(np.flatnonzero(~(lin.dets > 0))[0])
         raise DivergenceError(
             f"step {step}: {lin.n_inverted} element(s) inverted (first: element {first},"
