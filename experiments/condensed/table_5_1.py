@@ -39,6 +39,10 @@ THESIS = {"diamond": (6.52e-5, 8960), "finger": (3.79e-6, 8850)}
 BOUNDS = {"diamond": ((0.0, 30.0),) * 4, "finger": ((-10.0, 10.0),) * 2}
 # The Diamond's cables may reach the sampled 30 mm (SoftRobots' inverse scene stops at 20).
 ROBOT_KWARGS = {"diamond": {"max_cable_displacement": 30.0}, "finger": {}}
+# Each Diamond sample is actuated from rest: its arms, compressed by antagonist cables, have
+# several equilibria for one command, and stepping from the previous sample's equilibrium put
+# some samples on another branch (CollectionPlan's `start`).
+START = {"diamond": "rest", "finger": "previous"}
 
 
 def main(
@@ -70,6 +74,7 @@ def main(
             samples,
             robot_kwargs=ROBOT_KWARGS[robot],
             consistent_tangent=False,
+            start=START[robot],
         )
         dataset = load_or_collect(plan, work / f"{robot}_{samples}.h5", workers=workers)
         config = TrainConfig(

@@ -2,11 +2,12 @@
 
 The samples are cut into chunks of `plan.chunk_size`. A worker solves a chunk in a row, each
 sample load-stepped from the previous one's equilibrium (Newton converges where a jump from rest
-would not), the first of each design from its rest equilibrium; so a chunk's result does not
-depend on which worker solves it, nor when. Every finished chunk is written at once, atomically,
-next to the output file (`OUT.parts/`): an interrupted collection loses nothing already
-computed, and the next call with the same plan solves only the missing chunks and gives the
-same dataset.
+would not; the first of each design from its rest equilibrium) or, with ``plan.start ==
+"rest"``, from its design's rest equilibrium (a robot with several equilibria for one command);
+so a chunk's result does not depend on which worker solves it, nor when. Every finished chunk
+is written at once, atomically, next to the output file (`OUT.parts/`): an interrupted
+collection loses nothing already computed, and the next call with the same plan solves only
+the missing chunks and gives the same dataset.
 
 Chunks run on local processes (default), in this process (`workers=1`), or on a Ray cluster
 (`ray_address`, e.g. "auto" for the cluster this machine belongs to). Local workers end with
@@ -213,8 +214,10 @@ def solve_chunk(plan: CollectionPlan, points: np.ndarray) -> Split:
                 for effector, goal in zip(model.effectors, goals, strict=True):
                     effector.goals = goal
             robot = ContactRobot.for_plan(model, plan)
-            state = robot.rest()
+            rest = state = robot.rest()
             w0, free0 = robot.layout.pack(robot.problem(state))
+        if plan.start == "rest":
+            state = rest
         try:
             if plan.contacts:  # the object displaced from where the actuators put the points
                 state = robot.release(state, command[:n_act])
