@@ -174,6 +174,68 @@ def test_saved_model_predicts_as_the_trained_one(learned, dataset, tmp_path) -> 
         np.testing.assert_array_equal(problem.compliance, problem.compliance.T)
 
 
+def test_cosine_schedule_decays_and_resumes_exactly(dataset, tmp_path) -> None:
+    config = TrainConfig(
+        epochs=8,
+        batch_size=8,
+        learning_rate=1e-3,
+        hidden=(32, 32),
+        activation="silu",
+        schedule="cosine",
+        weight_decay=1e-4,
+        progress=False,
+    )
+    _, whole = train_condensed(dataset, config)
+    # 3 batches an epoch: the warm-up (5 % of 24 batches) is over within the first epoch,
+    # then the rate decays every epoch, to near 1e-4 of the rate at the cycle's end.
+    rates = np.array([h["lr"] for h in whole.history])
+    assert 0.9e-3 < rates[0] <= 1e-3 and np.all(np.diff(rates) < 0)
+    assert rates[-1] < 0.05 * 1e-3
+    # killed after its third epoch's checkpoint, then the same command again
+    interrupted = dataclasses.replace(config, checkpoint=tmp_path / "run.ckpt", checkpoint_every=3)
+    learned, resumed = _train_interrupted(dataset, interrupted, after=3)
+    np.testing.assert_allclose(
+        [h["train"] for h in resumed.history], [h["train"] for h in whole.history], rtol=1e-6
+    )
+    assert learned.network.activation == "silu"
+
+
+def _train_interrupted(dataset, config, *, after):
+    """Train with `config`, the process 'killed' once the checkpoint of epoch `after` is on
+    disk, then the same call again (which resumes from it)."""
+    import pliant.condensed.train as train_module
+
+    real = train_module._save_checkpoint
+
+    def save_then_die(path, epoch, *args):
+        real(path, epoch, *args)
+        if epoch == after:
+            raise KeyboardInterrupt
+
+    train_module._save_checkpoint = save_then_die
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            train_condensed(dataset, config)
+    finally:
+        train_module._save_checkpoint = real
+    return train_condensed(dataset, config)
+
+
+@pytest.mark.parametrize(
+    ("field", "value", "message"),
+    [
+        ("schedule", "step", "schedule must be one of"),
+        ("activation", "sigmoid", "activation must be one of"),
+        ("weight_decay", -1.0, "weight_decay must be finite and >= 0"),
+    ],
+)
+def test_training_options_are_checked(field, value, message) -> None:
+    from pliant.errors import TrainingError
+
+    with pytest.raises(TrainingError, match=message):
+        TrainConfig(**{field: value})
+
+
 # ---------------------------------------------------------------------------------------------
 # Control
 

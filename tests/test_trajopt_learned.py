@@ -73,6 +73,38 @@ def test_network_jacobian_is_autograd(learned):
         assert np.allclose(dy[row].T, expected.numpy(), rtol=1e-9, atol=1e-12)
 
 
+@pytest.mark.parametrize("activation", ["silu", "tanh"])
+def test_numpy_passes_of_a_smooth_network_are_torchs(learned, activation):
+    """The model's weights in a network of a smooth activation: the NumPy forward passes (the
+    controller's, float32; the DDP's with its Jacobian, float64) against torch and autograd."""
+    from pliant.condensed.learned import numpy_forward
+    from pliant.condensed.networks import StandardisedMLP
+    from pliant.trajopt.learned import NetworkJacobian
+
+    net = StandardisedMLP.from_config({**learned.network.config(), "activation": activation})
+    net.load_state_dict(learned.network.state_dict())
+    smooth = copy.copy(learned)
+    smooth.network = net
+    rest = np.concatenate(learned.rest)
+    delta = np.array([inside(learned, np.array([0.2, 0.6])), inside(learned, np.full(2, 0.9))])
+    y, dy = NetworkJacobian(smooth)(delta, jacobian=True)
+    double = copy.deepcopy(net).double()
+    forward = numpy_forward(net)
+    for row in range(2):
+        x = torch.tensor(delta[row])
+        full = torch.cat([x, torch.tensor(rest)])[None]
+        exact = double.predict(full)[0].detach().numpy()
+        expected = torch.autograd.functional.jacobian(
+            lambda d: double.predict(torch.cat([d, torch.tensor(rest)])[None])[0], x
+        )
+        assert np.allclose(y[row], exact, atol=1e-9)
+        assert np.allclose(dy[row].T, expected.numpy(), rtol=1e-9, atol=1e-12)
+        scale = net.output_scale.scale.numpy()
+        assert np.abs((forward(np.concatenate([delta[row], rest])) - exact) / scale).max() < 1e-4
+    # and the activation is what a saved model keeps
+    assert net.config()["activation"] == activation
+
+
 def test_prediction_derivatives_are_finite_differences(learned):
     dyn = LearnedCondensedDynamics(learned, dt=0.02)
     m = dyn.n_positions

@@ -20,7 +20,7 @@ import torch
 import pliant
 from pliant.condensed.dataset import CollectionPlan, Dataset, atomic_write
 from pliant.condensed.layout import Layout
-from pliant.condensed.networks import StandardisedMLP
+from pliant.condensed.networks import StandardisedMLP, numpy_activation
 from pliant.condensed.sampling import Box
 from pliant.constraints.condensed import CondensedProblem
 from pliant.errors import LearnedModelError
@@ -46,12 +46,14 @@ def numpy_forward(network: StandardisedMLP) -> Callable[[np.ndarray], np.ndarray
         if isinstance(m, torch.nn.Linear)
     ]
 
+    act, _ = numpy_activation(network.activation)
+
     def forward(x: np.ndarray) -> np.ndarray:
         h = ((x - in_mean) / in_scale).astype(np.float32)
         for k, (weight, bias) in enumerate(layers):
             h = h @ weight + bias
             if k < len(layers) - 1:
-                h = np.maximum(h, 0.0)
+                h = act(h)
         return (h * out_scale + out_mean).astype(np.float64)
 
     return forward

@@ -24,8 +24,10 @@ from torch import Tensor
 
 from pliant.condensed.dataset import Dataset, Split, atomic_write
 from pliant.condensed.learned import LearnedCondensedModel
-from pliant.condensed.networks import StandardisedMLP
+from pliant.condensed.networks import ACTIVATIONS, StandardisedMLP
 from pliant.errors import DatasetError, TrainingError
+
+SCHEDULES = ("plateau", "cosine")
 
 
 @dataclass
@@ -33,6 +35,12 @@ class TrainConfig:
     """Hyper-parameters and bookkeeping of a training run (thesis defaults: 3 x 450, 1e-4).
 
     Args:
+        activation: hidden-layer activation (`pliant.condensed.networks.ACTIVATIONS`).
+        schedule: "plateau", the rate times `lr_factor` when the training loss has not
+            improved for `lr_patience` epochs (ReduceLROnPlateau); or "cosine", one cycle per
+            run: a warm-up from a tenth of the rate over the first 5 % of the batches, then a
+            cosine decay to 1e-4 of it by the last (OneCycleLR).
+        weight_decay: AdamW's decoupled weight decay (0: Adam).
         lr_factor, lr_patience: ReduceLROnPlateau's factor and patience (epochs).
         log_dir: TensorBoard folder (None: no logs).
         checkpoint: file to save to every `checkpoint_every` epochs and to resume from.
@@ -43,6 +51,9 @@ class TrainConfig:
     learning_rate: float = 1e-4
     hidden: tuple[int, ...] = (450, 450, 450)
     dropout: float = 0.0
+    activation: str = "relu"
+    schedule: str = "plateau"
+    weight_decay: float = 0.0
     lr_factor: float = 0.5
     lr_patience: int = 50
     seed: int = 0
@@ -65,6 +76,7 @@ class TrainConfig:
             raise TrainingError(f"hidden widths must be integers >= 1, got {self.hidden!r}")
         reals = {"learning_rate": self.learning_rate, "dropout": self.dropout}
         reals["lr_factor"] = self.lr_factor
+        reals["weight_decay"] = self.weight_decay
         for name, value in reals.items():
             if isinstance(value, bool) or not isinstance(value, numbers.Real):
                 raise TrainingError(f"{name} must be a real number, got {value!r}")
@@ -74,6 +86,14 @@ class TrainConfig:
             raise TrainingError(f"dropout must lie in [0, 1), got {self.dropout}")
         if not (math.isfinite(self.lr_factor) and 0 < self.lr_factor < 1):
             raise TrainingError(f"lr_factor must lie in (0, 1), got {self.lr_factor}")
+        if not (math.isfinite(self.weight_decay) and self.weight_decay >= 0):
+            raise TrainingError(f"weight_decay must be finite and >= 0, got {self.weight_decay}")
+        if self.activation not in ACTIVATIONS:
+            raise TrainingError(
+                f"activation must be one of {sorted(ACTIVATIONS)}, got {self.activation!r}"
+            )
+        if self.schedule not in SCHEDULES:
+            raise TrainingError(f"schedule must be one of {SCHEDULES}, got {self.schedule!r}")
 
 
 @dataclass
@@ -99,17 +119,32 @@ def fit(
 ) -> FitResult:
     """Train `network` on (inputs, outputs) pairs; resume from config.checkpoint if present."""
     generator = torch.Generator().manual_seed(config.seed)
-    optimiser = torch.optim.Adam(network.parameters(), lr=config.learning_rate)
-    scheduler = torch.optim.lr_scheduler.ReduceLROnPlateau(
-        optimiser, factor=config.lr_factor, patience=config.lr_patience
+    optimiser = torch.optim.AdamW(
+        network.parameters(), lr=config.learning_rate, weight_decay=config.weight_decay
     )
+    x_train, y_train = train
+    batches = math.ceil(len(x_train) / config.batch_size)
+    if config.schedule == "cosine":
+        per_batch = torch.optim.lr_scheduler.OneCycleLR(
+            optimiser,
+            max_lr=config.learning_rate,
+            total_steps=config.epochs * batches,
+            pct_start=0.05,
+            div_factor=10.0,
+            final_div_factor=1e3,
+        )
+        scheduler = per_batch
+    else:
+        per_batch = None
+        scheduler = torch.optim.lr_scheduler.ReduceLROnPlateau(
+            optimiser, factor=config.lr_factor, patience=config.lr_patience
+        )
     best = {"epoch": 0, "loss": float("inf"), "state": _copy_state(network)}
     history: list[dict] = []
     first = 1
     if config.checkpoint is not None and Path(config.checkpoint).exists():
         first, best, history = _resume(config.checkpoint, network, optimiser, scheduler, generator)
     writer = _tensorboard(config.log_dir)
-    x_train, y_train = train
     with _progress(config.progress) as bar:
         task = bar.add_task("training", total=config.epochs, completed=first - 1, status="")
         for epoch in range(first, config.epochs + 1):
@@ -120,6 +155,8 @@ def fit(
                 loss = standardised_loss(network, x_train[batch], y_train[batch])
                 loss.backward()
                 optimiser.step()
+                if per_batch is not None:
+                    per_batch.step()
                 total += loss.item() * len(batch)
             train_loss = total / len(x_train)
             lr = optimiser.param_groups[0]["lr"]
@@ -130,7 +167,8 @@ def fit(
                     f" learning rate ({lr:g}) too high. Nothing of this epoch was saved (a"
                     " checkpoint keeps the last one written before it)"
                 )
-            scheduler.step(train_loss)
+            if per_batch is None:
+                scheduler.step(train_loss)
             test_loss = evaluate_loss(network, *test)
             if len(test[0]) and not math.isfinite(test_loss):
                 raise TrainingError(
@@ -187,7 +225,9 @@ def train_condensed(
         raise DatasetError(f"F needs at least 2 converged training samples, got {len(train)}")
     x_train, y_train = _tensor(train.inputs()), _tensor(train.outputs())
     torch.manual_seed(config.seed)
-    network = StandardisedMLP(x_train, y_train, hidden=config.hidden, dropout=config.dropout)
+    network = StandardisedMLP(
+        x_train, y_train, hidden=config.hidden, dropout=config.dropout, activation=config.activation
+    )
     result = fit(
         network, (x_train, y_train), (_tensor(test.inputs()), _tensor(test.outputs())), config
     )
@@ -207,7 +247,9 @@ def train_design(dataset: Dataset, config: TrainConfig | None = None) -> FitResu
 
     train = pairs(dataset.train)
     torch.manual_seed(config.seed)
-    network = StandardisedMLP(*train, hidden=config.hidden, dropout=config.dropout)
+    network = StandardisedMLP(
+        *train, hidden=config.hidden, dropout=config.dropout, activation=config.activation
+    )
     return fit(network, train, pairs(dataset.test), config)
 
 

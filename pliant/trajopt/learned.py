@@ -15,11 +15,11 @@ prediction is this quasi-static map iterated over the horizon, on the state
 
 p_dot = (p' - p) / h a finite difference, so that the tasks' effector costs (position and
 velocity) apply unchanged; no FEM is solved in the prediction. Its derivatives are those of
-the network: for a ReLU MLP the Jacobian with respect to delta_a is exact by forward-mode
-differentiation through the layers (a product of the weight matrices masked by the active
-units; the tests compare it with torch's autograd), a few hundred microseconds for a whole
-horizon, where finite differences would need n_a + 1 network calls per node and a step size
-against the kinks of the ReLUs.
+the network: the Jacobian with respect to delta_a is exact by forward-mode differentiation
+through the layers (a product of the weight matrices scaled by the activations' derivatives,
+for a ReLU MLP masked by the active units; the tests compare it with torch's autograd), a few
+hundred microseconds for a whole horizon, where finite differences would need n_a + 1 network
+calls per node and a step size against the kinks of the ReLUs.
 
 The MPC loop (:class:`LearnedMPC`) measures the FEM state (p, p_dot and the actuator
 distances of the state reached), solves the horizon with the box-DDP warm-started from the
@@ -45,6 +45,8 @@ class NetworkJacobian:
     def __init__(self, learned) -> None:
         from torch import nn
 
+        from pliant.condensed.networks import numpy_activation
+
         network = learned.network
         state = {k: v.detach().double().numpy().copy() for k, v in network.state_dict().items()}
         self.in_mean, self.in_scale = state["input_scale.mean"], state["input_scale.scale"]
@@ -54,6 +56,7 @@ class NetworkJacobian:
             for m in network.net
             if isinstance(m, nn.Linear)
         ]
+        self.activation, self.derivative = numpy_activation(network.activation)
         self.n_active = learned.input_box.dim
         self.rest = np.concatenate(learned.rest)
 
@@ -74,10 +77,9 @@ class NetworkJacobian:
             if tangent is not None:
                 tangent = tangent @ weight
             if k < last:
-                active = h > 0.0
-                h = h * active
                 if tangent is not None:
-                    tangent = tangent * active[:, None, :]
+                    tangent = tangent * self.derivative(h)[:, None, :]
+                h = self.activation(h)
         y = h * self.out_scale + self.out_mean
         return (y, tangent * self.out_scale) if jacobian else y
 
