@@ -2,6 +2,11 @@
 80 % success over 400 tests, 70 % of the failures drops after the catch).
 
     PYTHONPATH=. python experiments/rl/trunk_debris_ppo.py [--steps 100000] [--tests 400]
+        [--variant full_courses] [--workers 1]
+
+`--variant full_courses` trains on SOFA's inversion-tolerant large-frame law with the
+SoftRobots courses (70 and 40 mm) and the cube beside the trunk's middle (VARIANTS below); its
+run and results get the suffix _full_courses.
 
 Trains PPO (the environment's configuration, pliant/learn/configs/TrunkSpaceDebris.yaml: MLP 3
 x 512 for the policy and the value, VecNormalize, 2 workers) on pliant/TrunkSpaceDebris-v0 with
@@ -36,6 +41,19 @@ from pliant.learn.evaluate import load_policy
 from pliant.learn.plots import plot_learning_curve
 
 RESULTS = Path("experiments/results/rl/trunk_debris_ppo")
+# A variant of the environment (--variant full_courses): SOFA's inversion-tolerant large-frame
+# law with the SoftRobots cable courses (70 and 40 mm) and the cube beside the trunk's middle
+# point P (z 80-110 mm), where the reward's P-M, D-N, C-T geometry puts it (docs/learning.md).
+VARIANTS = {
+    "default": {},
+    "full_courses": {
+        "material": "corotational-large-tolerant",
+        "max_long_displacement": 70.0,
+        "max_short_displacement": 40.0,
+        "z_low": 80.0,
+        "z_high": 110.0,
+    },
+}
 THESIS = {"algo": "PPO, MLP 3x512", "steps": 100_000, "success": 0.8, "drops_of_failures": 0.7}
 
 
@@ -43,7 +61,7 @@ def test_episodes(policy_dir: Path, tests: int, gif: Path | None) -> list[dict]:
     policy = load_policy(policy_dir)
     env = make(
         "pliant/TrunkSpaceDebris-v0",
-        **policy.env_kwargs,
+        **policy.env_kwargs,  # the training's, the variant's included
         render_mode="rgb_array" if gif else None,
     )
     normalize = policy.normalize_obs
@@ -85,8 +103,13 @@ def main() -> None:
     parser.add_argument("--steps", type=int, default=100_000)
     parser.add_argument("--tests", type=int, default=400)
     parser.add_argument("--threads", type=int, default=1)
-    parser.add_argument("--run", type=Path, default=Path("runs/trunk_debris_ppo"))
+    parser.add_argument("--run", type=Path, default=None, help="default runs/trunk_debris_ppo[_V]")
+    parser.add_argument("--variant", choices=sorted(VARIANTS), default="default")
+    parser.add_argument("--workers", type=int, default=None, help="default: the config's 2")
     args = parser.parse_args()
+    suffix = "" if args.variant == "default" else f"_{args.variant}"
+    args.run = args.run or Path(f"runs/trunk_debris_ppo{suffix}")
+    results = RESULTS.with_name(RESULTS.name + suffix)
     torch.set_num_threads(args.threads)
     resume = (args.run / "checkpoints").exists() and any((args.run / "checkpoints").glob("step_*"))
     config = load_config(
@@ -95,13 +118,14 @@ def main() -> None:
         overrides={
             "total_timesteps": args.steps,
             "checkpoint_freq": 5000,
-            "env_kwargs": {"continuous_mode": "increment"},
+            "env_kwargs": {"continuous_mode": "increment", **VARIANTS[args.variant]},
+            **({"n_envs": args.workers} if args.workers else {}),
         },
     )
     result = train(config, args.run, resume=resume, total_timesteps=args.steps)
-    RESULTS.mkdir(parents=True, exist_ok=True)
+    results.mkdir(parents=True, exist_ok=True)
     clock = time.perf_counter()
-    records = test_episodes(args.run / "final", args.tests, RESULTS / "tests.gif")
+    records = test_episodes(args.run / "final", args.tests, results / "tests.gif")
     failures = [r for r in records if not r["success"]]
     by_size = {}
     for size in sorted({r["cube_size"] for r in records}):
@@ -109,7 +133,8 @@ def main() -> None:
         by_size[str(size)] = {"tests": len(group), "success": float(np.mean(group))}
     summary = {
         "env_id": "pliant/TrunkSpaceDebris-v0",
-        "algo": "PPO, MLP 3x512, VecNormalize, 2 workers, cable increments",
+        "algo": f"PPO, MLP 3x512, VecNormalize, {config.n_envs} workers, cable increments",
+        "variant": {"name": args.variant, "env_kwargs": VARIANTS[args.variant]},
         "training": result.summary,
         "tests": len(records),
         "success_rate": float(np.mean([r["success"] for r in records])),
@@ -122,16 +147,17 @@ def main() -> None:
         "success_by_cube_size": by_size,
         "test_seconds": time.perf_counter() - clock,
         "thesis": THESIS,
-        "command": f"PYTHONPATH=. python experiments/rl/trunk_debris_ppo.py --steps {args.steps}",
+        "command": "PYTHONPATH=. python experiments/rl/trunk_debris_ppo.py"
+        f" --steps {args.steps} --variant {args.variant}",
     }
-    (RESULTS / "summary.json").write_text(json.dumps(summary, indent=1))
-    (RESULTS / "tests.json").write_text(json.dumps(records, indent=1))
+    (results / "summary.json").write_text(json.dumps(summary, indent=1))
+    (results / "tests.json").write_text(json.dumps(records, indent=1))
     for name in ("evaluations.json", "config.yaml"):
         if (args.run / name).exists():
-            shutil.copy(args.run / name, RESULTS / name)
+            shutil.copy(args.run / name, results / name)
     if (args.run / "evaluations.json").exists():
         plot_learning_curve(
-            args.run, RESULTS / "learning_curve.png", title="TrunkSpaceDebris, PPO 3x512"
+            args.run, results / "learning_curve.png", title="TrunkSpaceDebris, PPO 3x512"
         )
     print(json.dumps({k: v for k, v in summary.items() if k != "training"}, indent=1))
 

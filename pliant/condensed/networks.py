@@ -12,6 +12,7 @@ from collections.abc import Sequence
 
 import numpy as np
 import torch
+from scipy.special import expit
 from torch import Tensor, nn
 
 
@@ -52,10 +53,10 @@ def numpy_activation(name: str):
     if name == "silu":
 
         def silu(h):
-            return h / (1.0 + np.exp(-h))
+            return h * expit(h)  # the logistic function without overflow for large |h|
 
         def silu_derivative(h):
-            s = 1.0 / (1.0 + np.exp(-h))
+            s = expit(h)
             return s * (1.0 + h * (1.0 - s))
 
         return silu, silu_derivative
