@@ -628,3 +628,30 @@ def test_the_start_of_a_plan_is_checked_and_old_plans_read_as_previous() -> None
     assert CollectionPlan.from_dict(dataclasses.replace(PLAN, start="rest").to_dict()).start == (
         "rest"
     )
+
+
+def test_cli_collects_from_rest_and_trains_a_smooth_network(tmp_path) -> None:
+    from typer.testing import CliRunner
+
+    from pliant.cli import app
+
+    data, model = tmp_path / "finger.h5", tmp_path / "finger.pt"
+    runner = CliRunner()
+    collected = runner.invoke(
+        app,
+        ["condensed", "collect", "finger", "--out", str(data), "--bounds", "0:4"]
+        + ["--samples", "4", "--start", "rest", "--workers", "1"],
+    )
+    assert collected.exit_code == 0, collected.output
+    assert Dataset.load(data).plan.start == "rest"
+    trained = runner.invoke(
+        app,
+        ["condensed", "train", str(data), "--out", str(model), "--epochs", "3"]
+        + ["--batch-size", "2", "--hidden", "16", "--activation", "silu", "--schedule", "cosine"],
+    )
+    assert trained.exit_code == 0, trained.output
+    assert LearnedCondensedModel.load(model).network.activation == "silu"
+    refused = runner.invoke(
+        app, ["condensed", "train", str(data), "--out", str(model), "--activation", "gelu"]
+    )
+    assert refused.exit_code != 0 and "must be one of relu, silu, tanh" in refused.output

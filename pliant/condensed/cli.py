@@ -147,6 +147,15 @@ def collect(
             help="W of the consistent tangent, or of SOFA's material tangent (the thesis')",
         ),
     ] = True,
+    start: Annotated[
+        str,
+        typer.Option(
+            help="where each sample's load stepping starts: previous (the previous sample's"
+            " equilibrium) or rest (its design's rest equilibrium: one equilibrium per command"
+            " where the robot has several)",
+            callback=one_of("previous", "rest"),
+        ),
+    ] = "previous",
     workers: Annotated[
         int | None,
         typer.Option(help="local processes (default: one per CPU)", callback=at_least_one),
@@ -196,6 +205,7 @@ def collect(
         object_bounds=object_bounds,
         sampling=sampling,
         consistent_tangent=consistent_tangent,
+        start=start,
     )
     with Progress(console=console) as bar:
         task = bar.add_task(f"{robot}: sampled points", total=plan.n_train + plan.n_test)
@@ -249,6 +259,17 @@ def train(
         str, typer.Option(help="hidden layer widths, comma separated", callback=_widths)
     ] = "450,450,450",
     dropout: Annotated[float, typer.Option(callback=non_negative)] = 0.0,
+    activation: Annotated[
+        str, typer.Option(help="hidden activation", callback=one_of("relu", "silu", "tanh"))
+    ] = "relu",
+    schedule: Annotated[
+        str,
+        typer.Option(
+            help="plateau (rate halved when the training loss stalls) or cosine (one cycle)",
+            callback=one_of("plateau", "cosine"),
+        ),
+    ] = "plateau",
+    weight_decay: Annotated[float, typer.Option(callback=non_negative)] = 0.0,
     seed: Annotated[int, typer.Option()] = 0,
     log_dir: Annotated[Path | None, typer.Option(help="TensorBoard folder")] = None,
     checkpoint: Annotated[
@@ -256,6 +277,9 @@ def train(
     ] = None,
 ) -> None:
     """Train F (3 x 450 ReLU MLP by default) on DATASET; keep the best epoch.
+
+    Smooth compliances are fitted more closely with --activation silu --schedule cosine
+    (Table 5.1's Diamond: docs/condensed.md).
 
     A dataset over design parameters also trains G (Eq. 5.7), with the same settings, and
     writes the parametric model F(delta_a, G(P)) that `calibrate` and `design` use.
@@ -271,6 +295,9 @@ def train(
         learning_rate=learning_rate,
         hidden=tuple(hidden),
         dropout=dropout,
+        activation=activation,
+        schedule=schedule,
+        weight_decay=weight_decay,
         seed=seed,
         log_dir=log_dir,
         checkpoint=checkpoint,
