@@ -148,7 +148,8 @@ def main() -> None:
         "test_seconds": time.perf_counter() - clock,
         "thesis": THESIS,
         "command": "PYTHONPATH=. python experiments/rl/trunk_debris_ppo.py"
-        f" --steps {args.steps} --variant {args.variant}",
+        f" --steps {args.steps} --tests {args.tests} --variant {args.variant}"
+        + (f" --workers {args.workers}" if args.workers else ""),
     }
     (results / "summary.json").write_text(json.dumps(summary, indent=1))
     (results / "tests.json").write_text(json.dumps(records, indent=1))
