@@ -91,6 +91,21 @@ def test_each_sofa_choice_matters_on_the_trunk(choice, low, high) -> None:
 
 
 @needs_reference
+@pytest.mark.parametrize(
+    ("options", "expected"),
+    [
+        ({}, "tolerate"),  # SOFA's: no inversion check in its "large" force field
+        ({"inversion": "refuse"}, "refuse"),
+        ({"sofa_compatible": False}, "refuse"),
+        ({"rotation": "polar"}, "refuse"),  # a polar frame cannot tolerate inversion
+    ],
+)
+def test_inverted_elements_follow_the_choice(options, expected) -> None:
+    loaded = load_scene(REFERENCE / "diamond_plain.scn", mesh_dirs=[MESHES], **options)
+    assert loaded.model.body.material.inversion == expected
+
+
+@needs_reference
 def test_the_polar_rotation_misses_the_plain_diamond() -> None:
     """The rotation alone makes the plain Diamond's gap: 1.29 mm with the polar one (measured),
     5e-4 mm with SOFA's."""

@@ -9,10 +9,14 @@ Component semantics follow SOFA's and SoftRobots' documentation. With ``sofa_com
   are, with barycentric coordinates in the element whose centre is nearest
   (:class:`pliant.constraints.base.EmbeddedPoints`, ``outside="keep"``);
 * the cables' ``maxDispVariation``: measured from the displacement of the step before
-  (``change_reference="lagged"``, see :class:`pliant.constraints.base.Actuator`).
+  (``change_reference="lagged"``, see :class:`pliant.constraints.base.Actuator`);
+* inverted elements under the "large" frame: kept in the step with their restoring force, as
+  SOFA has no inversion check (``inversion="tolerate"``; Pliant stops with a
+  DivergenceError).
 
 ``sofa_compatible=False`` keeps Pliant's choices (polar rotation, points projected onto the
-mesh, change measured from the last step). See docs/sofa.md for the list of components.
+mesh, change measured from the last step, inversion refused). See docs/sofa.md for the list
+of components.
 """
 
 from __future__ import annotations
@@ -229,10 +233,11 @@ class Choices:
     rotation: Literal["scene", "polar"]  # "scene": the FEM's method ("large" by default)
     outside: Literal["keep", "project"]
     change_reference: Literal["lagged", "last"]
+    inversion: Literal["tolerate", "refuse"] = "refuse"  # of "large" elements
 
 
-SOFA_CHOICES = Choices("scene", "keep", "lagged")
-PLIANT_CHOICES = Choices("polar", "project", "last")
+SOFA_CHOICES = Choices("scene", "keep", "lagged", "tolerate")
+PLIANT_CHOICES = Choices("polar", "project", "last", "refuse")
 
 
 def load_scene(
@@ -243,6 +248,7 @@ def load_scene(
     rotation: Literal["scene", "polar"] | None = None,
     outside: Literal["keep", "project"] | None = None,
     change_reference: Literal["lagged", "last"] | None = None,
+    inversion: Literal["tolerate", "refuse"] | None = None,
 ) -> SofaScene:
     """Read a SOFA scene (``.scn`` XML or a ``createScene`` Python script) into a model.
 
@@ -254,7 +260,9 @@ def load_scene(
             path as written, then by their file name).
         rotation, outside, change_reference: override one of those choices: the element
             rotation ("scene": the FEM's method; "polar"), points outside the mesh ("keep",
-            "project"), what a cable's maxDispVariation is measured from ("lagged", "last").
+            "project"), what a cable's maxDispVariation is measured from ("lagged", "last"),
+            what an inverted element of the "large" frame does ("tolerate": keeps its force,
+            as in SOFA; "refuse": the step raises DivergenceError).
 
     Raises:
         SceneError: the scene cannot be read, uses components Pliant does not support (all
@@ -266,7 +274,10 @@ def load_scene(
         rotation or base.rotation,
         outside or base.outside,
         change_reference or base.change_reference,
+        inversion or base.inversion,
     )
+    if choices.inversion not in ("tolerate", "refuse"):
+        raise SceneError(f"inversion is 'tolerate' or 'refuse', got {choices.inversion!r}")
     root = read_scene(path)
     return _Builder(root, path, choices, [Path(d) for d in mesh_dirs]).build()
 
@@ -558,7 +569,11 @@ class _Builder:
             large = method == "large" and self.choices.rotation == "scene"
             rotation = "large" if large else "polar"
             material = Corotational(
-                _float(fem, "youngModulus", 5000.0), _float(fem, "poissonRatio", 0.45), rotation
+                _float(fem, "youngModulus", 5000.0),
+                _float(fem, "poissonRatio", 0.45),
+                rotation,
+                # the polar frame of an inverted element is a reflection: refused whatever
+                inversion=self.choices.inversion if large else "refuse",
             )
         # SOFA takes elements in either orientation; Pliant's are positive. The "large" frame
         # stays the file's first three nodes of each element.
