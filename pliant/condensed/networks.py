@@ -41,7 +41,7 @@ class Standardiser(nn.Module):
 
 # Hidden-layer activations by name. ReLU makes F piecewise linear; a smooth one (SiLU) fits the
 # smooth maps from displacements to compliances more closely where samples are dense (Table
-# 5.1's Diamond: median test error of a sample 6.5e-6 against 4.9e-5 with ReLU, docs).
+# 5.1's Diamond, 600 epochs: median test loss of a sample 6.5e-6 against 2.6e-5 with ReLU).
 ACTIVATIONS = {"relu": nn.ReLU, "silu": nn.SiLU, "tanh": nn.Tanh}
 
 
