@@ -55,6 +55,7 @@ def trunk_space_debris(
     max_displacement_change: float | None = 1.0,
     cube_size: float = 30.0,
     cube_mass: float = 0.01,
+    cube_damping: float = 0.0,
     cube_position: tuple[float, float, float] | None = None,
     cube_rotation: np.ndarray | None = None,
     friction: float = 0.5,
@@ -62,7 +63,10 @@ def trunk_space_debris(
 ) -> Model:
     """The Trunk (SoftRobots parameters, coarse mesh by default, no gravity) and a rigid cube
     of `cube_size` mm and `cube_mass` kg floating at rest at `cube_position` (default: 10 mm
-    from the trunk's surface on +x at z = 150 mm; see :func:`beside_trunk`).
+    from the trunk's surface on +x at z = 150 mm; see :func:`beside_trunk`). `cube_damping`
+    (1/s) damps the cube's linear and angular velocity (a force -c m v, a torque -c I w), as a
+    SOFA rigid object under a solver with rayleighMass = c would be; 0 (default): a pushed
+    cube drifts on.
 
     Give `mesh` (a :func:`pliant.mesh.shapes.trunk` mesh) to build several scenes on one
     Trunk mesh, e.g. one per cube size.
@@ -89,6 +93,8 @@ def trunk_space_debris(
         Box([half, half, half], position=position, rotation=cube_rotation),
         cube_mass,
         friction=friction,
+        linear_damping=cube_damping,
+        angular_damping=cube_damping,
         name="cube",
     )
     hull = Plane(normal=(0.0, 0.0, 1.0), point=(0.0, 0.0, 0.0))
