@@ -69,9 +69,9 @@ class CollectionPlan:
             sample's design, so that a robot with several equilibria for one command gets the
             one reached by actuating it from rest, whatever the samples before, and F is a
             function. The Diamond's arms, compressed by antagonist cables, buckle one way or
-            the other: from the previous sample, 2 of the 10 worst-predicted test samples of
-            Table 5.1 sat on another branch than from rest (2.6 and 4.9 standard deviations
-            apart), and the worst 1 % of the test samples made 75 % of its test loss.
+            the other: from the previous sample, 2 of 4 of the 10 worst-predicted test samples
+            of Table 5.1 re-solved from rest sat on another branch (2.6 and 4.9 standard
+            deviations apart), and the worst 1 % of the test samples made 75 % of its test loss.
         tolerance: Newton's convergence threshold, relative to the body size (the solver's
             1e-10 costs iterations of its linear tail without changing W or delta_free).
         newton_iterations: Newton iterations before a load step is halved.
