@@ -655,3 +655,11 @@ def test_cli_collects_from_rest_and_trains_a_smooth_network(tmp_path) -> None:
         app, ["condensed", "train", str(data), "--out", str(model), "--activation", "gelu"]
     )
     assert refused.exit_code != 0 and "must be one of relu, silu, tanh" in refused.output
+
+
+def test_sample_losses_average_to_the_test_loss(learned, dataset) -> None:
+    from pliant.condensed.train import sample_losses
+
+    per_sample = sample_losses(learned.network, dataset.test)
+    assert per_sample.shape == (int(dataset.test.converged.sum()),)
+    assert per_sample.mean() == pytest.approx(evaluate(learned, dataset.test)["loss"], rel=1e-5)

@@ -42,13 +42,12 @@ from pathlib import Path
 from typing import Annotated
 
 import numpy as np
-import torch
 import typer
 
 from pliant.condensed.collect import load_or_collect
 from pliant.condensed.dataset import CollectionPlan
 from pliant.condensed.plots import plot_history
-from pliant.condensed.train import TrainConfig, evaluate, train_condensed
+from pliant.condensed.train import TrainConfig, evaluate, sample_losses, train_condensed
 
 THESIS = {"diamond": (6.52e-5, 8960), "finger": (3.79e-6, 8850)}
 BOUNDS = {"diamond": ((0.0, 30.0),) * 4, "finger": ((-10.0, 10.0),) * 2}
@@ -67,16 +66,6 @@ TRAINING = {
         progress=False,
     ),
 }
-
-
-def sample_losses(learned, split) -> np.ndarray:
-    """Eq. 5.5 per test sample (mean over the outputs), in F's standardisation."""
-    good = split.converged_only()
-    x = torch.from_numpy(np.ascontiguousarray(good.inputs(), dtype=np.float32))
-    y = torch.from_numpy(np.ascontiguousarray(good.outputs(), dtype=np.float32))
-    network = learned.network.eval()
-    with torch.no_grad():
-        return ((network(x) - network.output_scale(y)) ** 2).mean(dim=1).numpy()
 
 
 def main(
@@ -129,7 +118,7 @@ def main(
         learned, result = train_condensed(dataset, config)
         learned.save(work / f"{robot}_{samples}.pt")
         scores = evaluate(learned, dataset.test)
-        per_sample = sample_losses(learned, dataset.test)
+        per_sample = sample_losses(learned.network, dataset.test)
         worst = int(np.argmax(per_sample))
         plot_history(
             result.history,

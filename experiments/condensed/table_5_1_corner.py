@@ -29,7 +29,7 @@ import typer
 from pliant.condensed.collect import load_or_collect
 from pliant.condensed.dataset import CollectionPlan, Dataset, Split
 from pliant.condensed.networks import StandardisedMLP
-from pliant.condensed.train import TrainConfig, fit
+from pliant.condensed.train import TrainConfig, fit, sample_losses
 
 CORNER = (24.0, 30.0)
 
@@ -71,12 +71,7 @@ def main(
     torch.manual_seed(config.seed)
     network = StandardisedMLP(x, y, hidden=config.hidden, activation=config.activation)
     result = fit(network, (x, y), (_tensor(test.inputs()), _tensor(test.outputs())), config)
-    with torch.no_grad():
-        per_sample = (
-            ((network(_tensor(test.inputs())) - network.output_scale(_tensor(test.outputs()))) ** 2)
-            .mean(dim=1)
-            .numpy()
-        )
+    per_sample = sample_losses(network, test)
     worst = int(np.argmax(per_sample))
     row = {
         "uniform_samples": len(uniform.train.converged_only()),

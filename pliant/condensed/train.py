@@ -267,6 +267,16 @@ def evaluate(learned: LearnedCondensedModel, split: Split) -> dict[str, float]:
     }
 
 
+def sample_losses(network: StandardisedMLP, split: Split) -> np.ndarray:
+    """Eq. 5.5 per converged sample of `split` (mean over the outputs), in the network's
+    standardisation: where a test loss comes from."""
+    good = split.converged_only()
+    x, y = _tensor(good.inputs()), _tensor(good.outputs())
+    network.eval()
+    with torch.no_grad():
+        return ((network(x) - network.output_scale(y)) ** 2).mean(dim=1).numpy()
+
+
 def _tensor(array: np.ndarray) -> Tensor:
     return torch.from_numpy(np.ascontiguousarray(array, dtype=np.float32))
 
