@@ -30,6 +30,10 @@ class MeshFileError(MeshError):
     """A mesh file is missing, unreadable or holds no tetrahedra."""
 
 
+class MeshingError(MeshError):
+    """gmsh could not mesh a parametric shape (also with the fallback surface algorithms)."""
+
+
 class StateError(PliantError, ValueError):
     """A state does not belong to the model it is used with (node count, array shapes, actuator
     or rigid-body counts), holds non-finite values, or its file cannot be read or written."""

@@ -5,6 +5,7 @@ Eq. 5.6 and the PID of Eq. 5.14, control learned against exact, and bad input.""
 from __future__ import annotations
 
 import dataclasses
+import functools
 import json
 import warnings
 
@@ -46,7 +47,7 @@ from pliant.condensed.sampling import Box  # noqa: E402
 from pliant.condensed.train import TrainConfig, evaluate, train_condensed  # noqa: E402
 from pliant.constraints.condensed import CondensedProblem  # noqa: E402
 from pliant.constraints.inverse import solve_inverse  # noqa: E402
-from pliant.errors import DatasetError, LearnedModelError  # noqa: E402
+from pliant.errors import DatasetError, LearnedModelError, ModelError  # noqa: E402
 from pliant.model import Model  # noqa: E402
 from pliant.solvers import StaticSolver  # noqa: E402
 
@@ -592,6 +593,44 @@ def test_dataset_over_designs_shares_designs_and_goals_and_trains_g_and_f(tmp_pa
     )
     with pytest.raises(LearnedModelError, match="unknown design parameters"):
         loaded.design_tensor(height=20.0)
+
+
+def test_a_design_the_builder_rejects_gives_failed_samples(tmp_path, monkeypatch) -> None:
+    """A design that cannot be built (ModelError: e.g. a mesh gmsh cannot make) counts its
+    samples as failed, as a diverged solve does, and the collection goes on."""
+    from pliant.condensed import collect as collect_module
+
+    build = collect_module._build.__wrapped__
+
+    def build_or_reject(robot: str, kwargs_json: str):
+        if json.loads(kwargs_json).get("poisson_ratio", 0.45) > 0.45:
+            raise ModelError("finger cannot be built: Could not recover boundary mesh")
+        return build(robot, kwargs_json)
+
+    monkeypatch.setattr(collect_module, "_build", functools.lru_cache(maxsize=1)(build_or_reject))
+    plan = CollectionPlan(
+        "finger",
+        ((0.0, 3.0), (0.0, 0.0)),
+        6,
+        design_bounds={"poisson_ratio": (0.42, 0.48)},
+        test_fraction=0.0,
+        start="rest",
+    )
+    train = collect(plan, tmp_path / "rejected.h5", workers=1).train
+    rejected = train.design[:, 0] > 0.45
+    assert rejected.any() and (~rejected).any()
+    np.testing.assert_array_equal(train.converged.astype(bool), ~rejected)
+    assert np.isnan(train.w_triangle[rejected]).all()
+    assert np.isfinite(train.w_triangle[~rejected]).all()
+
+
+def test_split_head_keeps_the_first_samples_of_every_field() -> None:
+    columns = {f.name: np.arange(10.0).reshape(5, 2) for f in dataclasses.fields(Split)}
+    split = Split(**columns)
+    head = split.head(3)
+    assert len(head) == 3
+    for f in dataclasses.fields(Split):
+        np.testing.assert_array_equal(getattr(head, f.name), getattr(split, f.name)[:3])
 
 
 def test_samples_started_from_rest_do_not_depend_on_the_samples_before(tmp_path) -> None:

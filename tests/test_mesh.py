@@ -15,6 +15,7 @@ from pliant.errors import (
     InvertedElementError,
     MeshError,
     MeshFileError,
+    MeshingError,
     ModelError,
 )
 from pliant.mesh import (
@@ -22,6 +23,7 @@ from pliant.mesh import (
     box_beam,
     diamond,
     fix_orientation,
+    gmsh_session,
     load_mesh,
     locate_points,
     pneunet,
@@ -223,6 +225,32 @@ def test_builder_cleans_up_gmsh_also_on_failure(monkeypatch: pytest.MonkeyPatch)
     with pytest.raises(RuntimeError, match="meshing failed"):
         trunk()
     assert not gmsh.isInitialized()
+
+
+# A Finger design of Table 5.7's geometric box whose first surface mesh gmsh's 3-D Delaunay
+# cannot recover ("Could not recover boundary mesh"): found by the 50000-design collection.
+_HARD_FINGER = {
+    "length": 39.67705236602058,
+    "height": 20.019942905214503,
+    "joint_height": 5.760204505886336,
+}
+
+
+def test_a_design_the_volume_mesher_rejects_is_meshed_with_the_fallback_surfaces(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    with monkeypatch.context() as patch:
+        patch.setattr("pliant.mesh.gmsh_session._FALLBACK_2D", ())
+        with pytest.raises(MeshingError, match="recover boundary"):
+            soft_finger(**_HARD_FINGER)
+    assert not gmsh.isInitialized()
+    mesh = soft_finger(**_HARD_FINGER)
+    validate_mesh(mesh.points, mesh.tets)
+    assert mesh.n_tets > 0
+    np.testing.assert_array_equal(mesh.tets, soft_finger(**_HARD_FINGER).tets)  # deterministic
+    # the next design meshes with the usual options again
+    np.testing.assert_array_equal(soft_finger().tets, soft_finger().tets)
+    assert gmsh_session._overrides == {}
 
 
 def test_builder_leaves_a_callers_gmsh_session_alone() -> None:

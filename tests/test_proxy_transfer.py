@@ -13,6 +13,7 @@ from pliant.errors import ModelError
 from pliant.fem.rotation import axis_angle
 from pliant.proxy.transfer import (
     MULTIGAIT_GAINS,
+    MULTIGAIT_VOLUMES,
     ActuationFilter,
     TransferGains,
     multigait_transfer,
@@ -99,6 +100,34 @@ def test_a_short_multigait_transfer_moves_the_fem_as_the_proxy(short_multigait) 
     assert np.all(a >= np.array(loop.gains.lower)) and np.all(a <= np.array(loop.gains.upper))
     assert a[3:].min() > 0.0  # the rear chambers inflated
     assert result.failed_inverse_steps == 0
+
+
+def test_the_open_loop_feedforward_replays_the_proxy_commands_as_volumes() -> None:
+    """feedforward 1: every FEM sub-step's actuation is the filter's lag towards the proxy's
+    commands of that sub-step times the hand gait's volumes, with no inverse model; a weight
+    outside [0, 1], or a feedforward on the Trunk (no map), is refused."""
+    gains = dataclasses.replace(MULTIGAIT_GAINS, scale=5, time_register=0, feedforward=1.0)
+    loop = multigait_transfer(gains=gains, mesh_size=9.0)
+    expected = ActuationFilter(gains.lower, gains.upper, rate=gains.rate)
+    seen = []
+    follow = loop.follow
+
+    def spy(goal, commands=None):
+        seen.append(expected.update(np.asarray(commands)[:5] * MULTIGAIT_VOLUMES))
+        follow(goal, commands)
+        np.testing.assert_allclose(loop.filter.value, seen[-1])
+
+    loop.follow = spy
+    loop.run([4, 4])
+    assert len(seen) == 10
+    assert seen[-1][3:].min() > 0.0 and np.all(seen[-1][:3] == 0.0)  # the rear legs only
+    with pytest.raises(ModelError, match="feedforward"):
+        dataclasses.replace(MULTIGAIT_GAINS, feedforward=1.5)
+    from pliant.proxy.transfer import TRUNK_GAINS, Transfer
+
+    with pytest.raises(ModelError, match="no feedforward map"):
+        Transfer.feedforward(type("T", (), {"robot": "trunk"})(), np.zeros(5))
+    assert TRUNK_GAINS.feedforward == 0.0
 
 
 def test_the_transfer_command_writes_both_trajectories_and_refuses_bad_actions(tmp_path) -> None:

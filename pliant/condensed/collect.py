@@ -47,7 +47,7 @@ from pliant.condensed.dataset import (
 from pliant.condensed.dataset import verify as verify_dataset
 from pliant.condensed.layout import Layout
 from pliant.condensed.manipulation import grasp_chunk
-from pliant.errors import DatasetError, DivergenceError
+from pliant.errors import DatasetError, DivergenceError, ModelError
 from pliant.model import Model
 from pliant.processes import run_jobs
 
@@ -192,7 +192,9 @@ def solve_chunk(plan: CollectionPlan, points: np.ndarray) -> Split:
     visits, the thesis' argument for sampling relevant ones).
 
     Every design's effectors get the goals of the plan's base design (`robot_kwargs`), so that
-    delta_e measures effector positions from the same point whatever the design.
+    delta_e measures effector positions from the same point whatever the design. A design
+    the builder rejects (:class:`ModelError`: a geometry the mesher cannot mesh) gives failed
+    samples, as a static solve that diverges does, instead of ending the collection.
     """
     base_json = json.dumps(plan.robot_kwargs, sort_keys=True)
     if plan.sampling == "gripper":
@@ -201,6 +203,7 @@ def solve_chunk(plan: CollectionPlan, points: np.ndarray) -> Split:
     goals = _training_goals(plan.robot, base_json) if plan.design_names else None
     rows: list[dict[str, np.ndarray]] = []
     design = None
+    unbuilt: Layout | None = None  # the rows of a design the builder rejects (all failed)
     for point in np.atleast_2d(points):
         command, params = point[:n_cmd], point[n_cmd:]
         if design is None or not np.array_equal(params, design):
@@ -209,13 +212,21 @@ def solve_chunk(plan: CollectionPlan, points: np.ndarray) -> Split:
                 **plan.robot_kwargs,
                 **dict(zip(plan.design_names, params.tolist(), strict=True)),
             }
-            model = _build(plan.robot, json.dumps(kwargs, sort_keys=True))
-            if goals is not None:
-                for effector, goal in zip(model.effectors, goals, strict=True):
-                    effector.goals = goal
-            robot = ContactRobot.for_plan(model, plan)
-            rest = state = robot.rest()
-            w0, free0 = robot.layout.pack(robot.problem(state))
+            try:
+                model = _build(plan.robot, json.dumps(kwargs, sort_keys=True))
+            except ModelError:  # e.g. a geometry the mesher cannot recover: counted as failed
+                unbuilt = ContactRobot.for_plan(_build(plan.robot, base_json), plan).layout
+            else:
+                unbuilt = None
+                if goals is not None:
+                    for effector, goal in zip(model.effectors, goals, strict=True):
+                        effector.goals = goal
+                robot = ContactRobot.for_plan(model, plan)
+                rest = state = robot.rest()
+                w0, free0 = robot.layout.pack(robot.problem(state))
+        if unbuilt is not None:
+            rows.append(failed_row(command, params, unbuilt))
+            continue
         if plan.start == "rest":
             state = rest
         try:

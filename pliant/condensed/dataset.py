@@ -299,6 +299,11 @@ class Split:
         keep = self.converged.astype(bool)
         return Split(**{f.name: getattr(self, f.name)[keep] for f in fields(self)})
 
+    def head(self, n: int) -> Split:
+        """The first `n` samples (training points are a Halton sequence: its first `n` are
+        themselves evenly spread)."""
+        return Split(**{f.name: getattr(self, f.name)[:n] for f in fields(self)})
+
     def inputs(self) -> np.ndarray:
         """Inputs of F (Eq. 5.2): (delta_a, delta_c, W0 triangle, delta0_free)."""
         return np.hstack([self.delta_a, self.delta_c, self.w0_triangle, self.free_distance0])

@@ -2,14 +2,17 @@
 
 from __future__ import annotations
 
+import functools
 import signal
 import threading
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
+from typing import ParamSpec, TypeVar
 
 import gmsh
 import numpy as np
 
+from pliant.errors import MeshingError
 from pliant.mesh.quality import fix_orientation, remove_unused_nodes
 
 # gmsh element type of the 4-node (linear) tetrahedron.
@@ -33,6 +36,10 @@ _OPTIONS = {
     "Mesh.MeshSizeFromCurvature": 0,
     "Mesh.MeshSizeExtendFromBoundary": 1,
 }
+# Surface algorithms tried in turn when the 3-D Delaunay cannot recover the boundary of the
+# first surface mesh (it happens at a few parametric designs): Delaunay, then MeshAdapt.
+_FALLBACK_2D = (5, 1)
+_overrides: dict[str, float] = {}
 # Options a caller's own gmsh session gets back as they were.
 _SAVED_OPTIONS = [*_OPTIONS, "Mesh.MeshSizeMax", "Mesh.MeshSizeMin"]
 
@@ -62,7 +69,7 @@ def gmsh_model(name: str) -> Iterator[None]:
         previous_model = gmsh.model.getCurrent()
         saved_options = {key: gmsh.option.getNumber(key) for key in _SAVED_OPTIONS}
     try:
-        for key, value in _OPTIONS.items():
+        for key, value in {**_OPTIONS, **_overrides}.items():
             gmsh.option.setNumber(key, value)
         gmsh.model.add(name)
         yield
@@ -78,6 +85,43 @@ def gmsh_model(name: str) -> Iterator[None]:
                 gmsh.model.setCurrent(previous_model)
 
 
+P = ParamSpec("P")
+R = TypeVar("R")
+
+
+def retry_meshing(build: Callable[P, R]) -> Callable[P, R]:
+    """Run a shape builder again with the fallback surface algorithms when meshing fails.
+
+    The whole builder runs again in a new gmsh session: after a failed ``generate`` gmsh's
+    session meshes nothing more (its busy lock stays set), so retrying inside it cannot work.
+    Deterministic: the same parameters take the same path to the same mesh.
+    """
+
+    @functools.wraps(build)
+    def wrapper(*args: P.args, **kwargs: P.kwargs) -> R:
+        try:
+            return build(*args, **kwargs)
+        except MeshingError as first:
+            if not _owns_next_session():
+                raise
+            for algorithm in _FALLBACK_2D:
+                _overrides["Mesh.Algorithm"] = algorithm
+                try:
+                    return build(*args, **kwargs)
+                except MeshingError:
+                    continue
+                finally:
+                    _overrides.clear()
+            raise first
+
+    return wrapper
+
+
+def _owns_next_session() -> bool:
+    """Whether the next :func:`gmsh_model` starts its own session (a caller's is kept)."""
+    return not gmsh.isInitialized()
+
+
 def mesh_volumes(mesh_size: float) -> tuple[np.ndarray, np.ndarray]:
     """Mesh the current model's volumes with linear tetrahedra of about `mesh_size`.
 
@@ -87,7 +131,10 @@ def mesh_volumes(mesh_size: float) -> tuple[np.ndarray, np.ndarray]:
     gmsh.model.occ.synchronize()
     gmsh.option.setNumber("Mesh.MeshSizeMax", mesh_size)
     gmsh.option.setNumber("Mesh.MeshSizeMin", 0.0)
-    gmsh.model.mesh.generate(3)
+    try:
+        gmsh.model.mesh.generate(3)
+    except Exception as exc:  # gmsh raises bare Exceptions
+        raise MeshingError(f"gmsh could not mesh the volumes: {exc}") from exc
     node_tags, coords, _ = gmsh.model.mesh.getNodes()
     _, tet_nodes = gmsh.model.mesh.getElementsByType(_TET4)
     row_of_tag = np.full(int(node_tags.max()) + 1, -1, dtype=np.int64)

@@ -22,7 +22,7 @@ import gmsh
 import numpy as np
 
 from pliant.errors import MeshError
-from pliant.mesh.gmsh_session import gmsh_model, mesh_volumes
+from pliant.mesh.gmsh_session import gmsh_model, mesh_volumes, retry_meshing
 from pliant.mesh.shapes import _finish, _require_positive
 from pliant.mesh.tetmesh import TetMesh
 
@@ -97,6 +97,7 @@ def multigait_chambers(
     }
 
 
+@retry_meshing
 def multigait(
     *,
     length: float = 136.0,

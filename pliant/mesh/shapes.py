@@ -19,7 +19,7 @@ import gmsh
 import numpy as np
 
 from pliant.errors import MeshError, ModelError
-from pliant.mesh.gmsh_session import gmsh_model, mesh_volumes
+from pliant.mesh.gmsh_session import gmsh_model, mesh_volumes, retry_meshing
 from pliant.mesh.locate import locate_points
 from pliant.mesh.quality import validate_mesh
 from pliant.mesh.tetmesh import TetMesh
@@ -161,6 +161,7 @@ def _fuse_all(volumes: list[int]) -> None:
     occ.removeAllDuplicates()
 
 
+@retry_meshing
 def diamond(
     *,
     elbow_radius: float = 97.0,
@@ -268,6 +269,7 @@ def diamond(
     return _finish(points, tets, landmarks)
 
 
+@retry_meshing
 def soft_finger(
     *,
     length: float = 40.0,
@@ -379,6 +381,7 @@ def soft_finger(
     return _finish(points, tets, landmarks)
 
 
+@retry_meshing
 def trunk(
     *,
     length: float = 195.0,
@@ -442,6 +445,7 @@ def trunk(
     return _finish(points, tets, landmarks)
 
 
+@retry_meshing
 def pneunet(
     *,
     length: float = 115.0,
@@ -574,6 +578,7 @@ def _cavity_surfaces(
     return surfaces
 
 
+@retry_meshing
 def stiff_flop(
     *,
     module_length: float = 50.0,

@@ -123,6 +123,12 @@ def transfer(
     angle_gain: Annotated[
         float | None, typer.Option(help="Multigait corrector's gain (0: no correction)")
     ] = None,
+    feedforward: Annotated[
+        float | None,
+        typer.Option(
+            help="Multigait: weight in [0, 1] of the proxy's commands fed forward (1: open loop)"
+        ),
+    ] = None,
     lookahead_friction: Annotated[
         bool | None,
         typer.Option(help="friction in the inverse look-ahead (default: the robot's gains)"),
@@ -152,6 +158,7 @@ def transfer(
             ("inverse_steps", inverse_steps),
             ("angle_gain", angle_gain),
             ("lookahead_friction", lookahead_friction),
+            ("feedforward", feedforward),
         )
         if v is not None
     }

@@ -19,7 +19,11 @@ a position effector of the FEM robot on the same points, and for each sub-step:
    no friction states a few steps on), so the FEM does not move; frictionless, it solves.
    The FEM's own step (4.) keeps its friction;
 3. the actuation correction, a robot's own term added to a_inv (the Multigait's, below);
-4. the filter: a <- clip(a + f (s a_inv - a), lower, upper), and the FEM takes one step under
+4. optionally, a feedforward: the proxy's own commands of the sub-step mapped onto the FEM's
+   actuators (the Multigait: a chamber's command in [0, 1] times the hand gait's volume),
+   a_ff, blended in as a_inv <- w a_ff + (1 - w) a_inv (``feedforward`` w; 0 by default, the
+   thesis' loop; 1 replays the proxy's actuation open loop and skips the inverse model);
+5. the filter: a <- clip(a + f (s a_inv - a), lower, upper), and the FEM takes one step under
    a (direct control, its actuators in displacement mode).
 
 Realignment (registration): every ``time_register`` proxy steps the FEM's relevant positions
@@ -78,6 +82,9 @@ class TransferGains:
         angle_gain: the Multigait corrector's gain (fraction of `upper` per radian).
         lookahead_friction: keep the contacts' friction in the inverse look-ahead (the QPCC
             with Coulomb friction); off: frictionless look-ahead, the FEM's step keeps it.
+        feedforward: the weight w in [0, 1] of the proxy's commands mapped onto the FEM's
+            actuators (:meth:`Transfer.feedforward`) against the inverse model's actuation;
+            1: open loop, no inverse model.
     """
 
     scale: int
@@ -90,10 +97,13 @@ class TransferGains:
     gain: float = 1.0
     angle_gain: float = 0.0
     lookahead_friction: bool = False
+    feedforward: float = 0.0
 
     def __post_init__(self) -> None:
         if self.scale < 1 or self.inverse_steps < 1 or self.time_register < 0:
             raise ModelError("scale and inverse_steps must be >= 1, time_register >= 0")
+        if not 0.0 <= self.feedforward <= 1.0:
+            raise ModelError(f"the feedforward weight must lie in [0, 1], got {self.feedforward}")
         if not 0.0 < self.rate <= 1.0:
             raise ModelError(f"the filter's rate must lie in (0, 1], got {self.rate}")
         if len(self.lower) != len(self.upper) or np.any(np.greater(self.lower, self.upper)):
@@ -121,6 +131,9 @@ TRUNK_GAINS = TransferGains(
     lower=(0.0,) * 8,
     upper=(70.0,) * 4 + (40.0,) * 4,
 )
+#: the chambers' volumes (mm^3) of the hand gait, pliant.robots.multigait.demo_actuation's
+#: amplitudes in CHAMBERS order: the Multigait feedforward's map from the proxy's commands.
+MULTIGAIT_VOLUMES = np.where(np.array(CHAMBERS) == "centre", 4900.0, 3300.0)
 #: the thesis' Multigait test sequence (Discrete(6): 2 g inflates group g of centre, front,
 #: rear; 2 g + 1 deflates it): rear, centre, centre, front, rear off, centre off, front off, rear.
 MULTIGAIT_SEQUENCE = (4, 0, 0, 2, 5, 1, 3, 4)
@@ -328,14 +341,24 @@ class Transfer:
         """What the actuation corrector adds to the inverse model's actuation."""
         return np.zeros(self.fem.n_actuators)
 
+    def feedforward(self, commands: np.ndarray) -> np.ndarray:
+        """The proxy's commands of a sub-step as the FEM's actuation (``gains.feedforward``)."""
+        raise ModelError(f"the {self.robot} transfer has no feedforward map: keep feedforward 0")
+
     # ------------------------------------------------------------------------- the loop
     def observation(self) -> np.ndarray:
         """The proxy environment's observation of its present state (after a realignment)."""
         return self.env._clip_observation(self.env._observe())
 
-    def follow(self, goal: np.ndarray) -> None:
-        """One FEM step towards the proxy's matched points `goal` (K, 3)."""
+    def follow(self, goal: np.ndarray, commands: np.ndarray | None = None) -> None:
+        """One FEM step towards the proxy's matched points `goal` (K, 3), the proxy's
+        `commands` of that sub-step fed forward with weight ``gains.feedforward``."""
         g = self.gains
+        w = g.feedforward
+        if w == 1.0:  # open loop: the inverse model's actuation would weigh nothing
+            actuation = self.filter.update(self.feedforward(commands))
+            self.state = self.solver.step(self.state, actuation)
+            return
         now = self.points.positions(self.state.positions)
         target = goal + g.kp * (goal - now)
         look = self.state.copy()
@@ -356,6 +379,8 @@ class Transfer:
             if contacts is not None:
                 contacts.friction = friction
         inverse = inverse + self.correction(goal, now)
+        if w > 0.0:
+            inverse = w * self.feedforward(commands) + (1.0 - w) * inverse
         self.state = self.solver.step(self.state, self.filter.update(inverse))
 
     def step(self, action, *, realigned: bool = False) -> StepRecord:
@@ -373,7 +398,7 @@ class Transfer:
                 target = np.clip(commands[-1], *self.env.proxy.base.limits)
                 self.base.retarget(self.state.time, target, self.env.dt)
                 self.fem.trajectories_changed()
-            self.follow(self.proxy_points(sub.positions))
+            self.follow(self.proxy_points(sub.positions), commands)
             self.result.times.append(float(self.state.time))
             self.result.proxy_trajectory.append(self.proxy_position(sub).tolist())
             self.result.fem_trajectory.append(self.fem_position(self.state).tolist())
@@ -463,6 +488,12 @@ class MultigaitTransfer(Transfer):
             segment = points[nodes[-1]] - points[nodes[-2]]
             angles.append(np.arctan2(-segment[2], np.linalg.norm(segment[:2])))
         return np.array(angles)
+
+    def feedforward(self, commands: np.ndarray) -> np.ndarray:
+        """A chamber's command in [0, 1] times its volume in the hand gait
+        (:func:`pliant.robots.multigait.demo_actuation`: 4900 mm^3 the centre, 3300 a leg),
+        the volumes whose gait the proxy was calibrated on."""
+        return np.asarray(commands, dtype=float)[: len(CHAMBERS)] * MULTIGAIT_VOLUMES
 
     def correction(self, goal, points) -> np.ndarray:
         out = np.zeros(self.fem.n_actuators)

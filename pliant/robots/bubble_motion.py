@@ -19,7 +19,7 @@ from pliant.constraints.contact import Contacts
 from pliant.errors import ModelError
 from pliant.fem.body import TetBody
 from pliant.fem.rigid import RigidBody
-from pliant.mesh.gmsh_session import gmsh_model, mesh_volumes
+from pliant.mesh.gmsh_session import gmsh_model, mesh_volumes, retry_meshing
 from pliant.mesh.shapes import _cavity_surfaces, _finish, _require_positive
 from pliant.mesh.tetmesh import TetMesh
 from pliant.model import Model
@@ -52,6 +52,7 @@ def cavity_boxes(
     ]
 
 
+@retry_meshing
 def board_mesh(
     *,
     size: float = 60.0,

@@ -22,13 +22,14 @@ from pliant.constraints.contact import Contacts
 from pliant.errors import ModelError
 from pliant.fem.body import TetBody
 from pliant.fem.rigid import DrivenNodes, KinematicBody, RigidBody, rail
-from pliant.mesh.gmsh_session import gmsh_model, mesh_volumes
+from pliant.mesh.gmsh_session import gmsh_model, mesh_volumes, retry_meshing
 from pliant.mesh.shapes import _cavity_surfaces, _finish, _require_positive
 from pliant.mesh.tetmesh import TetMesh
 from pliant.model import Model
 from pliant.robots.common import MaterialName, effector, fixed_by_box, make_material, smooth_ramp
 
 
+@retry_meshing
 def catcher_mesh(
     *,
     opening: float = 30.0,

@@ -24,7 +24,7 @@ from pliant.constraints.contact import Contacts
 from pliant.errors import ModelError
 from pliant.fem.body import TetBody
 from pliant.fem.rigid import DrivenNodes, KinematicBody, RigidBody, Trajectory
-from pliant.mesh.gmsh_session import gmsh_model, mesh_volumes
+from pliant.mesh.gmsh_session import gmsh_model, mesh_volumes, retry_meshing
 from pliant.mesh.tetmesh import TetMesh
 from pliant.model import Model
 from pliant.robots.common import (
@@ -37,6 +37,7 @@ from pliant.robots.common import (
 )
 
 
+@retry_meshing
 def gripper_mesh(
     *,
     opening: float = 40.0,

@@ -24,7 +24,7 @@ from pliant.constraints.contact import Contacts
 from pliant.errors import ModelError
 from pliant.fem.body import TetBody
 from pliant.fem.rigid import DrivenNodes, KinematicBody, servo
-from pliant.mesh.gmsh_session import gmsh_model, mesh_volumes
+from pliant.mesh.gmsh_session import gmsh_model, mesh_volumes, retry_meshing
 from pliant.mesh.io import load_mesh
 from pliant.mesh.shapes import _finish, _require_positive
 from pliant.mesh.tetmesh import TetMesh
@@ -42,6 +42,7 @@ def arm_directions() -> np.ndarray:
     return np.column_stack([np.cos(angles), np.sin(angles)])
 
 
+@retry_meshing
 def tripod_mesh(
     *,
     radius: float = 60.0,
