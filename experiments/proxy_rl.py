@@ -5,7 +5,10 @@ Trunk), with Pliant's training stack (checkpoints, evaluation curve, VecNormaliz
     python experiments/proxy_rl.py multigait [--env-steps 3000] [--seed 0] [--points-only]
     python experiments/proxy_rl.py trunk [--env-steps 6700] [--seed 0]
 
-``--noise LEVEL`` learns on a degraded proxy (experiments/proxy_robustness.py).
+``--noise LEVEL`` learns on a degraded proxy (experiments/proxy_robustness.py);
+``--parameters CALIBRATION.json`` on a proxy of other fitted parameters, e.g. the 16-action
+calibration's (``--parameters experiments/proxy/patterns/multigait-patterns_calibration.json
+--tag _patterns``).
 
 Multigait (pliant/MultigaitProxy-v0, 12 steps of 0.6 s, Discrete(6)): the greedy policy's
 forward travel over an episode beside the hand gait's (rear, centre, front inflated, then
@@ -154,6 +157,7 @@ def learn(
     tag: str = "",
     resume: bool = False,
     command: str = "",
+    parameters: Path | None = None,
 ) -> dict:
     """Train PPO on ROBOT's proxy (its parameters degraded by `noise`), evaluate the final
     policy, and write the results folder; the report."""
@@ -167,6 +171,8 @@ def learn(
         env_kwargs.update(degraded(robot, noise, seed))
     if bend_limit is not None:
         env_kwargs["bend_limit"] = bend_limit
+    if parameters is not None:  # a calibration report's fitted parameters
+        env_kwargs.update(json.loads(Path(parameters).read_text())["parameters"])
     name = f"rl_{robot}{tag}"
     run_dir = Path("runs") / f"proxy_{name}"
     out = Path("experiments/results/proxy") / name
@@ -220,6 +226,9 @@ def main() -> None:
     parser.add_argument("--bend-limit", type=float, default=None, help="trunk (default 0.2)")
     parser.add_argument("--resume", action="store_true")
     parser.add_argument("--tag", default="", help="suffix of the run and result folders")
+    parser.add_argument(
+        "--parameters", type=Path, default=None, help="proxy parameters: a calibration JSON"
+    )
     args = parser.parse_args()
     report = learn(
         args.robot,
@@ -230,6 +239,7 @@ def main() -> None:
         bend_limit=args.bend_limit,
         tag=args.tag,
         resume=args.resume,
+        parameters=args.parameters,
         command="python experiments/proxy_rl.py " + " ".join(sys.argv[1:]),
     )
     print(json.dumps({k: v for k, v in report.items() if k != "curve"}, indent=1))

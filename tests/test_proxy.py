@@ -251,6 +251,59 @@ def test_the_calibrate_command_fits_a_saved_reference_and_resumes(tmp_path) -> N
         assert report["proxy_parameters"][name] == pytest.approx(0.9 * report["parameters"][name])
 
 
+def test_the_16_action_calibration_sequence_visits_every_group_state_twice() -> None:
+    """MULTIGAIT_PATTERNS: each action changes one group (centre, front, rear) as the
+    environment's actions do, ramped over 0.6 s; the 8 on/off states are each held twice and
+    the sequence ends where it began."""
+    from pliant.proxy.references import MULTIGAIT_PATTERNS, pattern_levels
+
+    assert len(MULTIGAIT_PATTERNS) == 16
+    states = []
+    for k in range(17):
+        level = pattern_levels(MULTIGAIT_PATTERNS, 0.6 * k + 1e-9)
+        np.testing.assert_allclose(level[[1, 3]], level[[2, 4]])  # pairs move together
+        states.append(tuple(np.round(level[[0, 1, 3]]).astype(int)))
+    changes = [np.sum(np.subtract(b, a) != 0) for a, b in zip(states, states[1:], strict=False)]
+    assert changes == [1] * 16
+    assert {s: states[:-1].count(s) for s in set(states)} == {s: 2 for s in set(states)}
+    assert len(set(states)) == 8 and states[0] == states[-1] == (0, 0, 0)
+    np.testing.assert_allclose(pattern_levels(MULTIGAIT_PATTERNS, 0.3), [0, 0, 0, 0.5, 0.5])
+
+
+def test_calibrating_on_the_patterns_validates_on_the_hand_gait(tmp_path, monkeypatch) -> None:
+    """`pliant proxy calibrate multigait-patterns`: the report adds the error on the other
+    actions' trajectory (OUT/multigait_reference.npz, the hand gait); a proxy fitted on its
+    own trajectory has error 0 there when that trajectory is its own too."""
+    import json
+
+    from typer.testing import CliRunner
+
+    from pliant.cli import app
+    from pliant.proxy.references import Reference, setup
+
+    surface = np.array([[0.0, 29.0, 0.0], [136.0, -29.0, 0.0], [68.0, 0.0, 0.0]])
+    defaults = dict(multigait_proxy().parameters)
+
+    def reference(commands: np.ndarray) -> Reference:
+        draft = Reference(commands, np.zeros((len(commands), 3, 3)), surface, 0.01)
+        return Reference(commands, setup("multigait").simulate(draft)(defaults), surface, 0.01)
+
+    reference(np.tile([0.0, 0.0, 0.0, 1.0, 1.0], (10, 1))).save(tmp_path / "fit.npz")
+    reference(np.tile([1.0, 1.0, 1.0, 0.0, 0.0], (10, 1))).save(
+        tmp_path / "multigait_reference.npz"
+    )
+    # one trial, at the defaults: the search box collapsed onto them
+    box = {k: (v, v * (1 + 1e-12)) for k, v in defaults.items()}
+    for name, bounds in box.items():
+        monkeypatch.setitem(setup("multigait-patterns").space, name, bounds)
+    args = ["proxy", "calibrate", "multigait-patterns", "--reference", str(tmp_path / "fit.npz")]
+    result = CliRunner().invoke(app, [*args, "--trials", "1", "--out", str(tmp_path)])
+    assert result.exit_code == 0, result.output
+    report = json.loads((tmp_path / "multigait-patterns_calibration.json").read_text())
+    assert report["optimisation_error_mm"] < 1e-6
+    assert report["other_actions"]["error_mm"] < 1e-6
+
+
 def test_the_trunk_proxy_pushes_the_cube_in_its_environment() -> None:
     """pliant/TrunkPushProxy-v0: bending both beams a little towards +x (the cube's side)
     pushes the cube along +x; the reward's parts add up."""

@@ -23,7 +23,12 @@ console = Console()
 @app.command()
 def calibrate(
     robot: Annotated[
-        str, typer.Argument(help="multigait or trunk", callback=one_of("multigait", "trunk"))
+        str,
+        typer.Argument(
+            help="multigait (its hand gait), multigait-patterns (16 actions, validated on the"
+            " hand gait) or trunk",
+            callback=one_of("multigait", "multigait-patterns", "trunk"),
+        ),
     ],
     trials: Annotated[
         int, typer.Option(help="trials the study is to hold", callback=at_least_one)
@@ -48,12 +53,16 @@ def calibrate(
     robot_setup = setup(robot)
     out.mkdir(parents=True, exist_ok=True)
     path = reference if reference is not None else out / f"{robot}_reference.npz"
-    if path.exists():
-        data = Reference.load(path)
-    else:
-        console.print(f"simulating the FEM {robot} for its reference trajectory")
-        data = robot_setup.reference()
+
+    def load_or_simulate(path: Path, simulate) -> Reference:
+        if path.exists():
+            return Reference.load(path)
+        console.print(f"simulating the FEM for the reference trajectory {path.name}")
+        data = simulate()
         data.save(path)
+        return data
+
+    data = load_or_simulate(path, robot_setup.reference)
     result = fit(
         robot_setup.simulate(data),
         data.points,
@@ -74,6 +83,16 @@ def calibrate(
         "safety": safety,
         "reference": str(path),
     }
+    if robot_setup.other is not None:  # validation on other actions than the fitted ones
+        from pliant.proxy.calibrate import mean_distance
+
+        name, simulate = robot_setup.other
+        other = load_or_simulate(out / f"{name}_reference.npz", simulate)
+        points = robot_setup.simulate(other)(result.parameters)
+        report["other_actions"] = {
+            "reference": str(out / f"{name}_reference.npz"),
+            "error_mm": mean_distance(other.points, points),
+        }
     (out / f"{robot}_calibration.json").write_text(json.dumps(report, indent=2))
     console.print_json(json.dumps(report))
 

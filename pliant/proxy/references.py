@@ -52,27 +52,70 @@ class Reference:
         return cls(data["commands"], data["points"], data["surface"], float(data["dt"]))
 
 
+#: The Multigait's 16-action calibration sequence (the thesis': "16 actions of 5-cavity
+#: patterns", not listed): the proxy environment's actions (Discrete(6): 2 g inflates group g
+#: of centre, front, rear legs; 2 g + 1 deflates it), two Gray-code cycles through the 8
+#: on/off states of the three groups, each action changing one group as the environment's do.
+#: The first flips rear, front, rear, centre, ...; the second front, rear, front, centre, ...:
+#: every state is visited twice and entered from two sides, and both alternations of the legs
+#: with the centre off are in it.
+MULTIGAIT_PATTERNS = (4, 2, 5, 0, 4, 3, 5, 1) + (2, 4, 3, 0, 2, 5, 3, 1)
+
+
+def pattern_levels(actions, t: float, *, phase: float = 0.6) -> np.ndarray:
+    """(5,) chamber commands in [0, 1] at time `t` of a sequence of Multigait actions, each
+    ramped over its `phase` s as the hand gait's are; after the sequence, its last state."""
+    groups = {0: ("centre",), 1: ("front_left", "front_right"), 2: ("rear_left", "rear_right")}
+    level = np.zeros(len(CHAMBERS))
+    k, frac = divmod(t / phase, 1.0)
+    for i, action in enumerate(actions):
+        if i > k:
+            break
+        group, off = divmod(int(action), 2)
+        target = 0.0 if off else 1.0
+        for name in groups[group]:
+            j = CHAMBERS.index(name)
+            level[j] = target if i < k else level[j] + frac * (target - level[j])
+    return level
+
+
 def multigait_reference(
-    *, duration: float = 10.8, dt: float = 0.01, mesh_size: float = 6.0, spacing: float = 10.0
+    *,
+    duration: float = 10.8,
+    dt: float = 0.01,
+    mesh_size: float = 6.0,
+    spacing: float = 10.0,
+    actions=None,
 ) -> Reference:
-    """The FEM Multigait walking its gait for `duration` s; matched points: its underside
-    nodes, one per `spacing` mm cell and along the outline."""
+    """The FEM Multigait walking its hand gait for `duration` s, or (`actions`) a sequence of
+    the proxy environment's actions of 0.6 s each (:data:`MULTIGAIT_PATTERNS`); matched
+    points: its underside nodes, one per `spacing` mm cell and along the outline."""
     from pliant.robots.multigait import _underside_nodes, demo_actuation, multigait
 
     model = multigait(mesh_size=mesh_size)
     nodes = _underside_nodes(model.body.mesh, spacing)
     centre, leg = 4900.0, 3300.0  # demo_actuation's amplitudes (mm^3 of volume growth)
     amplitude = np.where(np.array(CHAMBERS) == "centre", centre, leg)
+    if actions is not None:
+        duration = 0.6 * len(actions)
     solver, state = ImplicitEuler(model, dt), model.rest_state()
     commands, points = [], []
     for _ in range(int(round(duration / dt))):
-        volume = demo_actuation(state.time, amplitude=(centre, leg))
+        if actions is None:
+            volume = demo_actuation(state.time, amplitude=(centre, leg))
+        else:
+            volume = pattern_levels(actions, state.time) * amplitude
         state = solver.step(state, volume)
         commands.append(volume / amplitude)
         points.append(state.positions[nodes].copy())
     return Reference(
         np.array(commands), np.array(points), model.body.rest_positions[nodes].copy(), dt
     )
+
+
+def multigait_patterns_reference(**kwargs) -> Reference:
+    """:func:`multigait_reference` under :data:`MULTIGAIT_PATTERNS` (9.6 s)."""
+    return multigait_reference(actions=MULTIGAIT_PATTERNS, **kwargs)
 
 
 #: the Trunk's calibration phases: cable shortenings (mm; cables 0-3 long, on +y, -x, -y,
@@ -127,6 +170,8 @@ class Setup:
     build: Callable[..., Proxy]
     space: dict[str, tuple[float, float]]
     reference: Callable[..., Reference]
+    #: a trajectory under other actions than the fitted ones, to validate on (and its name)
+    other: tuple[str, Callable[..., Reference]] | None = None
 
     def simulate(self, reference: Reference) -> Callable[[dict[str, float]], np.ndarray]:
         """parameters -> (T, K, 3) the proxy's skinned matched points along `reference`."""
@@ -148,6 +193,14 @@ SETUPS = {
     # hand-found values"); the first round's centre was hand-set.
     "multigait": Setup(
         multigait_proxy, _around(MULTIGAIT_PARAMETERS, 0.3, 3.0), multigait_reference
+    ),
+    # The thesis' 16-action calibration (MULTIGAIT_PATTERNS), the same box; its validation on
+    # other actions is the hand gait (`pliant proxy calibrate multigait-patterns`).
+    "multigait-patterns": Setup(
+        multigait_proxy,
+        _around(MULTIGAIT_PARAMETERS, 0.3, 3.0),
+        multigait_patterns_reference,
+        other=("multigait", multigait_reference),
     ),
     # Hand-set: from a third of the FEM's E (450 kPa) to the thesis' 14332 kPa (round 1 stopped
     # at 4500, its best at the edge), its 42 g, and curvatures
