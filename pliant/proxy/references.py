@@ -128,6 +128,17 @@ TRUNK_PHASES = (
 )
 
 
+#: Other cable phases, to validate a Trunk proxy on actions it was not fitted on: towards -y
+#: (long and short), then -x and -y long with +y short (an S-bend), then +x long alone, further
+#: than any fitted phase (30 mm), then release.
+TRUNK_OTHER_PHASES = (
+    (0.0, 0.0, 20.0, 0.0, 0.0, 0.0, 15.0, 0.0),
+    (0.0, 10.0, 10.0, 0.0, 15.0, 0.0, 0.0, 0.0),
+    (0.0, 0.0, 0.0, 30.0, 0.0, 0.0, 0.0, 0.0),
+    (0.0,) * 8,
+)
+
+
 def trunk_commands(cables: np.ndarray) -> np.ndarray:
     """(5,) the Trunk proxy's commands (lower_d1, lower_d2, upper_d1, upper_d2, base) for
     cable shortenings (8,) (module docstring). Bending towards +x is +d2, towards +y -d1."""
@@ -138,8 +149,11 @@ def trunk_commands(cables: np.ndarray) -> np.ndarray:
     return np.clip([-lower_y, lower_x, -long_y, long_x, 0.0], -1.0, 1.0)
 
 
-def trunk_reference(*, phase: float = 0.3, dt: float = 0.01, mesh_size: float = 8.0) -> Reference:
-    """The FEM Trunk through :data:`TRUNK_PHASES`; matched points: its surface nodes."""
+def trunk_reference(
+    *, phase: float = 0.3, dt: float = 0.01, mesh_size: float = 8.0, phases=TRUNK_PHASES
+) -> Reference:
+    """The FEM Trunk through `phases` (:data:`TRUNK_PHASES`); matched points: its surface
+    nodes."""
     from pliant.robots.trunk import trunk
 
     model = trunk(mesh_size=mesh_size)
@@ -147,7 +161,7 @@ def trunk_reference(*, phase: float = 0.3, dt: float = 0.01, mesh_size: float = 
     solver, state = ImplicitEuler(model, dt), model.rest_state()
     steps = int(round(phase / dt))
     commands, points = [], []
-    for target in TRUNK_PHASES:
+    for target in phases:
         for _ in range(steps):
             state = solver.step(state, np.array(target))
             # What the cables reached (1 mm a step at most), not what was asked.
@@ -216,6 +230,7 @@ SETUPS = {
             "upper_curvature": (0.01, 0.15),
         },
         trunk_reference,
+        other=("trunk-other", lambda: trunk_reference(phases=TRUNK_OTHER_PHASES)),
     ),
 }
 
