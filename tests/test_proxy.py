@@ -304,6 +304,19 @@ def test_calibrating_on_the_patterns_validates_on_the_hand_gait(tmp_path, monkey
     assert report["other_actions"]["error_mm"] < 1e-6
 
 
+def test_the_cube_setup_follows_the_cube_under_the_references_commands() -> None:
+    """`trunk-cube`: the matched point is the proxy cube's centre, after the same settling as
+    the FEM's; bending both beams towards it (+d2) pushes it along +x."""
+    from pliant.proxy.references import Reference, setup
+
+    commands = np.zeros((60, 5))
+    commands[:, [1, 3]] = np.linspace(0.0, 0.1, 60)[:, None]
+    draft = Reference(commands, np.zeros((60, 1, 3)), np.zeros((1, 3)), 0.01)
+    points = setup("trunk-cube").simulate(draft)({"cube_mass": 0.01})
+    assert points.shape == (60, 1, 3)
+    assert points[-1, 0, 0] > points[0, 0, 0] + 1.0
+
+
 def test_the_trunk_proxy_pushes_the_cube_in_its_environment() -> None:
     """pliant/TrunkPushProxy-v0: bending both beams a little towards +x (the cube's side)
     pushes the cube along +x; the reward's parts add up."""

@@ -26,8 +26,8 @@ def calibrate(
         str,
         typer.Argument(
             help="multigait (its hand gait), multigait-patterns (16 actions, validated on the"
-            " hand gait) or trunk",
-            callback=one_of("multigait", "multigait-patterns", "trunk"),
+            " hand gait), trunk, or trunk-cube (the cube's mass, a posteriori)",
+            callback=one_of("multigait", "multigait-patterns", "trunk", "trunk-cube"),
         ),
     ],
     trials: Annotated[

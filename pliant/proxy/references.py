@@ -172,6 +172,39 @@ def trunk_reference(
     )
 
 
+#: Steps both models settle under gravity before the cube's calibration trajectory.
+SETTLE_STEPS = 50
+
+
+def trunk_cube_reference(*, dt: float = 0.01, mesh_size: float = 8.0) -> Reference:
+    """The cube's a-posteriori calibration (thesis L694: the proxy calibrated without the
+    cube, its weight fitted afterwards): the FEM Trunk, base fixed, settled with the cube,
+    bends towards it (+x cables: the long one to 7 mm, the short one to 4 mm, both beams'
+    bending 0.1, reached in five 0.3 s ramps and held 2.1 s) and pushes it; the points are
+    the cube's centre (T, 1, 3), the commands the bendings the cables reach
+    (:func:`trunk_commands`)."""
+    from pliant.envs.trunk import settled
+    from pliant.robots.trunk_cube import trunk_cube
+
+    model = trunk_cube(mesh_size=mesh_size, base_motion=lambda t: 0.0)
+    solver = ImplicitEuler(model, dt)
+    state = settled(model, solver, SETTLE_STEPS)
+    start = state.rigid_positions[:1].copy()
+    steps = int(round(0.3 / dt))
+    levels = np.minimum(np.arange(1, 13), 5) * 0.02  # 0.02 more a phase up to 0.1, held
+    commands, points = [], []
+    for k, level in enumerate(levels):
+        previous = levels[k - 1] if k else 0.0
+        for j in range(steps):
+            u = previous + (level - previous) * (j + 1) / steps
+            cables = np.zeros(8)
+            cables[3], cables[7] = 70.0 * u, 40.0 * u
+            state = solver.step(state, cables)
+            commands.append(trunk_commands(state.displacement))
+            points.append(state.rigid_positions[:1].copy())
+    return Reference(np.array(commands), np.array(points), start, dt)
+
+
 def _trunk_alone(**parameters) -> Proxy:
     """The Trunk proxy as calibrated: base fixed, neither cube nor floor in reach."""
     return trunk_proxy(cube_position=None, floor_height=-1000.0, **parameters)
@@ -194,6 +227,26 @@ class Setup:
             proxy = self.build(**parameters)
             skin = Skinning(proxy.rod, reference.surface, neighbours=2)
             return rollout(proxy, reference.commands, skin.positions, dt=reference.dt)
+
+        return run
+
+
+class CubeSetup(Setup):
+    """The Trunk proxy's cube fitted a posteriori: the matched point is the cube's centre."""
+
+    def simulate(self, reference: Reference) -> Callable[[dict[str, float]], np.ndarray]:
+        def run(parameters: dict[str, float]) -> np.ndarray:
+            proxy = self.build(**parameters)
+            solver, state = ImplicitEuler(proxy.model, reference.dt), proxy.model.rest_state()
+            proxy.apply(np.zeros(len(reference.commands[0])))
+            for _ in range(SETTLE_STEPS):
+                state = solver.step(state)
+            out = []
+            for u in reference.commands:
+                proxy.apply(u)
+                state = solver.step(state)
+                out.append(state.rigid_positions[:1].copy())
+            return np.array(out)
 
         return run
 
@@ -232,6 +285,8 @@ SETUPS = {
         trunk_reference,
         other=("trunk-other", lambda: trunk_reference(phases=TRUNK_OTHER_PHASES)),
     ),
+    # The cube's mass, a posteriori (the calibrated Trunk proxy; the FEM's cube is 10 g).
+    "trunk-cube": CubeSetup(trunk_proxy, {"cube_mass": (0.002, 0.05)}, trunk_cube_reference),
 }
 
 
