@@ -270,6 +270,19 @@ def test_the_16_action_calibration_sequence_visits_every_group_state_twice() -> 
     np.testing.assert_allclose(pattern_levels(MULTIGAIT_PATTERNS, 0.3), [0, 0, 0, 0.5, 0.5])
 
 
+def test_the_hand_gait_as_actions_is_the_robots_demo_actuation() -> None:
+    """MULTIGAIT_HAND_GAIT played by pattern_levels gives demo_actuation's volumes at every
+    time of its 10.8 s, so the joint calibration's first part is the hand gait."""
+    from pliant.proxy.references import MULTIGAIT_HAND_GAIT, pattern_levels
+    from pliant.robots.multigait import demo_actuation
+
+    volumes = np.array([4900.0, 3300.0, 3300.0, 3300.0, 3300.0])
+    for t in np.arange(0.0, 10.8, 0.017):
+        np.testing.assert_allclose(
+            pattern_levels(MULTIGAIT_HAND_GAIT, t) * volumes, demo_actuation(t), atol=1e-6
+        )
+
+
 def test_calibrating_on_the_patterns_validates_on_the_hand_gait(tmp_path, monkeypatch) -> None:
     """`pliant proxy calibrate multigait-patterns`: the report adds the error on the other
     actions' trajectory (OUT/multigait_reference.npz, the hand gait); a proxy fitted on its

@@ -26,8 +26,11 @@ def calibrate(
         str,
         typer.Argument(
             help="multigait (its hand gait), multigait-patterns (16 actions, validated on the"
-            " hand gait), trunk, or trunk-cube (the cube's mass, a posteriori)",
-            callback=one_of("multigait", "multigait-patterns", "trunk", "trunk-cube"),
+            " hand gait), multigait-joint (both in one trajectory), trunk, or trunk-cube (the"
+            " cube's mass, a posteriori)",
+            callback=one_of(
+                "multigait", "multigait-patterns", "multigait-joint", "trunk", "trunk-cube"
+            ),
         ),
     ],
     trials: Annotated[

@@ -118,6 +118,17 @@ def multigait_patterns_reference(**kwargs) -> Reference:
     return multigait_reference(actions=MULTIGAIT_PATTERNS, **kwargs)
 
 
+#: The hand gait as the environment's actions: rear, centre, front inflated, then deflated in
+#: that order, three cycles (10.8 s; :func:`pliant.robots.multigait.demo_actuation`).
+MULTIGAIT_HAND_GAIT = (4, 0, 2, 5, 1, 3) * 3
+
+
+def multigait_joint_reference(**kwargs) -> Reference:
+    """:func:`multigait_reference` under the hand gait then the 16 patterns, one trajectory
+    (20.4 s): a proxy fitted on both."""
+    return multigait_reference(actions=MULTIGAIT_HAND_GAIT + MULTIGAIT_PATTERNS, **kwargs)
+
+
 #: the Trunk's calibration phases: cable shortenings (mm; cables 0-3 long, on +y, -x, -y,
 #: +x; 4-7 short, same sides), each reached at 1 mm a step and held to the phase's end.
 TRUNK_PHASES = (
@@ -284,6 +295,11 @@ SETUPS = {
         },
         trunk_reference,
         other=("trunk-other", lambda: trunk_reference(phases=TRUNK_OTHER_PHASES)),
+    ),
+    "multigait-joint": Setup(
+        multigait_proxy,
+        _around(MULTIGAIT_PARAMETERS, 0.3, 3.0),
+        multigait_joint_reference,
     ),
     # The cube's mass, a posteriori (the calibrated Trunk proxy; the FEM's cube is 10 g).
     "trunk-cube": CubeSetup(trunk_proxy, {"cube_mass": (0.002, 0.05)}, trunk_cube_reference),

@@ -1,0 +1,172 @@
+"""The proxy pipeline against RL directly on the FEM (thesis §4.1.3, Trunk pushing a cube: the
+proxy method ends 2 mm from the goal, PPO on the FEM with the same budget 4.5 mm).
+
+1. PPO directly on the FEM Trunk (pliant/TrunkPush-v0 with the proxy environment's 0.3 s
+   steps: 30 sub-steps of 0.01 s) with the proxy's PPO settings and budget (experiments/
+   proxy_rl.py: MLP 128 x 128, n_steps 200, batch 50, gamma 0.95, observations and rewards
+   normalised; 6700 environment steps = 2e5 simulation steps). The proxy's a-priori amplitude
+   limit (bend_limit 0.2) becomes the cables' courses at 0.2 of theirs (14 and 8 mm); the
+   cables are absolute targets, reached at 1 mm a sub-step.
+2. The proxy's policy (experiments/results/proxy/rl_trunk, trained on the proxy with that
+   budget) transferred to the FEM by `pliant proxy transfer`'s loop (inverse QP on the 30
+   skeleton points, realignment of the cube after 10 steps; docs/proxy.md).
+
+Both are evaluated on the same 20 goals (the environments' seeds 1000-1019, which draw the same
+goal offsets in both): the FEM's final cube-goal distance in the floor's plane, and the share
+under 8 mm. Training checkpoints in runs/proxy_vs_fem_rl (`--resume` goes on from the last);
+results in experiments/results/proxy/fem_vs_proxy/.
+
+    python experiments/proxy_vs_fem_rl.py [--env-steps 6700] [--resume]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import shutil
+import sys
+import time
+import warnings
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from pliant.learn.config import TrainConfig
+from pliant.learn.evaluate import load_policy
+from pliant.learn.training import train
+from pliant.learn.vec import make_env
+
+sys.path.insert(0, str(Path(__file__).parent))
+from proxy_rl import SETTINGS, episode  # noqa: E402
+
+FEM_ENV = "pliant/TrunkPush-v0"
+FEM_KWARGS = {
+    "substeps": 30,
+    "settle_steps": 30,
+    "max_long_displacement": 14.0,
+    "max_short_displacement": 8.0,
+}
+GOALS = range(1000, 1020)
+OUT = Path("experiments/results/proxy/fem_vs_proxy")
+
+
+def train_on_fem(env_steps: int, seed: int, resume: bool) -> tuple[Path, dict]:
+    s = SETTINGS["trunk"]
+    run_dir = Path("runs/proxy_vs_fem_rl")
+    config = TrainConfig(
+        env_id=FEM_ENV,
+        algo="PPO",
+        total_timesteps=env_steps,
+        seed=seed,
+        env_kwargs=FEM_KWARGS,
+        n_envs=1,
+        vec_env="dummy",
+        normalize=dict(s["normalize"]),
+        eval_freq=s["eval_freq"],
+        eval_episodes=s["eval_episodes"],
+        checkpoint_freq=s["eval_freq"],
+        video_episodes=0,
+        hyperparams=s["hyperparams"],
+    )
+    result = train(None if resume else config, run_dir, resume=resume)
+    return run_dir, result.summary
+
+
+def evaluate_on_fem(policy_dir: Path) -> list[dict]:
+    saved = load_policy(policy_dir)
+    env = make_env(FEM_ENV, FEM_KWARGS)
+
+    def greedy(obs, k):
+        return saved.model.predict(saved.normalize_obs(obs), deterministic=True)[0]
+
+    return [episode(env, greedy, s) for s in GOALS]
+
+
+def transfer_proxy_policy(policy_dir: Path) -> list[dict]:
+    from pliant.envs.trunk_push_proxy import TrunkPushProxyEnv
+    from pliant.proxy.transfer import trunk_transfer
+
+    saved = load_policy(policy_dir, algo="PPO")
+    normalize = saved.normalize_obs or (lambda obs: obs)
+    probe = TrunkPushProxyEnv(**saved.env_kwargs)
+    rows = []
+    for seed in GOALS:
+        probe.reset(seed=seed)
+        offset = probe.task["goal"] - probe.cube()
+        loop = trunk_transfer(goal_offset=(offset[0], offset[2]), env_kwargs=saved.env_kwargs)
+
+        def chooser(obs):
+            return saved.model.predict(normalize(obs), deterministic=True)[0]
+
+        clock = time.perf_counter()
+        result = loop.run(policy=chooser, steps=10)
+        goal = loop.env.task["goal"]
+        fem_cube = loop.state.rigid_positions[0]
+        proxy_cube = loop.env.state.rigid_positions[0]
+        rows.append(
+            {
+                "seed": seed,
+                "goal_offset_xz": [float(offset[0]), float(offset[2])],
+                "fem_distance": float(np.hypot(*(fem_cube - goal)[[0, 2]])),
+                "proxy_distance": float(np.hypot(*(proxy_cube - goal)[[0, 2]])),
+                "relative_reward_difference": result.relative_difference,
+                "wall_s": time.perf_counter() - clock,
+            }
+        )
+        print(json.dumps(rows[-1]), flush=True)
+    return rows
+
+
+def summary(distances: list[float]) -> dict:
+    d = np.asarray(distances)
+    return {
+        "mean_final_distance_mm": float(d.mean()),
+        "median_final_distance_mm": float(np.median(d)),
+        "solved_under_8mm": float(np.mean(d < 8.0)),
+    }
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser()
+    parser.add_argument("--env-steps", type=int, default=SETTINGS["trunk"]["env_steps"])
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--resume", action="store_true")
+    args = parser.parse_args()
+    warnings.simplefilter("ignore")
+    torch.set_num_threads(1)
+    OUT.mkdir(parents=True, exist_ok=True)
+    run_dir, trained = train_on_fem(args.env_steps, args.seed, args.resume)
+    for f in ("model.zip", "vecnormalize.pkl", "meta.json"):
+        shutil.copy(run_dir / "final" / f, OUT / f)
+    shutil.copy(run_dir / "learning_curve.png", OUT / "fem_learning_curve.png")
+    direct = evaluate_on_fem(run_dir / "final")
+    transferred = transfer_proxy_policy(Path("experiments/results/proxy/rl_trunk"))
+    report = {
+        "command": "python experiments/proxy_vs_fem_rl.py " + " ".join(sys.argv[1:]),
+        "goals": f"seeds {GOALS.start}-{GOALS.stop - 1} of both environments",
+        "fem_env": FEM_ENV,
+        "fem_env_kwargs": FEM_KWARGS,
+        "rl_on_fem": {
+            "env_steps": trained["steps"],
+            "simulation_steps": trained["steps"] * FEM_KWARGS["substeps"],
+            "training_seconds": trained["wall_seconds"],
+            **summary([r["distance"] for r in direct]),
+            "episodes": direct,
+        },
+        "proxy_pipeline": {
+            "policy": "experiments/results/proxy/rl_trunk (6800 env steps on the proxy)",
+            "fem": summary([r["fem_distance"] for r in transferred]),
+            "proxy": summary([r["proxy_distance"] for r in transferred]),
+            "transfers": transferred,
+        },
+        "thesis": {"proxy_pipeline_mm": 2.0, "rl_on_fem_mm": 4.5},
+    }
+    (OUT / "report.json").write_text(json.dumps(report, indent=1))
+    print(json.dumps({k: v for k, v in report.items() if k not in ("rl_on_fem", "proxy_pipeline")}))
+    print("RL on the FEM:", json.dumps(summary([r["distance"] for r in direct])))
+    print("proxy pipeline (FEM):", json.dumps(report["proxy_pipeline"]["fem"]))
+
+
+if __name__ == "__main__":
+    main()
