@@ -17,6 +17,8 @@ under 8 mm. Training checkpoints in runs/proxy_vs_fem_rl (`--resume` goes on fro
 results in experiments/results/proxy/fem_vs_proxy/.
 
     python experiments/proxy_vs_fem_rl.py [--env-steps 6700] [--resume]
+    # another proxy policy through the same transfer and goals (report_NAME.json)
+    python experiments/proxy_vs_fem_rl.py --transfer-only experiments/results/proxy/rl_trunk_20k
 """
 
 from __future__ import annotations
@@ -132,10 +134,29 @@ def main() -> None:
     parser.add_argument("--env-steps", type=int, default=SETTINGS["trunk"]["env_steps"])
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--resume", action="store_true")
+    parser.add_argument(
+        "--transfer-only", type=Path, default=None, help="only transfer this proxy policy"
+    )
     args = parser.parse_args()
     warnings.simplefilter("ignore")
     torch.set_num_threads(1)
     OUT.mkdir(parents=True, exist_ok=True)
+    if args.transfer_only is not None:
+        rows = transfer_proxy_policy(args.transfer_only)
+        trained = json.loads((args.transfer_only / "report.json").read_text())
+        report = {
+            "command": "python experiments/proxy_vs_fem_rl.py " + " ".join(sys.argv[1:]),
+            "policy": str(args.transfer_only),
+            "proxy_env_steps": trained["env_steps"],
+            "proxy_simulation_steps": trained["simulation_steps"],
+            "proxy_training_seconds": trained["training_seconds"],
+            "fem": summary([r["fem_distance"] for r in rows]),
+            "proxy": summary([r["proxy_distance"] for r in rows]),
+            "transfers": rows,
+        }
+        (OUT / f"report_{args.transfer_only.name}.json").write_text(json.dumps(report, indent=1))
+        print(json.dumps({k: report[k] for k in ("fem", "proxy")}))
+        return
     run_dir, trained = train_on_fem(args.env_steps, args.seed, args.resume)
     for f in ("model.zip", "vecnormalize.pkl", "meta.json"):
         shutil.copy(run_dir / "final" / f, OUT / f)

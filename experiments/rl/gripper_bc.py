@@ -13,6 +13,10 @@ training and every `--eval-freq` steps. The report is the number of steps each r
 reach `--threshold` success, beside the thesis' budget. Runs checkpoint in
 runs/gripper_{scratch,bc} (not committed) and resume with the same command; results in
 experiments/results/rl/gripper_bc/.
+
+``--push-down``: the thesis' random downward force on the cube (``cube_push_down``, up to
+``push_force`` = 50 mN a step), which it needed for a firm grasp; runs in
+runs/gripper_{scratch,bc}_push_down, results in experiments/results/rl/gripper_bc_push_down/.
 """
 
 from __future__ import annotations
@@ -83,8 +87,16 @@ def folder_of(runs: Path, name: str) -> Path:
     return runs / f"gripper_{name}"
 
 
+def results_of(args) -> Path:
+    return RESULTS.with_name(RESULTS.name + "_push_down") if args.push_down else RESULTS
+
+
+def run_name(name: str, args) -> str:
+    return f"{name}_push_down" if args.push_down else name
+
+
 def run(name: str, bc: bool, args) -> dict:
-    folder = folder_of(args.runs, name)
+    folder = folder_of(args.runs, run_name(name, args))
     resume = (folder / "checkpoints").exists() and any((folder / "checkpoints").glob("step_*"))
     overrides = {
         "total_timesteps": args.steps,
@@ -101,6 +113,8 @@ def run(name: str, bc: bool, args) -> dict:
             "epochs": args.bc_epochs,
         }
     config = load_config("pliant/Gripper-v0", "RecurrentPPO", overrides=overrides)
+    if args.push_down:
+        config.env_kwargs = {**config.env_kwargs, "cube_push_down": True}
     start = EvaluateAtStart(folder, args.eval_episodes, config.env_id, config.env_kwargs)
     result = train(
         config, folder, resume=resume, total_timesteps=args.steps, extra_callbacks=[start]
@@ -116,11 +130,11 @@ def run(name: str, bc: bool, args) -> dict:
         "training_steps_to_threshold": training_steps_to(folder / "episodes.csv", args.threshold),
         "training": result.summary,
     }
-    shutil.copy(folder / "evaluations.json", RESULTS / f"evaluations_{name}.json")
+    shutil.copy(folder / "evaluations.json", results_of(args) / f"evaluations_{name}.json")
     return out
 
 
-def plot(runs: dict, folder: Path, threshold: float, path: Path) -> None:
+def plot(runs: dict, folder: Path, threshold: float, path: Path, suffix: str = "") -> None:
     import matplotlib
 
     matplotlib.use("Agg")
@@ -131,7 +145,7 @@ def plot(runs: dict, folder: Path, threshold: float, path: Path) -> None:
         steps = [e["step"] for e in r["curve"]]
         success = [100 * (e["success_rate"] or 0.0) for e in r["curve"]]
         ax.plot(steps, success, "o-", color=colour, label=f"{name}: evaluations")
-        with open(folder_of(folder, name) / "episodes.csv") as f:
+        with open(folder_of(folder, name + suffix) / "episodes.csv") as f:
             rows = list(csv.DictReader(f))
         won = np.convolve([r["success"] == "1" for r in rows], np.ones(20) / 20, mode="valid")
         done = [float(r["step"]) for r in rows][19:]
@@ -158,10 +172,12 @@ def main() -> None:
     parser.add_argument(
         "--only", choices=("bc", "scratch"), default=None, help="run one of the two"
     )
+    parser.add_argument("--push-down", action="store_true", help="random downward force")
     args = parser.parse_args()
     torch.set_num_threads(args.threads)
-    RESULTS.mkdir(parents=True, exist_ok=True)
-    summary_path = RESULTS / "summary.json"
+    results = results_of(args)
+    results.mkdir(parents=True, exist_ok=True)
+    summary_path = results / "summary.json"
     summary = json.loads(summary_path.read_text()) if summary_path.exists() else {"runs": {}}
     for name, bc in (("bc", True), ("scratch", False)):
         if args.only in (None, name):
@@ -170,15 +186,18 @@ def main() -> None:
     summary |= {
         "threshold": args.threshold,
         "thesis": THESIS,
-        "command": f"PYTHONPATH=. python experiments/rl/gripper_bc.py --steps {args.steps}",
+        "command": f"PYTHONPATH=. python experiments/rl/gripper_bc.py --steps {args.steps}"
+        + " --push-down" * args.push_down,
+        "cube_push_down": args.push_down,
     }
     summary_path.write_text(json.dumps(summary, indent=1))
-    plot(summary["runs"], args.runs, args.threshold, RESULTS / "success.png")
+    suffix = "_push_down" if args.push_down else ""
+    plot(summary["runs"], args.runs, args.threshold, results / "success.png", suffix)
     for name in summary["runs"]:  # one evaluation episode of each final policy
         evaluate_saved(
-            folder_of(args.runs, name) / "final",
+            folder_of(args.runs, name + suffix) / "final",
             episodes=1,
-            gif=RESULTS / f"{name}.gif",
+            gif=results / f"{name}.gif",
         )
     print(
         json.dumps(
