@@ -146,6 +146,26 @@ def degraded(robot: str, level: float, seed: int) -> dict:
     return {k: float(v * (1.0 + level * rng.uniform(-1.0, 1.0))) for k, v in reference.items()}
 
 
+def ppo_config(robot: str, env_id: str, env_kwargs: dict, steps: int, seed: int) -> TrainConfig:
+    """PPO with ROBOT's settings (one environment in the process) on `env_id`."""
+    s = SETTINGS[robot]
+    return TrainConfig(
+        env_id=env_id,
+        algo="PPO",
+        total_timesteps=steps,
+        seed=seed,
+        env_kwargs=env_kwargs,
+        n_envs=1,
+        vec_env="dummy",
+        normalize=dict(s["normalize"]),
+        eval_freq=s["eval_freq"],
+        eval_episodes=s["eval_episodes"],
+        checkpoint_freq=s["eval_freq"],
+        video_episodes=0,
+        hyperparams=s["hyperparams"],
+    )
+
+
 def learn(
     robot: str,
     *,
@@ -176,21 +196,7 @@ def learn(
     name = f"rl_{robot}{tag}"
     run_dir = Path("runs") / f"proxy_{name}"
     out = Path("experiments/results/proxy") / name
-    config = TrainConfig(
-        env_id=s["env_id"],
-        algo="PPO",
-        total_timesteps=env_steps or s["env_steps"],
-        seed=seed,
-        env_kwargs=env_kwargs,
-        n_envs=1,
-        vec_env="dummy",
-        normalize=dict(s["normalize"]),
-        eval_freq=s["eval_freq"],
-        eval_episodes=s["eval_episodes"],
-        checkpoint_freq=s["eval_freq"],
-        video_episodes=0,
-        hyperparams=s["hyperparams"],
-    )
+    config = ppo_config(robot, s["env_id"], env_kwargs, env_steps or s["env_steps"], seed)
     result = train(None if resume else config, run_dir, resume=resume)
     substeps = make_env(s["env_id"], env_kwargs).unwrapped.substeps
     report = {

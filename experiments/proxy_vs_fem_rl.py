@@ -34,13 +34,12 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from pliant.learn.config import TrainConfig
 from pliant.learn.evaluate import load_policy
 from pliant.learn.training import train
 from pliant.learn.vec import make_env
 
 sys.path.insert(0, str(Path(__file__).parent))
-from proxy_rl import SETTINGS, episode  # noqa: E402
+from proxy_rl import SETTINGS, episode, ppo_config  # noqa: E402
 
 FEM_ENV = "pliant/TrunkPush-v0"
 FEM_KWARGS = {
@@ -54,23 +53,8 @@ OUT = Path("experiments/results/proxy/fem_vs_proxy")
 
 
 def train_on_fem(env_steps: int, seed: int, resume: bool) -> tuple[Path, dict]:
-    s = SETTINGS["trunk"]
     run_dir = Path("runs/proxy_vs_fem_rl")
-    config = TrainConfig(
-        env_id=FEM_ENV,
-        algo="PPO",
-        total_timesteps=env_steps,
-        seed=seed,
-        env_kwargs=FEM_KWARGS,
-        n_envs=1,
-        vec_env="dummy",
-        normalize=dict(s["normalize"]),
-        eval_freq=s["eval_freq"],
-        eval_episodes=s["eval_episodes"],
-        checkpoint_freq=s["eval_freq"],
-        video_episodes=0,
-        hyperparams=s["hyperparams"],
-    )
+    config = ppo_config("trunk", FEM_ENV, FEM_KWARGS, env_steps, seed)
     result = train(None if resume else config, run_dir, resume=resume)
     return run_dir, result.summary
 
