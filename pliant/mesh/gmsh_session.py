@@ -92,8 +92,9 @@ R = TypeVar("R")
 def retry_meshing(build: Callable[P, R]) -> Callable[P, R]:
     """Run a shape builder again with the fallback surface algorithms when meshing fails.
 
-    The whole builder runs again in a new gmsh session: after a failed ``generate`` gmsh's
-    session meshes nothing more (its busy lock stays set), so retrying inside it cannot work.
+    The whole builder runs again in a new gmsh session: after a failed ``generate`` the same
+    session meshed nothing more, not even the curves (measured; a busy lock left set is our
+    reading), so retrying inside it cannot work.
     Deterministic: the same parameters take the same path to the same mesh.
     """
 
