@@ -631,6 +631,8 @@ def test_split_head_keeps_the_first_samples_of_every_field() -> None:
     assert len(head) == 3
     for f in dataclasses.fields(Split):
         np.testing.assert_array_equal(getattr(head, f.name), getattr(split, f.name)[:3])
+    with pytest.raises(DatasetError, match="count >= 0"):
+        split.head(-1)
 
 
 def test_samples_started_from_rest_do_not_depend_on_the_samples_before(tmp_path) -> None:

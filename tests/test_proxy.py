@@ -202,7 +202,7 @@ def test_calibration_recovers_a_proxys_own_parameters(tmp_path) -> None:
 
     def simulate(parameters: dict[str, float]) -> np.ndarray:
         proxy = trunk_proxy(nodes=9, cube_position=None, floor_height=-1000.0, **parameters)
-        return rollout(proxy, commands, proxy.skeleton, dt=0.02)
+        return rollout(proxy, commands, lambda s: proxy.skeleton(s.positions), dt=0.02)
 
     reference = simulate(truth)
     space = {name: (0.75 * value, 1.25 * value) for name, value in truth.items()}
@@ -268,15 +268,17 @@ def test_the_16_action_calibration_sequence_visits_every_group_state_twice() -> 
     assert {s: states[:-1].count(s) for s in set(states)} == {s: 2 for s in set(states)}
     assert len(set(states)) == 8 and states[0] == states[-1] == (0, 0, 0)
     np.testing.assert_allclose(pattern_levels(MULTIGAIT_PATTERNS, 0.3), [0, 0, 0, 0.5, 0.5])
+    with pytest.raises(ModelError, match="integers in"):
+        pattern_levels((4, 6), 0.3)
 
 
 def test_the_hand_gait_as_actions_is_the_robots_demo_actuation() -> None:
     """MULTIGAIT_HAND_GAIT played by pattern_levels gives demo_actuation's volumes at every
     time of its 10.8 s, so the joint calibration's first part is the hand gait."""
     from pliant.proxy.references import MULTIGAIT_HAND_GAIT, pattern_levels
-    from pliant.robots.multigait import demo_actuation
+    from pliant.robots.multigait import chamber_amplitudes, demo_actuation
 
-    volumes = np.array([4900.0, 3300.0, 3300.0, 3300.0, 3300.0])
+    volumes = chamber_amplitudes()
     for t in np.arange(0.0, 10.8, 0.017):
         np.testing.assert_allclose(
             pattern_levels(MULTIGAIT_HAND_GAIT, t) * volumes, demo_actuation(t), atol=1e-6

@@ -302,6 +302,8 @@ class Split:
     def head(self, n: int) -> Split:
         """The first `n` samples (training points are a Halton sequence: its first `n` are
         themselves evenly spread)."""
+        if isinstance(n, bool) or not isinstance(n, int | np.integer) or n < 0:
+            raise DatasetError(f"a split's head needs a count >= 0, got {n!r}")
         return Split(**{f.name: getattr(self, f.name)[:n] for f in fields(self)})
 
     def inputs(self) -> np.ndarray:

@@ -22,6 +22,7 @@ import numpy as np
 import optuna
 
 from pliant.errors import ModelError, PliantError
+from pliant.model import State
 from pliant.proxy.builders import Proxy
 from pliant.solvers import ImplicitEuler
 
@@ -46,18 +47,24 @@ def mean_distance(reference: np.ndarray, proxy: np.ndarray) -> float:
 def rollout(
     proxy: Proxy,
     commands: np.ndarray,
-    points: Callable[[np.ndarray], np.ndarray],
+    points: Callable[[State], np.ndarray],
     *,
     dt: float = 0.01,
+    settle: int = 0,
 ) -> np.ndarray:
     """(T, K, 3) matched points of `proxy` after each of the steps commanded by `commands`
-    (T, n_controls), read from a state's positions by `points`."""
+    (T, n_controls), read from the state by `points`; first `settle` steps at zero commands
+    from rest."""
+    commands = np.atleast_2d(commands)
     solver, state = ImplicitEuler(proxy.model, dt), proxy.model.rest_state()
+    proxy.apply(np.zeros(commands.shape[1]))
+    for _ in range(settle):
+        state = solver.step(state)
     out = []
-    for u in np.atleast_2d(commands):
+    for u in commands:
         proxy.apply(u)
         state = solver.step(state)
-        out.append(points(state.positions))
+        out.append(points(state))
     return np.array(out)
 
 

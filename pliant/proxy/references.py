@@ -23,7 +23,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from pliant.errors import UnknownRobotError
+from pliant.errors import ModelError, UnknownRobotError
 from pliant.mesh.multigait import CHAMBERS
 from pliant.proxy.builders import MULTIGAIT_PARAMETERS, Proxy, multigait_proxy, trunk_proxy
 from pliant.proxy.calibrate import rollout
@@ -66,6 +66,8 @@ def pattern_levels(actions, t: float, *, phase: float = 0.6) -> np.ndarray:
     """(5,) chamber commands in [0, 1] at time `t` of a sequence of Multigait actions, each
     ramped over its `phase` s as the hand gait's are; after the sequence, its last state."""
     groups = {0: ("centre",), 1: ("front_left", "front_right"), 2: ("rear_left", "rear_right")}
+    if not all(isinstance(a, int | np.integer) and 0 <= a < 6 for a in actions):
+        raise ModelError(f"Multigait actions are integers in [0, 6), got {list(actions)}")
     level = np.zeros(len(CHAMBERS))
     k, frac = divmod(t / phase, 1.0)
     for i, action in enumerate(actions):
@@ -90,19 +92,23 @@ def multigait_reference(
     """The FEM Multigait walking its hand gait for `duration` s, or (`actions`) a sequence of
     the proxy environment's actions of 0.6 s each (:data:`MULTIGAIT_PATTERNS`); matched
     points: its underside nodes, one per `spacing` mm cell and along the outline."""
-    from pliant.robots.multigait import _underside_nodes, demo_actuation, multigait
+    from pliant.robots.multigait import (
+        _underside_nodes,
+        chamber_amplitudes,
+        demo_actuation,
+        multigait,
+    )
 
     model = multigait(mesh_size=mesh_size)
     nodes = _underside_nodes(model.body.mesh, spacing)
-    centre, leg = 4900.0, 3300.0  # demo_actuation's amplitudes (mm^3 of volume growth)
-    amplitude = np.where(np.array(CHAMBERS) == "centre", centre, leg)
+    amplitude = chamber_amplitudes()  # demo_actuation's (mm^3 of volume growth)
     if actions is not None:
         duration = 0.6 * len(actions)
     solver, state = ImplicitEuler(model, dt), model.rest_state()
     commands, points = [], []
     for _ in range(int(round(duration / dt))):
         if actions is None:
-            volume = demo_actuation(state.time, amplitude=(centre, leg))
+            volume = demo_actuation(state.time)
         else:
             volume = pattern_levels(actions, state.time) * amplitude
         state = solver.step(state, volume)
@@ -237,7 +243,9 @@ class Setup:
         def run(parameters: dict[str, float]) -> np.ndarray:
             proxy = self.build(**parameters)
             skin = Skinning(proxy.rod, reference.surface, neighbours=2)
-            return rollout(proxy, reference.commands, skin.positions, dt=reference.dt)
+            return rollout(
+                proxy, reference.commands, lambda s: skin.positions(s.positions), dt=reference.dt
+            )
 
         return run
 
@@ -247,17 +255,13 @@ class CubeSetup(Setup):
 
     def simulate(self, reference: Reference) -> Callable[[dict[str, float]], np.ndarray]:
         def run(parameters: dict[str, float]) -> np.ndarray:
-            proxy = self.build(**parameters)
-            solver, state = ImplicitEuler(proxy.model, reference.dt), proxy.model.rest_state()
-            proxy.apply(np.zeros(len(reference.commands[0])))
-            for _ in range(SETTLE_STEPS):
-                state = solver.step(state)
-            out = []
-            for u in reference.commands:
-                proxy.apply(u)
-                state = solver.step(state)
-                out.append(state.rigid_positions[:1].copy())
-            return np.array(out)
+            return rollout(
+                self.build(**parameters),
+                reference.commands,
+                lambda s: s.rigid_positions[:1].copy(),
+                dt=reference.dt,
+                settle=SETTLE_STEPS,
+            )
 
         return run
 

@@ -62,6 +62,7 @@ from pliant.errors import ModelError, PliantError
 from pliant.fem.rotation import exp_map, log_map
 from pliant.mesh.multigait import CHAMBERS
 from pliant.model import Model, State
+from pliant.robots.multigait import chamber_amplitudes
 from pliant.solvers import ImplicitEuler
 
 FORWARD = np.array([-1.0, 0.0, 0.0])  # the Multigait's forward direction (its environments')
@@ -133,7 +134,7 @@ TRUNK_GAINS = TransferGains(
 )
 #: the chambers' volumes (mm^3) of the hand gait, pliant.robots.multigait.demo_actuation's
 #: amplitudes in CHAMBERS order: the Multigait feedforward's map from the proxy's commands.
-MULTIGAIT_VOLUMES = np.where(np.array(CHAMBERS) == "centre", 4900.0, 3300.0)
+MULTIGAIT_VOLUMES = chamber_amplitudes()
 #: the thesis' Multigait test sequence (Discrete(6): 2 g inflates group g of centre, front,
 #: rear; 2 g + 1 deflates it): rear, centre, centre, front, rear off, centre off, front off, rear.
 MULTIGAIT_SEQUENCE = (4, 0, 0, 2, 5, 1, 3, 4)

@@ -207,8 +207,19 @@ def _thinned(mesh: TetMesh, nodes: np.ndarray, spacing: float) -> np.ndarray:
     return np.sort(nodes[order[first]])
 
 
+#: The hand gait's volume growths (mm^3) of the inflated centre and of each inflated leg.
+GAIT_AMPLITUDE = (4900.0, 3300.0)
+
+
+def chamber_amplitudes(amplitude: tuple[float, float] = GAIT_AMPLITUDE) -> np.ndarray:
+    """(5,) each chamber's command when inflated, in CHAMBERS order: the centre's, then a
+    leg's for each leg."""
+    centre, leg = amplitude
+    return np.where(np.array(geometry.CHAMBERS) == "centre", centre, leg)
+
+
 def demo_actuation(
-    t: float, *, amplitude: tuple[float, float] = (4900.0, 3300.0), phase: float = 0.6
+    t: float, *, amplitude: tuple[float, float] = GAIT_AMPLITUDE, phase: float = 0.6
 ) -> np.ndarray:
     """The hand-defined gait: each group inflated in turn (rear legs, centre, front legs),
     then deflated in the same order; one phase every `phase` seconds (SofaGym's Multigait
@@ -232,8 +243,7 @@ def demo_actuation(
             on = 0.0
         for name in names:
             level[geometry.CHAMBERS.index(name)] = on
-    centre, leg = amplitude
-    return level * np.where(np.array(geometry.CHAMBERS) == "centre", centre, leg)
+    return level * chamber_amplitudes(amplitude)
 
 
 def centre_of_mass(model: Model, positions: np.ndarray) -> np.ndarray:
