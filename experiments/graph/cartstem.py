@@ -1,6 +1,7 @@
 """The configuration-space graph against plain SAC (thesis §4.2.3, Fig. 4.9A; issue 19).
 
-    python experiments/graph/cartstem.py [--scene CartStemContact] [--methods graph convex sac]
+    python experiments/graph/cartstem.py [--scene CartStemContact|RodManipulator|Corridor]
+        [--methods graph convex sac]
         [--seeds 0 1 2] [--steps 250000] [--eval-every 600] [--out experiments/results/graph]
 
 Methods (same SAC and hyper-parameters for all, thesis L827): ``graph`` (node by Eq. 4.7,
@@ -36,7 +37,18 @@ CONFIGS = {
     # The tests' settings.
     "Corridor": {"hidden": 64, "d": 16, "lr": 1e-3, "batch_size": 64, "learning_starts": 200,
                  "option_limit": 20},
+    # CartStemContact's.
+    "RodManipulator": {"hidden": 256, "lr": 3e-4, "batch_size": 256, "learning_starts": 500},
 }  # fmt: skip
+#: Environment settings: RodManipulator's goal is the thesis' example, 280°.
+ENV_SETTINGS = {
+    "RodManipulator": {"goal_low": float(np.radians(280.0)), "goal_high": float(np.radians(280.0))}
+}
+THESIS = {
+    "CartStemContact": {"sac": 140_000, "graph": 80_000, "convex": 40_000},
+    "RodManipulator": "280 deg reached by the graph with experts; plain SAC cannot reconfigure"
+    " the contacts within 200000 iterations",
+}
 THESIS_STEPS = 250_000
 METHODS = ("graph", "convex", "sac")
 
@@ -66,8 +78,8 @@ def main() -> None:
         for seed in args.seeds:
             runs[method, seed] = train_run(
                 args.scene, method, root / f"{method}_seed{seed}", steps=args.steps, seed=seed,
-                config=CONFIGS[args.scene], eval_every=args.eval_every,
-                eval_episodes=args.eval_episodes,
+                config=CONFIGS[args.scene], env_kwargs=ENV_SETTINGS.get(args.scene),
+                eval_every=args.eval_every, eval_episodes=args.eval_episodes,
             )  # fmt: skip
     # The summary covers every run folder of the scene, whichever this call trained.
     for folder in sorted(root.glob("*_seed*")):
@@ -81,7 +93,8 @@ def main() -> None:
         "partial": any(h and h[-1]["steps"] < THESIS_STEPS for h in runs.values()),
         "solved_success": args.solved,
         "config": CONFIGS[args.scene],
-        "thesis_iterations_to_solve": {"sac": 140_000, "graph": 80_000, "convex": 40_000},
+        "env": ENV_SETTINGS.get(args.scene, {}),
+        "thesis": THESIS.get(args.scene),
         "runs": {
             method: {
                 str(seed): {
@@ -96,18 +109,24 @@ def main() -> None:
         },
     }
     (root / "summary.json").write_text(json.dumps(summary, indent=1))
-    fig, ax = plt.subplots(figsize=(6, 3.5))
-    for method in methods:
-        curves = [h for (m, _), h in sorted(runs.items()) if m == method and h]
-        if not curves:
-            continue
-        n = min(len(c) for c in curves)
-        steps = np.array([h["steps"] for h in curves[0][:n]])
-        returns = np.array([[h["return"] for h in c[:n]] for c in curves])
-        ax.plot(steps, returns.mean(0), label=f"{method} ({len(curves)} seeds)")
-        ax.fill_between(steps, returns.min(0), returns.max(0), alpha=0.2)
-    ax.set(xlabel="environment steps", ylabel="evaluation return", title=args.scene)
-    ax.legend()
+    # Evaluation return, and RodManipulator's final angle (the quantity of its result).
+    keys = ["return"] + (["final_angle"] if args.scene == "RodManipulator" else [])
+    fig, axes = plt.subplots(1, len(keys), figsize=(6 * len(keys), 3.5), squeeze=False)
+    for ax, key in zip(axes[0], keys, strict=True):
+        for method in methods:
+            curves = [h for (m, _), h in sorted(runs.items()) if m == method and h]
+            if not curves:
+                continue
+            n = min(len(c) for c in curves)
+            steps = np.array([h["steps"] for h in curves[0][:n]])
+            values = np.array([[h.get(key, np.nan) for h in c[:n]] for c in curves])
+            if key == "final_angle":
+                values = np.degrees(values)
+            ax.plot(steps, values.mean(0), label=f"{method} ({len(curves)} seeds)")
+            ax.fill_between(steps, values.min(0), values.max(0), alpha=0.2)
+        label = "final rod angle (deg)" if key == "final_angle" else "evaluation return"
+        ax.set(xlabel="environment steps", ylabel=label, title=args.scene)
+        ax.legend()
     fig.tight_layout()
     fig.savefig(root / "curves.png", dpi=120)
     print(json.dumps(summary["runs"], indent=1))

@@ -8,7 +8,7 @@ import gymnasium as gym
 import numpy as np
 import torch
 
-from pliant.learn.graph.hierarchy import GraphConfig
+from pliant.learn.graph.hierarchy import GraphConfig, final_numbers
 from pliant.learn.graph.sac import SAC, ReplayBuffer
 
 
@@ -60,7 +60,7 @@ class FlatSAC:
                             b["obs"], b["action"], b["reward"], b["next_obs"], b["done"]
                         )
             obs = next_obs
-        return {"return": total, "length": length, "success": success}
+        return {"return": total, "length": length, "success": success, "info": info}
 
     def learn(self, env, total_steps, *, eval_env=None, eval_every=0, eval_episodes=5,
               callback=None) -> list[dict]:  # fmt: skip
@@ -93,4 +93,5 @@ class FlatSAC:
         return {
             "return": float(np.mean([r["return"] for r in runs])),
             "success": float(np.mean([r["success"] for r in runs])),
+            **final_numbers([r["info"] for r in runs]),
         }

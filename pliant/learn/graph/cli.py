@@ -23,7 +23,7 @@ app = typer.Typer(
 console = Console()
 
 METHODS = ("graph", "convex", "sac")
-SCENES = ("Corridor", "CartStemContact")
+SCENES = ("Corridor", "CartStemContact", "RodManipulator")
 
 
 def settings_file(path: Path | None) -> dict:
@@ -51,7 +51,7 @@ def build_learner(method: str, scene, config, seed: int):
     controllers = scene.controllers if method == "convex" else None
     return GraphAgent(
         scene.graph, env.observation_space, env.action_space, config,
-        controllers=controllers, seed=seed,
+        controllers=controllers, experts=scene.experts, seed=seed,
     )  # fmt: skip
 
 
@@ -84,6 +84,10 @@ def train_run(
     if unknown:
         raise typer.BadParameter(f"unknown config keys {sorted(unknown)}; known: {sorted(fields)}")
     scene = make_scene(scene_name, **(env_kwargs or {}))
+    if method == "convex" and not scene.controllers:
+        raise typer.BadParameter(
+            f"{scene_name} has no convex internal agents: use --method graph or sac"
+        )
     learner = build_learner(method, scene, GraphConfig(**(config or {})), seed)
     out.mkdir(parents=True, exist_ok=True)
     checkpoint, history_file = out / "checkpoint.pt", out / "history.json"
@@ -117,7 +121,10 @@ def train_run(
 @app.command()
 def train(
     scene: Annotated[
-        str, typer.Argument(help="Corridor or CartStemContact", callback=one_of(*SCENES))
+        str,
+        typer.Argument(
+            help="Corridor, CartStemContact or RodManipulator", callback=one_of(*SCENES)
+        ),
     ],
     config: Annotated[
         Path | None,

@@ -56,6 +56,20 @@ class GraphConfig:
     evaluator_tau: float = 5e-3
 
 
+def final_numbers(infos: list[dict]) -> dict[str, float]:
+    """``final_<key>``: the mean over episodes of each real number in their last ``info``
+    (booleans, e.g. ``is_success``, left out: success is reported on its own)."""
+    keys = set.intersection(*(set(i) for i in infos)) if infos else set()
+    out = {}
+    for key in sorted(keys):
+        values = [i[key] for i in infos]
+        if all(isinstance(v, int | float | np.floating) for v in values) and not any(
+            isinstance(v, bool) for v in values
+        ):
+            out[f"final_{key}"] = float(np.mean(values))
+    return out
+
+
 class GraphAgent:
     """Selector (or partition), Evaluator, and one external and one internal agent per node.
 
@@ -198,7 +212,9 @@ class GraphAgent:
             if expert is None and next_node != node:
                 nodes.append(next_node)
             node = next_node
-        return {"return": total, "length": length, "success": success, "nodes": nodes}
+        return {
+            "return": total, "length": length, "success": success, "nodes": nodes, "info": info,
+        }  # fmt: skip
 
     def _store(self, obs, action, reward, next_obs, node, next_node, terminated) -> None:
         item = {"obs": obs, "action": action, "reward": reward, "next_obs": next_obs}
@@ -252,10 +268,14 @@ class GraphAgent:
         return history
 
     def evaluate(self, env: gym.Env, episodes: int = 5, seed: int = 10_000) -> dict:
+        """Mean return and success over ``episodes`` greedy episodes, and the mean of each
+        number the environment's last ``info`` of an episode holds (``final_<key>``, e.g.
+        RodManipulator's ``final_angle``)."""
         runs = [self.run_episode(env, train=False, seed=seed + k) for k in range(episodes)]
         return {
             "return": float(np.mean([r["return"] for r in runs])),
             "success": float(np.mean([r["success"] for r in runs])),
+            **final_numbers([r["info"] for r in runs]),
         }
 
     # ---- checkpoints --------------------------------------------------------------------------

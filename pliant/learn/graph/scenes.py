@@ -4,12 +4,13 @@ controllers that may replace its internal agents."""
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import gymnasium as gym
 import numpy as np
 
 from pliant.errors import ModelError
+from pliant.learn.graph.agents import ExpertOption
 from pliant.learn.graph.graph import ConfigurationGraph, cartstem_graph
 from pliant.learn.graph.toy import CorridorEnv, corridor_controller, corridor_graph
 
@@ -18,8 +19,10 @@ from pliant.learn.graph.toy import CorridorEnv, corridor_controller, corridor_gr
 class Scene:
     env: gym.Env
     graph: ConfigurationGraph
-    #: node -> controller for ``--internal convex``.
+    #: node -> controller for ``--method convex`` (empty: the scene has none).
     controllers: dict[int, Callable[[np.ndarray], np.ndarray]]
+    #: expert trajectories, more options of the Evaluator.
+    experts: list[ExpertOption] = field(default_factory=list)
 
 
 def cartstem_controller(env: gym.Env) -> Callable[[np.ndarray], np.ndarray]:
@@ -122,8 +125,16 @@ class CartStemStaticInverse:
         return np.array([self.target(goal) / self.base.max_move], dtype=np.float32)
 
 
+#: RodManipulator's settings for the graph: the base may go down to 20 mm (the pinch lowers
+#: the fingertips beside the rod) and an episode lasts 60 steps (two re-contacts and their
+#: strokes take 50 steps to 280°; the thesis' episodes have 30 steps of different fingers).
+ROD_DEFAULTS = {"base_low": -20.0, "max_episode_steps": 60}
+
+
 def make_scene(name: str, **env_kwargs) -> Scene:
-    """``Corridor`` (the toy of the tests) or ``CartStemContact`` (3 nodes by Eq. 4.7)."""
+    """``Corridor`` (the toy of the tests), ``CartStemContact`` (3 nodes by Eq. 4.7) or
+    ``RodManipulator`` (3 nodes by collision detection, two re-contact experts; environment
+    keywords over :data:`ROD_DEFAULTS`; ``expert_penalty`` charges each expert's use)."""
     if name == "Corridor":
         return Scene(
             CorridorEnv(**env_kwargs),
@@ -136,4 +147,14 @@ def make_scene(name: str, **env_kwargs) -> Scene:
         env = make("pliant/CartStemContact-v0", **env_kwargs)
         inverse = CartStemStaticInverse(env)  # one planning model for the three nodes
         return Scene(env, cartstem_graph(), dict.fromkeys(range(3), inverse))
-    raise ModelError(f"no graph for scene {name!r}: Corridor or CartStemContact")
+    if name == "RodManipulator":
+        from pliant.envs import make
+        from pliant.learn.graph.rod import BendTable, RodGeometry, rod_experts, rod_graph
+
+        penalty = float(env_kwargs.pop("expert_penalty", -1.0))
+        settings = {**ROD_DEFAULTS, **env_kwargs}
+        env = make("pliant/RodManipulator-v0", **settings)
+        # The fingers' bending, measured once on a spare copy (the experts' fingertip inverse).
+        table = BendTable.measure(make("pliant/RodManipulator-v0", **settings))
+        return Scene(env, rod_graph(RodGeometry.of(env)), {}, rod_experts(env, table, penalty))
+    raise ModelError(f"no graph for scene {name!r}: Corridor, CartStemContact or RodManipulator")
