@@ -80,6 +80,7 @@ def main(
     activation: Annotated[str, typer.Option(help="relu, silu or tanh (F and G)")] = "relu",
     schedule: Annotated[str, typer.Option(help="plateau or cosine (F and G)")] = "plateau",
     workers: Annotated[int, typer.Option()] = 1,
+    threads: Annotated[int, typer.Option(help="PyTorch threads for the training")] = 1,
     work: Annotated[Path, typer.Option(help="datasets, checkpoints, models")] = Path(
         "out/condensed_table_5_7"
     ),
@@ -88,7 +89,7 @@ def main(
         list[str], typer.Option("--dataset", help="datasets to run (default: both)")
     ] = ("mechanical", "geometric"),
 ) -> None:
-    torch.set_num_threads(1)
+    torch.set_num_threads(threads)
     out.mkdir(parents=True, exist_ok=True)
     work.mkdir(parents=True, exist_ok=True)
     path = out / "table_5_7.json"

@@ -144,6 +144,17 @@ class GraphAgent:
         self.steps = 0
         self._update_debt = 0.0
 
+    def swap_internal(self, controllers: dict[int, Callable[[np.ndarray], np.ndarray]]) -> None:
+        """Replace the internal agents of the nodes in ``controllers`` by those controllers
+        (:class:`ControllerAgent`), keeping the Evaluator and the external agents as trained:
+        the thesis' measurement of trained internal agents swapped for convex optimisation
+        (L863). The learned agents are dropped from this agent (reload a checkpoint to get
+        them back)."""
+        for node, controller in controllers.items():
+            if not 0 <= node < self.graph.n_nodes:
+                raise ValueError(f"no node {node} in a graph of {self.graph.n_nodes}")
+            self.internal[node] = ControllerAgent(node, controller)
+
     # ---- acting -------------------------------------------------------------------------------
     def node_of(self, obs: np.ndarray) -> int:
         if self.graph.partition is not None:
