@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import time
 from pathlib import Path
 
 import matplotlib
@@ -30,11 +31,55 @@ from pliant.learn.graph.rod import angle_rule, expert_rollout  # noqa: E402
 from pliant.learn.graph.scenes import make_scene  # noqa: E402
 
 
+def replay(folder: Path) -> dict:
+    """One greedy episode of a trained run (graph or plain SAC) on its scene (the 280° goal):
+    the Evaluator's choices, the rod's angle after every step."""
+    from cartstem import CONFIGS, ENV_SETTINGS  # this folder is on sys.path
+
+    from pliant.learn.graph import GraphConfig
+    from pliant.learn.graph.cli import build_learner
+
+    scene = make_scene("RodManipulator", **ENV_SETTINGS["RodManipulator"])
+    meta = json.loads((folder / "history.json").read_text())
+    config = GraphConfig(**CONFIGS["RodManipulator"])
+    agent = build_learner(meta["method"], scene, config, meta["seed"])
+    agent.load(folder / "checkpoint.pt")
+    angles = []
+    env = scene.env
+    step = env.step
+
+    def recording(action):  # the angle after every step of the episode
+        out = step(action)
+        angles.append(float(np.degrees(out[4]["angle"])))
+        return out
+
+    env.step = recording
+    start = time.perf_counter()
+    episode = agent.run_episode(env, train=False, seed=10_000)
+    names = scene.graph.names + [e.name for e in scene.experts]
+    return {
+        "method": meta["method"],
+        "trained_steps": agent.steps,
+        "experts": [names[c] for c in episode.get("choices", [])],
+        "angle_deg": [0.0, *angles],
+        "nodes": episode.get("nodes", []),
+        "max_angle_deg": max([0.0, *angles]),
+        "final_angle_deg": angles[-1] if angles else 0.0,
+        "return": episode["return"],
+        "wall_s": time.perf_counter() - start,
+    }
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--steps", type=int, default=60)
     parser.add_argument("--band", type=float, default=45.0, help="stroke within this (deg)")
     parser.add_argument("--out", type=Path, default=Path("experiments/results/graph"))
+    parser.add_argument(
+        "--learned", type=Path, nargs="*", default=[],
+        help="graph run folders (cartstem.py --scene RodManipulator) whose checkpoint to replay"
+        " greedily on the 280° goal",
+    )  # fmt: skip
     args = parser.parse_args()
     # No goal ends these runs early: the goal is put out of reach.
     scene = make_scene("RodManipulator", goal_low=4 * np.pi, goal_high=4 * np.pi)
@@ -45,6 +90,9 @@ def main() -> None:
         "chained": angle_rule(args.band),
     }
     results = {name: expert_rollout(scene, choose, args.steps) for name, choose in programs.items()}
+    for folder in args.learned:
+        run = replay(folder)
+        results[f"{run['method']}, {run['trained_steps']} steps"] = run
     for name, r in results.items():
         reached = next((i for i, a in enumerate(r["angle_deg"]) if a >= 280.0), None)
         r["first_step_past_280_deg"] = reached
@@ -54,7 +102,8 @@ def main() -> None:
     root.mkdir(parents=True, exist_ok=True)
     meta = {
         "command": "python experiments/graph/rod_experts.py "
-        f"--steps {args.steps} --band {args.band}",
+        f"--steps {args.steps} --band {args.band}"
+        + "".join(f" --learned {folder}" for folder in args.learned),
         "nodes": scene.graph.names,
         "thesis": "280 deg example (Fig. 4.10): contact, turn until stuck, expert re-contact,"
         " on to 280 deg; plain SAC cannot reconfigure the contacts within 2e5 iterations",

@@ -16,24 +16,15 @@ change of the return.
 from __future__ import annotations
 
 import argparse
-import importlib.util
 import json
 from pathlib import Path
 
 import torch
+from cartstem import CONFIGS, ENV_SETTINGS  # this folder is on sys.path
 
 from pliant.learn.graph import GraphConfig
 from pliant.learn.graph.cli import build_learner, train_run
 from pliant.learn.graph.scenes import make_scene
-
-
-def settings():
-    """cartstem.py's CONFIGS and ENV_SETTINGS (one source for both scripts)."""
-    path = Path(__file__).with_name("cartstem.py")
-    spec = importlib.util.spec_from_file_location("graph_cartstem", path)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module.CONFIGS, module.ENV_SETTINGS
 
 
 def main() -> None:
@@ -46,8 +37,7 @@ def main() -> None:
     parser.add_argument("--out", type=Path, default=Path("experiments/results/graph"))
     args = parser.parse_args()
     torch.set_num_threads(1)
-    configs, env_settings = settings()
-    config, env_kwargs = configs[args.scene], env_settings.get(args.scene, {})
+    config, env_kwargs = CONFIGS[args.scene], ENV_SETTINGS.get(args.scene, {})
     root = args.out / args.scene
     run = root / f"graph_seed{args.seed}"
     history = train_run(

@@ -175,12 +175,15 @@ class GraphAgent:
 
     def run_episode(self, env: gym.Env, *, train: bool, seed: int | None = None) -> dict:
         """One episode; with ``train`` it explores, stores and learns. Returns its return,
-        length, success and the node sequence."""
+        length, success, the node sequence, the Evaluator's choices (node k: that node's
+        agent; ``n_nodes + k``: expert k) and the last ``info``."""
         obs, _ = env.reset(seed=seed)
         node, n = self.node_of(obs), self.graph.n_nodes
         total, length, nodes, done, success = 0.0, 0, [node], False, False
+        choices = []
         while not done:
             choice = self.evaluator.choose(obs, node, self.rng, greedy=not train)
+            choices.append(choice)
             expert = self.experts[choice - n] if choice >= n else None
             runs_option = choice != node or not self.internal[node].learned
             observations, rewards, current = [obs], [], node
@@ -225,6 +228,7 @@ class GraphAgent:
             node = next_node
         return {
             "return": total, "length": length, "success": success, "nodes": nodes, "info": info,
+            "choices": choices,
         }  # fmt: skip
 
     def _store(self, obs, action, reward, next_obs, node, next_node, terminated) -> None:

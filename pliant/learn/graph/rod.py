@@ -207,7 +207,7 @@ def stroke_expert(
     pull: float = 8.0,
     penalty: float = -1.0,
 ) -> ExpertOption:
-    """Re-contact on the top and drag the rod round, 7 steps: raise the base and bend each
+    """Re-contact on the top and drag the rod round, 6 steps: raise the base and bend each
     fingertip over the rod's axis where it passes nearest to the finger (the fingertip inverse
     of `table` on the observed rod pose); lower the base to `press` mm; bend each fingertip a
     further `table`-reach of `pull` mm along the turn (counter-clockwise, the goals' sense)
