@@ -44,13 +44,14 @@ def replay(folder: Path) -> dict:
     config = GraphConfig(**CONFIGS["RodManipulator"])
     agent = build_learner(meta["method"], scene, config, meta["seed"])
     agent.load(folder / "checkpoint.pt")
-    angles = []
+    angles, nodes = [], []
     env = scene.env
     step = env.step
 
-    def recording(action):  # the angle after every step of the episode
+    def recording(action):  # the angle and the node after every step of the episode
         out = step(action)
         angles.append(float(np.degrees(out[4]["angle"])))
+        nodes.append(scene.graph.node_of(out[0]))
         return out
 
     env.step = recording
@@ -62,7 +63,7 @@ def replay(folder: Path) -> dict:
         "trained_steps": agent.steps,
         "experts": [names[c] for c in episode.get("choices", [])],
         "angle_deg": [0.0, *angles],
-        "nodes": episode.get("nodes", []),
+        "nodes": [scene.graph.node_of(env.reset(seed=10_000)[0]), *nodes],
         "max_angle_deg": max([0.0, *angles]),
         "final_angle_deg": angles[-1] if angles else 0.0,
         "return": episode["return"],
