@@ -61,6 +61,16 @@ def test_collision_detection_in_the_rods_frame(heading):
     assert graph.node_of(observation(np.array([top[0], side[1]]), heading)) == 2
 
 
+def test_observations_of_another_shape_or_not_finite_are_refused():
+    good = observation(np.zeros((2, 3)), 0.0)
+    with pytest.raises(ValueError, match="23 finite values"):
+        finger_contacts(GEOMETRY, good[:-1])
+    bad = good.copy()
+    bad[19] = np.nan
+    with pytest.raises(ValueError, match="non-finite"):
+        rod_graph(GEOMETRY).node_of(bad)
+
+
 def test_rod_pose_from_the_observation():
     obs = observation(np.zeros((2, 3)), 5.0, centre=[1.0, -2.0, -10.0])
     centre, heading = GEOMETRY.rod(obs)
@@ -122,6 +132,10 @@ def test_experts_reconfigure_the_contacts_past_280_degrees():
     from pliant.learn.graph.scenes import make_scene
 
     scene = make_scene("RodManipulator", goal_low=4 * np.pi, goal_high=4 * np.pi, mesh_size=6.0)
+    geometry = RodGeometry.of(scene.env)  # read from the model: fingers_mesh's defaults
+    np.testing.assert_allclose(geometry.fingers, [[0.0, -25.0], [0.0, 25.0]], atol=1e-9)
+    assert geometry.finger_radius == pytest.approx(6.0)
+    assert geometry.rod_size == pytest.approx((10.0, 80.0, 10.0)) and geometry.margin == 2.0
     assert [e.name for e in scene.experts] == ["stroke", "pinch"]
     alone = expert_rollout(scene, lambda obs: "stroke", 40)
     assert 20.0 < alone["max_angle_deg"] < 90.0
@@ -153,3 +167,7 @@ def test_cli_trains_the_rod_graph_with_its_experts(tmp_path):
     assert last["steps"] >= 40 and np.isfinite(last["final_angle"])
     refused = CliRunner().invoke(app, [*args, "--method", "convex", "--steps", "10"])
     assert refused.exit_code != 0 and "no convex internal agents" in refused.output
+    with pytest.raises(ModelError, match="expert_penalty"):
+        from pliant.learn.graph.scenes import make_scene
+
+        make_scene("RodManipulator", expert_penalty="high", mesh_size=8.0)

@@ -13,6 +13,7 @@ transitions of Eq. 4.6, penalised (``penalty``) when an internal agent changed t
 
 from __future__ import annotations
 
+import numbers
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -63,9 +64,7 @@ def final_numbers(infos: list[dict]) -> dict[str, float]:
     out = {}
     for key in sorted(keys):
         values = [i[key] for i in infos]
-        if all(isinstance(v, int | float | np.floating) for v in values) and not any(
-            isinstance(v, bool) for v in values
-        ):
+        if all(isinstance(v, numbers.Real) and not isinstance(v, bool) for v in values):
             out[f"final_{key}"] = float(np.mean(values))
     return out
 

@@ -59,25 +59,45 @@ class RodGeometry:
 
     @classmethod
     def of(cls, env: gym.Env) -> RodGeometry:
+        """Read from the environment's model: the fingertips' rest centres (the effectors),
+        their radius (the tip face's nodes), the rod's box and the contacts' margin."""
         base = env.unwrapped
-        kwargs = base.robot_kwargs
-        half = float(kwargs.get("spacing", 50.0)) / 2.0
+        model = base.model
+        rest = model.body.rest_positions
+        tips = np.vstack([e.points.positions(rest) for e in model.effectors])
+        half_spacing = 0.5 * float(np.linalg.norm(tips[1, :2] - tips[0, :2]))
+        radii = []
+        for tip in tips:
+            offsets = np.hypot(*(rest[:, :2] - tip[:2]).T)
+            face = (np.abs(rest[:, 2] - tip[2]) < 1e-9) & (offsets < half_spacing)
+            radii.append(float(offsets[face].max()))
+        (rod,) = model.rigid_bodies
         return cls(
-            fingers=np.array([[0.0, -half], [0.0, half]]),
-            finger_radius=6.0,  # fingers_mesh's default, which the environment builds
-            rod_size=tuple(float(v) for v in kwargs.get("rod_size", (10.0, 80.0, 10.0))),
+            fingers=tips[:, :2].copy(),
+            finger_radius=max(radii),
+            rod_size=tuple(float(v) for v in 2.0 * rod.shape.half_extents),
             length_scale=base.length_scale,
-            margin=float(kwargs.get("contact_margin", 2.0)),
+            margin=float(model.contacts.margin),
         )
+
+    def _checked(self, obs: np.ndarray) -> np.ndarray:
+        obs = np.asarray(obs, dtype=float)
+        if obs.shape != (23,) or not np.all(np.isfinite(obs)):
+            raise ValueError(
+                f"a RodManipulator observation is 23 finite values, got shape {obs.shape}"
+                + ("" if obs.shape != (23,) else " with non-finite values")
+            )
+        return obs
 
     def tips(self, obs: np.ndarray) -> np.ndarray:
         """The fingertips' centres (2, 3), mm (the observation's points are 1 mm above)."""
-        points = np.asarray(obs[:18], dtype=float).reshape(2, 3, 3)[:, 0] * self.length_scale
+        points = self._checked(obs)[:18].reshape(2, 3, 3)[:, 0] * self.length_scale
         return points - [0.0, 0.0, 1.0]
 
     def rod(self, obs: np.ndarray) -> tuple[np.ndarray, float]:
         """The rod's centre (3,), mm, and heading (rad)."""
-        return np.asarray(obs[18:21], dtype=float) * self.length_scale, float(obs[21]) * 2 * np.pi
+        obs = self._checked(obs)
+        return obs[18:21] * self.length_scale, float(obs[21]) * 2 * np.pi
 
     def local(self, obs: np.ndarray) -> np.ndarray:
         """The fingertips in the rod's frame (2, 3): across the rod, along it, up from its
@@ -146,7 +166,7 @@ class BendTable:
         cls, env: gym.Env, pulls: Sequence[float] = (2, 4, 6, 8, 10, 12, 15), steps: int = 4
     ) -> BendTable:
         """Pull finger 0's +x cable to each level with the base at its top, ``steps``
-        environment steps a level, on ``env`` (reset here: give it a spare copy)."""
+        environment steps a level, on ``env`` (reset first; left mid-episode)."""
         base = env.unwrapped
         env.reset(seed=0)
         rest = base.tip_points.positions(base.state.positions)[0]
@@ -218,20 +238,18 @@ def stroke_expert(
     plan: dict[str, np.ndarray] = {}
 
     def policy(obs: np.ndarray, k: int) -> np.ndarray:
-        if k == 0:
+        if k == 0:  # plan from the rod's pose as the expert starts
             centre, heading = geometry.rod(obs)
             axis = np.array([-np.sin(heading), np.cos(heading)])
             offsets = geometry.fingers - centre[:2]
             foot = centre[:2] + (offsets @ axis)[:, None] * axis  # nearest points of the axis
             radial = foot - centre[:2]
-            tangent = np.column_stack([-radial[:, 1], radial[:, 0]])
-            norms = np.linalg.norm(tangent, axis=1, keepdims=True)
-            tangent = np.where(norms > 1e-9, tangent / np.maximum(norms, 1e-9), 0.0)
+            tangent = np.column_stack([-radial[:, 1], radial[:, 0]])  # counter-clockwise
+            tangent /= np.maximum(np.linalg.norm(tangent, axis=1, keepdims=True), 1e-9)
             place = foot - geometry.fingers
             turn = place + tangent * float(np.interp(pull, table.pull, table.reach))
             plan["place"] = np.concatenate([table.cables(d) for d in place])
             plan["turn"] = np.concatenate([table.cables(d) for d in turn])
-        if k == 0:
             return commands(plan["place"], top)
         if k == 1:
             return commands(plan["place"], press)
@@ -277,8 +295,10 @@ def pinch_expert(
     return ExpertOption("pinch", np.array(sequence), start_nodes=(0, 1, 2), penalty=penalty)
 
 
-def rod_experts(env: gym.Env, table: BendTable, penalty: float = -1.0) -> list[ExpertOption]:
-    geometry = RodGeometry.of(env)
+def rod_experts(
+    env: gym.Env, geometry: RodGeometry, table: BendTable, penalty: float = -1.0
+) -> list[ExpertOption]:
+    """The stroke and the pinch for `env`, each use charged `penalty`."""
     return [
         stroke_expert(geometry, table, env, penalty=penalty),
         pinch_expert(env, penalty=penalty),

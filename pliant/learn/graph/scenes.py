@@ -3,6 +3,7 @@ controllers that may replace its internal agents."""
 
 from __future__ import annotations
 
+import numbers
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
@@ -151,10 +152,14 @@ def make_scene(name: str, **env_kwargs) -> Scene:
         from pliant.envs import make
         from pliant.learn.graph.rod import BendTable, RodGeometry, rod_experts, rod_graph
 
-        penalty = float(env_kwargs.pop("expert_penalty", -1.0))
-        settings = {**ROD_DEFAULTS, **env_kwargs}
-        env = make("pliant/RodManipulator-v0", **settings)
-        # The fingers' bending, measured once on a spare copy (the experts' fingertip inverse).
-        table = BendTable.measure(make("pliant/RodManipulator-v0", **settings))
-        return Scene(env, rod_graph(RodGeometry.of(env)), {}, rod_experts(env, table, penalty))
+        penalty = env_kwargs.pop("expert_penalty", -1.0)
+        if isinstance(penalty, bool) or not isinstance(penalty, numbers.Real):
+            raise ModelError(f"expert_penalty must be a real number, got {penalty!r}")
+        env = make("pliant/RodManipulator-v0", **{**ROD_DEFAULTS, **env_kwargs})
+        # The fingers' bending, measured once (the experts' fingertip inverse); every episode
+        # starts with a reset.
+        table = BendTable.measure(env)
+        geometry = RodGeometry.of(env)
+        experts = rod_experts(env, geometry, table, float(penalty))
+        return Scene(env, rod_graph(geometry), {}, experts)
     raise ModelError(f"no graph for scene {name!r}: Corridor, CartStemContact or RodManipulator")
