@@ -112,6 +112,40 @@ def test_evaluator_chooses_only_reachable_nodes():
     assert torch.isinf(scores[0, 2]) and torch.isfinite(scores[1]).all()
 
 
+@pytest.mark.parametrize("target", ["max", "soft"])
+def test_evaluator_target_and_the_soft_values_bias_to_short_options(target):
+    """Two ways to the same return −1 from state A: one option (choice 0, 2 steps), or a
+    short option to B (−0.5) and one more decision there (either choice, −0.5). With γ = 1
+    their values are equal; the soft bootstrap adds τ log 2 at B and prefers the chain."""
+    torch.manual_seed(0)
+    evaluator = Evaluator(
+        1, np.ones((1, 2), dtype=bool), d=8, hidden=32, lr=3e-3, gamma=1.0, tau=0.05,
+        temperature=0.5, target=target,
+    )  # fmt: skip
+    a, b = torch.zeros(1), torch.ones(1)
+    rows = [  # obs, choice, reward, next_obs, done, duration
+        (a, 0, -1.0, b, 1.0, 2), (a, 1, -0.5, b, 0.0, 1), (b, 0, -0.5, a, 1.0, 1),
+        (b, 1, -0.5, a, 1.0, 1),
+    ]  # fmt: skip
+    obs, choice, reward, next_obs, done, duration = (list(c) for c in zip(*rows, strict=True))
+    batch = {
+        "obs": torch.stack(obs), "next_obs": torch.stack(next_obs),
+        "node": torch.zeros(4), "next_node": torch.zeros(4),
+        "choice": torch.tensor(choice, dtype=torch.float32), "reward": torch.tensor(reward),
+        "done": torch.tensor(done), "duration": torch.tensor(duration, dtype=torch.float32),
+    }  # fmt: skip
+    for _ in range(1500):
+        evaluator.update(batch)
+    q = evaluator.scores(a[None], torch.zeros(1))[0]
+    assert q[0].item() == pytest.approx(-1.0, abs=0.05)
+    if target == "max":
+        assert q[1].item() == pytest.approx(-1.0, abs=0.05)
+    else:  # −0.5 + (−0.5 + 0.5 log 2)
+        assert q[1].item() == pytest.approx(-1.0 + 0.5 * np.log(2.0), abs=0.05)
+    with pytest.raises(ValueError, match="target"):
+        Evaluator(1, np.ones((1, 2), dtype=bool), target="mean")
+
+
 def test_option_transitions_follow_eq_4_6():
     # (s_{t+k}, a_t, s_{t+T}, Σ_{t'=t+k}^{t+T−1} r_{t'}, δ), k ∈ [0, T−1], here T = 3.
     s = [np.full(2, float(k)) for k in range(4)]

@@ -70,29 +70,38 @@ def main() -> None:
     parser.add_argument("--eval-episodes", type=int, default=5)
     parser.add_argument("--solved", type=float, default=0.8, help="success rate that counts")
     parser.add_argument("--out", type=Path, default=Path("experiments/results/graph"))
+    parser.add_argument(
+        "--evaluator-target", choices=["max", "soft"], default="max",
+        help="the Evaluator's bootstrap (GraphConfig.evaluator_target); 'soft' gave the"
+        " results committed before 2026-11-26",
+    )  # fmt: skip
     args = parser.parse_args()
     torch.set_num_threads(1)
     root = args.out / args.scene
+    config = {**CONFIGS[args.scene], "evaluator_target": args.evaluator_target}
     runs = {}
     for method in args.methods:
         for seed in args.seeds:
             runs[method, seed] = train_run(
                 args.scene, method, root / f"{method}_seed{seed}", steps=args.steps, seed=seed,
-                config=CONFIGS[args.scene], env_kwargs=ENV_SETTINGS.get(args.scene),
+                config=config, env_kwargs=ENV_SETTINGS.get(args.scene),
                 eval_every=args.eval_every, eval_episodes=args.eval_episodes,
             )  # fmt: skip
-    # The summary covers every run folder of the scene, whichever this call trained.
+    # The summary covers every run folder of the scene, whichever this call trained, each
+    # with the settings it was trained with.
+    configs = {key: config for key in runs}
     for folder in sorted(root.glob("*_seed*")):
         method, _, seed = folder.name.rpartition("_seed")
         if method in METHODS and (folder / "history.json").exists() and seed.isdigit():
-            history = json.loads((folder / "history.json").read_text())["evaluations"]
-            runs.setdefault((method, int(seed)), history)
+            saved = json.loads((folder / "history.json").read_text())
+            runs.setdefault((method, int(seed)), saved["evaluations"])
+            configs[method, int(seed)] = saved.get("config", {})
     methods = [m for m in METHODS if any(key[0] == m for key in runs)]
     summary = {
         "scene": args.scene,
         "partial": any(h and h[-1]["steps"] < THESIS_STEPS for h in runs.values()),
         "solved_success": args.solved,
-        "config": CONFIGS[args.scene],
+        "config": config,
         "env": ENV_SETTINGS.get(args.scene, {}),
         "thesis": THESIS.get(args.scene),
         "runs": {
@@ -101,6 +110,7 @@ def main() -> None:
                     "steps": history[-1]["steps"] if history else 0,
                     "iterations_to_solve": first_solved(history, args.solved),
                     "last": history[-1] if history else None,
+                    "config": configs[m, seed],
                 }
                 for (m, seed), history in sorted(runs.items())
                 if m == method
@@ -109,8 +119,8 @@ def main() -> None:
         },
     }
     (root / "summary.json").write_text(json.dumps(summary, indent=1))
-    # Evaluation return, and RodManipulator's final angle (the quantity of its result).
-    keys = ["return"] + (["final_angle"] if args.scene == "RodManipulator" else [])
+    # Evaluation return and success, and RodManipulator's final angle (its result).
+    keys = ["return", "success"] + (["final_angle"] if args.scene == "RodManipulator" else [])
     fig, axes = plt.subplots(1, len(keys), figsize=(6 * len(keys), 3.5), squeeze=False)
     for ax, key in zip(axes[0], keys, strict=True):
         for method in methods:
@@ -124,7 +134,8 @@ def main() -> None:
                 values = np.degrees(values)
             ax.plot(steps, values.mean(0), label=f"{method} ({len(curves)} seeds)")
             ax.fill_between(steps, values.min(0), values.max(0), alpha=0.2)
-        label = "final rod angle (deg)" if key == "final_angle" else "evaluation return"
+        label = {"final_angle": "final rod angle (deg)", "success": "evaluation success rate"}
+        label = label.get(key, "evaluation return")
         ax.set(xlabel="environment steps", ylabel=label, title=args.scene)
         ax.legend()
     fig.tight_layout()

@@ -132,9 +132,18 @@ class Evaluator(nn.Module):
     The scores of the reachable nodes are attention between the encoded state and the node
     identifiers (Eq. 4.4), read as soft Q-values of the choice: the choice is sampled from
     softmax(scores / temperature) over V_i ∪ {i} and the scores regress on the return of the
-    option that follows (semi-Markov soft Q-learning on the transitions of Eq. 4.6). The
-    thesis' authors instead feed SAC's tanh-Gaussian output to the softmax (D.2); both sample
-    the choice and maximise the return.
+    option that follows (semi-Markov Q-learning on the transitions of Eq. 4.6). The thesis'
+    authors instead feed SAC's tanh-Gaussian output to the softmax (D.2); both sample the
+    choice and maximise the return.
+
+    ``target`` is the bootstrap value of the state an option ends in: ``"max"`` (default)
+    the target network's score of the online network's best choice (double Q-learning);
+    ``"soft"`` τ log Σ_j exp(Q(s, j)/τ), the entropy-regularised value. The soft value is
+    biased towards deciding often: it exceeds max_j Q by up to τ log |V_i ∪ {i}| at every
+    decision, so a chain of short options collects that bonus once per link where one long
+    option (a controller run to its end) collects it once. With CartStemContact's returns of
+    about −1 an episode and τ = 0.5, that bonus (0.35–0.55 a decision) taught the greedy
+    Evaluator to bounce between neighbour nodes instead of solving where it was.
     """
 
     def __init__(
@@ -148,8 +157,12 @@ class Evaluator(nn.Module):
         gamma: float = 0.99,
         tau: float = 5e-3,
         temperature: float = 0.5,
+        target: str = "max",
     ) -> None:
         super().__init__()
+        if target not in ("max", "soft"):
+            raise ValueError(f"target must be 'max' or 'soft', got {target!r}")
+        self.target_kind = target
         # (nodes, choices): the nodes V_i ∪ {i}, then any expert options available in node i.
         self.reachable = torch.as_tensor(np.asarray(reachable, dtype=bool))
         self.gamma, self.tau, self.temperature = gamma, tau, temperature
@@ -173,9 +186,13 @@ class Evaluator(nn.Module):
 
     @torch.no_grad()
     def value(self, obs: torch.Tensor, node: torch.Tensor) -> torch.Tensor:
-        """Soft value τ log Σ_j exp(Q(s, j)/τ) over the reachable nodes (target network)."""
+        """The bootstrap value V(s) over the choices available in ``node`` (see ``target``):
+        the target network's Q of the online argmax, or the soft value."""
         q = self.scores(obs, node, target=True)
-        return self.temperature * torch.logsumexp(q / self.temperature, dim=-1)
+        if self.target_kind == "soft":
+            return self.temperature * torch.logsumexp(q / self.temperature, dim=-1)
+        best = self.scores(obs, node).argmax(-1, keepdim=True)
+        return q.gather(1, best).squeeze(1)
 
     def update(self, batch: dict[str, torch.Tensor]) -> float:
         q = self.scores(batch["obs"], batch["node"]).gather(1, batch["choice"].long()[:, None])

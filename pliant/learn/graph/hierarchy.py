@@ -55,6 +55,9 @@ class GraphConfig:
     external_rewards: tuple[float, float, float] = EXTERNAL_REWARDS
     evaluator_temperature: float = 0.5
     evaluator_tau: float = 5e-3
+    #: the Evaluator's bootstrap: "max" (double Q) or "soft" (biased towards short options;
+    #: the runs before 2026-11-26 used it, see :class:`Evaluator`).
+    evaluator_target: str = "max"
 
 
 def final_numbers(infos: list[dict]) -> dict[str, float]:
@@ -134,7 +137,7 @@ class GraphAgent:
             choices[list(expert.start_nodes), n + k] = True
         self.evaluator = Evaluator(
             obs_dim, choices, d=c.d, hidden=c.hidden, lr=c.lr, gamma=c.gamma,
-            tau=c.evaluator_tau, temperature=c.evaluator_temperature,
+            tau=c.evaluator_tau, temperature=c.evaluator_temperature, target=c.evaluator_target,
         )  # fmt: skip
         self.evaluator_buffer = ReplayBuffer(
             c.buffer_size, obs=(obs_dim,), node=(), choice=(), reward=(), next_obs=(obs_dim,),
