@@ -35,9 +35,14 @@ def main() -> None:
     parser.add_argument("--eval-every", type=int, default=600)
     parser.add_argument("--episodes", type=int, default=20)
     parser.add_argument("--out", type=Path, default=Path("experiments/results/graph"))
+    parser.add_argument(
+        "--evaluator-target", choices=["max", "soft"], default="max",
+        help="the Evaluator's bootstrap, as in cartstem.py",
+    )  # fmt: skip
     args = parser.parse_args()
     torch.set_num_threads(1)
-    config, env_kwargs = CONFIGS[args.scene], ENV_SETTINGS.get(args.scene, {})
+    config = {**CONFIGS[args.scene], "evaluator_target": args.evaluator_target}
+    env_kwargs = ENV_SETTINGS.get(args.scene, {})
     root = args.out / args.scene
     run = root / f"graph_seed{args.seed}"
     history = train_run(
@@ -55,7 +60,8 @@ def main() -> None:
     change = (convex["return"] - learned["return"]) / abs(learned["return"])
     result = {
         "command": f"python experiments/graph/swap.py --scene {args.scene} --seed {args.seed}"
-        f" --steps {args.steps} --episodes {args.episodes}",
+        f" --steps {args.steps} --episodes {args.episodes}"
+        f" --evaluator-target {args.evaluator_target}",
         "trained_steps": history[-1]["steps"] if history else agent.steps,
         "learned_internal": learned,
         "convex_internal": convex,
