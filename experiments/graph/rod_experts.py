@@ -10,8 +10,8 @@ graph and experts, `pliant.learn.graph.scenes.make_scene`), each for ``--steps``
 the observed pose, pressed, dragged round), ``pinch only`` (the beside expert repeated), and
 ``chained`` (before each expert, the stroke while the rod's axis lies within ``--band`` degrees
 of the fingers' line, y, where the fingertips can land on its top; the pinch otherwise).
-Writes ``<out>/RodManipulator/experts.json`` (angle and node after every step) and
-``experts.png``.
+Writes ``<out>/RodManipulator/<name>.json`` (angle and node after every step; ``--name``,
+default ``experts``) and ``<name>.png``.
 """
 
 from __future__ import annotations
@@ -76,6 +76,7 @@ def main() -> None:
     parser.add_argument("--steps", type=int, default=60)
     parser.add_argument("--band", type=float, default=45.0, help="stroke within this (deg)")
     parser.add_argument("--out", type=Path, default=Path("experiments/results/graph"))
+    parser.add_argument("--name", default="experts", help="writes <out>/RodManipulator/<name>.*")
     parser.add_argument(
         "--learned", type=Path, nargs="*", default=[],
         help="graph run folders (cartstem.py --scene RodManipulator) whose checkpoint to replay"
@@ -104,12 +105,13 @@ def main() -> None:
     meta = {
         "command": "python experiments/graph/rod_experts.py "
         f"--steps {args.steps} --band {args.band}"
-        + "".join(f" --learned {folder}" for folder in args.learned),
+        + "".join(f" --learned {folder}" for folder in args.learned)
+        + (f" --name {args.name}" if args.name != "experts" else ""),
         "nodes": scene.graph.names,
         "thesis": "280 deg example (Fig. 4.10): contact, turn until stuck, expert re-contact,"
         " on to 280 deg; plain SAC cannot reconfigure the contacts within 2e5 iterations",
     }
-    (root / "experts.json").write_text(json.dumps({**meta, "runs": results}, indent=1))
+    (root / f"{args.name}.json").write_text(json.dumps({**meta, "runs": results}, indent=1))
     fig, ax = plt.subplots(figsize=(6, 3.5))
     for name, r in results.items():
         ax.plot(r["angle_deg"], label=name)
@@ -117,7 +119,7 @@ def main() -> None:
     ax.set(xlabel="environment step (0.1 s)", ylabel="rod angle (deg)", title="RodManipulator")
     ax.legend()
     fig.tight_layout()
-    fig.savefig(root / "experts.png", dpi=120)
+    fig.savefig(root / f"{args.name}.png", dpi=120)
 
 
 if __name__ == "__main__":
