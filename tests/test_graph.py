@@ -144,6 +144,8 @@ def test_evaluator_target_and_the_soft_values_bias_to_short_options(target):
         assert q[1].item() == pytest.approx(-1.0 + 0.5 * np.log(2.0), abs=0.05)
     with pytest.raises(ValueError, match="target"):
         Evaluator(1, np.ones((1, 2), dtype=bool), target="mean")
+    with pytest.raises(ValueError, match="temperature"):
+        Evaluator(1, np.ones((1, 2), dtype=bool), temperature=0.0)
 
 
 def test_option_transitions_follow_eq_4_6():

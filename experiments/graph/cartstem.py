@@ -75,10 +75,16 @@ def main() -> None:
         help="the Evaluator's bootstrap (GraphConfig.evaluator_target); 'soft' gave the"
         " results committed before 2026-11-26",
     )  # fmt: skip
+    parser.add_argument(
+        "--evaluator-temperature", type=float, default=None,
+        help="the Evaluator's sampling temperature in training (GraphConfig's default: 0.5)",
+    )  # fmt: skip
     args = parser.parse_args()
     torch.set_num_threads(1)
     root = args.out / args.scene
     config = {**CONFIGS[args.scene], "evaluator_target": args.evaluator_target}
+    if args.evaluator_temperature is not None:
+        config["evaluator_temperature"] = args.evaluator_temperature
     runs = {}
     for method in args.methods:
         for seed in args.seeds:

@@ -162,6 +162,8 @@ class Evaluator(nn.Module):
         super().__init__()
         if target not in ("max", "soft"):
             raise ValueError(f"target must be 'max' or 'soft', got {target!r}")
+        if not temperature > 0.0:
+            raise ValueError(f"temperature must be positive (it divides the scores): {temperature}")
         self.target_kind = target
         # (nodes, choices): the nodes V_i ∪ {i}, then any expert options available in node i.
         self.reachable = torch.as_tensor(np.asarray(reachable, dtype=bool))
