@@ -94,7 +94,7 @@ def main() -> None:
     results = {name: expert_rollout(scene, choose, args.steps) for name, choose in programs.items()}
     for folder in args.learned:
         run = replay(folder)
-        results[f"{run['method']}, {run['trained_steps']} steps"] = run
+        results[f"{folder.name}, {run['trained_steps']} steps"] = run
     for name, r in results.items():
         reached = next((i for i, a in enumerate(r["angle_deg"]) if a >= 280.0), None)
         r["first_step_past_280_deg"] = reached
