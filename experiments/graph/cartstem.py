@@ -53,6 +53,27 @@ THESIS_STEPS = 250_000
 METHODS = ("graph", "convex", "sac")
 
 
+def add_evaluator_options(parser: argparse.ArgumentParser) -> None:
+    """The Evaluator's settings that the experiments vary (this script and swap.py)."""
+    parser.add_argument(
+        "--evaluator-target", choices=["max", "soft"], default="max",
+        help="the Evaluator's bootstrap (GraphConfig.evaluator_target); 'soft' gave the"
+        " results committed before 2026-11-26",
+    )  # fmt: skip
+    parser.add_argument(
+        "--evaluator-temperature", type=float, default=None,
+        help="the Evaluator's sampling temperature in training (GraphConfig's default: 0.5)",
+    )  # fmt: skip
+
+
+def agent_config(args: argparse.Namespace) -> dict:
+    """The scene's GraphConfig fields with the Evaluator options of the command line."""
+    config = {**CONFIGS[args.scene], "evaluator_target": args.evaluator_target}
+    if args.evaluator_temperature is not None:
+        config["evaluator_temperature"] = args.evaluator_temperature
+    return config
+
+
 def first_solved(history: list[dict], solved: float) -> int | None:
     return next((h["steps"] for h in history if h["success"] >= solved), None)
 
@@ -70,21 +91,11 @@ def main() -> None:
     parser.add_argument("--eval-episodes", type=int, default=5)
     parser.add_argument("--solved", type=float, default=0.8, help="success rate that counts")
     parser.add_argument("--out", type=Path, default=Path("experiments/results/graph"))
-    parser.add_argument(
-        "--evaluator-target", choices=["max", "soft"], default="max",
-        help="the Evaluator's bootstrap (GraphConfig.evaluator_target); 'soft' gave the"
-        " results committed before 2026-11-26",
-    )  # fmt: skip
-    parser.add_argument(
-        "--evaluator-temperature", type=float, default=None,
-        help="the Evaluator's sampling temperature in training (GraphConfig's default: 0.5)",
-    )  # fmt: skip
+    add_evaluator_options(parser)
     args = parser.parse_args()
     torch.set_num_threads(1)
     root = args.out / args.scene
-    config = {**CONFIGS[args.scene], "evaluator_target": args.evaluator_target}
-    if args.evaluator_temperature is not None:
-        config["evaluator_temperature"] = args.evaluator_temperature
+    config = agent_config(args)
     runs = {}
     for method in args.methods:
         for seed in args.seeds:

@@ -20,7 +20,7 @@ import json
 from pathlib import Path
 
 import torch
-from cartstem import CONFIGS, ENV_SETTINGS  # this folder is on sys.path
+from cartstem import ENV_SETTINGS, add_evaluator_options, agent_config  # this folder is on sys.path
 
 from pliant.learn.graph import GraphConfig
 from pliant.learn.graph.cli import build_learner, train_run
@@ -35,13 +35,10 @@ def main() -> None:
     parser.add_argument("--eval-every", type=int, default=600)
     parser.add_argument("--episodes", type=int, default=20)
     parser.add_argument("--out", type=Path, default=Path("experiments/results/graph"))
-    parser.add_argument(
-        "--evaluator-target", choices=["max", "soft"], default="max",
-        help="the Evaluator's bootstrap, as in cartstem.py",
-    )  # fmt: skip
+    add_evaluator_options(parser)
     args = parser.parse_args()
     torch.set_num_threads(1)
-    config = {**CONFIGS[args.scene], "evaluator_target": args.evaluator_target}
+    config = agent_config(args)
     env_kwargs = ENV_SETTINGS.get(args.scene, {})
     root = args.out / args.scene
     run = root / f"graph_seed{args.seed}"
@@ -61,7 +58,12 @@ def main() -> None:
     result = {
         "command": f"python experiments/graph/swap.py --scene {args.scene} --seed {args.seed}"
         f" --steps {args.steps} --episodes {args.episodes}"
-        f" --evaluator-target {args.evaluator_target}",
+        f" --evaluator-target {args.evaluator_target}"
+        + (
+            f" --evaluator-temperature {args.evaluator_temperature}"
+            if args.evaluator_temperature is not None
+            else ""
+        ),
         "trained_steps": history[-1]["steps"] if history else agent.steps,
         "learned_internal": learned,
         "convex_internal": convex,

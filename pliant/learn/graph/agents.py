@@ -22,6 +22,7 @@ import torch
 from torch import nn
 from torch.nn import functional as F
 
+from pliant.errors import TrainingError
 from pliant.learn.graph.sac import SAC, ReplayBuffer, mlp, polyak
 
 #: External rewards [step still in S_i, reached the target node, reached another node] (D.2).
@@ -130,7 +131,7 @@ class Evaluator(nn.Module):
     """Which node of V_i ∪ {i} to solve the task from (Eq. 4.3).
 
     The scores of the reachable nodes are attention between the encoded state and the node
-    identifiers (Eq. 4.4), read as soft Q-values of the choice: the choice is sampled from
+    identifiers (Eq. 4.4), read as Q-values of the choice: the choice is sampled from
     softmax(scores / temperature) over V_i ∪ {i} and the scores regress on the return of the
     option that follows (semi-Markov Q-learning on the transitions of Eq. 4.6). The thesis'
     authors instead feed SAC's tanh-Gaussian output to the softmax (D.2); both sample the
@@ -161,9 +162,9 @@ class Evaluator(nn.Module):
     ) -> None:
         super().__init__()
         if target not in ("max", "soft"):
-            raise ValueError(f"target must be 'max' or 'soft', got {target!r}")
+            raise TrainingError(f"Evaluator target must be 'max' or 'soft', got {target!r}")
         if not temperature > 0.0:
-            raise ValueError(f"temperature must be positive (it divides the scores): {temperature}")
+            raise TrainingError(f"Evaluator temperature must be positive, got {temperature}")
         self.target_kind = target
         # (nodes, choices): the nodes V_i ∪ {i}, then any expert options available in node i.
         self.reachable = torch.as_tensor(np.asarray(reachable, dtype=bool))
