@@ -12,7 +12,7 @@ pytest.importorskip("networkx")
 
 import torch  # noqa: E402
 
-from pliant.errors import ModelError  # noqa: E402
+from pliant.errors import ModelError, TrainingError  # noqa: E402
 from pliant.learn.graph import (  # noqa: E402
     ConfigurationGraph,
     ControllerAgent,
@@ -29,7 +29,11 @@ from pliant.learn.graph import (  # noqa: E402
     external_reward,
     option_transitions,
 )
-from pliant.learn.graph.agents import update_internal  # noqa: E402
+from pliant.learn.graph.agents import (  # noqa: E402
+    SharedInternal,
+    SharedInternalAgent,
+    update_internal,
+)
 from pliant.learn.graph.toy import (  # noqa: E402
     CorridorEnv,
     corridor_controller,
@@ -191,10 +195,39 @@ def test_boundary_targets_borrow_the_neighbours_value():
     assert [v.item() for v in q] == pytest.approx([5.5, 5.5], abs=0.1)
 
 
-def _corridor_agent(controllers=None, seed=0):
+def test_shared_internal_agent_borrows_the_value_of_the_node_it_lands_in():
+    """One network for every node: the bootstrap of a transition from S_0 into S_1 is
+    V(s', h_1), node 1's value (node 0's own where node 1 is a controller)."""
+    obs, action = np.array([0.3, 0.0], np.float32), np.array([0.5], np.float32)
+
+    def trained_q(agents, shared):
+        # V(s', h) = 5 for node 1, -1 for node 0, read from the one-hot of h.
+        shared.sac.soft_value = lambda x: 5.0 * x[:, -1] - 1.0 * x[:, -2]
+        shared.buffer.add(
+            obs=obs, node=0, action=action, reward=1.0, next_obs=obs, next_node=1, terminal=0
+        )
+        rng = np.random.default_rng(0)
+        for _ in range(300):
+            shared.update(agents, 16, rng)
+        x = shared.node_input(torch.as_tensor(obs[None]), torch.tensor([0]))
+        return [v.item() for v in shared.sac.q_values(x, torch.as_tensor(action[None]))]
+
+    torch.manual_seed(0)
+    shared = SharedInternal(2, 2, 1, hidden=32, lr=1e-2, gamma=0.9)
+    agents = [SharedInternalAgent(i, shared) for i in range(2)]
+    assert trained_q(agents, shared) == pytest.approx([5.5, 5.5], abs=0.1)  # 1 + 0.9 * 5
+    shared = SharedInternal(2, 2, 1, hidden=32, lr=1e-2, gamma=0.9)
+    agents = [SharedInternalAgent(0, shared), ControllerAgent(1, lambda o: np.zeros(1))]
+    assert trained_q(agents, shared) == pytest.approx([0.1, 0.1], abs=0.1)  # 1 - 0.9 * 1
+    # Each node's view conditions the one network on its own identifier.
+    a0, a1 = (SharedInternalAgent(i, shared) for i in range(2))
+    assert not np.array_equal(a0.act(obs, True), a1.act(obs, True))
+
+
+def _corridor_agent(controllers=None, seed=0, config=FAST):
     env = CorridorEnv()
     agent = GraphAgent(
-        corridor_graph(), env.observation_space, env.action_space, FAST,
+        corridor_graph(), env.observation_space, env.action_space, config,
         controllers=controllers, seed=seed,
     )  # fmt: skip
     return env, agent
@@ -348,6 +381,28 @@ def test_checkpoint_round_trip(tmp_path):
     obs = np.array([-0.5, 0.7], dtype=np.float32)
     assert np.array_equal(restored.internal[0].act(obs, True), agent.internal[0].act(obs, True))
     assert len(restored.evaluator_buffer) == len(agent.evaluator_buffer)
+
+
+def test_shared_internal_hierarchy_learns_checkpoints_and_refuses_a_mismatch(tmp_path):
+    """The shared internal agent in the whole hierarchy: the corridor solved from the left
+    region in 2000 steps (as the per-node agents do), one network for the three nodes, its
+    buffer holding every step; a checkpoint restores it and is refused by per-node agents."""
+    shared = GraphConfig(**{**FAST.__dict__, "internal": "shared"})
+    env, agent = _corridor_agent(config=shared)
+    agent.learn(env, 2000)
+    runs = [agent.run_episode(env, train=False, seed=100 + k) for k in range(10)]
+    assert np.mean([r["success"] for r in runs]) >= 0.9
+    assert len(agent.shared_internal.buffer) == agent.steps
+    agent.save(tmp_path / "shared.pt")
+    _, restored = _corridor_agent(seed=1, config=shared)
+    restored.load(tmp_path / "shared.pt")
+    obs = np.array([-0.5, 0.7], dtype=np.float32)
+    assert np.array_equal(restored.internal[2].act(obs, True), agent.internal[2].act(obs, True))
+    _, per_node = _corridor_agent()
+    with pytest.raises(TrainingError, match="internal"):
+        per_node.load(tmp_path / "shared.pt")
+    with pytest.raises(TrainingError, match="per_node"):
+        _corridor_agent(config=GraphConfig(internal="one"))
 
 
 def test_flat_sac_baseline_runs():

@@ -51,10 +51,19 @@ THESIS = {
 }
 THESIS_STEPS = 250_000
 METHODS = ("graph", "convex", "sac")
+#: Run folders and summary keys: the methods, and the graph with a shared internal agent.
+LABELS = ("graph", "graph_shared", "convex", "sac")
 
 
 def add_evaluator_options(parser: argparse.ArgumentParser) -> None:
-    """The Evaluator's settings that the experiments vary (this script and swap.py)."""
+    """The agents' settings that the experiments vary (this script and swap.py): the
+    Evaluator's, and the internal agents' form."""
+    parser.add_argument(
+        "--internal", choices=["per_node", "shared"], default="per_node",
+        help="the learned internal agents: one SAC per node (the thesis'), or one SAC on"
+        " [s | one-hot(node)] for all (GraphConfig.internal); 'shared' runs are kept as"
+        " graph_shared_seedN",
+    )  # fmt: skip
     parser.add_argument(
         "--evaluator-target", choices=["max", "soft"], default="max",
         help="the Evaluator's bootstrap (GraphConfig.evaluator_target); 'soft' gave the"
@@ -69,9 +78,16 @@ def add_evaluator_options(parser: argparse.ArgumentParser) -> None:
 def agent_config(args: argparse.Namespace) -> dict:
     """The scene's GraphConfig fields with the Evaluator options of the command line."""
     config = {**CONFIGS[args.scene], "evaluator_target": args.evaluator_target}
+    if args.internal != "per_node":
+        config["internal"] = args.internal
     if args.evaluator_temperature is not None:
         config["evaluator_temperature"] = args.evaluator_temperature
     return config
+
+
+def run_label(method: str, args: argparse.Namespace) -> str:
+    """The run's folder prefix: the method, with ``_shared`` for a shared internal agent."""
+    return method + ("_shared" if method == "graph" and args.internal == "shared" else "")
 
 
 def first_solved(history: list[dict], solved: float) -> int | None:
@@ -99,8 +115,9 @@ def main() -> None:
     runs = {}
     for method in args.methods:
         for seed in args.seeds:
-            runs[method, seed] = train_run(
-                args.scene, method, root / f"{method}_seed{seed}", steps=args.steps, seed=seed,
+            name = run_label(method, args)
+            runs[name, seed] = train_run(
+                args.scene, method, root / f"{name}_seed{seed}", steps=args.steps, seed=seed,
                 config=config, env_kwargs=ENV_SETTINGS.get(args.scene),
                 eval_every=args.eval_every, eval_episodes=args.eval_episodes,
             )  # fmt: skip
@@ -109,11 +126,11 @@ def main() -> None:
     configs = {key: config for key in runs}
     for folder in sorted(root.glob("*_seed*")):
         method, _, seed = folder.name.rpartition("_seed")
-        if method in METHODS and (folder / "history.json").exists() and seed.isdigit():
+        if method in LABELS and (folder / "history.json").exists() and seed.isdigit():
             saved = json.loads((folder / "history.json").read_text())
             runs.setdefault((method, int(seed)), saved["evaluations"])
             configs[method, int(seed)] = saved.get("config", {})
-    methods = [m for m in METHODS if any(key[0] == m for key in runs)]
+    methods = [m for m in LABELS if any(key[0] == m for key in runs)]
     summary = {
         "scene": args.scene,
         "partial": any(h and h[-1]["steps"] < THESIS_STEPS for h in runs.values()),

@@ -9,7 +9,8 @@ Trains (or resumes, up to ``--steps``) the graph method with learned internal ag
 cartstem.py's settings, then evaluates its checkpoint greedily on ``--episodes`` goals twice:
 as trained, and with every internal agent replaced by the scene's convex controller
 (``GraphAgent.swap_internal``; the Evaluator and the external agents as trained). Writes
-``<out>/<scene>/swap_seed<seed>.json``: both mean returns and success rates and the relative
+``<out>/<scene>/swap_seed<seed>.json`` (``swap_shared_seed<seed>.json`` with ``--internal
+shared``): both mean returns and success rates and the relative
 change of the return.
 """
 
@@ -20,7 +21,12 @@ import json
 from pathlib import Path
 
 import torch
-from cartstem import ENV_SETTINGS, add_evaluator_options, agent_config  # this folder is on sys.path
+from cartstem import (  # this folder is on sys.path
+    ENV_SETTINGS,
+    add_evaluator_options,
+    agent_config,
+    run_label,
+)
 
 from pliant.learn.graph import GraphConfig
 from pliant.learn.graph.cli import build_learner, train_run
@@ -41,7 +47,8 @@ def main() -> None:
     config = agent_config(args)
     env_kwargs = ENV_SETTINGS.get(args.scene, {})
     root = args.out / args.scene
-    run = root / f"graph_seed{args.seed}"
+    name = run_label("graph", args)
+    run = root / f"{name}_seed{args.seed}"
     history = train_run(
         args.scene, "graph", run, steps=args.steps, seed=args.seed, config=config,
         env_kwargs=env_kwargs, eval_every=args.eval_every,
@@ -58,7 +65,7 @@ def main() -> None:
     result = {
         "command": f"python experiments/graph/swap.py --scene {args.scene} --seed {args.seed}"
         f" --steps {args.steps} --episodes {args.episodes}"
-        f" --evaluator-target {args.evaluator_target}"
+        f" --evaluator-target {args.evaluator_target} --internal {args.internal}"
         + (
             f" --evaluator-temperature {args.evaluator_temperature}"
             if args.evaluator_temperature is not None
@@ -70,7 +77,8 @@ def main() -> None:
         "relative_return_change": float(change),
         "thesis_relative_return_change": 0.0064,
     }
-    (root / f"swap_seed{args.seed}.json").write_text(json.dumps(result, indent=1))
+    suffix = "" if name == "graph" else "_shared"  # swap_seedN.json: per-node agents
+    (root / f"swap{suffix}_seed{args.seed}.json").write_text(json.dumps(result, indent=1))
     print(json.dumps(result, indent=1))
 
 

@@ -7,7 +7,8 @@
 * :class:`ExternalAgent` — node i's option that moves the state to a neighbour S_j, a SAC on
   [s | one-hot(j)], trained with hindsight relabelling (:func:`external_reward`).
 * :class:`InternalAgent` — solves the task inside S_i, a SAC whose target at boundary states
-  borrows the neighbour node's value (:func:`boundary_values`); :class:`ControllerAgent` puts a
+  borrows the neighbour node's value (:func:`boundary_values`); :class:`SharedInternal` one
+  SAC on [s | one-hot(i)] for every node instead; :class:`ControllerAgent` puts a
   convex-optimisation controller (an inverse QP) in its place.
 * :func:`option_transitions` — the transitions of Eq. 4.6.
 """
@@ -319,6 +320,76 @@ class InternalAgent:
 
     def value(self, obs: torch.Tensor) -> torch.Tensor:
         return self.sac.soft_value(obs)
+
+    def store(self, item: dict) -> None:
+        """Keep a transition that starts in S_i (keys of the buffer's fields)."""
+        self.buffer.add(**item)
+
+
+class SharedInternal:
+    """One SAC on [s | one-hot(i)] for the internal agents of every learned node (a departure
+    from the thesis' one SAC per node, ``GraphConfig.internal = "shared"``).
+
+    Each node keeps its own policy and critic, π(a | s, h_i) and Q(s, h_i, a), but they share
+    their weights and one replay buffer of every primitive transition, each labelled with the
+    node it starts in: a node visited rarely learns from what the others learnt about the same
+    dynamics and reward, where per-node agents each start from scratch on their share of the
+    data. The boundary borrowing stays exact: the bootstrap of a transition that ends in S_k is
+    V(s', h_k), node k's own value (the starting node's where node k has no learned agent)."""
+
+    def __init__(
+        self, n_nodes: int, obs_dim: int, act_dim: int, *, buffer_size: int = 100_000,
+        **sac_kwargs,
+    ) -> None:  # fmt: skip
+        self.n_nodes = n_nodes
+        self.sac = SAC(obs_dim + n_nodes, act_dim, **sac_kwargs)
+        self.buffer = ReplayBuffer(
+            buffer_size, obs=(obs_dim,), node=(), action=(act_dim,), reward=(),
+            next_obs=(obs_dim,), next_node=(), terminal=(),
+        )  # fmt: skip
+
+    def node_input(self, obs: torch.Tensor, node: torch.Tensor) -> torch.Tensor:
+        return torch.cat([obs, F.one_hot(node.long(), self.n_nodes).float()], dim=-1)
+
+    def update(
+        self,
+        agents: Sequence[InternalAgent | ControllerAgent | SharedInternalAgent],
+        batch_size: int,
+        rng: np.random.Generator,
+    ) -> dict[str, float]:
+        """One SAC step on a batch of every node's transitions, each bootstrapped from the
+        value of the node its next state is in (its own node's where that one has no learned
+        agent: a :class:`ControllerAgent`)."""
+        b = self.buffer.sample(batch_size, rng)
+        learned = torch.tensor([a.learned for a in agents])
+        owner = torch.where(learned[b["next_node"].long()], b["next_node"], b["node"])
+        next_input = self.node_input(b["next_obs"], owner)
+        return self.sac.update(
+            self.node_input(b["obs"], b["node"]), b["action"], b["reward"], next_input,
+            b["terminal"], self.sac.soft_value(next_input),
+        )  # fmt: skip
+
+
+class SharedInternalAgent:
+    """Node i's internal agent as a view of a :class:`SharedInternal` network: π(a | s, h_i)."""
+
+    learned = True
+
+    def __init__(self, node: int, shared: SharedInternal) -> None:
+        self.node, self.shared = node, shared
+
+    def act(self, obs: np.ndarray, deterministic: bool = False) -> np.ndarray:
+        x = self.shared.node_input(
+            torch.as_tensor(np.asarray(obs, np.float32))[None], torch.tensor([self.node])
+        )
+        return self.shared.sac.act(x[0].numpy(), deterministic)
+
+    def value(self, obs: torch.Tensor) -> torch.Tensor:
+        node = torch.full((len(obs),), self.node)
+        return self.shared.sac.soft_value(self.shared.node_input(obs, node))
+
+    def store(self, item: dict) -> None:
+        self.shared.buffer.add(node=self.node, **item)
 
 
 class ControllerAgent:

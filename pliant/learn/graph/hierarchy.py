@@ -22,6 +22,7 @@ import gymnasium as gym
 import numpy as np
 import torch
 
+from pliant.errors import TrainingError
 from pliant.learn.graph.agents import (
     EXTERNAL_REWARDS,
     ControllerAgent,
@@ -30,6 +31,8 @@ from pliant.learn.graph.agents import (
     ExternalAgent,
     InternalAgent,
     Selector,
+    SharedInternal,
+    SharedInternalAgent,
     option_transitions,
     update_internal,
 )
@@ -58,6 +61,9 @@ class GraphConfig:
     #: the Evaluator's bootstrap: "max" (double Q) or "soft" (biased towards short options;
     #: the runs before 2026-11-26 used it, see :class:`Evaluator`).
     evaluator_target: str = "max"
+    #: the internal agents: "per_node" (one SAC each, the thesis') or "shared" (one SAC on
+    #: [s | one-hot(i)] for all, trained on every transition: :class:`SharedInternal`).
+    internal: str = "per_node"
 
 
 def final_numbers(infos: list[dict]) -> dict[str, float]:
@@ -99,28 +105,37 @@ class GraphAgent:
         experts: Sequence[ExpertOption] = (),
         seed: int = 0,
     ) -> None:
+        self.config = c = config or GraphConfig()
+        if c.internal not in ("per_node", "shared"):
+            raise TrainingError(f"internal must be 'per_node' or 'shared', got {c.internal!r}")
         if graph.partition is None and selector is None:
-            raise ValueError("the graph has no partition function: give a trained Selector")
+            raise TrainingError("the graph has no partition function: give a trained Selector")
         self.experts = list(experts)
         for expert in self.experts:
             if expert.action_dim != action_space.shape[0]:
-                raise ValueError(
+                raise TrainingError(
                     f"expert {expert.name!r} has {expert.action_dim} action values, the"
                     f" environment {action_space.shape[0]}"
                 )
             if not all(0 <= i < graph.n_nodes for i in expert.start_nodes):
-                raise ValueError(f"expert {expert.name!r}: start nodes outside the graph")
+                raise TrainingError(f"expert {expert.name!r}: start nodes outside the graph")
         torch.manual_seed(seed)
         self.rng = np.random.default_rng(seed)
         self.graph, self.selector = graph, selector
-        self.config = c = config or GraphConfig()
         self.low, self.high = action_space.low, action_space.high
         n, obs_dim, act_dim = graph.n_nodes, observation_space.shape[0], action_space.shape[0]
         sac = {"hidden": c.hidden, "lr": c.lr, "gamma": c.gamma, "tau": c.tau}
         controllers = controllers or {}
+        self.shared_internal = (
+            SharedInternal(n, obs_dim, act_dim, buffer_size=c.buffer_size, **sac)
+            if c.internal == "shared" and set(range(n)) - set(controllers)
+            else None
+        )
         self.internal = [
             ControllerAgent(i, controllers[i])
             if i in controllers
+            else SharedInternalAgent(i, self.shared_internal)
+            if self.shared_internal is not None
             else InternalAgent(i, obs_dim, act_dim, buffer_size=c.buffer_size, **sac)
             for i in range(n)
         ]
@@ -154,7 +169,7 @@ class GraphAgent:
         them back)."""
         for node, controller in controllers.items():
             if not 0 <= node < self.graph.n_nodes:
-                raise ValueError(f"no node {node} in a graph of {self.graph.n_nodes}")
+                raise TrainingError(f"no node {node} in a graph of {self.graph.n_nodes}")
             self.internal[node] = ControllerAgent(node, controller)
 
     # ---- acting -------------------------------------------------------------------------------
@@ -237,7 +252,7 @@ class GraphAgent:
         item = {"obs": obs, "action": action, "reward": reward, "next_obs": next_obs}
         item |= {"next_node": next_node, "terminal": float(terminated)}
         if self.internal[node].learned:
-            self.internal[node].buffer.add(**item)
+            self.internal[node].store(item)
         if self.external[node] is not None:
             self.external[node].buffer.add(**item)
         self.steps += 1
@@ -250,10 +265,14 @@ class GraphAgent:
     # ---- learning -----------------------------------------------------------------------------
     def update(self, node: int) -> None:
         """One gradient step of node ``node``'s internal and external agents (those of the node
-        the last transition started in: each agent learns as often as its node is visited) and
-        of the Evaluator, each once its buffer holds a batch."""
+        the last transition started in: each agent learns as often as its node is visited; a
+        shared internal agent learns at every step) and of the Evaluator, each once its buffer
+        holds a batch."""
         n = self.config.batch_size
-        if self.internal[node].learned and len(self.internal[node].buffer) >= n:
+        if self.shared_internal is not None:
+            if len(self.shared_internal.buffer) >= n:
+                self.shared_internal.update(self.internal, n, self.rng)
+        elif self.internal[node].learned and len(self.internal[node].buffer) >= n:
             update_internal(self.internal, node, n, self.rng)
         external = self.external[node]
         if external is not None and len(external.buffer) >= n:
@@ -303,9 +322,17 @@ class GraphAgent:
             "rng": self.rng.bit_generator.state,
             "torch_rng": torch.get_rng_state(),
             "internal": [
-                {"sac": a.sac.checkpoint(), "buffer": a.buffer.state_dict()} if a.learned else None
+                {"sac": a.sac.checkpoint(), "buffer": a.buffer.state_dict()}
+                if isinstance(a, InternalAgent)
+                else None
                 for a in self.internal
             ],
+            "shared_internal": None
+            if self.shared_internal is None
+            else {
+                "sac": self.shared_internal.sac.checkpoint(),
+                "buffer": self.shared_internal.buffer.state_dict(),
+            },
             "external": [
                 {"sac": a.sac.checkpoint(), "buffer": a.buffer.state_dict()} if a else None
                 for a in self.external
@@ -326,6 +353,15 @@ class GraphAgent:
             if saved is not None:
                 agent.sac.restore(saved["sac"])
                 agent.buffer.load_state_dict(saved["buffer"])
+        shared = state.get("shared_internal")
+        if (shared is None) != (self.shared_internal is None):
+            raise TrainingError(
+                "the checkpoint's internal agents are not this agent's (GraphConfig.internal"
+                f" is {self.config.internal!r})"
+            )
+        if shared is not None:
+            self.shared_internal.sac.restore(shared["sac"])
+            self.shared_internal.buffer.load_state_dict(shared["buffer"])
         self.evaluator.load_state_dict(state["evaluator"])
         self.evaluator.optimiser.load_state_dict(state["evaluator_opt"])
         self.evaluator_buffer.load_state_dict(state["evaluator_buffer"])
