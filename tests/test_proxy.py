@@ -220,6 +220,38 @@ def test_calibration_recovers_a_proxys_own_parameters(tmp_path) -> None:
     assert used["lower_stiffness"] == result.parameters["lower_stiffness"]
 
 
+def test_a_mass_constraint_holds_a_parameter_the_positions_do_not_see() -> None:
+    """Synthetic: the points follow a stiffness-like parameter `a` and ignore `density` (as
+    positions barely see a proxy's mass); mass = 10 density. Unconstrained, TPE leaves the
+    density wherever it fell; held within 5 % of a 25 g target the best trial's mass is
+    there, `a` is still found, only feasible trials were simulated, and a target no box
+    value reaches is a ModelError."""
+    reference = np.linspace(0.0, 1.0, 30)[:, None, None] * np.ones((30, 2, 3))
+    calls = []
+
+    def simulate(parameters: dict[str, float]) -> np.ndarray:
+        calls.append(parameters)
+        return reference * parameters["a"] / 1.3
+
+    space = {"a": (1.0, 2.0), "density": (1.0, 4.0)}
+
+    def mass(parameters: dict[str, float]) -> float:
+        return 10.0 * parameters["density"]
+
+    result = calibrate(
+        simulate, reference, space, trials=40, mass=mass, target_mass=25.0, mass_tolerance=0.05
+    )
+    assert abs(result.mass / 25.0 - 1.0) <= 0.05
+    assert result.mass == pytest.approx(mass(result.parameters))
+    assert result.parameters["a"] == pytest.approx(1.3, rel=0.05)
+    assert len(calls) == result.feasible_trials < result.trials == 40
+    with pytest.raises(ModelError, match="within 5%"):
+        calibrate(simulate, reference, space, trials=5, mass=mass, target_mass=100.0,
+                  mass_tolerance=0.05)  # fmt: skip
+    with pytest.raises(ModelError, match="mass function"):
+        calibrate(simulate, reference, space, trials=5, target_mass=25.0, mass_tolerance=0.05)
+
+
 def test_the_calibrate_command_fits_a_saved_reference_and_resumes(tmp_path) -> None:
     """`pliant proxy calibrate multigait --reference REF`: a short reference (the default
     proxy's own skinned underside corners, 20 steps of the rear legs bending) and 3 trials;
@@ -249,6 +281,18 @@ def test_the_calibrate_command_fits_a_saved_reference_and_resumes(tmp_path) -> N
     )
     for name in ("leg_curvature", "centre_curvature"):
         assert report["proxy_parameters"][name] == pytest.approx(0.9 * report["parameters"][name])
+    # A mass constraint needs the FEM's mass in the reference; with it, the report's proxy
+    # is within the tolerance (a study of its own).
+    constrained = [*args, "--trials", "10", "--mass-tolerance", "0.5", "--out", str(tmp_path)]
+    result = runner.invoke(app, constrained)
+    assert result.exit_code == 2 and "no FEM mass" in result.output
+    fem_mass = multigait_proxy().rod.total_mass
+    Reference(commands, points, surface, 0.01, fem_mass).save(tmp_path / "reference.npz")
+    result = runner.invoke(app, constrained)
+    assert result.exit_code == 0, result.output
+    report = json.loads((tmp_path / "multigait_calibration.json").read_text())
+    assert report["trials"] == 10 and report["mass_tolerance"] == 0.5
+    assert abs(report["proxy_mass_kg"] / fem_mass - 1.0) <= 0.5
 
 
 def test_the_16_action_calibration_sequence_visits_every_group_state_twice() -> None:

@@ -10,6 +10,11 @@ distance. The study lives in a SQLite file when given one, and a run resumes it:
 trials until the study holds the number asked for. The proxy then uses its calibrated max
 curvatures times a safety factor < 1, under-using the actuation range it was fitted on
 (thesis L694).
+
+Positions identify the mass poorly (a heavier proxy sags a little more, and the loss barely
+sees it), so a search may also hold the proxy's mass within a tolerance of the FEM robot's: a
+constraint of Optuna's TPE sampler (``constraints_func``), under which a trial outside the
+tolerance ranks below every feasible one and is not simulated.
 """
 
 from __future__ import annotations
@@ -79,6 +84,10 @@ class CalibrationResult:
     validation_error: float
     trials: int
     safety: float
+    #: the proxy's mass with these parameters (when the search was given one), and how many
+    #: of the study's trials met the mass constraint (all when there was none).
+    mass: float | None = None
+    feasible_trials: int | None = None
 
     @property
     def proxy_parameters(self) -> dict[str, float]:
@@ -100,6 +109,9 @@ def calibrate(
     safety: float = 0.9,
     startup_trials: int = 10,
     every: int = 5,
+    mass: Callable[[dict[str, float]], float] | None = None,
+    target_mass: float | None = None,
+    mass_tolerance: float | None = None,
 ) -> CalibrationResult:
     """Fit the parameters in `space` (name -> (low, high), sampled uniformly) so that
     `simulate(parameters)` (T, K, 3) follows `reference` (T, K, 3) on the optimisation
@@ -109,6 +121,10 @@ def calibrate(
     study `study_name`; None keeps it in memory. The study is run until it holds `trials`
     finished trials. `safety` in (0, 1] scales the calibrated max curvatures
     (:attr:`CalibrationResult.proxy_parameters`).
+
+    `mass(parameters)` is the proxy's mass; with `target_mass` (the FEM robot's) and
+    `mass_tolerance` (a fraction) the search is constrained to |mass - target| <= tolerance *
+    target, and the result is the best trial that meets it (ModelError if none does).
     """
     reference = np.asarray(reference, dtype=float)
     if reference.ndim != 3 or reference.shape[-1] != 3 or len(reference) < every:
@@ -118,6 +134,17 @@ def calibrate(
             raise ModelError(f"search interval of {name} must be finite, low < high")
     if not 0.0 < safety <= 1.0:
         raise ModelError(f"the safety factor must lie in (0, 1], got {safety}")
+    constrained = mass_tolerance is not None
+    if constrained and (
+        mass is None
+        or target_mass is None
+        or not (math.isfinite(target_mass) and target_mass > 0.0)
+        or not (math.isfinite(mass_tolerance) and mass_tolerance > 0.0)
+    ):
+        raise ModelError(
+            "a mass constraint needs the proxy's mass function, the FEM's mass (positive, got"
+            f" {target_mass}) and a positive tolerance (got {mass_tolerance})"
+        )
     optimisation, validation = split(len(reference), every=every)
     fixed = dict(fixed or {})
 
@@ -126,8 +153,16 @@ def calibrate(
         return {**fixed, **chosen}
 
     def objective(trial: optuna.Trial) -> float:
+        chosen = parameters(trial)
+        if mass is not None:
+            trial.set_user_attr("mass", float(mass(chosen)))
+        if constrained:
+            excess = abs(trial.user_attrs["mass"] / target_mass - 1.0) - mass_tolerance
+            trial.set_user_attr("constraint", [excess])
+            if excess > 0.0:  # ranked below every feasible trial by TPE: not simulated
+                return _FAILED
         try:
-            points = simulate(parameters(trial))
+            points = simulate(chosen)
         except PliantError as error:  # a diverging proxy: a bad corner of the box
             trial.set_user_attr("failure", str(error))
             return _FAILED
@@ -142,18 +177,31 @@ def calibrate(
         storage=storage,
         load_if_exists=True,
         direction="minimize",
-        sampler=optuna.samplers.TPESampler(seed=seed, n_startup_trials=startup_trials),
+        sampler=optuna.samplers.TPESampler(
+            seed=seed,
+            n_startup_trials=startup_trials,
+            constraints_func=(lambda t: t.user_attrs["constraint"]) if constrained else None,
+        ),
     )
     done = sum(t.state == optuna.trial.TrialState.COMPLETE for t in study.trials)
     if trials > done:
         study.optimize(objective, n_trials=trials - done)
-    best = study.best_trial
+    complete = [t for t in study.trials if t.state == optuna.trial.TrialState.COMPLETE]
+    feasible = [t for t in complete if not constrained or t.user_attrs["constraint"][0] <= 0.0]
+    if not feasible:
+        raise ModelError(
+            f"none of the {len(complete)} trials kept the proxy's mass within"
+            f" {mass_tolerance:.0%} of {target_mass}: widen the tolerance or the density box"
+        )
+    best = min(feasible, key=lambda t: t.value)
     return CalibrationResult(
         {**fixed, **best.params},
         float(best.value),
         float(best.user_attrs.get("validation_error", math.nan)),
         len(study.trials),
         safety,
+        best.user_attrs.get("mass"),
+        len(feasible),
     )
 
 

@@ -44,6 +44,14 @@ def calibrate(
     reference: Annotated[
         Path | None, typer.Option(help="a saved FEM trajectory (.npz); made and saved if absent")
     ] = None,
+    mass_tolerance: Annotated[
+        float | None,
+        typer.Option(
+            help="keep the proxy's mass within this fraction of the FEM robot's (a constraint"
+            " of the search; a study of its own, ROBOT-mass)",
+            callback=fraction,
+        ),
+    ] = None,
     out: Annotated[Path, typer.Option(help="output folder", callback=output_folder)] = Path(
         "out/proxy"
     ),
@@ -66,15 +74,25 @@ def calibrate(
         return data
 
     data = load_or_simulate(path, robot_setup.reference)
+    if mass_tolerance is not None and robot == "trunk-cube":
+        raise typer.BadParameter("--mass-tolerance: the cube's calibration fits its mass alone")
+    if mass_tolerance is not None and not data.mass > 0.0:
+        raise typer.BadParameter(
+            f"--mass-tolerance: {path} holds no FEM mass (saved before it was kept): delete it"
+            " to simulate it again"
+        )
     result = fit(
         robot_setup.simulate(data),
         data.points,
         robot_setup.space,
         trials=trials,
         storage=f"sqlite:///{out / f'{robot}.db'}",
-        study_name=robot,
+        study_name=robot if mass_tolerance is None else f"{robot}-mass",
         seed=seed,
         safety=safety,
+        mass=robot_setup.mass if robot != "trunk-cube" else None,
+        target_mass=data.mass,
+        mass_tolerance=mass_tolerance,
     )
     report = {
         "robot": robot,
@@ -85,6 +103,10 @@ def calibrate(
         "proxy_parameters": result.proxy_parameters,
         "safety": safety,
         "reference": str(path),
+        "proxy_mass_kg": result.mass,
+        "fem_mass_kg": data.mass if data.mass > 0.0 else None,
+        "mass_tolerance": mass_tolerance,
+        "feasible_trials": result.feasible_trials,
     }
     if robot_setup.other is not None:  # validation on other actions than the fitted ones
         from pliant.proxy.calibrate import mean_distance

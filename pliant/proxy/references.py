@@ -34,22 +34,26 @@ from pliant.solvers import ImplicitEuler
 @dataclass(frozen=True)
 class Reference:
     """A FEM trajectory: proxy commands (T, n) of each step, the FEM's matched points (T, K,
-    3) after it, their rest positions (K, 3) and the time step."""
+    3) after it, their rest positions (K, 3), the time step, and the FEM robot's mass (kg;
+    NaN where unknown: files saved before it was kept)."""
 
     commands: np.ndarray
     points: np.ndarray
     surface: np.ndarray
     dt: float
+    mass: float = float("nan")
 
     def save(self, path) -> None:
         np.savez_compressed(
-            path, commands=self.commands, points=self.points, surface=self.surface, dt=self.dt
-        )
+            path, commands=self.commands, points=self.points, surface=self.surface, dt=self.dt,
+            mass=self.mass,
+        )  # fmt: skip
 
     @classmethod
     def load(cls, path) -> Reference:
         data = np.load(path)
-        return cls(data["commands"], data["points"], data["surface"], float(data["dt"]))
+        mass = float(data["mass"]) if "mass" in data else float("nan")
+        return cls(data["commands"], data["points"], data["surface"], float(data["dt"]), mass)
 
 
 #: The Multigait's 16-action calibration sequence (the thesis': "16 actions of 5-cavity
@@ -115,8 +119,9 @@ def multigait_reference(
         commands.append(volume / amplitude)
         points.append(state.positions[nodes].copy())
     return Reference(
-        np.array(commands), np.array(points), model.body.rest_positions[nodes].copy(), dt
-    )
+        np.array(commands), np.array(points), model.body.rest_positions[nodes].copy(), dt,
+        model.body.total_mass,
+    )  # fmt: skip
 
 
 def multigait_patterns_reference(**kwargs) -> Reference:
@@ -185,8 +190,9 @@ def trunk_reference(
             commands.append(trunk_commands(state.displacement))
             points.append(state.positions[nodes].copy())
     return Reference(
-        np.array(commands), np.array(points), model.body.rest_positions[nodes].copy(), dt
-    )
+        np.array(commands), np.array(points), model.body.rest_positions[nodes].copy(), dt,
+        model.body.total_mass,
+    )  # fmt: skip
 
 
 #: Steps both models settle under gravity before the cube's calibration trajectory.
@@ -248,6 +254,10 @@ class Setup:
             )
 
         return run
+
+    def mass(self, parameters: dict[str, float]) -> float:
+        """The proxy's mass (kg) with these parameters."""
+        return float(self.build(**parameters).rod.total_mass)
 
 
 class CubeSetup(Setup):
