@@ -17,6 +17,11 @@ experiments/results/rl/gripper_bc/.
 ``--push-down``: the thesis' random downward force on the cube (``cube_push_down``, up to
 ``push_force`` = 50 mN a step), which it needed for a firm grasp; runs in
 runs/gripper_{scratch,bc}_push_down, results in experiments/results/rl/gripper_bc_push_down/.
+
+``--sofagym-reward``: SofaGym's reward instead of the thesis' (``reward="sofagym"``: the
+decrease of the height error over the step divided by 20, clipped to [0, 1], plus 1 on
+success), the other difference from the thesis' set-up; runs and results with the suffix
+``_sofagym_reward`` (after ``_push_down`` when both are given).
 """
 
 from __future__ import annotations
@@ -87,12 +92,17 @@ def folder_of(runs: Path, name: str) -> Path:
     return runs / f"gripper_{name}"
 
 
+def variant(args) -> str:
+    """The suffix of the runs' and results' folders: the options that change the task."""
+    return "_push_down" * args.push_down + "_sofagym_reward" * args.sofagym_reward
+
+
 def results_of(args) -> Path:
-    return RESULTS.with_name(RESULTS.name + "_push_down") if args.push_down else RESULTS
+    return RESULTS.with_name(RESULTS.name + variant(args))
 
 
 def run_name(name: str, args) -> str:
-    return f"{name}_push_down" if args.push_down else name
+    return name + variant(args)
 
 
 def run(name: str, bc: bool, args) -> dict:
@@ -115,6 +125,8 @@ def run(name: str, bc: bool, args) -> dict:
     config = load_config("pliant/Gripper-v0", "RecurrentPPO", overrides=overrides)
     if args.push_down:
         config.env_kwargs = {**config.env_kwargs, "cube_push_down": True}
+    if args.sofagym_reward:
+        config.env_kwargs = {**config.env_kwargs, "reward": "sofagym"}
     start = EvaluateAtStart(folder, args.eval_episodes, config.env_id, config.env_kwargs)
     result = train(
         config, folder, resume=resume, total_timesteps=args.steps, extra_callbacks=[start]
@@ -173,6 +185,7 @@ def main() -> None:
         "--only", choices=("bc", "scratch"), default=None, help="run one of the two"
     )
     parser.add_argument("--push-down", action="store_true", help="random downward force")
+    parser.add_argument("--sofagym-reward", action="store_true", help="SofaGym's reward")
     args = parser.parse_args()
     torch.set_num_threads(args.threads)
     results = results_of(args)
@@ -187,11 +200,13 @@ def main() -> None:
         "threshold": args.threshold,
         "thesis": THESIS,
         "command": f"PYTHONPATH=. python experiments/rl/gripper_bc.py --steps {args.steps}"
-        + " --push-down" * args.push_down,
+        + " --push-down" * args.push_down
+        + " --sofagym-reward" * args.sofagym_reward,
         "cube_push_down": args.push_down,
+        "reward": "sofagym" if args.sofagym_reward else "thesis",
     }
     summary_path.write_text(json.dumps(summary, indent=1))
-    suffix = "_push_down" if args.push_down else ""
+    suffix = variant(args)
     plot(summary["runs"], args.runs, args.threshold, results / "success.png", suffix)
     for name in summary["runs"]:  # one evaluation episode of each final policy
         evaluate_saved(

@@ -85,7 +85,7 @@ class Selector(nn.Module):
         sharpens the boundaries between spaces where a constant rate keeps jittering them).
         Keeps the parameters of the best validation accuracy; returns the history."""
         if schedule not in ("constant", "cosine"):
-            raise ValueError(f"schedule must be 'constant' or 'cosine', got {schedule!r}")
+            raise TrainingError(f"schedule must be 'constant' or 'cosine', got {schedule!r}")
         rng = np.random.default_rng(seed)
         obs, labels = np.asarray(obs, dtype=np.float32), np.asarray(labels, dtype=np.int64)
         if balance:
@@ -222,7 +222,7 @@ def option_transitions(
     s_{t+T}. The option's action a_t is the caller's (the chosen node)."""
     T = len(rewards)
     if len(observations) != T + 1:
-        raise ValueError(f"{len(observations)} observations for {T} rewards (need T + 1)")
+        raise TrainingError(f"{len(observations)} observations for {T} rewards (need T + 1)")
     tails = np.cumsum(np.asarray(rewards, dtype=float)[::-1])[::-1]
     return [
         {
@@ -432,20 +432,20 @@ class ExpertOption:
     ) -> None:
         if callable(actions):
             if steps is None or action_dim is None or steps < 1 or action_dim < 1:
-                raise ValueError(f"expert {name!r}: a policy needs steps >= 1 and action_dim")
+                raise TrainingError(f"expert {name!r}: a policy needs steps >= 1 and action_dim")
             self.policy, self.steps, self.action_dim = actions, int(steps), int(action_dim)
         else:
             table = np.asarray(actions, dtype=np.float32)
             if table.ndim != 2 or table.shape[0] == 0:
-                raise ValueError(f"expert {name!r}: actions must be a non-empty (T, m) array")
+                raise TrainingError(f"expert {name!r}: actions must be a non-empty (T, m) array")
             if not np.all(np.isfinite(table)) or np.abs(table).max() > 1.0:
-                raise ValueError(f"expert {name!r}: actions must be finite and within [-1, 1]")
+                raise TrainingError(f"expert {name!r}: actions must be finite and within [-1, 1]")
             self.policy = lambda obs, k: table[k]
             self.steps, self.action_dim = table.shape
         if not start_nodes:
-            raise ValueError(f"expert {name!r}: give the nodes it may start from")
+            raise TrainingError(f"expert {name!r}: give the nodes it may start from")
         if not np.isfinite(penalty):
-            raise ValueError(f"expert {name!r}: penalty must be finite, got {penalty!r}")
+            raise TrainingError(f"expert {name!r}: penalty must be finite, got {penalty!r}")
         self.name = name
         self.start_nodes = tuple(int(i) for i in start_nodes)
         self.penalty = float(penalty)
@@ -457,7 +457,7 @@ class ExpertOption:
         """The action of step k (0-based) from observation ``obs``."""
         action = np.asarray(self.policy(obs, k), dtype=np.float32).reshape(-1)
         if action.shape != (self.action_dim,) or not np.all(np.isfinite(action)):
-            raise ValueError(
+            raise TrainingError(
                 f"expert {self.name!r}: step {k} gave {action!r}, not {self.action_dim} finite"
                 " values"
             )

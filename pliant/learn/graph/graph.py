@@ -14,6 +14,8 @@ from collections.abc import Callable, Sequence
 import networkx as nx
 import numpy as np
 
+from pliant.errors import TrainingError
+
 Partition = Callable[[np.ndarray], int]
 
 
@@ -38,14 +40,14 @@ class ConfigurationGraph:
         start: int = 0,
     ) -> None:
         if len(names) != len(neighbours):
-            raise ValueError(f"{len(names)} names for {len(neighbours)} neighbourhoods")
+            raise TrainingError(f"{len(names)} names for {len(neighbours)} neighbourhoods")
         self.graph = nx.DiGraph()
         for i, name in enumerate(names):
             self.graph.add_node(i, name=name)
         for i, vi in enumerate(neighbours):
             for j in vi:
                 if not 0 <= j < len(names):
-                    raise ValueError(f"node {i} lists neighbour {j}, not a node")
+                    raise TrainingError(f"node {i} lists neighbour {j}, not a node")
                 if j != i:
                     self.graph.add_edge(i, j)
         self.partition = partition
@@ -80,7 +82,7 @@ class ConfigurationGraph:
 
     def node_of(self, obs: np.ndarray) -> int:
         if self.partition is None:
-            raise ValueError("this graph has no partition function: train a Selector")
+            raise TrainingError("this graph has no partition function: train a Selector")
         return int(self.partition(np.asarray(obs)))
 
 

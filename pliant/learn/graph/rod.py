@@ -34,7 +34,7 @@ from dataclasses import dataclass
 import gymnasium as gym
 import numpy as np
 
-from pliant.errors import ModelError
+from pliant.errors import ModelError, TrainingError
 from pliant.learn.graph.agents import ExpertOption
 from pliant.learn.graph.graph import ConfigurationGraph
 
@@ -83,7 +83,7 @@ class RodGeometry:
     def _checked(self, obs: np.ndarray) -> np.ndarray:
         obs = np.asarray(obs, dtype=float)
         if obs.shape != (23,) or not np.all(np.isfinite(obs)):
-            raise ValueError(
+            raise TrainingError(
                 f"a RodManipulator observation is 23 finite values, got shape {obs.shape}"
                 + ("" if obs.shape != (23,) else " with non-finite values")
             )
