@@ -152,6 +152,28 @@ def test_evaluator_target_and_the_soft_values_bias_to_short_options(target):
         Evaluator(1, np.ones((1, 2), dtype=bool), temperature=0.0)
 
 
+def test_evaluator_temperature_is_tuned_to_the_target_entropy():
+    """SAC's rule on the Evaluator's sampling: log τ steps on log τ · (H − f log n) until the
+    choices' entropy is the fraction f of the uniform one, over states in nodes with 2 and 3
+    choices; a fixed-temperature Evaluator keeps its τ; f outside (0, 1) is refused."""
+    torch.manual_seed(0)
+    reachable = np.array([[1, 1, 0], [1, 1, 1], [0, 1, 1]], dtype=bool)
+    evaluator = Evaluator(2, reachable, d=8, hidden=16, lr=1e-2, target_entropy=0.4)
+    obs, node = torch.randn(256, 2), torch.randint(0, 3, (256,))
+    for _ in range(1500):
+        evaluator._tune_temperature(obs, node)
+    with torch.no_grad():
+        p = (evaluator.scores(obs, node) / evaluator.temperature).softmax(-1)
+        entropy = -(p * torch.log(p.clamp_min(1e-12))).sum(-1)
+        target = 0.4 * torch.log(torch.as_tensor(reachable)[node].sum(-1).float())
+    assert entropy.mean().item() == pytest.approx(target.mean().item(), abs=0.02)
+    assert evaluator.temperature < 0.5  # the untrained scores are close: τ had to fall
+    fixed = Evaluator(2, reachable, d=8, hidden=16)
+    assert fixed.temperature == 0.5 and not hasattr(fixed, "log_temperature")
+    with pytest.raises(TrainingError, match="fraction"):
+        Evaluator(2, reachable, target_entropy=1.0)
+
+
 def test_option_transitions_follow_eq_4_6():
     # (s_{t+k}, a_t, s_{t+T}, Σ_{t'=t+k}^{t+T−1} r_{t'}, δ), k ∈ [0, T−1], here T = 3.
     s = [np.full(2, float(k)) for k in range(4)]
@@ -403,6 +425,20 @@ def test_shared_internal_hierarchy_learns_checkpoints_and_refuses_a_mismatch(tmp
         per_node.load(tmp_path / "shared.pt")
     with pytest.raises(TrainingError, match="per_node"):
         _corridor_agent(config=GraphConfig(internal="one"))
+
+
+def test_tuned_evaluator_temperature_is_checkpointed(tmp_path):
+    tuned = GraphConfig(**{**FAST.__dict__, "evaluator_entropy": 0.5})
+    env, agent = _corridor_agent(config=tuned)
+    agent.learn(env, 400)
+    assert agent.evaluator.temperature != 0.5
+    agent.save(tmp_path / "tuned.pt")
+    _, restored = _corridor_agent(seed=1, config=tuned)
+    restored.load(tmp_path / "tuned.pt")
+    assert restored.evaluator.temperature == agent.evaluator.temperature
+    saved = agent.evaluator.temperature_optimiser.state_dict()["state"][0]["exp_avg"]
+    again = restored.evaluator.temperature_optimiser.state_dict()["state"][0]["exp_avg"]
+    assert torch.equal(saved, again)
 
 
 def test_flat_sac_baseline_runs():

@@ -51,7 +51,8 @@ THESIS = {
 }
 THESIS_STEPS = 250_000
 METHODS = ("graph", "convex", "sac")
-#: Run folders and summary keys: the methods, and the graph with a shared internal agent.
+#: Run folders and summary keys, in the plots' order: the methods, the graph with a shared
+#: internal agent; a tuned Evaluator temperature adds ``_entropyF`` (:func:`label_of`).
 LABELS = ("graph", "graph_shared", "convex", "sac")
 
 
@@ -73,6 +74,11 @@ def add_evaluator_options(parser: argparse.ArgumentParser) -> None:
         "--evaluator-temperature", type=float, default=None,
         help="the Evaluator's sampling temperature in training (GraphConfig's default: 0.5)",
     )  # fmt: skip
+    parser.add_argument(
+        "--evaluator-entropy", type=float, default=None,
+        help="tune the Evaluator's temperature to keep this fraction of the uniform choice's"
+        " entropy (GraphConfig.evaluator_entropy); runs kept as graph_entropyF_seedN",
+    )  # fmt: skip
 
 
 def agent_config(args: argparse.Namespace) -> dict:
@@ -82,12 +88,24 @@ def agent_config(args: argparse.Namespace) -> dict:
         config["internal"] = args.internal
     if args.evaluator_temperature is not None:
         config["evaluator_temperature"] = args.evaluator_temperature
+    if args.evaluator_entropy is not None:
+        config["evaluator_entropy"] = args.evaluator_entropy
     return config
 
 
+def label_of(method: str, config: dict) -> str:
+    """A run's folder prefix from its method and agent settings: the method, ``_shared`` for
+    a shared internal agent, ``_entropyF`` for an Evaluator temperature tuned to F."""
+    if method != "graph":
+        return method
+    label = method + ("_shared" if config.get("internal") == "shared" else "")
+    entropy = config.get("evaluator_entropy")
+    return label + (f"_entropy{entropy:g}" if entropy is not None else "")
+
+
 def run_label(method: str, args: argparse.Namespace) -> str:
-    """The run's folder prefix: the method, with ``_shared`` for a shared internal agent."""
-    return method + ("_shared" if method == "graph" and args.internal == "shared" else "")
+    """The folder prefix of a run this command trains."""
+    return label_of(method, agent_config(args))
 
 
 def first_solved(history: list[dict], solved: float) -> int | None:
@@ -125,12 +143,16 @@ def main() -> None:
     # with the settings it was trained with.
     configs = {key: config for key in runs}
     for folder in sorted(root.glob("*_seed*")):
-        method, _, seed = folder.name.rpartition("_seed")
-        if method in LABELS and (folder / "history.json").exists() and seed.isdigit():
-            saved = json.loads((folder / "history.json").read_text())
-            runs.setdefault((method, int(seed)), saved["evaluations"])
-            configs[method, int(seed)] = saved.get("config", {})
-    methods = [m for m in LABELS if any(key[0] == m for key in runs)]
+        label, _, seed = folder.name.rpartition("_seed")
+        if not ((folder / "history.json").exists() and seed.isdigit()):
+            continue
+        saved = json.loads((folder / "history.json").read_text())
+        # Only folders named by their own settings (not, e.g., convex_closed_form_seed0).
+        if label_of(saved.get("method", label), saved.get("config", {})) == label:
+            runs.setdefault((label, int(seed)), saved["evaluations"])
+            configs[label, int(seed)] = saved.get("config", {})
+    labels = {key[0] for key in runs}
+    methods = [m for m in LABELS if m in labels] + sorted(labels - set(LABELS))
     summary = {
         "scene": args.scene,
         "partial": any(h and h[-1]["steps"] < THESIS_STEPS for h in runs.values()),

@@ -67,6 +67,11 @@ def main() -> None:
         f" --steps {args.steps} --episodes {args.episodes}"
         f" --evaluator-target {args.evaluator_target} --internal {args.internal}"
         + (
+            f" --evaluator-entropy {args.evaluator_entropy}"
+            if args.evaluator_entropy is not None
+            else ""
+        )
+        + (
             f" --evaluator-temperature {args.evaluator_temperature}"
             if args.evaluator_temperature is not None
             else ""
@@ -77,7 +82,7 @@ def main() -> None:
         "relative_return_change": float(change),
         "thesis_relative_return_change": 0.0064,
     }
-    suffix = "" if name == "graph" else "_shared"  # swap_seedN.json: per-node agents
+    suffix = name.removeprefix("graph")  # swap_seedN.json: per-node agents, fixed τ
     (root / f"swap{suffix}_seed{args.seed}.json").write_text(json.dumps(result, indent=1))
     print(json.dumps(result, indent=1))
 

@@ -146,6 +146,14 @@ class Evaluator(nn.Module):
     option (a controller run to its end) collects it once. With CartStemContact's returns of
     about −1 an episode and τ = 0.5, that bonus (0.35–0.55 a decision) taught the greedy
     Evaluator to bounce between neighbour nodes instead of solving where it was.
+
+    ``target_entropy`` (a fraction in (0, 1), or None) tunes the sampling temperature as SAC
+    tunes its own (the authors' Evaluator is a SAC): after each update, log τ takes one
+    gradient step on log τ · (H − fraction · log n), H the entropy of softmax(Q/τ) over the n
+    choices available on the batch's states, so that the sampled choice keeps that fraction
+    of the uniform choice's entropy whatever the scale of the Q-values. With a fixed τ the
+    Q-values of CartStemContact's choices, tenths apart, left the sampling near uniform for
+    the whole run (two thirds of the training decisions moved the state to another node).
     """
 
     def __init__(
@@ -160,19 +168,36 @@ class Evaluator(nn.Module):
         tau: float = 5e-3,
         temperature: float = 0.5,
         target: str = "max",
+        target_entropy: float | None = None,
     ) -> None:
         super().__init__()
         if target not in ("max", "soft"):
             raise TrainingError(f"Evaluator target must be 'max' or 'soft', got {target!r}")
         if not temperature > 0.0:
             raise TrainingError(f"Evaluator temperature must be positive, got {temperature}")
+        if target_entropy is not None and not 0.0 < target_entropy < 1.0:
+            raise TrainingError(
+                f"Evaluator target entropy is a fraction in (0, 1), got {target_entropy}"
+            )
         self.target_kind = target
         # (nodes, choices): the nodes V_i ∪ {i}, then any expert options available in node i.
         self.reachable = torch.as_tensor(np.asarray(reachable, dtype=bool))
-        self.gamma, self.tau, self.temperature = gamma, tau, temperature
+        self.gamma, self.tau = gamma, tau
         self.attention = NodeAttention(obs_dim, self.reachable.shape[1], d, hidden)
         self.target = copy.deepcopy(self.attention).requires_grad_(False)
         self.optimiser = torch.optim.Adam(self.attention.parameters(), lr=lr)
+        self.target_entropy = target_entropy
+        self._temperature = float(temperature)
+        if target_entropy is not None:
+            self.log_temperature = nn.Parameter(torch.tensor(float(np.log(temperature))))
+            self.temperature_optimiser = torch.optim.Adam([self.log_temperature], lr=lr)
+
+    @property
+    def temperature(self) -> float:
+        """The sampling temperature τ (tuned when a target entropy is set)."""
+        if self.target_entropy is None:
+            return self._temperature
+        return float(self.log_temperature.exp())
 
     def scores(self, obs: torch.Tensor, node: torch.Tensor, target: bool = False):
         """Q(s, j) for every choice j (the nodes, then the expert options), −inf where j is
@@ -208,7 +233,22 @@ class Evaluator(nn.Module):
         loss.backward()
         self.optimiser.step()
         polyak(self.attention, self.target, self.tau)
+        if self.target_entropy is not None:
+            self._tune_temperature(batch["obs"], batch["node"])
         return loss.item()
+
+    def _tune_temperature(self, obs: torch.Tensor, node: torch.Tensor) -> None:
+        """One step of log τ towards the target entropy on these states (class docstring)."""
+        with torch.no_grad():
+            q = self.scores(obs, node)
+            p = (q / self.temperature).softmax(-1)
+            entropy = -(p * torch.log(p.clamp_min(1e-12))).sum(-1)
+            n = self.reachable[node.long()].sum(-1).float()
+            gap = entropy - self.target_entropy * torch.log(n)
+        loss = (self.log_temperature * gap).mean()
+        self.temperature_optimiser.zero_grad()
+        loss.backward()
+        self.temperature_optimiser.step()
 
 
 def option_transitions(

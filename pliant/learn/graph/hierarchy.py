@@ -61,6 +61,9 @@ class GraphConfig:
     #: the Evaluator's bootstrap: "max" (double Q) or "soft" (biased towards short options;
     #: the runs before 2026-11-26 used it, see :class:`Evaluator`).
     evaluator_target: str = "max"
+    #: tune the Evaluator's temperature to keep this fraction of the uniform choice's entropy
+    #: (SAC's rule; None: the fixed ``evaluator_temperature``, its starting value otherwise).
+    evaluator_entropy: float | None = None
     #: the internal agents: "per_node" (one SAC each, the thesis') or "shared" (one SAC on
     #: [s | one-hot(i)] for all, trained on every transition: :class:`SharedInternal`).
     internal: str = "per_node"
@@ -153,6 +156,7 @@ class GraphAgent:
         self.evaluator = Evaluator(
             obs_dim, choices, d=c.d, hidden=c.hidden, lr=c.lr, gamma=c.gamma,
             tau=c.evaluator_tau, temperature=c.evaluator_temperature, target=c.evaluator_target,
+            target_entropy=c.evaluator_entropy,
         )  # fmt: skip
         self.evaluator_buffer = ReplayBuffer(
             c.buffer_size, obs=(obs_dim,), node=(), choice=(), reward=(), next_obs=(obs_dim,),
@@ -339,6 +343,9 @@ class GraphAgent:
             ],
             "evaluator": self.evaluator.state_dict(),
             "evaluator_opt": self.evaluator.optimiser.state_dict(),
+            "evaluator_temperature_opt": self.evaluator.temperature_optimiser.state_dict()
+            if self.evaluator.target_entropy is not None
+            else None,
             "evaluator_buffer": self.evaluator_buffer.state_dict(),
         }
 
@@ -364,6 +371,8 @@ class GraphAgent:
             self.shared_internal.buffer.load_state_dict(shared["buffer"])
         self.evaluator.load_state_dict(state["evaluator"])
         self.evaluator.optimiser.load_state_dict(state["evaluator_opt"])
+        if self.evaluator.target_entropy is not None:
+            self.evaluator.temperature_optimiser.load_state_dict(state["evaluator_temperature_opt"])
         self.evaluator_buffer.load_state_dict(state["evaluator_buffer"])
 
     def save(self, path: str | Path) -> None:
