@@ -66,6 +66,7 @@ def main() -> None:
         saved = agent.evaluator_buffer.state_dict()["data"]
         entry = usage(saved, args.last, agent.graph.n_nodes)
         entry["trained_steps"] = agent.steps
+        entry["evaluator_temperature"] = agent.evaluator.temperature  # tuned or fixed
         # The greedy hierarchy on the evaluation goals (cartstem.py's: seeds 10 000 on).
         episodes = [
             agent.run_episode(scene.env, train=False, seed=10_000 + k) for k in range(args.episodes)
