@@ -1,7 +1,8 @@
 """How a trained graph run spent its training steps: the share of environment steps taken by
 internal agents (the Evaluator chose the node the state was in) and by external options or
-experts, per node, over the whole run and its last steps; and how the greedy hierarchy
-decides on the evaluation goals (issue 19).
+experts, per node, over the whole run and its last steps; each kind of option's length and how
+often it reached its node; and how the greedy hierarchy decides on the evaluation goals
+(issue 19).
 
     python experiments/graph/option_usage.py RUN [RUN ...] [--last 5000] [--episodes 10]
         [--out experiments/results/graph/CartStemContact/option_usage.json]
@@ -27,6 +28,28 @@ from pliant.learn.graph.cli import build_learner
 from pliant.learn.graph.scenes import make_scene
 
 
+def options(buffer: dict, n_nodes: int) -> dict:
+    """Per (node, choice) over the run: the steps, the options (each option's last transition
+    has duration 1), their mean length, and the share that ended in the chosen node (a move)
+    or left the node (an internal agent's)."""
+    node, choice = buffer["node"].astype(int), buffer["choice"].astype(int)
+    ends = buffer["duration"] == 1
+    reached = buffer["next_node"].astype(int)
+    out = {}
+    for i in range(n_nodes):
+        for j in np.unique(choice[node == i]).tolist():
+            rows = (node == i) & (choice == j)
+            last = rows & ends
+            arrived = reached[last] == j if j != i else reached[last] != i
+            out[f"{i}->{j}"] = {
+                "steps": int(rows.sum()),
+                "options": int(last.sum()),
+                "mean_length": float(rows.sum() / max(last.sum(), 1)),
+                "reached" if j != i else "left_node": float(arrived.mean()) if last.any() else None,
+            }
+    return out
+
+
 def usage(buffer: dict, last: int, n_nodes: int) -> dict:
     node, choice = buffer["node"].astype(int), buffer["choice"].astype(int)
     internal = choice == node
@@ -46,7 +69,11 @@ def usage(buffer: dict, last: int, n_nodes: int) -> dict:
             },
         }
 
-    return {"whole_run": share(slice(None)), f"last_{last}": share(slice(-last, None))}
+    return {
+        "whole_run": share(slice(None)),
+        f"last_{last}": share(slice(-last, None)),
+        "options": options(buffer, n_nodes),
+    }
 
 
 def main() -> None:
