@@ -170,6 +170,10 @@ def test_evaluator_temperature_is_tuned_to_the_target_entropy():
     assert evaluator.temperature < 0.5  # the untrained scores are close: τ had to fall
     fixed = Evaluator(2, reachable, d=8, hidden=16)
     assert fixed.temperature == 0.5 and not hasattr(fixed, "log_temperature")
+    evaluator.temperature = 2.0  # set by hand, the tuning goes on from there
+    assert evaluator.temperature == pytest.approx(2.0)
+    with pytest.raises(TrainingError, match="positive"):
+        fixed.temperature = 0.0
     with pytest.raises(TrainingError, match="fraction"):
         Evaluator(2, reachable, target_entropy=1.0)
 

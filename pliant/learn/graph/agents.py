@@ -199,6 +199,16 @@ class Evaluator(nn.Module):
             return self._temperature
         return float(self.log_temperature.exp())
 
+    @temperature.setter
+    def temperature(self, value: float) -> None:
+        if not value > 0.0:
+            raise TrainingError(f"Evaluator temperature must be positive, got {value}")
+        if self.target_entropy is None:
+            self._temperature = float(value)
+        else:  # the tuning goes on from there
+            with torch.no_grad():
+                self.log_temperature.fill_(float(np.log(value)))
+
     def scores(self, obs: torch.Tensor, node: torch.Tensor, target: bool = False):
         """Q(s, j) for every choice j (the nodes, then the expert options), −inf where j is
         not available in ``node``."""
