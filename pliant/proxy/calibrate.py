@@ -154,9 +154,8 @@ def calibrate(
 
     def objective(trial: optuna.Trial) -> float:
         chosen = parameters(trial)
-        if mass is not None:
-            trial.set_user_attr("mass", float(mass(chosen)))
         if constrained:
+            trial.set_user_attr("mass", float(mass(chosen)))
             excess = abs(trial.user_attrs["mass"] / target_mass - 1.0) - mass_tolerance
             trial.set_user_attr("constraint", [excess])
             if excess > 0.0:  # ranked below every feasible trial by TPE: not simulated
@@ -194,13 +193,14 @@ def calibrate(
             f" {mass_tolerance:.0%} of {target_mass}: widen the tolerance or the density box"
         )
     best = min(feasible, key=lambda t: t.value)
+    found = {**fixed, **best.params}
     return CalibrationResult(
-        {**fixed, **best.params},
+        found,
         float(best.value),
         float(best.user_attrs.get("validation_error", math.nan)),
         len(study.trials),
         safety,
-        best.user_attrs.get("mass"),
+        None if mass is None else float(mass(found)),  # the best trial's only
         len(feasible),
     )
 

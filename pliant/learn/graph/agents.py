@@ -261,6 +261,18 @@ class Evaluator(nn.Module):
         self.temperature_optimiser.step()
 
 
+def with_node(obs: torch.Tensor, node: torch.Tensor, n_nodes: int) -> torch.Tensor:
+    """[s | one-hot(node)]: a batch of observations conditioned on a node (the external
+    agents' target node, the shared internal agent's own node)."""
+    return torch.cat([obs, F.one_hot(node.long(), n_nodes).float()], dim=-1)
+
+
+def act_on_node(sac: SAC, obs: np.ndarray, node: int, n_nodes: int, deterministic: bool):
+    """The action of a SAC on [s | one-hot(node)] for one observation."""
+    x = with_node(torch.as_tensor(np.asarray(obs, np.float32))[None], torch.tensor([node]), n_nodes)
+    return sac.act(x[0].numpy(), deterministic)
+
+
 def option_transitions(
     observations: Sequence[np.ndarray], rewards: Sequence[float], done: bool
 ) -> list[dict]:
@@ -329,13 +341,10 @@ class ExternalAgent:
         )  # fmt: skip
 
     def goal_input(self, obs: torch.Tensor, goal: torch.Tensor) -> torch.Tensor:
-        return torch.cat([obs, F.one_hot(goal.long(), self.n_nodes).float()], dim=-1)
+        return with_node(obs, goal, self.n_nodes)
 
     def act(self, obs: np.ndarray, goal: int, deterministic: bool = False) -> np.ndarray:
-        x = self.goal_input(
-            torch.as_tensor(np.asarray(obs, np.float32))[None], torch.tensor([goal])
-        )
-        return self.sac.act(x[0].numpy(), deterministic)
+        return act_on_node(self.sac, obs, goal, self.n_nodes, deterministic)
 
     def update(self, batch_size: int, rng: np.random.Generator) -> dict[str, float]:
         b = self.buffer.sample(batch_size, rng)
@@ -399,7 +408,7 @@ class SharedInternal:
         )  # fmt: skip
 
     def node_input(self, obs: torch.Tensor, node: torch.Tensor) -> torch.Tensor:
-        return torch.cat([obs, F.one_hot(node.long(), self.n_nodes).float()], dim=-1)
+        return with_node(obs, node, self.n_nodes)
 
     def update(
         self,
@@ -429,10 +438,8 @@ class SharedInternalAgent:
         self.node, self.shared = node, shared
 
     def act(self, obs: np.ndarray, deterministic: bool = False) -> np.ndarray:
-        x = self.shared.node_input(
-            torch.as_tensor(np.asarray(obs, np.float32))[None], torch.tensor([self.node])
-        )
-        return self.shared.sac.act(x[0].numpy(), deterministic)
+        shared = self.shared
+        return act_on_node(shared.sac, obs, self.node, shared.n_nodes, deterministic)
 
     def value(self, obs: torch.Tensor) -> torch.Tensor:
         node = torch.full((len(obs),), self.node)
