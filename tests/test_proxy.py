@@ -16,7 +16,14 @@ from pliant.fem.rotation import exp_map, log_map
 from pliant.mesh.multigait import CHAMBERS
 from pliant.model import Model
 from pliant.proxy import Bending, CurvatureActuation, Skinning, multigait_proxy, trunk_proxy
-from pliant.proxy.calibrate import calibrate, command_sequence, rollout, split
+from pliant.proxy.calibrate import (
+    calibrate,
+    command_sequence,
+    rollout,
+    split,
+    travel,
+    travel_error,
+)
 from pliant.solvers import ImplicitEuler, StaticSolver
 
 L, E, RADIUS = 100.0, 1000.0, 1.0  # mm, kPa, mm
@@ -252,6 +259,56 @@ def test_a_mass_constraint_holds_a_parameter_the_positions_do_not_see() -> None:
         calibrate(simulate, reference, space, trials=5, target_mass=25.0, mass_tolerance=0.05)
 
 
+def test_travel_is_the_centroids_move_over_each_interval() -> None:
+    """travel(points, n): the centroid's displacement from the end of one interval of n steps
+    to the end of the next (the first from the first position), a last incomplete interval
+    left out; travel_error the mean distance between two such sequences."""
+    t = np.arange(23, dtype=float)
+    points = np.zeros((23, 4, 3))
+    points[:, :, 0] = 2.0 * t[:, None]  # 2 mm a step along x
+    points[:, :2, 1] = 1.0  # a shape: the centroid's y is 0.5
+    moves = travel(points, 5)
+    np.testing.assert_allclose(moves, [[8.0, 0, 0], [10.0, 0, 0], [10.0, 0, 0], [10.0, 0, 0]])
+    slower = points.copy()
+    slower[:, :, 0] *= 0.5
+    assert travel_error(points, slower, 5) == pytest.approx(np.mean([4.0, 5.0, 5.0, 5.0]))
+    for interval in (0, 24):
+        with pytest.raises(ModelError, match="does not fit"):
+            travel(points, interval)
+
+
+def test_a_travel_term_joins_the_loss_and_is_reported() -> None:
+    """Synthetic: points of a fixed shape scaled by `a`, drifting `c` mm a step. With a travel
+    term over 10-step intervals both are found (5 %) in 80 trials; the loss minimised is the
+    point error plus the weight times the travel error, each reported, the travel error the
+    best parameters' own; bad travel settings are ModelErrors before any trial."""
+    shape = np.array([[0.0, 1.0, 0.0], [1.0, -1.0, 0.0], [-1.0, 0.0, 0.0]])
+    steps = np.arange(40, dtype=float)[:, None, None]
+
+    def simulate(parameters: dict[str, float]) -> np.ndarray:
+        drift = parameters["c"] * steps * np.array([1.0, 0.0, 0.0])
+        return parameters["a"] * shape[None] * (1.0 + 0.1 * np.sin(steps)) + drift
+
+    reference = simulate({"a": 1.3, "c": 0.2})
+    space = {"a": (1.0, 2.0), "c": (0.0, 0.4)}
+    result = calibrate(simulate, reference, space, trials=80, travel_weight=2.0,
+                       travel_interval=10)  # fmt: skip
+    assert result.parameters["a"] == pytest.approx(1.3, rel=0.05)
+    assert result.parameters["c"] == pytest.approx(0.2, rel=0.05)
+    assert result.travel_error == pytest.approx(
+        travel_error(reference, simulate(result.parameters), 10)
+    )
+    assert result.loss == pytest.approx(result.optimisation_error + 2.0 * result.travel_error)
+    plain = calibrate(simulate, reference, space, trials=3)
+    assert plain.travel_error is None and plain.loss == pytest.approx(plain.optimisation_error)
+    with pytest.raises(ModelError, match="interval"):
+        calibrate(simulate, reference, space, trials=1, travel_weight=1.0)
+    with pytest.raises(ModelError, match="does not fit"):
+        calibrate(simulate, reference, space, trials=1, travel_weight=1.0, travel_interval=50)
+    with pytest.raises(ModelError, match="travel weight"):
+        calibrate(simulate, reference, space, trials=1, travel_weight=-1.0, travel_interval=5)
+
+
 def test_the_calibrate_command_fits_a_saved_reference_and_resumes(tmp_path) -> None:
     """`pliant proxy calibrate multigait --reference REF`: a short reference (the default
     proxy's own skinned underside corners, 20 steps of the rear legs bending) and 3 trials;
@@ -293,6 +350,45 @@ def test_the_calibrate_command_fits_a_saved_reference_and_resumes(tmp_path) -> N
     report = json.loads((tmp_path / "multigait_calibration.json").read_text())
     assert report["trials"] == 10 and report["mass_tolerance"] == 0.5
     assert abs(report["proxy_mass_kg"] / fem_mass - 1.0) <= 0.5
+
+
+def test_the_calibrate_command_fits_the_travel_and_the_friction(tmp_path) -> None:
+    """`--travel-weight W --friction LOW,HIGH`: a study of its own (multigait-travel1-
+    friction), the friction searched in its box, and the report's travel block the FEM's and
+    the proxy's centroid moves over each 0.6 s action (2 in a 1.2 s reference) with their mean
+    distance; a robot without actions or without a fitted friction refuses them (exit 2)."""
+    import json
+
+    from typer.testing import CliRunner
+
+    from pliant.cli import app
+    from pliant.proxy.references import Reference, setup
+
+    surface = np.array([[0.0, 29.0, 0.0], [136.0, -29.0, 0.0], [68.0, 0.0, 0.0]])
+    commands = np.repeat([[0.0, 0.0, 0.0, 1.0, 1.0], [0.0, 1.0, 1.0, 1.0, 1.0]], 60, axis=0)
+    draft = Reference(commands, np.zeros((120, 3, 3)), surface, 0.01)
+    points = setup("multigait").simulate(draft)(dict(multigait_proxy().parameters))
+    Reference(commands, points, surface, 0.01).save(tmp_path / "reference.npz")
+    runner = CliRunner()
+    args = ["proxy", "calibrate", "multigait", "--reference", str(tmp_path / "reference.npz")]
+    options = ["--travel-weight", "1", "--friction", "0.5,0.9", "--trials", "2"]
+    result = runner.invoke(app, [*args, *options, "--out", str(tmp_path)])
+    assert result.exit_code == 0, result.output
+    report = json.loads((tmp_path / "multigait_calibration.json").read_text())
+    assert report["study"] == "multigait-travel1-friction"
+    assert 0.5 <= report["parameters"]["friction"] <= 0.9
+    moves = report["travel"]
+    assert moves["interval_steps"] == 60 and len(moves["fem_mm"]) == len(moves["proxy_mm"]) == 2
+    distance = np.linalg.norm(np.subtract(moves["fem_mm"], moves["proxy_mm"]), axis=1).mean()
+    assert moves["error_mm"] == pytest.approx(distance, abs=1e-2)
+    assert moves["loss"] == pytest.approx(report["optimisation_error_mm"] + moves["error_mm"])
+    for refused, needle in (
+        (["proxy", "calibrate", "trunk", "--friction", "0.1,1"], "only the Multigait"),
+        (["proxy", "calibrate", "trunk-cube", "--travel-weight", "1"], "not a sequence"),
+        ([*args, "--friction", "0.9,0.5"], "LOW < HIGH"),
+    ):
+        result = runner.invoke(app, [*refused, "--out", str(tmp_path)])
+        assert result.exit_code == 2 and needle in result.output, result.output
 
 
 def test_the_16_action_calibration_sequence_visits_every_group_state_twice() -> None:

@@ -10,7 +10,7 @@ from typing import Annotated
 import typer
 from rich.console import Console
 
-from pliant.cli_support import at_least_one, fraction, one_of, output_folder
+from pliant.cli_support import at_least_one, fraction, non_negative, one_of, output_folder
 
 app = typer.Typer(
     add_completion=False,
@@ -52,16 +52,48 @@ def calibrate(
             callback=fraction,
         ),
     ] = None,
+    travel_weight: Annotated[
+        float,
+        typer.Option(
+            help="add this weight times the travel error (mm: the matched points' centroid"
+            " moved over each action, FEM vs proxy) to the loss (Multigait)",
+            callback=non_negative,
+        ),
+    ] = 0.0,
+    friction: Annotated[
+        str | None,
+        typer.Option(
+            help="LOW,HIGH: also fit the proxy's floor friction in this box (Multigait)",
+        ),
+    ] = None,
     out: Annotated[Path, typer.Option(help="output folder", callback=output_folder)] = Path(
         "out/proxy"
     ),
 ) -> None:
     """Calibrate ROBOT's proxy on its FEM model: Optuna TPE, study resumed from
-    OUT/ROBOT.db, report in OUT/ROBOT_calibration.json."""
+    OUT/ROBOT.db, report in OUT/ROBOT_calibration.json.
+
+    The study is named after what it fits: ROBOT, with -mass, -travel{W} and -friction for
+    the options that change the search."""
+    from pliant.cli_support import numbers_list
     from pliant.proxy.calibrate import calibrate as fit
+    from pliant.proxy.calibrate import travel, travel_error
     from pliant.proxy.references import Reference, setup
 
     robot_setup = setup(robot)
+    if travel_weight > 0.0 and robot_setup.action_duration is None:
+        raise typer.BadParameter(
+            f"--travel-weight: {robot}'s reference is not a sequence of actions to measure the"
+            " travel over"
+        )
+    space = dict(robot_setup.space)
+    if friction is not None:
+        if not robot.startswith("multigait"):
+            raise typer.BadParameter("--friction: only the Multigait proxy's friction is fitted")
+        low, high = numbers_list(friction, "--friction", count=2)
+        if not 0.0 <= low < high:
+            raise typer.BadParameter(f"--friction: need 0 <= LOW < HIGH, got {friction}")
+        space["friction"] = (low, high)
     out.mkdir(parents=True, exist_ok=True)
     path = reference if reference is not None else out / f"{robot}_reference.npz"
 
@@ -81,18 +113,29 @@ def calibrate(
             f"--mass-tolerance: {path} holds no FEM mass (saved before it was kept): delete it"
             " to simulate it again"
         )
+    interval = (
+        None
+        if robot_setup.action_duration is None
+        else max(1, round(robot_setup.action_duration / data.dt))
+    )
+    study = robot + ("" if mass_tolerance is None else "-mass")
+    study += (f"-travel{travel_weight:g}" if travel_weight > 0.0 else "") + (
+        "-friction" if friction is not None else ""
+    )
     result = fit(
         robot_setup.simulate(data),
         data.points,
-        robot_setup.space,
+        space,
         trials=trials,
         storage=f"sqlite:///{out / f'{robot}.db'}",
-        study_name=robot if mass_tolerance is None else f"{robot}-mass",
+        study_name=study,
         seed=seed,
         safety=safety,
         mass=robot_setup.mass if robot != "trunk-cube" else None,
         target_mass=data.mass,
         mass_tolerance=mass_tolerance,
+        travel_weight=travel_weight,
+        travel_interval=interval,
     )
     report = {
         "robot": robot,
@@ -107,7 +150,18 @@ def calibrate(
         "fem_mass_kg": data.mass if data.mass > 0.0 else None,
         "mass_tolerance": mass_tolerance,
         "feasible_trials": result.feasible_trials,
+        "study": study,
     }
+    if interval is not None and len(data.points) >= interval:  # each action's move, both
+        best = robot_setup.simulate(data)(result.parameters)
+        report["travel"] = {
+            "weight": travel_weight,
+            "interval_steps": interval,
+            "error_mm": travel_error(data.points, best, interval),
+            "loss": result.loss,
+            "fem_mm": travel(data.points, interval).round(3).tolist(),
+            "proxy_mm": travel(best, interval).round(3).tolist(),
+        }
     if robot_setup.other is not None:  # validation on other actions than the fitted ones
         from pliant.proxy.calibrate import mean_distance
 

@@ -66,7 +66,11 @@ class Reference:
 MULTIGAIT_PATTERNS = (4, 2, 5, 0, 4, 3, 5, 1) + (2, 4, 3, 0, 2, 5, 3, 1)
 
 
-def pattern_levels(actions, t: float, *, phase: float = 0.6) -> np.ndarray:
+#: duration (s) of one Multigait action: the proxy environment's step, the hand gait's phase
+MULTIGAIT_ACTION = 0.6
+
+
+def pattern_levels(actions, t: float, *, phase: float = MULTIGAIT_ACTION) -> np.ndarray:
     """(5,) chamber commands in [0, 1] at time `t` of a sequence of Multigait actions, each
     ramped over its `phase` s as the hand gait's are; after the sequence, its last state."""
     groups = {0: ("centre",), 1: ("front_left", "front_right"), 2: ("rear_left", "rear_right")}
@@ -107,7 +111,7 @@ def multigait_reference(
     nodes = _underside_nodes(model.body.mesh, spacing)
     amplitude = chamber_amplitudes()  # demo_actuation's (mm^3 of volume growth)
     if actions is not None:
-        duration = 0.6 * len(actions)
+        duration = MULTIGAIT_ACTION * len(actions)
     solver, state = ImplicitEuler(model, dt), model.rest_state()
     commands, points = [], []
     for _ in range(int(round(duration / dt))):
@@ -242,6 +246,9 @@ class Setup:
     reference: Callable[..., Reference]
     #: a trajectory under other actions than the fitted ones, to validate on (and its name)
     other: tuple[str, Callable[..., Reference]] | None = None
+    #: duration (s) of one action along the reference, the interval a travel term is
+    #: measured over (None: the reference is not a sequence of actions)
+    action_duration: float | None = None
 
     def simulate(self, reference: Reference) -> Callable[[dict[str, float]], np.ndarray]:
         """parameters -> (T, K, 3) the proxy's skinned matched points along `reference`."""
@@ -284,7 +291,10 @@ SETUPS = {
     # Search box of 0.3x to 3x the values found so far (thesis: "restricted around
     # hand-found values"); the first round's centre was hand-set.
     "multigait": Setup(
-        multigait_proxy, _around(MULTIGAIT_PARAMETERS, 0.3, 3.0), multigait_reference
+        multigait_proxy,
+        _around(MULTIGAIT_PARAMETERS, 0.3, 3.0),
+        multigait_reference,
+        action_duration=MULTIGAIT_ACTION,
     ),
     # The thesis' 16-action calibration (MULTIGAIT_PATTERNS), the same box; its validation on
     # other actions is the hand gait (`pliant proxy calibrate multigait-patterns`).
@@ -293,6 +303,7 @@ SETUPS = {
         _around(MULTIGAIT_PARAMETERS, 0.3, 3.0),
         multigait_patterns_reference,
         other=("multigait", multigait_reference),
+        action_duration=MULTIGAIT_ACTION,
     ),
     # Hand-set: from a third of the FEM's E (450 kPa) to the thesis' 14332 kPa (round 1 stopped
     # at 4500, its best at the edge), its 42 g, and curvatures
@@ -314,6 +325,7 @@ SETUPS = {
         multigait_proxy,
         _around(MULTIGAIT_PARAMETERS, 0.3, 3.0),
         multigait_joint_reference,
+        action_duration=MULTIGAIT_ACTION,
     ),
     # The cube's mass, a posteriori (the calibrated Trunk proxy; the FEM's cube is 10 g).
     "trunk-cube": CubeSetup(trunk_proxy, {"cube_mass": (0.002, 0.05)}, trunk_cube_reference),
