@@ -452,6 +452,64 @@ def test_flat_sac_baseline_runs():
     assert history and history[0]["steps"] >= 250 and baseline.steps >= 300
 
 
+def test_the_authors_schedule_updates_every_agent_after_each_episode(monkeypatch):
+    """updates_per_episode=5 (D.2): no gradient step during an episode; after each training
+    episode past learning_starts, 5 of the Evaluator, 5 of every node's external agent and of
+    each internal agent that holds a batch, 5 of plain SAC; evaluation episodes none; bad
+    schedules are TrainingErrors."""
+    from pliant.learn.graph import agents, hierarchy
+    from pliant.learn.graph.sac import SAC
+
+    calls = []
+    for owner, name in ((agents.Evaluator, "update"), (agents.ExternalAgent, "update")):
+        original = getattr(owner, name)
+
+        def counted(self, *args, _original=original, _owner=owner, **kwargs):
+            calls.append(_owner.__name__)
+            return _original(self, *args, **kwargs)
+
+        monkeypatch.setattr(owner, name, counted)
+    internal = hierarchy.update_internal
+
+    def counted_internal(agents_, node, *args, **kwargs):
+        calls.append(f"internal{node}")
+        return internal(agents_, node, *args, **kwargs)
+
+    monkeypatch.setattr(hierarchy, "update_internal", counted_internal)
+    schedule = GraphConfig(**{**FAST.__dict__, "updates_per_episode": 5, "learning_starts": 100})
+    env, agent = _corridor_agent(config=schedule)
+    while agent.steps < 100:  # before learning_starts: nothing
+        agent.run_episode(env, train=True, seed=agent.steps)
+    calls.clear()
+    for k in range(4):
+        steps = agent.steps
+        agent.run_episode(env, train=True, seed=1000 + k)
+        assert agent.steps > steps
+        held = [i for i in range(3) if len(agent.internal[i].buffer) >= FAST.batch_size]
+        external = sum(len(a.buffer) >= FAST.batch_size for a in agent.external if a is not None)
+        assert calls.count("Evaluator") == 5 and calls.count("ExternalAgent") == 5 * external
+        assert sorted(c for c in calls if c.startswith("internal")) == sorted(
+            f"internal{i}" for i in held for _ in range(5)
+        )
+        calls.clear()
+    agent.run_episode(env, train=False, seed=5)
+    assert calls == []
+    sac_calls = []
+    original = SAC.update
+    monkeypatch.setattr(SAC, "update", lambda self, *a: sac_calls.append(1) or original(self, *a))
+    baseline = FlatSAC(env.observation_space, env.action_space, schedule, seed=0)
+    while baseline.steps < 100:
+        baseline.run_episode(env, train=True, seed=baseline.steps)
+    sac_calls.clear()
+    baseline.run_episode(env, train=True, seed=7)
+    assert len(sac_calls) == 5
+    for bad in ({"updates_per_episode": 0}, {"updates_per_episode": 2.5}, {"updates_per_step": 0}):
+        with pytest.raises(TrainingError, match="updates_per"):
+            FlatSAC(env.observation_space, env.action_space, GraphConfig(**bad))
+        with pytest.raises(TrainingError, match="updates_per"):
+            _corridor_agent(config=GraphConfig(**{**FAST.__dict__, **bad}))
+
+
 def test_cli_trains_checkpoints_and_resumes(tmp_path):
     import json
     from dataclasses import asdict

@@ -79,6 +79,12 @@ def add_evaluator_options(parser: argparse.ArgumentParser) -> None:
         help="tune the Evaluator's temperature to keep this fraction of the uniform choice's"
         " entropy (GraphConfig.evaluator_entropy); runs kept as graph_entropyF_seedN",
     )  # fmt: skip
+    parser.add_argument(
+        "--updates-per-episode", type=int, default=None,
+        help="the authors' schedule: this many gradient steps of every agent after each"
+        " episode, none during it (GraphConfig.updates_per_episode; plain SAC too); runs kept"
+        " as METHOD_episodeK_seedN",
+    )  # fmt: skip
 
 
 def agent_config(args: argparse.Namespace) -> dict:
@@ -90,17 +96,22 @@ def agent_config(args: argparse.Namespace) -> dict:
         config["evaluator_temperature"] = args.evaluator_temperature
     if args.evaluator_entropy is not None:
         config["evaluator_entropy"] = args.evaluator_entropy
+    if args.updates_per_episode is not None:
+        config["updates_per_episode"] = args.updates_per_episode
     return config
 
 
 def label_of(method: str, config: dict) -> str:
     """A run's folder prefix from its method and agent settings: the method, ``_shared`` for
-    a shared internal agent, ``_entropyF`` for an Evaluator temperature tuned to F."""
+    a shared internal agent, ``_entropyF`` for an Evaluator temperature tuned to F (the
+    graph's), ``_episodeK`` for K updates after each episode (any method's)."""
+    per_episode = config.get("updates_per_episode")
+    schedule = f"_episode{per_episode}" if per_episode else ""
     if method != "graph":
-        return method
+        return method + schedule
     label = method + ("_shared" if config.get("internal") == "shared" else "")
     entropy = config.get("evaluator_entropy")
-    return label + (f"_entropy{entropy:g}" if entropy is not None else "")
+    return label + (f"_entropy{entropy:g}" if entropy is not None else "") + schedule
 
 
 def run_label(method: str, args: argparse.Namespace) -> str:

@@ -8,7 +8,7 @@ import gymnasium as gym
 import numpy as np
 import torch
 
-from pliant.learn.graph.hierarchy import GraphConfig, final_numbers
+from pliant.learn.graph.hierarchy import GraphConfig, check_schedule, final_numbers
 from pliant.learn.graph.sac import SAC, ReplayBuffer
 
 
@@ -26,6 +26,8 @@ class FlatSAC:
         torch.manual_seed(seed)
         self.rng = np.random.default_rng(seed)
         self.config = c = config or GraphConfig()
+        check_schedule(c)
+        self._update_debt = 0.0
         self.low, self.high = action_space.low, action_space.high
         obs_dim, act_dim = observation_space.shape[0], action_space.shape[0]
         self.sac = SAC(obs_dim, act_dim, hidden=c.hidden, lr=c.lr, gamma=c.gamma, tau=c.tau)
@@ -53,14 +55,21 @@ class FlatSAC:
                 self.buffer.add(obs=obs, action=action, reward=reward, next_obs=next_obs,
                                 done=float(terminated))  # fmt: skip
                 self.steps += 1
-                if self.steps >= c.learning_starts:
-                    for _ in range(max(1, round(c.updates_per_step))):
-                        b = self.buffer.sample(c.batch_size, self.rng)
-                        self.sac.update(
-                            b["obs"], b["action"], b["reward"], b["next_obs"], b["done"]
-                        )
+                if self.steps >= c.learning_starts and not c.updates_per_episode:
+                    self._update_debt += c.updates_per_step
+                    while self._update_debt >= 1.0:
+                        self._update_debt -= 1.0
+                        self._update()
             obs = next_obs
+        if train and c.updates_per_episode and self.steps >= c.learning_starts:
+            for _ in range(c.updates_per_episode):
+                self._update()
         return {"return": total, "length": length, "success": success, "info": info}
+
+    def _update(self) -> None:
+        if len(self.buffer) >= self.config.batch_size:
+            b = self.buffer.sample(self.config.batch_size, self.rng)
+            self.sac.update(b["obs"], b["action"], b["reward"], b["next_obs"], b["done"])
 
     def learn(self, env, total_steps, *, eval_env=None, eval_every=0, eval_episodes=5,
               callback=None) -> list[dict]:  # fmt: skip
@@ -78,12 +87,14 @@ class FlatSAC:
 
     def save(self, path: str | Path) -> None:
         state = {"steps": self.steps, "rng": self.rng.bit_generator.state}
+        state |= {"update_debt": self._update_debt}
         state |= {"sac": self.sac.checkpoint(), "buffer": self.buffer.state_dict()}
         torch.save(state | {"torch_rng": torch.get_rng_state()}, path)
 
     def load(self, path: str | Path) -> None:
         state = torch.load(path, weights_only=False)
         self.steps, self.rng.bit_generator.state = state["steps"], state["rng"]
+        self._update_debt = state.get("update_debt", 0.0)  # older checkpoints: whole rates
         self.sac.restore(state["sac"])
         self.buffer.load_state_dict(state["buffer"])
         torch.set_rng_state(state["torch_rng"])

@@ -13,6 +13,7 @@ transitions of Eq. 4.6, penalised (``penalty``) when an internal agent changed t
 
 from __future__ import annotations
 
+import math
 import numbers
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -53,6 +54,10 @@ class GraphConfig:
     buffer_size: int = 100_000
     learning_starts: int = 500
     updates_per_step: float = 1.0
+    #: the authors' schedule (D.2): this many gradient steps of every agent (each node's
+    #: internal and external ones, the Evaluator) after each training episode, none during it;
+    #: None: ``updates_per_step`` during the episode. Plain SAC follows the same schedule.
+    updates_per_episode: int | None = None
     option_limit: int = 30
     penalty: float = -1.0
     external_rewards: tuple[float, float, float] = EXTERNAL_REWARDS
@@ -79,6 +84,16 @@ def final_numbers(infos: list[dict]) -> dict[str, float]:
         if all(isinstance(v, numbers.Real) and not isinstance(v, bool) for v in values):
             out[f"final_{key}"] = float(np.mean(values))
     return out
+
+
+def check_schedule(config: GraphConfig) -> None:
+    """TrainingError unless the update schedule is one: a positive rate per step, or a
+    positive whole number of updates per episode."""
+    if not (math.isfinite(config.updates_per_step) and config.updates_per_step > 0):
+        raise TrainingError(f"updates_per_step must be > 0, got {config.updates_per_step}")
+    per_episode = config.updates_per_episode
+    if per_episode is not None and not (isinstance(per_episode, int) and per_episode >= 1):
+        raise TrainingError(f"updates_per_episode must be a whole number >= 1, got {per_episode}")
 
 
 class GraphAgent:
@@ -111,6 +126,7 @@ class GraphAgent:
         self.config = c = config or GraphConfig()
         if c.internal not in ("per_node", "shared"):
             raise TrainingError(f"internal must be 'per_node' or 'shared', got {c.internal!r}")
+        check_schedule(c)
         if graph.partition is None and selector is None:
             raise TrainingError("the graph has no partition function: give a trained Selector")
         self.experts = list(experts)
@@ -247,6 +263,9 @@ class GraphAgent:
             if expert is None and next_node != node:
                 nodes.append(next_node)
             node = next_node
+        if train and self.config.updates_per_episode and self.steps >= self.config.learning_starts:
+            for _ in range(self.config.updates_per_episode):
+                self.update_all()
         return {
             "return": total, "length": length, "success": success, "nodes": nodes, "info": info,
             "choices": choices,
@@ -260,7 +279,7 @@ class GraphAgent:
         if self.external[node] is not None:
             self.external[node].buffer.add(**item)
         self.steps += 1
-        if self.steps >= self.config.learning_starts:
+        if self.steps >= self.config.learning_starts and not self.config.updates_per_episode:
             self._update_debt += self.config.updates_per_step
             while self._update_debt >= 1.0:
                 self._update_debt -= 1.0
@@ -272,15 +291,36 @@ class GraphAgent:
         the last transition started in: each agent learns as often as its node is visited; a
         shared internal agent learns at every step) and of the Evaluator, each once its buffer
         holds a batch."""
-        n = self.config.batch_size
         if self.shared_internal is not None:
-            if len(self.shared_internal.buffer) >= n:
-                self.shared_internal.update(self.internal, n, self.rng)
-        elif self.internal[node].learned and len(self.internal[node].buffer) >= n:
+            self._update_shared()
+        self._update_node(node)
+        self._update_evaluator()
+
+    def update_all(self) -> None:
+        """One gradient step of every agent that holds a batch: each node's internal and
+        external agents (or the shared internal one), and the Evaluator (the authors'
+        after-episode schedule, :attr:`GraphConfig.updates_per_episode`)."""
+        if self.shared_internal is not None:
+            self._update_shared()
+        for node in range(self.graph.n_nodes):
+            self._update_node(node)
+        self._update_evaluator()
+
+    def _update_shared(self) -> None:
+        if len(self.shared_internal.buffer) >= self.config.batch_size:
+            self.shared_internal.update(self.internal, self.config.batch_size, self.rng)
+
+    def _update_node(self, node: int) -> None:
+        n = self.config.batch_size
+        agent = self.internal[node]
+        if self.shared_internal is None and agent.learned and len(agent.buffer) >= n:
             update_internal(self.internal, node, n, self.rng)
         external = self.external[node]
         if external is not None and len(external.buffer) >= n:
             external.update(n, self.rng)
+
+    def _update_evaluator(self) -> None:
+        n = self.config.batch_size
         if len(self.evaluator_buffer) >= n:
             self.evaluator.update(self.evaluator_buffer.sample(n, self.rng))
 
