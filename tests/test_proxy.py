@@ -260,15 +260,17 @@ def test_a_mass_constraint_holds_a_parameter_the_positions_do_not_see() -> None:
 
 
 def test_travel_is_the_centroids_move_over_each_interval() -> None:
-    """travel(points, n): the centroid's displacement from the end of one interval of n steps
-    to the end of the next (the first from the first position), a last incomplete interval
-    left out; travel_error the mean distance between two such sequences."""
+    """travel(points, n): the centroid's displacement over the floor (x, y) from the end of
+    one interval of n steps to the end of the next (the first from the first position), a
+    last incomplete interval left out, its height not counted; travel_error the mean
+    distance between two such sequences."""
     t = np.arange(23, dtype=float)
     points = np.zeros((23, 4, 3))
     points[:, :, 0] = 2.0 * t[:, None]  # 2 mm a step along x
     points[:, :2, 1] = 1.0  # a shape: the centroid's y is 0.5
+    points[:, 0, 2] = np.sin(t)  # a leg lifting: not travel
     moves = travel(points, 5)
-    np.testing.assert_allclose(moves, [[8.0, 0, 0], [10.0, 0, 0], [10.0, 0, 0], [10.0, 0, 0]])
+    np.testing.assert_allclose(moves, [[8.0, 0], [10.0, 0], [10.0, 0], [10.0, 0]], atol=1e-12)
     slower = points.copy()
     slower[:, :, 0] *= 0.5
     assert travel_error(points, slower, 5) == pytest.approx(np.mean([4.0, 5.0, 5.0, 5.0]))
@@ -299,8 +301,13 @@ def test_a_travel_term_joins_the_loss_and_is_reported() -> None:
         travel_error(reference, simulate(result.parameters), 10)
     )
     assert result.loss == pytest.approx(result.optimisation_error + 2.0 * result.travel_error)
-    plain = calibrate(simulate, reference, space, trials=3)
+    # started from the truth (a name outside the box ignored): the first trial is exact
+    truth = {"a": 1.3, "c": 0.2, "other": 0.0}
+    plain = calibrate(simulate, reference, space, trials=3, start=truth)
     assert plain.travel_error is None and plain.loss == pytest.approx(plain.optimisation_error)
+    assert plain.parameters == {"a": 1.3, "c": 0.2} and plain.optimisation_error < 1e-12
+    with pytest.raises(ModelError, match="outside the search box"):
+        calibrate(simulate, reference, space, trials=1, start={"c": 0.5})
     with pytest.raises(ModelError, match="interval"):
         calibrate(simulate, reference, space, trials=1, travel_weight=1.0)
     with pytest.raises(ModelError, match="does not fit"):
@@ -353,12 +360,14 @@ def test_the_calibrate_command_fits_a_saved_reference_and_resumes(tmp_path) -> N
 
 
 def test_the_calibrate_command_fits_the_travel_and_the_friction(tmp_path) -> None:
-    """`--travel-weight W --friction LOW,HIGH`: a study of its own (multigait-travel1-
-    friction), the friction searched in its box, and the report's travel block the FEM's and
-    the proxy's centroid moves over each 0.6 s action (2 in a 1.2 s reference) with their mean
-    distance; a robot without actions or without a fitted friction refuses them (exit 2)."""
+    """`--travel-weight W --friction LOW,HIGH --start REPORT`: a study of its own
+    (multigait-travel1-friction), the friction searched in its box from the report's value,
+    and the report's travel block the FEM's and the proxy's centroid moves over each 0.6 s
+    action (2 in a 1.2 s reference) with their mean distance; a robot without actions or
+    without a fitted friction refuses them, as a start that is no report (exit 2)."""
     import json
 
+    import optuna
     from typer.testing import CliRunner
 
     from pliant.cli import app
@@ -371,12 +380,18 @@ def test_the_calibrate_command_fits_the_travel_and_the_friction(tmp_path) -> Non
     Reference(commands, points, surface, 0.01).save(tmp_path / "reference.npz")
     runner = CliRunner()
     args = ["proxy", "calibrate", "multigait", "--reference", str(tmp_path / "reference.npz")]
+    (tmp_path / "start.json").write_text(json.dumps({"parameters": {"friction": 0.6}}))
     options = ["--travel-weight", "1", "--friction", "0.5,0.9", "--trials", "2"]
+    options += ["--start", str(tmp_path / "start.json")]
     result = runner.invoke(app, [*args, *options, "--out", str(tmp_path)])
     assert result.exit_code == 0, result.output
     report = json.loads((tmp_path / "multigait_calibration.json").read_text())
     assert report["study"] == "multigait-travel1-friction"
     assert 0.5 <= report["parameters"]["friction"] <= 0.9
+    study = optuna.load_study(
+        study_name="multigait-travel1-friction", storage=f"sqlite:///{tmp_path / 'multigait.db'}"
+    )
+    assert study.trials[0].params["friction"] == 0.6  # the start's
     moves = report["travel"]
     assert moves["interval_steps"] == 60 and len(moves["fem_mm"]) == len(moves["proxy_mm"]) == 2
     distance = np.linalg.norm(np.subtract(moves["fem_mm"], moves["proxy_mm"]), axis=1).mean()
@@ -386,6 +401,7 @@ def test_the_calibrate_command_fits_the_travel_and_the_friction(tmp_path) -> Non
         (["proxy", "calibrate", "trunk", "--friction", "0.1,1"], "only the Multigait"),
         (["proxy", "calibrate", "trunk-cube", "--travel-weight", "1"], "not a sequence"),
         ([*args, "--friction", "0.9,0.5"], "LOW < HIGH"),
+        ([*args, "--start", str(tmp_path / "reference.npz")], "not a calibration report"),
     ):
         result = runner.invoke(app, [*refused, "--out", str(tmp_path)])
         assert result.exit_code == 2 and needle in result.output, result.output

@@ -19,8 +19,10 @@ tolerance ranks below every feasible one and is not simulated.
 Positions also weigh a walking robot's travel little: the Multigait's points are mostly its
 legs' shape, and a proxy within 4 mm of them may gain on an action where the FEM loses, which a
 policy learnt on the proxy then exploits. A search may therefore add the travel to the loss:
-the matched points' centroid moves over each action (an interval of the trajectory), and the
-mean distance between the FEM's and the proxy's moves, weighted, joins the point distance.
+the matched points' centroid moves over the floor during each action (an interval of the
+trajectory), and the mean distance between the FEM's and the proxy's moves, weighted, joins
+the point distance. A search may also start from known parameters (a previous calibration's),
+its first trial.
 This is Pliant's addition, not the thesis'.
 """
 
@@ -57,13 +59,15 @@ def mean_distance(reference: np.ndarray, proxy: np.ndarray) -> float:
 
 
 def travel(points: np.ndarray, interval: int) -> np.ndarray:
-    """(n, 3) how far the centroid of the matched points (T, K, 3) moved over each interval of
-    `interval` steps: from the end of the previous interval (the first from the first
-    position) to the end of this one; a last, incomplete interval is left out."""
+    """(n, 2) how far the centroid of the matched points (T, K, 3) moved over the floor (x,
+    y; gravity is along -z, and the centroid's height is the body's shape, which the points
+    already weigh) over each interval of `interval` steps: from the end of the previous
+    interval (the first from the first position) to the end of this one; a last, incomplete
+    interval is left out."""
     if interval < 1 or interval > len(points):
         raise ModelError(f"a travel interval of {interval} steps does not fit {len(points)} steps")
     ends = np.arange(interval - 1, len(points), interval)
-    centroid = points.mean(axis=1)
+    centroid = points.mean(axis=1)[:, :2]
     return centroid[ends] - centroid[np.concatenate([[0], ends[:-1]])]
 
 
@@ -143,6 +147,7 @@ def calibrate(
     mass_tolerance: float | None = None,
     travel_weight: float = 0.0,
     travel_interval: int | None = None,
+    start: Mapping[str, float] | None = None,
 ) -> CalibrationResult:
     """Fit the parameters in `space` (name -> (low, high), sampled uniformly) so that
     `simulate(parameters)` (T, K, 3) follows `reference` (T, K, 3) on the optimisation
@@ -159,6 +164,8 @@ def calibrate(
 
     `travel_weight` > 0 adds that weight times :func:`travel_error` over intervals of
     `travel_interval` steps (an action's) to the loss; the errors reported stay the points'.
+    `start`: parameters the study tries first (those of `space` it names, inside its box), when
+    it holds no trial yet.
     """
     reference = np.asarray(reference, dtype=float)
     if reference.ndim != 3 or reference.shape[-1] != 3 or len(reference) < every:
@@ -227,6 +234,12 @@ def calibrate(
             constraints_func=(lambda t: t.user_attrs["constraint"]) if constrained else None,
         ),
     )
+    if start is not None and not study.trials:
+        first = {k: float(v) for k, v in start.items() if k in space}
+        outside = [k for k, v in first.items() if not space[k][0] <= v <= space[k][1]]
+        if outside:
+            raise ModelError(f"start values outside the search box: {sorted(outside)}")
+        study.enqueue_trial(first)
     done = sum(t.state == optuna.trial.TrialState.COMPLETE for t in study.trials)
     if trials > done:
         study.optimize(objective, n_trials=trials - done)

@@ -66,6 +66,14 @@ def calibrate(
             help="LOW,HIGH: also fit the proxy's floor friction in this box (Multigait)",
         ),
     ] = None,
+    start: Annotated[
+        Path | None,
+        typer.Option(
+            help="a calibration report (JSON) whose parameters the study tries first",
+            exists=True,
+            dir_okay=False,
+        ),
+    ] = None,
     out: Annotated[Path, typer.Option(help="output folder", callback=output_folder)] = Path(
         "out/proxy"
     ),
@@ -94,6 +102,7 @@ def calibrate(
         if not 0.0 <= low < high:
             raise typer.BadParameter(f"--friction: need 0 <= LOW < HIGH, got {friction}")
         space["friction"] = (low, high)
+    initial = None if start is None else _fitted_parameters(start)
     out.mkdir(parents=True, exist_ok=True)
     path = reference if reference is not None else out / f"{robot}_reference.npz"
 
@@ -136,6 +145,7 @@ def calibrate(
         mass_tolerance=mass_tolerance,
         travel_weight=travel_weight,
         travel_interval=interval,
+        start=initial,
     )
     report = {
         "robot": robot,
@@ -174,6 +184,15 @@ def calibrate(
         }
     (out / f"{robot}_calibration.json").write_text(json.dumps(report, indent=2))
     console.print_json(json.dumps(report))
+
+
+def _fitted_parameters(path: Path) -> dict[str, float]:
+    """The "parameters" of a calibration report; BadParameter if it holds none."""
+    try:
+        parameters = json.loads(path.read_text())["parameters"]
+        return {str(k): float(v) for k, v in parameters.items()}
+    except (ValueError, KeyError, TypeError, AttributeError):
+        raise typer.BadParameter(f"--start: {path} is not a calibration report") from None
 
 
 def _actions(robot: str, text: str | None) -> list:
