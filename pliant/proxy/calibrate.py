@@ -13,8 +13,8 @@ curvatures times a safety factor < 1, under-using the actuation range it was fit
 
 Positions identify the mass poorly (a heavier proxy sags a little more, and the loss barely
 sees it), so a search may also hold the proxy's mass within a tolerance of the FEM robot's: a
-constraint of Optuna's TPE sampler (``constraints_func``), under which a trial outside the
-tolerance ranks below every feasible one and is not simulated.
+constraint of the trial (Optuna's ``Trial.set_constraint``, which TPE honours), under which a
+trial outside the tolerance ranks below every feasible one and is not simulated.
 
 Positions also weigh a walking robot's travel little: the Multigait's points are mostly its
 legs' shape, and a proxy within 4 mm of them may gain on an action where the FEM loses, which a
@@ -204,7 +204,7 @@ def calibrate(
         if constrained:
             trial.set_user_attr("mass", float(mass(chosen)))
             excess = abs(trial.user_attrs["mass"] / target_mass - 1.0) - mass_tolerance
-            trial.set_user_attr("constraint", [excess])
+            trial.set_constraint("mass", excess)  # feasible when <= 0
             if excess > 0.0:  # ranked below every feasible trial by TPE: not simulated
                 return _FAILED
         try:
@@ -228,11 +228,7 @@ def calibrate(
         storage=storage,
         load_if_exists=True,
         direction="minimize",
-        sampler=optuna.samplers.TPESampler(
-            seed=seed,
-            n_startup_trials=startup_trials,
-            constraints_func=(lambda t: t.user_attrs["constraint"]) if constrained else None,
-        ),
+        sampler=optuna.samplers.TPESampler(seed=seed, n_startup_trials=startup_trials),
     )
     if start is not None and not study.trials:
         first = {k: float(v) for k, v in start.items() if k in space}
@@ -244,7 +240,8 @@ def calibrate(
     if trials > done:
         study.optimize(objective, n_trials=trials - done)
     complete = [t for t in study.trials if t.state == optuna.trial.TrialState.COMPLETE]
-    feasible = [t for t in complete if not constrained or t.user_attrs["constraint"][0] <= 0.0]
+    # Studies made before Optuna 5 hold the constraint as a list (read as key "0").
+    feasible = [t for t in complete if all(v <= 0.0 for v in t.constraints.values())]
     if not feasible:
         raise ModelError(
             f"none of the {len(complete)} trials kept the proxy's mass within"
