@@ -21,9 +21,8 @@ legs' shape, and a proxy within 4 mm of them may gain on an action where the FEM
 policy learnt on the proxy then exploits. A search may therefore add the travel to the loss:
 the matched points' centroid moves over the floor during each action (an interval of the
 trajectory), and the mean distance between the FEM's and the proxy's moves, weighted, joins
-the point distance. A search may also start from known parameters (a previous calibration's),
-its first trial.
-This is Pliant's addition, not the thesis'.
+the point distance (Pliant's addition, not the thesis'). A search may also start from known
+parameters (a previous calibration's), its first trial.
 """
 
 from __future__ import annotations
