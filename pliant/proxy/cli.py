@@ -10,7 +10,14 @@ from typing import Annotated
 import typer
 from rich.console import Console
 
-from pliant.cli_support import at_least_one, fraction, non_negative, one_of, output_folder
+from pliant.cli_support import (
+    at_least_one,
+    fraction,
+    non_negative,
+    numbers_list,
+    one_of,
+    output_folder,
+)
 
 app = typer.Typer(
     add_completion=False,
@@ -83,7 +90,6 @@ def calibrate(
 
     The study is named after what it fits: ROBOT, with -mass, -travel{W} and -friction for
     the options that change the search."""
-    from pliant.cli_support import numbers_list
     from pliant.proxy.calibrate import calibrate as fit
     from pliant.proxy.calibrate import travel, travel_error
     from pliant.proxy.references import Reference, setup
@@ -198,7 +204,6 @@ def _fitted_parameters(path: Path) -> dict[str, float]:
 def _actions(robot: str, text: str | None) -> list:
     """The action sequence: Multigait "4,0,0,2" (discrete), Trunk "0,0.2,0,0.2,0;..." (one
     continuous action of 5 values per group); None: the robot's default sequence."""
-    from pliant.cli_support import numbers_list
     from pliant.proxy.transfer import SEQUENCES
 
     if text is None:
@@ -283,7 +288,6 @@ def transfer(
     if goal is not None:
         if robot != "trunk":
             raise typer.BadParameter("--goal is the trunk's")
-        from pliant.cli_support import numbers_list
 
         options["goal_offset"] = tuple(numbers_list(goal, "--goal", count=2))
     chooser = None
