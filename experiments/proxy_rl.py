@@ -192,7 +192,10 @@ def learn(
     if bend_limit is not None:
         env_kwargs["bend_limit"] = bend_limit
     if parameters is not None:  # a calibration report's fitted parameters
-        env_kwargs.update(json.loads(Path(parameters).read_text())["parameters"])
+        fitted = json.loads(Path(parameters).read_text())
+        env_kwargs.update(fitted["parameters"])
+        if fitted.get("contact", "nodes") != "nodes":  # the proxy it was fitted as
+            env_kwargs["contact"] = fitted["contact"]
     name = f"rl_{robot}{tag}"
     run_dir = Path("runs") / f"proxy_{name}"
     out = Path("experiments/results/proxy") / name

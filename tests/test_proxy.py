@@ -189,6 +189,55 @@ def test_skinning_is_the_fem_surface_at_rest_and_moves_rigidly_with_the_skeleton
     np.testing.assert_allclose(skin.positions(moved), surface @ turn.T + shift, atol=1e-9)
 
 
+def test_a_skinned_points_rows_are_its_first_variation() -> None:
+    """The rows of a skinned point (translations and spins of its carrying nodes) against
+    finite differences of its skinned position along a random rod increment, in a bent
+    state; the first-order displacement is the same product."""
+    proxy = multigait_proxy()
+    rod = proxy.rod
+    surface = np.array([[5.0, 29.0, 0.0], [68.0, 0.0, 0.0], [130.0, -25.0, 6.3]])
+    skin = Skinning(rod, surface, neighbours=2)
+    rng = np.random.default_rng(3)
+    n = rod.n_nodes
+    x = rod.advance(rod.rest_positions, 0.2 * rng.standard_normal((n, 3)))
+    dq = rng.standard_normal((n, 3))
+    eps = 1e-6
+    slope = skin.positions(rod.advance(x, eps * dq)) - skin.positions(rod.advance(x, -eps * dq))
+    slope /= 2 * eps
+    directions = rng.standard_normal((3, 2, 3))
+    rows = skin.rows(x, np.arange(3), directions)
+    product = np.einsum("rkj,rkj->r", rows.values, dq[rows.nodes])
+    expected = np.einsum("krj,kj->kr", directions, slope).ravel()
+    np.testing.assert_allclose(product, expected, rtol=1e-6)
+    np.testing.assert_allclose(skin.displacement(x, dq), slope, rtol=1e-6)
+
+
+def test_the_multigait_proxy_touches_the_floor_through_the_fem_surface() -> None:
+    """contact="surface": the FEM's 45 colliding points and 45 of its top face skinned onto
+    the skeleton. At rest the skeleton lies at mid-thickness as with node balls; with the
+    front legs curled, no skinned point goes through the floor and the tips rest on their
+    tip's edge (with the default, uncalibrated curvature, a leg curls past the vertical and
+    rests on the edge of its top face)."""
+    proxy = multigait_proxy(contact="surface")
+    points = proxy.model.contacts.points
+    assert len(points) == 90 and not points.linear
+    solver, state = ImplicitEuler(proxy.model, 0.01), proxy.model.rest_state()
+    for _ in range(20):
+        state = solver.step(state)
+    np.testing.assert_allclose(proxy.skeleton(state.positions)[:, 2], 3.15, atol=0.02)
+    proxy.apply([0.0, 1.0, 1.0, 0.0, 0.0])
+    for _ in range(60):
+        state = solver.step(state)
+    skin = points.positions(state.positions)
+    assert skin[:, 2].min() > -0.05
+    x = proxy.skeleton(state.positions)
+    assert np.all(x[[4, 5, 8, 9], 2] > 3.15 + 3.0)  # the front legs arch
+    tips = np.linalg.norm(skin[:, None, :] - x[None, [6, 10]], axis=2).min(axis=1) < 10.0
+    assert np.sum(tips & (skin[:, 2] < 0.05)) >= 2  # both tips touch by skinned points
+    with pytest.raises(ModelError, match="contact must be"):
+        multigait_proxy(contact="balls")
+
+
 def test_every_fifth_position_is_an_optimisation_position() -> None:
     optimisation, validation = split(12)
     assert optimisation.tolist() == [0, 5, 10]
@@ -361,10 +410,11 @@ def test_the_calibrate_command_fits_a_saved_reference_and_resumes(tmp_path) -> N
 
 def test_the_calibrate_command_fits_the_travel_and_the_friction(tmp_path) -> None:
     """`--travel-weight W --friction LOW,HIGH --start REPORT`: a study of its own
-    (multigait-travel1-friction), the friction searched in its box from the report's value,
-    and the report's travel block the FEM's and the proxy's centroid moves over each 0.6 s
-    action (2 in a 1.2 s reference) with their mean distance; a robot without actions or
-    without a fitted friction refuses them, as a start that is no report (exit 2)."""
+    (multigait-travel1-friction; `--contact surface` another, multigait-surface), the
+    friction searched in its box from the report's value, and the report's travel block the
+    FEM's and the proxy's centroid moves over each 0.6 s action (2 in a 1.2 s reference) with
+    their mean distance; a robot without actions or without a fitted friction refuses them
+    (and a skinned contact), as a start that is no report (exit 2)."""
     import json
 
     import optuna
@@ -392,6 +442,11 @@ def test_the_calibrate_command_fits_the_travel_and_the_friction(tmp_path) -> Non
         study_name="multigait-travel1-friction", storage=f"sqlite:///{tmp_path / 'multigait.db'}"
     )
     assert study.trials[0].params["friction"] == 0.6  # the start's
+    surface = ["--contact", "surface", "--trials", "1", "--out", str(tmp_path)]
+    result = runner.invoke(app, [*args, *surface])
+    assert result.exit_code == 0, result.output
+    skinned = json.loads((tmp_path / "multigait_calibration.json").read_text())
+    assert skinned["study"] == "multigait-surface" and skinned["contact"] == "surface"
     moves = report["travel"]
     assert moves["interval_steps"] == 60 and len(moves["fem_mm"]) == len(moves["proxy_mm"]) == 2
     distance = np.linalg.norm(np.subtract(moves["fem_mm"], moves["proxy_mm"]), axis=1).mean()
@@ -399,6 +454,8 @@ def test_the_calibrate_command_fits_the_travel_and_the_friction(tmp_path) -> Non
     assert moves["loss"] == pytest.approx(report["optimisation_error_mm"] + moves["error_mm"])
     for refused, needle in (
         (["proxy", "calibrate", "trunk", "--friction", "0.1,1"], "only the Multigait"),
+        (["proxy", "calibrate", "trunk", "--contact", "surface"], "only the Multigait"),
+        ([*args, "--contact", "balls"], "one of"),
         (["proxy", "calibrate", "trunk-cube", "--travel-weight", "1"], "not a sequence"),
         ([*args, "--friction", "0.9,0.5"], "LOW < HIGH"),
         ([*args, "--start", str(tmp_path / "reference.npz")], "not a calibration report"),

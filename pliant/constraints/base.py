@@ -80,11 +80,32 @@ class EmbeddedPoints:
         obj.weights[:, :2] = weights
         return obj
 
+    #: p is linear in the nodes' positions, with fixed weights: a point's compliance columns
+    #: stay valid for a factorisation's life (:class:`pliant.solvers.compliance.PointCompliance`).
+    #: A mapping that is not (a skinned surface, :class:`pliant.proxy.Skinning`) says False.
+    linear = True
+
     def __len__(self) -> int:
         return int(self.nodes.shape[0])
 
     def positions(self, x: np.ndarray) -> np.ndarray:
         return np.einsum("ka,kai->ki", self.weights, x[self.nodes])
+
+    def displacement(self, x: np.ndarray, increment: np.ndarray) -> np.ndarray:
+        """(k, 3) the points' displacement under a nodal `increment` from positions `x` (to
+        first order; exactly, for points embedded linearly)."""
+        return self.positions(increment)
+
+    def rows(self, x: np.ndarray, index: np.ndarray, directions: np.ndarray) -> JacobianRows:
+        """Rows d . dp of the points `index`, one per direction: `directions` (k, r, 3) gives
+        r directions for each of the k points; rows ordered point by point."""
+        nodes, weights = self.nodes[index], self.weights[index]
+        k, m = nodes.shape
+        r = directions.shape[1]
+        values = weights[:, None, :, None] * directions[:, :, None, :]
+        return JacobianRows(
+            np.repeat(nodes[:, None, :], r, axis=1).reshape(k * r, m), values.reshape(k * r, m, 3)
+        )
 
 
 class Constraint(ABC):

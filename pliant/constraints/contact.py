@@ -49,7 +49,10 @@ class Contacts:
         margin: detection (alarm) distance in model units; None: 2 % of the body's bounding-box
             diagonal.
         points: the colliding points of the body; None: its `colliding_nodes()` (the surface
-            nodes of tetrahedra, the centreline nodes of a rod, that are not held).
+            nodes of tetrahedra, the centreline nodes of a rod, that are not held). Either
+            :class:`EmbeddedPoints` or a mapping with the same interface (`positions`,
+            `displacement`, `rows`, `nodes`, `weights`, `linear`), as a surface skinned onto
+            a rod's frames (:class:`pliant.proxy.Skinning`).
         tolerance: contact solver tolerance: the largest correction of a contact's displacement
             in a last Gauss-Seidel sweep (model length unit; 1e-5 mm by default).
         max_iterations: contact solver sweeps before a ContactConvergenceWarning.
@@ -142,7 +145,7 @@ class Contacts:
         within the margin of an obstacle or rigid body (as posed at the step's start): it may
         have crossed a surface no row was given for. A point swinging fast far from every
         obstacle is no concern."""
-        travel = np.linalg.norm(self.points.positions(displacement), axis=1)
+        travel = np.linalg.norm(self.points.displacement(positions, displacement), axis=1)
         fast = np.flatnonzero(travel > self.margin)
         if fast.size == 0:
             return

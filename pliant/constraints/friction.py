@@ -310,6 +310,8 @@ class ContactConstraint(Constraint):
         delta_n = phi + n . (p(x) - p0 - u),   delta_ti = t_i . (p(x) - p0 - u),
 
     so delta = (phi, 0, 0) at detection for a still obstacle, and H rows = w_a (n, t1, t2).
+    Points that are not linear in the nodes (``points.linear`` False: a surface skinned on a
+    rod's frames) give their own rows, `points.rows(x, ...)`, linearised at x.
 
     Args:
         contacts: from `detect(points.positions(x), shapes, margin)`; index_a indexes `points`.
@@ -338,6 +340,7 @@ class ContactConstraint(Constraint):
         if k and (contacts.index_a.min() < 0 or contacts.index_a.max() >= len(points)):
             raise ContactError(f"{name}: contacts index points outside the {len(points)} given")
         self.friction = check_friction(friction, k)
+        self.points = points
         self.nodes = points.nodes[contacts.index_a]
         self.weights = points.weights[contacts.index_a]
         u = np.zeros((k, 3)) if obstacle_displacement is None else obstacle_displacement
@@ -362,18 +365,24 @@ class ContactConstraint(Constraint):
         out = ContactConstraint.__new__(ContactConstraint)
         out.name = self.name
         out.contacts = self.contacts.take(index)
+        out.points = self.points
         out._frames = self._frames[index]
         for name in ("friction", "nodes", "weights", "_origin", "_gap"):
             setattr(out, name, getattr(self, name)[index])
         return out
 
     def distance(self, x: np.ndarray) -> np.ndarray:
-        p = np.einsum("ka,kai->ki", self.weights, x[self.nodes])
+        if self.points.linear:
+            p = np.einsum("ka,kai->ki", self.weights, x[self.nodes])
+        else:
+            p = self.points.positions(x)[self.contacts.index_a]
         delta = np.einsum("krj,kj->kr", self._frames, p - self._origin)
         delta[:, 0] += self._gap
         return delta.reshape(-1)
 
     def jacobian(self, x: np.ndarray) -> JacobianRows:
+        if not self.points.linear:  # the points' rows at x (a skinned point turns with its frame)
+            return self.points.rows(x, self.contacts.index_a, self._frames)
         k, m = self.nodes.shape
         values = self.weights[:, None, :, None] * self._frames[:, :, None, :]
         nodes = np.repeat(self.nodes[:, None, :], 3, axis=1)

@@ -6,6 +6,7 @@ FEM robots' units (mm, kg, s; stresses in kPa) and placed as they are
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Literal
 
 import numpy as np
 
@@ -17,6 +18,8 @@ from pliant.fem.rigid import KinematicBody, RigidBody, rail
 from pliant.fem.rod import ClampedEnd, RodBody, RodSection
 from pliant.model import Model
 from pliant.proxy.actuation import Bending, CurvatureActuation
+from pliant.proxy.skinning import Skinning
+from pliant.robots.multigait import face_points
 
 # A leg's or the centre's inflation lengthens its roof over a floor the paper keeps: the beam
 # curls with its ends down. With d1 = +z and d3 along the beam, that is a curvature about -d2.
@@ -107,6 +110,7 @@ def multigait_proxy(
     rayleigh_mass: float = 0.1,
     rayleigh_stiffness: float = 0.01,
     friction: float = 0.7,
+    contact: Literal["nodes", "surface"] = "nodes",
 ) -> Proxy:
     """The Multigait proxy: 19 nodes, 4 a leg and 3 in the centre (thesis §4.1.2), at the
     FEM body's mid-thickness (front legs at x = 0, left +y, underside on the floor z = 0).
@@ -115,9 +119,16 @@ def multigait_proxy(
     centre end to its tip) carry one actuated bending each, in the order of
     :data:`pliant.mesh.multigait.CHAMBERS`; four passive cross beams join the legs' roots to
     the centre's ends. Section: the legs' (`leg_width` x `thickness`) for every beam, the
-    centre's difference folded into its calibrated stiffness. Floor contact at the nodes,
-    balls of radius thickness / 2, Coulomb friction `friction`.
+    centre's difference folded into its calibrated stiffness. Floor contact, Coulomb
+    friction `friction`: with `contact` "nodes", at the nodes, balls of radius thickness / 2;
+    with "surface", through the FEM robot's colliding points (its underside and outline) and
+    their counterparts on its top face (:func:`pliant.robots.multigait.face_points`),
+    skinned onto the skeleton (two nearest nodes each, :class:`pliant.proxy.Skinning`), so
+    that a curled leg touches the floor at the edge of its tip as the FEM's does, and one
+    curled over rests on its top.
     """
+    if contact not in ("nodes", "surface"):
+        raise ModelError(f"contact must be 'nodes' or 'surface', got {contact!r}")
     z = 0.5 * thickness
     y = 0.5 * (width - leg_width)
     leg_length = 0.5 * (length - centre_length)
@@ -170,7 +181,13 @@ def multigait_proxy(
         )
         for name in ("centre", "front_left", "front_right", "rear_left", "rear_right")
     ]
-    contacts = Contacts([Plane(point=(0.0, 0.0, 0.0))], friction=friction, margin=3.0, thickness=z)
+    floor = Plane(point=(0.0, 0.0, 0.0))
+    if contact == "nodes":
+        contacts = Contacts([floor], friction=friction, margin=3.0, thickness=z)
+    else:
+        # A leg's tip edge swings up to 6 mm in a 0.01 s step when its bending switches.
+        skin = Skinning(rod, face_points(top=True), neighbours=2)
+        contacts = Contacts([floor], friction=friction, margin=6.0, points=skin)
     model = Model(rod, contacts=contacts, name="multigait_proxy")
     return Proxy(
         model,

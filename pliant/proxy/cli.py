@@ -4,6 +4,8 @@
 from __future__ import annotations
 
 import json
+from dataclasses import replace
+from functools import partial
 from pathlib import Path
 from typing import Annotated
 
@@ -73,6 +75,14 @@ def calibrate(
             help="LOW,HIGH: also fit the proxy's floor friction in this box (Multigait)",
         ),
     ] = None,
+    contact: Annotated[
+        str,
+        typer.Option(
+            help="how the proxy touches the floor: nodes (balls at its nodes) or surface (the"
+            " FEM's colliding points skinned onto it; Multigait)",
+            callback=one_of("nodes", "surface"),
+        ),
+    ] = "nodes",
     start: Annotated[
         Path | None,
         typer.Option(
@@ -88,8 +98,8 @@ def calibrate(
     """Calibrate ROBOT's proxy on its FEM model: Optuna TPE, study resumed from
     OUT/ROBOT.db, report in OUT/ROBOT_calibration.json.
 
-    The study is named after what it fits: ROBOT, with -mass, -travel{W} and -friction for
-    the options that change the search."""
+    The study is named after what it fits: ROBOT, with -mass, -travel{W}, -friction and
+    -surface for the options that change the search."""
     from pliant.proxy.calibrate import calibrate as fit
     from pliant.proxy.calibrate import travel, travel_error
     from pliant.proxy.references import Reference, setup
@@ -108,6 +118,10 @@ def calibrate(
         if not 0.0 <= low < high:
             raise typer.BadParameter(f"--friction: need 0 <= LOW < HIGH, got {friction}")
         space["friction"] = (low, high)
+    if contact != "nodes":
+        if not robot.startswith("multigait"):
+            raise typer.BadParameter("--contact: only the Multigait proxy touches by its surface")
+        robot_setup = replace(robot_setup, build=partial(robot_setup.build, contact=contact))
     initial = None if start is None else _fitted_parameters(start)
     out.mkdir(parents=True, exist_ok=True)
     path = reference if reference is not None else out / f"{robot}_reference.npz"
@@ -137,6 +151,7 @@ def calibrate(
     study += (f"-travel{travel_weight:g}" if travel_weight > 0.0 else "") + (
         "-friction" if friction is not None else ""
     )
+    study += "" if contact == "nodes" else f"-{contact}"
     result = fit(
         robot_setup.simulate(data),
         data.points,
@@ -167,6 +182,7 @@ def calibrate(
         "mass_tolerance": mass_tolerance,
         "feasible_trials": result.feasible_trials,
         "study": study,
+        "contact": contact,
     }
     if interval is not None and len(data.points) >= interval:  # each action's move, both
         best = robot_setup.simulate(data)(result.parameters)

@@ -101,14 +101,14 @@ def multigait_reference(
     the proxy environment's actions of 0.6 s each (:data:`MULTIGAIT_PATTERNS`); matched
     points: its underside nodes, one per `spacing` mm cell and along the outline."""
     from pliant.robots.multigait import (
-        _underside_nodes,
+        _face_nodes,
         chamber_amplitudes,
         demo_actuation,
         multigait,
     )
 
     model = multigait(mesh_size=mesh_size)
-    nodes = _underside_nodes(model.body.mesh, spacing)
+    nodes = _face_nodes(model.body.mesh, spacing)
     amplitude = chamber_amplitudes()  # demo_actuation's (mm^3 of volume growth)
     if actions is not None:
         duration = MULTIGAIT_ACTION * len(actions)

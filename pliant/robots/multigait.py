@@ -27,6 +27,8 @@ and the gait moves the robot 1.2 mm per cycle the wrong way, towards the legs in
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 
 from pliant.constraints.base import EmbeddedPoints
@@ -126,35 +128,51 @@ def multigait(
     points = (
         EmbeddedPoints(mesh, collision_points)
         if collision_points is not None
-        else EmbeddedPoints.at_nodes(_underside_nodes(mesh, collision_spacing))
+        else EmbeddedPoints.at_nodes(_face_nodes(mesh, collision_spacing))
     )
     floor = Plane(point=(0.0, 0.0, float(mesh.points[:, 2].min())))
     contacts = Contacts([floor], friction=friction, margin=1.0, points=points)
     return Model(body, actuators=chambers, contacts=contacts, name="multigait")
 
 
-def _underside(mesh: TetMesh) -> np.ndarray:
-    """(n,) bool: the nodes on the flat underside."""
+@functools.cache
+def face_points(
+    mesh_size: float = 6.0, collision_spacing: float = 20.0, *, top: bool = False
+) -> np.ndarray:
+    """(k, 3) the default model's colliding points at rest (its underside nodes, one per
+    `collision_spacing` cell, and its outline's); with `top`, the same of the top face after
+    them: what a proxy skins to touch the floor through the FEM's surface, on either face of
+    the slab a curled leg may roll onto (:func:`pliant.proxy.multigait_proxy`). Read-only."""
+    mesh = geometry.multigait(mesh_size=mesh_size)
+    faces = (False, True) if top else (False,)
+    nodes = np.concatenate([_face_nodes(mesh, collision_spacing, top=t) for t in faces])
+    points = mesh.points[nodes].copy()
+    points.flags.writeable = False
+    return points
+
+
+def _face(mesh: TetMesh, *, top: bool = False) -> np.ndarray:
+    """(n,) bool: the nodes on the flat underside (or the flat top)."""
     z = mesh.points[:, 2]
-    return z <= z.min() + 1e-6 * np.ptp(mesh.points)
+    tolerance = 1e-6 * np.ptp(mesh.points)
+    return z >= z.max() - tolerance if top else z <= z.min() + tolerance
 
 
-def _underside_triangles(mesh: TetMesh) -> np.ndarray:
-    """(t, 3) the boundary triangles of the flat underside."""
+def _underside_triangles(mesh: TetMesh, *, top: bool = False) -> np.ndarray:
+    """(t, 3) the boundary triangles of the flat underside (or top)."""
     triangles = mesh.boundary_triangles()
-    return triangles[np.all(_underside(mesh)[triangles], axis=1)]
+    return triangles[np.all(_face(mesh, top=top)[triangles], axis=1)]
 
 
-def _underside_nodes(mesh: TetMesh, spacing: float) -> np.ndarray:
-    """Nodes of the underside, one per `spacing` x `spacing` cell (the closest to its centre),
-    and along its outline the corners and a node every `spacing` mm: a curled leg rests on
-    the edge of its tip."""
-    bottom = _underside(mesh)
-    underside = _underside_triangles(mesh)
-    edges = np.sort(underside[:, [[0, 1], [1, 2], [2, 0]]].reshape(-1, 2), axis=1)
+def _face_nodes(mesh: TetMesh, spacing: float, *, top: bool = False) -> np.ndarray:
+    """Nodes of the underside (or top), one per `spacing` x `spacing` cell (the closest to
+    its centre), and along its outline the corners and a node every `spacing` mm: a curled
+    leg rests on the edge of its tip."""
+    face = _underside_triangles(mesh, top=top)
+    edges = np.sort(face[:, [[0, 1], [1, 2], [2, 0]]].reshape(-1, 2), axis=1)
     edges, count = np.unique(edges, axis=0, return_counts=True)
     return np.union1d(
-        _thinned(mesh, np.flatnonzero(bottom), spacing),
+        _thinned(mesh, np.flatnonzero(_face(mesh, top=top)), spacing),
         _along_outline(mesh.points[:, :2], edges[count == 1], spacing),
     )
 

@@ -75,10 +75,12 @@ class ImplicitEuler:
         point_compliance: keep the colliding points' compliance columns for the life of a
             factorisation (:mod:`pliant.solvers.compliance`) rather than solving three columns
             per contact at every step; same results to round-off. Not used by "pcg", whose
-            solves are not one factorisation's. With the "lagged" tangent and no contact, the
-            same for the points of cables and position effectors when they are few (at most
-            4/3 of a point per row, as the Diamond's one point per cable): their rows' columns
-            are then read from the points' (:class:`pliant.solvers.compliance.PointRows`).
+            solves are not one factorisation's, nor for points whose rows change with the
+            state (a surface skinned on a rod, ``points.linear`` False). With the "lagged"
+            tangent and no contact, the same for the points of cables and position effectors
+            when they are few (at most 4/3 of a point per row, as the Diamond's one point per
+            cable): their rows' columns are then read from the points' (:class:`pliant.
+            solvers.compliance.PointRows`).
         contact_screening: with point compliance and a control whose contact solution is a
             complementarity problem's (commands: DirectControl), solve the contacts that may
             close and check that the others stay open (:meth:`_screened`); same solution to
@@ -118,7 +120,7 @@ class ImplicitEuler:
         ]
         self._points = (
             PointCompliance(model.contacts.points, model.body.free_index)
-            if point_compliance and model.contacts is not None
+            if point_compliance and model.contacts is not None and model.contacts.points.linear
             else None
         )
         self._row_points: dict[tuple[str, ...] | None, PointRows | None] = {}

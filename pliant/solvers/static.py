@@ -293,7 +293,7 @@ class StaticSolver:
             if model.contacts is not None:
                 # No colliding point may move further than the detection margin in one update:
                 # it could pass through an obstacle it has no contact row for.
-                travel = np.linalg.norm(model.contacts.points.positions(dq), axis=1).max()
+                travel = np.linalg.norm(model.contacts.points.displacement(q, dq), axis=1).max()
                 if travel > model.contacts.margin:
                     dq *= model.contacts.margin / travel
             q = body.advance(q, dq)
