@@ -8,7 +8,8 @@ Trunk), with Pliant's training stack (checkpoints, evaluation curve, VecNormaliz
 ``--noise LEVEL`` learns on a degraded proxy (experiments/proxy_robustness.py);
 ``--parameters CALIBRATION.json`` on a proxy of other fitted parameters, e.g. the 16-action
 calibration's (``--parameters experiments/proxy/patterns/multigait-patterns_calibration.json
---tag _patterns``).
+--tag _patterns``); ``--contact surface`` on a proxy touching through the FEM's skinned surface
+(a calibration report of such a proxy says so itself).
 
 Multigait (pliant/MultigaitProxy-v0, 12 steps of 0.6 s, Discrete(6)): the greedy policy's
 forward travel over an episode beside the hand gait's (rear, centre, front inflated, then
@@ -178,6 +179,7 @@ def learn(
     resume: bool = False,
     command: str = "",
     parameters: Path | None = None,
+    contact: str | None = None,
 ) -> dict:
     """Train PPO on ROBOT's proxy (its parameters degraded by `noise`), evaluate the final
     policy, and write the results folder; the report."""
@@ -196,6 +198,8 @@ def learn(
         env_kwargs.update(fitted["parameters"])
         if fitted.get("contact", "nodes") != "nodes":  # the proxy it was fitted as
             env_kwargs["contact"] = fitted["contact"]
+    if contact is not None:  # how the proxy touches: "nodes" or "surface" (skinned FEM surface)
+        env_kwargs["contact"] = contact
     name = f"rl_{robot}{tag}"
     run_dir = Path("runs") / f"proxy_{name}"
     out = Path("experiments/results/proxy") / name
@@ -238,6 +242,9 @@ def main() -> None:
     parser.add_argument(
         "--parameters", type=Path, default=None, help="proxy parameters: a calibration JSON"
     )
+    parser.add_argument(
+        "--contact", choices=("nodes", "surface"), default=None, help="the proxy's contact"
+    )
     args = parser.parse_args()
     report = learn(
         args.robot,
@@ -249,6 +256,7 @@ def main() -> None:
         tag=args.tag,
         resume=args.resume,
         parameters=args.parameters,
+        contact=args.contact,
         command="python experiments/proxy_rl.py " + " ".join(sys.argv[1:]),
     )
     print(json.dumps({k: v for k, v in report.items() if k != "curve"}, indent=1))

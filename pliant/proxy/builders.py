@@ -20,6 +20,7 @@ from pliant.model import Model
 from pliant.proxy.actuation import Bending, CurvatureActuation
 from pliant.proxy.skinning import Skinning
 from pliant.robots.multigait import face_points
+from pliant.robots.trunk_cube import surface_points as trunk_surface_points
 
 # A leg's or the centre's inflation lengthens its roof over a floor the paper keeps: the beam
 # curls with its ends down. With d1 = +z and d3 along the beam, that is a curvature about -d2.
@@ -241,6 +242,7 @@ def trunk_proxy(
     cube_position: tuple[float, float] | None = (30.0, 150.0),
     floor_height: float = -30.0,
     friction: float = 0.3,
+    contact: Literal["nodes", "surface"] = "nodes",
 ) -> Proxy:
     """The Trunk proxy: two beams end to end along +z from the base at the origin (`nodes`
     nodes, 30 as the thesis'), each with two actuated bendings (about d1 = x and d2 = y;
@@ -248,9 +250,15 @@ def trunk_proxy(
     by the fifth command (mm, within `base_limits`). Mass per length falls linearly from the
     lower density at the base to the upper one at the tip (thesis: two end values), stiffness
     per beam; gravity -y; the floor y = `floor_height` and, unless `cube_position` is None,
-    the rigid cube of :func:`pliant.robots.trunk_cube.trunk_cube` at (x, z)."""
+    the rigid cube of :func:`pliant.robots.trunk_cube.trunk_cube` at (x, z). `contact`:
+    "nodes", the trunk touches the floor and the cube with balls of `radius` at its nodes;
+    "surface", through the FEM Trunk's colliding points (its surface nodes,
+    :func:`pliant.robots.trunk_cube.surface_points`) skinned onto the skeleton, tapering as
+    the FEM Trunk does."""
     if nodes < 5:
         raise ModelError(f"the Trunk proxy needs at least 5 nodes, got {nodes}")
+    if contact not in ("nodes", "surface"):
+        raise ModelError(f"contact must be 'nodes' or 'surface', got {contact!r}")
     points = np.column_stack([np.zeros(nodes), np.zeros(nodes), np.linspace(0.0, length, nodes)])
     m = nodes - 1
     lower = np.arange(m // 2)
@@ -296,9 +304,14 @@ def trunk_proxy(
                 name="cube",
             )
         )
+    if contact == "nodes":
+        contacts = Contacts([floor], friction=friction, margin=10.0, thickness=radius)
+    else:
+        skin = Skinning(rod, trunk_surface_points(), neighbours=2)
+        contacts = Contacts([floor], friction=friction, margin=10.0, points=skin)
     model = Model(
         rod,
-        contacts=Contacts([floor], friction=friction, margin=10.0, thickness=radius),
+        contacts=contacts,
         drivers=[ClampedEnd(rod, 0, carriage, name="carriage")],
         rigid_bodies=rigid,
         name="trunk_proxy",

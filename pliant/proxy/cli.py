@@ -78,8 +78,8 @@ def calibrate(
     contact: Annotated[
         str,
         typer.Option(
-            help="how the proxy touches the floor: nodes (balls at its nodes) or surface (the"
-            " FEM's colliding points skinned onto it; Multigait)",
+            help="how the proxy touches the floor and the cube: nodes (balls at its nodes) or"
+            " surface (the FEM's colliding points skinned onto it)",
             callback=one_of("nodes", "surface"),
         ),
     ] = "nodes",
@@ -119,8 +119,6 @@ def calibrate(
             raise typer.BadParameter(f"--friction: need 0 <= LOW < HIGH, got {friction}")
         space["friction"] = (low, high)
     if contact != "nodes":
-        if not robot.startswith("multigait"):
-            raise typer.BadParameter("--contact: only the Multigait proxy touches by its surface")
         robot_setup = replace(robot_setup, build=partial(robot_setup.build, contact=contact))
     initial = None if start is None else _fitted_parameters(start)
     out.mkdir(parents=True, exist_ok=True)

@@ -121,6 +121,17 @@ def trunk_cube(
     )
 
 
+@cache
+def surface_points(mesh_size: float = 8.0) -> np.ndarray:
+    """(k, 3) the colliding points of :func:`trunk_cube`'s Trunk at rest (its surface nodes
+    but the held base's), what a proxy skins to touch the cube and the floor through the same
+    surface (:func:`pliant.proxy.trunk_proxy`). Read-only."""
+    body = trunk(mesh_size=mesh_size).body
+    points = body.rest_positions[body.colliding_nodes()].copy()
+    points.flags.writeable = False
+    return points
+
+
 def demo_actuation(t: float) -> np.ndarray:
     """Pull the long +x cable (cable 3) to 25 mm over 1 s: the trunk bends onto the cube."""
     values = np.zeros(8)
