@@ -381,9 +381,5 @@ class ContactConstraint(Constraint):
         return delta.reshape(-1)
 
     def jacobian(self, x: np.ndarray) -> JacobianRows:
-        if not self.points.linear:  # the points' rows at x (a skinned point turns with its frame)
-            return self.points.rows(x, self.contacts.index_a, self._frames)
-        k, m = self.nodes.shape
-        values = self.weights[:, None, :, None] * self._frames[:, :, None, :]
-        nodes = np.repeat(self.nodes[:, None, :], 3, axis=1)
-        return JacobianRows(nodes.reshape(3 * k, m), values.reshape(3 * k, m, 3))
+        # w_a (n, t1, t2) for embedded points; a skinned point's rows turn with its frames.
+        return self.points.rows(x, self.contacts.index_a, self._frames)
