@@ -137,12 +137,14 @@ def evaluate(robot: str, policy_dir: Path, env_kwargs: dict, seed: int) -> dict:
     return out
 
 
-def degraded(robot: str, level: float, seed: int) -> dict:
-    """The calibrated proxy's parameters p turned into p (1 + level U(-1, 1)) (thesis
-    §4.1.3's degraded proxies; the authors' noise): the proxy builder's keywords."""
+def degraded(robot: str, level: float, seed: int, reference: dict | None = None) -> dict:
+    """The calibrated proxy's parameters p (the builder's defaults, or `reference`) turned
+    into p (1 + level U(-1, 1)) (thesis §4.1.3's degraded proxies; the authors' noise): the
+    proxy builder's keywords."""
     from pliant.proxy.builders import MULTIGAIT_PARAMETERS, TRUNK_PARAMETERS
 
-    reference = MULTIGAIT_PARAMETERS if robot == "multigait" else TRUNK_PARAMETERS
+    if reference is None:
+        reference = MULTIGAIT_PARAMETERS if robot == "multigait" else TRUNK_PARAMETERS
     rng = np.random.default_rng(seed)
     return {k: float(v * (1.0 + level * rng.uniform(-1.0, 1.0))) for k, v in reference.items()}
 
@@ -189,15 +191,16 @@ def learn(
     env_kwargs = dict(s["env_kwargs"])
     if points_only:
         env_kwargs.pop("observe_commands", None)
-    if noise > 0.0:
-        env_kwargs.update(degraded(robot, noise, seed))
-    if bend_limit is not None:
-        env_kwargs["bend_limit"] = bend_limit
+    fitted = None
     if parameters is not None:  # a calibration report's fitted parameters
         fitted = json.loads(Path(parameters).read_text())
         env_kwargs.update(fitted["parameters"])
         if fitted.get("contact", "nodes") != "nodes":  # the proxy it was fitted as
             env_kwargs["contact"] = fitted["contact"]
+    if noise > 0.0:  # the draw `seed` around the defaults or the fitted parameters
+        env_kwargs.update(degraded(robot, noise, seed, fitted and fitted["parameters"]))
+    if bend_limit is not None:
+        env_kwargs["bend_limit"] = bend_limit
     if contact is not None:  # how the proxy touches: "nodes" or "surface" (skinned FEM surface)
         env_kwargs["contact"] = contact
     name = f"rl_{robot}{tag}"

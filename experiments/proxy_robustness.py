@@ -9,6 +9,16 @@ case, levels 0.001 to 0.1.
 
 Results: experiments/results/proxy/robustness.json and .png (forward travel against time, FEM
 and proxy, one line per level); each policy in experiments/results/proxy/rl_multigait_noiseL/.
+
+At a larger scale, around another calibration (its parameters and contact), several draws a
+level (draw d: the noise of seed d, PPO seed d), each transferred open loop:
+
+    python experiments/proxy_robustness.py --parameters REPORT.json --draws 3 \
+        --feedforward 1 --tag _surface
+
+writes robustness_surface.json and .png, the policies in rl_multigait_surface_noiseL_drawD/;
+a run that stops goes on from the rows its report holds (the policy it was training is
+trained again from the start).
 """
 
 from __future__ import annotations
@@ -17,21 +27,24 @@ import argparse
 import json
 import sys
 import time
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 from proxy_rl import degraded, learn
 
 from pliant.learn.evaluate import load_policy
-from pliant.proxy.transfer import FORWARD, multigait_transfer
+from pliant.proxy.transfer import FORWARD, MULTIGAIT_GAINS, multigait_transfer
 
 OUT = Path("experiments/results/proxy")
 
 
-def transfer(policy_dir: Path, steps: int) -> dict:
-    """The policy's strategy on its (degraded) proxy, followed by the FEM Multigait."""
+def transfer(policy_dir: Path, steps: int, feedforward: float = 0.0) -> dict:
+    """The policy's strategy on its (degraded) proxy, followed by the FEM Multigait (by the
+    inverse-QP loop, blended with `feedforward` of the proxy's actuation)."""
     saved = load_policy(policy_dir)
-    loop = multigait_transfer(env_kwargs=saved.env_kwargs)
+    gains = replace(MULTIGAIT_GAINS, feedforward=feedforward)
+    loop = multigait_transfer(gains=gains, env_kwargs=saved.env_kwargs)
     result = loop.run(
         policy=lambda obs: saved.model.predict(saved.normalize_obs(obs), deterministic=True)[0],
         steps=steps,
@@ -53,9 +66,10 @@ def plot(rows: list[dict], path: Path) -> None:
 
     fig = offscreen_figure(10.0, 4.0)
     left, right = fig.subplots(1, 2)
-    for k, row in enumerate(rows):
-        t = row["transfer"]
-        label = f"noise {row['level']:g}"
+    levels = sorted({row["level"] for row in rows})
+    for row in rows:
+        t, k = row["transfer"], levels.index(row["level"])
+        label = f"noise {row['level']:g}" if row.get("draw", 0) == 0 else None
         left.plot(t["times"], t["fem_forward_mm"], f"C{k}-", label=label)
         right.plot(t["times"], t["proxy_forward_mm"], f"C{k}-", label=label)
     for ax, title in ((left, "A) FEM following each proxy"), (right, "B) each proxy")):
@@ -72,35 +86,62 @@ def main() -> None:
     parser.add_argument("--levels", default="0.001,0.01,0.1")
     parser.add_argument("--env-steps", type=int, default=1440)
     parser.add_argument("--transfer-steps", type=int, default=4)
+    parser.add_argument("--parameters", type=Path, default=None, help="a calibration report")
+    parser.add_argument("--draws", type=int, default=None, help="draws a level (seeds 0..)")
+    parser.add_argument("--feedforward", type=float, default=0.0, help="transfer's blend")
+    parser.add_argument("--tag", default="", help="suffix of the report and policy folders")
     args = parser.parse_args()
-    rows = []
+    path = OUT / f"robustness{args.tag}.json"
+    # One draw (seed 0) without --draws, named as before; a run with --draws resumes.
+    draws = [None] if args.draws is None else list(range(args.draws))
+    rows = json.loads(path.read_text())["rows"] if args.draws is not None and path.exists() else []
+    done = {(row["level"], row.get("draw")) for row in rows}
+    base = None if args.parameters is None else json.loads(args.parameters.read_text())
     for level in (float(v) for v in args.levels.split(",")):
-        clock = time.perf_counter()
-        report = learn("multigait", env_steps=args.env_steps, noise=level, tag=f"_noise{level:g}")
-        row = {
-            "level": level,
-            "parameters": degraded("multigait", level, 0),
-            "proxy_episode_travel_mm": report["evaluation"]["learned"]["travel_mm"],
-            "learned_actions": report["evaluation"]["learned_actions"],
-            "training_seconds": report["training_seconds"],
-            "transfer": transfer(OUT / f"rl_multigait_noise{level:g}", args.transfer_steps),
-            "wall_seconds": time.perf_counter() - clock,
-        }
-        rows.append(row)
-        t = row["transfer"]
-        print(
-            f"noise {level:g}: proxy episode {row['proxy_episode_travel_mm']:.2f} mm; transfer"
-            f" proxy {t['proxy_travel_mm']:.2f} / FEM {t['fem_travel_mm']:.2f} mm",
-            flush=True,
-        )
-        report = {
-            "command": "python experiments/proxy_robustness.py " + " ".join(sys.argv[1:]),
-            "env_steps": args.env_steps,
-            "transfer_steps": args.transfer_steps,
-            "rows": rows,
-        }
-        (OUT / "robustness.json").write_text(json.dumps(report, indent=1))
-        plot(rows, OUT / "robustness.png")
+        for draw in draws:
+            if (level, draw) in done:
+                continue
+            clock = time.perf_counter()
+            tag = f"{args.tag}_noise{level:g}" + ("" if draw is None else f"_draw{draw}")
+            report = learn(
+                "multigait",
+                env_steps=args.env_steps,
+                noise=level,
+                seed=draw or 0,
+                tag=tag,
+                parameters=args.parameters,
+            )
+            fitted = base and base["parameters"]
+            row = {
+                "level": level,
+                "draw": draw,
+                "parameters": degraded("multigait", level, draw or 0, fitted),
+                "proxy_episode_travel_mm": report["evaluation"]["learned"]["travel_mm"],
+                "learned_actions": report["evaluation"]["learned_actions"],
+                "training_seconds": report["training_seconds"],
+                "transfer": transfer(
+                    OUT / f"rl_multigait{tag}", args.transfer_steps, args.feedforward
+                ),
+                "wall_seconds": time.perf_counter() - clock,
+            }
+            rows.append(row)
+            t = row["transfer"]
+            print(
+                f"noise {level:g} draw {draw}: proxy episode {row['proxy_episode_travel_mm']:.2f}"
+                f" mm; transfer proxy {t['proxy_travel_mm']:.2f} / FEM {t['fem_travel_mm']:.2f}"
+                " mm",
+                flush=True,
+            )
+            report = {
+                "command": "python experiments/proxy_robustness.py " + " ".join(sys.argv[1:]),
+                "env_steps": args.env_steps,
+                "transfer_steps": args.transfer_steps,
+                "parameters": None if args.parameters is None else str(args.parameters),
+                "feedforward": args.feedforward,
+                "rows": rows,
+            }
+            path.write_text(json.dumps(report, indent=1))
+            plot(rows, path.with_suffix(".png"))
 
 
 if __name__ == "__main__":
