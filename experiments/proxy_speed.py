@@ -50,6 +50,13 @@ CASES = {
     ),
     "trunk_fem": (trunk_cube, trunk_demo, None),
     "trunk_proxy": (lambda: trunk_proxy(), trunk_proxy_commands, True),
+    # the proxies touching through the FEM's skinned surface (contact="surface")
+    "multigait_proxy_surface": (
+        lambda: multigait_proxy(contact="surface"),
+        lambda t: gait(t) / AMPLITUDE,
+        True,
+    ),
+    "trunk_proxy_surface": (lambda: trunk_proxy(contact="surface"), trunk_proxy_commands, True),
 }
 
 

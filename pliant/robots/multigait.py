@@ -98,7 +98,7 @@ def multigait(
         [
             Membrane(
                 mesh.points,
-                _underside_triangles(mesh),
+                _face_triangles(mesh),
                 stretch_stiffness=membrane_stiffness,
                 poisson_ratio=membrane_poisson_ratio,
             )
@@ -158,7 +158,7 @@ def _face(mesh: TetMesh, *, top: bool = False) -> np.ndarray:
     return z >= z.max() - tolerance if top else z <= z.min() + tolerance
 
 
-def _underside_triangles(mesh: TetMesh, *, top: bool = False) -> np.ndarray:
+def _face_triangles(mesh: TetMesh, *, top: bool = False) -> np.ndarray:
     """(t, 3) the boundary triangles of the flat underside (or top)."""
     triangles = mesh.boundary_triangles()
     return triangles[np.all(_face(mesh, top=top)[triangles], axis=1)]
@@ -168,7 +168,7 @@ def _face_nodes(mesh: TetMesh, spacing: float, *, top: bool = False) -> np.ndarr
     """Nodes of the underside (or top), one per `spacing` x `spacing` cell (the closest to
     its centre), and along its outline the corners and a node every `spacing` mm: a curled
     leg rests on the edge of its tip."""
-    face = _underside_triangles(mesh, top=top)
+    face = _face_triangles(mesh, top=top)
     edges = np.sort(face[:, [[0, 1], [1, 2], [2, 0]]].reshape(-1, 2), axis=1)
     edges, count = np.unique(edges, axis=0, return_counts=True)
     return np.union1d(
