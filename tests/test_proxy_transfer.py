@@ -153,6 +153,19 @@ def test_the_transfer_command_writes_both_trajectories_and_refuses_bad_actions(t
     assert proxy[0] > start[0] + 5.0 and fem[0] > start[0] + 5.0
     bad = runner.invoke(app, ["proxy", "transfer", "multigait", "--actions", "4,7"])
     assert bad.exit_code == 2
+    # --proxy: a calibration report's proxy, here the defaults touching through the surface.
+    from pliant.proxy.builders import TRUNK_PARAMETERS
+
+    fitted = tmp_path / "fitted.json"
+    fitted.write_text(json.dumps({"parameters": TRUNK_PARAMETERS, "contact": "surface"}))
+    out = tmp_path / "surface"
+    result = runner.invoke(app, [*args[:-1], str(out), "--proxy", str(fitted)])
+    assert result.exit_code == 0, result.output
+    skinned = json.loads((out / "trunk_transfer.json").read_text())
+    pushed = skinned["steps"][-1]["proxy_position"]
+    assert pushed[0] > start[0] + 5.0 and abs(pushed[0] - proxy[0]) > 1e-3  # another proxy
+    both = runner.invoke(app, [*args, "--proxy", str(fitted), "--policy", str(fitted)])
+    assert both.exit_code == 2 and "brings the proxy" in both.output
 
 
 def test_the_transfer_command_runs_a_trained_policy_with_its_normaliser(tmp_path) -> None:

@@ -250,6 +250,15 @@ def transfer(
         ),
     ] = None,
     steps: Annotated[int, typer.Option(help="steps of --policy", callback=at_least_one)] = 8,
+    proxy: Annotated[
+        Path | None,
+        typer.Option(
+            help="a calibration report (JSON): the proxy with its fitted parameters and its"
+            " contact, for --actions (a --policy brings the proxy it was trained on)",
+            exists=True,
+            dir_okay=False,
+        ),
+    ] = None,
     time_register: Annotated[
         int | None, typer.Option(help="proxy steps between realignments (0: never)")
     ] = None,
@@ -304,6 +313,11 @@ def transfer(
             raise typer.BadParameter("--goal is the trunk's")
 
         options["goal_offset"] = tuple(numbers_list(goal, "--goal", count=2))
+    if proxy is not None:
+        if policy is not None:
+            raise typer.BadParameter("--proxy: a --policy brings the proxy it was trained on")
+        contact = json.loads(proxy.read_text()).get("contact", "nodes")
+        options["env_kwargs"] = {**_fitted_parameters(proxy), "contact": contact}
     chooser = None
     if policy is not None:
         from pliant.learn.evaluate import load_policy
