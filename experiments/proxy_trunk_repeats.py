@@ -1,0 +1,73 @@
+"""The Trunk's default transfer (bend onto the cube, push it along x; `pliant proxy transfer
+trunk`) repeated, for proxies touching with node balls or through the skinned FEM surface: the
+runs are not bit-identical (the FEM solver may factorise in a background thread, and the
+contacts amplify its round-off), so each proxy's relative reward difference and final cube
+gap are reported over repeats (median, min, max).
+
+    python experiments/proxy_trunk_repeats.py --repeats 5 \
+        --proxy nodes= \
+        --proxy surface=experiments/proxy/cube_surface/trunk-cube_calibration.json \
+        --proxy surface_fem_mass=experiments/proxy/cube_surface/fem_mass.json \
+        --out experiments/results/proxy/trunk_surface/repeats.json
+
+(`nodes=` with no report: the calibrated defaults.)
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import warnings
+from pathlib import Path
+
+import numpy as np
+
+from pliant.proxy.transfer import SEQUENCES, trunk_transfer
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--proxy", action="append", required=True, help="NAME=[REPORT.json]")
+    parser.add_argument("--repeats", type=int, default=5)
+    parser.add_argument("--out", type=Path, required=True)
+    args = parser.parse_args()
+    warnings.simplefilter("ignore")
+    result = {
+        "command": "python experiments/proxy_trunk_repeats.py "
+        + f"--repeats {args.repeats} "
+        + " ".join(f"--proxy {p}" for p in args.proxy)
+        + f" --out {args.out}",
+        "proxies": {},
+    }
+    for item in args.proxy:
+        name, path = item.split("=", 1)
+        env_kwargs = None
+        if path:
+            report = json.loads(Path(path).read_text())
+            env_kwargs = {**report["parameters"], "contact": report.get("contact", "nodes")}
+        runs = []
+        for _ in range(args.repeats):
+            run = trunk_transfer(env_kwargs=env_kwargs).run(list(SEQUENCES["trunk"]))
+            runs.append(
+                {
+                    "relative_difference": run.relative_difference,
+                    "final_gap_mm": run.final_gap,
+                    "fem_travel_mm": run.fem_travel,
+                }
+            )
+        summary = {}
+        for key in ("relative_difference", "final_gap_mm", "fem_travel_mm"):
+            values = np.array([r[key] for r in runs])
+            summary[key] = {
+                "median": float(np.median(values)),
+                "min": float(values.min()),
+                "max": float(values.max()),
+            }
+        result["proxies"][name] = {"report": path or None, "runs": runs, "summary": summary}
+        print(name, json.dumps(summary), flush=True)
+    args.out.parent.mkdir(parents=True, exist_ok=True)
+    args.out.write_text(json.dumps(result, indent=1))
+
+
+if __name__ == "__main__":
+    main()
