@@ -1,7 +1,7 @@
 """The Trunk's default transfer (bend onto the cube, push it along x; `pliant proxy transfer
 trunk`) repeated, for proxies touching with node balls or through the skinned FEM surface: the
-runs are not bit-identical (the FEM solver may factorise in a background thread, and the
-contacts amplify its round-off), so each proxy's relative reward difference and final cube
+runs are not bit-identical (the source is not pinned down: they differ with every thread
+count at 1; contact amplifies whatever differs), so each proxy's relative reward difference and final cube
 gap are reported over repeats (median, min, max).
 
     python experiments/proxy_trunk_repeats.py --repeats 5 \
