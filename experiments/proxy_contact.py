@@ -19,13 +19,11 @@ import argparse
 import json
 import time
 import warnings
-from dataclasses import replace
-from functools import partial
 from pathlib import Path
 
 import numpy as np
 
-from pliant.proxy.calibrate import mean_distance, travel, travel_error
+from pliant.proxy.calibrate import fitted_proxy, mean_distance, travel, travel_error
 from pliant.proxy.references import MULTIGAIT_ACTION, Reference, setup
 
 
@@ -33,10 +31,8 @@ def replay(report: Path, reference: Reference) -> dict:
     """The report's proxy (its fitted parameters and contact) on the reference."""
     fitted = json.loads(report.read_text())
     contact = fitted.get("contact", "nodes")
-    robot = setup("multigait")
-    robot = replace(robot, build=partial(robot.build, contact=contact))
     start = time.perf_counter()
-    points = robot.simulate(reference)(fitted["parameters"])
+    points = setup("multigait").simulate(reference)(fitted_proxy(fitted))
     interval = round(MULTIGAIT_ACTION / reference.dt)
     return {
         "report": str(report),

@@ -37,6 +37,7 @@ from pliant.learn.config import TrainConfig
 from pliant.learn.evaluate import load_policy
 from pliant.learn.training import train
 from pliant.learn.vec import make_env
+from pliant.proxy.calibrate import fitted_proxy
 
 #: the Multigait's hand gait (Discrete(6): 2 g inflates group g of centre, front, rear; 2 g + 1
 #: deflates it), twice over the 12-step episode.
@@ -194,9 +195,7 @@ def learn(
     fitted = None
     if parameters is not None:  # a calibration report's fitted parameters
         fitted = json.loads(Path(parameters).read_text())
-        env_kwargs.update(fitted["parameters"])
-        if fitted.get("contact", "nodes") != "nodes":  # the proxy it was fitted as
-            env_kwargs["contact"] = fitted["contact"]
+        env_kwargs.update(fitted_proxy(fitted))  # the proxy it was fitted as (and its contact)
     if noise > 0.0:  # the draw `seed` around the defaults or the fitted parameters
         env_kwargs.update(degraded(robot, noise, seed, fitted and fitted["parameters"]))
     if bend_limit is not None:

@@ -1,8 +1,8 @@
 """The Trunk's default transfer (bend onto the cube, push it along x; `pliant proxy transfer
 trunk`) repeated, for proxies touching with node balls or through the skinned FEM surface: the
 runs are not bit-identical (the source is not pinned down: they differ with every thread
-count at 1; contact amplifies whatever differs), so each proxy's relative reward difference and final cube
-gap are reported over repeats (median, min, max).
+count at 1; contact amplifies whatever differs), so each proxy's relative reward difference
+and final cube gap are reported over repeats (median, min, max).
 
     python experiments/proxy_trunk_repeats.py --repeats 5 \
         --proxy nodes= \
@@ -22,6 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
+from pliant.proxy.calibrate import fitted_proxy
 from pliant.proxy.transfer import SEQUENCES, trunk_transfer
 
 
@@ -41,10 +42,7 @@ def main() -> None:
     }
     for item in args.proxy:
         name, path = item.split("=", 1)
-        env_kwargs = None
-        if path:
-            report = json.loads(Path(path).read_text())
-            env_kwargs = {**report["parameters"], "contact": report.get("contact", "nodes")}
+        env_kwargs = fitted_proxy(json.loads(Path(path).read_text())) if path else None
         runs = []
         for _ in range(args.repeats):
             run = trunk_transfer(env_kwargs=env_kwargs).run(list(SEQUENCES["trunk"]))

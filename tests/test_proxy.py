@@ -586,3 +586,21 @@ def test_the_trunk_proxy_touches_the_cube_through_the_fem_trunks_surface() -> No
         deepest = max(deepest, float(inside.max()))
     assert state.rigid_positions[0][0] > start[0] + 10.0
     assert deepest < 0.1
+
+
+def test_a_calibration_reports_proxy_keywords_carry_its_contact() -> None:
+    """fitted_proxy: the fitted parameters as floats, the contact only where it is not the
+    default node balls; a report without numeric parameters or with an unknown contact is
+    refused."""
+    from pliant.proxy.calibrate import fitted_proxy
+
+    assert fitted_proxy({"parameters": {"cube_mass": 0.01}}) == {"cube_mass": 0.01}
+    assert fitted_proxy({"parameters": {"friction": 1}, "contact": "surface"}) == {
+        "friction": 1.0,
+        "contact": "surface",
+    }
+    for bad in ({}, {"parameters": {"friction": "high"}}, {"parameters": [1.0]}):
+        with pytest.raises(ModelError, match="not a calibration report"):
+            fitted_proxy(bad)
+    with pytest.raises(ModelError, match="contact"):
+        fitted_proxy({"parameters": {}, "contact": "balls"})

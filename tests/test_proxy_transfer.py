@@ -166,6 +166,9 @@ def test_the_transfer_command_writes_both_trajectories_and_refuses_bad_actions(t
     assert pushed[0] > start[0] + 5.0 and abs(pushed[0] - proxy[0]) > 1e-3  # another proxy
     both = runner.invoke(app, [*args, "--proxy", str(fitted), "--policy", str(fitted)])
     assert both.exit_code == 2 and "brings the proxy" in both.output
+    (tmp_path / "bad.json").write_text(json.dumps({"parameters": {"cube_mass": "heavy"}}))
+    bad = runner.invoke(app, [*args, "--proxy", str(tmp_path / "bad.json")])
+    assert bad.exit_code == 2 and "not a calibration report" in bad.output
 
 
 def test_the_transfer_command_runs_a_trained_policy_with_its_normaliser(tmp_path) -> None:

@@ -77,6 +77,22 @@ def travel_error(reference: np.ndarray, proxy: np.ndarray, interval: int) -> flo
     )
 
 
+def fitted_proxy(report: Mapping) -> dict:
+    """The proxy builder's keywords of a calibration report (``pliant proxy calibrate``'s
+    JSON): its fitted parameters, and its contact where it is not the default node balls.
+    ModelError if the report holds no numeric parameters or an unknown contact."""
+    try:
+        keywords = {str(k): float(v) for k, v in report["parameters"].items()}
+    except (KeyError, TypeError, ValueError, AttributeError):
+        raise ModelError("not a calibration report: no numeric 'parameters'") from None
+    contact = report.get("contact", "nodes")
+    if contact not in ("nodes", "surface"):
+        raise ModelError(f"a calibration report's contact is 'nodes' or 'surface', got {contact!r}")
+    if contact != "nodes":
+        keywords["contact"] = contact
+    return keywords
+
+
 def rollout(
     proxy: Proxy,
     commands: np.ndarray,

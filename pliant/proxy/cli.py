@@ -208,11 +208,15 @@ def calibrate(
 
 def _fitted_parameters(path: Path) -> dict[str, float]:
     """The "parameters" of a calibration report; BadParameter if it holds none."""
+    from pliant.errors import ModelError
+    from pliant.proxy.calibrate import fitted_proxy
+
     try:
-        parameters = json.loads(path.read_text())["parameters"]
-        return {str(k): float(v) for k, v in parameters.items()}
-    except (ValueError, KeyError, TypeError, AttributeError):
+        keywords = fitted_proxy(json.loads(path.read_text()))
+    except (ValueError, ModelError):
         raise typer.BadParameter(f"--start: {path} is not a calibration report") from None
+    keywords.pop("contact", None)  # how it touched, not a parameter of the search
+    return keywords
 
 
 def _actions(robot: str, text: str | None) -> list:
@@ -314,10 +318,15 @@ def transfer(
 
         options["goal_offset"] = tuple(numbers_list(goal, "--goal", count=2))
     if proxy is not None:
+        from pliant.errors import ModelError
+        from pliant.proxy.calibrate import fitted_proxy
+
         if policy is not None:
             raise typer.BadParameter("--proxy: a --policy brings the proxy it was trained on")
-        contact = json.loads(proxy.read_text()).get("contact", "nodes")
-        options["env_kwargs"] = {**_fitted_parameters(proxy), "contact": contact}
+        try:
+            options["env_kwargs"] = fitted_proxy(json.loads(proxy.read_text()))
+        except (ValueError, ModelError) as exc:
+            raise typer.BadParameter(f"--proxy: {proxy}: {exc}") from None
     chooser = None
     if policy is not None:
         from pliant.learn.evaluate import load_policy
