@@ -410,7 +410,8 @@ def test_the_calibrate_command_fits_a_saved_reference_and_resumes(tmp_path) -> N
 
 def test_the_calibrate_command_fits_the_travel_and_the_friction(tmp_path) -> None:
     """`--travel-weight W --friction LOW,HIGH --start REPORT`: a study of its own
-    (multigait-travel1-friction; `--contact surface` another, multigait-surface), the
+    (multigait-travel1-friction; `--contact surface` another, multigait-surface;
+    `--travel-actions 2` another, its travel one move over both actions), the
     friction searched in its box from the report's value, and the report's travel block the
     FEM's and the proxy's centroid moves over each 0.6 s action (2 in a 1.2 s reference) with
     their mean distance; a robot without actions or without a fitted friction refuses them,
@@ -452,7 +453,17 @@ def test_the_calibrate_command_fits_the_travel_and_the_friction(tmp_path) -> Non
     distance = np.linalg.norm(np.subtract(moves["fem_mm"], moves["proxy_mm"]), axis=1).mean()
     assert moves["error_mm"] == pytest.approx(distance, abs=1e-2)
     assert moves["loss"] == pytest.approx(report["optimisation_error_mm"] + moves["error_mm"])
+    cycle = ["--travel-weight", "1", "--travel-actions", "2", "--trials", "1"]
+    result = runner.invoke(app, [*args, *cycle, "--out", str(tmp_path)])
+    assert result.exit_code == 0, result.output
+    report = json.loads((tmp_path / "multigait_calibration.json").read_text())
+    assert report["study"] == "multigait-travel1x2"
+    moves = report["travel"]  # one move over both actions
+    assert moves["interval_steps"] == 120 and moves["actions"] == 2 and len(moves["fem_mm"]) == 1
     for refused, needle in (
+        ([*args, "--travel-actions", "2"], "no travel term"),
+        ([*args, "--travel-weight", "1", "--travel-actions", "3"], "longer than the reference"),
+        ([*args, "--travel-weight", "1", "--travel-actions", "0"], "greater than or equal to 1"),
         (["proxy", "calibrate", "trunk", "--friction", "0.1,1"], "only the Multigait"),
         ([*args, "--contact", "balls"], "one of"),
         (["proxy", "calibrate", "trunk-cube", "--travel-weight", "1"], "not a sequence"),

@@ -69,6 +69,14 @@ def calibrate(
             callback=non_negative,
         ),
     ] = 0.0,
+    travel_actions: Annotated[
+        int,
+        typer.Option(
+            help="measure the travel over this many actions at a time (a gait cycle's worth"
+            " weighs a gait's drift rather than each action's move; a study of its own)",
+            min=1,
+        ),
+    ] = 1,
     friction: Annotated[
         str | None,
         typer.Option(
@@ -98,13 +106,15 @@ def calibrate(
     """Calibrate ROBOT's proxy on its FEM model: Optuna TPE, study resumed from
     OUT/ROBOT.db, report in OUT/ROBOT_calibration.json.
 
-    The study is named after what it fits: ROBOT, with -mass, -travel{W}, -friction and
+    The study is named after what it fits: ROBOT, with -mass, -travel{W}[x{K}], -friction and
     -surface for the options that change the search."""
     from pliant.proxy.calibrate import calibrate as fit
     from pliant.proxy.calibrate import travel, travel_error
     from pliant.proxy.references import Reference, setup
 
     robot_setup = setup(robot)
+    if travel_actions > 1 and travel_weight == 0.0:
+        raise typer.BadParameter("--travel-actions: there is no travel term (--travel-weight 0)")
     if travel_weight > 0.0 and robot_setup.action_duration is None:
         raise typer.BadParameter(
             f"--travel-weight: {robot}'s reference is not a sequence of actions to measure the"
@@ -143,11 +153,17 @@ def calibrate(
     interval = (
         None
         if robot_setup.action_duration is None
-        else max(1, round(robot_setup.action_duration / data.dt))
+        else max(1, round(robot_setup.action_duration / data.dt)) * travel_actions
     )
+    if travel_actions > 1 and interval is not None and interval > len(data.points):
+        raise typer.BadParameter(
+            f"--travel-actions: {travel_actions} actions are longer than the reference {path}"
+        )
     study = robot + ("" if mass_tolerance is None else "-mass")
-    study += (f"-travel{travel_weight:g}" if travel_weight > 0.0 else "") + (
-        "-friction" if friction is not None else ""
+    study += (
+        (f"-travel{travel_weight:g}" if travel_weight > 0.0 else "")
+        + (f"x{travel_actions}" if travel_actions > 1 else "")
+        + ("-friction" if friction is not None else "")
     )
     study += "" if contact == "nodes" else f"-{contact}"
     result = fit(
@@ -187,6 +203,7 @@ def calibrate(
         report["travel"] = {
             "weight": travel_weight,
             "interval_steps": interval,
+            "actions": travel_actions,
             "error_mm": travel_error(data.points, best, interval),
             "loss": result.loss,
             "fem_mm": travel(data.points, interval).round(3).tolist(),
