@@ -85,6 +85,37 @@ def test_a_prescribed_rest_curvature_bends_an_unloaded_rod_into_the_arc() -> Non
     np.testing.assert_allclose(state.positions[: n + 1], rod.rest_positions[: n + 1], atol=1e-7)
 
 
+def test_a_bending_that_stretches_takes_the_arc_scaled_by_its_stretch() -> None:
+    """Rest curvature kappa and rest stretch 1 + s together (Bending.max_stretch), no load:
+    each element keeps its turn Phi = kappa l and lengthens by 1 + s, so the tip is the
+    discrete arc's (previous test) times 1 + s, to solver precision; the elements' stretch
+    gamma_3 is 1 + s; released, the rod is straight and of its length again. A stretch of 1
+    or more and a non-positive rest stretch are refused."""
+    n, turn, s = 10, 0.6 * np.pi, 0.2
+    rod = cantilever(n)
+    bending = CurvatureActuation(
+        rod, [Bending("all", tuple(range(n)), (1, 0, 0), turn / L, max_stretch=s)]
+    )
+    model = Model(rod)
+    solver, state = StaticSolver(model), model.rest_state()
+    for k in range(1, 10):
+        bending.apply([k / 9])
+        state = solver.step(state)
+    phi, l = turn / n, L / n
+    chord = l * np.sin(n * phi / 2) / np.sin(phi / 2)
+    discrete = chord * np.array([np.cos(n * phi / 2), 0.0, -np.sin(n * phi / 2)])
+    np.testing.assert_allclose(state.positions[n], (1.0 + s) * discrete, atol=1e-7)
+    np.testing.assert_allclose(rod.linearise(state.positions).dets, 1.0 + s, atol=1e-9)
+    for k in range(8, -1, -1):
+        bending.apply([k / 9])
+        state = solver.step(state)
+    np.testing.assert_allclose(state.positions[: n + 1], rod.rest_positions[: n + 1], atol=1e-7)
+    with pytest.raises(ModelError, match="max stretch"):
+        CurvatureActuation(rod, [Bending("all", (0,), (1, 0, 0), 0.01, max_stretch=1.0)])
+    with pytest.raises(ModelError, match="rest stretch"):
+        rod.set_rest_stretch(0.0)
+
+
 def test_rest_curvature_and_a_small_tip_load_superpose() -> None:
     """Small rest curvature (tip rise 1e-3 L) and a small tip load along z (Timoshenko
     deflection w = P L^3 / (3 E I) + P L / (k G A), met by the rod to its O(1/N^2) bending
@@ -411,7 +442,8 @@ def test_the_calibrate_command_fits_a_saved_reference_and_resumes(tmp_path) -> N
 def test_the_calibrate_command_fits_the_travel_and_the_friction(tmp_path) -> None:
     """`--travel-weight W --friction LOW,HIGH --start REPORT`: a study of its own
     (multigait-travel1-friction; `--contact surface` another, multigait-surface;
-    `--travel-actions 2` another, its travel one move over both actions), the
+    `--travel-actions 2` another, its travel one move over both actions; `--extension` another,
+    the legs' and the centre's stretch fitted in its box), the
     friction searched in its box from the report's value, and the report's travel block the
     FEM's and the proxy's centroid moves over each 0.6 s action (2 in a 1.2 s reference) with
     their mean distance; a robot without actions or without a fitted friction refuses them,
@@ -460,8 +492,19 @@ def test_the_calibrate_command_fits_the_travel_and_the_friction(tmp_path) -> Non
     assert report["study"] == "multigait-travel1x2"
     moves = report["travel"]  # one move over both actions
     assert moves["interval_steps"] == 120 and moves["actions"] == 2 and len(moves["fem_mm"]) == 1
+    result = runner.invoke(
+        app, [*args, "--extension", "0,0.2", "--trials", "1", "--out", str(tmp_path)]
+    )
+    assert result.exit_code == 0, result.output
+    report = json.loads((tmp_path / "multigait_calibration.json").read_text())
+    assert report["study"] == "multigait-extension"
+    for name in ("leg_extension", "centre_extension"):
+        assert 0.0 <= report["parameters"][name] <= 0.2
+        assert report["proxy_parameters"][name] == pytest.approx(0.9 * report["parameters"][name])
     for refused, needle in (
         ([*args, "--travel-actions", "2"], "no travel term"),
+        (["proxy", "calibrate", "trunk", "--extension", "0,0.2"], "only the Multigait's"),
+        ([*args, "--extension", "0.2,0.1"], "LOW < HIGH < 1"),
         ([*args, "--travel-weight", "1", "--travel-actions", "3"], "longer than the reference"),
         ([*args, "--travel-weight", "1", "--travel-actions", "0"], "greater than or equal to 1"),
         (["proxy", "calibrate", "trunk", "--friction", "0.1,1"], "only the Multigait"),
@@ -531,9 +574,9 @@ def test_calibrating_on_the_patterns_validates_on_the_hand_gait(tmp_path, monkey
         tmp_path / "multigait_reference.npz"
     )
     # one trial, at the defaults: the search box collapsed onto them
-    box = {k: (v, v * (1 + 1e-12)) for k, v in defaults.items()}
-    for name, bounds in box.items():
-        monkeypatch.setitem(setup("multigait-patterns").space, name, bounds)
+    space = setup("multigait-patterns").space
+    for name in list(space):
+        monkeypatch.setitem(space, name, (defaults[name], defaults[name] * (1 + 1e-12)))
     args = ["proxy", "calibrate", "multigait-patterns", "--reference", str(tmp_path / "fit.npz")]
     result = CliRunner().invoke(app, [*args, "--trials", "1", "--out", str(tmp_path)])
     assert result.exit_code == 0, result.output

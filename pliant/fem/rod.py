@@ -203,6 +203,7 @@ class RodBody:
             x, rotations, self.elements, self.offsets, lengths
         )
         self.natural_curvature = self.kappa0.copy()
+        self.natural_strain = self.gamma0.copy()
         m = len(pairs)
         e = np.full((m, 1), material.young_modulus)
         if young_moduli is not None:
@@ -277,6 +278,16 @@ class RodBody:
         if not np.all(np.isfinite(value)):
             raise ModelError("a rest curvature must be finite")
         self.kappa0[idx] = value  # in place: the element kernels read this very array
+
+    def set_rest_stretch(self, stretch, elements: np.ndarray | None = None) -> None:
+        """Prescribe the rest stretch gamma_3 (1: the element's own length; 1.1: at rest 10 %
+        longer) of `elements` (default: all), as :meth:`set_rest_curvature` the curvature.
+        :attr:`natural_strain` holds the geometry's own (shears and stretch)."""
+        idx = np.arange(self.n_elements) if elements is None else np.asarray(elements, np.int64)
+        value = np.broadcast_to(np.asarray(stretch, dtype=float), (idx.size,))
+        if not np.all(np.isfinite(value)) or np.any(value <= 0.0):
+            raise ModelError("a rest stretch must be finite and positive")
+        self.gamma0[idx, 2] = value
 
     # --- layout -----------------------------------------------------------------------------
     @property

@@ -21,23 +21,32 @@ from pliant.fem.rod import RodBody
 @dataclass(frozen=True)
 class Bending:
     """One actuated bending: command u moves the rest curvature of `elements` by
-    u * max_curvature along `axis` (material frame: d1, d2 bendings, d3 twist; unit).
+    u * max_curvature along `axis` (material frame: d1, d2 bendings, d3 twist; unit), and
+    their rest stretch by u * max_stretch.
+
+    The stretch is for a skeleton that does not lie on the neutral layer of what it bends: a
+    pneumatic chamber bends its leg about the strain-limiting layer under it, so that a
+    skeleton at mid-thickness lengthens as it curls (the FEM Multigait's legs: 20 % at full
+    inflation); a beam bent about its own axis keeps its length (max_stretch 0).
 
     Args:
         name: the actuator's name ("front_left", "lower_d1").
         elements: indices of the rod's elements bent together (one beam).
         axis: (3,) direction of the curvature in the elements' material frames.
         max_curvature: curvature (rad per length) at command 1.
+        max_stretch: axial rest strain at command 1 (0.1: 10 % longer).
     """
 
     name: str
     elements: tuple[int, ...]
     axis: tuple[float, float, float]
     max_curvature: float
+    max_stretch: float = 0.0
 
 
 class CurvatureActuation:
-    """The bendings of one rod, applied together: kappa0 = natural + sum_b u_b k_b axis_b.
+    """The bendings of one rod, applied together: kappa0 = natural + sum_b u_b k_b axis_b,
+    and the rest stretch natural + sum_b u_b s_b (where some bending stretches).
 
     Args:
         rod: the proxy's skeleton.
@@ -53,6 +62,9 @@ class CurvatureActuation:
                 raise ModelError(f"bending {b.name}: elements must lie in [0, {rod.n_elements})")
             if abs(float(np.linalg.norm(b.axis)) - 1.0) > 1e-9:
                 raise ModelError(f"bending {b.name}: the axis must be a unit vector")
+            if not (np.isfinite(b.max_stretch) and abs(b.max_stretch) < 1.0):
+                raise ModelError(f"bending {b.name}: the max stretch must lie in (-1, 1)")
+        self.stretches = any(b.max_stretch != 0.0 for b in self.bendings)
         self.controls = np.zeros(len(self.bendings))
 
     @property
@@ -70,9 +82,13 @@ class CurvatureActuation:
         if np.abs(u).max(initial=0.0) > 1.0 + 1e-12:
             raise ModelError(f"bending commands must lie in [-1, 1], got {u.tolist()}")
         kappa = self.rod.natural_curvature.copy()
+        stretch = self.rod.natural_strain[:, 2].copy()
         for b, value in zip(self.bendings, u, strict=True):
             kappa[list(b.elements)] += value * b.max_curvature * np.asarray(b.axis)
+            stretch[list(b.elements)] += value * b.max_stretch
         self.rod.set_rest_curvature(kappa)
+        if self.stretches:
+            self.rod.set_rest_stretch(stretch)
         self.controls = u.copy()
 
 

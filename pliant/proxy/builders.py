@@ -106,6 +106,8 @@ def multigait_proxy(
     centre_density: float = MULTIGAIT_PARAMETERS["centre_density"],
     leg_curvature: float = MULTIGAIT_PARAMETERS["leg_curvature"],
     centre_curvature: float = MULTIGAIT_PARAMETERS["centre_curvature"],
+    leg_extension: float = 0.0,
+    centre_extension: float = 0.0,
     poisson_ratio: float = 0.3,
     gravity: tuple[float, float, float] = (0.0, 0.0, -9810.0),
     rayleigh_mass: float = 0.1,
@@ -120,7 +122,11 @@ def multigait_proxy(
     centre end to its tip) carry one actuated bending each, in the order of
     :data:`pliant.mesh.multigait.CHAMBERS`; four passive cross beams join the legs' roots to
     the centre's ends. Section: the legs' (`leg_width` x `thickness`) for every beam, the
-    centre's difference folded into its calibrated stiffness. Floor contact, Coulomb
+    centre's difference folded into its calibrated stiffness. `leg_extension` and
+    `centre_extension`: the beams' rest stretch at command 1 (0.2: 20 % longer), for a
+    chamber that bends its leg about the strain-limiting layer under the skeleton, so that
+    the mid-thickness lengthens as it curls (:class:`pliant.proxy.actuation.Bending`; 0, the
+    default, keeps the thesis' inextensible beams). Floor contact, Coulomb
     friction `friction`: with `contact` "nodes", at the nodes, balls of radius thickness / 2;
     with "surface", through the FEM robot's colliding points (its underside and outline) and
     their counterparts on its top face (:func:`pliant.robots.multigait.face_points`),
@@ -179,6 +185,7 @@ def multigait_proxy(
             tuple(bendings_by_name[name]),
             _CURL,
             centre_curvature if name == "centre" else leg_curvature,
+            centre_extension if name == "centre" else leg_extension,
         )
         for name in ("centre", "front_left", "front_right", "rear_left", "rear_right")
     ]
@@ -201,6 +208,8 @@ def multigait_proxy(
             centre_density=centre_density,
             leg_curvature=leg_curvature,
             centre_curvature=centre_curvature,
+            leg_extension=leg_extension,
+            centre_extension=centre_extension,
         ),
     )
 

@@ -121,7 +121,7 @@ def rollout(
 class CalibrationResult:
     """The best trial's parameters, its errors (mm) on the optimisation and validation
     positions, how many trials the study holds, and the parameters the proxy is to use (max
-    curvatures times the safety factor)."""
+    curvatures, and the extensions that go with them, times the safety factor)."""
 
     parameters: dict[str, float]
     optimisation_error: float
@@ -140,7 +140,8 @@ class CalibrationResult:
     @property
     def proxy_parameters(self) -> dict[str, float]:
         return {
-            k: v * self.safety if k.endswith("curvature") else v for k, v in self.parameters.items()
+            k: v * self.safety if k.endswith(("curvature", "extension")) else v
+            for k, v in self.parameters.items()
         }
 
 

@@ -83,6 +83,14 @@ def calibrate(
             help="LOW,HIGH: also fit the proxy's floor friction in this box (Multigait)",
         ),
     ] = None,
+    extension: Annotated[
+        str | None,
+        typer.Option(
+            help="LOW,HIGH: also fit the legs' and the centre's stretch at full command in"
+            " this box (Multigait: a skeleton at mid-thickness lengthens as its chamber curls"
+            " it; a study of its own, -extension)",
+        ),
+    ] = None,
     contact: Annotated[
         str,
         typer.Option(
@@ -106,8 +114,8 @@ def calibrate(
     """Calibrate ROBOT's proxy on its FEM model: Optuna TPE, study resumed from
     OUT/ROBOT.db, report in OUT/ROBOT_calibration.json.
 
-    The study is named after what it fits: ROBOT, with -mass, -travel{W}[x{K}], -friction and
-    -surface for the options that change the search."""
+    The study is named after what it fits: ROBOT, with -mass, -travel{W}[x{K}], -friction,
+    -extension and -surface for the options that change the search."""
     from pliant.proxy.calibrate import calibrate as fit
     from pliant.proxy.calibrate import travel, travel_error
     from pliant.proxy.references import Reference, setup
@@ -128,6 +136,13 @@ def calibrate(
         if not 0.0 <= low < high:
             raise typer.BadParameter(f"--friction: need 0 <= LOW < HIGH, got {friction}")
         space["friction"] = (low, high)
+    if extension is not None:
+        if not robot.startswith("multigait"):
+            raise typer.BadParameter("--extension: only the Multigait's chambers stretch")
+        low, high = numbers_list(extension, "--extension", count=2)
+        if not 0.0 <= low < high < 1.0:
+            raise typer.BadParameter(f"--extension: need 0 <= LOW < HIGH < 1, got {extension}")
+        space["leg_extension"] = space["centre_extension"] = (low, high)
     if contact != "nodes":
         robot_setup = replace(robot_setup, build=partial(robot_setup.build, contact=contact))
     initial = None if start is None else _fitted_parameters(start)
@@ -164,6 +179,7 @@ def calibrate(
         (f"-travel{travel_weight:g}" if travel_weight > 0.0 else "")
         + (f"x{travel_actions}" if travel_actions > 1 else "")
         + ("-friction" if friction is not None else "")
+        + ("-extension" if extension is not None else "")
     )
     study += "" if contact == "nodes" else f"-{contact}"
     result = fit(
