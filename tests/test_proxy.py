@@ -442,8 +442,8 @@ def test_the_calibrate_command_fits_a_saved_reference_and_resumes(tmp_path) -> N
 def test_the_calibrate_command_fits_the_travel_and_the_friction(tmp_path) -> None:
     """`--travel-weight W --friction LOW,HIGH --start REPORT`: a study of its own
     (multigait-travel1-friction; `--contact surface` another, multigait-surface;
-    `--travel-actions 2` another, its travel one move over both actions; `--extension` another,
-    the legs' and the centre's stretch fitted in its box), the
+    `--travel-actions 2` another, its travel one move over both actions; `--neutral
+    underside` another, the beams bent about their underside), the
     friction searched in its box from the report's value, and the report's travel block the
     FEM's and the proxy's centroid moves over each 0.6 s action (2 in a 1.2 s reference) with
     their mean distance; a robot without actions or without a fitted friction refuses them,
@@ -493,18 +493,15 @@ def test_the_calibrate_command_fits_the_travel_and_the_friction(tmp_path) -> Non
     moves = report["travel"]  # one move over both actions
     assert moves["interval_steps"] == 120 and moves["actions"] == 2 and len(moves["fem_mm"]) == 1
     result = runner.invoke(
-        app, [*args, "--extension", "0,0.2", "--trials", "1", "--out", str(tmp_path)]
+        app, [*args, "--neutral", "underside", "--trials", "1", "--out", str(tmp_path)]
     )
     assert result.exit_code == 0, result.output
     report = json.loads((tmp_path / "multigait_calibration.json").read_text())
-    assert report["study"] == "multigait-extension"
-    for name in ("leg_extension", "centre_extension"):
-        assert 0.0 <= report["parameters"][name] <= 0.2
-        assert report["proxy_parameters"][name] == pytest.approx(0.9 * report["parameters"][name])
+    assert report["study"] == "multigait-underside" and report["neutral"] == "underside"
     for refused, needle in (
         ([*args, "--travel-actions", "2"], "no travel term"),
-        (["proxy", "calibrate", "trunk", "--extension", "0,0.2"], "only the Multigait's"),
-        ([*args, "--extension", "0.2,0.1"], "LOW < HIGH < 1"),
+        (["proxy", "calibrate", "trunk", "--neutral", "underside"], "only the Multigait's"),
+        ([*args, "--neutral", "top"], "one of"),
         ([*args, "--travel-weight", "1", "--travel-actions", "3"], "longer than the reference"),
         ([*args, "--travel-weight", "1", "--travel-actions", "0"], "greater than or equal to 1"),
         (["proxy", "calibrate", "trunk", "--friction", "0.1,1"], "only the Multigait"),
@@ -642,10 +639,41 @@ def test_the_trunk_proxy_touches_the_cube_through_the_fem_trunks_surface() -> No
     assert deepest < 0.1
 
 
+def test_a_multigait_proxy_bent_about_its_underside_keeps_the_underside_s_length() -> None:
+    """neutral="underside": each bending stretches its beam by kappa h (h the skeleton's
+    height over the underside), so that the underside skinned onto a front leg keeps its
+    length as the leg curls fully (weightless, ramped over 1 s, then held 1 s): within 1 %,
+    as the FEM Multigait's underside does, where bent about its axis it shortens by 14 %."""
+    from pliant.robots.multigait import face_points
+
+    underside = face_points(top=False)
+    line = np.flatnonzero((underside[:, 0] <= 45.1) & (np.abs(underside[:, 1] - 13.0) < 0.2))
+    line = line[np.argsort(underside[line, 0])]
+    rest = np.linalg.norm(np.diff(underside[line], axis=0), axis=1).sum()
+    lengths = {}
+    for neutral in ("axis", "underside"):
+        proxy = multigait_proxy(neutral=neutral, gravity=(0.0, 0.0, 0.0))
+        leg = proxy.actuation.bendings[1]
+        assert leg.max_stretch == pytest.approx(
+            (neutral == "underside") * leg.max_curvature * 6.3 / 2
+        )
+        skin = Skinning(proxy.rod, underside, neighbours=2)
+        solver, state = ImplicitEuler(proxy.model, 0.01), proxy.model.rest_state()
+        for k in [*range(1, 101), *[100] * 100]:
+            proxy.apply([0.0, k / 100, k / 100, 0.0, 0.0])
+            state = solver.step(state)
+        points = skin.positions(state.positions)[line]
+        lengths[neutral] = np.linalg.norm(np.diff(points, axis=0), axis=1).sum() / rest
+    assert abs(lengths["underside"] - 1.0) < 0.01
+    assert lengths["axis"] < 0.9
+    with pytest.raises(ModelError, match="neutral"):
+        multigait_proxy(neutral="top")
+
+
 def test_a_calibration_reports_proxy_keywords_carry_its_contact() -> None:
     """fitted_proxy: the fitted parameters as floats, the contact only where it is not the
-    default node balls; a report without numeric parameters or with an unknown contact is
-    refused."""
+    default node balls, the neutral layer only where it is not the beams' axis; a report
+    without numeric parameters, with an unknown contact or layer is refused."""
     from pliant.proxy.calibrate import fitted_proxy
 
     assert fitted_proxy({"parameters": {"cube_mass": 0.01}}) == {"cube_mass": 0.01}
@@ -658,3 +686,8 @@ def test_a_calibration_reports_proxy_keywords_carry_its_contact() -> None:
             fitted_proxy(bad)
     with pytest.raises(ModelError, match="contact"):
         fitted_proxy({"parameters": {}, "contact": "balls"})
+    report = {"parameters": {"friction": 1}, "contact": "surface", "neutral": "underside"}
+    assert fitted_proxy(report)["neutral"] == "underside"
+    assert "neutral" not in fitted_proxy({**report, "neutral": "axis"})
+    with pytest.raises(ModelError, match="neutral"):
+        fitted_proxy({**report, "neutral": "top"})

@@ -106,8 +106,7 @@ def multigait_proxy(
     centre_density: float = MULTIGAIT_PARAMETERS["centre_density"],
     leg_curvature: float = MULTIGAIT_PARAMETERS["leg_curvature"],
     centre_curvature: float = MULTIGAIT_PARAMETERS["centre_curvature"],
-    leg_extension: float = 0.0,
-    centre_extension: float = 0.0,
+    neutral: Literal["axis", "underside"] = "axis",
     poisson_ratio: float = 0.3,
     gravity: tuple[float, float, float] = (0.0, 0.0, -9810.0),
     rayleigh_mass: float = 0.1,
@@ -122,11 +121,13 @@ def multigait_proxy(
     centre end to its tip) carry one actuated bending each, in the order of
     :data:`pliant.mesh.multigait.CHAMBERS`; four passive cross beams join the legs' roots to
     the centre's ends. Section: the legs' (`leg_width` x `thickness`) for every beam, the
-    centre's difference folded into its calibrated stiffness. `leg_extension` and
-    `centre_extension`: the beams' rest stretch at command 1 (0.2: 20 % longer), for a
-    chamber that bends its leg about the strain-limiting layer under the skeleton, so that
-    the mid-thickness lengthens as it curls (:class:`pliant.proxy.actuation.Bending`; 0, the
-    default, keeps the thesis' inextensible beams). Floor contact, Coulomb
+    centre's difference folded into its calibrated stiffness. `neutral`: the layer a chamber
+    bends its beam about, the beam's axis (the thesis' inextensible beams) or its underside,
+    the strain-limiting layer of a pneumatic network, which keeps its length as the chambers
+    curl it (the FEM Multigait's underside: within 1 % at full inflation, where a beam bent
+    about its axis shortens its underside by kappa h, 13 % at the calibrated curvature): each
+    bending then also stretches its beam by kappa h, h = thickness / 2
+    (:class:`pliant.proxy.actuation.Bending`). Floor contact, Coulomb
     friction `friction`: with `contact` "nodes", at the nodes, balls of radius thickness / 2;
     with "surface", through the FEM robot's colliding points (its underside and outline) and
     their counterparts on its top face (:func:`pliant.robots.multigait.face_points`),
@@ -136,7 +137,11 @@ def multigait_proxy(
     """
     if contact not in ("nodes", "surface"):
         raise ModelError(f"contact must be 'nodes' or 'surface', got {contact!r}")
+    if neutral not in ("axis", "underside"):
+        raise ModelError(f"neutral must be 'axis' or 'underside', got {neutral!r}")
     z = 0.5 * thickness
+    # An underside that keeps its length: d(stretch) = kappa h, h the skeleton's height on it.
+    lever = z if neutral == "underside" else 0.0
     y = 0.5 * (width - leg_width)
     leg_length = 0.5 * (length - centre_length)
     front, back = leg_length, length - leg_length
@@ -179,13 +184,10 @@ def multigait_proxy(
         rayleigh_mass=rayleigh_mass,
         rayleigh_stiffness=rayleigh_stiffness,
     )
+    curvatures = {name: leg_curvature for name in bendings_by_name} | {"centre": centre_curvature}
     bendings = [
         Bending(
-            name,
-            tuple(bendings_by_name[name]),
-            _CURL,
-            centre_curvature if name == "centre" else leg_curvature,
-            centre_extension if name == "centre" else leg_extension,
+            name, tuple(bendings_by_name[name]), _CURL, curvatures[name], curvatures[name] * lever
         )
         for name in ("centre", "front_left", "front_right", "rear_left", "rear_right")
     ]
@@ -208,8 +210,6 @@ def multigait_proxy(
             centre_density=centre_density,
             leg_curvature=leg_curvature,
             centre_curvature=centre_curvature,
-            leg_extension=leg_extension,
-            centre_extension=centre_extension,
         ),
     )
 

@@ -79,8 +79,9 @@ def travel_error(reference: np.ndarray, proxy: np.ndarray, interval: int) -> flo
 
 def fitted_proxy(report: Mapping) -> dict:
     """The proxy builder's keywords of a calibration report (``pliant proxy calibrate``'s
-    JSON): its fitted parameters, and its contact where it is not the default node balls.
-    ModelError if the report holds no numeric parameters or an unknown contact."""
+    JSON): its fitted parameters, its contact where it is not the default node balls, and the
+    layer its beams bend about where it is not their axis. ModelError if the report holds no
+    numeric parameters, an unknown contact or an unknown layer."""
     try:
         keywords = {str(k): float(v) for k, v in report["parameters"].items()}
     except (KeyError, TypeError, ValueError, AttributeError):
@@ -90,6 +91,13 @@ def fitted_proxy(report: Mapping) -> dict:
         raise ModelError(f"a calibration report's contact is 'nodes' or 'surface', got {contact!r}")
     if contact != "nodes":
         keywords["contact"] = contact
+    neutral = report.get("neutral", "axis")
+    if neutral not in ("axis", "underside"):
+        raise ModelError(
+            f"a calibration report's neutral layer is 'axis' or 'underside', got {neutral!r}"
+        )
+    if neutral != "axis":
+        keywords["neutral"] = neutral
     return keywords
 
 
@@ -121,7 +129,7 @@ def rollout(
 class CalibrationResult:
     """The best trial's parameters, its errors (mm) on the optimisation and validation
     positions, how many trials the study holds, and the parameters the proxy is to use (max
-    curvatures, and the extensions that go with them, times the safety factor)."""
+    curvatures times the safety factor)."""
 
     parameters: dict[str, float]
     optimisation_error: float
@@ -140,8 +148,7 @@ class CalibrationResult:
     @property
     def proxy_parameters(self) -> dict[str, float]:
         return {
-            k: v * self.safety if k.endswith(("curvature", "extension")) else v
-            for k, v in self.parameters.items()
+            k: v * self.safety if k.endswith("curvature") else v for k, v in self.parameters.items()
         }
 
 

@@ -83,14 +83,15 @@ def calibrate(
             help="LOW,HIGH: also fit the proxy's floor friction in this box (Multigait)",
         ),
     ] = None,
-    extension: Annotated[
-        str | None,
+    neutral: Annotated[
+        str,
         typer.Option(
-            help="LOW,HIGH: also fit the legs' and the centre's stretch at full command in"
-            " this box (Multigait: a skeleton at mid-thickness lengthens as its chamber curls"
-            " it; a study of its own, -extension)",
+            help="the layer the Multigait proxy's chambers bend its beams about: axis (the"
+            " thesis' inextensible beams) or underside (the strain-limiting layer, which keeps"
+            " its length: the beams stretch as they curl; a study of its own, -underside)",
+            callback=one_of("axis", "underside"),
         ),
-    ] = None,
+    ] = "axis",
     contact: Annotated[
         str,
         typer.Option(
@@ -115,7 +116,7 @@ def calibrate(
     OUT/ROBOT.db, report in OUT/ROBOT_calibration.json.
 
     The study is named after what it fits: ROBOT, with -mass, -travel{W}[x{K}], -friction,
-    -extension and -surface for the options that change the search."""
+    -underside and -surface for the options that change the search."""
     from pliant.proxy.calibrate import calibrate as fit
     from pliant.proxy.calibrate import travel, travel_error
     from pliant.proxy.references import Reference, setup
@@ -136,13 +137,10 @@ def calibrate(
         if not 0.0 <= low < high:
             raise typer.BadParameter(f"--friction: need 0 <= LOW < HIGH, got {friction}")
         space["friction"] = (low, high)
-    if extension is not None:
+    if neutral != "axis":
         if not robot.startswith("multigait"):
-            raise typer.BadParameter("--extension: only the Multigait's chambers stretch")
-        low, high = numbers_list(extension, "--extension", count=2)
-        if not 0.0 <= low < high < 1.0:
-            raise typer.BadParameter(f"--extension: need 0 <= LOW < HIGH < 1, got {extension}")
-        space["leg_extension"] = space["centre_extension"] = (low, high)
+            raise typer.BadParameter("--neutral: only the Multigait's chambers bend a layer")
+        robot_setup = replace(robot_setup, build=partial(robot_setup.build, neutral=neutral))
     if contact != "nodes":
         robot_setup = replace(robot_setup, build=partial(robot_setup.build, contact=contact))
     initial = None if start is None else _fitted_parameters(start)
@@ -179,9 +177,10 @@ def calibrate(
         (f"-travel{travel_weight:g}" if travel_weight > 0.0 else "")
         + (f"x{travel_actions}" if travel_actions > 1 else "")
         + ("-friction" if friction is not None else "")
-        + ("-extension" if extension is not None else "")
     )
-    study += "" if contact == "nodes" else f"-{contact}"
+    study += ("" if neutral == "axis" else f"-{neutral}") + (
+        "" if contact == "nodes" else f"-{contact}"
+    )
     result = fit(
         robot_setup.simulate(data),
         data.points,
@@ -213,6 +212,7 @@ def calibrate(
         "feasible_trials": result.feasible_trials,
         "study": study,
         "contact": contact,
+        "neutral": neutral,
     }
     if interval is not None and len(data.points) >= interval:  # each action's move, both
         best = robot_setup.simulate(data)(result.parameters)
