@@ -130,6 +130,34 @@ def test_the_open_loop_feedforward_replays_the_proxy_commands_as_volumes() -> No
     assert TRUNK_GAINS.feedforward == 0.0
 
 
+def test_the_angle_corrector_acts_on_the_open_loop_too() -> None:
+    """feedforward 1 with angle_gain g: each sub-step's actuation is the filter's lag towards
+    the proxy's volumes plus g (theta_proxy - theta_FEM) upper on each leg (the tip angles of
+    the proxy's matched points and of the FEM's, before the step), still with no inverse
+    model; the centre gets no correction."""
+    gains = dataclasses.replace(
+        MULTIGAIT_GAINS, scale=5, time_register=0, feedforward=1.0, angle_gain=0.5
+    )
+    loop = multigait_transfer(gains=gains, mesh_size=9.0)
+    expected = ActuationFilter(gains.lower, gains.upper, rate=gains.rate)
+    corrections = []
+    follow = loop.follow
+
+    def spy(goal, commands=None):
+        now = loop.points.positions(loop.state.positions)
+        gap = loop.tip_angles(goal) - loop.tip_angles(now)
+        correction = np.concatenate([[0.0], 0.5 * gap * np.asarray(gains.upper[1:])])
+        corrections.append(correction)
+        target = expected.update(np.asarray(commands)[:5] * MULTIGAIT_VOLUMES + correction)
+        follow(goal, commands)
+        np.testing.assert_allclose(loop.filter.value, target)
+
+    loop.follow = spy
+    loop.run([4, 4])
+    assert len(corrections) == 10
+    assert np.abs(np.array(corrections)[:, 1:]).max() > 0.0  # it did correct
+
+
 def test_the_transfer_command_writes_both_trajectories_and_refuses_bad_actions(tmp_path) -> None:
     """`pliant proxy transfer trunk` on two steps bending onto the cube: JSON and PNG written,
     the FEM's cube pushed along +x as the proxy's; a Multigait action outside Discrete(6) is

@@ -249,6 +249,7 @@ def _fitted_parameters(path: Path) -> dict[str, float]:
     except (ValueError, ModelError):
         raise typer.BadParameter(f"--start: {path} is not a calibration report") from None
     keywords.pop("contact", None)  # how it touched, not a parameter of the search
+    keywords.pop("neutral", None)
     return keywords
 
 

@@ -22,7 +22,8 @@ a position effector of the FEM robot on the same points, and for each sub-step:
 4. optionally, a feedforward: the proxy's own commands of the sub-step mapped onto the FEM's
    actuators (the Multigait: a chamber's command in [0, 1] times the hand gait's volume),
    a_ff, blended in as a_inv <- w a_ff + (1 - w) a_inv (``feedforward`` w; 0 by default, the
-   thesis' loop; 1 replays the proxy's actuation open loop and skips the inverse model);
+   thesis' loop; 1 replays the proxy's actuation and skips the inverse model, the
+   correction 3. still added to it);
 5. the filter: a <- clip(a + f (s a_inv - a), lower, upper), and the FEM takes one step under
    a (direct control, its actuators in displacement mode).
 
@@ -356,11 +357,11 @@ class Transfer:
         `commands` of that sub-step fed forward with weight ``gains.feedforward``."""
         g = self.gains
         w = g.feedforward
-        if w == 1.0:  # open loop: the inverse model's actuation would weigh nothing
-            actuation = self.filter.update(self.feedforward(commands))
-            self.state = self.solver.step(self.state, actuation)
-            return
         now = self.points.positions(self.state.positions)
+        if w == 1.0:  # the inverse model's actuation would weigh nothing: not solved
+            actuation = self.feedforward(commands) + self.correction(goal, now)
+            self.state = self.solver.step(self.state, self.filter.update(actuation))
+            return
         target = goal + g.kp * (goal - now)
         look = self.state.copy()
         contacts = self.fem.contacts
