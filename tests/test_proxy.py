@@ -54,47 +54,15 @@ def tip_load(rod: RodBody, direction) -> CableActuator:
     )
 
 
-def test_a_prescribed_rest_curvature_bends_an_unloaded_rod_into_the_arc() -> None:
-    """Rest curvature kappa about d1 = y on every element, no load: each element turns by
-    Phi = kappa l with its chord l, so the tip sits at l sin(N Phi / 2) / sin(Phi / 2) along
-    the angle N Phi / 2 (the discrete rod's closed form, met to solver precision), which
-    converges at second order to the arc of radius 1 / kappa: (R sin t, -R (1 - cos t)),
-    t = kappa L (turning x towards -z about +y). Turn 0.9 pi, ramped in nine static steps."""
-    turn = 0.9 * np.pi
-    kappa = turn / L
-    gaps = []
-    for n in (10, 20):
-        rod = cantilever(n)
-        bending = CurvatureActuation(rod, [Bending("all", tuple(range(n)), (1, 0, 0), kappa)])
-        model = Model(rod)
-        solver, state = StaticSolver(model), model.rest_state()
-        for k in range(1, 10):
-            bending.apply([k / 9])
-            state = solver.step(state)
-        phi, l = turn / n, L / n
-        chord = l * np.sin(n * phi / 2) / np.sin(phi / 2)
-        discrete = chord * np.array([np.cos(n * phi / 2), 0.0, -np.sin(n * phi / 2)])
-        np.testing.assert_allclose(state.positions[n], discrete, atol=1e-7)
-        radius = 1.0 / kappa
-        arc = radius * np.array([np.sin(turn), 0.0, -(1.0 - np.cos(turn))])
-        gaps.append(float(np.linalg.norm(state.positions[n] - arc)))
-    assert gaps[0] / gaps[1] == pytest.approx(4.0, rel=0.02)
-    for k in range(8, -1, -1):  # back to the natural curvature: back to straight
-        bending.apply([k / 9])
-        state = solver.step(state)
-    np.testing.assert_allclose(state.positions[: n + 1], rod.rest_positions[: n + 1], atol=1e-7)
-
-
-def test_a_bending_that_stretches_takes_the_arc_scaled_by_its_stretch() -> None:
-    """Rest curvature kappa and rest stretch 1 + s together (Bending.max_stretch), no load:
-    each element keeps its turn Phi = kappa l and lengthens by 1 + s, so the tip is the
-    discrete arc's (previous test) times 1 + s, to solver precision; the elements' stretch
-    gamma_3 is 1 + s; released, the rod is straight and of its length again. A stretch of 1
-    or more and a non-positive rest stretch are refused."""
-    n, turn, s = 10, 0.6 * np.pi, 0.2
+def bent_cantilever(n: int, turn: float, stretch: float = 0.0):
+    """A cantilever of n elements under a rest curvature turn / L about d1 (and a rest stretch
+    1 + stretch) ramped in nine static steps: the rod, its bending, the static solver, the
+    bent state and the discrete rod's closed-form tip without stretch: each element turns by
+    Phi = turn / n with its chord l, so the tip sits at l sin(N Phi / 2) / sin(Phi / 2) along
+    the angle N Phi / 2."""
     rod = cantilever(n)
     bending = CurvatureActuation(
-        rod, [Bending("all", tuple(range(n)), (1, 0, 0), turn / L, max_stretch=s)]
+        rod, [Bending("all", tuple(range(n)), (1, 0, 0), turn / L, max_stretch=stretch)]
     )
     model = Model(rod)
     solver, state = StaticSolver(model), model.rest_state()
@@ -104,11 +72,47 @@ def test_a_bending_that_stretches_takes_the_arc_scaled_by_its_stretch() -> None:
     phi, l = turn / n, L / n
     chord = l * np.sin(n * phi / 2) / np.sin(phi / 2)
     discrete = chord * np.array([np.cos(n * phi / 2), 0.0, -np.sin(n * phi / 2)])
-    np.testing.assert_allclose(state.positions[n], (1.0 + s) * discrete, atol=1e-7)
-    np.testing.assert_allclose(rod.linearise(state.positions).dets, 1.0 + s, atol=1e-9)
+    return rod, bending, solver, state, discrete
+
+
+def released(bending: CurvatureActuation, solver, state):
+    """The state after ramping `bending` back to 0 in nine static steps."""
     for k in range(8, -1, -1):
         bending.apply([k / 9])
         state = solver.step(state)
+    return state
+
+
+def test_a_prescribed_rest_curvature_bends_an_unloaded_rod_into_the_arc() -> None:
+    """Rest curvature kappa about d1 = y on every element, no load: the tip sits at the
+    discrete rod's closed form (:func:`bent_cantilever`, met to solver precision), which
+    converges at second order to the arc of radius 1 / kappa: (R sin t, -R (1 - cos t)),
+    t = kappa L (turning x towards -z about +y). Turn 0.9 pi, ramped in nine static steps."""
+    turn = 0.9 * np.pi
+    kappa = turn / L
+    gaps = []
+    for n in (10, 20):
+        rod, bending, solver, state, discrete = bent_cantilever(n, turn)
+        np.testing.assert_allclose(state.positions[n], discrete, atol=1e-7)
+        radius = 1.0 / kappa
+        arc = radius * np.array([np.sin(turn), 0.0, -(1.0 - np.cos(turn))])
+        gaps.append(float(np.linalg.norm(state.positions[n] - arc)))
+    assert gaps[0] / gaps[1] == pytest.approx(4.0, rel=0.02)
+    state = released(bending, solver, state)  # back to the natural curvature: straight
+    np.testing.assert_allclose(state.positions[: n + 1], rod.rest_positions[: n + 1], atol=1e-7)
+
+
+def test_a_bending_that_stretches_takes_the_arc_scaled_by_its_stretch() -> None:
+    """Rest curvature kappa and rest stretch 1 + s together (Bending.max_stretch), no load:
+    each element keeps its turn Phi = kappa l and lengthens by 1 + s, so the tip is the
+    discrete arc's (previous test) times 1 + s, to solver precision; the elements' stretch
+    gamma_3 is 1 + s; released, the rod is straight and of its length again. A stretch of 1
+    or more and a non-positive rest stretch are refused."""
+    n, s = 10, 0.2
+    rod, bending, solver, state, discrete = bent_cantilever(n, 0.6 * np.pi, stretch=s)
+    np.testing.assert_allclose(state.positions[n], (1.0 + s) * discrete, atol=1e-7)
+    np.testing.assert_allclose(rod.linearise(state.positions).dets, 1.0 + s, atol=1e-9)
+    state = released(bending, solver, state)
     np.testing.assert_allclose(state.positions[: n + 1], rod.rest_positions[: n + 1], atol=1e-7)
     with pytest.raises(ModelError, match="max stretch"):
         CurvatureActuation(rod, [Bending("all", (0,), (1, 0, 0), 0.01, max_stretch=1.0)])
