@@ -11,7 +11,10 @@ as trained, and with every internal agent replaced by the scene's convex control
 (``GraphAgent.swap_internal``; the Evaluator and the external agents as trained). Writes
 ``<out>/<scene>/swap_seed<seed>.json`` (``swap_shared_seed<seed>.json`` with ``--internal
 shared``): both mean returns and success rates and the relative
-change of the return.
+change of the return. ``--finetune N`` then trains the swapped hierarchy (the Evaluator and
+the external agents, around the convex internal agents) for N more environment steps and
+evaluates it on the same goals again (``convex_internal_finetuned``; the checkpoint is left
+as trained).
 """
 
 from __future__ import annotations
@@ -41,6 +44,7 @@ def main() -> None:
     parser.add_argument("--eval-every", type=int, default=600)
     parser.add_argument("--episodes", type=int, default=20)
     parser.add_argument("--out", type=Path, default=Path("experiments/results/graph"))
+    parser.add_argument("--finetune", type=int, default=0, help="steps trained after the swap")
     add_evaluator_options(parser)
     args = parser.parse_args()
     torch.set_num_threads(1)
@@ -62,9 +66,15 @@ def main() -> None:
     agent.swap_internal(scene.controllers)
     convex = agent.evaluate(scene.env, args.episodes)
     change = (convex["return"] - learned["return"]) / abs(learned["return"])
+    tuned = None
+    if args.finetune > 0:  # the Evaluator and external agents learn around the controllers
+        start = agent.steps
+        while agent.steps - start < args.finetune:
+            agent.run_episode(scene.env, train=True)
+        tuned = agent.evaluate(scene.env, args.episodes)
     result = {
         "command": f"python experiments/graph/swap.py --scene {args.scene} --seed {args.seed}"
-        f" --steps {args.steps} --episodes {args.episodes}"
+        f" --steps {args.steps} --episodes {args.episodes} --finetune {args.finetune}"
         f" --evaluator-target {args.evaluator_target} --internal {args.internal}"
         + (
             f" --evaluator-entropy {args.evaluator_entropy}"
@@ -80,10 +90,16 @@ def main() -> None:
         "learned_internal": learned,
         "convex_internal": convex,
         "relative_return_change": float(change),
+        "finetune_steps": args.finetune,
+        "convex_internal_finetuned": tuned,
+        "relative_return_change_finetuned": None
+        if tuned is None
+        else (tuned["return"] - learned["return"]) / abs(learned["return"]),
         "thesis_relative_return_change": 0.0064,
     }
     suffix = name.removeprefix("graph")  # swap_seedN.json: per-node agents, fixed τ
-    (root / f"swap{suffix}_seed{args.seed}.json").write_text(json.dumps(result, indent=1))
+    tag = f"_finetune{args.finetune}" if args.finetune else ""
+    (root / f"swap{suffix}{tag}_seed{args.seed}.json").write_text(json.dumps(result, indent=1))
     print(json.dumps(result, indent=1))
 
 
