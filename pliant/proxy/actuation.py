@@ -26,8 +26,9 @@ class Bending:
 
     The stretch is for a skeleton that does not lie on the neutral layer of what it bends: a
     pneumatic chamber bends its leg about the strain-limiting layer under it, so that a
-    skeleton at mid-thickness lengthens as it curls (the FEM Multigait's legs: 20 % at full
-    inflation); a beam bent about its own axis keeps its length (max_stretch 0).
+    skeleton at height h over that layer lengthens by kappa h as it curls
+    (``multigait_proxy(neutral="underside")``); a beam bent about its own axis keeps its
+    length (max_stretch 0).
 
     Args:
         name: the actuator's name ("front_left", "lower_d1").
@@ -82,12 +83,13 @@ class CurvatureActuation:
         if np.abs(u).max(initial=0.0) > 1.0 + 1e-12:
             raise ModelError(f"bending commands must lie in [-1, 1], got {u.tolist()}")
         kappa = self.rod.natural_curvature.copy()
-        stretch = self.rod.natural_strain[:, 2].copy()
         for b, value in zip(self.bendings, u, strict=True):
             kappa[list(b.elements)] += value * b.max_curvature * np.asarray(b.axis)
-            stretch[list(b.elements)] += value * b.max_stretch
         self.rod.set_rest_curvature(kappa)
         if self.stretches:
+            stretch = self.rod.natural_strain[:, 2].copy()
+            for b, value in zip(self.bendings, u, strict=True):
+                stretch[list(b.elements)] += value * b.max_stretch
             self.rod.set_rest_stretch(stretch)
         self.controls = u.copy()
 

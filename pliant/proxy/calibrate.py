@@ -86,18 +86,17 @@ def fitted_proxy(report: Mapping) -> dict:
         keywords = {str(k): float(v) for k, v in report["parameters"].items()}
     except (KeyError, TypeError, ValueError, AttributeError):
         raise ModelError("not a calibration report: no numeric 'parameters'") from None
-    contact = report.get("contact", "nodes")
-    if contact not in ("nodes", "surface"):
-        raise ModelError(f"a calibration report's contact is 'nodes' or 'surface', got {contact!r}")
-    if contact != "nodes":
-        keywords["contact"] = contact
-    neutral = report.get("neutral", "axis")
-    if neutral not in ("axis", "underside"):
-        raise ModelError(
-            f"a calibration report's neutral layer is 'axis' or 'underside', got {neutral!r}"
-        )
-    if neutral != "axis":
-        keywords["neutral"] = neutral
+    for key, (default, other) in {
+        "contact": ("nodes", "surface"),
+        "neutral": ("axis", "underside"),
+    }.items():
+        value = report.get(key, default)
+        if value not in (default, other):
+            raise ModelError(
+                f"a calibration report's {key} is {default!r} or {other!r}, got {value!r}"
+            )
+        if value != default:  # the builders' defaults are left out
+            keywords[key] = value
     return keywords
 
 

@@ -137,12 +137,12 @@ def calibrate(
         if not 0.0 <= low < high:
             raise typer.BadParameter(f"--friction: need 0 <= LOW < HIGH, got {friction}")
         space["friction"] = (low, high)
-    if neutral != "axis":
-        if not robot.startswith("multigait"):
-            raise typer.BadParameter("--neutral: only the Multigait's chambers bend a layer")
-        robot_setup = replace(robot_setup, build=partial(robot_setup.build, neutral=neutral))
-    if contact != "nodes":
-        robot_setup = replace(robot_setup, build=partial(robot_setup.build, contact=contact))
+    if neutral != "axis" and not robot.startswith("multigait"):
+        raise typer.BadParameter("--neutral: only the Multigait's chambers bend a layer")
+    builder = {"neutral": neutral} if neutral != "axis" else {}
+    builder |= {"contact": contact} if contact != "nodes" else {}
+    if builder:
+        robot_setup = replace(robot_setup, build=partial(robot_setup.build, **builder))
     initial = None if start is None else _fitted_parameters(start)
     out.mkdir(parents=True, exist_ok=True)
     path = reference if reference is not None else out / f"{robot}_reference.npz"
