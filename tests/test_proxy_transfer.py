@@ -118,8 +118,9 @@ def test_the_open_loop_feedforward_replays_the_proxy_commands_as_volumes() -> No
         np.testing.assert_allclose(loop.filter.value, seen[-1])
 
     loop.follow = spy
-    loop.run([4, 4])
+    result = loop.run([4, 4])
     assert len(seen) == 10
+    np.testing.assert_allclose(result.actuation, seen)  # the record holds what was applied
     assert seen[-1][3:].min() > 0.0 and np.all(seen[-1][:3] == 0.0)  # the rear legs only
     with pytest.raises(ModelError, match="feedforward"):
         dataclasses.replace(MULTIGAIT_GAINS, feedforward=1.5)
@@ -226,3 +227,22 @@ def test_the_transfer_command_runs_a_trained_policy_with_its_normaliser(tmp_path
     assert len(report["steps"]) == 1 and report["failed_inverse_steps"] == 0
     multigait = ["proxy", "transfer", "multigait", "--goal=10,5"]
     assert runner.invoke(app, multigait).exit_code == 2
+
+
+def test_following_the_shape_moves_the_goals_by_the_mean_gap_along_the_floor() -> None:
+    """follow_shape: the goals lose the mean gap between the proxy's and the FEM's points in x
+    and y (not z), so a proxy walked ahead along the floor asks the inverse model for the same
+    shape where the FEM stands; the Trunk's transfer, which follows places, refuses it."""
+    from pliant.proxy.transfer import TRUNK_GAINS, MultigaitTransfer, trunk_transfer
+
+    rng = np.random.default_rng(3)
+    fem, shape = rng.normal(size=(19, 3)), rng.normal(scale=0.1, size=(19, 3))
+    walked = np.array([4.0, -1.5, 0.7])  # the proxy ahead by 4 mm, aside 1.5, higher 0.7
+    goal = fem + shape + walked
+    shift = MultigaitTransfer.goal_shift(None, goal, fem)
+    np.testing.assert_allclose(shift, [*(walked[:2] + shape[:, :2].mean(axis=0)), 0.0])
+    followed = goal - shift
+    np.testing.assert_allclose((followed - fem)[:, :2].mean(axis=0), 0.0, atol=1e-12)
+    np.testing.assert_allclose(followed[:, 2], goal[:, 2])  # heights are kept
+    with pytest.raises(ModelError, match="follow_shape"):
+        trunk_transfer(gains=dataclasses.replace(TRUNK_GAINS, follow_shape=True))

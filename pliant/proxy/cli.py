@@ -316,6 +316,13 @@ def transfer(
         bool | None,
         typer.Option(help="friction in the inverse look-ahead (default: the robot's gains)"),
     ] = None,
+    follow_shape: Annotated[
+        bool | None,
+        typer.Option(
+            help="Multigait: the inverse model follows the proxy's shape, its goals moved along"
+            " the floor onto the FEM's points (the travel left to the FEM's friction)"
+        ),
+    ] = None,
     goal: Annotated[
         str | None,
         typer.Option(help="trunk: the goal's offset from the cube's start, 'x,z' mm (25,-10)"),
@@ -342,6 +349,7 @@ def transfer(
             ("angle_gain", angle_gain),
             ("lookahead_friction", lookahead_friction),
             ("feedforward", feedforward),
+            ("follow_shape", follow_shape),
         )
         if v is not None
     }

@@ -87,6 +87,10 @@ class TransferGains:
         feedforward: the weight w in [0, 1] of the proxy's commands mapped onto the FEM's
             actuators (:meth:`Transfer.feedforward`) against the inverse model's actuation;
             1: open loop, no inverse model.
+        follow_shape: the Multigait's inverse model follows the proxy's deformation, not its
+            place on the floor: its goals are translated in the floor plane by the mean gap
+            between the proxy's and the FEM's matched points (:meth:`Transfer.goal_shift`);
+            how far the FEM walks is then left to its own contacts' friction.
     """
 
     scale: int
@@ -100,6 +104,7 @@ class TransferGains:
     angle_gain: float = 0.0
     lookahead_friction: bool = False
     feedforward: float = 0.0
+    follow_shape: bool = False
 
     def __post_init__(self) -> None:
         if self.scale < 1 or self.inverse_steps < 1 or self.time_register < 0:
@@ -226,8 +231,8 @@ class StepRecord:
 
 @dataclass
 class TransferResult:
-    """A transfer's steps, the sub-step trajectories (time, proxy and FEM positions), the
-    gains and the wall time."""
+    """A transfer's steps, the sub-step trajectories (time, proxy and FEM positions, the FEM's
+    actuation), the gains and the wall time."""
 
     robot: str
     gains: TransferGains
@@ -235,6 +240,7 @@ class TransferResult:
     times: list[float] = field(default_factory=list)
     proxy_trajectory: list[list[float]] = field(default_factory=list)
     fem_trajectory: list[list[float]] = field(default_factory=list)
+    actuation: list[list[float]] = field(default_factory=list)
     failed_inverse_steps: int = 0
     wall_time: float = 0.0
     start: list[float] = field(default_factory=list)
@@ -280,6 +286,7 @@ class TransferResult:
             "times": self.times,
             "proxy_trajectory": self.proxy_trajectory,
             "fem_trajectory": self.fem_trajectory,
+            "actuation": self.actuation,
         }
 
 
@@ -297,6 +304,7 @@ class Transfer:
     """
 
     robot = "robot"
+    follows_shape = False
 
     def __init__(
         self,
@@ -312,6 +320,8 @@ class Transfer:
             raise ModelError(f"the proxy takes {env.substeps} sub-steps, the gains {gains.scale}")
         if len(fem.effectors) != 1 or len(gains.upper) != fem.n_actuators:
             raise ModelError("the FEM model needs one effector and a bound pair per actuator")
+        if gains.follow_shape and not self.follows_shape:
+            raise ModelError(f"the {self.robot} transfer follows places: keep follow_shape off")
         self.env, self.fem, self.state, self.gains = env, fem, state, gains
         self.proxy_points = proxy_points
         self.points = fem.effectors[0].points
@@ -343,6 +353,11 @@ class Transfer:
         """What the actuation corrector adds to the inverse model's actuation."""
         return np.zeros(self.fem.n_actuators)
 
+    def goal_shift(self, goal: np.ndarray, points: np.ndarray) -> np.ndarray:
+        """(3,) what is taken off the goals before the inverse model (``gains.follow_shape``;
+        a robot whose transfer can follow shapes sets ``follows_shape``)."""
+        raise NotImplementedError
+
     def feedforward(self, commands: np.ndarray) -> np.ndarray:
         """The proxy's commands of a sub-step as the FEM's actuation (``gains.feedforward``)."""
         raise ModelError(f"the {self.robot} transfer has no feedforward map: keep feedforward 0")
@@ -362,6 +377,8 @@ class Transfer:
             actuation = self.feedforward(commands) + self.correction(goal, now)
             self.state = self.solver.step(self.state, self.filter.update(actuation))
             return
+        if g.follow_shape:
+            goal = goal - self.goal_shift(goal, now)
         target = goal + g.kp * (goal - now)
         look = self.state.copy()
         contacts = self.fem.contacts
@@ -404,6 +421,7 @@ class Transfer:
             self.result.times.append(float(self.state.time))
             self.result.proxy_trajectory.append(self.proxy_position(sub).tolist())
             self.result.fem_trajectory.append(self.fem_position(self.state).tolist())
+            self.result.actuation.append(self.filter.value.tolist())
         proxy_points = self.proxy_points(self.env.state.positions)
         fem_points = self.points.positions(self.state.positions)
         proxy_after = self.proxy_position(self.env.state)
@@ -457,6 +475,7 @@ class MultigaitTransfer(Transfer):
     legs' tip angles."""
 
     robot = "multigait"
+    follows_shape = True
     # The skeleton's nodes of each leg, root to tip (pliant.proxy.builders.multigait_proxy).
     LEGS = {name: np.arange(3 + 4 * k, 7 + 4 * k) for k, name in enumerate(CHAMBERS[1:])}
 
@@ -490,6 +509,12 @@ class MultigaitTransfer(Transfer):
             segment = points[nodes[-1]] - points[nodes[-2]]
             angles.append(np.arctan2(-segment[2], np.linalg.norm(segment[:2])))
         return np.array(angles)
+
+    def goal_shift(self, goal, points) -> np.ndarray:
+        """The mean gap between the proxy's and the FEM's points along the floor (x, y)."""
+        shift = (goal - points).mean(axis=0)
+        shift[2] = 0.0
+        return shift
 
     def feedforward(self, commands: np.ndarray) -> np.ndarray:
         """A chamber's command in [0, 1] times its volume in the hand gait
