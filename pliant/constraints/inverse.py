@@ -63,8 +63,8 @@ def _polish(hess, grad, c_mat, lower, upper, lo_box, hi_box, x, z):
         a = np.array(rows)
         kkt = np.block([[hess, a.T], [a, np.zeros((len(rows), len(rows)))]])
         cand = np.linalg.lstsq(kkt, np.concatenate([-grad, rhs]), rcond=None)[0][:n]
-    else:
-        cand = np.linalg.solve(hess, -grad)
+    else:  # lstsq: the Hessian is singular where some actuators do not reach the effectors
+        cand = np.linalg.lstsq(hess, -grad, rcond=None)[0]
     slack = 1e-9 * max(1.0, float(np.max(np.abs(values), initial=0.0)))
     feasible = np.all(full @ cand >= lows - slack) and np.all(full @ cand <= ups + slack)
     objective = 0.5 * cand @ hess @ cand + grad @ cand
