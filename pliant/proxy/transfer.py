@@ -6,7 +6,9 @@ Each proxy step (one step of the proxy environment: ``scale`` sub-steps, its act
 policy or a fixed sequence), the proxy's matched points after each sub-step are the goals g of
 a position effector of the FEM robot on the same points, and for each sub-step:
 
-1. goal correction (proportional): g' = g + Kp (g - p), p the FEM's points now;
+1. goal correction (proportional): g' = g + Kp (g - p), p the FEM's points now (with
+   ``follow_shape``, g first loses the mean gap of g - p along the floor: the Multigait's
+   inverse model then follows the proxy's shape, not its place);
 2. the inverse model: the QP of Eq. 2.15 (with complementarity where the robot touches
    something) stepped ``inverse_steps`` times towards g' from a copy of the FEM's state, a
    look-ahead that gives the actuation reaching the goal rather than the part of it one step
