@@ -44,6 +44,10 @@ def test_gains_refuse_a_rate_outside_0_1_and_crossed_bounds() -> None:
         dataclasses.replace(MULTIGAIT_GAINS, rate=1.5)
     with pytest.raises(ModelError, match="lower <= upper"):
         TransferGains(scale=1, time_register=0, rate=1.0, kp=0.0, lower=(1.0,), upper=(0.0,))
+    with pytest.raises(ModelError, match="'qp' or 'sensitivity'"):
+        dataclasses.replace(MULTIGAIT_GAINS, inverse_model="newton")
+    with pytest.raises(ModelError, match="sensitivity step"):
+        dataclasses.replace(MULTIGAIT_GAINS, sensitivity_step=0.0)
 
 
 def test_rigid_fit_recovers_a_rotation() -> None:
@@ -100,6 +104,52 @@ def test_a_short_multigait_transfer_moves_the_fem_as_the_proxy(short_multigait) 
     assert np.all(a >= np.array(loop.gains.lower)) and np.all(a <= np.array(loop.gains.upper))
     assert a[3:].min() > 0.0  # the rear chambers inflated
     assert result.failed_inverse_steps == 0
+
+
+@pytest.fixture(scope="module")
+def sensitive_multigait():
+    """The coarse Multigait transfer of `short_multigait` with the sensitivity inverse."""
+    gains = dataclasses.replace(
+        MULTIGAIT_GAINS, scale=10, time_register=2, inverse_steps=2, inverse_model="sensitivity"
+    )
+    return multigait_transfer(gains=gains, mesh_size=9.0)
+
+
+def test_the_sensitivity_inverse_lands_the_roll_out_near_a_reachable_target(
+    sensitive_multigait,
+) -> None:
+    """Points reached by a known actuation (centre, one front and one rear chamber) after the
+    look-ahead: the actuation the bounded least squares finds from rest brings the roll-out
+    within a quarter of the way (measured 9.5 %; the FEM's frictional contacts make the
+    roll-out nonlinear in the actuation), stays in the bounds, and leaves the state alone."""
+    loop = sensitive_multigait
+    upper = np.array(loop.gains.upper)
+    before = loop.state.copy()
+    rest = loop.roll_out(np.zeros(5))
+    target = loop.roll_out(np.array([0.05, 0.025, 0.0, 0.05, 0.0]) * upper)
+    found = loop.sensitivity_inverse(target)
+    assert np.all(found >= 0.0) and np.all(found <= upper)
+    miss = np.linalg.norm(loop.roll_out(found) - target)
+    assert miss < 0.25 * np.linalg.norm(target - rest)
+    np.testing.assert_array_equal(loop.state.positions, before.positions)
+
+
+def test_a_short_transfer_by_the_sensitivity_inverse_moves_the_fem_as_the_proxy(
+    sensitive_multigait,
+) -> None:
+    """The rear-leg inflation of the QP test above, followed by the sensitivity inverse:
+    the FEM's points move the way the proxy's do (cosine > 0.7; measured 0.80), the rear
+    chambers inflate."""
+    loop = sensitive_multigait
+    rest = loop.points.positions(loop.state.positions)
+    proxy_rest = loop.env.proxy.skeleton(loop.env.state.positions)
+    result = loop.run([4, 4, 4])
+    fem = loop.points.positions(loop.state.positions) - rest
+    proxy = loop.env.proxy.skeleton(loop.env.state.positions) - proxy_rest
+    cosine = float(np.sum(fem * proxy) / (np.linalg.norm(fem) * np.linalg.norm(proxy)))
+    assert cosine > 0.7
+    assert loop.filter.value[3:].min() > 0.0
+    assert result.failed_inverse_steps == 0 and result.gains.inverse_model == "sensitivity"
 
 
 def test_the_open_loop_feedforward_replays_the_proxy_commands_as_volumes() -> None:
@@ -161,8 +211,9 @@ def test_the_angle_corrector_acts_on_the_open_loop_too() -> None:
 
 def test_the_transfer_command_writes_both_trajectories_and_refuses_bad_actions(tmp_path) -> None:
     """`pliant proxy transfer trunk` on two steps bending onto the cube: JSON and PNG written,
-    the FEM's cube pushed along +x as the proxy's; a Multigait action outside Discrete(6) is
-    refused before any work (exit 2)."""
+    the FEM's cube pushed along +x as the proxy's, by the QP and by the sensitivity inverse;
+    a Multigait action outside Discrete(6) and an unknown inverse model are refused before
+    any work."""
     import json
 
     from typer.testing import CliRunner
@@ -182,6 +233,16 @@ def test_the_transfer_command_writes_both_trajectories_and_refuses_bad_actions(t
     assert proxy[0] > start[0] + 5.0 and fem[0] > start[0] + 5.0
     bad = runner.invoke(app, ["proxy", "transfer", "multigait", "--actions", "4,7"])
     assert bad.exit_code == 2
+    # The sensitivity inverse on the Trunk's cables and base: the cube pushed the same way.
+    sens = tmp_path / "sensitivity"
+    result = runner.invoke(app, [*args[:-1], str(sens), "--inverse-model", "sensitivity"])
+    assert result.exit_code == 0, result.output
+    report = json.loads((sens / "trunk_transfer.json").read_text())
+    assert report["gains"]["inverse_model"] == "sensitivity"
+    assert report["failed_inverse_steps"] == 0
+    assert report["steps"][-1]["fem_position"][0] > start[0] + 5.0
+    refused = runner.invoke(app, [*args, "--inverse-model", "newton"])
+    assert refused.exit_code == 1 and "'qp' or 'sensitivity'" in refused.output
     # --proxy: a calibration report's proxy, here the defaults touching through the surface.
     from pliant.proxy.builders import TRUNK_PARAMETERS
 

@@ -323,6 +323,13 @@ def transfer(
             " the floor onto the FEM's points (the travel left to the FEM's friction)"
         ),
     ] = None,
+    inverse_model: Annotated[
+        str | None,
+        typer.Option(
+            help="'qp' (the thesis' inverse QP look-ahead) or 'sensitivity' (bounded least"
+            " squares on the FEM step's actuation Jacobian, roll-outs with its friction)"
+        ),
+    ] = None,
     goal: Annotated[
         str | None,
         typer.Option(help="trunk: the goal's offset from the cube's start, 'x,z' mm (25,-10)"),
@@ -350,6 +357,7 @@ def transfer(
             ("lookahead_friction", lookahead_friction),
             ("feedforward", feedforward),
             ("follow_shape", follow_shape),
+            ("inverse_model", inverse_model),
         )
         if v is not None
     }

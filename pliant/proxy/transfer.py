@@ -9,17 +9,27 @@ a position effector of the FEM robot on the same points, and for each sub-step:
 1. goal correction (proportional): g' = g + Kp (g - p), p the FEM's points now (with
    ``follow_shape``, g first loses the mean gap of g - p along the floor: the Multigait's
    inverse model then follows the proxy's shape, not its place);
-2. the inverse model: the QP of Eq. 2.15 (with complementarity where the robot touches
-   something) stepped ``inverse_steps`` times towards g' from a copy of the FEM's state, a
-   look-ahead that gives the actuation reaching the goal rather than the part of it one step
-   affords; its actuator displacements (volume growths, cable shortenings) are a_inv. The
+2. the inverse model (``inverse_model="qp"``, the thesis'): the QP of Eq. 2.15 (with
+   complementarity where the robot touches something) stepped ``inverse_steps`` times towards
+   g' from a copy of the FEM's state, a look-ahead that gives the actuation reaching the goal
+   rather than the part of it one step affords; its actuator displacements (volume growths,
+   cable shortenings) are a_inv. The
    look-ahead's contacts are frictionless by default (`lookahead_friction` keeps them): with
    the Multigait's friction (0.7) the QPCC once found no feasible contact state at any step,
    even for goals where the points already were (ProxQP's loose infeasibility certificates,
    fixed: the resting walker now solves). From the walker's rest state, with no contact
    forces to seed its states, it still fails (no contact states in its 30 rounds, 7.5 s, then
    no friction states a few steps on), so the FEM does not move; frictionless, it solves.
-   The FEM's own step (4.) keeps its friction;
+   The FEM's own step (4.) keeps its friction.
+   ``inverse_model="sensitivity"`` (a departure) instead linearises the FEM's own step, with
+   its frictional contacts: the matched points p(a) after ``inverse_steps`` steps under a
+   held actuation a are rolled out from the FEM's state at the applied actuation a_0 and at
+   a_0 + h e_j for each actuator j (h a fraction ``sensitivity_step`` of its bound range), and
+   a_inv = a_0 + x with x the bounded least-squares solution of
+   min ||J x - (g' - p(a_0))||^2 + eps ||x||^2, lower - a_0 <= x <= upper - a_0 (SciPy's
+   ``lsq_linear``; eps = 1e-3 ||J||_F^2 / n_a, the QP's relative regularisation). It costs
+   (n_a + 1) ``inverse_steps`` FEM steps a sub-step and needs no contact active set: what the
+   QPCC with friction could not settle, the FEM's own contact solve does in each roll-out;
 3. the actuation correction, a robot's own term added to a_inv (the Multigait's, below);
 4. optionally, a feedforward: the proxy's own commands of the sub-step mapped onto the FEM's
    actuators (the Multigait: a chamber's command in [0, 1] times the hand gait's volume),
@@ -56,12 +66,13 @@ from collections.abc import Callable, Sequence
 from dataclasses import asdict, dataclass, field, replace
 
 import numpy as np
+from scipy.optimize import lsq_linear
 
 from pliant.constraints.base import EmbeddedPoints
 from pliant.constraints.control import InverseControl
 from pliant.constraints.effector import PositionEffector
 from pliant.envs.base import Ramp, SoftRobotEnv
-from pliant.errors import ModelError, PliantError
+from pliant.errors import ModelError, PliantError, SolverError
 from pliant.fem.rotation import exp_map, log_map
 from pliant.mesh.multigait import CHAMBERS
 from pliant.model import Model, State
@@ -93,6 +104,11 @@ class TransferGains:
             place on the floor: its goals are translated in the floor plane by the mean gap
             between the proxy's and the FEM's matched points (:meth:`Transfer.goal_shift`);
             how far the FEM walks is then left to its own contacts' friction.
+        inverse_model: "qp", the thesis' inverse QP look-ahead, or "sensitivity", the bounded
+            least squares on the FEM step's actuation Jacobian by finite differences of
+            roll-outs with the FEM's own (frictional) contacts (module docstring, 2.).
+        sensitivity_step: the finite-difference step of "sensitivity", a fraction of each
+            actuator's bound range.
     """
 
     scale: int
@@ -107,8 +123,19 @@ class TransferGains:
     lookahead_friction: bool = False
     feedforward: float = 0.0
     follow_shape: bool = False
+    inverse_model: str = "qp"
+    sensitivity_step: float = 0.02
 
     def __post_init__(self) -> None:
+        if self.inverse_model not in ("qp", "sensitivity"):
+            raise ModelError(
+                f"the inverse model is 'qp' or 'sensitivity', got {self.inverse_model!r}"
+            )
+        if not 0.0 < self.sensitivity_step <= 0.5:
+            raise ModelError(
+                "the sensitivity step must lie in (0, 0.5] of the bounds,"
+                f" got {self.sensitivity_step}"
+            )
         if self.scale < 1 or self.inverse_steps < 1 or self.time_register < 0:
             raise ModelError("scale and inverse_steps must be >= 1, time_register >= 0")
         if not 0.0 <= self.feedforward <= 1.0:
@@ -382,6 +409,22 @@ class Transfer:
         if g.follow_shape:
             goal = goal - self.goal_shift(goal, now)
         target = goal + g.kp * (goal - now)
+        try:
+            if g.inverse_model == "sensitivity":
+                inverse = self.sensitivity_inverse(target)
+            else:
+                inverse = self.qp_inverse(target)
+        except PliantError:  # no inverse step: keep the actuation
+            self.result.failed_inverse_steps += 1
+            inverse = self.filter.value / max(g.gain, 1e-12)
+        inverse = inverse + self.correction(goal, now)
+        if w > 0.0:
+            inverse = w * self.feedforward(commands) + (1.0 - w) * inverse
+        self.state = self.solver.step(self.state, self.filter.update(inverse))
+
+    def qp_inverse(self, target: np.ndarray) -> np.ndarray:
+        """a_inv of the inverse QP's look-ahead towards `target` (module docstring, 2.)."""
+        g = self.gains
         look = self.state.copy()
         contacts = self.fem.contacts
         friction = None if contacts is None else contacts.friction
@@ -392,17 +435,42 @@ class Transfer:
                     contacts.friction = np.zeros_like(friction)
                 for _ in range(g.inverse_steps):
                     look = self.solver.step(look, InverseControl(goals=target))
-            inverse = look.displacement
-        except PliantError:  # no inverse step: keep the actuation
-            self.result.failed_inverse_steps += 1
-            inverse = self.filter.value / max(g.gain, 1e-12)
         finally:
             if contacts is not None:
                 contacts.friction = friction
-        inverse = inverse + self.correction(goal, now)
-        if w > 0.0:
-            inverse = w * self.feedforward(commands) + (1.0 - w) * inverse
-        self.state = self.solver.step(self.state, self.filter.update(inverse))
+        return look.displacement
+
+    def roll_out(self, actuation: np.ndarray) -> np.ndarray:
+        """(K, 3) the matched points after ``inverse_steps`` FEM steps under `actuation`
+        held, from the FEM's present state (the state itself is not touched)."""
+        look = self.state.copy()
+        for _ in range(self.gains.inverse_steps):
+            look = self.solver.step(look, actuation)
+        return self.points.positions(look.positions)
+
+    def sensitivity_inverse(self, target: np.ndarray) -> np.ndarray:
+        """a_inv of the bounded least squares on the roll-outs' Jacobian (module docstring,
+        2.): the actuation, within the bounds, whose linearised roll-out lands nearest
+        `target`."""
+        g = self.gains
+        lower, upper = np.asarray(g.lower, dtype=float), np.asarray(g.upper, dtype=float)
+        base = np.clip(self.filter.value, lower, upper)
+        reached = self.roll_out(base).ravel()
+        jacobian = np.empty((reached.size, base.size))
+        for j in range(base.size):
+            h = g.sensitivity_step * max(upper[j] - lower[j], 1e-12)
+            if base[j] + h > upper[j]:  # difference backwards at the upper bound
+                h = -h
+            moved = base.copy()
+            moved[j] += h
+            jacobian[:, j] = (self.roll_out(moved).ravel() - reached) / h
+        eps = 1e-3 * float(np.sum(jacobian**2)) / base.size
+        rows = np.vstack([jacobian, np.sqrt(eps) * np.eye(base.size)])
+        rhs = np.concatenate([np.ravel(target) - reached, np.zeros(base.size)])
+        if not (np.all(np.isfinite(rows)) and np.all(np.isfinite(rhs))):
+            raise SolverError("the roll-outs of the sensitivity inverse are not finite")
+        step = lsq_linear(rows, rhs, bounds=(lower - base, upper - base)).x
+        return base + step
 
     def step(self, action, *, realigned: bool = False) -> StepRecord:
         """One proxy step under `action`, the FEM following each of its sub-steps
