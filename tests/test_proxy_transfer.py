@@ -46,6 +46,8 @@ def test_gains_refuse_a_rate_outside_0_1_and_crossed_bounds() -> None:
         TransferGains(scale=1, time_register=0, rate=1.0, kp=0.0, lower=(1.0,), upper=(0.0,))
     with pytest.raises(ModelError, match="'qp' or 'sensitivity'"):
         dataclasses.replace(MULTIGAIT_GAINS, inverse_model="newton")
+    with pytest.raises(ModelError, match="scale s"):
+        dataclasses.replace(MULTIGAIT_GAINS, gain=0.0)
     with pytest.raises(ModelError, match="sensitivity step"):
         dataclasses.replace(MULTIGAIT_GAINS, sensitivity_step=0.0)
 

@@ -10,9 +10,11 @@ cartstem.py's settings, then evaluates its checkpoint greedily on ``--episodes``
 as trained, and with every internal agent replaced by the scene's convex controller
 (``GraphAgent.swap_internal``; the Evaluator and the external agents as trained). Writes
 ``<out>/<scene>/swap_seed<seed>.json`` (``swap_shared_seed<seed>.json`` with ``--internal
-shared``): both mean returns and success rates and the relative
-change of the return. ``--finetune N`` then trains the swapped hierarchy (the Evaluator and
-the external agents, around the convex internal agents) for N more environment steps and
+shared``): both mean returns and success rates and the relative change of the return, and
+each goal's episode under both (``episodes``: return, length, success, final distance, the
+nodes visited and the Evaluator's choices), so that the change can be traced to the goals
+where it happens. ``--finetune N`` then trains the swapped hierarchy (the Evaluator and the
+external agents, around the convex internal agents) for N more environment steps and
 evaluates it on the same goals again (``convex_internal_finetuned``; the checkpoint is left
 as trained).
 """
@@ -23,6 +25,7 @@ import argparse
 import json
 from pathlib import Path
 
+import numpy as np
 import torch
 from cartstem import (  # this folder is on sys.path
     ENV_SETTINGS,
@@ -33,7 +36,30 @@ from cartstem import (  # this folder is on sys.path
 
 from pliant.learn.graph import GraphConfig
 from pliant.learn.graph.cli import build_learner, train_run
+from pliant.learn.graph.hierarchy import final_numbers
 from pliant.learn.graph.scenes import make_scene
+
+
+def greedy_episodes(agent, env, episodes: int, seed: int = 10_000) -> tuple[dict, list[dict]]:
+    """``agent.evaluate``'s means (the same goals, seeds ``seed + k``) and each episode."""
+    runs = [agent.run_episode(env, train=False, seed=seed + k) for k in range(episodes)]
+    means = {
+        "return": float(np.mean([r["return"] for r in runs])),
+        "success": float(np.mean([r["success"] for r in runs])),
+        **final_numbers([r["info"] for r in runs]),
+    }
+    each = [
+        {
+            "return": r["return"],
+            "length": r["length"],
+            "success": bool(r["success"]),
+            "final_distance": r["info"].get("distance"),
+            "nodes": [int(n) for n in r["nodes"]],
+            "choices": [int(c) for c in r["choices"]],
+        }
+        for r in runs
+    ]
+    return means, each
 
 
 def main() -> None:
@@ -62,9 +88,9 @@ def main() -> None:
         raise SystemExit(f"{args.scene} has no convex internal agents to swap in")
     agent = build_learner("graph", scene, GraphConfig(**config), args.seed)
     agent.load(run / "checkpoint.pt")
-    learned = agent.evaluate(scene.env, args.episodes)
+    learned, learned_each = greedy_episodes(agent, scene.env, args.episodes)
     agent.swap_internal(scene.controllers)
-    convex = agent.evaluate(scene.env, args.episodes)
+    convex, convex_each = greedy_episodes(agent, scene.env, args.episodes)
     change = (convex["return"] - learned["return"]) / abs(learned["return"])
     tuned = None
     if args.finetune > 0:  # the Evaluator and external agents learn around the controllers
@@ -96,6 +122,7 @@ def main() -> None:
         if tuned is None
         else (tuned["return"] - learned["return"]) / abs(learned["return"]),
         "thesis_relative_return_change": 0.0064,
+        "episodes": {"learned_internal": learned_each, "convex_internal": convex_each},
     }
     suffix = name.removeprefix("graph")  # swap_seedN.json: per-node agents, fixed τ
     tag = f"_finetune{args.finetune}" if args.finetune else ""

@@ -303,6 +303,10 @@ def transfer(
     inverse_steps: Annotated[
         int | None, typer.Option(help="steps of the inverse look-ahead", callback=at_least_one)
     ] = None,
+    gain: Annotated[
+        float | None,
+        typer.Option(help="s, the scale on the inverse model's actuation (the filter's s a_inv)"),
+    ] = None,
     angle_gain: Annotated[
         float | None, typer.Option(help="Multigait corrector's gain (0: no correction)")
     ] = None,
@@ -353,6 +357,7 @@ def transfer(
         for k, v in (
             ("time_register", time_register),
             ("inverse_steps", inverse_steps),
+            ("gain", gain),
             ("angle_gain", angle_gain),
             ("lookahead_friction", lookahead_friction),
             ("feedforward", feedforward),

@@ -140,6 +140,8 @@ class TransferGains:
             raise ModelError("scale and inverse_steps must be >= 1, time_register >= 0")
         if not 0.0 <= self.feedforward <= 1.0:
             raise ModelError(f"the feedforward weight must lie in [0, 1], got {self.feedforward}")
+        if not (np.isfinite(self.gain) and self.gain > 0.0):
+            raise ModelError(f"the inverse actuation's scale s must be > 0, got {self.gain}")
         if not 0.0 < self.rate <= 1.0:
             raise ModelError(f"the filter's rate must lie in (0, 1], got {self.rate}")
         if len(self.lower) != len(self.upper) or np.any(np.greater(self.lower, self.upper)):
