@@ -10,12 +10,14 @@ and final cube gap are reported over repeats (median, min, max).
         --proxy surface_fem_mass=experiments/proxy/cube_surface/fem_mass.json \
         --out experiments/results/proxy/trunk_surface/repeats.json
 
-(`nodes=` with no report: the calibrated defaults.)
+(`nodes=` with no report: the calibrated defaults.) `--inverse-model sensitivity`: the
+transfer's inverse model (`TransferGains.inverse_model`), the thesis' QP by default.
 """
 
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import warnings
 from pathlib import Path
@@ -23,7 +25,7 @@ from pathlib import Path
 import numpy as np
 
 from pliant.proxy.calibrate import fitted_proxy
-from pliant.proxy.transfer import SEQUENCES, trunk_transfer
+from pliant.proxy.transfer import SEQUENCES, TRUNK_GAINS, trunk_transfer
 
 
 def main() -> None:
@@ -31,13 +33,15 @@ def main() -> None:
     parser.add_argument("--proxy", action="append", required=True, help="NAME=[REPORT.json]")
     parser.add_argument("--repeats", type=int, default=5)
     parser.add_argument("--out", type=Path, required=True)
+    parser.add_argument("--inverse-model", default="qp", choices=("qp", "sensitivity"))
     args = parser.parse_args()
+    gains = dataclasses.replace(TRUNK_GAINS, inverse_model=args.inverse_model)
     warnings.simplefilter("ignore")
     result = {
         "command": "python experiments/proxy_trunk_repeats.py "
         + f"--repeats {args.repeats} "
         + " ".join(f"--proxy {p}" for p in args.proxy)
-        + f" --out {args.out}",
+        + f" --out {args.out} --inverse-model {args.inverse_model}",
         "proxies": {},
     }
     for item in args.proxy:
@@ -45,7 +49,7 @@ def main() -> None:
         env_kwargs = fitted_proxy(json.loads(Path(path).read_text())) if path else None
         runs = []
         for _ in range(args.repeats):
-            run = trunk_transfer(env_kwargs=env_kwargs).run(list(SEQUENCES["trunk"]))
+            run = trunk_transfer(env_kwargs=env_kwargs, gains=gains).run(list(SEQUENCES["trunk"]))
             runs.append(
                 {
                     "relative_difference": run.relative_difference,
