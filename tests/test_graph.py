@@ -4,6 +4,8 @@ hierarchy reaching a goal that needs a change of region on a toy corridor."""
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -281,6 +283,22 @@ def test_hierarchy_reaches_a_goal_in_another_region():
     assert np.mean([r["return"] for r in swapped]) >= learned - 0.02 * abs(learned)
     with pytest.raises(ValueError, match="no node 3"):
         agent.swap_internal({3: corridor_controller()})
+
+
+def test_a_crossing_controller_keeps_acting_across_node_changes():
+    """The Evaluator always choosing the internal agent of the node it is in: the corridor's
+    controller hands back at each node change (left -> middle -> right: three choices) by
+    default; with ``controller_crosses`` it is chosen once and walks to the goal through the
+    three nodes, which the episode's node sequence still records."""
+    controllers = {i: corridor_controller() for i in range(3)}
+    for crosses, choices in ((False, [0, 1, 2]), (True, [0])):
+        config = dataclasses.replace(FAST, controller_crosses=crosses)
+        env, agent = _corridor_agent(controllers, config=config)
+        agent.evaluator.choose = lambda obs, node, rng, greedy: node
+        run = agent.run_episode(env, train=False, seed=3)
+        assert run["success"]
+        assert run["nodes"] == [0, 1, 2]
+        assert run["choices"] == choices
 
 
 def test_hierarchy_with_convex_internal_agents():

@@ -13,15 +13,17 @@ as trained, and with every internal agent replaced by the scene's convex control
 shared``): both mean returns and success rates and the relative change of the return, and
 each goal's episode under both (``episodes``: return, length, success, final distance, the
 nodes visited and the Evaluator's choices), so that the change can be traced to the goals
-where it happens. ``--finetune N`` then trains the swapped hierarchy (the Evaluator and the
-external agents, around the convex internal agents) for N more environment steps and
-evaluates it on the same goals again (``convex_internal_finetuned``; the checkpoint is left
-as trained).
+where it happens; and once more with the controllers acting on across node changes
+(``GraphConfig.controller_crosses``: ``convex_internal_crossing``). ``--finetune N`` then
+trains the swapped hierarchy (the Evaluator and the external agents, around the convex
+internal agents) for N more environment steps and evaluates it on the same goals again
+(``convex_internal_finetuned``; the checkpoint is left as trained).
 """
 
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 from pathlib import Path
 
@@ -91,6 +93,10 @@ def main() -> None:
     learned, learned_each = greedy_episodes(agent, scene.env, args.episodes)
     agent.swap_internal(scene.controllers)
     convex, convex_each = greedy_episodes(agent, scene.env, args.episodes)
+    # The same controllers left to act across node changes (GraphConfig.controller_crosses).
+    agent.config = dataclasses.replace(agent.config, controller_crosses=True)
+    crossing, crossing_each = greedy_episodes(agent, scene.env, args.episodes)
+    agent.config = dataclasses.replace(agent.config, controller_crosses=False)
     change = (convex["return"] - learned["return"]) / abs(learned["return"])
     tuned = None
     if args.finetune > 0:  # the Evaluator and external agents learn around the controllers
@@ -116,13 +122,20 @@ def main() -> None:
         "learned_internal": learned,
         "convex_internal": convex,
         "relative_return_change": float(change),
+        "convex_internal_crossing": crossing,
+        "relative_return_change_crossing": (crossing["return"] - learned["return"])
+        / abs(learned["return"]),
         "finetune_steps": args.finetune,
         "convex_internal_finetuned": tuned,
         "relative_return_change_finetuned": None
         if tuned is None
         else (tuned["return"] - learned["return"]) / abs(learned["return"]),
         "thesis_relative_return_change": 0.0064,
-        "episodes": {"learned_internal": learned_each, "convex_internal": convex_each},
+        "episodes": {
+            "learned_internal": learned_each,
+            "convex_internal": convex_each,
+            "convex_internal_crossing": crossing_each,
+        },
     }
     suffix = name.removeprefix("graph")  # swap_seedN.json: per-node agents, fixed τ
     tag = f"_finetune{args.finetune}" if args.finetune else ""

@@ -453,7 +453,8 @@ class ControllerAgent:
     """An internal agent replaced by a controller, e.g. convex optimisation (the inverse QP/QPCC
     of :class:`pliant.constraints.control.InverseControl`): ``controller(obs)`` -> action in
     [-1, 1]^m. The hierarchy runs it as an option until the node changes (or the episode ends,
-    or ``option_limit`` steps pass). It has no critic: boundary targets of its neighbours fall
+    or ``option_limit`` steps pass; with ``GraphConfig.controller_crosses``, on across node
+    changes). It has no critic: boundary targets of its neighbours fall
     back on their own."""
 
     learned = False

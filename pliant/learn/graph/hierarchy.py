@@ -5,10 +5,12 @@ At each decision the current node i comes from the graph's partition function (c
 detection, geometry) or the Selector; the Evaluator picks j ∈ V_i ∪ {i}; j ≠ i runs node i's
 external agent towards S_j until the state leaves S_i (or ``option_limit`` steps, or the
 episode ends); j = i runs node i's internal agent for one step (T = 1), or, when it is a
-:class:`ControllerAgent`, until the node changes; a choice j ≥ N (N nodes) runs expert option
-j − N (:class:`ExpertOption`) to its end. Every primitive transition that starts in
-S_i feeds node i's internal and external buffers; every option feeds the Evaluator with the
-transitions of Eq. 4.6, penalised (``penalty``) when an internal agent changed the space.
+:class:`ControllerAgent`, until the node changes (with ``controller_crosses``, on across
+node changes, until the episode ends or ``option_limit`` steps pass); a choice j ≥ N
+(N nodes) runs expert option j − N (:class:`ExpertOption`) to its end. Every primitive
+transition that starts in S_i feeds node i's internal and external buffers; every option feeds
+the Evaluator with the transitions of Eq. 4.6, penalised (``penalty``) when an internal agent
+changed the space.
 """
 
 from __future__ import annotations
@@ -72,6 +74,12 @@ class GraphConfig:
     #: the internal agents: "per_node" (one SAC each, the thesis') or "shared" (one SAC on
     #: [s | one-hot(i)] for all, trained on every transition: :class:`SharedInternal`).
     internal: str = "per_node"
+    #: a controller internal agent (:class:`ControllerAgent`) keeps acting when its actions
+    #: take the state into another node, until the episode ends or ``option_limit`` steps
+    #: pass (a departure: the issue's controller hands back when the node changes). For an
+    #: Evaluator trained with learned agents that solve from inside a node whose controller's
+    #: solution lies outside it (docs/graph.md, the swap goal by goal).
+    controller_crosses: bool = False
 
 
 def final_numbers(infos: list[dict]) -> dict[str, float]:
@@ -223,6 +231,11 @@ class GraphAgent:
             choices.append(choice)
             expert = self.experts[choice - n] if choice >= n else None
             runs_option = choice != node or not self.internal[node].learned
+            crosses = (
+                self.config.controller_crosses
+                and choice == node
+                and not self.internal[node].learned
+            )
             observations, rewards, current = [obs], [], node
             while True:
                 if expert is not None:
@@ -246,6 +259,11 @@ class GraphAgent:
                     if done or len(rewards) >= len(expert):
                         break
                     continue
+                if crosses and not done and len(rewards) < self.config.option_limit:
+                    if next_node != current:  # on through the nodes it crosses
+                        nodes.append(next_node)
+                    current = next_node
+                    continue
                 if (
                     done
                     or next_node != node
@@ -260,7 +278,7 @@ class GraphAgent:
                     rewards[-1] += expert.penalty
                 for t in option_transitions(observations, rewards, terminated):
                     self.evaluator_buffer.add(node=node, choice=choice, next_node=next_node, **t)
-            if expert is None and next_node != node:
+            if expert is None and next_node != current:
                 nodes.append(next_node)
             node = next_node
         if train and self.config.updates_per_episode and self.steps >= self.config.learning_starts:
