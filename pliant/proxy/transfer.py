@@ -13,14 +13,14 @@ a position effector of the FEM robot on the same points, and for each sub-step:
    complementarity where the robot touches something) stepped ``inverse_steps`` times towards
    g' from a copy of the FEM's state, a look-ahead that gives the actuation reaching the goal
    rather than the part of it one step affords; its actuator displacements (volume growths,
-   cable shortenings) are a_inv. The
-   look-ahead's contacts are frictionless by default (`lookahead_friction` keeps them): with
-   the Multigait's friction (0.7) the QPCC once found no feasible contact state at any step,
-   even for goals where the points already were (ProxQP's loose infeasibility certificates,
-   fixed: the resting walker now solves). From the walker's rest state, with no contact
-   forces to seed its states, it still fails (no contact states in its 30 rounds, 7.5 s, then
-   no friction states a few steps on), so the FEM does not move; frictionless, it solves.
-   The FEM's own step (4.) keeps its friction.
+   cable shortenings) are a_inv. The look-ahead's contacts are frictionless by default
+   (`lookahead_friction` keeps them): with the Multigait's friction (0.7) the QPCC once found
+   no feasible contact state at any step, even for goals where the points already were
+   (ProxQP's loose infeasibility certificates, fixed: the resting walker now solves). From
+   the walker's rest state, with no contact forces to seed its states, it still fails (no
+   contact states in its 30 rounds, 7.5 s, then no friction states a few steps on), so the
+   FEM does not move; frictionless, it solves.
+   The FEM's own step (5.) keeps its friction.
    ``inverse_model="sensitivity"`` (a departure) instead linearises the FEM's own step, with
    its frictional contacts: the matched points p(a) after ``inverse_steps`` steps under a
    held actuation a are rolled out from the FEM's state at the applied actuation a_0 and at
