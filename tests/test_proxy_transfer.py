@@ -123,7 +123,8 @@ def test_the_sensitivity_inverse_lands_the_roll_out_near_a_reachable_target(
     """Points reached by a known actuation (centre, one front and one rear chamber) after the
     look-ahead: the actuation the bounded least squares finds from rest brings the roll-out
     within a quarter of the way (measured 9.5 %; the FEM's frictional contacts make the
-    roll-out nonlinear in the actuation), stays in the bounds, and leaves the state alone."""
+    roll-out nonlinear in the actuation), stays in the bounds, and leaves the state alone; an
+    actuator pinned by equal bounds is left out of the solve."""
     loop = sensitive_multigait
     upper = np.array(loop.gains.upper)
     before = loop.state.copy()
@@ -134,6 +135,14 @@ def test_the_sensitivity_inverse_lands_the_roll_out_near_a_reachable_target(
     miss = np.linalg.norm(loop.roll_out(found) - target)
     assert miss < 0.25 * np.linalg.norm(target - rest)
     np.testing.assert_array_equal(loop.state.positions, before.positions)
+    # An actuator pinned by its bounds (lower == upper) stays there; the others still solve.
+    gains = loop.gains
+    loop.gains = dataclasses.replace(gains, upper=(0.0, *gains.upper[1:]))
+    try:
+        pinned = loop.sensitivity_inverse(target)
+    finally:
+        loop.gains = gains
+    assert pinned[0] == 0.0 and pinned[3] > 0.0
 
 
 def test_a_short_transfer_by_the_sensitivity_inverse_moves_the_fem_as_the_proxy(

@@ -27,7 +27,6 @@ import dataclasses
 import json
 from pathlib import Path
 
-import numpy as np
 import torch
 from cartstem import (  # this folder is on sys.path
     ENV_SETTINGS,
@@ -38,18 +37,13 @@ from cartstem import (  # this folder is on sys.path
 
 from pliant.learn.graph import GraphConfig
 from pliant.learn.graph.cli import build_learner, train_run
-from pliant.learn.graph.hierarchy import final_numbers
+from pliant.learn.graph.hierarchy import episode_means
 from pliant.learn.graph.scenes import make_scene
 
 
 def greedy_episodes(agent, env, episodes: int, seed: int = 10_000) -> tuple[dict, list[dict]]:
     """``agent.evaluate``'s means (the same goals, seeds ``seed + k``) and each episode."""
     runs = [agent.run_episode(env, train=False, seed=seed + k) for k in range(episodes)]
-    means = {
-        "return": float(np.mean([r["return"] for r in runs])),
-        "success": float(np.mean([r["success"] for r in runs])),
-        **final_numbers([r["info"] for r in runs]),
-    }
     each = [
         {
             "return": r["return"],
@@ -61,7 +55,7 @@ def greedy_episodes(agent, env, episodes: int, seed: int = 10_000) -> tuple[dict
         }
         for r in runs
     ]
-    return means, each
+    return episode_means(runs), each
 
 
 def main() -> None:

@@ -418,7 +418,7 @@ class Transfer:
                 inverse = self.qp_inverse(target)
         except PliantError:  # no inverse step: keep the actuation
             self.result.failed_inverse_steps += 1
-            inverse = self.filter.value / max(g.gain, 1e-12)
+            inverse = self.filter.value / g.gain
         inverse = inverse + self.correction(goal, now)
         if w > 0.0:
             inverse = w * self.feedforward(commands) + (1.0 - w) * inverse
@@ -457,22 +457,27 @@ class Transfer:
         g = self.gains
         lower, upper = np.asarray(g.lower, dtype=float), np.asarray(g.upper, dtype=float)
         base = np.clip(self.filter.value, lower, upper)
+        free = np.flatnonzero(upper > lower)  # an actuator with lower == upper stays put
+        if free.size == 0:
+            return base
         reached = self.roll_out(base).ravel()
-        jacobian = np.empty((reached.size, base.size))
-        for j in range(base.size):
-            h = g.sensitivity_step * max(upper[j] - lower[j], 1e-12)
+        jacobian = np.empty((reached.size, free.size))
+        for col, j in enumerate(free):
+            h = g.sensitivity_step * (upper[j] - lower[j])
             if base[j] + h > upper[j]:  # difference backwards at the upper bound
                 h = -h
             moved = base.copy()
             moved[j] += h
-            jacobian[:, j] = (self.roll_out(moved).ravel() - reached) / h
-        eps = 1e-3 * float(np.sum(jacobian**2)) / base.size
-        rows = np.vstack([jacobian, np.sqrt(eps) * np.eye(base.size)])
-        rhs = np.concatenate([np.ravel(target) - reached, np.zeros(base.size)])
+            jacobian[:, col] = (self.roll_out(moved).ravel() - reached) / h
+        eps = 1e-3 * float(np.sum(jacobian**2)) / free.size
+        rows = np.vstack([jacobian, np.sqrt(eps) * np.eye(free.size)])
+        rhs = np.concatenate([np.ravel(target) - reached, np.zeros(free.size)])
         if not (np.all(np.isfinite(rows)) and np.all(np.isfinite(rhs))):
             raise SolverError("the roll-outs of the sensitivity inverse are not finite")
-        step = lsq_linear(rows, rhs, bounds=(lower - base, upper - base)).x
-        return base + step
+        bounds = (lower[free] - base[free], upper[free] - base[free])
+        out = base.copy()
+        out[free] += lsq_linear(rows, rhs, bounds=bounds).x
+        return out
 
     def step(self, action, *, realigned: bool = False) -> StepRecord:
         """One proxy step under `action`, the FEM following each of its sub-steps

@@ -8,7 +8,7 @@ import gymnasium as gym
 import numpy as np
 import torch
 
-from pliant.learn.graph.hierarchy import GraphConfig, check_schedule, final_numbers
+from pliant.learn.graph.hierarchy import GraphConfig, check_schedule, episode_means
 from pliant.learn.graph.sac import SAC, ReplayBuffer
 
 
@@ -101,8 +101,4 @@ class FlatSAC:
 
     def evaluate(self, env: gym.Env, episodes: int = 5, seed: int = 10_000) -> dict:
         runs = [self.run_episode(env, train=False, seed=seed + k) for k in range(episodes)]
-        return {
-            "return": float(np.mean([r["return"] for r in runs])),
-            "success": float(np.mean([r["success"] for r in runs])),
-            **final_numbers([r["info"] for r in runs]),
-        }
+        return episode_means(runs)

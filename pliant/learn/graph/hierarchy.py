@@ -94,6 +94,16 @@ def final_numbers(infos: list[dict]) -> dict[str, float]:
     return out
 
 
+def episode_means(runs: list[dict]) -> dict[str, float]:
+    """Mean return and success of greedy episodes (``run_episode``'s dicts), and
+    :func:`final_numbers` of their last ``info``."""
+    return {
+        "return": float(np.mean([r["return"] for r in runs])),
+        "success": float(np.mean([r["success"] for r in runs])),
+        **final_numbers([r["info"] for r in runs]),
+    }
+
+
 def check_schedule(config: GraphConfig) -> None:
     """TrainingError unless the update schedule is one: a positive rate per step, or a
     positive whole number of updates per episode."""
@@ -135,6 +145,10 @@ class GraphAgent:
         if c.internal not in ("per_node", "shared"):
             raise TrainingError(f"internal must be 'per_node' or 'shared', got {c.internal!r}")
         check_schedule(c)
+        if not isinstance(c.controller_crosses, bool):
+            raise TrainingError(
+                f"controller_crosses is True or False, got {c.controller_crosses!r}"
+            )
         if graph.partition is None and selector is None:
             raise TrainingError("the graph has no partition function: give a trained Selector")
         self.experts = list(experts)
@@ -370,11 +384,7 @@ class GraphAgent:
         number the environment's last ``info`` of an episode holds (``final_<key>``, e.g.
         RodManipulator's ``final_angle``)."""
         runs = [self.run_episode(env, train=False, seed=seed + k) for k in range(episodes)]
-        return {
-            "return": float(np.mean([r["return"] for r in runs])),
-            "success": float(np.mean([r["success"] for r in runs])),
-            **final_numbers([r["info"] for r in runs]),
-        }
+        return episode_means(runs)
 
     # ---- checkpoints --------------------------------------------------------------------------
     def state_dict(self) -> dict:
