@@ -5,6 +5,7 @@ hierarchy reaching a goal that needs a change of region on a toy corridor."""
 from __future__ import annotations
 
 import dataclasses
+import functools
 
 import numpy as np
 import pytest
@@ -294,11 +295,44 @@ def test_a_crossing_controller_keeps_acting_across_node_changes():
     for crosses, choices in ((False, [0, 1, 2]), (True, [0])):
         config = dataclasses.replace(FAST, controller_crosses=crosses)
         env, agent = _corridor_agent(controllers, config=config)
-        agent.evaluator.choose = lambda obs, node, rng, greedy: node
+        agent.evaluator.choose = lambda obs, node, rng, greedy, exclude=(): node
         run = agent.run_episode(env, train=False, seed=3)
         assert run["success"]
         assert run["nodes"] == [0, 1, 2]
         assert run["choices"] == choices
+
+
+def _preferred(preference, evaluator, obs, node, target=False):
+    """Evaluator.scores replaced by a fixed preference of each node's choices."""
+    return preference[node.long()].masked_fill(~evaluator.reachable[node.long()], -torch.inf)
+
+
+def test_avoid_cycles_keeps_the_evaluator_off_a_loop_it_has_closed():
+    """An Evaluator that prefers the internal agent of the node it is in, where node 1's
+    controller walks back left: node 0's controller takes the point into node 1, node 1's
+    back into node 0, and so for the whole episode. With ``avoid_cycles`` the return to node 0
+    closes the loop, and the choice that left node 0 is not taken again there (its external
+    move is); a choice excluded everywhere falls back to the best available."""
+    controllers = {
+        0: corridor_controller(),
+        1: lambda obs: np.array([-1.0]),
+        2: corridor_controller(),
+    }
+    preference = torch.tensor([[1.0, 0.5, 0.0], [0.0, 1.0, 0.5], [0.0, 0.5, 1.0]])
+    for avoid in (False, True):
+        config = dataclasses.replace(FAST, avoid_cycles=avoid)
+        env, agent = _corridor_agent(controllers, config=config)
+        agent.evaluator.scores = functools.partial(_preferred, preference, agent.evaluator)
+        run = agent.run_episode(env, train=False, seed=3)
+        if not avoid:
+            assert run["choices"] == [k % 2 for k in range(len(run["choices"]))]
+            assert len(run["choices"]) > 6 and not run["success"]
+        else:
+            assert run["choices"][:3] == [0, 1, 1]  # back in node 0: its external move
+    rng = np.random.default_rng(0)
+    obs = np.zeros(2, np.float32)
+    assert agent.evaluator.choose(obs, 0, rng, greedy=True, exclude={0, 1}) == 0
+    assert agent.evaluator.choose(obs, 1, rng, greedy=True, exclude={1}) == 2
 
 
 def test_hierarchy_with_convex_internal_agents():
@@ -339,6 +373,42 @@ def test_cartstem_fem_inverse_reaches_a_goal_behind_the_obstacle_it_bends_over()
         CartStemStaticInverse(env, probe=float("nan"))
 
 
+def test_cartstem_inverse_kept_in_its_node_solves_from_the_node_it_was_sent_to():
+    """The beam just over node 2's boundary (barely pressed on the right obstacle), the goal
+    behind the left one: the local inverse steps the cart left, out of node 2, and stalls in
+    node 0 11 mm short; kept in node 2 and started from its sweep, it presses on (the tip then
+    moves against the cart) and reaches the goal without leaving the node. Its targets stay in
+    Eq. 4.7's interval of the node."""
+    from pliant.envs import make
+    from pliant.learn.graph.scenes import CartStemStaticInverse
+
+    env = make("pliant/CartStemContact-v0")
+    inverse = CartStemStaticInverse(env)
+    reached, nodes = {}, {}
+    for name, controller in (("local", inverse), ("in node 2", inverse.in_node(2))):
+        obs, _ = env.reset(seed=1, options={"goal": -26.0, "cart": 0.0})
+        low, high = inverse.cart_range(obs, 2)
+        for _ in range(2):  # the cart moves 12 mm at most a step
+            obs, *_ = env.step(np.array([(low + 1.0) / env.unwrapped.max_move], np.float32))
+        assert cartstem_partition(obs) == 2
+        nodes[name] = set()
+        for _ in range(4):
+            action = controller(obs)
+            if name == "in node 2":
+                assert low <= action[0] * env.unwrapped.max_move <= high
+            obs, _, terminated, _, info = env.step(action)
+            nodes[name].add(cartstem_partition(obs))
+            if terminated:
+                break
+        reached[name] = info["distance"]
+    assert reached["in node 2"] < 1.0 and nodes["in node 2"] == {2}
+    assert reached["local"] > 5.0 and 2 not in nodes["local"]
+    assert inverse.cart_range(obs, 0)[1] < inverse.cart_range(obs, 1)[0]
+    assert inverse.cart_range(obs, 1)[1] < inverse.cart_range(obs, 2)[0]
+    with pytest.raises(ModelError, match="nodes 0, 1 and 2"):
+        inverse.in_node(3)
+
+
 def _walled_corridor(seed=0):
     """The corridor where node 0's internal agent stands still and node 0 has no neighbour:
     only the expert option (eight full steps right, penalised) leaves it."""
@@ -362,7 +432,9 @@ def test_expert_option_runs_its_actions_through_the_nodes_it_crosses():
     agent.evaluator.temperature = 100.0
     assert {agent.evaluator.choose(np.zeros(2), 0, rng) for _ in range(100)} == {0, 3}
     assert {agent.evaluator.choose(np.zeros(2), 1, rng) for _ in range(100)} == {0, 1, 2}
-    agent.evaluator.choose = lambda obs, node, rng, greedy=False: 3 if node == 0 else node
+    agent.evaluator.choose = lambda obs, node, rng, greedy=False, exclude=(): (
+        3 if node == 0 else node
+    )
     start = env.reset(seed=5)[0][0]
     run = agent.run_episode(env, train=True, seed=5)
     # x from about -0.75: 8 steps of 0.1 cross node 1 (at step 5) into node 2, then the
@@ -392,7 +464,9 @@ def test_closed_loop_expert_acts_on_the_state_it_meets():
         agent.graph, env.observation_space, env.action_space, FAST,
         controllers={i: lambda obs: np.zeros(1) for i in range(3)}, experts=[to_half],
     )  # fmt: skip
-    agent.evaluator.choose = lambda obs, node, rng, greedy=False: 3 if node == 0 else node
+    agent.evaluator.choose = lambda obs, node, rng, greedy=False, exclude=(): (
+        3 if node == 0 else node
+    )
     env.reset(seed=3)
     agent.run_episode(env, train=False, seed=3)
     assert abs(env.x - 0.5) < 1e-6  # then node 2's controller stands still

@@ -167,6 +167,8 @@ def test_cli_trains_the_rod_graph_with_its_experts(tmp_path):
     assert last["steps"] >= 40 and np.isfinite(last["final_angle"])
     refused = CliRunner().invoke(app, [*args, "--method", "convex", "--steps", "10"])
     assert refused.exit_code != 0 and "no convex internal agents" in refused.output
+    refused = CliRunner().invoke(app, [*args, "--method", "convex_node", "--steps", "10"])
+    assert refused.exit_code != 0 and "no convex_node internal agents" in refused.output
     with pytest.raises(ModelError, match="expert_penalty"):
         from pliant.learn.graph.scenes import make_scene
 

@@ -1,15 +1,17 @@
 """The configuration-space graph against plain SAC (thesis §4.2.3, Fig. 4.9A; issue 19).
 
     python experiments/graph/cartstem.py [--scene CartStemContact|RodManipulator|Corridor]
-        [--methods graph convex sac]
+        [--methods graph convex convex_node sac]
         [--seeds 0 1 2] [--steps 250000] [--eval-every 600] [--out experiments/results/graph]
 
 Methods (same SAC and hyper-parameters for all, thesis L827): ``graph`` (node by Eq. 4.7,
 Evaluator, external and internal SAC agents per node), ``convex`` (internal agents replaced by
-a closed-form controller run until the node changes), ``sac`` (plain SAC). Every run trains
-through ``pliant graph train``'s ``train_run``: a run folder per (method, seed) holds its
-checkpoint and evaluation history, and rerunning the script resumes each run up to ``--steps``
-(a larger ``--steps`` continues the same runs; ``--steps 0`` only summarises them). Writes
+the scene's convex controller run until the node changes; CartStemContact's: the FEM static
+inverse), ``convex_node`` (that controller kept inside its node, ``Scene.node_controllers``),
+``sac`` (plain SAC). Every run trains through ``pliant graph train``'s ``train_run``: a run
+folder per (method, seed) holds its checkpoint and evaluation history, and rerunning the
+script resumes each run up to ``--steps`` (a larger ``--steps`` continues the same runs;
+``--steps 0`` only summarises them). Writes
 ``<out>/<scene>/summary.json``: per method and seed the first evaluated step with success ≥
 ``--solved`` ("iterations to solve"), its steps and last evaluation, and whether a budget is
 below the thesis' 250k (``partial``), over every run folder of the scene (not only those this
@@ -50,10 +52,10 @@ THESIS = {
     " the contacts within 200000 iterations",
 }
 THESIS_STEPS = 250_000
-METHODS = ("graph", "convex", "sac")
+METHODS = ("graph", "convex", "convex_node", "sac")
 #: Run folders and summary keys, in the plots' order: the methods, the graph with a shared
 #: internal agent; a tuned Evaluator temperature adds ``_entropyF`` (:func:`label_of`).
-LABELS = ("graph", "graph_shared", "convex", "sac")
+LABELS = ("graph", "graph_shared", "convex", "convex_node", "sac")
 
 
 def add_evaluator_options(parser: argparse.ArgumentParser) -> None:

@@ -14,7 +14,11 @@ shared``): both mean returns and success rates and the relative change of the re
 each goal's episode under both (``episodes``: return, length, success, final distance, the
 nodes visited and the Evaluator's choices), so that the change can be traced to the goals
 where it happens; and once more with the controllers acting on across node changes
-(``GraphConfig.controller_crosses``: ``convex_internal_crossing``). ``--finetune N`` then
+(``GraphConfig.controller_crosses``: ``convex_internal_crossing``), with the controllers
+kept inside their node (``Scene.node_controllers``, where the scene has them:
+``convex_in_node``), and each of these
+once more with the Evaluator kept off a loop it has closed (``GraphConfig.avoid_cycles``:
+``*_avoiding_cycles``); ``variants`` holds every one's means. ``--finetune N`` then
 trains the swapped hierarchy (the Evaluator and the external agents, around the convex
 internal agents) for N more environment steps and evaluates it on the same goals again
 (``convex_internal_finetuned``; the checkpoint is left as trained).
@@ -58,6 +62,11 @@ def greedy_episodes(agent, env, episodes: int, seed: int = 10_000) -> tuple[dict
     return episode_means(runs), each
 
 
+def relative(variant: dict, reference: dict) -> float:
+    """The relative change of the mean return from ``reference`` to ``variant``."""
+    return (variant["return"] - reference["return"]) / abs(reference["return"])
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--scene", default="CartStemContact")
@@ -84,13 +93,46 @@ def main() -> None:
         raise SystemExit(f"{args.scene} has no convex internal agents to swap in")
     agent = build_learner("graph", scene, GraphConfig(**config), args.seed)
     agent.load(run / "checkpoint.pt")
-    learned, learned_each = greedy_episodes(agent, scene.env, args.episodes)
+    means, each = {}, {}  # variant -> greedy means, each goal's episode
+
+    def evaluate(label: str, **flags) -> None:
+        """Greedy episodes under ``label``, with these GraphConfig flags for the time."""
+        saved = agent.config
+        agent.config = dataclasses.replace(saved, **flags)
+        means[label], each[label] = greedy_episodes(agent, scene.env, args.episodes)
+        agent.config = saved
+
+    # Every variant once more with the Evaluator kept off a loop it has closed
+    # (GraphConfig.avoid_cycles).
+    evaluate("learned_internal")
+    evaluate("learned_internal_avoiding_cycles", avoid_cycles=True)
     agent.swap_internal(scene.controllers)
-    convex, convex_each = greedy_episodes(agent, scene.env, args.episodes)
+    evaluate("convex_internal")
+    evaluate("convex_internal_avoiding_cycles", avoid_cycles=True)
     # The same controllers left to act across node changes (GraphConfig.controller_crosses).
-    agent.config = dataclasses.replace(agent.config, controller_crosses=True)
-    crossing, crossing_each = greedy_episodes(agent, scene.env, args.episodes)
-    agent.config = dataclasses.replace(agent.config, controller_crosses=False)
+    evaluate("convex_internal_crossing", controller_crosses=True)
+    evaluate("convex_internal_crossing_avoiding_cycles", controller_crosses=True, avoid_cycles=True)
+    if scene.node_controllers:  # controllers kept inside their node (Scene.node_controllers)
+        agent.swap_internal(scene.node_controllers)
+        evaluate("convex_in_node")
+        evaluate("convex_in_node_avoiding_cycles", avoid_cycles=True)
+        agent.swap_internal(scene.controllers)
+    learned, convex, crossing = (
+        means[k] for k in ("learned_internal", "convex_internal", "convex_internal_crossing")
+    )
+
+    def with_changes(label: str) -> dict:
+        """A variant's means, and the relative change of its return on the learned agents as
+        trained and on the learned agents under the same acting rule (avoiding cycles or not)."""
+        same = "learned_internal" + (
+            "_avoiding_cycles" if label.endswith("_avoiding_cycles") else ""
+        )
+        return {
+            **means[label],
+            "relative_return_change": relative(means[label], learned),
+            "relative_return_change_same_rule": relative(means[label], means[same]),
+        }
+
     change = (convex["return"] - learned["return"]) / abs(learned["return"])
     tuned = None
     if args.finetune > 0:  # the Evaluator and external agents learn around the controllers
@@ -119,17 +161,14 @@ def main() -> None:
         "convex_internal_crossing": crossing,
         "relative_return_change_crossing": (crossing["return"] - learned["return"])
         / abs(learned["return"]),
+        "variants": {label: with_changes(label) for label in means},
         "finetune_steps": args.finetune,
         "convex_internal_finetuned": tuned,
         "relative_return_change_finetuned": None
         if tuned is None
         else (tuned["return"] - learned["return"]) / abs(learned["return"]),
         "thesis_relative_return_change": 0.0064,
-        "episodes": {
-            "learned_internal": learned_each,
-            "convex_internal": convex_each,
-            "convex_internal_crossing": crossing_each,
-        },
+        "episodes": each,
     }
     suffix = name.removeprefix("graph")  # swap_seedN.json: per-node agents, fixed τ
     tag = f"_finetune{args.finetune}" if args.finetune else ""

@@ -16,7 +16,7 @@
 from __future__ import annotations
 
 import copy
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Collection, Sequence
 
 import numpy as np
 import torch
@@ -216,8 +216,23 @@ class Evaluator(nn.Module):
         return q.masked_fill(~self.reachable[node.long()], -torch.inf)
 
     @torch.no_grad()
-    def choose(self, obs: np.ndarray, node: int, rng: np.random.Generator, greedy=False) -> int:
+    def choose(
+        self,
+        obs: np.ndarray,
+        node: int,
+        rng: np.random.Generator,
+        greedy: bool = False,
+        exclude: Collection[int] = (),
+    ) -> int:
+        """The greedy choice (argmax Q) or one sampled from softmax(Q/τ), among the choices
+        available in ``node`` less ``exclude``; all available ones when ``exclude`` would
+        leave none."""
         q = self.scores(torch.as_tensor(np.asarray(obs, np.float32))[None], torch.tensor([node]))[0]
+        if exclude:
+            kept = q.clone()
+            kept[list(exclude)] = -torch.inf
+            if torch.isfinite(kept).any():
+                q = kept
         if greedy:
             return int(q.argmax())
         p = (q / self.temperature).softmax(-1).numpy().astype(float)

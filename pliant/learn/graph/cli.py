@@ -22,7 +22,7 @@ app = typer.Typer(
 )
 console = Console()
 
-METHODS = ("graph", "convex", "sac")
+METHODS = ("graph", "convex", "convex_node", "sac")
 SCENES = ("Corridor", "CartStemContact", "RodManipulator")
 
 
@@ -42,13 +42,19 @@ def settings_file(path: Path | None) -> dict:
     return settings
 
 
+def build_controllers(method: str, scene) -> dict | None:
+    """The internal agents' controllers of a method: the scene's convex controllers
+    (``convex``), those kept inside their node (``convex_node``), or none (learned)."""
+    return {"convex": scene.controllers, "convex_node": scene.node_controllers}.get(method)
+
+
 def build_learner(method: str, scene, config, seed: int):
     from pliant.learn.graph import FlatSAC, GraphAgent
 
     env = scene.env
     if method == "sac":
         return FlatSAC(env.observation_space, env.action_space, config, seed=seed)
-    controllers = scene.controllers if method == "convex" else None
+    controllers = build_controllers(method, scene)
     return GraphAgent(
         scene.graph, env.observation_space, env.action_space, config,
         controllers=controllers, experts=scene.experts, seed=seed,
@@ -84,9 +90,9 @@ def train_run(
     if unknown:
         raise typer.BadParameter(f"unknown config keys {sorted(unknown)}; known: {sorted(fields)}")
     scene = make_scene(scene_name, **(env_kwargs or {}))
-    if method == "convex" and not scene.controllers:
+    if method.startswith("convex") and not build_controllers(method, scene):
         raise typer.BadParameter(
-            f"{scene_name} has no convex internal agents: use --method graph or sac"
+            f"{scene_name} has no {method} internal agents: use --method graph or sac"
         )
     learner = build_learner(method, scene, GraphConfig(**(config or {})), seed)
     out.mkdir(parents=True, exist_ok=True)
@@ -135,7 +141,11 @@ def train(
     ] = None,
     method: Annotated[
         str,
-        typer.Option(help="graph, convex (QP internal agents) or sac", callback=one_of(*METHODS)),
+        typer.Option(
+            help="graph, convex (QP internal agents), convex_node (the QP kept inside its"
+            " node) or sac",
+            callback=one_of(*METHODS),
+        ),
     ] = "graph",
     steps: Annotated[
         int, typer.Option(help="environment steps in all", callback=at_least_one)

@@ -7,7 +7,8 @@ external agent towards S_j until the state leaves S_i (or ``option_limit`` steps
 episode ends); j = i runs node i's internal agent for one step (T = 1), or, when it is a
 :class:`ControllerAgent`, until the node changes (with ``controller_crosses``, on across
 node changes, until the episode ends or ``option_limit`` steps pass); a choice j ≥ N
-(N nodes) runs expert option j − N (:class:`ExpertOption`) to its end. Every primitive
+(N nodes) runs expert option j − N (:class:`ExpertOption`) to its end; with ``avoid_cycles``
+a choice that took the state out of node i is not chosen again on a return to i. Every primitive
 transition that starts in S_i feeds node i's internal and external buffers; every option feeds
 the Evaluator with the transitions of Eq. 4.6, penalised (``penalty``) when an internal agent
 changed the space.
@@ -80,6 +81,12 @@ class GraphConfig:
     #: Evaluator trained with learned agents that solve from inside a node whose controller's
     #: solution lies outside it (docs/graph.md, the swap goal by goal).
     controller_crosses: bool = False
+    #: within an episode, a choice that took the state out of node i is not chosen again when
+    #: the state is back in node i (unless every choice there has done so): the Evaluator
+    #: cannot send the state round the same loop twice (a departure; an Evaluator trained with
+    #: other internal agents than it acts with bounces between two nodes otherwise:
+    #: docs/graph.md, the swap goal by goal).
+    avoid_cycles: bool = False
 
 
 def final_numbers(infos: list[dict]) -> dict[str, float]:
@@ -145,10 +152,9 @@ class GraphAgent:
         if c.internal not in ("per_node", "shared"):
             raise TrainingError(f"internal must be 'per_node' or 'shared', got {c.internal!r}")
         check_schedule(c)
-        if not isinstance(c.controller_crosses, bool):
-            raise TrainingError(
-                f"controller_crosses is True or False, got {c.controller_crosses!r}"
-            )
+        for flag in ("controller_crosses", "avoid_cycles"):
+            if not isinstance(getattr(c, flag), bool):
+                raise TrainingError(f"{flag} is True or False, got {getattr(c, flag)!r}")
         if graph.partition is None and selector is None:
             raise TrainingError("the graph has no partition function: give a trained Selector")
         self.experts = list(experts)
@@ -240,8 +246,10 @@ class GraphAgent:
         node, n = self.node_of(obs), self.graph.n_nodes
         total, length, nodes, done, success = 0.0, 0, [node], False, False
         choices = []
+        left: dict[int, set[int]] = {}  # node -> the choices that took the state out of it
         while not done:
-            choice = self.evaluator.choose(obs, node, self.rng, greedy=not train)
+            exclude = left.get(node, ()) if self.config.avoid_cycles else ()
+            choice = self.evaluator.choose(obs, node, self.rng, greedy=not train, exclude=exclude)
             choices.append(choice)
             expert = self.experts[choice - n] if choice >= n else None
             runs_option = choice != node or not self.internal[node].learned
@@ -294,6 +302,8 @@ class GraphAgent:
                     self.evaluator_buffer.add(node=node, choice=choice, next_node=next_node, **t)
             if expert is None and next_node != current:
                 nodes.append(next_node)
+            if next_node != node:
+                left.setdefault(node, set()).add(choice)
             node = next_node
         if train and self.config.updates_per_episode and self.steps >= self.config.learning_starts:
             for _ in range(self.config.updates_per_episode):

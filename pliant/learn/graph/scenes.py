@@ -24,6 +24,8 @@ class Scene:
     controllers: dict[int, Callable[[np.ndarray], np.ndarray]]
     #: expert trajectories, more options of the Evaluator.
     experts: list[ExpertOption] = field(default_factory=list)
+    #: node -> a controller kept inside that node's configuration space (empty: none).
+    node_controllers: dict[int, Callable[[np.ndarray], np.ndarray]] = field(default_factory=dict)
 
 
 def cartstem_controller(env: gym.Env) -> Callable[[np.ndarray], np.ndarray]:
@@ -90,15 +92,40 @@ class CartStemStaticInverse:
             return None
         return float(self.model.effectors[0].position(out.positions)[0, 0]), out.positions
 
-    def target(self, goal: float) -> float:
-        """The cart position this decision chooses for a tip goal `goal` (mm)."""
+    def target(
+        self,
+        goal: float,
+        low: float | None = None,
+        high: float | None = None,
+        sweep: float | None = None,
+    ) -> float:
+        """The cart position this decision chooses for a tip goal `goal` (mm), within [low,
+        high] (default: the cart's whole course, ±max_move). With ``sweep`` (mm), the
+        Gauss-Newton starts from the best of the equilibria met on a continuation from the
+        cart's position to both ends of [low, high] in steps of at most ``sweep`` (each solve
+        started from the last): the tip's static response to the cart is not monotonic where
+        the beam bends over an obstacle, and the local step alone stops at the near end."""
         base = self.base
         bound = base.max_move
-        cart = float(np.clip(base.cart_x(), -bound, bound))
+        low = -bound if low is None else low
+        high = bound if high is None else high
+        cart = float(np.clip(base.cart_x(), low, high))
         found = self.equilibrium(cart, base.state.positions)
         if found is None:
             return cart
         tip, positions = found
+        if sweep is not None:
+            start = (cart, tip, positions)
+            for end in (low, high):
+                points = np.linspace(start[0], end, 1 + int(np.ceil(abs(end - start[0]) / sweep)))
+                at = start[2]
+                for point in points[1:]:
+                    met = self.equilibrium(point, at)
+                    if met is None:
+                        break
+                    at = met[1]
+                    if abs(met[0] - goal) < abs(tip - goal):
+                        cart, (tip, positions) = float(point), met
         for _ in range(self.iterations):
             error = tip - goal
             if abs(error) < 0.25 * base.goal_tolerance:
@@ -110,7 +137,7 @@ class CartStemStaticInverse:
             slope = (probe[0] - tip) / (direction * self.probe)
             if abs(slope) < 1e-3:  # the tip does not follow the cart here
                 break
-            step = float(np.clip(cart - error / slope, -bound, bound)) - cart
+            step = float(np.clip(cart - error / slope, low, high)) - cart
             for _ in range(5):  # halve the step until the tip gets closer to the goal
                 trial = self.equilibrium(cart + step, positions)
                 if trial is not None and abs(trial[0] - goal) < abs(error):
@@ -124,6 +151,46 @@ class CartStemStaticInverse:
     def __call__(self, obs: np.ndarray) -> np.ndarray:
         goal = float(obs[6]) * self.base.length
         return np.array([self.target(goal) / self.base.max_move], dtype=np.float32)
+
+    #: how far inside a node's cart interval its bounded inverse stays (mm), and the step of
+    #: its continuation sweep (mm; see :meth:`target`)
+    node_margin = 0.05
+    node_sweep = 4.0
+
+    def cart_range(self, obs: np.ndarray, node: int) -> tuple[float, float]:
+        """The cart positions (mm) of node `node`'s configuration space by Eq. 4.7 (left
+        contact, none, right contact), ``node_margin`` inside its boundaries and within the
+        cart's course."""
+        length, bound, margin = self.base.length, self.base.max_move, self.node_margin
+        _, _, x_left, x_right, l_x, l_z = np.asarray(obs, dtype=float)[:6]
+        half_diagonal = 0.5 * np.hypot(l_x, l_z)
+        left, right = (x_left + half_diagonal) * length, (x_right - half_diagonal) * length
+        low, high = {
+            0: (-bound, left - margin),
+            1: (left + margin, right - margin),
+            2: (right + margin, bound),
+        }[node]
+        return max(low, -bound), min(high, bound)
+
+    def in_node(self, node: int) -> Callable[[np.ndarray], np.ndarray]:
+        """The inverse kept inside node `node`: its cart bounded to :meth:`cart_range`, as a QP
+        of the node's contact configuration would be (the node's contact stays as it is), and
+        started from the best point of a sweep over that interval (``node_sweep``), so that it
+        solves the task from where the Evaluator sent the state instead of leaving the node by
+        the nearest local step (a departure: the scene's default controllers are unbounded
+        and local; docs/graph.md)."""
+        if node not in (0, 1, 2):
+            raise ModelError(f"CartStemContact has nodes 0, 1 and 2, got {node!r}")
+
+        def controller(obs: np.ndarray) -> np.ndarray:
+            low, high = self.cart_range(obs, node)
+            goal = float(obs[6]) * self.base.length
+            if low > high:  # no such interval on this observation: the whole course
+                low, high = None, None
+            cart = self.target(goal, low, high, sweep=self.node_sweep)
+            return np.array([cart / self.base.max_move], dtype=np.float32)
+
+        return controller
 
 
 #: RodManipulator's settings for the graph: the base may go down to 20 mm (the pinch lowers
@@ -147,7 +214,8 @@ def make_scene(name: str, **env_kwargs) -> Scene:
 
         env = make("pliant/CartStemContact-v0", **env_kwargs)
         inverse = CartStemStaticInverse(env)  # one planning model for the three nodes
-        return Scene(env, cartstem_graph(), dict.fromkeys(range(3), inverse))
+        bounded = {node: inverse.in_node(node) for node in range(3)}
+        return Scene(env, cartstem_graph(), dict.fromkeys(range(3), inverse), [], bounded)
     if name == "RodManipulator":
         from pliant.envs import make
         from pliant.learn.graph.rod import BendTable, RodGeometry, rod_experts, rod_graph
