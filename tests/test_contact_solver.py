@@ -185,3 +185,24 @@ def test_newton_derivative_matches_finite_differences(rng):
         minus, _ = kernels.alart_curnier(w, w @ (lam - e) + free, lam - e, *blocks, none, none)
         numeric[:, j] = (plus - minus) / (2 * step)
     np.testing.assert_allclose(jacobian, numeric, atol=1e-6 * np.abs(jacobian).max())
+
+
+def test_many_candidate_contacts_are_solved_by_the_sweeps_alone(rng):
+    """More rows than ``NEWTON_MAX_ROWS`` (a dense Newton step would cost O(r^3)): 600
+    candidate contacts, five pressed into the obstacle, the others open, as the screening of a
+    large step hands them over. The sweeps alone meet the laws, with no Newton step."""
+    k = 600
+    r = 3 * k
+    assert r > kernels.NEWTON_MAX_ROWS
+    b = rng.normal(size=(r, 30))
+    w = 0.2 * b @ b.T / 30 + np.eye(r)
+    free = np.zeros(r)
+    free[0::3] = rng.uniform(0.1, 1.0, k)
+    pressed = rng.choice(k, 5, replace=False)
+    free[3 * pressed] = -0.5
+    free[1::3], free[2::3] = rng.normal(0.0, 0.1, (2, k))
+    mu = np.full(k, 0.5)
+    solution = solve_contact(CondensedProblem.of_rows(w, free), mu, tolerance=1e-10)
+    assert solution.report.converged and solution.report.newton_steps == 0, solution.report
+    assert_signorini_coulomb(solution, mu, 1e-9)
+    assert np.count_nonzero(solution.contact_forces[:, 0]) >= 5
