@@ -249,6 +249,43 @@ def test_space_debris_success_counts_the_cube_faces_the_trunk_presses_on():
         make("TrunkSpaceDebris", grasp_faces=0)
 
 
+@pytest.mark.parametrize(
+    ("size", "z", "cables", "faces_success", "catch"),
+    [
+        # experiments/results/rl/trunk_debris_expert: the one catch the planner found (the long
+        # +x cable pulled and held: the trunk's middle and its tip on opposite faces) ...
+        (40.0, 85.0, [3], True, True),
+        # ... and a pinning (both +x cables: the cube knocked onto the hull and held there).
+        (30.0, 110.0, [3, 7], True, False),
+    ],
+)
+def test_space_debris_catch_test_tells_a_catch_from_a_pinning(
+    size, z, cables, faces_success, catch
+):
+    """Both end with the trunk on two faces of the cube, the environment's default success;
+    only the catch holds opposite faces with the cube off the hull for the last steps."""
+    from pliant.robots.trunk_debris import beside_trunk
+
+    for success, expected in (("faces", faces_success), ("catch", catch)):
+        env = gym.make(  # the environment's own steps (the quick variant's are coarser)
+            "pliant/TrunkSpaceDebris-v0", cube_sizes=(size,), continuous_mode="increment",
+            success=success,
+        )  # fmt: skip
+        env.reset(seed=0, options={"cube_size": size, "cube_position": beside_trunk(size, z, 15.0)})
+        action = np.zeros(8, dtype=np.float32)
+        action[cables] = 1.0
+        for _ in range(50):
+            _, _, terminated, _, info = env.step(action)  # truncated at 50 by the time limit
+            assert not terminated and "diverged" not in info
+        assert info["faces"] == 2 and info["is_success"] == expected
+        assert info["on_hull"] != catch and info["opposite_faces"] == catch
+        assert (info["held"] >= 5) == catch
+    with pytest.raises(ValueError, match="success"):
+        make("TrunkSpaceDebris", success="touch")
+    with pytest.raises(ValueError, match="catch_steps"):
+        make("TrunkSpaceDebris", success="catch", catch_steps=0)
+
+
 def test_space_debris_losing_the_cube_is_charged_the_steps_left():
     # An escape distance below the cube's start: lost at the first step, 49 steps left of 50.
     env = make("TrunkSpaceDebris", cube_sizes=(30.0,), escape_distance=1.0, horizon=50)

@@ -33,7 +33,13 @@ no threshold given): the trunk presses on at least ``grasp_faces`` different fac
 (2 by default: wrapped, not merely touching one side). ``info["faces"]`` counts the faces under
 a positive contact force at each step, ``info["is_success"]`` is that count reaching
 ``grasp_faces``; an evaluation reads it at the episode's last step, so a cube caught and then
-dropped counts as a failure, as in the thesis' 400 tests.
+dropped counts as a failure, as in the thesis' 400 tests. That test also counts a cube pinned
+against the hull, or brushed on two faces at the last step, as caught (a planner found both:
+docs/learning.md); ``success="catch"`` asks for a catch instead: the trunk presses two
+opposite faces of the cube (two adjacent ones cannot hold it still in zero gravity with
+friction below 1), the cube is off the hull (its lowest corner more than ``hull_clearance`` mm
+above it), both for the last ``catch_steps`` steps in a row (``info["opposite_faces"]``,
+``info["on_hull"]``, ``info["held"]``, reported under either test).
 """
 
 from __future__ import annotations
@@ -73,6 +79,9 @@ class TrunkSpaceDebrisEnv(TrunkEnv):
         proximal: float = 0.25,
         escape_distance: float = 250.0,
         grasp_faces: int = 2,
+        success: Literal["faces", "catch"] = "faces",
+        catch_steps: int = 5,
+        hull_clearance: float = 1.0,
         horizon: int = 50,
         n_points: int = 21,
         mesh_size: float = 8.0,
@@ -94,6 +103,14 @@ class TrunkSpaceDebrisEnv(TrunkEnv):
         if not 1 <= int(grasp_faces) <= 6:
             raise ValueError(f"grasp_faces must be in 1..6 (a cube's faces), got {grasp_faces!r}")
         self.grasp_faces = int(grasp_faces)
+        if success not in ("faces", "catch"):
+            raise ValueError(f"success must be 'faces' or 'catch', got {success!r}")
+        if isinstance(catch_steps, bool) or not isinstance(catch_steps, int) or catch_steps < 1:
+            raise ValueError(f"catch_steps must be a whole number >= 1, got {catch_steps!r}")
+        if not (isinstance(hull_clearance, int | float) and 0 <= hull_clearance < np.inf):
+            raise ValueError(f"hull_clearance must be a distance >= 0 (mm), got {hull_clearance!r}")
+        self.success, self.catch_steps = success, catch_steps
+        self.hull_clearance = float(hull_clearance)
         if int(horizon) < 1:
             raise ValueError(f"horizon must be >= 1 steps, got {horizon!r}")
         self.horizon = int(horizon)
@@ -236,25 +253,48 @@ class TrunkSpaceDebrisEnv(TrunkEnv):
             parts["lost"] = sum(parts.values()) * max(self.horizon - self._elapsed, 0)
         return sum(parts.values()), lost, parts
 
-    def faces_in_contact(self) -> int:
-        """How many faces of the cube the trunk presses on (contact force > 0): each touching
-        point of the trunk is assigned the face it lies beyond, in the cube's frame."""
+    def pressed_faces(self) -> set[tuple[int, int]]:
+        """The faces of the cube the trunk presses on (contact force > 0), as (axis, side) in
+        the cube's frame: each touching point of the trunk is assigned the face it lies
+        beyond."""
         forces = self.state.contact_forces
         cube = len(self.model.contacts.shapes)  # rigid bodies follow the shapes
         pressing = (forces.keys[:, 1] == cube) & (np.linalg.norm(forces.forces, axis=1) > 0.0)
         if not pressing.any():
-            return 0
+            return set()
         points = self.model.contacts.points.positions(self.state.positions)
         local = (points[forces.keys[pressing, 0]] - self.cube()) @ self.state.rigid_rotations[0]
         axis = np.argmax(np.abs(local), axis=1)
-        side = np.sign(local[np.arange(len(axis)), axis])
-        return len(set(zip(axis.tolist(), side.tolist(), strict=True)))
+        side = np.sign(local[np.arange(len(axis)), axis]).astype(int)
+        return set(zip(axis.tolist(), side.tolist(), strict=True))
+
+    def faces_in_contact(self) -> int:
+        """How many faces of the cube the trunk presses on (:meth:`pressed_faces`)."""
+        return len(self.pressed_faces())
+
+    def on_hull(self) -> bool:
+        """Whether the cube's lowest corner is within ``hull_clearance`` of the hull (z = 0)."""
+        corners = np.array(np.meshgrid(*[[-0.5, 0.5]] * 3)).reshape(3, -1).T * self.cube_size
+        lowest = (corners @ self.state.rigid_rotations[0].T)[:, 2].min()
+        return bool(self.cube()[2] + lowest <= self.hull_clearance)
 
     def _info(self):
         distances = self._distances()
-        faces = self.faces_in_contact()
+        faces = self.pressed_faces()
+        opposite = any((axis, -side) in faces for axis, side in faces)
+        on_hull = self.on_hull()
+        # steps in a row with opposite faces pressed and the cube off the hull (a snapshot
+        # keeps the count with the task)
+        held = self.task.get("held", 0) + 1 if opposite and not on_hull else 0
+        self.task["held"] = held
+        success = len(faces) >= self.grasp_faces
+        if self.success == "catch":
+            success = held >= self.catch_steps
         info = dict(zip(("PM", "DN", "CT"), distances.tolist(), strict=True))
-        return {**info, "faces": faces, "is_success": faces >= self.grasp_faces}
+        return {
+            **info, "faces": len(faces), "opposite_faces": opposite, "on_hull": on_hull,
+            "held": held, "is_success": success,
+        }  # fmt: skip
 
     def _render_goal(self):
         return self.cube_faces()
