@@ -55,6 +55,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import sys
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -399,6 +400,10 @@ def main() -> None:
         "--held", type=int, default=5, help="last steps with two faces for a sustained catch"
     )
     parser.add_argument("--out", type=Path, default=RESULTS)
+    parser.add_argument(
+        "--phases", nargs="+", choices=["placements", "sweeps"], default=["placements", "sweeps"],
+        help="the searches to run (sweeps alone: a cheap map of where catches are)",
+    )  # fmt: skip
     args = parser.parse_args()
 
     import gymnasium as gym
@@ -416,12 +421,15 @@ def main() -> None:
         "placements": lambda p: search_placement(env, p, args.seed, args),
         "sweeps": lambda p: sweep_placement(env, p, args.seed),
     }
+    phases = {phase: run for phase, run in phases.items() if phase in args.phases}
     summary = {
         "env_id": ENV_ID,
         "env_kwargs": ENV_KWARGS,
         "seed": args.seed,
         "macros": {k: v.tolist() for k, v in MACROS.items()},
-        "command": "PYTHONPATH=. python experiments/rl/trunk_debris_expert.py",
+        "command": " ".join(
+            ["PYTHONPATH=. python experiments/rl/trunk_debris_expert.py", *sys.argv[1:]]
+        ),
     }
     for phase, run in phases.items():
         records = []
@@ -456,14 +464,16 @@ def main() -> None:
             "steps_per_second": steps / wall if wall else None,
             "table": [_row(r, args.held) for r in records],
         }
-    summary["placements"]["search"] = {
-        "kind": "beam search over macro actions",
-        "beam": args.beam,
-        "macro_steps": args.macro_steps,
-        "score": "2 * min(faces, 2) + r_t(Eq. 3.3) - hull_penalty * [cube on the hull]",
-        "hull_penalty": args.hull_penalty,
-    }
-    summary["sweeps"]["search"] = "one macro from rest, delayed so a two-face step is the last"
+    if "placements" in summary:
+        summary["placements"]["search"] = {
+            "kind": "beam search over macro actions",
+            "beam": args.beam,
+            "macro_steps": args.macro_steps,
+            "score": "2 * min(faces, 2) + r_t(Eq. 3.3) - hull_penalty * [cube on the hull]",
+            "hull_penalty": args.hull_penalty,
+        }
+    if "sweeps" in summary:
+        summary["sweeps"]["search"] = "one macro from rest, delayed so a two-face step is the last"
     write_json(args.out / "summary.json", summary)
     for phase in phases:
         print(phase, {k: v for k, v in summary[phase].items() if k != "table"})
