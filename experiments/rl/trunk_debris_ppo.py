@@ -2,11 +2,12 @@
 80 % success over 400 tests, 70 % of the failures drops after the catch).
 
     PYTHONPATH=. python experiments/rl/trunk_debris_ppo.py [--steps 100000] [--tests 400]
-        [--variant full_courses] [--workers 1]
+        [--variant full_courses|catchable] [--workers 1]
 
 `--variant full_courses` trains on SOFA's inversion-tolerant large-frame law with the
-SoftRobots courses (70 and 40 mm) and the cube beside the trunk's middle (VARIANTS below); its
-run and results get the suffix _full_courses.
+SoftRobots courses (70 and 40 mm) and the cube beside the trunk's middle; `--variant
+catchable` draws the cube where a planner found catches and scores with the catch test
+(VARIANTS below); a variant's run and results get its name as a suffix.
 
 Trains PPO (the environment's configuration, pliant/learn/configs/TrunkSpaceDebris.yaml: MLP 3
 x 512 for the policy and the value, VecNormalize, 2 workers) on pliant/TrunkSpaceDebris-v0 with
@@ -52,6 +53,18 @@ VARIANTS = {
         "max_short_displacement": 40.0,
         "z_low": 80.0,
         "z_high": 110.0,
+    },
+    # Where a planner found catches (docs/learning.md, experiments/rl/trunk_debris_expert.py):
+    # 35-40 mm cubes at z 75-95 mm, gap 15-20 mm, straight out along +x (the planner's
+    # azimuth), scored by the catch test (opposite faces, off the hull, the last 5 steps).
+    "catchable": {
+        "cube_sizes": [35.0, 40.0],
+        "z_low": 75.0,
+        "z_high": 95.0,
+        "gap_low": 15.0,
+        "gap_high": 20.0,
+        "azimuth_range": 0.0,
+        "success": "catch",
     },
 }
 THESIS = {"algo": "PPO, MLP 3x512", "steps": 100_000, "success": 0.8, "drops_of_failures": 0.7}
