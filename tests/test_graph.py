@@ -544,23 +544,20 @@ def test_flat_sac_baseline_runs():
     assert history and history[0]["steps"] >= 250 and baseline.steps >= 300
 
 
-def test_the_authors_schedule_updates_every_agent_after_each_episode(monkeypatch):
-    """updates_per_episode=5 (D.2): no gradient step during an episode; after each training
-    episode past learning_starts, 5 of the Evaluator, 5 of every node's external agent and of
-    each internal agent that holds a batch, 5 of plain SAC; evaluation episodes none; bad
-    schedules are TrainingErrors."""
+def _count_updates(monkeypatch) -> list[str]:
+    """A list that records every gradient step of the hierarchy's agents: "Evaluator",
+    "ExternalAgent", "internal<node>"."""
     from pliant.learn.graph import agents, hierarchy
-    from pliant.learn.graph.sac import SAC
 
     calls = []
-    for owner, name in ((agents.Evaluator, "update"), (agents.ExternalAgent, "update")):
-        original = getattr(owner, name)
+    for owner in (agents.Evaluator, agents.ExternalAgent):
+        original = owner.update
 
         def counted(self, *args, _original=original, _owner=owner, **kwargs):
             calls.append(_owner.__name__)
             return _original(self, *args, **kwargs)
 
-        monkeypatch.setattr(owner, name, counted)
+        monkeypatch.setattr(owner, "update", counted)
     internal = hierarchy.update_internal
 
     def counted_internal(agents_, node, *args, **kwargs):
@@ -568,6 +565,17 @@ def test_the_authors_schedule_updates_every_agent_after_each_episode(monkeypatch
         return internal(agents_, node, *args, **kwargs)
 
     monkeypatch.setattr(hierarchy, "update_internal", counted_internal)
+    return calls
+
+
+def test_the_authors_schedule_updates_every_agent_after_each_episode(monkeypatch):
+    """updates_per_episode=5 (D.2): no gradient step during an episode; after each training
+    episode past learning_starts, 5 of the Evaluator, 5 of every node's external agent and of
+    each internal agent that holds a batch, 5 of plain SAC; evaluation episodes none; bad
+    schedules are TrainingErrors."""
+    from pliant.learn.graph.sac import SAC
+
+    calls = _count_updates(monkeypatch)
     schedule = GraphConfig(**{**FAST.__dict__, "updates_per_episode": 5, "learning_starts": 100})
     env, agent = _corridor_agent(config=schedule)
     while agent.steps < 100:  # before learning_starts: nothing
@@ -600,6 +608,50 @@ def test_the_authors_schedule_updates_every_agent_after_each_episode(monkeypatch
             FlatSAC(env.observation_space, env.action_space, GraphConfig(**bad))
         with pytest.raises(TrainingError, match="updates_per"):
             _corridor_agent(config=GraphConfig(**{**FAST.__dict__, **bad}))
+
+
+@pytest.mark.parametrize("scope", ["node", "all"])
+def test_update_scope_trains_the_nodes_agents_or_every_agent(monkeypatch, scope):
+    """A training step past learning_starts is one gradient step of the Evaluator and, with
+    update_scope="node", of the agents of the node the transition started in only; with
+    "all", of every node's agents that hold a batch (as many as plain SAC's one network)."""
+    config = GraphConfig(**{**FAST.__dict__, "learning_starts": 10**9, "update_scope": scope})
+    env, agent = _corridor_agent(config=config)
+    # The Evaluator's buffer holds a batch (random training episodes, no learning), and every
+    # node's buffers too (the same transitions: only the count matters here).
+    seed = 0
+    while len(agent.evaluator_buffer) < FAST.batch_size:
+        agent.run_episode(env, train=True, seed=seed)
+        seed += 1
+    agent.config = dataclasses.replace(agent.config, learning_starts=0)
+    obs, _ = env.reset(seed=0)
+    for _ in range(FAST.batch_size):
+        action = env.action_space.sample()
+        next_obs, reward, terminated, _, _ = env.step(action)
+        item = {"obs": obs, "action": action, "reward": reward, "next_obs": next_obs}
+        item |= {"next_node": agent.node_of(next_obs), "terminal": 0.0}
+        for i in range(3):
+            agent.internal[i].store(item)
+            if agent.external[i] is not None:
+                agent.external[i].buffer.add(**item)
+        obs = next_obs
+    calls = _count_updates(monkeypatch)
+    obs, _ = env.reset(seed=1)
+    node = agent.node_of(obs)
+    action = env.action_space.sample()
+    next_obs, reward, terminated, _, _ = env.step(action)
+    agent._store(obs, action, reward, next_obs, node, agent.node_of(next_obs), terminated)
+    internal = sorted(c for c in calls if c.startswith("internal"))
+    external = sum(a is not None for a in agent.external)
+    assert calls.count("Evaluator") == 1
+    if scope == "node":
+        assert internal == [f"internal{node}"]
+        assert calls.count("ExternalAgent") == int(agent.external[node] is not None)
+    else:
+        assert internal == [f"internal{i}" for i in range(3)]
+        assert calls.count("ExternalAgent") == external
+    with pytest.raises(TrainingError, match="update_scope"):
+        _corridor_agent(config=GraphConfig(**{**FAST.__dict__, "update_scope": "some"}))
 
 
 def test_cli_trains_checkpoints_and_resumes(tmp_path):

@@ -401,6 +401,10 @@ def main() -> None:
     )
     parser.add_argument("--out", type=Path, default=RESULTS)
     parser.add_argument(
+        "--env-kwargs", type=json.loads, default={},
+        help='JSON of environment keywords over ENV_KWARGS, e.g. \'{"material": ...}\'',
+    )  # fmt: skip
+    parser.add_argument(
         "--phases", nargs="+", choices=["placements", "sweeps"], default=["placements", "sweeps"],
         help="the searches to run (sweeps alone: a cheap map of where catches are)",
     )  # fmt: skip
@@ -412,7 +416,8 @@ def main() -> None:
     import pliant.envs  # noqa: F401  (registers the environments)
 
     torch.set_num_threads(1)
-    env = gym.make(ENV_ID, **ENV_KWARGS).unwrapped
+    env_kwargs = {**ENV_KWARGS, **args.env_kwargs}
+    env = gym.make(ENV_ID, **env_kwargs).unwrapped
     unknown = set(args.sizes) - set(env.cube_sizes)
     if unknown:
         parser.error(f"cube sizes {sorted(unknown)} are not the environment's {env.cube_sizes}")
@@ -424,7 +429,7 @@ def main() -> None:
     phases = {phase: run for phase, run in phases.items() if phase in args.phases}
     summary = {
         "env_id": ENV_ID,
-        "env_kwargs": ENV_KWARGS,
+        "env_kwargs": env_kwargs,
         "seed": args.seed,
         "macros": {k: v.tolist() for k, v in MACROS.items()},
         "command": " ".join(

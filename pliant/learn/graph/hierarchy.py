@@ -61,6 +61,11 @@ class GraphConfig:
     #: internal and external ones, the Evaluator) after each training episode, none during it;
     #: None: ``updates_per_step`` during the episode. Plain SAC follows the same schedule.
     updates_per_episode: int | None = None
+    #: which agents a per-step update trains: "node" (those of the node the transition
+    #: started in, and the Evaluator: each agent learns as often as its node is visited) or
+    #: "all" (every agent that holds a batch, as the authors' after-episode schedule does:
+    #: each agent then takes as many gradient steps as plain SAC's one network).
+    update_scope: str = "node"
     option_limit: int = 30
     penalty: float = -1.0
     external_rewards: tuple[float, float, float] = EXTERNAL_REWARDS
@@ -119,6 +124,8 @@ def check_schedule(config: GraphConfig) -> None:
     per_episode = config.updates_per_episode
     if per_episode is not None and not (isinstance(per_episode, int) and per_episode >= 1):
         raise TrainingError(f"updates_per_episode must be a whole number >= 1, got {per_episode}")
+    if config.update_scope not in ("node", "all"):
+        raise TrainingError(f"update_scope must be 'node' or 'all', got {config.update_scope!r}")
 
 
 class GraphAgent:
@@ -325,7 +332,10 @@ class GraphAgent:
             self._update_debt += self.config.updates_per_step
             while self._update_debt >= 1.0:
                 self._update_debt -= 1.0
-                self.update(node)
+                if self.config.update_scope == "all":
+                    self.update_all()
+                else:
+                    self.update(node)
 
     # ---- learning -----------------------------------------------------------------------------
     def update(self, node: int) -> None:
