@@ -76,12 +76,14 @@ def main() -> None:
 
     import pliant.envs  # noqa: F401  (registers the environments)
 
-    # The expert search's keywords (trunk_debris_expert.ENV_KWARGS), scored by the catch test.
-    env = gym.make(
-        "pliant/TrunkSpaceDebris-v0", continuous_mode="increment", action_scale=2.0,
-        success="catch",
-    )  # fmt: skip
     for folder in args.folders:
+        # The search's own keywords (its summary's; trunk_debris_expert.ENV_KWARGS before
+        # --env-kwargs existed), scored by the catch test.
+        summary = folder / "summary.json"
+        kwargs = {"continuous_mode": "increment", "action_scale": 2.0}
+        if summary.exists():
+            kwargs |= json.loads(summary.read_text()).get("env_kwargs", {})
+        env = gym.make("pliant/TrunkSpaceDebris-v0", **{**kwargs, "success": "catch"})
         result = check_folder(env, folder)
         path = folder / "catch_check.json"
         tmp = path.with_suffix(".tmp")
