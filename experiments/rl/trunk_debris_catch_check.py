@@ -77,12 +77,8 @@ def main() -> None:
     import pliant.envs  # noqa: F401  (registers the environments)
 
     for folder in args.folders:
-        # The search's own keywords (its summary's; trunk_debris_expert.ENV_KWARGS before
-        # --env-kwargs existed), scored by the catch test.
-        summary = folder / "summary.json"
-        kwargs = {"continuous_mode": "increment", "action_scale": 2.0}
-        if summary.exists():
-            kwargs |= json.loads(summary.read_text()).get("env_kwargs", {})
+        # The search's own keywords (its summary's), scored by the catch test.
+        kwargs = json.loads((folder / "summary.json").read_text())["env_kwargs"]
         env = gym.make("pliant/TrunkSpaceDebris-v0", **{**kwargs, "success": "catch"})
         result = check_folder(env, folder)
         path = folder / "catch_check.json"

@@ -387,6 +387,14 @@ def _row(r: dict, held: int = 5) -> dict:
     }
 
 
+def _json_object(text: str) -> dict:
+    """``--env-kwargs``: a JSON object (argparse reports anything else in one line)."""
+    value = json.loads(text)
+    if not isinstance(value, dict):
+        raise ValueError("not a JSON object")
+    return value
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--beam", type=int, default=4)
@@ -401,7 +409,7 @@ def main() -> None:
     )
     parser.add_argument("--out", type=Path, default=RESULTS)
     parser.add_argument(
-        "--env-kwargs", type=json.loads, default={},
+        "--env-kwargs", type=_json_object, default={},
         help='JSON of environment keywords over ENV_KWARGS, e.g. \'{"material": ...}\'',
     )  # fmt: skip
     parser.add_argument(
