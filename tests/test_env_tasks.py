@@ -286,6 +286,38 @@ def test_space_debris_catch_test_tells_a_catch_from_a_pinning(
         make("TrunkSpaceDebris", success="catch", catch_steps=0)
 
 
+def test_space_debris_expert_pulls_the_facing_cables_and_catches_a_large_cube():
+    from pliant.envs.trunk_space_debris import expert, expert_action, pull_weights
+    from pliant.robots.trunk_debris import beside_trunk
+
+    # long cables 0-3 at +y, -x, -y, +x: the cube's direction picks them, cos-weighted
+    assert np.allclose(pull_weights(np.array([50.0, 0.0, 80.0])), [0, 0, 0, 1, 0, 0, 0, 0])
+    w = pull_weights(np.array([50.0, 50.0 * np.tan(np.radians(30.0)), 80.0]))
+    assert np.allclose(w[:4], [np.tan(np.radians(30.0)), 0.0, 0.0, 1.0]) and not w[4:].any()
+    # the same pull, 2 mm a step, in each action space of the environment
+    targets = []
+    for kwargs in ({"continuous_mode": "increment"}, {"continuous_mode": "absolute"},
+                   {"action_type": "discrete"}):  # fmt: skip
+        env = make("TrunkSpaceDebris", cube_sizes=(40.0,), action_scale=2.0, **kwargs)
+        env.reset(seed=0, options={"cube_position": beside_trunk(40.0, 85.0, 15.0)})
+        e = env.unwrapped
+        e.commands = np.array([0, 0, 0, 34.0, 0, 0, 0, 0])  # one step from the end of its course
+        e._commands_from_action(expert_action(env))
+        targets.append(e.target_commands.copy())
+    assert np.allclose(targets, [[0, 0, 0, 35.0, 0, 0, 0, 0]] * 3)
+    # it catches the 40 mm cube beside the trunk's middle (opposite faces, off the hull)
+    env = gym.make(
+        "pliant/TrunkSpaceDebris-v0", cube_sizes=(40.0,), continuous_mode="increment",
+        success="catch",
+    )  # fmt: skip
+    obs, _ = env.reset(seed=0, options={"cube_position": beside_trunk(40.0, 90.0, 18.0)})
+    act = expert(env)
+    for _ in range(50):
+        obs, _, terminated, _, info = env.step(act(obs))
+        assert not terminated
+    assert info["is_success"] and info["held"] >= 30
+
+
 def test_space_debris_losing_the_cube_is_charged_the_steps_left():
     # An escape distance below the cube's start: lost at the first step, 49 steps left of 50.
     env = make("TrunkSpaceDebris", cube_sizes=(30.0,), escape_distance=1.0, horizon=50)

@@ -21,8 +21,8 @@ import torch
 
 from pliant.learn import TrainConfig, load_config, parameters, train
 from pliant.learn.bc import agreement, behaviour_clone, collect_expert, predict_actions
-from pliant.learn.evaluate import run_episodes
-from pliant.learn.toys import point_reach_expert
+from pliant.learn.evaluate import evaluate_saved, load_policy, run_episodes
+from pliant.learn.toys import PointReachEnv, point_reach_expert
 from pliant.learn.vec import make_env
 
 TOY = "pliant-test/PointReach-v0"
@@ -209,12 +209,35 @@ def test_bc_pretraining_through_train(tmp_path):
     cfg = _config(
         "PPO",
         256,
-        bc={"expert": "pliant.learn.toys:point_reach_expert", "epochs": 300, "episodes": 40},
-    )
+        bc={
+            "expert": "pliant.learn.toys:point_reach_expert", "epochs": 300, "episodes": 40,
+            "std": 0.2,
+        },
+    )  # fmt: skip
     train(cfg, tmp_path)
     report = json.loads((tmp_path / "bc.json").read_text())
     assert report["pairs"] > 50 and report["expert_success_rate"] == 1.0
     assert report["action_mean_abs_error"] < 0.15
+    # the policy as cloned, before PPO, is kept, with the exploration asked for, and
+    # evaluates (mean actions) as the expert does
+    cloned = load_policy(tmp_path / "cloned")
+    assert torch.allclose(cloned.model.policy.log_std.exp(), torch.tensor(0.2))
+    assert evaluate_saved(tmp_path / "cloned", episodes=10).success_rate >= 0.9
+
+
+def test_set_exploration_refuses_what_it_cannot_set():
+    from stable_baselines3 import DQN, PPO
+
+    from pliant.learn.bc import set_exploration
+
+    ppo = PPO("MlpPolicy", PointReachEnv(), n_steps=64, seed=0)
+    set_exploration(ppo.policy, 0.3)
+    assert torch.allclose(ppo.policy.log_std.exp(), torch.tensor(0.3))
+    with pytest.raises(ValueError, match="positive"):
+        set_exploration(ppo.policy, 0.0)
+    dqn = DQN("MlpPolicy", PointReachEnv(action_type="discrete"), seed=0)
+    with pytest.raises(ValueError, match="log_std"):
+        set_exploration(dqn.policy, 0.3)
 
 
 def test_dead_worker_is_restarted_and_training_goes_on(tmp_path):

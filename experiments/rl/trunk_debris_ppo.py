@@ -2,7 +2,15 @@
 80 % success over 400 tests, 70 % of the failures drops after the catch).
 
     PYTHONPATH=. python experiments/rl/trunk_debris_ppo.py [--steps 100000] [--tests 400]
-        [--variant full_courses|catchable] [--workers 1]
+        [--variant full_courses|catchable] [--workers 1] [--bc] [--bc-episodes 40]
+
+`--bc` first fits the policy (3000 epochs, the thesis' Gripper schedule) to the successful
+episodes of the whole-arm pull (``pliant.envs.trunk_space_debris:expert``: the long cables
+facing the cube pulled to their ends and held, the program the planner of
+trunk_debris_expert.py found to catch), sets its exploration std to `--bc-std` (cloning
+shrinks it to 0.014, from which PPO's first update wrecks the policy: docs/learning.md), then
+runs PPO from there; the policy as cloned is
+tested beside the final one on the same episodes (run and results suffixed ``_bc``).
 
 `--variant full_courses` trains on SOFA's inversion-tolerant large-frame law with the
 SoftRobots courses (70 and 40 mm) and the cube beside the trunk's middle; `--variant
@@ -70,6 +78,18 @@ VARIANTS = {
 THESIS = {"algo": "PPO, MLP 3x512", "steps": 100_000, "success": 0.8, "drops_of_failures": 0.7}
 
 
+# Behaviour cloning (--bc): the whole-arm pull's successful episodes, the thesis' 3000 epochs.
+BC = {"expert": "pliant.envs.trunk_space_debris:expert", "successful_only": True}
+
+
+def by_cube_size(records: list[dict]) -> dict:
+    out = {}
+    for size in sorted({r["cube_size"] for r in records}):
+        group = [r["success"] for r in records if r["cube_size"] == size]
+        out[str(size)] = {"tests": len(group), "success": float(np.mean(group))}
+    return out
+
+
 def test_episodes(policy_dir: Path, tests: int, gif: Path | None) -> list[dict]:
     policy = load_policy(policy_dir)
     env = make(
@@ -119,8 +139,14 @@ def main() -> None:
     parser.add_argument("--run", type=Path, default=None, help="default runs/trunk_debris_ppo[_V]")
     parser.add_argument("--variant", choices=sorted(VARIANTS), default="default")
     parser.add_argument("--workers", type=int, default=None, help="default: the config's 2")
+    parser.add_argument("--bc", action="store_true", help="clone the whole-arm pull first")
+    parser.add_argument("--bc-episodes", type=int, default=40)
+    parser.add_argument("--bc-epochs", type=int, default=3000)
+    parser.add_argument(
+        "--bc-std", type=float, default=0.1, help="the cloned policy's exploration std"
+    )
     args = parser.parse_args()
-    suffix = "" if args.variant == "default" else f"_{args.variant}"
+    suffix = ("" if args.variant == "default" else f"_{args.variant}") + ("_bc" if args.bc else "")
     args.run = args.run or Path(f"runs/trunk_debris_ppo{suffix}")
     results = RESULTS.with_name(RESULTS.name + suffix)
     torch.set_num_threads(args.threads)
@@ -133,17 +159,30 @@ def main() -> None:
             "checkpoint_freq": 5000,
             "env_kwargs": {"continuous_mode": "increment", **VARIANTS[args.variant]},
             **({"n_envs": args.workers} if args.workers else {}),
+            **(
+                {
+                    "bc": BC
+                    | {"episodes": args.bc_episodes, "epochs": args.bc_epochs, "std": args.bc_std}
+                }
+                if args.bc
+                else {}
+            ),
         },
     )
     result = train(config, args.run, resume=resume, total_timesteps=args.steps)
     results.mkdir(parents=True, exist_ok=True)
     clock = time.perf_counter()
     records = test_episodes(args.run / "final", args.tests, results / "tests.gif")
+    cloned = None
+    if args.bc:
+        cloned_records = test_episodes(args.run / "cloned", args.tests, None)
+        (results / "tests_cloned.json").write_text(json.dumps(cloned_records, indent=1))
+        cloned = {
+            "fit": json.loads((args.run / "bc.json").read_text()),
+            "success_rate": float(np.mean([r["success"] for r in cloned_records])),
+            "success_by_cube_size": by_cube_size(cloned_records),
+        }
     failures = [r for r in records if not r["success"]]
-    by_size = {}
-    for size in sorted({r["cube_size"] for r in records}):
-        group = [r["success"] for r in records if r["cube_size"] == size]
-        by_size[str(size)] = {"tests": len(group), "success": float(np.mean(group))}
     summary = {
         "env_id": "pliant/TrunkSpaceDebris-v0",
         "algo": f"PPO, MLP 3x512, VecNormalize, {config.n_envs} workers, cable increments",
@@ -157,12 +196,19 @@ def main() -> None:
         ),
         "lost_of_failures": float(np.mean([r["lost"] for r in failures])) if failures else None,
         "diverged": int(sum(r["diverged"] for r in records)),
-        "success_by_cube_size": by_size,
+        "success_by_cube_size": by_cube_size(records),
+        "behaviour_cloning": cloned,
         "test_seconds": time.perf_counter() - clock,
         "thesis": THESIS,
         "command": "PYTHONPATH=. python experiments/rl/trunk_debris_ppo.py"
         f" --steps {args.steps} --tests {args.tests} --variant {args.variant}"
-        + (f" --workers {args.workers}" if args.workers else ""),
+        + (f" --workers {args.workers}" if args.workers else "")
+        + (
+            f" --bc --bc-episodes {args.bc_episodes} --bc-epochs {args.bc_epochs}"
+            f" --bc-std {args.bc_std}"
+            if args.bc
+            else ""
+        ),
     }
     (results / "summary.json").write_text(json.dumps(summary, indent=1))
     (results / "tests.json").write_text(json.dumps(records, indent=1))

@@ -53,6 +53,7 @@ from pliant.envs.base import ActionType, EnvSnapshot, EnvStateError, scaled_box
 from pliant.envs.trunk import LENGTH, TrunkEnv, neutral_fibre
 from pliant.mesh import shapes
 from pliant.model import Model, State
+from pliant.robots.trunk import _AZIMUTHS
 from pliant.robots.trunk_debris import beside_trunk, trunk_space_debris
 from pliant.solvers import ImplicitEuler
 
@@ -298,3 +299,48 @@ class TrunkSpaceDebrisEnv(TrunkEnv):
 
     def _render_goal(self):
         return self.cube_faces()
+
+
+def pull_weights(cube: np.ndarray) -> np.ndarray:
+    """(8,) how hard the whole-arm pull works each cable for a cube centred at `cube`: the long
+    cables in proportion to how squarely they face the cube (cos of the angle between the
+    cable's side and the cube's direction around the trunk, negative ones not pulled, the
+    largest 1), the short cables not at all."""
+    azimuth = np.arctan2(cube[1], cube[0])
+    facing = np.maximum(np.cos(azimuth - np.asarray(_AZIMUTHS)), 0.0)
+    facing[facing < 1e-9] = 0.0
+    return np.concatenate([facing / facing.max(), np.zeros(4)])
+
+
+def expert_action(env, weights: np.ndarray | None = None, rate: float = 1.0) -> np.ndarray | int:
+    """One step of the whole-arm pull, as an action of the environment's own space: the cables
+    pulled in proportion to `weights` (default: :func:`pull_weights` of the cube where it is
+    now), each to that fraction of its course, at `rate` times the environment's full rate
+    (``action_scale`` mm a step; discrete actions: one cable a step at the full rate), and
+    held there. The program a planner found to catch (docs/learning.md: the trunk bends over
+    the cube, pushes it down along its own body and closes on it, the middle on the near face
+    and the tip on the far one); it catches 40 mm cubes beside the trunk's middle and lets
+    smaller ones slip through the curl."""
+    e: TrunkSpaceDebrisEnv = env.unwrapped
+    weights = pull_weights(e.cube()) if weights is None else np.asarray(weights, dtype=float)
+    if not 0.0 < rate <= 1.0:
+        raise ValueError(f"rate must be in (0, 1] (a fraction of the full rate), got {rate!r}")
+    end = weights * e.max_commands
+    if e.action_type == "discrete":
+        # the pulled cable furthest from its end (action 2i pulls cable i)
+        return int(2 * np.argmax(np.where(weights > 0, end - e.commands, -np.inf)))
+    if e.continuous_mode == "increment":
+        return (rate * weights).astype(np.float32)
+    target = np.minimum(e.commands + rate * e.action_scale * weights, end)
+    return (2.0 * target / e.max_commands - 1.0).astype(np.float32)
+
+
+def expert(env, rate: float = 1.0):
+    """The whole-arm pull as an expert for behaviour cloning (:mod:`pliant.learn.bc`,
+    ``--bc-expert pliant.envs.trunk_space_debris:expert``), called after each reset: the
+    cables chosen from the cube's place at the start, ``act(observation) -> action``."""
+    weights = pull_weights(env.unwrapped.cube())
+    return lambda observation: expert_action(env, weights, rate)
+
+
+__all__ = ["TrunkSpaceDebrisEnv", "expert", "expert_action", "pull_weights"]

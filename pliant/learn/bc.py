@@ -180,11 +180,29 @@ def predict_actions(policy, observations: np.ndarray, episode_starts=None) -> np
     return np.asarray(out)
 
 
+def set_exploration(policy, std: float) -> None:
+    """Set a Gaussian policy's state-independent standard deviation (SB3's ``log_std``) to
+    `std` in every action dimension. Cloning a deterministic expert drives it towards zero
+    (the log-likelihood of exact actions grows without bound as it shrinks: 0.014 after
+    3000 epochs on the TrunkSpaceDebris pull), and PPO from such a policy breaks at its first
+    update: each step of the mean is hundreds of standard deviations, the ratio's KL
+    divergence runs to 1e4 and 99.7 % of the samples are clipped (measured,
+    docs/learning.md). The mean, the cloned behaviour, is kept."""
+    if not 0.0 < std < np.inf:
+        raise ValueError(f"std must be a positive number, got {std!r}")
+    log_std = getattr(policy, "log_std", None)
+    if not isinstance(log_std, torch.nn.Parameter):
+        raise ValueError(f"{type(policy).__name__} has no state-independent log_std to set")
+    with torch.no_grad():
+        log_std.fill_(float(np.log(std)))
+
+
 def pretrain(model, config) -> dict:
     """`pliant train --bc-expert`: collect the expert's episodes, fit ``model.policy``, and
     report the fit (loss per epoch, agreement with the expert on its data). With VecNormalize,
     the expert's observations first update the normaliser, then are normalised as the policy
-    will see them."""
+    will see them. ``std`` in the configuration sets the cloned policy's exploration
+    (:func:`set_exploration`) before RL starts."""
     from pliant.learn.vec import make_env
 
     bc = {"episodes": 20, "epochs": 100, "batch_size": 64, "learning_rate": 1e-3, **config.bc}
@@ -212,6 +230,9 @@ def pretrain(model, config) -> dict:
         seed=config.seed,
     )
     predicted = predict_actions(model.policy, observations, data["episode_starts"])
+    std = bc.get("std")
+    if std is not None:
+        set_exploration(model.policy, float(std))
     return {
         "expert": bc["expert"],
         "pairs": len(observations),
@@ -221,6 +242,7 @@ def pretrain(model, config) -> dict:
         "expert_success_rate": expert_success,
         "loss_first_epoch": history[0],
         "loss_last_epoch": history[-1],
+        "std_after": std,
         **agreement(predicted, data["actions"]),
     }
 

@@ -9,6 +9,7 @@ A run lives in one folder::
     RUN/evaluations.json     the learning curve (evaluation success rate and return)
     RUN/episodes.csv         every training episode (step, return, length, success, diverged)
     RUN/best/, RUN/final/    model.zip + vecnormalize.pkl + meta.json
+    RUN/bc.json, RUN/cloned/ with behaviour cloning: the fit, and the policy as cloned
     RUN/summary.json, RUN/learning_curve.png, RUN/eval.gif
 
 Exact resume: ``train(config, run_dir, resume=True)`` loads the latest checkpoint and ends with
@@ -148,6 +149,11 @@ def train(
 
                 report = pretrain(model, config)
                 (run_dir / "bc.json").write_text(json.dumps(report, indent=1))
+                # the cloned policy as it is before any RL, to evaluate beside the final one
+                save_policy(
+                    model, run_dir / "cloned", config.algo, config.env_id, config.env_kwargs,
+                    model.get_vec_normalize_env(),
+                )  # fmt: skip
 
         checkpoints = CheckpointCallback(
             run_dir, config.checkpoint_freq, config.keep_checkpoints, config, counters
