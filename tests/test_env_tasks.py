@@ -287,7 +287,7 @@ def test_space_debris_catch_test_tells_a_catch_from_a_pinning(
 
 
 def test_space_debris_expert_pulls_the_facing_cables_and_catches_a_large_cube():
-    from pliant.envs.trunk_space_debris import expert, expert_action, pull_weights
+    from pliant.envs.trunk_space_debris import expert, expert_action, pull_weights, sized_expert
     from pliant.robots.trunk_debris import beside_trunk
 
     # long cables 0-3 at +y, -x, -y, +x: the cube's direction picks them, cos-weighted
@@ -305,6 +305,13 @@ def test_space_debris_expert_pulls_the_facing_cables_and_catches_a_large_cube():
         e._commands_from_action(expert_action(env))
         targets.append(e.target_commands.copy())
     assert np.allclose(targets, [[0, 0, 0, 35.0, 0, 0, 0, 0]] * 3)
+    # the sized expert: half the rate for cubes under 37.5 mm
+    for size, rate in ((35.0, 0.5), (40.0, 1.0)):
+        env = make("TrunkSpaceDebris", cube_sizes=(size,), continuous_mode="increment")
+        obs, _ = env.reset(seed=0, options={"cube_position": beside_trunk(size, 85.0, 15.0)})
+        assert np.allclose(sized_expert(env)(obs), [0, 0, 0, rate, 0, 0, 0, 0])
+    with pytest.raises(ValueError, match="rate"):
+        expert_action(env, rate=0.0)
     # it catches the 40 mm cube beside the trunk's middle (opposite faces, off the hull)
     env = gym.make(
         "pliant/TrunkSpaceDebris-v0", cube_sizes=(40.0,), continuous_mode="increment",

@@ -141,12 +141,25 @@ def main() -> None:
     parser.add_argument("--workers", type=int, default=None, help="default: the config's 2")
     parser.add_argument("--bc", action="store_true", help="clone the whole-arm pull first")
     parser.add_argument("--bc-episodes", type=int, default=40)
+    parser.add_argument(
+        "--bc-expert",
+        choices=("expert", "sized_expert"),
+        default="expert",
+        help="the pull at the full rate, or at a rate chosen by the cube's size",
+    )
     parser.add_argument("--bc-epochs", type=int, default=3000)
     parser.add_argument(
-        "--bc-std", type=float, default=0.1, help="the cloned policy's exploration std"
+        "--bc-std",
+        type=float,
+        default=0.1,
+        help="the cloned policy's exploration std (0: keep what cloning left)",
     )
+    parser.add_argument("--learning-rate", type=float, default=None, help="PPO's (3e-4)")
+    parser.add_argument("--target-kl", type=float, default=None, help="PPO's (none)")
     args = parser.parse_args()
-    suffix = ("" if args.variant == "default" else f"_{args.variant}") + ("_bc" if args.bc else "")
+    suffix = ("" if args.variant == "default" else f"_{args.variant}") + (
+        ("_bc" if args.bc_expert == "expert" else "_bc_sized") if args.bc else ""
+    )
     args.run = args.run or Path(f"runs/trunk_debris_ppo{suffix}")
     results = RESULTS.with_name(RESULTS.name + suffix)
     torch.set_num_threads(args.threads)
@@ -159,10 +172,20 @@ def main() -> None:
             "checkpoint_freq": 5000,
             "env_kwargs": {"continuous_mode": "increment", **VARIANTS[args.variant]},
             **({"n_envs": args.workers} if args.workers else {}),
+            "hyperparams": {
+                k: v
+                for k, v in (("learning_rate", args.learning_rate), ("target_kl", args.target_kl))
+                if v is not None
+            },
             **(
                 {
                     "bc": BC
-                    | {"episodes": args.bc_episodes, "epochs": args.bc_epochs, "std": args.bc_std}
+                    | {
+                        "expert": f"pliant.envs.trunk_space_debris:{args.bc_expert}",
+                        "episodes": args.bc_episodes,
+                        "epochs": args.bc_epochs,
+                        "std": args.bc_std or None,
+                    }
                 }
                 if args.bc
                 else {}
@@ -204,11 +227,14 @@ def main() -> None:
         f" --steps {args.steps} --tests {args.tests} --variant {args.variant}"
         + (f" --workers {args.workers}" if args.workers else "")
         + (
-            f" --bc --bc-episodes {args.bc_episodes} --bc-epochs {args.bc_epochs}"
+            f" --bc --bc-expert {args.bc_expert} --bc-episodes {args.bc_episodes}"
+            f" --bc-epochs {args.bc_epochs}"
             f" --bc-std {args.bc_std}"
             if args.bc
             else ""
-        ),
+        )
+        + (f" --learning-rate {args.learning_rate}" if args.learning_rate else "")
+        + (f" --target-kl {args.target_kl}" if args.target_kl else ""),
     }
     (results / "summary.json").write_text(json.dumps(summary, indent=1))
     (results / "tests.json").write_text(json.dumps(records, indent=1))

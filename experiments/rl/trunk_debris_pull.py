@@ -27,11 +27,12 @@ import numpy as np
 
 from experiments.rl.trunk_debris_ppo import VARIANTS
 from pliant.envs import make
-from pliant.envs.trunk_space_debris import expert
+from pliant.envs.trunk_space_debris import expert, sized_expert
 
 RESULTS = Path("experiments/results/rl/trunk_debris_pull")
 CATCHABLE = VARIANTS["catchable"]  # where the planner found catches
-# name: (environment keywords, the pull's rates tried in turn on each placement)
+# name: (environment keywords, the pull's rates tried in turn on each placement; "sized": the
+# rate sized_expert chooses from the cube's size, one try)
 SETTINGS = {
     "catchable": (CATCHABLE, (1.0,)),
     # the same, turned about the trunk as the environment's default draws (+-30 deg)
@@ -40,10 +41,13 @@ SETTINGS = {
     "default": ({}, (1.0,)),
     # a planning expert: the full rate, or if it does not catch, 3/4 of it, or half
     "catchable_rates": (CATCHABLE, (1.0, 0.75, 0.5)),
+    # the rate chosen by the cube's size (full for 40 mm, half for 35), what --bc-expert
+    # sized_expert of trunk_debris_ppo.py clones
+    "catchable_sized": (CATCHABLE, ("sized",)),
 }
 
 
-def play(env_kwargs: dict, tests: int, rates: tuple[float, ...]) -> list[dict]:
+def play(env_kwargs: dict, tests: int, rates: tuple) -> list[dict]:
     env = make("pliant/TrunkSpaceDebris-v0", **env_kwargs)
     records = []
     for k in range(tests):
@@ -51,7 +55,7 @@ def play(env_kwargs: dict, tests: int, rates: tuple[float, ...]) -> list[dict]:
             obs, _ = env.reset(seed=30_000 + k)
             e = env.unwrapped
             cube = e.cube().copy()
-            act = expert(env, rate)
+            act = sized_expert(env) if rate == "sized" else expert(env, rate)
             for _ in range(e.horizon):
                 obs, _, terminated, truncated, info = env.step(act(obs))
                 if terminated or truncated:

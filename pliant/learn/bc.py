@@ -200,9 +200,12 @@ def set_exploration(policy, std: float) -> None:
 def pretrain(model, config) -> dict:
     """`pliant train --bc-expert`: collect the expert's episodes, fit ``model.policy``, and
     report the fit (loss per epoch, agreement with the expert on its data). With VecNormalize,
-    the expert's observations first update the normaliser, then are normalised as the policy
-    will see them. ``std`` in the configuration sets the cloned policy's exploration
-    (:func:`set_exploration`) before RL starts."""
+    the observations of all the expert's episodes first update the normaliser (with
+    ``successful_only``, the failed ones too: statistics of the successes alone can miss a
+    whole feature's spread, e.g. a cube size the expert never catches, and the running
+    statistics then move under the cloned policy as soon as RL meets it), then the cloned
+    pairs are normalised as the policy will see them. ``std`` in the configuration sets the
+    cloned policy's exploration (:func:`set_exploration`) before RL starts."""
     from pliant.learn.vec import make_env
 
     bc = {"episodes": 20, "epochs": 100, "batch_size": 64, "learning_rate": 1e-3, **config.bc}
@@ -212,12 +215,14 @@ def pretrain(model, config) -> dict:
     finally:
         env.close()
     expert_success = float(data["successes"].mean())
+    vecnorm = model.get_vec_normalize_env()
+    if vecnorm is not None and vecnorm.norm_obs:
+        # every episode's states, failed ones included: they are what the policy will meet
+        vecnorm.obs_rms.update(data["observations"])
     if bc.get("successful_only"):
         data = successful_episodes(data)
     observations = data["observations"]
-    vecnorm = model.get_vec_normalize_env()
     if vecnorm is not None and vecnorm.norm_obs:
-        vecnorm.obs_rms.update(observations)
         observations = vecnorm.normalize_obs(observations)
     history = behaviour_clone(
         model.policy,
