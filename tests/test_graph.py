@@ -373,6 +373,42 @@ def test_cartstem_fem_inverse_reaches_a_goal_behind_the_obstacle_it_bends_over()
         CartStemStaticInverse(env, probe=float("nan"))
 
 
+def test_cartstem_obstacles_shifted_are_the_scene_translated():
+    """`obstacle_shift`: the obstacles, the cart and the goal moved together by 6 mm make the
+    same episode 6 mm further (tip, Eq. 4.7's node, the FEM inverse's decision); a snapshot
+    puts the obstacles back where its episode had them."""
+    from pliant.envs import make
+    from pliant.learn.graph.scenes import CartStemStaticInverse
+
+    env = make("pliant/CartStemContact-v0", obstacle_shift=8.0)
+    base = env.unwrapped
+    inverse = CartStemStaticInverse(env)
+    runs = {}
+    for shift in (0.0, 6.0):
+        obs, _ = env.reset(seed=1, options={"shift": shift, "cart": shift, "goal": shift - 26.0})
+        assert obs[2] * base.length == pytest.approx(base._obstacles_at_rest[0, 0] + shift)
+        tips, nodes = [], []
+        for _ in range(3):  # onto the right obstacle: target 20 mm right of the centre
+            obs, *_ = env.step(np.array([(shift + 20.0) / base.max_move]))
+            tips.append(base.tip_x() - shift)
+            nodes.append(cartstem_partition(obs))
+        runs[shift] = tips, nodes, inverse(obs)[0] * base.max_move - shift
+        if shift == 6.0:
+            snapshot = base.get_state()
+    assert runs[6.0][1] == runs[0.0][1] == [1, 2, 2]
+    np.testing.assert_allclose(runs[6.0][0], runs[0.0][0], atol=1e-6)
+    assert runs[6.0][2] == pytest.approx(runs[0.0][2], abs=1e-4)
+    env.reset(seed=2, options={"shift": -5.0})
+    base.set_state(snapshot)
+    assert base.model.contacts.shapes[1].position[0] == pytest.approx(
+        base._obstacles_at_rest[1, 0] + 6.0
+    )
+    with pytest.raises(ValueError, match="obstacle_shift"):
+        make("pliant/CartStemContact-v0", obstacle_shift=-1.0)
+    with pytest.raises(ValueError, match="within"):
+        env.reset(options={"shift": 8.0, "cart": -8.0})
+
+
 def test_cartstem_inverse_kept_in_its_node_solves_from_the_node_it_was_sent_to():
     """The beam just over node 2's boundary (barely pressed on the right obstacle), the goal
     behind the left one: the local inverse steps the cart left, out of node 2, and stalls in

@@ -3,6 +3,7 @@
     python experiments/graph/cartstem.py [--scene CartStemContact|RodManipulator|Corridor]
         [--methods graph convex convex_node sac]
         [--seeds 0 1 2] [--steps 250000] [--eval-every 600] [--out experiments/results/graph]
+        [--obstacle-shift S]
 
 Methods (same SAC and hyper-parameters for all, thesis L827): ``graph`` (node by Eq. 4.7,
 Evaluator, external and internal SAC agents per node), ``convex`` (internal agents replaced by
@@ -15,7 +16,10 @@ script resumes each run up to ``--steps`` (a larger ``--steps`` continues the sa
 ``<out>/<scene>/summary.json``: per method and seed the first evaluated step with success ≥
 ``--solved`` ("iterations to solve"), its steps and last evaluation, and whether a budget is
 below the thesis' 250k (``partial``), over every run folder of the scene (not only those this
-call trained); and a plot of the learning curves (mean and min-max over seeds).
+call trained); and a plot of the learning curves (mean and min-max over seeds). With
+``--obstacle-shift S`` (CartStemContact) the obstacles move together by U(-S, S) mm each
+episode, the cart drawn around them (the thesis' random contact and base positions); those
+runs live in ``<out>/CartStemContact/shiftS/``.
 """
 
 from __future__ import annotations
@@ -148,10 +152,20 @@ def main() -> None:
     parser.add_argument("--eval-episodes", type=int, default=5)
     parser.add_argument("--solved", type=float, default=0.8, help="success rate that counts")
     parser.add_argument("--out", type=Path, default=Path("experiments/results/graph"))
+    parser.add_argument(
+        "--obstacle-shift", type=float, default=0.0,
+        help="CartStemContact: move both obstacles by U(-S, S) mm each episode (obstacle_shift)",
+    )  # fmt: skip
     add_evaluator_options(parser)
     args = parser.parse_args()
     torch.set_num_threads(1)
     root = args.out / args.scene
+    env_kwargs = dict(ENV_SETTINGS.get(args.scene, {}))
+    if args.obstacle_shift:
+        if args.scene != "CartStemContact":
+            parser.error("--obstacle-shift is CartStemContact's")
+        env_kwargs["obstacle_shift"] = args.obstacle_shift
+        root = root / f"shift{args.obstacle_shift:g}"
     config = agent_config(args)
     runs = {}
     for method in args.methods:
@@ -159,7 +173,7 @@ def main() -> None:
             name = run_label(method, args)
             runs[name, seed] = train_run(
                 args.scene, method, root / f"{name}_seed{seed}", steps=args.steps, seed=seed,
-                config=config, env_kwargs=ENV_SETTINGS.get(args.scene),
+                config=config, env_kwargs=env_kwargs,
                 eval_every=args.eval_every, eval_episodes=args.eval_episodes,
             )  # fmt: skip
     # The summary covers every run folder of the scene, whichever this call trained, each
@@ -181,7 +195,7 @@ def main() -> None:
         "partial": any(h and h[-1]["steps"] < THESIS_STEPS for h in runs.values()),
         "solved_success": args.solved,
         "config": config,
-        "env": ENV_SETTINGS.get(args.scene, {}),
+        "env": env_kwargs,
         "thesis": THESIS.get(args.scene),
         "runs": {
             method: {

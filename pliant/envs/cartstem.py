@@ -12,7 +12,10 @@ most at ``max_speed`` (mm/s); ``action_type="discrete"``: 3 actions (left, stay,
 target moves by ``max_speed`` x step time). Reward: thesis -|x_tip - x_goal| / length;
 ``reward="sofagym"``: max(-max_dist, -|x_tip - x_goal|) / max_dist. The cart starts at rest
 anywhere in [-cart_range, cart_range] (thesis: random goal and cart), the beam straight and
-between the obstacles; ``options={"goal": g, "cart": c}`` pins either. Terminated when
+between the obstacles; ``options={"goal": g, "cart": c}`` pins either. With
+``obstacle_shift`` s > 0 the two obstacles move together along x by U(-s, s) each episode and
+the cart is drawn within ``cart_range`` of their centre (thesis §4.2.2: random contact and base
+positions; ``options={"shift": o}`` pins the shift). Terminated when
 |x_tip - x_goal| < ``goal_tolerance`` (thesis: 1 % of the beam's length). 30 steps of
 30 x 0.01 s. Goal drawn uniformly on [-goal_range, goal_range].
 """
@@ -47,6 +50,7 @@ class CartStemContactEnv(SoftRobotEnv):
         goal_range: float = 35.0,
         goal_tolerance: float = 1.0,
         cart_range: float = 10.0,
+        obstacle_shift: float = 0.0,
         stem: Literal["tetrahedra", "rod"] = "tetrahedra",
         length: float = 100.0,
         render_mode: str | None = None,
@@ -67,6 +71,7 @@ class CartStemContactEnv(SoftRobotEnv):
         self.goal_range = float(goal_range)
         self.goal_tolerance = float(goal_tolerance)
         self.cart_range = float(cart_range)
+        self.obstacle_shift = float(obstacle_shift)
         self.stem = stem
         self.length = float(length)
         # Released from an obstacle, the beam whips back on its first bending mode (about 7 Hz
@@ -89,6 +94,7 @@ class CartStemContactEnv(SoftRobotEnv):
         self.observation_space = scaled_box(-5.0, 5.0, (7 if observation == "thesis" else 8,))
         boxes = self.model.contacts.shapes
         self.obstacles = np.array([b.position for b in boxes])
+        self._obstacles_at_rest = self.obstacles.copy()
         self.obstacle_size = 2.0 * np.asarray(boxes[0].half_extents, dtype=float)
         clearance = self.obstacles[1, 0] - 0.5 * self.obstacle_size[0]
         clearance -= float(np.abs(self._initial.positions[:, 0]).max())
@@ -98,6 +104,8 @@ class CartStemContactEnv(SoftRobotEnv):
                 f"cart_range must be in [0, {clearance:.3g}) (the beam starts between the"
                 f" obstacles, clear of them), got {cart_range!r}"
             )
+        if not (np.isfinite(self.obstacle_shift) and self.obstacle_shift >= 0.0):
+            raise ValueError(f"obstacle_shift must be >= 0 (mm), got {obstacle_shift!r}")
 
     def _build(self) -> Model:
         self.cart = self.ramp("cart", 0.0)
@@ -116,13 +124,19 @@ class CartStemContactEnv(SoftRobotEnv):
         if goal is None:
             goal = rng.uniform(-self.goal_range, self.goal_range)
         self.task["goal"] = float(goal)
+        shift = (options or {}).get("shift")
+        if shift is None:
+            shift = rng.uniform(-self.obstacle_shift, self.obstacle_shift)
+        elif not np.isfinite(shift):
+            raise ValueError(f"options['shift'] must be a finite distance (mm), got {shift!r}")
+        self.move_obstacles(float(shift))
         cart = (options or {}).get("cart")
         if cart is None:
-            cart = rng.uniform(-self.cart_range, self.cart_range)
-        elif not (np.isfinite(cart) and abs(cart) < self._clearance):
+            cart = shift + rng.uniform(-self.cart_range, self.cart_range)
+        elif not (np.isfinite(cart) and abs(cart - shift) < self._clearance):
             raise ValueError(
-                f"options['cart'] must be within +-{self._clearance:.3g} mm (the beam between"
-                f" the obstacles), got {cart!r}"
+                f"options['cart'] must be within +-{self._clearance:.3g} mm of the obstacles'"
+                f" centre ({shift:.3g} mm: the beam between the obstacles), got {cart!r}"
             )
         # The beam starts straight and at rest on the cart, wherever the cart is.
         self.cart.source[:] = cart
@@ -130,6 +144,17 @@ class CartStemContactEnv(SoftRobotEnv):
         self.model.trajectories_changed()
         self.state.positions[:, 0] += cart
         self.task["target"] = float(cart)
+
+    def move_obstacles(self, shift: float) -> None:
+        """Both obstacles `shift` mm along x from where the robot builder put them."""
+        self.obstacles = self._obstacles_at_rest + np.array([shift, 0.0, 0.0])
+        for box, position in zip(self.model.contacts.shapes, self.obstacles, strict=True):
+            box.position[:] = position
+        self.task["shift"] = shift
+
+    def set_state(self, snapshot) -> None:
+        super().set_state(snapshot)
+        self.move_obstacles(self.task.get("shift", 0.0))
 
     def _commands_from_action(self, action) -> None:
         reach = self.max_speed * self.step_time

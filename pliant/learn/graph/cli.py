@@ -112,6 +112,7 @@ def train_run(
         logger.dump(result["steps"])
         learner.save(checkpoint)
         meta = {"scene": scene_name, "method": method, "seed": seed, "config": config or {}}
+        meta["env"] = env_kwargs or {}
         history_file.write_text(json.dumps({**meta, "evaluations": history}, indent=1))
         console.print(f"{method} seed {seed}: {result}")
 

@@ -83,6 +83,10 @@ class CartStemStaticInverse:
         from pliant.errors import DivergenceError
 
         self._cart[0] = float(cart)
+        for mine, theirs in zip(
+            self.model.contacts.shapes, self.base.model.contacts.shapes, strict=True
+        ):  # the environment's obstacles, wherever its episode put them
+            mine.position[:] = theirs.position
         self.model.trajectories_changed()
         state = self.model.rest_state()
         state.positions[:] = positions
