@@ -225,6 +225,20 @@ def test_bc_pretraining_through_train(tmp_path):
     assert evaluate_saved(tmp_path / "cloned", episodes=10).success_rate >= 0.9
 
 
+@pytest.mark.parametrize(
+    ("bc", "match"),
+    [
+        ({"expert": "pliant.learn.toys:point_reach_expert", "std": -0.1}, "bc.std"),
+        ({"expert": "pliant.learn.toys:point_reach_expert", "epochs": 0}, "bc.epochs"),
+        ({"expert": "point_reach_expert"}, "module:function"),
+        ({"expert": "pliant.learn.toys:point_reach_expert", "sdt": 0.1}, "unknown bc"),
+    ],
+)
+def test_bad_bc_settings_are_refused_before_training(bc, match):
+    with pytest.raises(ValueError, match=match):
+        _config("PPO", 256, bc=bc)
+
+
 def test_set_exploration_refuses_what_it_cannot_set():
     from stable_baselines3 import DQN, PPO
 

@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import copy
 import dataclasses
+import math
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -71,7 +72,7 @@ class TrainConfig:
     hyperparams: dict = field(default_factory=dict)
     #: behaviour-cloning pre-training (:mod:`pliant.learn.bc`): ``expert`` ("module:function"),
     #: ``epochs``, ``episodes``, ``batch_size``, ``learning_rate``, ``successful_only`` (clone
-    #: the expert's successful episodes only).
+    #: the expert's successful episodes only), ``std`` (the cloned policy's exploration).
     bc: dict | None = None
 
     def __post_init__(self) -> None:
@@ -81,6 +82,8 @@ class TrainConfig:
             raise ValueError(f"n_envs must be >= 1, got {self.n_envs}")
         if self.vec_env not in ("subproc", "dummy", "ray"):
             raise ValueError(f"vec_env must be 'subproc', 'dummy' or 'ray', got {self.vec_env!r}")
+        if self.bc is not None:
+            _check_bc(self.bc)
 
     @property
     def env_name(self) -> str:
@@ -96,6 +99,34 @@ class TrainConfig:
     @classmethod
     def load(cls, path: Path) -> TrainConfig:
         return cls(**yaml.safe_load(Path(path).read_text()))
+
+
+BC_KEYS = ("expert", "epochs", "episodes", "batch_size", "learning_rate", "successful_only", "std")
+
+
+def _check_bc(bc) -> None:
+    """The behaviour-cloning settings, refused here rather than after the expert's episodes
+    have been collected."""
+    if not isinstance(bc, dict):
+        raise ValueError(f"bc must be a mapping of {', '.join(BC_KEYS)}, got {bc!r}")
+    unknown = set(bc) - set(BC_KEYS)
+    if unknown:
+        raise ValueError(f"unknown bc settings {sorted(unknown)}; known: {', '.join(BC_KEYS)}")
+    if not isinstance(bc.get("expert"), str) or ":" not in bc["expert"]:
+        raise ValueError(f"bc.expert must be 'module:function', got {bc.get('expert')!r}")
+    for key in ("epochs", "episodes", "batch_size"):
+        value = bc.get(key, 1)
+        if isinstance(value, bool) or not isinstance(value, int) or value < 1:
+            raise ValueError(f"bc.{key} must be an integer >= 1, got {value!r}")
+    for key in ("learning_rate", "std"):
+        value = bc.get(key)
+        if value is None and key == "std":
+            continue
+        value = 1e-3 if value is None else value
+        if isinstance(value, bool) or not isinstance(value, int | float):
+            raise ValueError(f"bc.{key} must be a number > 0, got {value!r}")
+        if not (math.isfinite(value) and value > 0):
+            raise ValueError(f"bc.{key} must be a finite number > 0, got {value!r}")
 
 
 def _plain(value):
