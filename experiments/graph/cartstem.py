@@ -14,9 +14,10 @@ folder per (method, seed) holds its checkpoint and evaluation history, and rerun
 script resumes each run up to ``--steps`` (a larger ``--steps`` continues the same runs;
 ``--steps 0`` only summarises them). Writes
 ``<out>/<scene>/summary.json``: per method and seed the first evaluated step with success ≥
-``--solved`` ("iterations to solve"), its steps and last evaluation, and whether a budget is
-below the thesis' 250k (``partial``), over every run folder of the scene (not only those this
-call trained); and a plot of the learning curves (mean and min-max over seeds). With
+``--solved`` ("iterations to solve"; ``_3``: of the sliding mean of 3 evaluations), its
+steps, its last evaluation and the mean success and return of its last five, and whether a
+budget is below the thesis' 250k (``partial``), over every run folder of the scene (not only
+those this call trained); and a plot of the learning curves (mean and min-max over seeds). With
 ``--obstacle-shift S`` (CartStemContact) the obstacles move together by U(-S, S) mm each
 episode, the cart drawn around them (the thesis' random contact and base positions); those
 runs live in ``<out>/CartStemContact/shiftS/``.
@@ -135,8 +136,18 @@ def run_label(method: str, args: argparse.Namespace) -> str:
     return label_of(method, agent_config(args))
 
 
-def first_solved(history: list[dict], solved: float) -> int | None:
-    return next((h["steps"] for h in history if h["success"] >= solved), None)
+def first_solved(history: list[dict], solved: float, window: int = 1) -> int | None:
+    """The first evaluated step where the mean success of the `window` evaluations ending
+    there reaches `solved` (a sliding average, as the thesis' curves are)."""
+    success = [h["success"] for h in history]
+    return next(
+        (
+            h["steps"]
+            for k, h in enumerate(history)
+            if k + 1 >= window and np.mean(success[k + 1 - window : k + 1]) >= solved
+        ),
+        None,
+    )
 
 
 def main() -> None:
@@ -202,7 +213,15 @@ def main() -> None:
                 str(seed): {
                     "steps": history[-1]["steps"] if history else 0,
                     "iterations_to_solve": first_solved(history, args.solved),
+                    "iterations_to_solve_3": first_solved(history, args.solved, window=3),
                     "last": history[-1] if history else None,
+                    # the last five evaluations' means: single evaluations are noisy
+                    "last5": {
+                        key: float(np.mean([h[key] for h in history[-5:]]))
+                        for key in ("success", "return")
+                    }
+                    if history
+                    else None,
                     "config": configs[m, seed],
                 }
                 for (m, seed), history in sorted(runs.items())
