@@ -15,6 +15,8 @@ the runs of each method. ``--reachable`` adds, per goal, how close the beam's ti
 at static equilibrium over the cart's whole course (the FEM static inverse's continuation
 sweep from the episode's start, 1 mm steps, then its Gauss-Newton; contacts included), so
 that goals no static cart position reaches can be told from goals a learner misses.
+``--avoid-cycles`` plays a hierarchy with its Evaluator kept off the loops it closes
+(``GraphConfig.avoid_cycles``, as trained otherwise).
 """
 
 from __future__ import annotations
@@ -61,11 +63,14 @@ def static_reach(env, inverse: CartStemStaticInverse, seed: int) -> float:
     return float("inf") if found is None else abs(found[0] - goal)
 
 
-def play(run: Path, episodes: int, reachable: bool = False) -> tuple[str, dict]:
+def play(
+    run: Path, episodes: int, reachable: bool = False, avoid_cycles: bool = False
+) -> tuple[str, dict]:
     """The run's method and its greedy episodes' means by region."""
     meta = json.loads((run / "history.json").read_text())
     scene = make_scene(meta["scene"], **meta.get("env", {}))
-    learner = build_learner(meta["method"], scene, GraphConfig(**meta["config"]), meta["seed"])
+    config = GraphConfig(**{**meta["config"], "avoid_cycles": avoid_cycles})
+    learner = build_learner(meta["method"], scene, config, meta["seed"])
     learner.load(run / "checkpoint.pt")
     inverse = CartStemStaticInverse(scene.env) if reachable else None
     played = defaultdict(list)
@@ -93,11 +98,12 @@ def main() -> None:
     parser.add_argument("--episodes", type=int, default=50)
     parser.add_argument("--out", type=Path, default=None)
     parser.add_argument("--reachable", action="store_true", help="add each goal's static reach")
+    parser.add_argument("--avoid-cycles", action="store_true", help="GraphConfig.avoid_cycles")
     args = parser.parse_args()
     torch.set_num_threads(1)
     runs, by_method = {}, defaultdict(list)
     for run in args.runs:
-        method, report = play(run, args.episodes, args.reachable)
+        method, report = play(run, args.episodes, args.reachable, args.avoid_cycles)
         runs[run.name] = report
         by_method[method].append(report)
         print(run.name, json.dumps(report))
@@ -112,7 +118,13 @@ def main() -> None:
         }
         for method, reports in by_method.items()
     }
-    out = {"episodes": args.episodes, "goal_seeds": "20000 + k", "runs": runs, "methods": summary}
+    out = {
+        "avoid_cycles": args.avoid_cycles,
+        "episodes": args.episodes,
+        "goal_seeds": "20000 + k",
+        "runs": runs,
+        "methods": summary,
+    }
     print(json.dumps(summary, indent=1))
     if args.out is not None:
         args.out.write_text(json.dumps(out, indent=1))
