@@ -118,11 +118,10 @@ def _check_bc(bc) -> None:
         value = bc.get(key, 1)
         if isinstance(value, bool) or not isinstance(value, int) or value < 1:
             raise ValueError(f"bc.{key} must be an integer >= 1, got {value!r}")
-    for key in ("learning_rate", "std"):
+    for key in ("learning_rate", "std"):  # absent: pretrain's default rate, the cloned std
         value = bc.get(key)
-        if value is None and key == "std":
+        if value is None:
             continue
-        value = 1e-3 if value is None else value
         if isinstance(value, bool) or not isinstance(value, int | float):
             raise ValueError(f"bc.{key} must be a number > 0, got {value!r}")
         if not (math.isfinite(value) and value > 0):

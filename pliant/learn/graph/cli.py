@@ -111,8 +111,8 @@ def train_run(
         logger.record("time/wall_s", history[-1]["wall_s"])
         logger.dump(result["steps"])
         learner.save(checkpoint)
-        meta = {"scene": scene_name, "method": method, "seed": seed, "config": config or {}}
-        meta["env"] = env_kwargs or {}
+        meta = {"scene": scene_name, "method": method, "seed": seed, "config": config or {},
+                "env": env_kwargs or {}}  # fmt: skip
         history_file.write_text(json.dumps({**meta, "evaluations": history}, indent=1))
         console.print(f"{method} seed {seed}: {result}")
 
