@@ -16,7 +16,7 @@ at static equilibrium over the cart's whole course (the FEM static inverse's con
 sweep from the episode's start, 1 mm steps, then its Gauss-Newton; contacts included), so
 that goals no static cart position reaches can be told from goals a learner misses.
 ``--avoid-cycles`` plays a hierarchy with its Evaluator kept off the loops it closes
-(``GraphConfig.avoid_cycles``, as trained otherwise).
+(``GraphConfig.avoid_cycles``, as trained otherwise); a run trained with it plays with it.
 """
 
 from __future__ import annotations
@@ -69,6 +69,7 @@ def play(
     """The run's method and its greedy episodes' means by region."""
     meta = json.loads((run / "history.json").read_text())
     scene = make_scene(meta["scene"], **meta.get("env", {}))
+    avoid_cycles = avoid_cycles or meta["config"].get("avoid_cycles", False)
     config = GraphConfig(**{**meta["config"], "avoid_cycles": avoid_cycles})
     learner = build_learner(meta["method"], scene, config, meta["seed"])
     learner.load(run / "checkpoint.pt")
@@ -103,9 +104,10 @@ def main() -> None:
     torch.set_num_threads(1)
     runs, by_method = {}, defaultdict(list)
     for run in args.runs:
-        method, report = play(run, args.episodes, args.reachable, args.avoid_cycles)
+        _, report = play(run, args.episodes, args.reachable, args.avoid_cycles)
         runs[run.name] = report
-        by_method[method].append(report)
+        # grouped by the run folder's label (graph, graph_avoid, sac...), not only its method
+        by_method[run.name.rpartition("_seed")[0] or run.name].append(report)
         print(run.name, json.dumps(report))
     summary = {
         method: {

@@ -97,6 +97,11 @@ def add_evaluator_options(parser: argparse.ArgumentParser) -> None:
         help="the agents a per-step update trains: the node's (the default) or every one"
         " (GraphConfig.update_scope); runs kept as METHOD_all_seedN",
     )  # fmt: skip
+    parser.add_argument(
+        "--avoid-cycles", action="store_true",
+        help="train and evaluate with the Evaluator kept off a loop it has closed within an"
+        " episode (GraphConfig.avoid_cycles); runs kept as METHOD_avoid_seedN",
+    )  # fmt: skip
 
 
 def agent_config(args: argparse.Namespace) -> dict:
@@ -112,18 +117,23 @@ def agent_config(args: argparse.Namespace) -> dict:
         config["updates_per_episode"] = args.updates_per_episode
     if args.update_scope != "node":
         config["update_scope"] = args.update_scope
+    if args.avoid_cycles:
+        config["avoid_cycles"] = True
     return config
 
 
 def label_of(method: str, config: dict) -> str:
     """A run's folder prefix from its method and agent settings: the method, ``_shared`` for
     a shared internal agent, ``_entropyF`` for an Evaluator temperature tuned to F (the
-    graph's), ``_all`` for every agent updated at each step (a hierarchy's), ``_episodeK``
-    for K updates after each episode (any method's)."""
+    graph's), ``_avoid`` for an Evaluator kept off the loops it closes (a hierarchy's),
+    ``_all`` for every agent updated at each step (a hierarchy's), ``_episodeK`` for K
+    updates after each episode (any method's)."""
     per_episode = config.get("updates_per_episode")
     schedule = f"_episode{per_episode}" if per_episode else ""
     if method != "sac" and config.get("update_scope", "node") != "node":
         schedule = f"_{config['update_scope']}" + schedule
+    if method != "sac" and config.get("avoid_cycles"):
+        schedule = "_avoid" + schedule
     if method != "graph":
         return method + schedule
     label = method + ("_shared" if config.get("internal") == "shared" else "")
