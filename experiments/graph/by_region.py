@@ -11,7 +11,8 @@ give the method, seed, agent settings and environment keywords). Its checkpoint 
 tip is over the cart, so a free beam reaches it), ``contact`` otherwise (the beam must press
 on an obstacle, or bend over one, to put its tip there). Writes, per run and region, the
 number of goals, the success rate and the mean return and final distance, and the same over
-the runs of each method. ``--reachable`` adds, per goal, how close the beam's tip gets to it
+the runs of each label (the folder's name before ``_seedN``: ``graph``, ``graph_avoid``,
+``sac``). ``--reachable`` adds, per goal, how close the beam's tip gets to it
 at static equilibrium over the cart's whole course (the FEM static inverse's continuation
 sweep from the episode's start, 1 mm steps, then its Gauss-Newton; contacts included), so
 that goals no static cart position reaches can be told from goals a learner misses.
@@ -63,10 +64,9 @@ def static_reach(env, inverse: CartStemStaticInverse, seed: int) -> float:
     return float("inf") if found is None else abs(found[0] - goal)
 
 
-def play(
-    run: Path, episodes: int, reachable: bool = False, avoid_cycles: bool = False
-) -> tuple[str, dict]:
-    """The run's method and its greedy episodes' means by region."""
+def play(run: Path, episodes: int, reachable: bool = False, avoid_cycles: bool = False) -> dict:
+    """The run's greedy episodes' means by region, and whether its Evaluator avoided cycles
+    (asked, or as trained)."""
     meta = json.loads((run / "history.json").read_text())
     scene = make_scene(meta["scene"], **meta.get("env", {}))
     avoid_cycles = avoid_cycles or meta["config"].get("avoid_cycles", False)
@@ -90,7 +90,7 @@ def play(
             reached = [e for e in played[name] if e["static_reach"] < tolerance]
             report[name]["statically_reachable"] = means(reached)
             report[name]["static_reach"] = [e["static_reach"] for e in played[name]]
-    return meta["method"], {"seed": meta["seed"], "steps": steps, **report}
+    return {"seed": meta["seed"], "steps": steps, "avoid_cycles": avoid_cycles, **report}
 
 
 def main() -> None:
@@ -102,15 +102,15 @@ def main() -> None:
     parser.add_argument("--avoid-cycles", action="store_true", help="GraphConfig.avoid_cycles")
     args = parser.parse_args()
     torch.set_num_threads(1)
-    runs, by_method = {}, defaultdict(list)
+    runs, by_label = {}, defaultdict(list)
     for run in args.runs:
-        _, report = play(run, args.episodes, args.reachable, args.avoid_cycles)
+        report = play(run, args.episodes, args.reachable, args.avoid_cycles)
         runs[run.name] = report
         # grouped by the run folder's label (graph, graph_avoid, sac...), not only its method
-        by_method[run.name.rpartition("_seed")[0] or run.name].append(report)
+        by_label[run.name.rpartition("_seed")[0] or run.name].append(report)
         print(run.name, json.dumps(report))
     summary = {
-        method: {
+        label: {
             name: {
                 key: float(np.mean([r[name][key] for r in reports if r[name][key] is not None]))
                 for key in ("success", "return", "final_distance")
@@ -118,7 +118,7 @@ def main() -> None:
             | {"goals": int(sum(r[name]["goals"] for r in reports))}
             for name in ("free", "contact")
         }
-        for method, reports in by_method.items()
+        for label, reports in by_label.items()
     }
     out = {
         "avoid_cycles": args.avoid_cycles,
