@@ -18,7 +18,9 @@ script resumes each run up to ``--steps`` (a larger ``--steps`` continues the sa
 steps, the mean success over all its evaluations (the area under its curve), its last
 evaluation and the mean success and return of its last five, and whether a
 budget is below the thesis' 250k (``partial``), over every run folder of the scene (not only
-those this call trained); and a plot of the learning curves (mean and min-max over seeds). With
+those this call trained); ``against_sac``: each method against plain SAC over the seeds,
+per number, with a one-sided Mann–Whitney p-value (:func:`compare`); and a plot of the
+learning curves (mean and min-max over seeds). With
 ``--obstacle-shift S`` (CartStemContact) the obstacles move together by U(-S, S) mm each
 episode, the cart drawn around them (the thesis' random contact and base positions); those
 runs live in ``<out>/CartStemContact/shiftS/``.
@@ -161,6 +163,67 @@ def first_solved(history: list[dict], solved: float, window: int = 1) -> int | N
     )
 
 
+#: Per-seed numbers compared against the baseline: (summary key, which way is better).
+COMPARED = (
+    ("iterations_to_solve", "less"),
+    ("iterations_to_solve_3", "less"),
+    ("mean_success", "greater"),
+    ("last5_success", "greater"),
+)
+
+
+def baseline_of(label: str, labels) -> str:
+    """The plain-SAC runs a label is compared with: SAC under the same schedule where there
+    is one (``graph_episode5`` against ``sac_episode5``), plain ``sac`` otherwise."""
+    twin = "sac" + label[label.index("_") :] if "_" in label else "sac"
+    return twin if twin in labels else "sac"
+
+
+def compare(runs: dict) -> dict:
+    """Each method against its plain-SAC baseline (:func:`baseline_of`) over seeds, per number
+    of :data:`COMPARED`: how many seeds, how many never reached the success (`censored`), the
+    mean over those that did, and the one-sided Mann–Whitney p-value of the method being
+    better (scipy's exact test for small samples). A run that never reached the success ranks
+    after every run that did, which holds only where its budget is past every crossing of
+    both methods; otherwise, and for the areas and last evaluations between runs of different
+    budgets, the number is not compared."""
+    from scipy.stats import mannwhitneyu
+
+    def values(label: str, key: str) -> tuple[list[float], list[int]]:
+        seeds = runs[label].values()
+        found = [run["last5"]["success"] if key == "last5_success" else run[key] for run in seeds]
+        return [np.inf if v is None else float(v) for v in found], [run["steps"] for run in seeds]
+
+    result = {}
+    for label in runs:
+        baseline = baseline_of(label, runs)
+        if label.startswith("sac") or baseline not in runs:
+            continue
+        rows = {}
+        for key, better in COMPARED:
+            (x, x_steps), (y, y_steps) = values(label, key), values(baseline, key)
+            finite = [v for v in x + y if np.isfinite(v)]
+            if key.startswith("iterations"):
+                censored = [n for v, n in zip(x + y, x_steps + y_steps, strict=True) if v == np.inf]
+                comparable = min(censored, default=np.inf) >= max(finite, default=0.0)
+            else:  # runs stop at the first episode's end past their budget
+                comparable = max(x_steps + y_steps) <= 1.05 * min(x_steps + y_steps)
+            if not comparable or len(x) < 2 or len(y) < 2:
+                continue
+            rows[key] = {
+                "better": better,
+                "n": [len(x), len(y)],
+                "censored": [int(np.isinf(x).sum()), int(np.isinf(y).sum())],
+                "mean_reached": [
+                    float(np.mean(v[np.isfinite(v)])) if np.isfinite(v).any() else None
+                    for v in (np.array(x), np.array(y))
+                ],
+                "p_one_sided": float(mannwhitneyu(x, y, alternative=better).pvalue),
+            }
+        result[label] = {"baseline": baseline, **rows}
+    return result
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--scene", default="CartStemContact")
@@ -246,6 +309,7 @@ def main() -> None:
             for method in methods
         },
     }
+    summary["against_sac"] = compare(summary["runs"])
     (root / "summary.json").write_text(json.dumps(summary, indent=1))
     # Evaluation return and success, and RodManipulator's final angle (its result).
     keys = ["return", "success"] + (["final_angle"] if args.scene == "RodManipulator" else [])
