@@ -20,7 +20,8 @@ evaluation and the mean success and return of its last five, and whether a
 budget is below the thesis' 250k (``partial``), over every run folder of the scene (not only
 those this call trained); ``against_sac``: each method against plain SAC over the seeds,
 per number, with a one-sided Mann–Whitney p-value (:func:`compare`); and a plot of the
-learning curves (mean and min-max over seeds). With
+learning curves (mean and min-max over seeds) and of the seeds' first crossings
+(``first_crossings.png``). With
 ``--obstacle-shift S`` (CartStemContact) the obstacles move together by U(-S, S) mm each
 episode, the cart drawn around them (the thesis' random contact and base positions); those
 runs live in ``<out>/CartStemContact/shiftS/``.
@@ -332,6 +333,24 @@ def main() -> None:
         ax.legend()
     fig.tight_layout()
     fig.savefig(root / "curves.png", dpi=120)
+    # The seeds' first crossings as a step function: the share of a method's seeds that have
+    # reached the success by each step (a seed that never does keeps the curve below 1).
+    fig, ax = plt.subplots(figsize=(6, 3.5))
+    for method in methods:
+        histories = [h for (m, _), h in sorted(runs.items()) if m == method and h]
+        if not histories:
+            continue
+        crossings = [first_solved(h, args.solved) for h in histories]
+        reached = np.sort([c for c in crossings if c is not None])
+        shares = np.arange(len(reached) + 1) / len(crossings)
+        budget = max(h[-1]["steps"] for h in histories)  # the curve runs to the budget
+        ax.step(np.r_[0, reached, budget], np.r_[shares, shares[-1]], where="post",
+                label=f"{method} ({len(reached)} of {len(crossings)} seeds)")  # fmt: skip
+    ax.set(xlabel="environment steps", ylabel=f"seeds with an evaluation ≥ {args.solved:g}",
+           title=args.scene, ylim=(0, 1.05))  # fmt: skip
+    ax.legend(loc="lower right", fontsize="small")
+    fig.tight_layout()
+    fig.savefig(root / "first_crossings.png", dpi=120)
     print(json.dumps(summary["runs"], indent=1))
 
 
