@@ -646,11 +646,12 @@ def test_the_authors_schedule_updates_every_agent_after_each_episode(monkeypatch
             _corridor_agent(config=GraphConfig(**{**FAST.__dict__, **bad}))
 
 
-@pytest.mark.parametrize("scope", ["node", "all"])
+@pytest.mark.parametrize("scope", ["node", "internal", "all"])
 def test_update_scope_trains_the_nodes_agents_or_every_agent(monkeypatch, scope):
     """A training step past learning_starts is one gradient step of the Evaluator and, with
     update_scope="node", of the agents of the node the transition started in only; with
-    "all", of every node's agents that hold a batch (as many as plain SAC's one network)."""
+    "internal", of every node's internal agent and that node's external one; with "all", of
+    every node's agents that hold a batch (as many as plain SAC's one network)."""
     config = GraphConfig(**{**FAST.__dict__, "learning_starts": 10**9, "update_scope": scope})
     env, agent = _corridor_agent(config=config)
     # The Evaluator's buffer holds a batch (random training episodes, no learning), and every
@@ -682,9 +683,11 @@ def test_update_scope_trains_the_nodes_agents_or_every_agent(monkeypatch, scope)
     assert calls.count("Evaluator") == 1
     if scope == "node":
         assert internal == [f"internal{node}"]
-        assert calls.count("ExternalAgent") == int(agent.external[node] is not None)
     else:
         assert internal == [f"internal{i}" for i in range(3)]
+    if scope != "all":
+        assert calls.count("ExternalAgent") == int(agent.external[node] is not None)
+    else:
         assert calls.count("ExternalAgent") == external
     with pytest.raises(TrainingError, match="update_scope"):
         _corridor_agent(config=GraphConfig(**{**FAST.__dict__, "update_scope": "some"}))

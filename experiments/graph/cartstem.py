@@ -97,9 +97,10 @@ def add_evaluator_options(parser: argparse.ArgumentParser) -> None:
         " as METHOD_episodeK_seedN",
     )  # fmt: skip
     parser.add_argument(
-        "--update-scope", choices=["node", "all"], default="node",
-        help="the agents a per-step update trains: the node's (the default) or every one"
-        " (GraphConfig.update_scope); runs kept as METHOD_all_seedN",
+        "--update-scope", choices=["node", "internal", "all"], default="node",
+        help="the agents a per-step update trains: the node's (the default), every node's"
+        " internal agent and the node's external one, or every one (GraphConfig.update_scope);"
+        " runs kept as METHOD_internal_seedN, METHOD_all_seedN",
     )  # fmt: skip
     parser.add_argument(
         "--avoid-cycles", action="store_true",
@@ -130,7 +131,8 @@ def label_of(method: str, config: dict) -> str:
     """A run's folder prefix from its method and agent settings: the method, ``_shared`` for
     a shared internal agent, ``_entropyF`` for an Evaluator temperature tuned to F (the
     graph's), ``_avoid`` for an Evaluator kept off the loops it closes (a hierarchy's),
-    ``_all`` for every agent updated at each step (a hierarchy's), ``_episodeK`` for K
+    ``_all`` (``_internal``) for every agent (internal agent) updated at each step (a
+    hierarchy's), ``_episodeK`` for K
     updates after each episode (any method's)."""
     per_episode = config.get("updates_per_episode")
     schedule = f"_episode{per_episode}" if per_episode else ""

@@ -62,9 +62,11 @@ class GraphConfig:
     #: None: ``updates_per_step`` during the episode. Plain SAC follows the same schedule.
     updates_per_episode: int | None = None
     #: which agents a per-step update trains: "node" (those of the node the transition
-    #: started in, and the Evaluator: each agent learns as often as its node is visited) or
-    #: "all" (every agent that holds a batch, as the authors' after-episode schedule does:
-    #: each agent then takes as many gradient steps as plain SAC's one network).
+    #: started in, and the Evaluator: each agent learns as often as its node is visited),
+    #: "internal" (every node's internal agent, the node's external one and the Evaluator:
+    #: each internal agent takes as many gradient steps as plain SAC's one network, the
+    #: external agents as often as their node is visited) or "all" (every agent that holds a
+    #: batch, as the authors' after-episode schedule does).
     update_scope: str = "node"
     option_limit: int = 30
     penalty: float = -1.0
@@ -124,8 +126,10 @@ def check_schedule(config: GraphConfig) -> None:
     per_episode = config.updates_per_episode
     if per_episode is not None and not (isinstance(per_episode, int) and per_episode >= 1):
         raise TrainingError(f"updates_per_episode must be a whole number >= 1, got {per_episode}")
-    if config.update_scope not in ("node", "all"):
-        raise TrainingError(f"update_scope must be 'node' or 'all', got {config.update_scope!r}")
+    if config.update_scope not in ("node", "internal", "all"):
+        raise TrainingError(
+            f"update_scope must be 'node', 'internal' or 'all', got {config.update_scope!r}"
+        )
 
 
 class GraphAgent:
@@ -335,17 +339,19 @@ class GraphAgent:
                 if self.config.update_scope == "all":
                     self.update_all()
                 else:
-                    self.update(node)
+                    self.update(node, every_internal=self.config.update_scope == "internal")
 
     # ---- learning -----------------------------------------------------------------------------
-    def update(self, node: int) -> None:
+    def update(self, node: int, every_internal: bool = False) -> None:
         """One gradient step of node ``node``'s internal and external agents (those of the node
         the last transition started in: each agent learns as often as its node is visited; a
-        shared internal agent learns at every step) and of the Evaluator, each once its buffer
-        holds a batch."""
+        shared internal agent learns at every step; ``every_internal``: every node's internal
+        agent) and of the Evaluator, each once its buffer holds a batch."""
         if self.shared_internal is not None:
             self._update_shared()
-        self._update_node(node)
+        for i in range(self.graph.n_nodes) if every_internal else (node,):
+            self._update_internal(i)
+        self._update_external(node)
         self._update_evaluator()
 
     def update_all(self) -> None:
@@ -355,18 +361,22 @@ class GraphAgent:
         if self.shared_internal is not None:
             self._update_shared()
         for node in range(self.graph.n_nodes):
-            self._update_node(node)
+            self._update_internal(node)
+            self._update_external(node)
         self._update_evaluator()
 
     def _update_shared(self) -> None:
         if len(self.shared_internal.buffer) >= self.config.batch_size:
             self.shared_internal.update(self.internal, self.config.batch_size, self.rng)
 
-    def _update_node(self, node: int) -> None:
+    def _update_internal(self, node: int) -> None:
         n = self.config.batch_size
         agent = self.internal[node]
         if self.shared_internal is None and agent.learned and len(agent.buffer) >= n:
             update_internal(self.internal, node, n, self.rng)
+
+    def _update_external(self, node: int) -> None:
+        n = self.config.batch_size
         external = self.external[node]
         if external is not None and len(external.buffer) >= n:
             external.update(n, self.rng)
