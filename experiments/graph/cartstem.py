@@ -192,10 +192,12 @@ def compare(runs: dict) -> dict:
     budgets, the number is not compared."""
     from scipy.stats import mannwhitneyu
 
-    def values(label: str, key: str) -> tuple[list[float], list[int]]:
+    def values(label: str, key: str) -> tuple[np.ndarray, list[int]]:
         seeds = runs[label].values()
         found = [run["last5"]["success"] if key == "last5_success" else run[key] for run in seeds]
-        return [np.inf if v is None else float(v) for v in found], [run["steps"] for run in seeds]
+        return np.array([np.inf if v is None else v for v in found], float), [
+            run["steps"] for run in seeds
+        ]
 
     result = {}
     for label in runs:
@@ -205,12 +207,12 @@ def compare(runs: dict) -> dict:
         rows = {}
         for key, better in COMPARED:
             (x, x_steps), (y, y_steps) = values(label, key), values(baseline, key)
-            finite = [v for v in x + y if np.isfinite(v)]
+            both, steps = np.r_[x, y], np.array(x_steps + y_steps, float)
             if key.startswith("iterations"):
-                censored = [n for v, n in zip(x + y, x_steps + y_steps, strict=True) if v == np.inf]
-                comparable = min(censored, default=np.inf) >= max(finite, default=0.0)
+                censored = steps[np.isinf(both)]
+                comparable = censored.min(initial=np.inf) >= both[np.isfinite(both)].max(initial=0)
             else:  # runs stop at the first episode's end past their budget
-                comparable = max(x_steps + y_steps) <= 1.05 * min(x_steps + y_steps)
+                comparable = steps.max() <= 1.05 * steps.min()
             if not comparable or len(x) < 2 or len(y) < 2:
                 continue
             rows[key] = {
@@ -218,8 +220,8 @@ def compare(runs: dict) -> dict:
                 "n": [len(x), len(y)],
                 "censored": [int(np.isinf(x).sum()), int(np.isinf(y).sum())],
                 "mean_reached": [
-                    float(np.mean(v[np.isfinite(v)])) if np.isfinite(v).any() else None
-                    for v in (np.array(x), np.array(y))
+                    float(v[np.isfinite(v)].mean()) if np.isfinite(v).any() else None
+                    for v in (x, y)
                 ],
                 "p_one_sided": float(mannwhitneyu(x, y, alternative=better).pvalue),
             }
@@ -339,13 +341,13 @@ def main() -> None:
     # reached the success by each step (a seed that never does keeps the curve below 1).
     fig, ax = plt.subplots(figsize=(6, 3.5))
     for method in methods:
-        histories = [h for (m, _), h in sorted(runs.items()) if m == method and h]
-        if not histories:
+        seeds = [run for run in summary["runs"][method].values() if run["last"]]
+        if not seeds:
             continue
-        crossings = [first_solved(h, args.solved) for h in histories]
+        crossings = [run["iterations_to_solve"] for run in seeds]
         reached = np.sort([c for c in crossings if c is not None])
         shares = np.arange(len(reached) + 1) / len(crossings)
-        budget = max(h[-1]["steps"] for h in histories)  # the curve runs to the budget
+        budget = max(run["steps"] for run in seeds)  # the curve runs to the budget
         ax.step(np.r_[0, reached, budget], np.r_[shares, shares[-1]], where="post",
                 label=f"{method} ({len(reached)} of {len(crossings)} seeds)")  # fmt: skip
     ax.set(xlabel="environment steps", ylabel=f"seeds with an evaluation ≥ {args.solved:g}",
