@@ -80,6 +80,24 @@ SETTINGS = {
     },
 }
 
+#: SAC beside the thesis' PPO (``--algo SAC``, a departure: the thesis used PPO through
+#: SofaGym): the Trunk's continuous bendings with off-policy updates, one gradient step an
+#: environment step, observations normalised (SAC's entropy term sets the reward's scale).
+SAC_SETTINGS = {
+    "trunk": {
+        "normalize": {"norm_obs": True, "norm_reward": False},
+        "hyperparams": {
+            "policy": "MlpPolicy",
+            "learning_starts": 500,
+            "batch_size": 256,
+            "buffer_size": 100_000,
+            "gamma": 0.95,
+            "learning_rate": 3e-4,
+            "policy_kwargs": {"net_arch": [256, 256]},
+        },
+    },
+}
+
 
 def episode(env, choose, seed: int, options: dict | None = None) -> dict:
     """One episode; `choose(obs, k)` gives the k-th action."""
@@ -150,12 +168,17 @@ def degraded(robot: str, level: float, seed: int, reference: dict | None = None)
     return {k: float(v * (1.0 + level * rng.uniform(-1.0, 1.0))) for k, v in reference.items()}
 
 
-def ppo_config(robot: str, env_id: str, env_kwargs: dict, steps: int, seed: int) -> TrainConfig:
-    """PPO with ROBOT's settings (one environment in the process) on `env_id`."""
+def rl_config(
+    robot: str, env_id: str, env_kwargs: dict, steps: int, seed: int, algo: str = "PPO"
+) -> TrainConfig:
+    """`algo` (PPO, or SAC where :data:`SAC_SETTINGS` has ROBOT) with ROBOT's settings (one
+    environment in the process) on `env_id`."""
     s = SETTINGS[robot]
+    if algo == "SAC":
+        s = {**s, **SAC_SETTINGS[robot]}
     return TrainConfig(
         env_id=env_id,
-        algo="PPO",
+        algo=algo,
         total_timesteps=steps,
         seed=seed,
         env_kwargs=env_kwargs,
@@ -183,8 +206,9 @@ def learn(
     command: str = "",
     parameters: Path | None = None,
     contact: str | None = None,
+    algo: str = "PPO",
 ) -> dict:
-    """Train PPO on ROBOT's proxy (its parameters degraded by `noise`), evaluate the final
+    """Train `algo` on ROBOT's proxy (its parameters degraded by `noise`), evaluate the final
     policy, and write the results folder; the report."""
     warnings.simplefilter("ignore")
     torch.set_num_threads(1)
@@ -205,7 +229,7 @@ def learn(
     name = f"rl_{robot}{tag}"
     run_dir = Path("runs") / f"proxy_{name}"
     out = Path("experiments/results/proxy") / name
-    config = ppo_config(robot, s["env_id"], env_kwargs, env_steps or s["env_steps"], seed)
+    config = rl_config(robot, s["env_id"], env_kwargs, env_steps or s["env_steps"], seed, algo)
     result = train(None if resume else config, run_dir, resume=resume)
     substeps = make_env(s["env_id"], env_kwargs).unwrapped.substeps
     report = {
@@ -217,8 +241,9 @@ def learn(
         "env_steps": result.summary["steps"],
         "simulation_steps": result.summary["steps"] * substeps,
         "training_seconds": result.summary["wall_seconds"],
-        "hyperparams": s["hyperparams"],
-        "normalize": s["normalize"],
+        "algo": algo,
+        "hyperparams": config.hyperparams,
+        "normalize": config.normalize,
         "seed": seed,
         "evaluation": evaluate(robot, run_dir / "final", env_kwargs, seed),
         "curve": json.loads((run_dir / "evaluations.json").read_text()),
@@ -240,6 +265,9 @@ def main() -> None:
     parser.add_argument("--noise", type=float, default=0.0, help="degraded proxy's level")
     parser.add_argument("--bend-limit", type=float, default=None, help="trunk (default 0.2)")
     parser.add_argument("--resume", action="store_true")
+    parser.add_argument(
+        "--algo", choices=("PPO", "SAC"), default="PPO", help="SAC: the Trunk only (a departure)"
+    )
     parser.add_argument("--tag", default="", help="suffix of the run and result folders")
     parser.add_argument(
         "--parameters", type=Path, default=None, help="proxy parameters: a calibration JSON"
@@ -248,6 +276,8 @@ def main() -> None:
         "--contact", choices=("nodes", "surface"), default=None, help="the proxy's contact"
     )
     args = parser.parse_args()
+    if args.algo == "SAC" and args.robot not in SAC_SETTINGS:
+        parser.error(f"--algo {args.algo} has no settings for the {args.robot}")
     report = learn(
         args.robot,
         env_steps=args.env_steps,
@@ -259,6 +289,7 @@ def main() -> None:
         resume=args.resume,
         parameters=args.parameters,
         contact=args.contact,
+        algo=args.algo,
         command="python experiments/proxy_rl.py " + " ".join(sys.argv[1:]),
     )
     print(json.dumps({k: v for k, v in report.items() if k != "curve"}, indent=1))

@@ -22,6 +22,13 @@ results in experiments/results/proxy/fem_vs_proxy/.
     python experiments/proxy_vs_fem_rl.py [--env-steps 6700] [--resume]
     # another proxy policy through the same transfer and goals (report_NAME.json)
     python experiments/proxy_vs_fem_rl.py --transfer-only experiments/results/proxy/rl_trunk_20k
+    # another seed (results in fem_vs_proxy/seed1/), its proxy policy trained with that seed
+    python experiments/proxy_rl.py trunk --seed 1 --tag _seed1
+    python experiments/proxy_vs_fem_rl.py --seed 1 \
+        --proxy-policy experiments/results/proxy/rl_trunk_seed1
+    # SAC on both sides (a departure: the thesis used PPO), results in fem_vs_proxy/sac/
+    python experiments/proxy_vs_fem_rl.py --algo SAC \
+        --proxy-policy experiments/results/proxy/rl_trunk_sac
 """
 
 from __future__ import annotations
@@ -42,7 +49,7 @@ from pliant.learn.training import train
 from pliant.learn.vec import make_env
 
 sys.path.insert(0, str(Path(__file__).parent))
-from proxy_rl import SETTINGS, episode, ppo_config  # noqa: E402
+from proxy_rl import SETTINGS, episode, rl_config  # noqa: E402
 
 FEM_ENV = "pliant/TrunkPush-v0"
 FEM_KWARGS = {
@@ -55,9 +62,14 @@ GOALS = range(1000, 1020)
 OUT = Path("experiments/results/proxy/fem_vs_proxy")
 
 
-def train_on_fem(env_steps: int, seed: int, resume: bool) -> tuple[Path, dict]:
-    run_dir = Path("runs/proxy_vs_fem_rl")
-    config = ppo_config("trunk", FEM_ENV, FEM_KWARGS, env_steps, seed)
+def suffix(algo: str, seed: int) -> str:
+    """What names a run other than PPO's of seed 0: "_sac", "_seed1", "_sac_seed1"."""
+    return ("" if algo == "PPO" else f"_{algo.lower()}") + ("" if seed == 0 else f"_seed{seed}")
+
+
+def train_on_fem(env_steps: int, seed: int, resume: bool, algo: str) -> tuple[Path, dict]:
+    run_dir = Path("runs/proxy_vs_fem_rl" + suffix(algo, seed))
+    config = rl_config("trunk", FEM_ENV, FEM_KWARGS, env_steps, seed, algo)
     result = train(None if resume else config, run_dir, resume=resume)
     return run_dir, result.summary
 
@@ -76,7 +88,7 @@ def transfer_proxy_policy(policy_dir: Path) -> list[dict]:
     from pliant.envs.trunk_push_proxy import TrunkPushProxyEnv
     from pliant.proxy.transfer import trunk_transfer
 
-    saved = load_policy(policy_dir, algo="PPO")
+    saved = load_policy(policy_dir)  # its algorithm from its meta.json
     normalize = saved.normalize_obs or (lambda obs: obs)
     probe = TrunkPushProxyEnv(**saved.env_kwargs)
     rows = []
@@ -132,6 +144,13 @@ def main() -> None:
     parser.add_argument("--env-steps", type=int, default=SETTINGS["trunk"]["env_steps"])
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--resume", action="store_true")
+    parser.add_argument("--algo", choices=("PPO", "SAC"), default="PPO", help="RL on the FEM")
+    parser.add_argument(
+        "--proxy-policy",
+        type=Path,
+        default=Path("experiments/results/proxy/rl_trunk"),
+        help="the proxy's policy the pipeline transfers",
+    )
     parser.add_argument(
         "--transfer-only", type=Path, default=None, help="only transfer this proxy policy"
     )
@@ -155,18 +174,24 @@ def main() -> None:
         (OUT / f"report_{args.transfer_only.name}.json").write_text(json.dumps(report, indent=1))
         print(json.dumps({k: report[k] for k in ("fem", "proxy")}))
         return
-    run_dir, trained = train_on_fem(args.env_steps, args.seed, args.resume)
+    name = suffix(args.algo, args.seed)
+    out = OUT / name[1:] if name else OUT
+    out.mkdir(parents=True, exist_ok=True)
+    run_dir, trained = train_on_fem(args.env_steps, args.seed, args.resume, args.algo)
     for f in ("model.zip", "vecnormalize.pkl", "meta.json"):
-        shutil.copy(run_dir / "final" / f, OUT / f)
-    shutil.copy(run_dir / "learning_curve.png", OUT / "fem_learning_curve.png")
+        shutil.copy(run_dir / "final" / f, out / f)
+    shutil.copy(run_dir / "learning_curve.png", out / "fem_learning_curve.png")
     direct = evaluate_on_fem(run_dir / "final")
-    transferred = transfer_proxy_policy(Path("experiments/results/proxy/rl_trunk"))
+    transferred = transfer_proxy_policy(args.proxy_policy)
+    proxy_trained = json.loads((args.proxy_policy / "report.json").read_text())
     report = {
         "command": "python experiments/proxy_vs_fem_rl.py " + " ".join(sys.argv[1:]),
         "goals": f"seeds {GOALS.start}-{GOALS.stop - 1} of both environments",
+        "training_seed": args.seed,
         "fem_env": FEM_ENV,
         "fem_env_kwargs": FEM_KWARGS,
         "rl_on_fem": {
+            "algo": args.algo,
             "env_steps": trained["steps"],
             "simulation_steps": trained["steps"] * FEM_KWARGS["substeps"],
             "training_seconds": trained["wall_seconds"],
@@ -174,14 +199,16 @@ def main() -> None:
             "episodes": direct,
         },
         "proxy_pipeline": {
-            "policy": "experiments/results/proxy/rl_trunk (6800 env steps on the proxy)",
+            "policy": str(args.proxy_policy),
+            "algo": proxy_trained.get("algo", "PPO"),
+            "proxy_env_steps": proxy_trained["env_steps"],
             "fem": summary([r["fem_distance"] for r in transferred]),
             "proxy": summary([r["proxy_distance"] for r in transferred]),
             "transfers": transferred,
         },
         "thesis": {"proxy_pipeline_mm": 2.0, "rl_on_fem_mm": 4.5},
     }
-    (OUT / "report.json").write_text(json.dumps(report, indent=1))
+    (out / "report.json").write_text(json.dumps(report, indent=1))
     print(json.dumps({k: v for k, v in report.items() if k not in ("rl_on_fem", "proxy_pipeline")}))
     print("RL on the FEM:", json.dumps(summary([r["distance"] for r in direct])))
     print("proxy pipeline (FEM):", json.dumps(report["proxy_pipeline"]["fem"]))
