@@ -26,7 +26,11 @@ results in experiments/results/proxy/fem_vs_proxy/.
     python experiments/proxy_rl.py trunk --seed 1 --tag _seed1
     python experiments/proxy_vs_fem_rl.py --seed 1 \
         --proxy-policy experiments/results/proxy/rl_trunk_seed1
+    # the FEM's cube imposed on the proxy every 3 steps (the thesis' 10: never in an episode)
+    python experiments/proxy_vs_fem_rl.py --transfer-only experiments/results/proxy/rl_trunk \
+        --time-register 3
     # SAC on both sides (a departure: the thesis used PPO), results in fem_vs_proxy/sac/
+    python experiments/proxy_rl.py trunk --algo SAC --env-steps 6800 --tag _sac
     python experiments/proxy_vs_fem_rl.py --algo SAC \
         --proxy-policy experiments/results/proxy/rl_trunk_sac
 """
@@ -34,6 +38,7 @@ results in experiments/results/proxy/fem_vs_proxy/.
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import shutil
 import sys
@@ -84,9 +89,12 @@ def evaluate_on_fem(policy_dir: Path) -> list[dict]:
     return [episode(env, greedy, s) for s in GOALS]
 
 
-def transfer_proxy_policy(policy_dir: Path) -> list[dict]:
+def transfer_proxy_policy(policy_dir: Path, time_register: int | None = None) -> list[dict]:
+    """The proxy policy's episode on the FEM for each goal; `time_register`: proxy steps
+    between realignments (the FEM's cube imposed on the proxy, the policy re-planning from
+    there), None for the thesis' 10 (none within the 10 steps)."""
     from pliant.envs.trunk_push_proxy import TrunkPushProxyEnv
-    from pliant.proxy.transfer import trunk_transfer
+    from pliant.proxy.transfer import TRUNK_GAINS, trunk_transfer
 
     saved = load_policy(policy_dir)  # its algorithm from its meta.json
     normalize = saved.normalize_obs or (lambda obs: obs)
@@ -95,7 +103,12 @@ def transfer_proxy_policy(policy_dir: Path) -> list[dict]:
     for seed in GOALS:
         probe.reset(seed=seed)
         offset = probe.task["goal"] - probe.cube()
-        loop = trunk_transfer(goal_offset=(offset[0], offset[2]), env_kwargs=saved.env_kwargs)
+        gains = TRUNK_GAINS
+        if time_register is not None:
+            gains = dataclasses.replace(gains, time_register=time_register)
+        loop = trunk_transfer(
+            gains=gains, goal_offset=(offset[0], offset[2]), env_kwargs=saved.env_kwargs
+        )
 
         def chooser(obs):
             return saved.model.predict(normalize(obs), deterministic=True)[0]
@@ -107,11 +120,14 @@ def transfer_proxy_policy(policy_dir: Path) -> list[dict]:
             return float(np.hypot(*(cube - goal)[[0, 2]]))
 
         # The FEM's episode as the environment runs it (the direct RL's evaluation too): 10
-        # steps, ended at the first within the tolerance; the realignment (every 10) is not
-        # due within them.
+        # steps, ended at the first within the tolerance; the thesis' realignment (every 10)
+        # is not due within them.
         steps = 0
         while steps < 10:
-            loop.step(chooser(loop.observation()))
+            due = gains.time_register > 0 and steps > 0 and steps % gains.time_register == 0
+            if due:  # the policy re-plans from where the FEM's cube is
+                loop.realign()
+            loop.step(chooser(loop.observation()), realigned=due)
             steps += 1
             if distance(loop.state.rigid_positions[0]) < 8.0:
                 break
@@ -154,12 +170,18 @@ def main() -> None:
     parser.add_argument(
         "--transfer-only", type=Path, default=None, help="only transfer this proxy policy"
     )
+    parser.add_argument(
+        "--time-register",
+        type=int,
+        default=None,
+        help="with --transfer-only: proxy steps between realignments (default the thesis' 10)",
+    )
     args = parser.parse_args()
     warnings.simplefilter("ignore")
     torch.set_num_threads(1)
     OUT.mkdir(parents=True, exist_ok=True)
     if args.transfer_only is not None:
-        rows = transfer_proxy_policy(args.transfer_only)
+        rows = transfer_proxy_policy(args.transfer_only, args.time_register)
         trained = json.loads((args.transfer_only / "report.json").read_text())
         report = {
             "command": "python experiments/proxy_vs_fem_rl.py " + " ".join(sys.argv[1:]),
@@ -167,11 +189,15 @@ def main() -> None:
             "proxy_env_steps": trained["env_steps"],
             "proxy_simulation_steps": trained["simulation_steps"],
             "proxy_training_seconds": trained["training_seconds"],
+            "time_register": args.time_register or 10,
             "fem": summary([r["fem_distance"] for r in rows]),
             "proxy": summary([r["proxy_distance"] for r in rows]),
             "transfers": rows,
         }
-        (OUT / f"report_{args.transfer_only.name}.json").write_text(json.dumps(report, indent=1))
+        name = args.transfer_only.name
+        if args.time_register is not None:
+            name += f"_register{args.time_register}"
+        (OUT / f"report_{name}.json").write_text(json.dumps(report, indent=1))
         print(json.dumps({k: report[k] for k in ("fem", "proxy")}))
         return
     name = suffix(args.algo, args.seed)
