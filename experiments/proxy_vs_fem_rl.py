@@ -89,10 +89,13 @@ def evaluate_on_fem(policy_dir: Path) -> list[dict]:
     return [episode(env, greedy, s) for s in GOALS]
 
 
-def transfer_proxy_policy(policy_dir: Path, time_register: int | None = None) -> list[dict]:
+def transfer_proxy_policy(
+    policy_dir: Path, time_register: int | None = None, rest_offset: bool = False
+) -> list[dict]:
     """The proxy policy's episode on the FEM for each goal; `time_register`: proxy steps
     between realignments (the FEM's cube imposed on the proxy, the policy re-planning from
-    there), None for the thesis' 10 (none within the 10 steps)."""
+    there), None for the thesis' 10 (none within the 10 steps); `rest_offset`: the gains'
+    (the FEM follows the proxy's displacements from its own settled shape)."""
     from pliant.envs.trunk_push_proxy import TrunkPushProxyEnv
     from pliant.proxy.transfer import TRUNK_GAINS, trunk_transfer
 
@@ -103,7 +106,7 @@ def transfer_proxy_policy(policy_dir: Path, time_register: int | None = None) ->
     for seed in GOALS:
         probe.reset(seed=seed)
         offset = probe.task["goal"] - probe.cube()
-        gains = TRUNK_GAINS
+        gains = dataclasses.replace(TRUNK_GAINS, rest_offset=rest_offset)
         if time_register is not None:
             gains = dataclasses.replace(gains, time_register=time_register)
         loop = trunk_transfer(
@@ -176,12 +179,17 @@ def main() -> None:
         default=None,
         help="with --transfer-only: proxy steps between realignments (default the thesis' 10)",
     )
+    parser.add_argument(
+        "--rest-offset",
+        action="store_true",
+        help="with --transfer-only: the FEM follows the proxy's displacements (TransferGains)",
+    )
     args = parser.parse_args()
     warnings.simplefilter("ignore")
     torch.set_num_threads(1)
     OUT.mkdir(parents=True, exist_ok=True)
     if args.transfer_only is not None:
-        rows = transfer_proxy_policy(args.transfer_only, args.time_register)
+        rows = transfer_proxy_policy(args.transfer_only, args.time_register, args.rest_offset)
         trained = json.loads((args.transfer_only / "report.json").read_text())
         report = {
             "command": "python experiments/proxy_vs_fem_rl.py " + " ".join(sys.argv[1:]),
@@ -190,6 +198,7 @@ def main() -> None:
             "proxy_simulation_steps": trained["simulation_steps"],
             "proxy_training_seconds": trained["training_seconds"],
             "time_register": args.time_register or 10,
+            "rest_offset": args.rest_offset,
             "fem": summary([r["fem_distance"] for r in rows]),
             "proxy": summary([r["proxy_distance"] for r in rows]),
             "transfers": rows,
@@ -197,6 +206,8 @@ def main() -> None:
         name = args.transfer_only.name
         if args.time_register is not None:
             name += f"_register{args.time_register}"
+        if args.rest_offset:
+            name += "_rest_offset"
         (OUT / f"report_{name}.json").write_text(json.dumps(report, indent=1))
         print(json.dumps({k: report[k] for k in ("fem", "proxy")}))
         return

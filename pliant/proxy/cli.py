@@ -327,6 +327,13 @@ def transfer(
             " the floor onto the FEM's points (the travel left to the FEM's friction)"
         ),
     ] = None,
+    rest_offset: Annotated[
+        bool | None,
+        typer.Option(
+            help="Trunk: the FEM follows the proxy's displacements from its own starting shape"
+            " (the goals carry the models' gap at the start)"
+        ),
+    ] = None,
     inverse_model: Annotated[
         str | None,
         typer.Option(
@@ -363,6 +370,7 @@ def transfer(
             ("feedforward", feedforward),
             ("follow_shape", follow_shape),
             ("inverse_model", inverse_model),
+            ("rest_offset", rest_offset),
         )
         if v is not None
     }

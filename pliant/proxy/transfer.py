@@ -109,6 +109,11 @@ class TransferGains:
             roll-outs with the FEM's own (frictional) contacts (module docstring, 2.).
         sensitivity_step: the finite-difference step of "sensitivity", a fraction of each
             actuator's bound range.
+        rest_offset: the goals carry the gap between the two models' matched points at the
+            transfer's start (each settled in its own way): the FEM follows the proxy's
+            displacements from its own starting shape rather than the proxy's places (a
+            departure; the Trunk's two models sag differently under gravity). Robots whose
+            realignment moves the proxy's points (the Multigait) refuse it.
     """
 
     scale: int
@@ -125,6 +130,7 @@ class TransferGains:
     follow_shape: bool = False
     inverse_model: str = "qp"
     sensitivity_step: float = 0.02
+    rest_offset: bool = False
 
     def __post_init__(self) -> None:
         if self.inverse_model not in ("qp", "sensitivity"):
@@ -336,6 +342,8 @@ class Transfer:
 
     robot = "robot"
     follows_shape = False
+    #: the realignment leaves the proxy's matched points alone (``gains.rest_offset`` allowed)
+    keeps_points = True
 
     def __init__(
         self,
@@ -353,9 +361,17 @@ class Transfer:
             raise ModelError("the FEM model needs one effector and a bound pair per actuator")
         if gains.follow_shape and not self.follows_shape:
             raise ModelError(f"the {self.robot} transfer follows places: keep follow_shape off")
+        if gains.rest_offset and not self.keeps_points:
+            raise ModelError(
+                f"the {self.robot}'s realignment moves the proxy's points: keep rest_offset off"
+            )
         self.env, self.fem, self.state, self.gains = env, fem, state, gains
         self.proxy_points = proxy_points
         self.points = fem.effectors[0].points
+        #: (K, 3) what the goals carry with ``gains.rest_offset`` (zero without)
+        self.offset = np.zeros((len(self.points.positions(state.positions)), 3))
+        if gains.rest_offset:
+            self.offset = self.points.positions(state.positions) - proxy_points(env.state.positions)
         self.base = base
         self.solver = ImplicitEuler(fem, dt=env.dt)
         self.filter = ActuationFilter(gains.lower, gains.upper, rate=gains.rate, gain=gains.gain)
@@ -410,6 +426,7 @@ class Transfer:
             return
         if g.follow_shape:
             goal = goal - self.goal_shift(goal, now)
+        goal = goal + self.offset
         target = goal + g.kp * (goal - now)
         try:
             if g.inverse_model == "sensitivity":
@@ -553,6 +570,7 @@ class MultigaitTransfer(Transfer):
 
     robot = "multigait"
     follows_shape = True
+    keeps_points = False
     # The skeleton's nodes of each leg, root to tip (pliant.proxy.builders.multigait_proxy).
     LEGS = {name: np.arange(3 + 4 * k, 7 + 4 * k) for k, name in enumerate(CHAMBERS[1:])}
 
