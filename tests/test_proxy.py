@@ -120,6 +120,39 @@ def test_a_bending_that_stretches_takes_the_arc_scaled_by_its_stretch() -> None:
         rod.set_rest_stretch(0.0)
 
 
+def test_a_contracting_bending_shortens_its_beam_whichever_way_it_bends() -> None:
+    """Bending.max_contraction c (a cable-bent trunk shortens as it curls, either way): at
+    command +1 or -1 each element keeps its turn and shortens by 1 - c, so the tip is the
+    discrete arc's (bent_cantilever) times 1 - c, mirrored for -1, to solver precision;
+    released, the rod is straight and of its length again. A contraction outside [0, 1) is
+    refused."""
+    n, c, turn = 10, 0.08, 0.6 * np.pi
+    _, _, _, _, discrete = bent_cantilever(n, turn)
+    rod = cantilever(n)
+    bending = CurvatureActuation(
+        rod, [Bending("all", tuple(range(n)), (1, 0, 0), turn / L, max_contraction=c)]
+    )
+    model = Model(rod)
+    solver = StaticSolver(model)
+    for sign in (1.0, -1.0):
+        state = model.rest_state()
+        for k in range(1, 10):
+            bending.apply([sign * k / 9])
+            state = solver.step(state)
+        mirrored = discrete * np.array([1.0, 1.0, sign])
+        np.testing.assert_allclose(state.positions[n], (1.0 - c) * mirrored, atol=1e-7)
+        np.testing.assert_allclose(rod.linearise(state.positions).dets, 1.0 - c, atol=1e-9)
+        for k in range(8, -1, -1):
+            bending.apply([sign * k / 9])
+            state = solver.step(state)
+        np.testing.assert_allclose(state.positions[: n + 1], rod.rest_positions[: n + 1], atol=1e-7)
+    trunk = trunk_proxy(lower_contraction=0.1, upper_contraction=0.2)
+    assert [b.max_contraction for b in trunk.actuation.bendings] == [0.1, 0.1, 0.2, 0.2]
+    for bad in (-0.1, 1.0):
+        with pytest.raises(ModelError, match="max contraction"):
+            CurvatureActuation(rod, [Bending("all", (0,), (1, 0, 0), 0.01, max_contraction=bad)])
+
+
 def test_rest_curvature_and_a_small_tip_load_superpose() -> None:
     """Small rest curvature (tip rise 1e-3 L) and a small tip load along z (Timoshenko
     deflection w = P L^3 / (3 E I) + P L / (k G A), met by the rod to its O(1/N^2) bending
@@ -512,6 +545,8 @@ def test_the_calibrate_command_fits_the_travel_and_the_friction(tmp_path) -> Non
         ([*args, "--contact", "balls"], "one of"),
         (["proxy", "calibrate", "trunk-cube", "--travel-weight", "1"], "not a sequence"),
         ([*args, "--friction", "0.9,0.5"], "LOW < HIGH"),
+        ([*args, "--contraction", "0,0.2"], "only the Trunk"),
+        (["proxy", "calibrate", "trunk", "--contraction", "0.2,0.1"], "LOW < HIGH"),
         ([*args, "--start", str(tmp_path / "reference.npz")], "not a calibration report"),
     ):
         result = runner.invoke(app, [*refused, "--out", str(tmp_path)])

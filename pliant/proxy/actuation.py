@@ -22,13 +22,15 @@ from pliant.fem.rod import RodBody
 class Bending:
     """One actuated bending: command u moves the rest curvature of `elements` by
     u * max_curvature along `axis` (material frame: d1, d2 bendings, d3 twist; unit), and
-    their rest stretch by u * max_stretch.
+    their rest stretch by u * max_stretch - |u| * max_contraction.
 
     The stretch is for a skeleton that does not lie on the neutral layer of what it bends: a
     pneumatic chamber bends its leg about the strain-limiting layer under it, so that a
     skeleton at height h over that layer lengthens by kappa h as it curls
     (``multigait_proxy(neutral="underside")``); a beam bent about its own axis keeps its
-    length (max_stretch 0).
+    length (max_stretch 0). The contraction is for a beam shortened by what bends it,
+    whichever way: a cable-driven trunk's cables compress it along its axis as they curl it
+    (the FEM Trunk's centreline 5 % shorter with its long cable pulled 20 mm).
 
     Args:
         name: the actuator's name ("front_left", "lower_d1").
@@ -36,6 +38,7 @@ class Bending:
         axis: (3,) direction of the curvature in the elements' material frames.
         max_curvature: curvature (rad per length) at command 1.
         max_stretch: axial rest strain at command 1 (0.1: 10 % longer).
+        max_contraction: axial rest shortening at command +-1 (0.05: 5 % shorter).
     """
 
     name: str
@@ -43,11 +46,13 @@ class Bending:
     axis: tuple[float, float, float]
     max_curvature: float
     max_stretch: float = 0.0
+    max_contraction: float = 0.0
 
 
 class CurvatureActuation:
     """The bendings of one rod, applied together: kappa0 = natural + sum_b u_b k_b axis_b,
-    and the rest stretch natural + sum_b u_b s_b (where some bending stretches).
+    and the rest stretch natural + sum_b (u_b s_b - |u_b| c_b) (where some bending stretches
+    or contracts).
 
     Args:
         rod: the proxy's skeleton.
@@ -65,7 +70,9 @@ class CurvatureActuation:
                 raise ModelError(f"bending {b.name}: the axis must be a unit vector")
             if not (np.isfinite(b.max_stretch) and abs(b.max_stretch) < 1.0):
                 raise ModelError(f"bending {b.name}: the max stretch must lie in (-1, 1)")
-        self.stretches = any(b.max_stretch != 0.0 for b in self.bendings)
+            if not (np.isfinite(b.max_contraction) and 0.0 <= b.max_contraction < 1.0):
+                raise ModelError(f"bending {b.name}: the max contraction must lie in [0, 1)")
+        self.stretches = any(b.max_stretch != 0.0 or b.max_contraction for b in self.bendings)
         self.controls = np.zeros(len(self.bendings))
 
     @property
@@ -89,7 +96,7 @@ class CurvatureActuation:
         if self.stretches:
             stretch = self.rod.natural_strain[:, 2].copy()
             for b, value in zip(self.bendings, u, strict=True):
-                stretch[list(b.elements)] += value * b.max_stretch
+                stretch[list(b.elements)] += value * b.max_stretch - abs(value) * b.max_contraction
             self.rod.set_rest_stretch(stretch)
         self.controls = u.copy()
 

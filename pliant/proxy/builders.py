@@ -241,6 +241,8 @@ def trunk_proxy(
     upper_density: float = TRUNK_PARAMETERS["upper_density"],
     lower_curvature: float = TRUNK_PARAMETERS["lower_curvature"],
     upper_curvature: float = TRUNK_PARAMETERS["upper_curvature"],
+    lower_contraction: float = 0.0,
+    upper_contraction: float = 0.0,
     poisson_ratio: float = 0.45,
     gravity: tuple[float, float, float] = (0.0, -9810.0, 0.0),
     rayleigh_mass: float = 0.1,
@@ -263,7 +265,9 @@ def trunk_proxy(
     "nodes", the trunk touches the floor and the cube with balls of `radius` at its nodes;
     "surface", through the FEM Trunk's colliding points (its surface nodes,
     :func:`pliant.robots.trunk_cube.surface_points`) skinned onto the skeleton, tapering as
-    the FEM Trunk does."""
+    the FEM Trunk does. `lower_contraction`, `upper_contraction`: each beam's axial
+    shortening per unit bending command (:class:`Bending`'s max_contraction; 0, inextensible
+    as the thesis' beams, by default): the FEM Trunk's cables shorten it as they bend it."""
     if nodes < 5:
         raise ModelError(f"the Trunk proxy needs at least 5 nodes, got {nodes}")
     if contact not in ("nodes", "surface"):
@@ -288,10 +292,16 @@ def trunk_proxy(
         rayleigh_stiffness=rayleigh_stiffness,
     )
     bendings = [
-        Bending(f"{beam}_{axis}", tuple(int(e) for e in elements), direction, curvature)
-        for beam, elements, curvature in (
-            ("lower", lower, lower_curvature),
-            ("upper", upper, upper_curvature),
+        Bending(
+            f"{beam}_{axis}",
+            tuple(int(e) for e in elements),
+            direction,
+            curvature,
+            max_contraction=contraction,
+        )
+        for beam, elements, curvature, contraction in (
+            ("lower", lower, lower_curvature, lower_contraction),
+            ("upper", upper, upper_curvature, upper_contraction),
         )
         for axis, direction in (("d1", (1.0, 0.0, 0.0)), ("d2", (0.0, 1.0, 0.0)))
     ]

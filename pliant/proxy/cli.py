@@ -83,6 +83,13 @@ def calibrate(
             help="LOW,HIGH: also fit the proxy's floor friction in this box (Multigait)",
         ),
     ] = None,
+    contraction: Annotated[
+        str | None,
+        typer.Option(
+            help="LOW,HIGH: also fit each Trunk beam's axial shortening per unit bending in"
+            " this box (the FEM Trunk shortens as its cables bend it; a study of its own)",
+        ),
+    ] = None,
     neutral: Annotated[
         str,
         typer.Option(
@@ -116,7 +123,7 @@ def calibrate(
     OUT/ROBOT.db, report in OUT/ROBOT_calibration.json.
 
     The study is named after what it fits: ROBOT, with -mass, -travel{W}[x{K}], -friction,
-    -underside and -surface for the options that change the search."""
+    -contraction, -underside and -surface for the options that change the search."""
     from pliant.proxy.calibrate import calibrate as fit
     from pliant.proxy.calibrate import travel, travel_error
     from pliant.proxy.references import Reference, setup
@@ -137,6 +144,13 @@ def calibrate(
         if not 0.0 <= low < high:
             raise typer.BadParameter(f"--friction: need 0 <= LOW < HIGH, got {friction}")
         space["friction"] = (low, high)
+    if contraction is not None:
+        if robot != "trunk":
+            raise typer.BadParameter("--contraction: only the Trunk proxy's beams contract")
+        low, high = numbers_list(contraction, "--contraction", count=2)
+        if not 0.0 <= low < high < 1.0:
+            raise typer.BadParameter(f"--contraction: need 0 <= LOW < HIGH < 1, got {contraction}")
+        space["lower_contraction"] = space["upper_contraction"] = (low, high)
     if neutral != "axis" and not robot.startswith("multigait"):
         raise typer.BadParameter("--neutral: only the Multigait's chambers bend a layer")
     builder = {"neutral": neutral} if neutral != "axis" else {}
@@ -177,6 +191,7 @@ def calibrate(
         (f"-travel{travel_weight:g}" if travel_weight > 0.0 else "")
         + (f"x{travel_actions}" if travel_actions > 1 else "")
         + ("-friction" if friction is not None else "")
+        + ("-contraction" if contraction is not None else "")
     )
     study += ("" if neutral == "axis" else f"-{neutral}") + (
         "" if contact == "nodes" else f"-{contact}"
