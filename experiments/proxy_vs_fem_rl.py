@@ -102,13 +102,13 @@ def transfer_proxy_policy(
     saved = load_policy(policy_dir)  # its algorithm from its meta.json
     normalize = saved.normalize_obs or (lambda obs: obs)
     probe = TrunkPushProxyEnv(**saved.env_kwargs)
+    gains = dataclasses.replace(TRUNK_GAINS, rest_offset=rest_offset)
+    if time_register is not None:
+        gains = dataclasses.replace(gains, time_register=time_register)
     rows = []
     for seed in GOALS:
         probe.reset(seed=seed)
         offset = probe.task["goal"] - probe.cube()
-        gains = dataclasses.replace(TRUNK_GAINS, rest_offset=rest_offset)
-        if time_register is not None:
-            gains = dataclasses.replace(gains, time_register=time_register)
         loop = trunk_transfer(
             gains=gains, goal_offset=(offset[0], offset[2]), env_kwargs=saved.env_kwargs
         )
@@ -125,15 +125,11 @@ def transfer_proxy_policy(
         # The FEM's episode as the environment runs it (the direct RL's evaluation too): 10
         # steps, ended at the first within the tolerance; the thesis' realignment (every 10)
         # is not due within them.
-        steps = 0
-        while steps < 10:
-            due = gains.time_register > 0 and steps > 0 and steps % gains.time_register == 0
-            if due:  # the policy re-plans from where the FEM's cube is
-                loop.realign()
-            loop.step(chooser(loop.observation()), realigned=due)
-            steps += 1
-            if distance(loop.state.rigid_positions[0]) < 8.0:
-                break
+        def within(loop=loop) -> bool:
+            return distance(loop.state.rigid_positions[0]) < 8.0
+
+        loop.run(policy=chooser, steps=10, until=within)
+        steps = len(loop.result.steps)
         rows.append(
             {
                 "seed": seed,

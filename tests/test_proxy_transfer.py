@@ -347,3 +347,19 @@ def test_rest_offset_makes_the_fem_follow_the_proxys_displacements() -> None:
     assert moved[True].max() < 0.5 and moved[False].max() > 5.0, moved
     with pytest.raises(ModelError, match="rest_offset"):
         multigait_transfer(gains=dataclasses.replace(MULTIGAIT_GAINS, rest_offset=True))
+
+
+def test_a_transfer_stops_at_the_first_step_its_until_holds() -> None:
+    """`until`: the run ends after the first step at which it holds (an episode its task
+    ends early), the steps before it all recorded; without it every step is taken."""
+    from pliant.proxy.transfer import trunk_transfer
+
+    push = [(0.0, 0.05, 0.0, 0.05, 0.0)] * 3
+    asked = []
+
+    def second_time() -> bool:
+        asked.append(True)
+        return len(asked) == 2
+
+    assert len(trunk_transfer().run(push, until=second_time).steps) == 2 and len(asked) == 2
+    assert len(trunk_transfer().run(push).steps) == 3

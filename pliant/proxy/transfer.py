@@ -369,9 +369,10 @@ class Transfer:
         self.proxy_points = proxy_points
         self.points = fem.effectors[0].points
         #: (K, 3) what the goals carry with ``gains.rest_offset`` (zero without)
-        self.offset = np.zeros((len(self.points.positions(state.positions)), 3))
+        start = self.points.positions(state.positions)
+        self.offset = np.zeros_like(start)
         if gains.rest_offset:
-            self.offset = self.points.positions(state.positions) - proxy_points(env.state.positions)
+            self.offset = start - proxy_points(env.state.positions)
         self.base = base
         self.solver = ImplicitEuler(fem, dt=env.dt)
         self.filter = ActuationFilter(gains.lower, gains.upper, rate=gains.rate, gain=gains.gain)
@@ -539,9 +540,11 @@ class Transfer:
         policy: Callable[[np.ndarray], object] | None = None,
         steps: int | None = None,
         progress: Callable[[int, StepRecord], None] | None = None,
+        until: Callable[[], bool] | None = None,
     ) -> TransferResult:
         """Transfer a fixed action sequence, or `steps` actions of `policy` (observation ->
-        action) chosen on the proxy after each realignment."""
+        action) chosen on the proxy after each realignment; `until`: stop after the first step
+        at which it holds (an episode its task ends early)."""
         if (actions is None) == (policy is None):
             raise ModelError("give either an action sequence or a policy")
         count = len(actions) if actions is not None else steps
@@ -558,6 +561,8 @@ class Transfer:
             record = self.step(action, realigned=due)
             if progress is not None:
                 progress(k, record)
+            if until is not None and until():
+                break
         self.result.wall_time = time.perf_counter() - clock
         return self.result
 
