@@ -89,18 +89,53 @@ def evaluate_on_fem(policy_dir: Path) -> list[dict]:
     return [episode(env, greedy, s) for s in GOALS]
 
 
+def transfer_episode(saved, offset_xz, gains, tolerance: float = 8.0, seed: int = 0) -> dict:
+    """The loaded proxy policy `saved` (load_policy) through `pliant proxy transfer`'s loop
+    on the FEM for the goal at the cube's start plus `offset_xz`: the FEM's episode as the
+    environment runs it (the direct RL's evaluation too), 10 steps ended at the first that
+    leaves the FEM's cube within `tolerance` mm of the goal; `seed` labels the row (the goal's
+    draw)."""
+    from pliant.proxy.transfer import trunk_transfer
+
+    normalize = saved.normalize_obs or (lambda obs: obs)
+    loop = trunk_transfer(gains=gains, goal_offset=tuple(offset_xz), env_kwargs=saved.env_kwargs)
+
+    def chooser(obs):
+        return saved.model.predict(normalize(obs), deterministic=True)[0]
+
+    clock = time.perf_counter()
+    goal = loop.env.task["goal"]
+
+    def distance(cube: np.ndarray) -> float:
+        return float(np.hypot(*(cube - goal)[[0, 2]]))
+
+    def within() -> bool:
+        return distance(loop.state.rigid_positions[0]) < tolerance
+
+    loop.run(policy=chooser, steps=10, until=within)
+    return {
+        "seed": seed,
+        "goal_offset_xz": [float(offset_xz[0]), float(offset_xz[1])],
+        "steps": len(loop.result.steps),
+        "fem_distance": distance(loop.state.rigid_positions[0]),
+        "proxy_distance": distance(loop.env.state.rigid_positions[0]),
+        "relative_reward_difference": loop.result.relative_difference,
+        "wall_s": time.perf_counter() - clock,
+    }
+
+
 def transfer_proxy_policy(
     policy_dir: Path, time_register: int | None = None, rest_offset: bool = False
 ) -> list[dict]:
     """The proxy policy's episode on the FEM for each goal; `time_register`: proxy steps
     between realignments (the FEM's cube imposed on the proxy, the policy re-planning from
-    there), None for the thesis' 10 (none within the 10 steps); `rest_offset`: the gains'
-    (the FEM follows the proxy's displacements from its own settled shape)."""
+    there), None for the thesis' 10 (none within the 10 steps: the thesis' realignment is
+    not due within an episode); `rest_offset`: the gains' (the FEM follows the proxy's
+    displacements from its own settled shape)."""
     from pliant.envs.trunk_push_proxy import TrunkPushProxyEnv
-    from pliant.proxy.transfer import TRUNK_GAINS, trunk_transfer
+    from pliant.proxy.transfer import TRUNK_GAINS
 
     saved = load_policy(policy_dir)  # its algorithm from its meta.json
-    normalize = saved.normalize_obs or (lambda obs: obs)
     probe = TrunkPushProxyEnv(**saved.env_kwargs)
     gains = dataclasses.replace(TRUNK_GAINS, rest_offset=rest_offset)
     if time_register is not None:
@@ -109,38 +144,7 @@ def transfer_proxy_policy(
     for seed in GOALS:
         probe.reset(seed=seed)
         offset = probe.task["goal"] - probe.cube()
-        loop = trunk_transfer(
-            gains=gains, goal_offset=(offset[0], offset[2]), env_kwargs=saved.env_kwargs
-        )
-
-        def chooser(obs):
-            return saved.model.predict(normalize(obs), deterministic=True)[0]
-
-        clock = time.perf_counter()
-        goal = loop.env.task["goal"]
-
-        def distance(cube: np.ndarray, goal: np.ndarray = goal) -> float:
-            return float(np.hypot(*(cube - goal)[[0, 2]]))
-
-        # The FEM's episode as the environment runs it (the direct RL's evaluation too): 10
-        # steps, ended at the first within the tolerance; the thesis' realignment (every 10)
-        # is not due within them.
-        def within(loop=loop) -> bool:
-            return distance(loop.state.rigid_positions[0]) < 8.0
-
-        loop.run(policy=chooser, steps=10, until=within)
-        steps = len(loop.result.steps)
-        rows.append(
-            {
-                "seed": seed,
-                "goal_offset_xz": [float(offset[0]), float(offset[2])],
-                "steps": steps,
-                "fem_distance": distance(loop.state.rigid_positions[0]),
-                "proxy_distance": distance(loop.env.state.rigid_positions[0]),
-                "relative_reward_difference": loop.result.relative_difference,
-                "wall_s": time.perf_counter() - clock,
-            }
-        )
+        rows.append(transfer_episode(saved, (offset[0], offset[2]), gains, seed=seed))
         print(json.dumps(rows[-1]), flush=True)
     return rows
 

@@ -252,6 +252,25 @@ def test_damped_dynamics_settle_on_the_static_equilibrium() -> None:
     np.testing.assert_allclose(state.positions[13:], static.positions[13:], atol=1e-8)
 
 
+def test_a_rest_curvature_set_between_steps_acts_on_the_next_step() -> None:
+    """The solver linearises the next step at the end of each (its look-ahead); a rest
+    curvature or stretch set in between (a proxy's actuation) must not be met by that stale
+    linearisation: each step equals the step of a fresh solver, which has none."""
+    rod = straight_rod(8, rayleigh_mass=5.0)
+    model = Model(rod)
+    solver, state = ImplicitEuler(model, 0.01), model.rest_state()
+    for k in range(1, 6):
+        rod.set_rest_curvature([0.0, 2e-3 * k, 0.0])
+        rod.set_rest_stretch(1.0 - 0.01 * k)
+        fresh = ImplicitEuler(model, 0.01).step(state.copy())
+        state = solver.step(state)
+        np.testing.assert_allclose(state.positions, fresh.positions, rtol=0, atol=1e-12)
+    assert np.linalg.norm(state.positions[8, 1:]) > 1.0  # it bent
+    revision = rod.revision
+    rod.set_rest_curvature(rod.kappa0.copy())  # the same values: nothing to say
+    assert rod.revision == revision
+
+
 def test_free_vibration_never_gains_energy() -> None:
     """Released from a bent static state without damping: kinetic + elastic energy (the
     rotary part included) never grows under implicit Euler, and it decays."""

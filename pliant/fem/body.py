@@ -92,6 +92,21 @@ def set_bulk_properties(
         raise ModelError(f"gravity must be a finite 3-vector, got {gravity!r}")
 
 
+class Revised:
+    """What a body's forces read besides its state (positions, velocities, time) is counted:
+    :attr:`revision` goes up at every change made in place between steps (a rod's rest
+    curvature or stretch: a proxy's actuation), so that a solver never reuses a linearisation
+    computed before it (:class:`pliant.solvers.implicit_euler.ImplicitEuler` linearises the
+    next step at the end of this one)."""
+
+    revision: int = 0
+
+    def changed(self) -> None:
+        """Say that what the forces read changed in place (the body's own setters say it;
+        call it after editing a load's or a material's arrays between steps)."""
+        self.revision += 1
+
+
 @dataclass
 class Linearisation:
     """Forces and per-element frames of the body at one configuration."""
@@ -135,7 +150,7 @@ def _sized_threads(method):
     return wrapper
 
 
-class TetBody:
+class TetBody(Revised):
     """A deformable body of linear tetrahedra.
 
     Args:

@@ -28,7 +28,7 @@ import scipy.sparse as sp
 
 from pliant.errors import MaterialError, ModelError
 from pliant.fem import kernels, rod_kernels
-from pliant.fem.body import Linearisation, set_bulk_properties
+from pliant.fem.body import Linearisation, Revised, set_bulk_properties
 from pliant.fem.material import Material
 from pliant.fem.rigid import KinematicBody
 from pliant.fem.sparsity import StiffnessPattern
@@ -106,7 +106,7 @@ def parallel_frames(points: np.ndarray, normal: Sequence[float] | None = None) -
     return frames
 
 
-class RodBody:
+class RodBody(Revised):
     """A deformable rod: a discrete Cosserat rod along a polyline, or a lattice of them.
 
     Args:
@@ -277,7 +277,9 @@ class RodBody:
         value = np.broadcast_to(np.asarray(curvature, dtype=float), (idx.size, 3))
         if not np.all(np.isfinite(value)):
             raise ModelError("a rest curvature must be finite")
-        self.kappa0[idx] = value  # in place: the element kernels read this very array
+        if not np.array_equal(self.kappa0[idx], value):
+            self.kappa0[idx] = value  # in place: the element kernels read this very array
+            self.changed()
 
     def set_rest_stretch(self, stretch, elements: np.ndarray | None = None) -> None:
         """Prescribe the rest stretch gamma_3 (1: the element's own length; 1.1: at rest 10 %
@@ -287,7 +289,9 @@ class RodBody:
         value = np.broadcast_to(np.asarray(stretch, dtype=float), (idx.size,))
         if not np.all(np.isfinite(value)) or np.any(value <= 0.0):
             raise ModelError("a rest stretch must be finite and positive")
-        self.gamma0[idx, 2] = value
+        if not np.array_equal(self.gamma0[idx, 2], value):
+            self.gamma0[idx, 2] = value
+            self.changed()
 
     # --- layout -----------------------------------------------------------------------------
     @property

@@ -248,6 +248,7 @@ class ImplicitEuler:
                     new.velocities.copy(),
                     ahead,
                     drive,
+                    self.model.body.revision,
                 )
         if model.contacts is not None:
             model.contacts.check_travel(positions, dq, step)
@@ -263,9 +264,11 @@ class ImplicitEuler:
     def _linearise(self, state: State, *, reuse: bool = True):
         """The body linearised at `state` with the velocities of a step from it (driven nodes
         at their velocity over the step), and those drive velocities (None without drivers).
-        With `reuse`, the look-ahead of the last step when `state` holds what it returned and
-        the drivers still move as they did then (a cart retargeted since has other drive
-        velocities, hence another linearisation)."""
+        With `reuse`, the look-ahead of the last step when `state` holds what it returned, the
+        drivers still move as they did then (a cart retargeted since has other drive
+        velocities, hence another linearisation) and the body's forces read what they read
+        then (its :attr:`~pliant.fem.body.Revised.revision`: a proxy's rest curvature, set
+        between steps, is its actuation)."""
         model, body = self.model, self.model.body
         drive = model.drive_velocities(state, self.dt) if model.drivers else None
         ahead = self._ahead
@@ -276,6 +279,7 @@ class ImplicitEuler:
             and np.array_equal(ahead[2], state.positions)
             and np.array_equal(ahead[3], state.velocities)
             and (drive is None or np.array_equal(ahead[5], drive))
+            and ahead[6] == body.revision
         ):
             return ahead[4], drive
         velocities = state.velocities
