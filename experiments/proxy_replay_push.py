@@ -1,0 +1,73 @@
+"""A push learnt directly on the FEM Trunk, replayed on the proxy (docs/proxy.md, the one-goal
+comparison): the FEM policy of experiments/proxy_fixed_goal.py (GOAL, SEED) plays its greedy
+episode on the FEM; after each step the cables it reached are mapped to the proxy's bendings
+by the calibration's linear map (`pliant.proxy.references.trunk_commands`, divided by the
+proxy environment's bend_limit) with the same base command, and the proxy replays them. Both
+cubes' tracks and final distances to the goal are printed; `--proxy JSON` passes keywords to
+the proxy (e.g. '{"contact": "surface"}', '{"friction": 0.6}', a calibration's parameters).
+
+    python experiments/proxy_fixed_goal.py --goal x25 --seed 2 --side fem   # the policy
+    python experiments/proxy_replay_push.py --goal x25 --seed 2 [--proxy JSON]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import warnings
+from pathlib import Path
+
+import numpy as np
+
+from pliant.learn.evaluate import load_policy
+from pliant.learn.vec import make_env
+from pliant.proxy.references import trunk_commands
+
+sys.path.insert(0, str(Path(__file__).parent))
+from proxy_fixed_goal import GOALS, OUT, goal_kwargs  # noqa: E402
+from proxy_rl import SETTINGS  # noqa: E402
+from proxy_vs_fem_rl import FEM_ENV, FEM_KWARGS  # noqa: E402
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser()
+    parser.add_argument("--goal", choices=sorted(GOALS), default="x25")
+    parser.add_argument("--seed", type=int, default=2)
+    parser.add_argument("--proxy", type=json.loads, default={}, help="proxy keywords (JSON)")
+    args = parser.parse_args()
+    warnings.simplefilter("ignore")
+    saved = load_policy(OUT / args.goal / f"seed{args.seed}" / "fem")
+    task = goal_kwargs(GOALS[args.goal])
+    fem = make_env(FEM_ENV, {**FEM_KWARGS, **task})
+    proxy_kwargs = {**SETTINGS["trunk"]["env_kwargs"], **task, **args.proxy}
+    proxy = make_env(SETTINGS["trunk"]["env_id"], proxy_kwargs)
+    limit = proxy_kwargs["bend_limit"]
+
+    obs, _ = fem.reset(seed=0)
+    replay = []
+    while True:
+        action = saved.model.predict(saved.normalize_obs(obs), deterministic=True)[0]
+        obs, _, terminated, truncated, _ = fem.step(action)
+        cables = fem.unwrapped.state.displacement
+        bend = np.clip(trunk_commands(cables)[:4] / limit, -1.0, 1.0)
+        replay.append(np.r_[bend, action[-1]])
+        print(
+            f"FEM   step {len(replay)}: cables {np.round(cables, 1).tolist()} mm, cube (x, z) "
+            f"{np.round(fem.unwrapped.cube()[[0, 2]], 1).tolist()}, "
+            f"{fem.unwrapped.distance():.1f} mm from the goal"
+        )
+        if terminated or truncated:
+            break
+    proxy.reset(seed=0)
+    for k, action in enumerate(replay):
+        proxy.step(action)
+        print(
+            f"proxy step {k + 1}: bendings {np.round(action[:4], 2).tolist()}, cube (x, z) "
+            f"{np.round(proxy.unwrapped.cube()[[0, 2]], 1).tolist()}, "
+            f"{proxy.unwrapped.distance():.1f} mm from the goal"
+        )
+
+
+if __name__ == "__main__":
+    main()
