@@ -9,7 +9,8 @@ Trunk), with Pliant's training stack (checkpoints, evaluation curve, VecNormaliz
 ``--parameters CALIBRATION.json`` on a proxy of other fitted parameters, e.g. the 16-action
 calibration's (``--parameters experiments/proxy/patterns/multigait-patterns_calibration.json
 --tag _patterns``); ``--contact surface`` on a proxy touching through the FEM's skinned surface
-(a calibration report of such a proxy says so itself).
+(a calibration report of such a proxy says so itself); ``--planar`` restricts the Trunk's
+bendings to the floor's plane (towards +-x; Box(3) actions).
 
 Multigait (pliant/MultigaitProxy-v0, 12 steps of 0.6 s, Discrete(6)): the greedy policy's
 forward travel over an episode beside the hand gait's (rear, centre, front inflated, then
@@ -207,6 +208,7 @@ def learn(
     parameters: Path | None = None,
     contact: str | None = None,
     algo: str = "PPO",
+    planar: bool = False,
 ) -> dict:
     """Train `algo` on ROBOT's proxy (its parameters degraded by `noise`), evaluate the final
     policy, and write the results folder; the report."""
@@ -226,6 +228,8 @@ def learn(
         env_kwargs["bend_limit"] = bend_limit
     if contact is not None:  # how the proxy touches: "nodes" or "surface" (skinned FEM surface)
         env_kwargs["contact"] = contact
+    if planar:  # the Trunk's beams bend towards +-x only (TrunkPushProxyEnv's `planar`)
+        env_kwargs["planar"] = True
     name = f"rl_{robot}{tag}"
     run_dir = Path("runs") / f"proxy_{name}"
     out = Path("experiments/results/proxy") / name
@@ -275,7 +279,12 @@ def main() -> None:
     parser.add_argument(
         "--contact", choices=("nodes", "surface"), default=None, help="the proxy's contact"
     )
+    parser.add_argument(
+        "--planar", action="store_true", help="trunk: bendings towards +-x only (a priori)"
+    )
     args = parser.parse_args()
+    if args.planar and args.robot != "trunk":
+        parser.error("--planar restricts the Trunk's bendings")
     if args.algo == "SAC" and args.robot not in SAC_SETTINGS:
         parser.error(f"--algo {args.algo} has no settings for the {args.robot}")
     report = learn(
@@ -290,6 +299,7 @@ def main() -> None:
         parameters=args.parameters,
         contact=args.contact,
         algo=args.algo,
+        planar=args.planar,
         command="python experiments/proxy_rl.py " + " ".join(sys.argv[1:]),
     )
     print(json.dumps({k: v for k, v in report.items() if k != "curve"}, indent=1))

@@ -11,6 +11,7 @@ import pytest
 
 import pliant.envs  # noqa: F401  (registers the environments)
 from pliant.envs import ENVS
+from pliant.envs.base import ActionError
 from pliant.envs.multigait import FORWARD
 from pliant.mesh.multigait import CHAMBERS
 
@@ -109,3 +110,30 @@ def test_trunk_push_proxy_bend_limit_scales_the_bending_actions() -> None:
     np.testing.assert_allclose(env.commands[:4], [0.2, -0.2, 0.1, 0.0])
     with pytest.raises(ValueError, match="bend_limit"):
         gym.make("pliant/TrunkPushProxy-v0", bend_limit=0.0)
+
+
+def test_a_planar_trunk_push_proxy_bends_its_beams_towards_x_only() -> None:
+    """planar: Box(3) actions drive the two bendings towards +-x (lower_d2, upper_d2) and the
+    base, the bendings towards +-y stay 0, and the bent trunk stays in the floor's plane
+    (its tip's height is the unbent trunk's); Discrete(6) steps the same three."""
+    kwargs = {**ENVS["TrunkPushProxy"].quick, "bend_limit": 0.2}
+    env = gym.make("pliant/TrunkPushProxy-v0", planar=True, **kwargs).unwrapped
+    assert env.action_space.shape == (3,)
+    env.reset(seed=0)
+    still = env.proxy.skeleton(env.state.positions)[-1]
+    env.step(np.array([1.0, -0.5, 0.0]))
+    np.testing.assert_allclose(env.commands[:4], [0.0, 0.2, 0.0, -0.1])
+    tip = env.proxy.skeleton(env.state.positions)[-1]
+    assert abs(tip[0] - still[0]) > 5.0  # bent sideways along x...
+    assert abs(tip[1] - still[1]) < 0.1 * abs(tip[0] - still[0])  # ...not up or down
+    with pytest.raises(ActionError, match="shape"):
+        env.step(np.zeros(5))
+    discrete = gym.make(
+        "pliant/TrunkPushProxy-v0", planar=True, action_type="discrete", **kwargs
+    ).unwrapped
+    assert discrete.action_space.n == 6
+    discrete.reset(seed=0)
+    discrete.step(2)  # the upper beam towards +x
+    discrete.step(5)  # the base back
+    np.testing.assert_allclose(discrete.commands[:4], [0.0, 0.0, 0.0, 0.2])
+    assert discrete.commands[4] == pytest.approx(-discrete.base_step)

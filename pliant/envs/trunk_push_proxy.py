@@ -10,7 +10,10 @@ reached linearly over the step, and the base's target in [base_low, base_high] m
 +-``base_step`` mm. The bendings' commands stay within +-``bend_limit`` (an action of 1 is a
 command of ``bend_limit``): the thesis' a priori amplitude limit (§4.1.1), 1 by default (the
 calibrated maximum curvatures), where a command of 0.1 already pushes the cube 20 mm and
-larger ones sweep it away.
+larger ones sweep it away. ``planar=True``, another a priori restriction (§4.1.1: the action
+space reduced to what the task needs): the beams bend only towards +-x, in the floor's plane
+where the cube moves (their bendings towards +-y, up and down, held at 0); the action is then
+Box(3) (lower, upper bending towards +x, base) or Discrete(6).
 Reward (thesis): -d / L - ``contact_weight`` d_c / L, d the cube-goal distance in the floor's
 plane, d_c the distance from the cube's centre to the nearest skeleton node; terminated when
 d < ``goal_tolerance`` (8 mm). Goal: the cube's start plus an offset in [goal_low, goal_high]
@@ -52,6 +55,7 @@ class TrunkPushProxyEnv(CubePushTask, SoftRobotEnv):
         goal_high: tuple[float, float] = (40.0, 20.0),
         goal_tolerance: float = 8.0,
         n_points: int = 16,
+        planar: bool = False,
         settle_steps: int = 30,
         render_mode: str | None = None,
         tangent: str = "lagged",
@@ -71,6 +75,7 @@ class TrunkPushProxyEnv(CubePushTask, SoftRobotEnv):
         self.goal_low, self.goal_high = np.asarray(goal_low), np.asarray(goal_high)
         self.goal_tolerance = float(goal_tolerance)
         self.n_points = int(n_points)
+        self.planar = bool(planar)
         self.settle_steps = int(settle_steps)
         self.proxy_kwargs = proxy_kwargs
         super().__init__(
@@ -83,10 +88,13 @@ class TrunkPushProxyEnv(CubePushTask, SoftRobotEnv):
         self.sim = ProxySolver(self.proxy, self.sim)
         self.n_actuators = self.proxy.n_controls
         self.commands = np.zeros(self.n_actuators)
+        # The commands an action drives (the rest stay 0): lower_d2, upper_d2 (towards +x) and
+        # the base when planar, else all five.
+        self.driven = np.array([1, 3, 4]) if self.planar else np.arange(self.n_actuators)
         if action_type == "discrete":
-            self.action_space = gym.spaces.Discrete(2 * self.n_actuators)
+            self.action_space = gym.spaces.Discrete(2 * len(self.driven))
         else:
-            self.action_space = scaled_box(-1.0, 1.0, (self.n_actuators,))
+            self.action_space = scaled_box(-1.0, 1.0, (len(self.driven),))
         self.observation_space = scaled_box(-3.0, 3.0, (3 * self.n_points + 5,))
 
     def _build(self) -> Model:
@@ -110,14 +118,15 @@ class TrunkPushProxyEnv(CubePushTask, SoftRobotEnv):
     def _commands_from_action(self, action) -> None:
         if self.action_type == "discrete":
             target = self.commands.copy()
-            i, sign = action // 2, 1.0 if action % 2 == 0 else -1.0
+            i, sign = self.driven[action // 2], 1.0 if action % 2 == 0 else -1.0
             step = self.base_step if i == self.n_actuators - 1 else self.bend_step
             bend = target[:-1] + (np.arange(4) == i) * sign * step
             target[:-1] = np.clip(bend, -self.bend_limit, self.bend_limit)
             base = target[-1] + (sign * step if i == self.n_actuators - 1 else 0.0)
             base = float(np.clip(base, self.base_low, self.base_high))
         else:
-            target = np.asarray(action, dtype=float).copy()
+            target = np.zeros(self.n_actuators)
+            target[self.driven] = action
             target[:-1] *= self.bend_limit
             s = 0.5 * (target[-1] + 1.0)
             base = self.base_low + s * (self.base_high - self.base_low)
