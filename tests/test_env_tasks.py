@@ -110,6 +110,32 @@ def test_trunk_push_bending_onto_the_cube_pushes_it_along_x():
     assert set(info["reward_parts"]) == {"goal", "contact"}
 
 
+def test_a_planar_trunk_push_drives_the_x_cables_alone_and_pushes_as_the_full_one():
+    """planar: Box(5) drives the -x/+x cables (1, 3, 5, 7) and the carriage, the others stay
+    slack; the same +x pull as above moves the cube as the full action space does."""
+    full, planar = make("TrunkPush"), make("TrunkPush", planar=True)
+    assert planar.action_space.shape == (5,)
+    for env in (full, planar):
+        env.reset(seed=0)
+    action = -np.ones(9, dtype=np.float32)
+    action[3], action[8] = 2 * 15.0 / 70.0 - 1, 0.0
+    for _ in range(3):
+        full.step(action)
+        planar.step(action[[1, 3, 5, 7, 8]])
+    cables = planar.unwrapped.commands
+    np.testing.assert_allclose(cables[[0, 2, 4, 5, 6, 7]], 0.0)
+    np.testing.assert_allclose(cables, full.unwrapped.commands)
+    np.testing.assert_allclose(planar.unwrapped.cube(), full.unwrapped.cube(), atol=1e-9)
+    discrete = make("TrunkPush", planar=True, action_type="discrete")
+    assert discrete.action_space.n == 10
+    discrete.reset(seed=0)
+    discrete.step(2)  # cable 3 (the long +x one) pulled...
+    assert discrete.unwrapped.commands[3] > 0.0
+    discrete.step(3)  # ...and released again
+    discrete.step(4)  # cable 5 pulled
+    np.testing.assert_allclose(np.flatnonzero(discrete.unwrapped.commands), [5])
+
+
 def test_rod_manipulator_opposite_bendings_turn_the_rod():
     from pliant.robots.rod_manipulator import demo_actuation
 

@@ -11,7 +11,10 @@ along the neutral fibre, the cube's centre and the goal's (x, z), divided by the
 [-1, 1]: the 8 cables (targets in [0, max], ``"absolute"``, or increments, ``"increment"``, as
 :class:`pliant.envs.trunk.TrunkEnv`) and the carriage's target in [base_low, base_high] mm,
 reached at most at ``base_speed`` mm/s; discrete: 18 actions, one cable pulled or released by
-``action_scale`` mm (16) or the carriage moved by -``base_step`` / +``base_step`` mm. (The
+``action_scale`` mm (16) or the carriage moved by -``base_step`` / +``base_step`` mm.
+``planar=True`` drives only the four cables that bend the trunk towards -x and +x (in the
+floor's plane, where the cube moves; the others stay slack): Box(5) or Discrete(10), the FEM's
+form of :class:`pliant.envs.trunk_push_proxy.TrunkPushProxyEnv`'s ``planar``. (The
 thesis' proxy acts on two beams' bendings instead of cables: the FEM Trunk's actuators are its
 cables.) Reward: thesis, -d / L - ``contact_weight`` x d_c / L with d the cube-goal distance in
 the floor's plane (x, z), d_c the distance from the cube's centre to the nearest fibre point
@@ -93,6 +96,7 @@ class TrunkPushEnv(CubePushTask, TrunkEnv):
         goal_high: tuple[float, float] = (40.0, 20.0),
         goal_tolerance: float = 8.0,
         n_points: int = 16,
+        planar: bool = False,
         settle_steps: int = 30,
         mesh_size: float = 8.0,
         render_mode: str | None = None,
@@ -108,6 +112,7 @@ class TrunkPushEnv(CubePushTask, TrunkEnv):
         self.base_low, self.base_high = float(base_low), float(base_high)
         self.base_speed = float(base_speed)
         self.base_step = float(base_step)
+        self.planar = bool(planar)
         super().__init__(
             dt=dt,
             substeps=substeps,
@@ -126,10 +131,14 @@ class TrunkPushEnv(CubePushTask, TrunkEnv):
             **robot_kwargs,
         )
         n = self.n_actuators
+        # The cables an action drives (the others stay slack): those pulling towards -x and +x
+        # (1, 3 long; 5, 7 short) when planar, else all eight.
+        self.driven = np.array([1, 3, 5, 7]) if self.planar else np.arange(n)
+        k = len(self.driven)
         if action_type == "discrete":
-            self.action_space = gym.spaces.Discrete(2 * n + 2)
+            self.action_space = gym.spaces.Discrete(2 * k + 2)
         else:
-            self.action_space = scaled_box(-1.0, 1.0, (n + 1,))
+            self.action_space = scaled_box(-1.0, 1.0, (k + 1,))
         self.observation_space = scaled_box(-3.0, 3.0, (3 * self.n_points + 5,))
 
     def _build(self) -> Model:
@@ -149,17 +158,21 @@ class TrunkPushEnv(CubePushTask, TrunkEnv):
         self.task["base"] = 0.0
 
     def _commands_from_action(self, action) -> None:
-        n = self.n_actuators
+        k = len(self.driven)
         now = self.carriage.scalar(self.state.time)
         if self.action_type == "discrete":
-            if action < 2 * n:
-                super()._commands_from_action(action)
+            if action < 2 * k:  # cable driven[action // 2] pulled (even) or released (odd)
+                super()._commands_from_action(2 * int(self.driven[action // 2]) + action % 2)
                 base = self.task["base"]
             else:
-                base = self.task["base"] + (1.0 if action == 2 * n + 1 else -1.0) * self.base_step
+                base = self.task["base"] + (1.0 if action == 2 * k + 1 else -1.0) * self.base_step
         else:
-            super()._commands_from_action(action[:n])
-            s = 0.5 * (float(action[n]) + 1.0)
+            # the cables not driven slack: a target of 0 (absolute) or no change (increment)
+            slack = -1.0 if self.continuous_mode == "absolute" else 0.0
+            cables = np.full(self.n_actuators, slack)
+            cables[self.driven] = action[:k]
+            super()._commands_from_action(cables)
+            s = 0.5 * (float(action[k]) + 1.0)
             base = self.base_low + s * (self.base_high - self.base_low)
         base = float(np.clip(base, self.base_low, self.base_high))
         self.task["base"] = base
