@@ -29,6 +29,11 @@ results in experiments/results/proxy/fem_vs_proxy/.
     # the FEM's cube imposed on the proxy every 3 steps (the thesis' 10: never in an episode)
     python experiments/proxy_vs_fem_rl.py --transfer-only experiments/results/proxy/rl_trunk \
         --time-register 3
+    # the a priori planar restriction on both sides (bendings / cables towards +-x only)
+    python experiments/proxy_rl.py trunk --parameters \
+        experiments/proxy/contraction/trunk_calibration.json --planar --tag _contraction_planar
+    python experiments/proxy_vs_fem_rl.py --planar \
+        --proxy-policy experiments/results/proxy/rl_trunk_contraction_planar
     # SAC on both sides (a departure: the thesis used PPO), results in fem_vs_proxy/sac/
     python experiments/proxy_rl.py trunk --algo SAC --env-steps 6800 --tag _sac
     python experiments/proxy_vs_fem_rl.py --algo SAC \
@@ -67,21 +72,30 @@ GOALS = range(1000, 1020)
 OUT = Path("experiments/results/proxy/fem_vs_proxy")
 
 
-def suffix(algo: str, seed: int) -> str:
-    """What names a run other than PPO's of seed 0: "_sac", "_seed1", "_sac_seed1"."""
-    return ("" if algo == "PPO" else f"_{algo.lower()}") + ("" if seed == 0 else f"_seed{seed}")
+def suffix(algo: str, seed: int, planar: bool = False) -> str:
+    """What names a run other than PPO's of seed 0 on all cables: "_sac", "_seed1",
+    "_sac_seed1", "_planar_seed1"."""
+    name = "" if algo == "PPO" else f"_{algo.lower()}"
+    return name + ("_planar" if planar else "") + ("" if seed == 0 else f"_seed{seed}")
 
 
-def train_on_fem(env_steps: int, seed: int, resume: bool, algo: str) -> tuple[Path, dict]:
-    run_dir = Path("runs/proxy_vs_fem_rl" + suffix(algo, seed))
-    config = rl_config("trunk", FEM_ENV, FEM_KWARGS, env_steps, seed, algo)
+def fem_kwargs(planar: bool) -> dict:
+    """The FEM environment's keywords; `planar`: only the -x/+x cables driven."""
+    return {**FEM_KWARGS, "planar": True} if planar else dict(FEM_KWARGS)
+
+
+def train_on_fem(
+    env_steps: int, seed: int, resume: bool, algo: str, planar: bool = False
+) -> tuple[Path, dict]:
+    run_dir = Path("runs/proxy_vs_fem_rl" + suffix(algo, seed, planar))
+    config = rl_config("trunk", FEM_ENV, fem_kwargs(planar), env_steps, seed, algo)
     result = train(None if resume else config, run_dir, resume=resume)
     return run_dir, result.summary
 
 
-def evaluate_on_fem(policy_dir: Path) -> list[dict]:
+def evaluate_on_fem(policy_dir: Path, planar: bool = False) -> list[dict]:
     saved = load_policy(policy_dir)
-    env = make_env(FEM_ENV, FEM_KWARGS)
+    env = make_env(FEM_ENV, fem_kwargs(planar))
 
     def greedy(obs, k):
         return saved.model.predict(saved.normalize_obs(obs), deterministic=True)[0]
@@ -184,6 +198,12 @@ def main() -> None:
         action="store_true",
         help="with --transfer-only: the FEM follows the proxy's displacements (TransferGains)",
     )
+    parser.add_argument(
+        "--planar",
+        action="store_true",
+        help="RL on the FEM drives the -x/+x cables only (TrunkPush's planar; results in"
+        " fem_vs_proxy/planar[_seedS]/)",
+    )
     args = parser.parse_args()
     warnings.simplefilter("ignore")
     torch.set_num_threads(1)
@@ -211,14 +231,14 @@ def main() -> None:
         (OUT / f"report_{name}.json").write_text(json.dumps(report, indent=1))
         print(json.dumps({k: report[k] for k in ("fem", "proxy")}))
         return
-    name = suffix(args.algo, args.seed)
+    name = suffix(args.algo, args.seed, args.planar)
     out = OUT / name[1:] if name else OUT
     out.mkdir(parents=True, exist_ok=True)
-    run_dir, trained = train_on_fem(args.env_steps, args.seed, args.resume, args.algo)
+    run_dir, trained = train_on_fem(args.env_steps, args.seed, args.resume, args.algo, args.planar)
     for f in ("model.zip", "vecnormalize.pkl", "meta.json"):
         shutil.copy(run_dir / "final" / f, out / f)
     shutil.copy(run_dir / "learning_curve.png", out / "fem_learning_curve.png")
-    direct = evaluate_on_fem(run_dir / "final")
+    direct = evaluate_on_fem(run_dir / "final", args.planar)
     transferred = transfer_proxy_policy(args.proxy_policy)
     proxy_trained = json.loads((args.proxy_policy / "report.json").read_text())
     report = {
@@ -226,7 +246,7 @@ def main() -> None:
         "goals": f"seeds {GOALS.start}-{GOALS.stop - 1} of both environments",
         "training_seed": args.seed,
         "fem_env": FEM_ENV,
-        "fem_env_kwargs": FEM_KWARGS,
+        "fem_env_kwargs": fem_kwargs(args.planar),
         "rl_on_fem": {
             "algo": args.algo,
             "env_steps": trained["steps"],
