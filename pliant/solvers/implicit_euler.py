@@ -43,6 +43,7 @@ are those of the few points that touch (the Trunk pushing a cube: 4 of 75 points
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
+from typing import NamedTuple
 
 import numpy as np
 
@@ -134,9 +135,9 @@ class ImplicitEuler:
         self._size = body.extent
         self._gravity = body.gravity_forces()
         self.last_report = StepReport()
-        # (time, dt, positions, velocities, linearisation) of the last state returned, checked
-        # before it was (see `step`); off while `condense` takes its passive step.
-        self._ahead: tuple | None = None
+        # The linearisation of the last state returned, checked before it was (see `step`);
+        # off while `condense` takes its passive step.
+        self._ahead: LookAhead | None = None
         self._look_ahead = True
 
     def _coefficients(self) -> tuple[float, float]:
@@ -241,7 +242,7 @@ class ImplicitEuler:
                 self._ahead = None
             else:
                 check_linearisation(ahead, step, h)
-                self._ahead = (
+                self._ahead = LookAhead(
                     new.time,
                     h,
                     new.positions.copy(),
@@ -275,13 +276,13 @@ class ImplicitEuler:
         if (
             reuse
             and ahead is not None
-            and (ahead[0], ahead[1]) == (state.time, self.dt)
-            and np.array_equal(ahead[2], state.positions)
-            and np.array_equal(ahead[3], state.velocities)
-            and (drive is None or np.array_equal(ahead[5], drive))
-            and ahead[6] == body.revision
+            and (ahead.time, ahead.dt) == (state.time, self.dt)
+            and np.array_equal(ahead.positions, state.positions)
+            and np.array_equal(ahead.velocities, state.velocities)
+            and (drive is None or np.array_equal(ahead.drive, drive))
+            and ahead.revision == body.revision
         ):
-            return ahead[4], drive
+            return ahead.linearisation, drive
         velocities = state.velocities
         if drive is not None:
             velocities = body.scatter(body.gather(state.velocities)) + drive
@@ -541,6 +542,20 @@ class ImplicitEuler:
         finally:
             self.system.policy, self._look_ahead = saved, True
         return self.last_report.problem
+
+
+class LookAhead(NamedTuple):
+    """The next step's linearisation, computed at the end of a step from the state it
+    returned, and what it was computed with: reused only by a step from that state, time
+    step, drive and body revision."""
+
+    time: float
+    dt: float
+    positions: np.ndarray
+    velocities: np.ndarray
+    linearisation: object
+    drive: np.ndarray | None
+    revision: int
 
 
 @dataclass(frozen=True)
