@@ -170,13 +170,28 @@ def degraded(robot: str, level: float, seed: int, reference: dict | None = None)
 
 
 def rl_config(
-    robot: str, env_id: str, env_kwargs: dict, steps: int, seed: int, algo: str = "PPO"
+    robot: str,
+    env_id: str,
+    env_kwargs: dict,
+    steps: int,
+    seed: int,
+    algo: str = "PPO",
+    hyperparams: dict | None = None,
 ) -> TrainConfig:
     """`algo` (PPO, or SAC where :data:`SAC_SETTINGS` has ROBOT) with ROBOT's settings (one
-    environment in the process) on `env_id`."""
+    environment in the process) on `env_id`; `hyperparams` replace the settings' own
+    (SB3's keywords; ``policy_kwargs`` merged key by key)."""
     s = SETTINGS[robot]
     if algo == "SAC":
         s = {**s, **SAC_SETTINGS[robot]}
+    if hyperparams:
+        merged = {**s["hyperparams"], **hyperparams}
+        if "policy_kwargs" in hyperparams:
+            merged["policy_kwargs"] = {
+                **s["hyperparams"].get("policy_kwargs", {}),
+                **hyperparams["policy_kwargs"],
+            }
+        s = {**s, "hyperparams": merged}
     return TrainConfig(
         env_id=env_id,
         algo=algo,
@@ -209,6 +224,7 @@ def learn(
     contact: str | None = None,
     algo: str = "PPO",
     planar: bool = False,
+    hyperparams: dict | None = None,
 ) -> dict:
     """Train `algo` on ROBOT's proxy (its parameters degraded by `noise`), evaluate the final
     policy, and write the results folder; the report."""
@@ -233,7 +249,8 @@ def learn(
     name = f"rl_{robot}{tag}"
     run_dir = Path("runs") / f"proxy_{name}"
     out = Path("experiments/results/proxy") / name
-    config = rl_config(robot, s["env_id"], env_kwargs, env_steps or s["env_steps"], seed, algo)
+    steps = env_steps or s["env_steps"]
+    config = rl_config(robot, s["env_id"], env_kwargs, steps, seed, algo, hyperparams)
     result = train(None if resume else config, run_dir, resume=resume)
     substeps = make_env(s["env_id"], env_kwargs).unwrapped.substeps
     report = {
@@ -282,6 +299,12 @@ def main() -> None:
     parser.add_argument(
         "--planar", action="store_true", help="trunk: bendings towards +-x only (a priori)"
     )
+    parser.add_argument(
+        "--hyperparams",
+        type=json.loads,
+        default=None,
+        help='JSON over the settings\' SB3 keywords, e.g. {"n_epochs": 5}',
+    )
     args = parser.parse_args()
     if args.planar and args.robot != "trunk":
         parser.error("--planar restricts the Trunk's bendings")
@@ -300,6 +323,7 @@ def main() -> None:
         contact=args.contact,
         algo=args.algo,
         planar=args.planar,
+        hyperparams=args.hyperparams,
         command="python experiments/proxy_rl.py " + " ".join(sys.argv[1:]),
     )
     print(json.dumps({k: v for k, v in report.items() if k != "curve"}, indent=1))

@@ -85,10 +85,16 @@ def fem_kwargs(planar: bool) -> dict:
 
 
 def train_on_fem(
-    env_steps: int, seed: int, resume: bool, algo: str, planar: bool = False
+    env_steps: int,
+    seed: int,
+    resume: bool,
+    algo: str,
+    planar: bool = False,
+    hyperparams: dict | None = None,
+    tag: str = "",
 ) -> tuple[Path, dict]:
-    run_dir = Path("runs/proxy_vs_fem_rl" + suffix(algo, seed, planar))
-    config = rl_config("trunk", FEM_ENV, fem_kwargs(planar), env_steps, seed, algo)
+    run_dir = Path("runs/proxy_vs_fem_rl" + tag + suffix(algo, seed, planar))
+    config = rl_config("trunk", FEM_ENV, fem_kwargs(planar), env_steps, seed, algo, hyperparams)
     result = train(None if resume else config, run_dir, resume=resume)
     return run_dir, result.summary
 
@@ -204,7 +210,18 @@ def main() -> None:
         help="RL on the FEM drives the -x/+x cables only (TrunkPush's planar; results in"
         " fem_vs_proxy/planar[_seedS]/)",
     )
+    parser.add_argument(
+        "--hyperparams",
+        type=json.loads,
+        default=None,
+        help="JSON over proxy_rl.py's PPO settings, for RL on the FEM (as its --hyperparams)",
+    )
+    parser.add_argument(
+        "--tag", default="", help="prefix of the FEM run's folders (e.g. _std: fem_vs_proxy/std/)"
+    )
     args = parser.parse_args()
+    if args.tag and not args.tag.startswith("_"):
+        parser.error("--tag starts with '_'")
     warnings.simplefilter("ignore")
     torch.set_num_threads(1)
     OUT.mkdir(parents=True, exist_ok=True)
@@ -231,10 +248,18 @@ def main() -> None:
         (OUT / f"report_{name}.json").write_text(json.dumps(report, indent=1))
         print(json.dumps({k: report[k] for k in ("fem", "proxy")}))
         return
-    name = suffix(args.algo, args.seed, args.planar)
+    name = args.tag + suffix(args.algo, args.seed, args.planar)
     out = OUT / name[1:] if name else OUT
     out.mkdir(parents=True, exist_ok=True)
-    run_dir, trained = train_on_fem(args.env_steps, args.seed, args.resume, args.algo, args.planar)
+    run_dir, trained = train_on_fem(
+        args.env_steps,
+        args.seed,
+        args.resume,
+        args.algo,
+        args.planar,
+        args.hyperparams,
+        args.tag,
+    )
     for f in ("model.zip", "vecnormalize.pkl", "meta.json"):
         shutil.copy(run_dir / "final" / f, out / f)
     shutil.copy(run_dir / "learning_curve.png", out / "fem_learning_curve.png")
@@ -249,6 +274,7 @@ def main() -> None:
         "fem_env_kwargs": fem_kwargs(args.planar),
         "rl_on_fem": {
             "algo": args.algo,
+            "hyperparams_over_settings": args.hyperparams,
             "env_steps": trained["steps"],
             "simulation_steps": trained["steps"] * FEM_KWARGS["substeps"],
             "training_seconds": trained["wall_seconds"],
