@@ -10,7 +10,9 @@ Trunk), with Pliant's training stack (checkpoints, evaluation curve, VecNormaliz
 calibration's (``--parameters experiments/proxy/patterns/multigait-patterns_calibration.json
 --tag _patterns``); ``--contact surface`` on a proxy touching through the FEM's skinned surface
 (a calibration report of such a proxy says so itself); ``--planar`` restricts the Trunk's
-bendings to the floor's plane (towards +-x; Box(3) actions).
+bendings to the floor's plane (towards +-x; Box(3) actions); ``--cables`` drives the Trunk
+proxy through the FEM's action space (8 absolute cable targets and the base, Box(9), mapped to
+the bendings).
 
 Multigait (pliant/MultigaitProxy-v0, 12 steps of 0.6 s, Discrete(6)): the greedy policy's
 forward travel over an episode beside the hand gait's (rear, centre, front inflated, then
@@ -225,6 +227,7 @@ def learn(
     algo: str = "PPO",
     planar: bool = False,
     hyperparams: dict | None = None,
+    cables: bool = False,
 ) -> dict:
     """Train `algo` on ROBOT's proxy (its parameters degraded by `noise`), evaluate the final
     policy, and write the results folder; the report."""
@@ -246,6 +249,8 @@ def learn(
         env_kwargs["contact"] = contact
     if planar:  # the Trunk's beams bend towards +-x only (TrunkPushProxyEnv's `planar`)
         env_kwargs["planar"] = True
+    if cables:  # the FEM Trunk's action space, mapped to the bendings
+        env_kwargs["actions"] = "cables"
     name = f"rl_{robot}{tag}"
     run_dir = Path("runs") / f"proxy_{name}"
     out = Path("experiments/results/proxy") / name
@@ -300,6 +305,11 @@ def main() -> None:
         "--planar", action="store_true", help="trunk: bendings towards +-x only (a priori)"
     )
     parser.add_argument(
+        "--cables",
+        action="store_true",
+        help="trunk: the FEM's action space (8 cables and the base) mapped to the bendings",
+    )
+    parser.add_argument(
         "--hyperparams",
         type=json.loads,
         default=None,
@@ -324,6 +334,7 @@ def main() -> None:
         algo=args.algo,
         planar=args.planar,
         hyperparams=args.hyperparams,
+        cables=args.cables,
         command="python experiments/proxy_rl.py " + " ".join(sys.argv[1:]),
     )
     print(json.dumps({k: v for k, v in report.items() if k != "curve"}, indent=1))

@@ -137,3 +137,25 @@ def test_a_planar_trunk_push_proxy_bends_its_beams_towards_x_only() -> None:
     discrete.step(5)  # the base back
     np.testing.assert_allclose(discrete.commands[:4], [0.0, 0.0, 0.0, 0.2])
     assert discrete.commands[4] == pytest.approx(-discrete.base_step)
+
+
+def test_the_trunk_push_proxy_takes_the_fem_trunks_cable_actions() -> None:
+    """actions="cables": Box(9) as the FEM TrunkPush's (absolute cable targets within
+    bend_limit of the courses, then the base), mapped by the calibration's cables -> bendings
+    map; two opposite cables pulled alike cancel."""
+    from pliant.proxy.references import trunk_commands
+
+    kwargs = {**ENVS["TrunkPushProxy"].quick, "bend_limit": 0.2}
+    env = gym.make("pliant/TrunkPushProxy-v0", actions="cables", **kwargs).unwrapped
+    assert env.action_space.shape == (9,)
+    env.reset(seed=0)
+    action = -np.ones(9)
+    action[3], action[8] = 1.0, 0.0  # the long +x cable to 14 mm, the base still
+    env.step(action)
+    np.testing.assert_allclose(env.commands[:4], [0.0, 0.1, 0.0, 0.2])
+    np.testing.assert_allclose(env.commands[:4], trunk_commands([0, 0, 0, 14, 0, 0, 0, 0])[:4])
+    action[1] = 1.0  # the long -x cable as far: no bending left
+    env.step(action)
+    np.testing.assert_allclose(env.commands[:4], 0.0, atol=1e-12)
+    with pytest.raises(ValueError, match="cables"):
+        gym.make("pliant/TrunkPushProxy-v0", actions="cables", action_type="discrete")

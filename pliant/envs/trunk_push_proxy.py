@@ -13,7 +13,12 @@ calibrated maximum curvatures), where a command of 0.1 already pushes the cube 2
 larger ones sweep it away. ``planar=True``, another a priori restriction (§4.1.1: the action
 space reduced to what the task needs): the beams bend only towards +-x, in the floor's plane
 where the cube moves (their bendings towards +-y, up and down, held at 0); the action is then
-Box(3) (lower, upper bending towards +x, base) or Discrete(6).
+Box(3) (lower, upper bending towards +x, base) or Discrete(6). ``actions="cables"``
+(continuous only): the FEM Trunk's action space on the proxy, Box(9) as
+:class:`pliant.envs.trunk_push.TrunkPushEnv`'s (8 absolute cable targets within ``bend_limit``
+of the courses, 70 and 40 mm, then the base), mapped to the bendings by the calibration's
+cables -> bendings map (:func:`pliant.proxy.references.trunk_commands`): the same proxy, the
+FEM's parametrisation of its actuation (opposite cables pulled together cancel).
 Reward (thesis): -d / L - ``contact_weight`` d_c / L, d the cube-goal distance in the floor's
 plane, d_c the distance from the cube's centre to the nearest skeleton node; terminated when
 d < ``goal_tolerance`` (8 mm). Goal: the cube's start plus an offset in [goal_low, goal_high]
@@ -31,6 +36,10 @@ from pliant.envs.trunk_push import CubePushTask
 from pliant.model import Model, State
 from pliant.proxy import trunk_proxy
 from pliant.proxy.actuation import ProxySolver
+from pliant.proxy.references import trunk_commands
+
+#: The FEM Trunk's cable courses (mm): four long cables, then four short ones (SoftRobots').
+CABLE_COURSES = np.array([70.0] * 4 + [40.0] * 4)
 
 
 class TrunkPushProxyEnv(CubePushTask, SoftRobotEnv):
@@ -56,6 +65,7 @@ class TrunkPushProxyEnv(CubePushTask, SoftRobotEnv):
         goal_tolerance: float = 8.0,
         n_points: int = 16,
         planar: bool = False,
+        actions: str = "bendings",
         settle_steps: int = 30,
         render_mode: str | None = None,
         tangent: str = "lagged",
@@ -67,6 +77,11 @@ class TrunkPushProxyEnv(CubePushTask, SoftRobotEnv):
             raise ValueError(f"base_speed must be > 0, got {base_speed!r}")
         if not 0.0 < bend_limit <= 1.0:
             raise ValueError(f"bend_limit must lie in (0, 1], got {bend_limit!r}")
+        if actions not in ("bendings", "cables"):
+            raise ValueError(f"actions must be 'bendings' or 'cables', got {actions!r}")
+        if actions == "cables" and (action_type != "continuous" or planar):
+            raise ValueError("actions='cables' is continuous and drives all eight cables")
+        self.actions = actions
         self.bend_limit = float(bend_limit)
         self.contact_weight = float(contact_weight)
         self.bend_step, self.base_step = float(bend_step), float(base_step)
@@ -93,6 +108,8 @@ class TrunkPushProxyEnv(CubePushTask, SoftRobotEnv):
         self.driven = np.array([1, 3, 4]) if self.planar else np.arange(self.n_actuators)
         if action_type == "discrete":
             self.action_space = gym.spaces.Discrete(2 * len(self.driven))
+        elif actions == "cables":
+            self.action_space = scaled_box(-1.0, 1.0, (len(CABLE_COURSES) + 1,))
         else:
             self.action_space = scaled_box(-1.0, 1.0, (len(self.driven),))
         self.observation_space = scaled_box(-3.0, 3.0, (3 * self.n_points + 5,))
@@ -124,6 +141,11 @@ class TrunkPushProxyEnv(CubePushTask, SoftRobotEnv):
             target[:-1] = np.clip(bend, -self.bend_limit, self.bend_limit)
             base = target[-1] + (sign * step if i == self.n_actuators - 1 else 0.0)
             base = float(np.clip(base, self.base_low, self.base_high))
+        elif self.actions == "cables":
+            cables = 0.5 * (action[:-1] + 1.0) * CABLE_COURSES * self.bend_limit
+            target = trunk_commands(cables)
+            s = 0.5 * (action[-1] + 1.0)
+            base = self.base_low + s * (self.base_high - self.base_low)
         else:
             target = np.zeros(self.n_actuators)
             target[self.driven] = action
