@@ -98,6 +98,27 @@ def main() -> None:
             "wins_over_ppo_on_fem": int(np.sum(pipeline < direct)),
             "wilcoxon_p_two_sided": float(wilcoxon(pipeline, direct).pvalue),
         }
+    # The 2 x 2 on the proxy alone: the action space, crossed with SB3's default initial std
+    # (log_std_init 0: session 31's bendings runs, and the cables without the change).
+    crossed = {}
+    for label, tag in (
+        ("bendings_std1", "_contraction_nolag"),
+        ("bendings_std0.37", "_contraction_std1"),
+        ("cables_std1", "_contraction_cables_std0"),
+        ("cables_std0.37", "_contraction_cables"),
+    ):
+        learned = [
+            json.loads((PROXY / seeded(f"rl_trunk{tag}", s) / "report.json").read_text())[
+                "evaluation"
+            ]["learned"]
+            for s in SEEDS
+        ]
+        crossed[label] = {
+            "on_proxy_mm": [r["mean_final_distance_mm"] for r in learned],
+            "mean_on_proxy_mm": float(np.mean([r["mean_final_distance_mm"] for r in learned])),
+            "mean_solved": float(np.mean([r["solved"] for r in learned])),
+        }
+    out["on_the_proxy_by_action_space_and_initial_std"] = crossed
     out["settings"] = {
         "hyperparams_over_proxy_rl_settings": {"policy_kwargs": {"log_std_init": -1.0}},
         "proxy": "experiments/proxy/contraction/trunk_calibration.json (beams that shorten)",
@@ -107,6 +128,8 @@ def main() -> None:
     (FEM / "exploration_summary.json").write_text(json.dumps(out, indent=1))
     for key in ("ppo_on_fem", "pipeline_bendings", "pipeline_cables"):
         print(key, {k: v for k, v in out[key].items() if k != "seeds"})
+    for key, row in crossed.items():
+        print(key, row)
 
 
 if __name__ == "__main__":
