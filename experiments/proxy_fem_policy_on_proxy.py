@@ -47,10 +47,11 @@ def main() -> None:
     if args.parameters is not None:
         proxy_kwargs.update(fitted_proxy(json.loads(args.parameters.read_text())))
     proxy = make_env(SETTINGS["trunk"]["env_id"], proxy_kwargs)
-    # the FEM's courses are 0.2 of SoftRobots' (14 and 8 mm), the proxy's bend_limit 0.2
+    # the same action means the same cables only if the FEM's courses are the proxy's reach
     limit = proxy_kwargs["bend_limit"]
-    assert np.isclose(fem_kwargs["max_long_displacement"], 70.0 * limit)
-    assert np.isclose(fem_kwargs["max_short_displacement"], 40.0 * limit)
+    courses = (fem_kwargs["max_long_displacement"], fem_kwargs["max_short_displacement"])
+    if not np.allclose(courses, (70.0 * limit, 40.0 * limit)):
+        raise SystemExit(f"the FEM policy's cable courses {courses} mm are not bend_limit {limit}")
 
     def choose(obs, k):
         return saved.model.predict(saved.normalize_obs(obs), deterministic=True)[0]

@@ -1,8 +1,8 @@
 """A push learnt directly on the FEM Trunk, replayed on the proxy (docs/proxy.md, the one-goal
 comparison): the FEM policy of experiments/proxy_fixed_goal.py (GOAL, SEED) plays its greedy
-episode on the FEM; after each step the cables it reached are mapped to the proxy's bendings
-by the calibration's linear map (`pliant.proxy.references.trunk_commands`, divided by the
-proxy environment's bend_limit) with the same base command, and the proxy replays them. Both
+episode on the FEM; after each step the cables it reached, with the same base command, are
+the proxy's action in the FEM's action space (TrunkPushProxy's actions="cables": the
+calibration's cables -> bendings map), and the proxy replays them. Both
 cubes' tracks and final distances to the goal are printed; `--proxy JSON` passes keywords to
 the proxy (e.g. '{"contact": "surface"}', '{"friction": 0.6}', a calibration's parameters).
 
@@ -20,9 +20,9 @@ from pathlib import Path
 
 import numpy as np
 
+from pliant.envs.trunk_push_proxy import CABLE_COURSES
 from pliant.learn.evaluate import load_policy
 from pliant.learn.vec import make_env
-from pliant.proxy.references import trunk_commands
 
 sys.path.insert(0, str(Path(__file__).parent))
 from proxy_fixed_goal import GOALS, OUT, goal_kwargs  # noqa: E402
@@ -40,9 +40,9 @@ def main() -> None:
     saved = load_policy(OUT / args.goal / f"seed{args.seed}" / "fem")
     task = goal_kwargs(GOALS[args.goal])
     fem = make_env(FEM_ENV, {**FEM_KWARGS, **task})
-    proxy_kwargs = {**SETTINGS["trunk"]["env_kwargs"], **task, **args.proxy}
+    proxy_kwargs = {**SETTINGS["trunk"]["env_kwargs"], **task, **args.proxy, "actions": "cables"}
     proxy = make_env(SETTINGS["trunk"]["env_id"], proxy_kwargs)
-    limit = proxy_kwargs["bend_limit"]
+    reach = CABLE_COURSES * proxy_kwargs["bend_limit"]  # the FEM's courses, 14 and 8 mm
 
     obs, _ = fem.reset(seed=0)
     replay = []
@@ -50,8 +50,7 @@ def main() -> None:
         action = saved.model.predict(saved.normalize_obs(obs), deterministic=True)[0]
         obs, _, terminated, truncated, _ = fem.step(action)
         cables = fem.unwrapped.state.displacement
-        bend = np.clip(trunk_commands(cables)[:4] / limit, -1.0, 1.0)
-        replay.append(np.r_[bend, action[-1]])
+        replay.append(np.r_[np.clip(2.0 * cables / reach - 1.0, -1.0, 1.0), action[-1]])
         print(
             f"FEM   step {len(replay)}: cables {np.round(cables, 1).tolist()} mm, cube (x, z) "
             f"{np.round(fem.unwrapped.cube()[[0, 2]], 1).tolist()}, "
@@ -62,8 +61,9 @@ def main() -> None:
     proxy.reset(seed=0)
     for k, action in enumerate(replay):
         proxy.step(action)
+        bendings = proxy.unwrapped.commands[:4] / proxy_kwargs["bend_limit"]
         print(
-            f"proxy step {k + 1}: bendings {np.round(action[:4], 2).tolist()}, cube (x, z) "
+            f"proxy step {k + 1}: bendings {np.round(bendings, 2).tolist()}, cube (x, z) "
             f"{np.round(proxy.unwrapped.cube()[[0, 2]], 1).tolist()}, "
             f"{proxy.unwrapped.distance():.1f} mm from the goal"
         )

@@ -222,6 +222,8 @@ def main() -> None:
     args = parser.parse_args()
     if args.tag and not args.tag.startswith("_"):
         parser.error("--tag starts with '_'")
+    if args.transfer_only is not None and (args.planar or args.hyperparams or args.tag):
+        parser.error("--planar, --hyperparams and --tag are for RL on the FEM, not --transfer-only")
     warnings.simplefilter("ignore")
     torch.set_num_threads(1)
     OUT.mkdir(parents=True, exist_ok=True)
