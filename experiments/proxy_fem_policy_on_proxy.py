@@ -11,7 +11,8 @@ beside the policy's own results on the FEM.
     python experiments/proxy_fem_policy_on_proxy.py experiments/results/proxy/fem_vs_proxy/std1 \
         [--parameters experiments/proxy/contraction/trunk_calibration.json]
 
-Writes proxy_replay.json into the policy's folder.
+Writes proxy_replay.json into the policy's folder (with --parameters: proxy_replay_fitted.json,
+or proxy_replay_TAG.json with --tag TAG).
 """
 
 from __future__ import annotations
@@ -37,6 +38,9 @@ def main() -> None:
     parser = argparse.ArgumentParser()
     parser.add_argument("policy", type=Path, help="a FEM policy's folder (proxy_vs_fem_rl.py)")
     parser.add_argument("--parameters", type=Path, default=None, help="a calibration JSON")
+    parser.add_argument(
+        "--tag", default="fitted", help="with --parameters: writes proxy_replay_TAG.json"
+    )
     args = parser.parse_args()
     warnings.simplefilter("ignore")
     saved = load_policy(args.policy)
@@ -71,7 +75,7 @@ def main() -> None:
         },
         "on_the_fem": {k: own[k] for k in own if k.endswith(("_mm", "8mm"))},
     }
-    name = "proxy_replay.json" if args.parameters is None else "proxy_replay_fitted.json"
+    name = "proxy_replay.json" if args.parameters is None else f"proxy_replay_{args.tag}.json"
     (args.policy / name).write_text(json.dumps(report, indent=1))
     print(json.dumps({k: report[k] for k in ("on_the_fem",)}))
     print(json.dumps({k: v for k, v in report["on_the_proxy"].items() if k != "episodes"}))

@@ -5,6 +5,7 @@ FEM robots' units (mm, kg, s; stresses in kPa) and placed as they are
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from typing import Literal
 
@@ -254,6 +255,9 @@ def trunk_proxy(
     floor_height: float = -30.0,
     friction: float = 0.3,
     contact: Literal["nodes", "surface"] = "nodes",
+    cube_friction: float | None = None,
+    cube_damping: float = 0.0,
+    contact_radius: float | None = None,
 ) -> Proxy:
     """The Trunk proxy: two beams end to end along +z from the base at the origin (`nodes`
     nodes, 30 as the thesis'), each with two actuated bendings (about d1 = x and d2 = y;
@@ -272,6 +276,15 @@ def trunk_proxy(
         raise ModelError(f"the Trunk proxy needs at least 5 nodes, got {nodes}")
     if contact not in ("nodes", "surface"):
         raise ModelError(f"contact must be 'nodes' or 'surface', got {contact!r}")
+    cube_friction = friction if cube_friction is None else cube_friction
+    contact_radius = radius if contact_radius is None else contact_radius
+    for key, value in (
+        ("cube_friction", cube_friction),
+        ("cube_damping", cube_damping),
+        ("contact_radius", contact_radius),
+    ):
+        if not (math.isfinite(value) and value >= 0.0):
+            raise ModelError(f"{key} must be finite and >= 0, got {value!r}")
     points = np.column_stack([np.zeros(nodes), np.zeros(nodes), np.linspace(0.0, length, nodes)])
     m = nodes - 1
     lower = np.arange(m // 2)
@@ -319,12 +332,13 @@ def trunk_proxy(
             RigidBody(
                 Box([half, half, half], position=[x, floor_height + half, z]),
                 cube_mass,
-                friction=friction,
+                friction=cube_friction,
+                linear_damping=cube_damping,
                 name="cube",
             )
         )
     if contact == "nodes":
-        contacts = Contacts([floor], friction=friction, margin=10.0, thickness=radius)
+        contacts = Contacts([floor], friction=friction, margin=10.0, thickness=contact_radius)
     else:
         skin = Skinning(rod, trunk_surface_points(), neighbours=2)
         contacts = Contacts([floor], friction=friction, margin=10.0, points=skin)
