@@ -20,6 +20,11 @@ every step of the optimisation episodes.
 
     python experiments/proxy_push_calibration.py [--trials 120] [--out experiments/proxy/push]
 
+``--base REPORT.json`` fits the cube on another calibrated trunk (e.g. the axial commands of
+experiments/proxy_cocontraction_calibration.py), ``--start REPORT.json`` tries a previous
+push calibration's fitted values first instead of the proxy as it was, ``--reference NPZ``
+reuses another run's FEM pushes.
+
 Writes OUT/trunk-push_calibration.json: a calibration report whose "parameters" are the
 contraction calibration's with the fitted ones (``proxy_rl.py --parameters`` reads it), the
 errors before and after by kind of episode, the cube's travel on both models.
@@ -113,10 +118,15 @@ def main() -> None:
     parser.add_argument("--random-episodes", type=int, default=24)
     parser.add_argument("--moved", type=float, default=2.0, help="mm a random episode must push")
     parser.add_argument("--out", type=Path, default=Path("experiments/proxy/push"))
+    parser.add_argument("--base", type=Path, default=CONTRACTION, help="the trunk's calibration")
+    parser.add_argument("--start", type=Path, default=None, help="a push calibration to try first")
+    parser.add_argument(
+        "--reference", type=Path, default=None, help="the FEM's pushes (default OUT/fem_pushes.npz)"
+    )
     args = parser.parse_args()
     warnings.simplefilter("ignore")
     args.out.mkdir(parents=True, exist_ok=True)
-    path = args.out / "fem_pushes.npz"
+    path = args.reference or args.out / "fem_pushes.npz"
     if path.exists():
         fem = Pushes.load(path)
     else:
@@ -128,7 +138,8 @@ def main() -> None:
     # calibration's every-2nd split (0, 2, 4, ... optimise) takes every other one of a kind.
     order = np.concatenate([np.flatnonzero(fem.kinds == kind) for kind in dict.fromkeys(fem.kinds)])
     fem = Pushes(fem.actions[order], fem.cubes[order], fem.kinds[order])
-    contraction = json.loads(CONTRACTION.read_text())
+    contraction = json.loads(args.base.read_text())
+    start = START if args.start is None else json.loads(args.start.read_text())["fitted"]
     base = {**SETTINGS["trunk"]["env_kwargs"], **contraction["parameters"]}
 
     def simulate(parameters: dict) -> np.ndarray:
@@ -143,7 +154,7 @@ def main() -> None:
         storage=f"sqlite:///{args.out / 'push.db'}",
         study_name="trunk-push",
         every=2,
-        start=START,
+        start=start,
     )
     seconds = time.perf_counter() - clock
     before, after = simulate(START), simulate(result.parameters)
@@ -161,8 +172,8 @@ def main() -> None:
         "parameters": {**contraction["parameters"], **result.parameters},
         "fitted": result.parameters,
         "space": SPACE,
-        "start": START,
-        "base_calibration": str(CONTRACTION),
+        "start": start,
+        "base_calibration": str(args.base),
         "contact": contraction.get("contact", "nodes"),
         "reference": str(path),
         "episodes": len(fem.kinds),

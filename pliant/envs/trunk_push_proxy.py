@@ -18,7 +18,8 @@ Box(3) (lower, upper bending towards +x, base) or Discrete(6). ``actions="cables
 :class:`pliant.envs.trunk_push.TrunkPushEnv`'s (8 absolute cable targets within ``bend_limit``
 of the courses, 70 and 40 mm, then the base), mapped to the bendings by the calibration's
 cables -> bendings map (:func:`pliant.proxy.references.trunk_commands`): the same proxy, the
-FEM's parametrisation of its actuation (opposite cables pulled together cancel).
+FEM's parametrisation of its actuation (opposite cables pulled together cancel, or, on a
+proxy with axial commands, ``lower_cocontraction``/``upper_cocontraction``, shorten it).
 Reward (thesis): -d / L - ``contact_weight`` d_c / L, d the cube-goal distance in the floor's
 plane, d_c the distance from the cube's centre to the nearest skeleton node; terminated when
 d < ``goal_tolerance`` (8 mm). Goal: the cube's start plus an offset in [goal_low, goal_high]
@@ -102,6 +103,10 @@ class TrunkPushProxyEnv(CubePushTask, SoftRobotEnv):
         )
         self.sim = ProxySolver(self.proxy, self.sim)
         self.n_actuators = self.proxy.n_controls
+        # a proxy with axial commands (cocontraction): only the cables say how much to pull
+        self.axial = len(self.proxy.actuation) == 6
+        if self.axial and actions != "cables":
+            raise ValueError("a proxy with axial commands (cocontraction) takes actions='cables'")
         self.commands = np.zeros(self.n_actuators)
         # The commands an action drives (the rest stay 0): lower_d2, upper_d2 (towards +x) and
         # the base when planar, else all five.
@@ -143,7 +148,7 @@ class TrunkPushProxyEnv(CubePushTask, SoftRobotEnv):
             base = float(np.clip(base, self.base_low, self.base_high))
         elif self.actions == "cables":
             cables = 0.5 * (action[:-1] + 1.0) * CABLE_COURSES * self.bend_limit
-            target = trunk_commands(cables)
+            target = trunk_commands(cables, self.axial)
             s = 0.5 * (action[-1] + 1.0)
             base = self.base_low + s * (self.base_high - self.base_low)
         else:

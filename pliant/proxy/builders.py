@@ -244,6 +244,8 @@ def trunk_proxy(
     upper_curvature: float = TRUNK_PARAMETERS["upper_curvature"],
     lower_contraction: float = 0.0,
     upper_contraction: float = 0.0,
+    lower_cocontraction: float = 0.0,
+    upper_cocontraction: float = 0.0,
     poisson_ratio: float = 0.45,
     gravity: tuple[float, float, float] = (0.0, -9810.0, 0.0),
     rayleigh_mass: float = 0.1,
@@ -271,7 +273,12 @@ def trunk_proxy(
     :func:`pliant.robots.trunk_cube.surface_points`) skinned onto the skeleton, tapering as
     the FEM Trunk does. `lower_contraction`, `upper_contraction`: each beam's axial
     shortening per unit bending command (:class:`Bending`'s max_contraction; 0, inextensible
-    as the thesis' beams, by default): the FEM Trunk's cables shorten it as they bend it."""
+    as the thesis' beams, by default): the FEM Trunk's cables shorten it as they bend it.
+    `lower_cocontraction`, `upper_cocontraction` > 0 add an axial command to each beam (in
+    [0, 1], after the four bendings and before the base: seven commands): its rest length
+    shortened by that fraction at command 1, the FEM Trunk's cables pulled together, which
+    shorten it without bending it (all eight to 14 / 8 mm: its tip 12 mm nearer the base;
+    :func:`pliant.proxy.references.trunk_commands` with ``axial=True`` gives the commands)."""
     if nodes < 5:
         raise ModelError(f"the Trunk proxy needs at least 5 nodes, got {nodes}")
     if contact not in ("nodes", "surface"):
@@ -279,6 +286,8 @@ def trunk_proxy(
     cube_friction = friction if cube_friction is None else cube_friction
     contact_radius = radius if contact_radius is None else contact_radius
     for key, value in (
+        ("lower_cocontraction", lower_cocontraction),
+        ("upper_cocontraction", upper_cocontraction),
         ("cube_friction", cube_friction),
         ("cube_damping", cube_damping),
         ("contact_radius", contact_radius),
@@ -318,6 +327,15 @@ def trunk_proxy(
         )
         for axis, direction in (("d1", (1.0, 0.0, 0.0)), ("d2", (0.0, 1.0, 0.0)))
     ]
+    if lower_cocontraction > 0.0 or upper_cocontraction > 0.0:  # pure shortenings
+        bendings += [
+            Bending(f"{beam}_axial", tuple(int(e) for e in elements), (0.0, 0.0, 1.0), 0.0,
+                    max_stretch=-float(c))
+            for beam, elements, c in (
+                ("lower", lower, lower_cocontraction),
+                ("upper", upper, upper_cocontraction),
+            )
+        ]  # fmt: skip
     base = BaseTranslation(base_limits)
     carriage = KinematicBody(
         Box([radius, radius, 2.5], position=[0.0, 0.0, -2.5]),

@@ -165,21 +165,48 @@ TRUNK_OTHER_PHASES = (
 )
 
 
-def trunk_commands(cables: np.ndarray) -> np.ndarray:
+#: Cable phases that pull opposite cables together, to fit the proxy's axial commands
+#: (``trunk_proxy(lower_cocontraction=, upper_cocontraction=)``): all eight cables to half and
+#: to all of the Trunk environment's courses (14 / 8 mm), the long ones alone, the short ones
+#: alone, a +x bend over a common pull, then release.
+TRUNK_COCONTRACTION_PHASES = (
+    (7.0,) * 4 + (4.0,) * 4,
+    (14.0,) * 4 + (8.0,) * 4,
+    (14.0,) * 4 + (0.0,) * 4,
+    (0.0,) * 4 + (8.0,) * 4,
+    (4.0, 4.0, 4.0, 14.0, 2.0, 2.0, 2.0, 8.0),
+    (0.0,) * 8,
+)
+
+
+def trunk_commands(cables: np.ndarray, axial: bool = False) -> np.ndarray:
     """(5,) the Trunk proxy's commands (lower_d1, lower_d2, upper_d1, upper_d2, base) for
-    cable shortenings (8,) (module docstring). Bending towards +x is +d2, towards +y -d1."""
+    cable shortenings (8,) (module docstring). Bending towards +x is +d2, towards +y -d1.
+    `axial`: (7,), the beams' axial commands (lower, upper) before the base: what opposite
+    cables pull in common (the lesser of each pair), over the course, mapped as the bendings
+    are (the long cables shorten both beams, the short ones the lower)."""
     c = np.asarray(cables, dtype=float)
     long_x, long_y = (c[3] - c[1]) / 70.0, (c[0] - c[2]) / 70.0
     short_x, short_y = (c[7] - c[5]) / 40.0, (c[4] - c[6]) / 40.0
     lower_x, lower_y = 0.5 * (long_x + short_x), 0.5 * (long_y + short_y)
-    return np.clip([-lower_y, lower_x, -long_y, long_x, 0.0], -1.0, 1.0)
+    bend = [-lower_y, lower_x, -long_y, long_x]
+    if axial:
+        long_c = 0.5 * (min(c[1], c[3]) + min(c[0], c[2])) / 70.0
+        short_c = 0.5 * (min(c[5], c[7]) + min(c[4], c[6])) / 40.0
+        bend += [0.5 * (long_c + short_c), long_c]
+    return np.clip([*bend, 0.0], -1.0, 1.0)
 
 
 def trunk_reference(
-    *, phase: float = 0.3, dt: float = 0.01, mesh_size: float = 8.0, phases=TRUNK_PHASES
+    *,
+    phase: float = 0.3,
+    dt: float = 0.01,
+    mesh_size: float = 8.0,
+    phases=TRUNK_PHASES,
+    axial: bool = False,
 ) -> Reference:
     """The FEM Trunk through `phases` (:data:`TRUNK_PHASES`); matched points: its surface
-    nodes."""
+    nodes; `axial`: the commands of a proxy with axial commands (:func:`trunk_commands`)."""
     from pliant.robots.trunk import trunk
 
     model = trunk(mesh_size=mesh_size)
@@ -191,7 +218,7 @@ def trunk_reference(
         for _ in range(steps):
             state = solver.step(state, np.array(target))
             # What the cables reached (1 mm a step at most), not what was asked.
-            commands.append(trunk_commands(state.displacement))
+            commands.append(trunk_commands(state.displacement, axial))
             points.append(state.positions[nodes].copy())
     return Reference(
         np.array(commands), np.array(points), model.body.rest_positions[nodes].copy(), dt,
