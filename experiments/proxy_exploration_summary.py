@@ -57,7 +57,9 @@ def proxy_side(tag: str) -> list[dict]:
     return rows
 
 
-def fem_side(tag: str) -> list[dict]:
+def fem_side(tag: str, replay: str = "fitted") -> list[dict]:
+    """Each seed's PPO on the FEM, and (where proxy_fem_policy_on_proxy.py wrote
+    proxy_replay_REPLAY.json) the same policy played on a proxy."""
     rows = []
     for s in SEEDS:
         folder = FEM / seeded(tag.lstrip("_"), s)
@@ -68,9 +70,9 @@ def fem_side(tag: str) -> list[dict]:
             "on_fem_solved": direct["solved_under_8mm"],
             "training_seconds": direct["training_seconds"],
         }
-        replay = folder / "proxy_replay_fitted.json"
-        if replay.exists():
-            on_proxy = json.loads(replay.read_text())["on_the_proxy"]
+        played = folder / f"proxy_replay_{replay}.json"
+        if played.exists():
+            on_proxy = json.loads(played.read_text())["on_the_proxy"]
             row["on_proxy_mm"] = on_proxy["mean_final_distance_mm"]
             row["on_proxy_solved"] = on_proxy["solved_under_8mm"]
         rows.append(row)
