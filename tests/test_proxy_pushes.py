@@ -37,6 +37,10 @@ def test_fem_pushes_record_the_cables_the_fem_reached() -> None:
 def test_fem_pushes_refuse_courses_that_the_proxy_cannot_replay() -> None:
     with pytest.raises(ModelError, match="fraction"):
         fem_pushes(hold(-np.ones(8)), 1, env_kwargs={**FEM, "max_short_displacement": 12.0})
+    with pytest.raises(ModelError, match="one episode"):
+        fem_pushes(hold(-np.ones(8)), 0, env_kwargs=FEM)
+    with pytest.raises(ModelError, match="Box\\(9\\)"):
+        fem_pushes(hold(-np.ones(4)), 1, env_kwargs={**FEM, "planar": True})
 
 
 def test_replayed_on_the_proxy_a_strike_moves_the_cube_and_a_slippery_one_further() -> None:

@@ -95,16 +95,18 @@ def fem_pushes(
     from pliant.envs.trunk_push import TrunkPushEnv
     from pliant.envs.trunk_push_proxy import CABLE_COURSES
 
+    if episodes < 1 or steps < 1:
+        raise ModelError(f"pushes need at least one episode of one step, got {episodes}, {steps}")
     kwargs = dict(env_kwargs or {})
-    env = TrunkPushEnv(**kwargs)
-    if env.action_space.shape != (9,):
-        raise ModelError("pushes replay the FEM Trunk's Box(9) actions (continuous, all cables)")
     courses = np.array([kwargs.get("max_long_displacement", 70.0)] * 4
                        + [kwargs.get("max_short_displacement", 40.0)] * 4)  # fmt: skip
     # The proxy's cable actions are fractions of its courses times its bend_limit: the same
     # cables only where the FEM's courses are CABLE_COURSES times that limit.
     if not np.allclose(courses / CABLE_COURSES, courses[0] / CABLE_COURSES[0]):
         raise ModelError(f"the FEM's courses {courses[[0, 4]]} are not one fraction of 70/40 mm")
+    env = TrunkPushEnv(**kwargs)
+    if env.action_space.shape != (9,):
+        raise ModelError("pushes replay the FEM Trunk's Box(9) actions (continuous, all cables)")
     actions, cubes = np.zeros((episodes, steps, 9)), np.zeros((episodes, steps + 1, 3))
     for e in range(episodes):
         obs, _ = env.reset(seed=seed + e)
