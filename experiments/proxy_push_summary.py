@@ -1,7 +1,8 @@
 """Session 33's Trunk comparison (docs/proxy.md, "A proxy fitted on the FEM's pushes"): the
 proxy's cube fitted on the FEM's pushes, then the proxy's axial commands (cables pulled
 together) with the cube fitted again; on each, the pipeline's five seeds (the FEM's cables as
-actions, log_std_init -1) against PPO on the FEM (the same five seeds as session 32's).
+actions, log_std_init -1) against PPO on the FEM (the same five seeds as session 32's); then
+seeds 0 and 1 of both with three times the steps.
 
 Besides the reports the commands in docs/proxy.md wrote, it measures one thing itself: the
 five FEM policies' greedy episodes on the 20 evaluation goals (seeds 1000-1019, which none of
@@ -87,6 +88,31 @@ def open_loop() -> dict:
     return {"policies": rows, "mean": summary}
 
 
+def three_times() -> list[dict]:
+    """Seeds 0 and 1 with 3 x 6800 environment steps (6.1e5 simulation steps) on both sides:
+    the pipeline on the axial proxy, PPO on the FEM (fem_vs_proxy/std1_3x[_seedS])."""
+    rows = []
+    for s in range(2):
+        proxy = json.loads(
+            (FEM / f"report_{seeded('rl_trunk_axial_cables_3x', s)}.json").read_text()
+        )
+        fem = json.loads((FEM / seeded("std1_3x", s) / "report.json").read_text())["rl_on_fem"]
+        rows.append(
+            {
+                "seed": s,
+                "pipeline_on_proxy_mm": proxy["proxy"]["mean_final_distance_mm"],
+                "pipeline_on_fem_mm": proxy["fem"]["mean_final_distance_mm"],
+                "pipeline_solved_on_fem": proxy["fem"]["solved_under_8mm"],
+                "pipeline_training_seconds": proxy["proxy_training_seconds"],
+                "ppo_on_fem_mm": fem["mean_final_distance_mm"],
+                "ppo_on_fem_solved": fem["solved_under_8mm"],
+                "ppo_on_fem_training_seconds": fem["training_seconds"],
+                "simulation_steps": fem["simulation_steps"],
+            }
+        )
+    return rows
+
+
 def main() -> None:
     warnings.simplefilter("ignore")
     out = {
@@ -121,6 +147,7 @@ def main() -> None:
             "fem_policies_closed_loop_on_this_proxy_mm": [r["on_proxy_mm"] for r in played],
             "fem_policies_closed_loop_on_this_proxy_mean_mm": mean(played, "on_proxy_mm"),
         }
+    out["three_times_the_steps"] = three_times()
     out["fem_policies_open_loop_on_the_proxies"] = open_loop()
     out["settings"] = {
         "pipeline": "proxy_rl.py trunk --cables --parameters REPORT, log_std_init -1; "
@@ -133,6 +160,8 @@ def main() -> None:
         print(label, {k: v for k, v in out[label]["pipeline"].items() if k != "seeds"})
         print("  FEM policies on it:", out[label]["fem_policies_closed_loop_on_this_proxy_mean_mm"])
     print("open loop", out["fem_policies_open_loop_on_the_proxies"]["mean"])
+    for row in out["three_times_the_steps"]:
+        print("3x", row)
 
 
 if __name__ == "__main__":
