@@ -104,7 +104,7 @@ class TrunkPushProxyEnv(CubePushTask, SoftRobotEnv):
         self.sim = ProxySolver(self.proxy, self.sim)
         self.n_actuators = self.proxy.n_controls
         # a proxy with axial commands (cocontraction): only the cables say how much to pull
-        self.axial = len(self.proxy.actuation) == 6
+        self.axial = any(n.endswith("_axial") for n in self.proxy.actuation.names)
         if self.axial and actions != "cables":
             raise ValueError("a proxy with axial commands (cocontraction) takes actions='cables'")
         self.commands = np.zeros(self.n_actuators)
