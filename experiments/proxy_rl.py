@@ -12,7 +12,8 @@ calibration's (``--parameters experiments/proxy/patterns/multigait-patterns_cali
 (a calibration report of such a proxy says so itself); ``--planar`` restricts the Trunk's
 bendings to the floor's plane (towards +-x; Box(3) actions); ``--cables`` drives the Trunk
 proxy through the FEM's action space (8 absolute cable targets and the base, Box(9), mapped to
-the bendings).
+the bendings); ``--dt 0.03`` steps the proxy in 0.03 s sub-steps (10 to the Trunk's 0.3 s
+step, where 30 of 0.01 s is the default; its simulation steps count as such).
 
 Multigait (pliant/MultigaitProxy-v0, 12 steps of 0.6 s, Discrete(6)): the greedy policy's
 forward travel over an episode beside the hand gait's (rear, centre, front inflated, then
@@ -228,9 +229,11 @@ def learn(
     planar: bool = False,
     hyperparams: dict | None = None,
     cables: bool = False,
+    dt: float | None = None,
 ) -> dict:
     """Train `algo` on ROBOT's proxy (its parameters degraded by `noise`), evaluate the final
-    policy, and write the results folder; the report."""
+    policy, and write the results folder; the report. `dt`: the proxy's time step, its
+    environment's step (0.3 s the Trunk's, 0.6 the Multigait's) kept in as many sub-steps."""
     warnings.simplefilter("ignore")
     torch.set_num_threads(1)
     s = SETTINGS[robot]
@@ -251,6 +254,13 @@ def learn(
         env_kwargs["planar"] = True
     if cables:  # the FEM Trunk's action space, mapped to the bendings
         env_kwargs["actions"] = "cables"
+    if dt is not None:  # a coarser (or finer) proxy step, the environment's step unchanged
+        probe = make_env(s["env_id"], env_kwargs).unwrapped
+        duration = probe.dt * probe.substeps
+        substeps = int(round(duration / dt))
+        if substeps < 1 or abs(substeps * dt - duration) > 1e-9:
+            raise SystemExit(f"--dt {dt} does not divide the environment's step, {duration} s")
+        env_kwargs.update(dt=dt, substeps=substeps)
     name = f"rl_{robot}{tag}"
     run_dir = Path("runs") / f"proxy_{name}"
     out = Path("experiments/results/proxy") / name
@@ -315,6 +325,12 @@ def main() -> None:
         default=None,
         help='JSON over the settings\' SB3 keywords, e.g. {"n_epochs": 5}',
     )
+    parser.add_argument(
+        "--dt",
+        type=float,
+        default=None,
+        help="the proxy's time step (s); the environment's step keeps its duration",
+    )
     args = parser.parse_args()
     if args.planar and args.robot != "trunk":
         parser.error("--planar restricts the Trunk's bendings")
@@ -335,6 +351,7 @@ def main() -> None:
         planar=args.planar,
         hyperparams=args.hyperparams,
         cables=args.cables,
+        dt=args.dt,
         command="python experiments/proxy_rl.py " + " ".join(sys.argv[1:]),
     )
     print(json.dumps({k: v for k, v in report.items() if k != "curve"}, indent=1))

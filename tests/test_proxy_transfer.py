@@ -363,3 +363,39 @@ def test_a_transfer_stops_at_the_first_step_its_until_holds() -> None:
 
     assert len(trunk_transfer().run(push, until=second_time).steps) == 2 and len(asked) == 2
     assert len(trunk_transfer().run(push).steps) == 3
+
+
+def test_a_coarser_proxy_is_followed_by_the_fem_in_its_own_steps() -> None:
+    """A proxy stepping 0.03 s (10 sub-steps to the Trunk's 0.3 s step) drives the FEM at its
+    0.01 s, three FEM steps per proxy sub-step towards the proxy's points interpolated between
+    them: the same simulated time, and the FEM follows as closely as under a proxy at the
+    FEM's step; a proxy step that is no whole number of the FEM's is refused."""
+    from pliant.proxy.transfer import TRUNK_GAINS, proxy_timing, trunk_transfer
+
+    push = [(0.0, 0.05, 0.0, 0.05, 0.0)] * 2
+    loops = {
+        0.01: trunk_transfer(),
+        0.02: trunk_transfer(env_kwargs={"dt": 0.02, "substeps": 15}),
+        0.03: trunk_transfer(env_kwargs={"dt": 0.03, "substeps": 10}),
+    }
+    coarse = loops[0.03]
+    assert (coarse.gains.scale, coarse.gains.fem_substeps) == (10, 3)
+    assert coarse.solver.dt == pytest.approx(0.01) and coarse.env.dt == pytest.approx(0.03)
+    start = coarse.state.time
+    results = {dt: loop.run(push) for dt, loop in loops.items()}
+    assert len(results[0.03].times) == 20  # one record a proxy sub-step
+    assert coarse.state.time - start == pytest.approx(0.6)
+    assert coarse.env.state.time == pytest.approx(coarse.state.time)
+    errors = {dt: max(s.tracking_error for s in r.steps) for dt, r in results.items()}
+    cubes = {dt: np.array(r.fem_trajectory[-1]) for dt, r in results.items()}
+    travel = np.linalg.norm(cubes[0.01] - results[0.01].start)
+    # measured: tracking 1.93 / 1.93 / 1.94 mm; the FEM's cube 6.8 mm on, within 0.1 mm at
+    # dt 0.02 and 1.5 mm at 0.03 of where it went under the proxy at the FEM's step
+    assert travel > 5.0
+    assert max(errors.values()) < errors[0.01] + 0.5, errors
+    assert np.linalg.norm(cubes[0.02] - cubes[0.01]) < 0.5, cubes
+    assert np.linalg.norm(cubes[0.03] - cubes[0.01]) < 2.0, cubes
+    with pytest.raises(ModelError, match="whole number"):
+        proxy_timing({"dt": 0.025}, TRUNK_GAINS, 0.01)
+    with pytest.raises(ModelError, match="fem_substeps"):
+        dataclasses.replace(TRUNK_GAINS, fem_substeps=0)

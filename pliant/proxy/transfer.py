@@ -114,6 +114,9 @@ class TransferGains:
             displacements from its own starting shape rather than the proxy's places (a
             departure; the Trunk's two models sag differently under gravity). Robots whose
             realignment moves the proxy's points (the Multigait) refuse it.
+        fem_substeps: FEM steps per proxy sub-step, for a proxy that steps coarser than the
+            FEM (:func:`proxy_timing`): the FEM follows the proxy's matched points
+            interpolated linearly between its sub-steps.
     """
 
     scale: int
@@ -131,6 +134,7 @@ class TransferGains:
     inverse_model: str = "qp"
     sensitivity_step: float = 0.02
     rest_offset: bool = False
+    fem_substeps: int = 1
 
     def __post_init__(self) -> None:
         if self.inverse_model not in ("qp", "sensitivity"):
@@ -144,6 +148,8 @@ class TransferGains:
             )
         if self.scale < 1 or self.inverse_steps < 1 or self.time_register < 0:
             raise ModelError("scale and inverse_steps must be >= 1, time_register >= 0")
+        if self.fem_substeps < 1:
+            raise ModelError(f"fem_substeps must be >= 1, got {self.fem_substeps}")
         if not 0.0 <= self.feedforward <= 1.0:
             raise ModelError(f"the feedforward weight must lie in [0, 1], got {self.feedforward}")
         if not (np.isfinite(self.gain) and self.gain > 0.0):
@@ -374,7 +380,7 @@ class Transfer:
         if gains.rest_offset:
             self.offset = start - proxy_points(env.state.positions)
         self.base = base
-        self.solver = ImplicitEuler(fem, dt=env.dt)
+        self.solver = ImplicitEuler(fem, dt=env.dt / gains.fem_substeps)
         self.filter = ActuationFilter(gains.lower, gains.upper, rate=gains.rate, gain=gains.gain)
         self.recorder = _Recorder(env.sim)
         env.sim = self.recorder
@@ -504,15 +510,20 @@ class Transfer:
         fem_before = self.fem_position(self.state)
         self.recorder.states.clear()
         self.recorder.commands.clear()
+        previous = self.proxy_points(self.env.state.positions)
         _, _, _, truncated, info = self.env.step(action)
         if truncated and "diverged" in info:
             raise ModelError(f"the proxy diverged: {info['diverged']}")
+        m = self.gains.fem_substeps
         for sub, commands in zip(self.recorder.states, self.recorder.commands, strict=True):
             if self.base is not None:  # where the proxy's base went in this sub-step
                 target = np.clip(commands[-1], *self.env.proxy.base.limits)
                 self.base.retarget(self.state.time, target, self.env.dt)
                 self.fem.trajectories_changed()
-            self.follow(self.proxy_points(sub.positions), commands)
+            goal = self.proxy_points(sub.positions)
+            for j in range(1, m + 1):  # a coarser proxy's points, interpolated
+                self.follow(goal if j == m else previous + (goal - previous) * (j / m), commands)
+            previous = goal
             self.result.times.append(float(self.state.time))
             self.result.proxy_trajectory.append(self.proxy_position(sub).tolist())
             self.result.fem_trajectory.append(self.fem_position(self.state).tolist())
@@ -682,6 +693,27 @@ class TrunkTransfer(Transfer):
         self.env.set_state(snapshot)
 
 
+def proxy_timing(
+    env_kwargs: dict | None, gains: TransferGains, dt: float
+) -> tuple[dict, TransferGains]:
+    """The proxy environment's arguments and the loop's gains for a FEM stepping `dt`: the
+    proxy steps as its `env_kwargs` say (a policy's training: its ``dt`` and ``substeps``;
+    by default the FEM's `dt` and the gains' `scale`), the gains' `scale` becomes its
+    sub-steps and `fem_substeps` the FEM steps in one of them. ModelError if the proxy's step
+    is not a whole number of the FEM's."""
+    kwargs = dict(env_kwargs or {})
+    proxy_dt = float(kwargs.get("dt", dt))
+    scale = int(kwargs.get("substeps", gains.scale))
+    ratio = proxy_dt / dt
+    substeps = int(round(ratio))
+    if substeps < 1 or abs(ratio - substeps) > 1e-6 * ratio:
+        raise ModelError(
+            f"the proxy's step ({proxy_dt} s) is not a whole number of the FEM's ({dt} s)"
+        )
+    gains = replace(gains, scale=scale, fem_substeps=substeps)
+    return {**kwargs, "dt": proxy_dt, "substeps": scale}, gains
+
+
 def multigait_transfer(
     *,
     gains: TransferGains = MULTIGAIT_GAINS,
@@ -691,12 +723,13 @@ def multigait_transfer(
     env_kwargs: dict | None = None,
 ) -> MultigaitTransfer:
     """The Multigait proxy environment (calibrated proxy; `env_kwargs` those of the policy's
-    training) and the FEM Multigait (default mesh, volume-controlled chambers), both from
-    rest."""
+    training, its time step with them: :func:`proxy_timing`) and the FEM Multigait (default
+    mesh, volume-controlled chambers, steps of `dt`), both from rest."""
     from pliant.envs.multigait_proxy import MultigaitProxyEnv
     from pliant.robots.multigait import multigait
 
-    env = MultigaitProxyEnv(**{**(env_kwargs or {}), "dt": dt, "substeps": gains.scale})
+    kwargs, gains = proxy_timing(env_kwargs, gains, dt)
+    env = MultigaitProxyEnv(**kwargs)
     env.reset(seed=seed)
     rod = env.proxy.rod
     robot = multigait(mesh_size=mesh_size)
@@ -725,13 +758,15 @@ def trunk_transfer(
     env_kwargs: dict | None = None,
 ) -> TrunkTransfer:
     """The Trunk-and-cube proxy environment (calibrated proxy, goal the cube's start plus
-    `goal_offset` in (x, z); `env_kwargs` those of the policy's training) and the FEM Trunk on
-    its base (mesh 8 mm), both settled under gravity."""
+    `goal_offset` in (x, z); `env_kwargs` those of the policy's training, its time step with
+    them: :func:`proxy_timing`) and the FEM Trunk on its base (mesh 8 mm, steps of `dt`), both
+    settled under gravity."""
     from pliant.envs.trunk import settled
     from pliant.envs.trunk_push_proxy import TrunkPushProxyEnv
     from pliant.robots.trunk_cube import trunk_cube
 
-    env = TrunkPushProxyEnv(**{**(env_kwargs or {}), "dt": dt, "substeps": gains.scale})
+    kwargs, gains = proxy_timing(env_kwargs, gains, dt)
+    env = TrunkPushProxyEnv(**kwargs)
     start = env.state.rigid_positions[0]
     goal = start + np.array([goal_offset[0], 0.0, goal_offset[1]])
     env.reset(seed=seed, options={"goal": goal})
@@ -739,7 +774,8 @@ def trunk_transfer(
     base = Ramp(0.0)
     robot = trunk_cube(mesh_size=mesh_size, base_motion=base.scalar)
     fem = with_effector(robot, EmbeddedPoints(robot.body.mesh, rod.centreline(rod.rest_positions)))
-    state = settled(fem, ImplicitEuler(fem, dt=dt), env.settle_steps)
+    # the FEM settles as long as the proxy did, in its own steps
+    state = settled(fem, ImplicitEuler(fem, dt=dt), env.settle_steps * gains.fem_substeps)
     return TrunkTransfer(env, fem, state, gains, rod.centreline, base=base)
 
 
