@@ -19,6 +19,19 @@ level (draw d: the noise of seed d, PPO seed d), each transferred open loop:
 writes robustness_surface.json and .png, the policies in rl_multigait_surface_noiseL_drawD/;
 a run that stops goes on from the rows its report holds (the policy it was training is
 trained again from the start).
+
+The Trunk (thesis Fig. 4.6 A-B: "for the different proxies, the results are the same as for
+the Multigait"), around the axial proxy with its cube fitted on the FEM's pushes, PPO as the
+pipeline's (the FEM's cables as actions, log_std_init -1), at the proxy's own 0.03 s step
+(20400 environment steps, 2.04e5 simulation steps), each policy transferred by the inverse-QP
+loop on the 20 evaluation goals (experiments/proxy_vs_fem_rl.py's):
+
+    python experiments/proxy_robustness.py --robot trunk --draws 2
+
+writes robustness_trunk.json and .png (the mean final cube-goal distance on each degraded
+proxy and on the FEM following it, against the level; doing nothing leaves 21.3 mm), the
+policies in rl_trunk_trunk_noiseL_drawD/. Level 0 (the proxy itself) is the pipeline's own
+run of that seed (``proxy_rl.py --dt 0.03``, rl_trunk_axial_cables_dt03[_seedS]/).
 """
 
 from __future__ import annotations
@@ -32,11 +45,17 @@ from pathlib import Path
 
 import numpy as np
 from proxy_rl import degraded, learn
+from proxy_vs_fem_rl import summary, transfer_proxy_policy
 
 from pliant.learn.evaluate import load_policy
 from pliant.proxy.transfer import FORWARD, MULTIGAIT_GAINS, multigait_transfer
 
 OUT = Path("experiments/results/proxy")
+#: the Trunk's study: the proxy it degrades, and its PPO settings (the pipeline's)
+TRUNK_PARAMETERS = Path("experiments/proxy/push_cocontraction/trunk-push_calibration.json")
+TRUNK_HYPERPARAMS = {"policy_kwargs": {"log_std_init": -1}}
+#: the Trunk's cube-goal distance on the 20 evaluation goals when nothing moves
+TRUNK_STILL_MM = 21.3
 
 
 def transfer(policy_dir: Path, steps: int, feedforward: float = 0.0) -> dict:
@@ -81,16 +100,66 @@ def plot(rows: list[dict], path: Path) -> None:
     fig.savefig(path, dpi=120)
 
 
+def trunk_transfer_summary(policy_dir: Path) -> dict:
+    """The Trunk policy on the FEM, through the transfer loop, for each evaluation goal."""
+    clock = time.perf_counter()
+    goals = transfer_proxy_policy(policy_dir)
+    return {
+        "fem": summary([g["fem_distance"] for g in goals]),
+        "proxy": summary([g["proxy_distance"] for g in goals]),
+        "goals": goals,
+        "wall_seconds": time.perf_counter() - clock,
+    }
+
+
+def plot_trunk(rows: list[dict], path: Path) -> None:
+    """Mean final cube-goal distance against the noise level: each proxy's own episodes and
+    the FEM following it (one marker a draw)."""
+    from pliant.viz.render import offscreen_figure
+
+    fig = offscreen_figure(6.0, 4.0)
+    ax = fig.subplots()
+    levels = sorted({row["level"] for row in rows})
+    for row in rows:
+        x = levels.index(row["level"]) + 0.08 * (row.get("draw") or 0)
+        first = row is rows[0]
+        ax.plot(x, row["proxy_mean_final_distance_mm"], "C0o", label="proxy" if first else None)
+        ax.plot(
+            x,
+            row["transfer"]["fem"]["mean_final_distance_mm"],
+            "C1s",
+            label="FEM following it" if first else None,
+        )
+    ax.axhline(TRUNK_STILL_MM, color="0.5", ls="--", label="doing nothing")
+    ax.set_xticks(range(len(levels)), [f"{v:g}" for v in levels])
+    ax.set_xlabel("noise level on the proxy's parameters")
+    ax.set_ylabel("mean final cube-goal distance (mm)")
+    ax.set_title("Trunk: 20 evaluation goals")
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+
+
 def main() -> None:
     parser = argparse.ArgumentParser()
+    parser.add_argument("--robot", choices=("multigait", "trunk"), default="multigait")
     parser.add_argument("--levels", default="0.001,0.01,0.1")
-    parser.add_argument("--env-steps", type=int, default=1440)
+    parser.add_argument(
+        "--env-steps", type=int, default=None, help="default 1440 (Multigait), 20400 (Trunk)"
+    )
+    parser.add_argument("--dt", type=float, default=None, help="the proxy's step (Trunk: 0.03)")
     parser.add_argument("--transfer-steps", type=int, default=4)
     parser.add_argument("--parameters", type=Path, default=None, help="a calibration report")
     parser.add_argument("--draws", type=int, default=None, help="draws a level (seeds 0..)")
     parser.add_argument("--feedforward", type=float, default=0.0, help="transfer's blend")
     parser.add_argument("--tag", default="", help="suffix of the report and policy folders")
     args = parser.parse_args()
+    trunk = args.robot == "trunk"
+    if trunk:
+        args.parameters = args.parameters or TRUNK_PARAMETERS
+        args.dt = args.dt or 0.03
+        args.tag = args.tag or "_trunk"
+    args.env_steps = args.env_steps or (20400 if trunk else 1440)
     path = OUT / f"robustness{args.tag}.json"
     # One draw (seed 0) without --draws, named as before; a run with --draws resumes.
     draws = [None] if args.draws is None else list(range(args.draws))
@@ -104,44 +173,61 @@ def main() -> None:
             clock = time.perf_counter()
             tag = f"{args.tag}_noise{level:g}" + ("" if draw is None else f"_draw{draw}")
             report = learn(
-                "multigait",
+                args.robot,
                 env_steps=args.env_steps,
                 noise=level,
                 seed=draw or 0,
                 tag=tag,
                 parameters=args.parameters,
+                **(
+                    {"cables": True, "dt": args.dt, "hyperparams": TRUNK_HYPERPARAMS}
+                    if trunk
+                    else {}
+                ),
             )
             fitted = base and base["parameters"]
             row = {
                 "level": level,
                 "draw": draw,
-                "parameters": degraded("multigait", level, draw or 0, fitted),
-                "proxy_episode_travel_mm": report["evaluation"]["learned"]["travel_mm"],
-                "learned_actions": report["evaluation"]["learned_actions"],
+                "parameters": degraded(args.robot, level, draw or 0, fitted),
                 "training_seconds": report["training_seconds"],
-                "transfer": transfer(
-                    OUT / f"rl_multigait{tag}", args.transfer_steps, args.feedforward
-                ),
-                "wall_seconds": time.perf_counter() - clock,
             }
+            learned = report["evaluation"]["learned"]
+            if trunk:
+                row["proxy_mean_final_distance_mm"] = learned["mean_final_distance_mm"]
+                row["proxy_solved"] = learned["solved"]
+                row["transfer"] = trunk_transfer_summary(OUT / f"rl_trunk{tag}")
+                fem = row["transfer"]["fem"]
+                message = (
+                    f"proxy {row['proxy_mean_final_distance_mm']:.1f} mm; FEM following it"
+                    f" {fem['mean_final_distance_mm']:.1f} mm ({fem['solved_under_8mm']:.0%})"
+                )
+            else:
+                row["proxy_episode_travel_mm"] = learned["travel_mm"]
+                row["learned_actions"] = report["evaluation"]["learned_actions"]
+                row["transfer"] = transfer(
+                    OUT / f"rl_multigait{tag}", args.transfer_steps, args.feedforward
+                )
+                t = row["transfer"]
+                message = (
+                    f"proxy episode {row['proxy_episode_travel_mm']:.2f} mm; transfer proxy"
+                    f" {t['proxy_travel_mm']:.2f} / FEM {t['fem_travel_mm']:.2f} mm"
+                )
+            row["wall_seconds"] = time.perf_counter() - clock
             rows.append(row)
-            t = row["transfer"]
-            print(
-                f"noise {level:g} draw {draw}: proxy episode {row['proxy_episode_travel_mm']:.2f}"
-                f" mm; transfer proxy {t['proxy_travel_mm']:.2f} / FEM {t['fem_travel_mm']:.2f}"
-                " mm",
-                flush=True,
-            )
+            print(f"noise {level:g} draw {draw}: {message}", flush=True)
             report = {
                 "command": "python experiments/proxy_robustness.py " + " ".join(sys.argv[1:]),
+                "robot": args.robot,
                 "env_steps": args.env_steps,
-                "transfer_steps": args.transfer_steps,
+                "dt": args.dt,
+                "transfer_steps": None if trunk else args.transfer_steps,
                 "parameters": None if args.parameters is None else str(args.parameters),
-                "feedforward": args.feedforward,
+                "feedforward": None if trunk else args.feedforward,
                 "rows": rows,
             }
             path.write_text(json.dumps(report, indent=1))
-            plot(rows, path.with_suffix(".png"))
+            (plot_trunk if trunk else plot)(rows, path.with_suffix(".png"))
 
 
 if __name__ == "__main__":

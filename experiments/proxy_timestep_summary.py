@@ -1,0 +1,103 @@
+"""Session 34's Trunk comparison (docs/proxy.md, "The proxy at its own time step"): the
+pipeline on the axial proxy (cube fitted on the FEM's pushes, the FEM's cables as actions,
+log_std_init -1) against PPO directly on the FEM, five seeds a side, at two budgets:
+
+* 2.04e5 simulation steps, the thesis' budget: PPO on the FEM takes 6800 environment steps
+  of 30 x 0.01 s; the pipeline either as many on the proxy at the FEM's 0.01 s, or 20400 on
+  the proxy at 0.03 s (10 sub-steps a 0.3 s step; experiments/proxy_timestep.py measured it
+  replays the FEM's pushes as well as at 0.01 s);
+* 20400 environment steps (three times the above): PPO on the FEM (6.1e5 simulation steps)
+  against the pipeline on the proxy at 0.01 s (6.1e5) and at 0.03 s (2.04e5).
+
+Each row pairs the seeds (the same PPO seed on both sides): the mean final cube-goal
+distance on the FEM over the 20 evaluation goals, the share solved (< 8 mm), the seeds on
+which the pipeline ends nearer than PPO on the FEM, a two-sided Wilcoxon signed-rank p, and
+the training wall times. It only reads the reports the commands in docs/proxy.md wrote.
+
+    python experiments/proxy_timestep_summary.py
+
+Writes experiments/results/proxy/fem_vs_proxy/timestep_summary.json.
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+from pathlib import Path
+
+import numpy as np
+from scipy.stats import wilcoxon
+
+sys.path.insert(0, str(Path(__file__).parent))
+from proxy_exploration_summary import FEM, PROXY, fem_side, mean, proxy_side  # noqa: E402
+
+#: PPO on the FEM: label -> (run tag, simulation steps)
+SIDES = {
+    "ppo_on_fem_2e5": ("_std1", 6800 * 30),
+    "ppo_on_fem_6e5": ("_std1_3x", 20400 * 30),
+}
+#: the pipeline: label -> (proxy run tag, the proxy's simulation steps)
+PIPELINES = {
+    "proxy_dt001_6800": ("_axial_cables", 6800 * 30),
+    "proxy_dt001_20400": ("_axial_cables_3x", 20400 * 30),
+    "proxy_dt003_20400": ("_axial_cables_dt03", 20400 * 10),
+}
+#: the comparisons: (pipeline, PPO on the FEM)
+PAIRS = (
+    ("proxy_dt001_6800", "ppo_on_fem_2e5"),  # equal simulation steps, the thesis' budget
+    ("proxy_dt003_20400", "ppo_on_fem_2e5"),  # equal simulation steps, the proxy's own dt
+    ("proxy_dt001_20400", "ppo_on_fem_6e5"),  # equal environment steps, three times
+    ("proxy_dt003_20400", "ppo_on_fem_6e5"),
+)
+
+
+def compare(pipeline: list[dict], direct: list[dict]) -> dict:
+    a = np.array([r["on_fem_mm"] for r in pipeline])
+    b = np.array([r["on_fem_mm"] for r in direct])
+    return {
+        "pipeline_on_fem_mm": float(a.mean()),
+        "ppo_on_fem_mm": float(b.mean()),
+        "pipeline_wins": int(np.sum(a < b)),
+        "seeds": len(a),
+        "wilcoxon_p_two_sided": float(wilcoxon(a, b).pvalue),
+        "pipeline_training_seconds": mean(pipeline, "training_seconds"),
+        "ppo_training_seconds": mean(direct, "training_seconds"),
+    }
+
+
+def main() -> None:
+    out: dict = {"sides": {}, "comparisons": []}
+    rows = {}
+    for label, (tag, simulation_steps) in SIDES.items():
+        rows[label] = fem_side(tag)
+        out["sides"][label] = {
+            "tag": tag,
+            "simulation_steps": simulation_steps,
+            "seeds": rows[label],
+            **{k: mean(rows[label], k) for k in ("on_fem_mm", "on_fem_solved")},
+        }
+    for label, (tag, simulation_steps) in PIPELINES.items():
+        rows[label] = proxy_side(tag)
+        out["sides"][label] = {
+            "tag": tag,
+            "proxy_simulation_steps": simulation_steps,
+            "seeds": rows[label],
+            **{
+                k: mean(rows[label], k)
+                for k in ("on_proxy_mm", "on_proxy_solved", "on_fem_mm", "on_fem_solved")
+            },
+        }
+    for pipeline, direct in PAIRS:
+        out["comparisons"].append(
+            {"pipeline": pipeline, "direct": direct, **compare(rows[pipeline], rows[direct])}
+        )
+    out["replay_by_time_step"] = json.loads((PROXY / "timestep.json").read_text())
+    (FEM / "timestep_summary.json").write_text(json.dumps(out, indent=1))
+    for label, side in out["sides"].items():
+        print(label, {k: v for k, v in side.items() if k not in ("seeds", "tag")})
+    for row in out["comparisons"]:
+        print(row)
+
+
+if __name__ == "__main__":
+    main()
