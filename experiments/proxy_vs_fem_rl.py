@@ -38,6 +38,9 @@ results in experiments/results/proxy/fem_vs_proxy/.
     python experiments/proxy_rl.py trunk --algo SAC --env-steps 6800 --tag _sac
     python experiments/proxy_vs_fem_rl.py --algo SAC \
         --proxy-policy experiments/results/proxy/rl_trunk_sac
+    # the FEM as its own coarse model: PPO on the FEM stepped at 0.03 s, evaluated at 0.01 s
+    python experiments/proxy_vs_fem_rl.py --fem-dt 0.03 --env-steps 20400 --tag _dt03 \
+        --skip-pipeline
 """
 
 from __future__ import annotations
@@ -79,9 +82,17 @@ def suffix(algo: str, seed: int, planar: bool = False) -> str:
     return name + ("_planar" if planar else "") + ("" if seed == 0 else f"_seed{seed}")
 
 
-def fem_kwargs(planar: bool) -> dict:
-    """The FEM environment's keywords; `planar`: only the -x/+x cables driven."""
-    return {**FEM_KWARGS, "planar": True} if planar else dict(FEM_KWARGS)
+def fem_kwargs(planar: bool, dt: float | None = None) -> dict:
+    """The FEM environment's keywords; `planar`: only the -x/+x cables driven; `dt`: the FEM
+    stepped coarser, its 0.3 s environment step in as many sub-steps of `dt` (for training
+    only: every policy is evaluated on the FEM at its own 0.01 s)."""
+    kwargs = {**FEM_KWARGS, "planar": True} if planar else dict(FEM_KWARGS)
+    if dt is not None:
+        substeps = int(round(0.3 / dt))
+        if abs(substeps * dt - 0.3) > 1e-9:
+            raise SystemExit(f"--fem-dt {dt} does not divide the 0.3 s environment step")
+        kwargs.update(dt=dt, substeps=substeps)
+    return kwargs
 
 
 def train_on_fem(
@@ -92,9 +103,11 @@ def train_on_fem(
     planar: bool = False,
     hyperparams: dict | None = None,
     tag: str = "",
+    dt: float | None = None,
 ) -> tuple[Path, dict]:
     run_dir = Path("runs/proxy_vs_fem_rl" + tag + suffix(algo, seed, planar))
-    config = rl_config("trunk", FEM_ENV, fem_kwargs(planar), env_steps, seed, algo, hyperparams)
+    kwargs = fem_kwargs(planar, dt)
+    config = rl_config("trunk", FEM_ENV, kwargs, env_steps, seed, algo, hyperparams)
     result = train(None if resume else config, run_dir, resume=resume)
     return run_dir, result.summary
 
@@ -219,6 +232,15 @@ def main() -> None:
     parser.add_argument(
         "--tag", default="", help="prefix of the FEM run's folders (e.g. _std: fem_vs_proxy/std/)"
     )
+    parser.add_argument(
+        "--fem-dt",
+        type=float,
+        default=None,
+        help="RL on the FEM stepped at this dt (s) instead of 0.01; evaluated at 0.01",
+    )
+    parser.add_argument(
+        "--skip-pipeline", action="store_true", help="RL on the FEM only: no proxy transfer"
+    )
     args = parser.parse_args()
     if args.tag and not args.tag.startswith("_"):
         parser.error("--tag starts with '_'")
@@ -261,13 +283,13 @@ def main() -> None:
         args.planar,
         args.hyperparams,
         args.tag,
+        args.fem_dt,
     )
     for f in ("model.zip", "vecnormalize.pkl", "meta.json"):
         shutil.copy(run_dir / "final" / f, out / f)
     shutil.copy(run_dir / "learning_curve.png", out / "fem_learning_curve.png")
     direct = evaluate_on_fem(run_dir / "final", args.planar)
-    transferred = transfer_proxy_policy(args.proxy_policy)
-    proxy_trained = json.loads((args.proxy_policy / "report.json").read_text())
+    training_kwargs = fem_kwargs(args.planar, args.fem_dt)
     report = {
         "command": "python experiments/proxy_vs_fem_rl.py " + " ".join(sys.argv[1:]),
         "goals": f"seeds {GOALS.start}-{GOALS.stop - 1} of both environments",
@@ -277,26 +299,32 @@ def main() -> None:
         "rl_on_fem": {
             "algo": args.algo,
             "hyperparams_over_settings": args.hyperparams,
+            "training_env_kwargs": training_kwargs,
             "env_steps": trained["steps"],
-            "simulation_steps": trained["steps"] * FEM_KWARGS["substeps"],
+            "simulation_steps": trained["steps"] * training_kwargs["substeps"],
             "training_seconds": trained["wall_seconds"],
             **summary([r["distance"] for r in direct]),
             "episodes": direct,
         },
-        "proxy_pipeline": {
+        "proxy_pipeline": None,
+        "thesis": {"proxy_pipeline_mm": 2.0, "rl_on_fem_mm": 4.5},
+    }
+    if not args.skip_pipeline:
+        transferred = transfer_proxy_policy(args.proxy_policy)
+        proxy_trained = json.loads((args.proxy_policy / "report.json").read_text())
+        report["proxy_pipeline"] = {
             "policy": str(args.proxy_policy),
             "algo": proxy_trained.get("algo", "PPO"),
             "proxy_env_steps": proxy_trained["env_steps"],
             "fem": summary([r["fem_distance"] for r in transferred]),
             "proxy": summary([r["proxy_distance"] for r in transferred]),
             "transfers": transferred,
-        },
-        "thesis": {"proxy_pipeline_mm": 2.0, "rl_on_fem_mm": 4.5},
-    }
+        }
     (out / "report.json").write_text(json.dumps(report, indent=1))
     print(json.dumps({k: v for k, v in report.items() if k not in ("rl_on_fem", "proxy_pipeline")}))
     print("RL on the FEM:", json.dumps(summary([r["distance"] for r in direct])))
-    print("proxy pipeline (FEM):", json.dumps(report["proxy_pipeline"]["fem"]))
+    if report["proxy_pipeline"] is not None:
+        print("proxy pipeline (FEM):", json.dumps(report["proxy_pipeline"]["fem"]))
 
 
 if __name__ == "__main__":
