@@ -13,7 +13,14 @@ calibration's (every other episode of each kind).
         experiments/proxy/push_cocontraction/trunk-push_calibration.json] [--dt 0.01 0.02 0.03]
 
 Writes experiments/results/proxy/timestep.json: per dt, the mean cube distance (mm) to the
-FEM's over every step of each half, the cubes' mean travel, and the replay's wall time.
+FEM's over every step of each half and of the FEM policies' 20 episodes, the cubes' mean
+travel, and the replay's wall time.
+
+The control: the FEM itself at the coarser steps. The FEM policies' 20 episodes are run again
+at 0.01 s (closed loop: the same episodes as the reference's, checked), and their commanded
+actions replayed open loop on the FEM at each coarser dt (its cables still move at most 1 mm
+a simulation step, SoftRobots' limit, so at 0.03 s they are three times slower): how far its
+cube goes from the 0.01 s FEM's, beside the proxy's on the same episodes.
 """
 
 from __future__ import annotations
@@ -27,14 +34,72 @@ from pathlib import Path
 
 import numpy as np
 
+from pliant.envs.trunk_push import TrunkPushEnv
+from pliant.learn.evaluate import load_policy
 from pliant.proxy.calibrate import mean_distance
 from pliant.proxy.pushes import Pushes, cube_travel, proxy_pushes
 
 sys.path.insert(0, str(Path(__file__).parent))
-from proxy_push_calibration import reference  # noqa: E402
+from proxy_push_calibration import POLICIES, reference  # noqa: E402
 from proxy_rl import SETTINGS  # noqa: E402
+from proxy_vs_fem_rl import FEM_KWARGS  # noqa: E402
+from proxy_vs_fem_rl import OUT as RUNS  # noqa: E402
 
 OUT = Path("experiments/results/proxy/timestep.json")
+
+
+def fem_coarse(fem: Pushes, dts: list[float], per_policy: int = 4) -> dict:
+    """The FEM policies' episodes of the reference (policy k, episode e: goal seed
+    3000 + 100 k + e) run again on the FEM at 0.01 s, their commanded actions replayed on the
+    FEM at each of `dts`; the mean cube distance to the 0.01 s run and the wall times."""
+    fine = TrunkPushEnv(**FEM_KWARGS)
+    coarse = {
+        dt: TrunkPushEnv(**{**FEM_KWARGS, "dt": dt, "substeps": int(round(0.3 / dt))}) for dt in dts
+    }
+
+    def run(env, choose, seed):
+        obs, _ = env.reset(seed=seed)
+        cubes, actions = [env.cube().copy()], []
+        for k in range(fem.actions.shape[1]):
+            actions.append(np.asarray(choose(obs, k), dtype=float))
+            obs, *_ = env.step(actions[-1])
+            cubes.append(env.cube().copy())
+        return np.array(cubes), actions
+
+    errors = {dt: [] for dt in dts}
+    seconds = {dt: 0.0 for dt in [0.01, *dts]}
+    rerun_gap = 0.0
+    for k, name in enumerate(POLICIES):
+        saved = load_policy(RUNS / name)
+        index = np.flatnonzero(fem.kinds == name)
+        for e in range(per_policy):
+
+            def greedy(obs, _, saved=saved):
+                return saved.model.predict(saved.normalize_obs(obs), deterministic=True)[0]
+
+            clock = time.perf_counter()
+            cubes, actions = run(fine, greedy, 3000 + 100 * k + e)
+            seconds[0.01] += time.perf_counter() - clock
+            rerun_gap = max(rerun_gap, float(np.abs(cubes - fem.cubes[index[e]]).max()))
+            for dt, env in coarse.items():
+                clock = time.perf_counter()
+                replayed, _ = run(env, lambda obs, j, a=actions: a[j], 3000 + 100 * k + e)
+                seconds[dt] += time.perf_counter() - clock
+                errors[dt].append(float(np.linalg.norm(replayed - cubes, axis=1).mean()))
+    return {
+        "episodes": len(errors[dts[0]]),
+        "rerun_vs_reference_max_mm": rerun_gap,
+        "rows": [
+            {
+                "dt": dt,
+                "cube_error_mm": float(np.mean(errors[dt])),
+                "per_episode_mm": errors[dt],
+                "replay_seconds": seconds[dt],
+            }
+            for dt in dts
+        ],
+        "fine_seconds": seconds[0.01],
+    }
 
 
 def main() -> None:
@@ -62,6 +127,7 @@ def main() -> None:
     calibration = json.loads(args.calibration.read_text())
     base = {**SETTINGS["trunk"]["env_kwargs"], **calibration["parameters"]}
     optimise, validate = np.arange(0, len(fem.kinds), 2), np.arange(1, len(fem.kinds), 2)
+    policies = np.flatnonzero(np.isin(fem.kinds, POLICIES))
     rows = []
     for dt in args.dt:
         substeps = int(round(0.3 / dt))
@@ -73,6 +139,9 @@ def main() -> None:
                 "substeps": substeps,
                 "optimisation_error_mm": mean_distance(fem.cubes[optimise], cubes[optimise]),
                 "validation_error_mm": mean_distance(fem.cubes[validate], cubes[validate]),
+                "policy_episodes_error_mm": float(
+                    np.linalg.norm(cubes[policies] - fem.cubes[policies], axis=-1).mean()
+                ),
                 "proxy_travel_mm": float(cube_travel(cubes).mean()),
                 "replay_seconds": time.perf_counter() - clock,
             }
@@ -85,7 +154,11 @@ def main() -> None:
         "episodes": len(fem.kinds),
         "fem_travel_mm": float(cube_travel(fem.cubes).mean()),
         "rows": rows,
+        "fem_at_coarser_steps": fem_coarse(fem, [dt for dt in args.dt if dt > 0.01]),
     }
+    print(json.dumps({k: v for k, v in report["fem_at_coarser_steps"].items() if k != "rows"}))
+    for row in report["fem_at_coarser_steps"]["rows"]:
+        print({k: v for k, v in row.items() if k != "per_episode_mm"})
     args.out.parent.mkdir(parents=True, exist_ok=True)
     args.out.write_text(json.dumps(report, indent=1))
 
