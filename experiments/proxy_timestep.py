@@ -12,6 +12,14 @@ calibration's (every other episode of each kind).
     python experiments/proxy_timestep.py [--calibration
         experiments/proxy/push_cocontraction/trunk-push_calibration.json] [--dt 0.01 0.02 0.03]
 
+``--speed-only`` measures only the environments' speed (below) and adds it to the JSON.
+
+Speed: environment steps per second of the FEM task (pliant/TrunkPush-v0) and the proxy's
+(pliant/TrunkPushProxy-v0 with the calibration's proxy and the FEM's cable actions) at 0.01
+and 0.03 s, random actions, blocks of 10 steps taken in turn from the four environments
+(repeats), median per environment: the ratio of what PPO's 2.04e5 simulation steps cost on
+each, measured side by side.
+
 Writes experiments/results/proxy/timestep.json: per dt, the mean cube distance (mm) to the
 FEM's over every step of each half and of the FEM policies' 20 episodes, the cubes' mean
 travel, and the replay's wall time.
@@ -102,6 +110,34 @@ def fem_coarse(fem: Pushes, dts: list[float], per_policy: int = 4) -> dict:
     }
 
 
+def speed(base: dict, repeats: int) -> dict:
+    """Environment steps per second of the four environments (module docstring)."""
+    from pliant.envs.trunk_push_proxy import TrunkPushProxyEnv
+
+    envs = {
+        f"{name}_dt{dt:g}": make(**{**kwargs, "dt": dt, "substeps": int(round(0.3 / dt))})
+        for name, make, kwargs in (
+            ("fem", TrunkPushEnv, FEM_KWARGS),
+            ("proxy", TrunkPushProxyEnv, {**base, "actions": "cables"}),
+        )
+        for dt in (0.01, 0.03)
+    }
+    rates: dict = {name: [] for name in envs}
+    rng = np.random.default_rng(0)
+    for k in range(repeats):
+        for name, env in envs.items():
+            env.reset(seed=k)
+            clock = time.perf_counter()
+            for _ in range(10):
+                env.step(rng.uniform(-1.0, 1.0, env.action_space.shape))
+            rates[name].append(10 / (time.perf_counter() - clock))
+    return {
+        "repeats": repeats,
+        "env_steps_per_second": {k: float(np.median(v)) for k, v in rates.items()},
+        "all": rates,
+    }
+
+
 def main() -> None:
     parser = argparse.ArgumentParser()
     parser.add_argument(
@@ -114,8 +150,19 @@ def main() -> None:
     )
     parser.add_argument("--dt", type=float, nargs="+", default=[0.01, 0.02, 0.03])
     parser.add_argument("--out", type=Path, default=OUT)
+    parser.add_argument("--speed-only", action="store_true")
+    parser.add_argument("--repeats", type=int, default=5, help="of the speed measurement")
     args = parser.parse_args()
     warnings.simplefilter("ignore")
+    if args.speed_only:
+        report = json.loads(args.out.read_text())
+        calibration = json.loads(Path(report["calibration"]).read_text())
+        base = {**SETTINGS["trunk"]["env_kwargs"], **calibration["parameters"]}
+        report["speed"] = speed(base, args.repeats)
+        report["speed_command"] = "python experiments/proxy_timestep.py " + " ".join(sys.argv[1:])
+        args.out.write_text(json.dumps(report, indent=1))
+        print(json.dumps(report["speed"]["env_steps_per_second"]))
+        return
     if args.reference.exists():
         fem = Pushes.load(args.reference)
     else:  # the push calibrations' reference: 4 episodes a FEM policy, 12 random of each std

@@ -7,7 +7,10 @@ log_std_init -1) against PPO directly on the FEM, five seeds a side, at two budg
   the proxy at 0.03 s (10 sub-steps a 0.3 s step; experiments/proxy_timestep.py measured it
   replays the FEM's pushes as well as at 0.01 s);
 * 20400 environment steps (three times the above): PPO on the FEM (6.1e5 simulation steps)
-  against the pipeline on the proxy at 0.01 s (6.1e5) and at 0.03 s (2.04e5).
+  against the pipeline on the proxy at 0.01 s (6.1e5) and at 0.03 s (2.04e5);
+* the control: PPO on the FEM itself stepped at 0.03 s (20400 environment steps, 2.04e5
+  simulation steps; experiments/proxy_timestep.py measured its cube as near the 0.01 s
+  FEM's as the proxy's), evaluated on the FEM at 0.01 s, against the pipeline at 0.03 s.
 
 Each row pairs the seeds (the same PPO seed on both sides): the mean final cube-goal
 distance on the FEM over the 20 evaluation goals, the share solved (< 8 mm), the seeds on
@@ -35,6 +38,8 @@ from proxy_exploration_summary import FEM, PROXY, fem_side, mean, proxy_side  # 
 SIDES = {
     "ppo_on_fem_2e5": ("_std1", 6800 * 30),
     "ppo_on_fem_6e5": ("_std1_3x", 20400 * 30),
+    # the control: PPO on the FEM stepped at 0.03 s (evaluated at 0.01 s like every policy)
+    "ppo_on_fem_dt003_20400": ("_std1_dt03", 20400 * 10),
 }
 #: the pipeline: label -> (proxy run tag, the proxy's simulation steps)
 PIPELINES = {
@@ -48,6 +53,7 @@ PAIRS = (
     ("proxy_dt003_20400", "ppo_on_fem_2e5"),  # equal simulation steps, the proxy's own dt
     ("proxy_dt001_20400", "ppo_on_fem_6e5"),  # equal environment steps, three times
     ("proxy_dt003_20400", "ppo_on_fem_6e5"),
+    ("proxy_dt003_20400", "ppo_on_fem_dt003_20400"),  # both models at 0.03 s
 )
 
 
