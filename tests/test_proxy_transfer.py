@@ -369,7 +369,8 @@ def test_a_coarser_proxy_is_followed_by_the_fem_in_its_own_steps() -> None:
     """A proxy stepping 0.03 s (10 sub-steps to the Trunk's 0.3 s step) drives the FEM at its
     0.01 s, three FEM steps per proxy sub-step towards the proxy's points interpolated between
     them: the same simulated time, and the FEM follows as closely as under a proxy at the
-    FEM's step; a proxy step that is no whole number of the FEM's is refused."""
+    FEM's step; a proxy step that is no whole number of the FEM's, or not positive, is
+    refused."""
     from pliant.proxy.transfer import TRUNK_GAINS, proxy_timing, trunk_transfer
 
     push = [(0.0, 0.05, 0.0, 0.05, 0.0)] * 2
@@ -387,15 +388,19 @@ def test_a_coarser_proxy_is_followed_by_the_fem_in_its_own_steps() -> None:
     assert coarse.state.time - start == pytest.approx(0.6)
     assert coarse.env.state.time == pytest.approx(coarse.state.time)
     errors = {dt: max(s.tracking_error for s in r.steps) for dt, r in results.items()}
-    cubes = {dt: np.array(r.fem_trajectory[-1]) for dt, r in results.items()}
-    travel = np.linalg.norm(cubes[0.01] - results[0.01].start)
-    # measured: tracking 1.93 / 1.93 / 1.94 mm; the FEM's cube 6.8 mm on, within 0.1 mm at
-    # dt 0.02 and 1.5 mm at 0.03 of where it went under the proxy at the FEM's step
-    assert travel > 5.0
+    # measured: tracking 1.93 / 1.93 / 1.94 mm. Where the cube ends is not compared across
+    # steps: a strike is chaotic (the inverse solve's roundoff, 1e-13, decides between two
+    # outcomes 3 mm apart at dt 0.02 between runs); each FEM's cube is pushed along +x and
+    # ends near its own proxy's (measured 0.3-2.9 mm)
     assert max(errors.values()) < errors[0.01] + 0.5, errors
-    assert np.linalg.norm(cubes[0.02] - cubes[0.01]) < 0.5, cubes
-    assert np.linalg.norm(cubes[0.03] - cubes[0.01]) < 2.0, cubes
+    for result in results.values():
+        fem, proxy = np.array(result.fem_trajectory[-1]), np.array(result.proxy_trajectory[-1])
+        assert fem[0] - result.start[0] > 5.0
+        assert np.linalg.norm(fem - proxy) < 4.0, (fem, proxy)
     with pytest.raises(ModelError, match="whole number"):
         proxy_timing({"dt": 0.025}, TRUNK_GAINS, 0.01)
+    for bad in (0.0, -0.03, float("nan")):
+        with pytest.raises(ModelError, match="finite and > 0"):
+            proxy_timing({"dt": bad}, TRUNK_GAINS, 0.01)
     with pytest.raises(ModelError, match="fem_substeps"):
         dataclasses.replace(TRUNK_GAINS, fem_substeps=0)

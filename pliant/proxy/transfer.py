@@ -704,6 +704,8 @@ def proxy_timing(
     kwargs = dict(env_kwargs or {})
     proxy_dt = float(kwargs.get("dt", dt))
     scale = int(kwargs.get("substeps", gains.scale))
+    if not (np.isfinite(proxy_dt) and proxy_dt > 0.0 and np.isfinite(dt) and dt > 0.0):
+        raise ModelError(f"time steps must be finite and > 0: proxy {proxy_dt} s, FEM {dt} s")
     ratio = proxy_dt / dt
     substeps = int(round(ratio))
     if substeps < 1 or abs(ratio - substeps) > 1e-6 * ratio:
