@@ -36,10 +36,10 @@ def transferred(name: str, seed: int) -> dict:
     return both
 
 
-def proxy_side(tag: str) -> list[dict]:
+def proxy_side(tag: str, seeds=SEEDS) -> list[dict]:
     """Each seed's policy on its proxy (proxy_rl.py's evaluation) and transferred to the FEM."""
     rows = []
-    for s in SEEDS:
+    for s in seeds:
         name = seeded(f"rl_trunk{tag}", s)
         own = json.loads((PROXY / name / "report.json").read_text())
         moved = transferred(name, s)
@@ -57,11 +57,11 @@ def proxy_side(tag: str) -> list[dict]:
     return rows
 
 
-def fem_side(tag: str, replay: str = "fitted") -> list[dict]:
+def fem_side(tag: str, replay: str = "fitted", seeds=SEEDS) -> list[dict]:
     """Each seed's PPO on the FEM, and (where proxy_fem_policy_on_proxy.py wrote
     proxy_replay_REPLAY.json) the same policy played on a proxy."""
     rows = []
-    for s in SEEDS:
+    for s in seeds:
         folder = FEM / seeded(tag.lstrip("_"), s)
         direct = json.loads((folder / "report.json").read_text())["rl_on_fem"]
         row = {

@@ -1,6 +1,7 @@
-"""Session 34's Trunk comparison (docs/proxy.md, "The proxy at its own time step"): the
+"""Sessions 34-35's Trunk comparison (docs/proxy.md, "The proxy at its own time step"): the
 pipeline on the axial proxy (cube fitted on the FEM's pushes, the FEM's cables as actions,
-log_std_init -1) against PPO directly on the FEM, five seeds a side, at two budgets:
+log_std_init -1) against PPO directly on the FEM, five or ten seeds a side (SIDES,
+PIPELINES), at two budgets:
 
 * 2.04e5 simulation steps, the thesis' budget: PPO on the FEM takes 6800 environment steps
   of 30 x 0.01 s; the pipeline either as many on the proxy at the FEM's 0.01 s, or 20400 on
@@ -10,12 +11,15 @@ log_std_init -1) against PPO directly on the FEM, five seeds a side, at two budg
   against the pipeline on the proxy at 0.01 s (6.1e5) and at 0.03 s (2.04e5);
 * the control: PPO on the FEM itself stepped at 0.03 s (20400 environment steps, 2.04e5
   simulation steps; experiments/proxy_timestep.py measured its cube as near the 0.01 s
-  FEM's as the proxy's), evaluated on the FEM at 0.01 s, against the pipeline at 0.03 s.
+  FEM's as the proxy's), evaluated on the FEM at 0.01 s, against the pipeline at 0.03 s;
+  its cables either at the Trunk's 1 mm a simulation step (a third of their speed at
+  0.01 s) or at 3 mm (`proxy_vs_fem_rl.py --fem-cable-step 3`: as fast as at 0.01 s).
 
 Each row pairs the seeds (the same PPO seed on both sides): the mean final cube-goal
 distance on the FEM over the 20 evaluation goals, the share solved (< 8 mm), the seeds on
 which the pipeline ends nearer than PPO on the FEM, a two-sided Wilcoxon signed-rank p, and
-the training wall times. It only reads the reports the commands in docs/proxy.md wrote.
+the training wall times, on the seeds both sides have. It only reads the reports the
+commands in docs/proxy.md wrote; the seeds not run yet are listed as missing.
 
     python experiments/proxy_timestep_summary.py
 
@@ -26,26 +30,37 @@ from __future__ import annotations
 
 import json
 import sys
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
 from scipy.stats import wilcoxon
 
 sys.path.insert(0, str(Path(__file__).parent))
-from proxy_exploration_summary import FEM, PROXY, fem_side, mean, proxy_side  # noqa: E402
+from proxy_exploration_summary import (  # noqa: E402
+    FEM,
+    PROXY,
+    fem_side,
+    mean,
+    proxy_side,
+    seeded,
+)
 
-#: PPO on the FEM: label -> (run tag, simulation steps)
+#: PPO on the FEM: label -> (run tag, simulation steps, seeds run)
 SIDES = {
-    "ppo_on_fem_2e5": ("_std1", 6800 * 30),
-    "ppo_on_fem_6e5": ("_std1_3x", 20400 * 30),
-    # the control: PPO on the FEM stepped at 0.03 s (evaluated at 0.01 s like every policy)
-    "ppo_on_fem_dt003_20400": ("_std1_dt03", 20400 * 10),
+    "ppo_on_fem_2e5": ("_std1", 6800 * 30, range(10)),
+    "ppo_on_fem_6e5": ("_std1_3x", 20400 * 30, range(5)),
+    # the control: PPO on the FEM stepped at 0.03 s (evaluated at 0.01 s like every policy),
+    # its cables at the Trunk's 1 mm a simulation step (a third of their speed at 0.01 s) ...
+    "ppo_on_fem_dt003_20400": ("_std1_dt03", 20400 * 10, range(10)),
+    # ... and at 3 mm a step (as fast as at 0.01 s, where every policy is evaluated)
+    "ppo_on_fem_dt003_cable3_20400": ("_std1_dt03_cable3", 20400 * 10, range(5)),
 }
-#: the pipeline: label -> (proxy run tag, the proxy's simulation steps)
+#: the pipeline: label -> (proxy run tag, the proxy's simulation steps, seeds run)
 PIPELINES = {
-    "proxy_dt001_6800": ("_axial_cables", 6800 * 30),
-    "proxy_dt001_20400": ("_axial_cables_3x", 20400 * 30),
-    "proxy_dt003_20400": ("_axial_cables_dt03", 20400 * 10),
+    "proxy_dt001_6800": ("_axial_cables", 6800 * 30, range(5)),
+    "proxy_dt001_20400": ("_axial_cables_3x", 20400 * 30, range(5)),
+    "proxy_dt003_20400": ("_axial_cables_dt03", 20400 * 10, range(10)),
 }
 #: the comparisons: (pipeline, PPO on the FEM)
 PAIRS = (
@@ -54,44 +69,74 @@ PAIRS = (
     ("proxy_dt001_20400", "ppo_on_fem_6e5"),  # equal environment steps, three times
     ("proxy_dt003_20400", "ppo_on_fem_6e5"),
     ("proxy_dt003_20400", "ppo_on_fem_dt003_20400"),  # both models at 0.03 s
+    ("proxy_dt003_20400", "ppo_on_fem_dt003_cable3_20400"),
 )
 
 
+def run_seeds(report: Callable[[int], Path], seeds: range) -> tuple[list[int], list[int]]:
+    """The seeds among `seeds` whose report (the path `report` gives for a seed) exists, and
+    those missing (a run not done yet: the summary lists them rather than failing)."""
+    done = [s for s in seeds if report(s).exists()]
+    return done, [s for s in seeds if s not in done]
+
+
+def paired(rows: list[dict], seeds: list[int]) -> list[dict]:
+    return [r for r in rows if r["seed"] in seeds]
+
+
+def means(rows: list[dict], keys: tuple[str, ...]) -> dict:
+    """The seeds' mean of each of `keys` (none for a side not run yet)."""
+    return {k: mean(rows, k) for k in keys} if rows else {}
+
+
 def compare(pipeline: list[dict], direct: list[dict]) -> dict:
-    a = np.array([r["on_fem_mm"] for r in pipeline])
-    b = np.array([r["on_fem_mm"] for r in direct])
+    """The pipeline against PPO on the FEM on the seeds both sides have."""
+    common = sorted({r["seed"] for r in pipeline} & {r["seed"] for r in direct})
+    if not common:
+        return {"seeds": [], "status": "not run yet"}
+    a = np.array([r["on_fem_mm"] for r in paired(pipeline, common)])
+    b = np.array([r["on_fem_mm"] for r in paired(direct, common)])
     return {
+        "seeds": common,
         "pipeline_on_fem_mm": float(a.mean()),
         "ppo_on_fem_mm": float(b.mean()),
         "pipeline_wins": int(np.sum(a < b)),
-        "seeds": len(a),
         "wilcoxon_p_two_sided": float(wilcoxon(a, b).pvalue),
-        "pipeline_training_seconds": mean(pipeline, "training_seconds"),
-        "ppo_training_seconds": mean(direct, "training_seconds"),
+        "pipeline_training_seconds": mean(
+            [r for r in pipeline if r["seed"] in common], "training_seconds"
+        ),
+        "ppo_training_seconds": mean(
+            [r for r in direct if r["seed"] in common], "training_seconds"
+        ),
     }
 
 
 def main() -> None:
     out: dict = {"sides": {}, "comparisons": []}
     rows = {}
-    for label, (tag, simulation_steps) in SIDES.items():
-        rows[label] = fem_side(tag)
+    for label, (tag, simulation_steps, seeds) in SIDES.items():
+        done, missing = run_seeds(
+            lambda s, tag=tag: FEM / seeded(tag.lstrip("_"), s) / "report.json", seeds
+        )
+        rows[label] = fem_side(tag, seeds=done)
         out["sides"][label] = {
             "tag": tag,
             "simulation_steps": simulation_steps,
+            "missing_seeds": missing,
             "seeds": rows[label],
-            **{k: mean(rows[label], k) for k in ("on_fem_mm", "on_fem_solved")},
+            **means(rows[label], ("on_fem_mm", "on_fem_solved")),
         }
-    for label, (tag, simulation_steps) in PIPELINES.items():
-        rows[label] = proxy_side(tag)
+    for label, (tag, simulation_steps, seeds) in PIPELINES.items():
+        done, missing = run_seeds(
+            lambda s, tag=tag: FEM / f"report_{seeded(f'rl_trunk{tag}', s)}.json", seeds
+        )
+        rows[label] = proxy_side(tag, seeds=done)
         out["sides"][label] = {
             "tag": tag,
             "proxy_simulation_steps": simulation_steps,
+            "missing_seeds": missing,
             "seeds": rows[label],
-            **{
-                k: mean(rows[label], k)
-                for k in ("on_proxy_mm", "on_proxy_solved", "on_fem_mm", "on_fem_solved")
-            },
+            **means(rows[label], ("on_proxy_mm", "on_proxy_solved", "on_fem_mm", "on_fem_solved")),
         }
     for pipeline, direct in PAIRS:
         out["comparisons"].append(

@@ -82,11 +82,18 @@ def suffix(algo: str, seed: int, planar: bool = False) -> str:
     return name + ("_planar" if planar else "") + ("" if seed == 0 else f"_seed{seed}")
 
 
-def fem_kwargs(planar: bool, dt: float | None = None) -> dict:
+def fem_kwargs(planar: bool, dt: float | None = None, cable_step: float | None = None) -> dict:
     """The FEM environment's keywords; `planar`: only the -x/+x cables driven; `dt`: the FEM
-    stepped coarser, its 0.3 s environment step in as many sub-steps of `dt` (for training
-    only: every policy is evaluated on the FEM at its own 0.01 s)."""
+    stepped coarser, its 0.3 s environment step in as many sub-steps of `dt`; `cable_step`:
+    the most a cable's displacement may change in one simulation step, mm (SoftRobots'
+    maxDispVariation, the Trunk's 1 mm by default; 1 mm a step of 0.03 s is a third of the
+    cable speed at 0.01 s). `dt` and `cable_step` are for training only: every policy is
+    evaluated on the FEM at its own 0.01 s and 1 mm."""
     kwargs = {**FEM_KWARGS, "planar": True} if planar else dict(FEM_KWARGS)
+    if cable_step is not None:
+        if not (np.isfinite(cable_step) and cable_step > 0):
+            raise SystemExit(f"--fem-cable-step must be > 0 mm, got {cable_step}")
+        kwargs["max_displacement_change"] = float(cable_step)
     if dt is not None:
         substeps = int(round(0.3 / dt))
         if abs(substeps * dt - 0.3) > 1e-9:
@@ -104,9 +111,10 @@ def train_on_fem(
     hyperparams: dict | None = None,
     tag: str = "",
     dt: float | None = None,
+    cable_step: float | None = None,
 ) -> tuple[Path, dict]:
     run_dir = Path("runs/proxy_vs_fem_rl" + tag + suffix(algo, seed, planar))
-    kwargs = fem_kwargs(planar, dt)
+    kwargs = fem_kwargs(planar, dt, cable_step)
     config = rl_config("trunk", FEM_ENV, kwargs, env_steps, seed, algo, hyperparams)
     result = train(None if resume else config, run_dir, resume=resume)
     return run_dir, result.summary
@@ -239,6 +247,13 @@ def main() -> None:
         help="RL on the FEM stepped at this dt (s) instead of 0.01; evaluated at 0.01",
     )
     parser.add_argument(
+        "--fem-cable-step",
+        type=float,
+        default=None,
+        help="RL on the FEM with cables changing at most this much a simulation step (mm;"
+        " default the Trunk's 1); evaluated at 1",
+    )
+    parser.add_argument(
         "--skip-pipeline", action="store_true", help="RL on the FEM only: no proxy transfer"
     )
     args = parser.parse_args()
@@ -284,12 +299,13 @@ def main() -> None:
         args.hyperparams,
         args.tag,
         args.fem_dt,
+        args.fem_cable_step,
     )
     for f in ("model.zip", "vecnormalize.pkl", "meta.json"):
         shutil.copy(run_dir / "final" / f, out / f)
     shutil.copy(run_dir / "learning_curve.png", out / "fem_learning_curve.png")
     direct = evaluate_on_fem(run_dir / "final", args.planar)
-    training_kwargs = fem_kwargs(args.planar, args.fem_dt)
+    training_kwargs = fem_kwargs(args.planar, args.fem_dt, args.fem_cable_step)
     report = {
         "command": "python experiments/proxy_vs_fem_rl.py " + " ".join(sys.argv[1:]),
         "goals": f"seeds {GOALS.start}-{GOALS.stop - 1} of both environments",
