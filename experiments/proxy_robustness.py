@@ -47,6 +47,7 @@ import numpy as np
 from proxy_rl import degraded, learn
 from proxy_vs_fem_rl import summary, transfer_proxy_policy
 
+from pliant._proxsuite import BUILD
 from pliant.learn.evaluate import load_policy
 from pliant.proxy.transfer import FORWARD, MULTIGAIT_GAINS, multigait_transfer
 
@@ -109,6 +110,7 @@ def trunk_transfer_summary(policy_dir: Path) -> dict:
         "proxy": summary([g["proxy_distance"] for g in goals]),
         "goals": goals,
         "wall_seconds": time.perf_counter() - clock,
+        "proxsuite_build": BUILD,  # the inverse QP's (pliant._proxsuite)
     }
 
 
@@ -140,6 +142,28 @@ def plot_trunk(rows: list[dict], path: Path) -> None:
     fig.savefig(path, dpi=120)
 
 
+def retransfer(rows: list[dict], path: Path, tag: str) -> None:
+    """Transfer each row's Trunk policy again under this process's ProxQP build, the row's
+    earlier FEM mean kept beside it (``earlier_fem_mean_mm``, ``earlier_build``); rows already
+    transferred under this build are left alone, so a stopped run goes on."""
+    report = json.loads(path.read_text())
+    for row in rows:
+        earlier = row["transfer"]
+        if earlier.get("proxsuite_build") == BUILD:
+            continue
+        name = f"rl_trunk{tag}_noise{row['level']:g}_draw{row['draw']}"
+        row["transfer"] = trunk_transfer_summary(OUT / name)
+        row["transfer"]["earlier_fem_mean_mm"] = earlier["fem"]["mean_final_distance_mm"]
+        row["transfer"]["earlier_build"] = earlier.get("proxsuite_build", "proxsuite_pywrap_avx512")
+        fem = row["transfer"]["fem"]["mean_final_distance_mm"]
+        print(f"{name}: FEM {fem:.2f} mm (earlier {row['transfer']['earlier_fem_mean_mm']:.2f})")
+        report["rows"] = rows
+        tmp = path.with_suffix(".tmp")
+        tmp.write_text(json.dumps(report, indent=1))
+        tmp.replace(path)
+    plot_trunk(rows, path.with_suffix(".png"))
+
+
 def main() -> None:
     parser = argparse.ArgumentParser()
     parser.add_argument("--robot", choices=("multigait", "trunk"), default="multigait")
@@ -153,6 +177,12 @@ def main() -> None:
     parser.add_argument("--draws", type=int, default=None, help="draws a level (seeds 0..)")
     parser.add_argument("--feedforward", type=float, default=0.0, help="transfer's blend")
     parser.add_argument("--tag", default="", help="suffix of the report and policy folders")
+    parser.add_argument(
+        "--retransfer",
+        action="store_true",
+        help="Trunk: transfer the report's policies again (not learnt again) where the row's"
+        " transfer ran under another ProxQP build than this process's; resumes",
+    )
     args = parser.parse_args()
     trunk = args.robot == "trunk"
     if trunk:
@@ -166,6 +196,11 @@ def main() -> None:
     rows = json.loads(path.read_text())["rows"] if args.draws is not None and path.exists() else []
     done = {(row["level"], row.get("draw")) for row in rows}
     base = None if args.parameters is None else json.loads(args.parameters.read_text())
+    if args.retransfer:
+        if not trunk or not rows:
+            parser.error("--retransfer takes --robot trunk and --draws, and a report with rows")
+        retransfer(rows, path, args.tag)
+        return
     for level in (float(v) for v in args.levels.split(",")):
         for draw in draws:
             if (level, draw) in done:

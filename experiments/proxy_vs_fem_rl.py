@@ -57,6 +57,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from pliant._proxsuite import BUILD
 from pliant.learn.evaluate import load_policy
 from pliant.learn.training import train
 from pliant.learn.vec import make_env
@@ -275,6 +276,8 @@ def main() -> None:
             "proxy_training_seconds": trained["training_seconds"],
             "time_register": args.time_register or 10,
             "rest_offset": args.rest_offset,
+            # the inverse QP's build: the baseline is reproducible bit for bit (pliant._proxsuite)
+            "proxsuite_build": BUILD,
             "fem": summary([r["fem_distance"] for r in rows]),
             "proxy": summary([r["proxy_distance"] for r in rows]),
             "transfers": rows,
@@ -323,6 +326,7 @@ def main() -> None:
             "episodes": direct,
         },
         "proxy_pipeline": None,
+        "proxsuite_build": BUILD,
         "thesis": {"proxy_pipeline_mm": 2.0, "rl_on_fem_mm": 4.5},
     }
     if not args.skip_pipeline:

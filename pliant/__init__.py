@@ -45,4 +45,7 @@ def _limit_blas_threads() -> None:
 
 _limit_blas_threads()
 
+# ProxQP's reproducible (baseline) build, loaded before anything else imports proxsuite.
+from pliant import _proxsuite  # noqa: E402, F401
+
 __version__ = "0.1.0"

@@ -11,8 +11,8 @@ import numpy as np
 import pytest
 import scipy.sparse.linalg as spla
 from conftest import MATERIALS, clamped_body, two_cable_beam
-from proxsuite import proxqp
 
+from pliant._proxsuite import proxqp
 from pliant.constraints.base import EmbeddedPoints
 from pliant.constraints.cable import CableActuator, CableBundle
 from pliant.constraints.cavity import CavityActuator

@@ -608,3 +608,46 @@ def test_a_bad_environment_action_is_a_pliant_error_and_gymnasiums() -> None:
         with pytest.raises(PliantError) as info:
             env.step(action)
         assert isinstance(info.value, gym.error.InvalidAction)
+
+
+REPRODUCIBLE_PUSH = """
+import hashlib, json, sys, warnings
+import numpy as np
+from pliant._proxsuite import BUILD
+from pliant.robots.trunk_cube import PushControl, trunk_push
+from pliant.solvers import ImplicitEuler
+
+junk = [np.empty(int(n)) for n in np.random.default_rng(SEED).integers(1, 5000, 40)]
+model = trunk_push()
+solver = ImplicitEuler(model, 0.01)
+state = model.rest_state()
+control = PushControl(state.rigid_positions[0] + np.array([3.0, 0.0, 0.0]))
+warnings.simplefilter("ignore")
+for _ in range(10):
+    state = solver.step(state, control)
+digest = hashlib.sha256(state.positions.tobytes() + state.actuation.tobytes()).hexdigest()
+print(json.dumps({"build": BUILD, "digest": digest}))
+"""
+
+
+def test_an_inverse_qp_trajectory_through_contacts_is_the_same_in_every_process() -> None:
+    """Ten steps of the Trunk pushing its cube by the QPCC (one ProxQP solve per active-set
+    round), in three fresh interpreters whose memory is laid out differently: the same state,
+    bit for bit. With proxsuite's AVX-512 build (what it loads by itself on this machine) the
+    three runs ended on three different states (measured, PLIANT_PROXSUITE_SIMD=1): its dense
+    reductions follow the data's alignment. Pliant loads the baseline build
+    (pliant._proxsuite)."""
+    runs = [run_isolated(REPRODUCIBLE_PUSH.replace("SEED", str(seed)))[0] for seed in range(3)]
+    assert {r["build"] for r in runs} == {"proxsuite_pywrap"}
+    assert len({r["digest"] for r in runs}) == 1
+
+
+def test_proxsuite_imported_before_pliant_keeps_its_build() -> None:
+    """A program that imports proxsuite itself before Pliant keeps the build proxsuite chose
+    (loading a second one would end the interpreter: nanobind refuses the duplicate types), and
+    Pliant reports it."""
+    code = "import proxsuite\nfrom pliant._proxsuite import BUILD, proxqp\n"
+    code += "import json; print(json.dumps({'build': BUILD, 'same': proxqp is proxsuite.proxqp}))"
+    (out,) = run_isolated(code)
+    assert out["same"]
+    assert out["build"].startswith("proxsuite_pywrap")

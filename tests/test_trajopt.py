@@ -278,7 +278,7 @@ def test_change_bound_optimum_against_a_qp_solver():
     rollouts; its optimum with -0.5 <= u <= 2 and |u_k - u_{k-1}| <= 0.1 is ProxQP's.
     Augmenting the state (the change as the control, a plain box) reaches it in a few
     iterations; the nodes' sequential boxes stop slightly above it."""
-    from proxsuite import proxqp
+    from pliant._proxsuite import proxqp
 
     n = 40
     system, cost = mass_spring(n)

@@ -24,8 +24,8 @@ from dataclasses import dataclass, field
 from typing import Literal, Protocol
 
 import numpy as np
-from proxsuite import proxqp
 
+from pliant._proxsuite import proxqp
 from pliant.condensed.equilibrium import load_step, rest_equilibrium
 from pliant.condensed.layout import ActuatorBounds, Layout
 from pliant.condensed.learned import LearnedCondensedModel

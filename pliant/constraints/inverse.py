@@ -7,9 +7,9 @@ import warnings
 from dataclasses import dataclass
 
 import numpy as np
-from proxsuite import proxqp
 from scipy.optimize import Bounds, LinearConstraint, linprog, minimize
 
+from pliant._proxsuite import proxqp
 from pliant.constraints.base import Actuator, actuator_bounds
 from pliant.constraints.condensed import CondensedProblem
 from pliant.errors import InfeasibleProblemError, SolverError
@@ -123,11 +123,11 @@ def solve_inverse(
     lower, upper = dmin - da_free, dmax - da_free
     c_mat = w_aa / c
     lo_box, hi_box = lo * c, hi * c
-    mu, z, status, iterations = _proxqp(
-        hess, grad, c_mat, lower, upper, lo_box, hi_box, tolerance, max_iterations
+    res = _solve_qp(
+        hess, grad, None, None, c_mat, lower, upper, lo_box, hi_box, tolerance, max_iterations
     )
-    solved = status == proxqp.QPSolverOutput.PROXQP_SOLVED
-    if not solved:
+    mu, z, iterations = res.x, res.z, res.iterations
+    if not res.solved:
         relax = _course_relaxation(c_mat, lower, upper, lo_box, hi_box)
         finite = np.abs(np.concatenate([lower, upper]))
         size = max(1.0, float(np.max(finite[np.isfinite(finite)], initial=0.0)))
@@ -146,10 +146,11 @@ def solve_inverse(
             message + "; course widened by that much", InfeasibleCourseWarning, stacklevel=3
         )
         lower, upper = lower - relax * (1 + 1e-9), upper + relax * (1 + 1e-9)
-        mu, z, status, iterations = _proxqp(
-            hess, grad, c_mat, lower, upper, lo_box, hi_box, tolerance, max_iterations
+        res = _solve_qp(
+            hess, grad, None, None, c_mat, lower, upper, lo_box, hi_box, tolerance, max_iterations
         )
-        if status != proxqp.QPSolverOutput.PROXQP_SOLVED:
+        mu, z, iterations = res.x, res.z, res.iterations
+        if not res.solved:
             mu = _bounded_least_squares(hess, grad, c_mat, lower, upper, lo_box, hi_box)
             lam = np.clip(mu / c, lo, hi)
             return InverseSolution(lam, w_ea @ lam + de_free, iterations)
@@ -190,12 +191,12 @@ def _bounded_least_squares(hess, grad, c_mat, lower, upper, lo_box, hi_box) -> n
     return x
 
 
-#: ProxQP's tolerance on infeasibility certificates (see _dense_qp).
+#: ProxQP's tolerance on infeasibility certificates (see _qp_settings).
 INFEASIBILITY_TOLERANCE = 1e-12
 
 
-def _dense_qp(n: int, n_eq: int, n_in: int, tolerance: float, max_iterations: int):
-    """A ProxQP dense QP with box constraints, absolute tolerance only.
+def _qp_settings(qp, tolerance: float, max_iterations: int) -> None:
+    """Absolute tolerance only, and tight infeasibility certificates.
 
     ProxQP's infeasibility certificates are tested against 1e-4 by default, relative to the
     problem's unscaled data: on the compliance rows of a resting Multigait (45 sticking
@@ -203,33 +204,52 @@ def _dense_qp(n: int, n_eq: int, n_in: int, tolerance: float, max_iterations: in
     iteration, and the QPCC then rejected the contact states the robot was in. A certificate
     must now be tight; a truly infeasible QP ends at `max_iterations` instead.
     """
-    qp = proxqp.dense.QP(n, n_eq, n_in, True)
     qp.settings.eps_abs = tolerance
     qp.settings.eps_rel = 0.0
     qp.settings.max_iter = max_iterations
     qp.settings.eps_primal_inf = INFEASIBILITY_TOLERANCE
     qp.settings.eps_dual_inf = INFEASIBILITY_TOLERANCE
-    return qp
 
 
-def _proxqp(hess, grad, c_mat, lower, upper, lo_box, hi_box, tolerance, max_iterations):
-    # proxsuite wants finite bounds: replace infinities by a bound far outside the solution.
+@dataclass
+class _QPResult:
+    x: np.ndarray
+    y: np.ndarray  # equality multipliers
+    z: np.ndarray  # inequality multipliers, then the box's (one per unknown)
+    solved: bool
+    iterations: int
+
+
+def _solve_qp(
+    hess, grad, eq, eq_rhs, ineq, lower, upper, box_lo, box_hi, tolerance, max_iterations
+):
+    """min 1/2 x H x + g x  s.t.  eq x = eq_rhs, lower <= ineq x <= upper, box_lo <= x <=
+    box_hi, by ProxQP's dense backend (`eq` may be None; infinite bounds are replaced by 1e20,
+    which ProxQP needs finite). ProxQP's build is the one :mod:`pliant._proxsuite` loads: the
+    same answer, bit for bit, in every process."""
     big = 1e20
-    qp = _dense_qp(grad.size, 0, c_mat.shape[0], tolerance, max_iterations)
+    qp = proxqp.dense.QP(grad.size, 0 if eq is None else eq.shape[0], ineq.shape[0], True)
+    _qp_settings(qp, tolerance, max_iterations)
     qp.init(
         hess,
         grad,
-        None,
-        None,
-        c_mat,
+        eq,
+        eq_rhs,
+        ineq,
         np.clip(lower, -big, big),
         np.clip(upper, -big, big),
-        np.clip(lo_box, -big, big),
-        np.clip(hi_box, -big, big),
+        np.clip(box_lo, -big, big),
+        np.clip(box_hi, -big, big),
     )
     qp.solve()
     res = qp.results
-    return res.x.copy(), res.z.copy(), res.info.status, int(res.info.iter)
+    return _QPResult(
+        res.x.copy(),
+        res.y.copy(),
+        res.z.copy(),
+        res.info.status == proxqp.QPSolverOutput.PROXQP_SOLVED,
+        int(res.info.iter),
+    )
 
 
 @dataclass
@@ -333,10 +353,7 @@ class _ContactQP:
         keep = np.ones(n, dtype=bool)
         for k in np.flatnonzero(~closed):
             keep[normal[k] : normal[k] + 3] = False
-        qp = _dense_qp(
-            int(keep.sum()), len(eq_rows), len(in_rows), self.tolerance, self.max_iterations
-        )
-        qp.init(
+        res = _solve_qp(
             hess[np.ix_(keep, keep)],
             grad[keep],
             np.array(eq_rows)[:, keep] if eq_rows else None,
@@ -346,13 +363,14 @@ class _ContactQP:
             np.array(in_hi),
             box_lo[keep],
             box_hi[keep],
+            self.tolerance,
+            self.max_iterations,
         )
-        qp.solve()
-        if qp.results.info.status != proxqp.QPSolverOutput.PROXQP_SOLVED:
+        if not res.solved:
             return None
         mu = np.zeros(n)
-        mu[keep] = qp.results.x
-        return mu, qp.results.y.copy(), qp.results.z.copy(), stick_rows, slide_rows, gap_rows
+        mu[keep] = res.x
+        return mu, res.y, res.z, stick_rows, slide_rows, gap_rows
 
 
 def _settle_probe(tangent: float, normal: float, pyramid: float) -> int:
