@@ -17,7 +17,8 @@ The price is small where Pliant's QPs are (measured on random dense QPs with box
 for 150; 355 against 211 ms for 400). proxsuite picks its build from
 ``proxsuite.instructionset``; a stand-in that reports no AVX is placed where its loader looks
 for that module, for the time of the import only. If a later proxsuite loads its builds
-otherwise, the stand-in is ignored and its choice stands.
+otherwise, the stand-in is ignored and its choice stands; if it has no baseline build, it is
+imported again as it would be (its vectorised build).
 """
 
 from __future__ import annotations
@@ -39,6 +40,11 @@ def _load():
                 del sys.modules["proxsuite.instructionset"]
             if getattr(sys.modules.get("proxsuite"), "instructionset", None) is baseline:
                 del sys.modules["proxsuite"].instructionset
+        try:
+            return proxsuite.proxqp
+        except AttributeError:  # a proxsuite without the baseline build: load it as it would
+            for name in [m for m in sys.modules if m == "proxsuite" or m.startswith("proxsuite.")]:
+                del sys.modules[name]
     import proxsuite
 
     return proxsuite.proxqp

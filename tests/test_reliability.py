@@ -651,3 +651,25 @@ def test_proxsuite_imported_before_pliant_keeps_its_build() -> None:
     (out,) = run_isolated(code)
     assert out["same"]
     assert out["build"].startswith("proxsuite_pywrap")
+
+
+def test_a_proxsuite_without_its_baseline_build_still_loads() -> None:
+    """Where proxsuite ships no baseline build, Pliant imports it as proxsuite would (its
+    vectorised build) instead of failing."""
+    probe = "import json, proxsuite.instructionset as i; print(json.dumps({'avx2': i.has_AVX2()}))"
+    if not run_isolated(probe)[0]["avx2"]:
+        pytest.skip("this CPU runs no vectorised proxsuite build to fall back on")
+    code = """
+        import importlib, json
+        real = importlib.import_module
+        def without_baseline(name, package=None):
+            if (name, package) == (".proxsuite_pywrap", "proxsuite"):
+                raise ModuleNotFoundError("no baseline build (simulated)")
+            return real(name, package)
+        importlib.import_module = without_baseline
+        from pliant._proxsuite import BUILD, proxqp
+        qp = proxqp.dense.QP(1, 0, 0)
+        print(json.dumps({"build": BUILD}))
+    """
+    (out,) = run_isolated(code)
+    assert out["build"].startswith("proxsuite_pywrap_")
