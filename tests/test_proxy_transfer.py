@@ -239,6 +239,7 @@ def test_the_transfer_command_writes_both_trajectories_and_refuses_bad_actions(t
     report = json.loads((tmp_path / "trunk_transfer.json").read_text())
     assert (tmp_path / "trunk_transfer.png").stat().st_size > 0
     assert len(report["steps"]) == 2 and report["failed_inverse_steps"] == 0
+    assert report["proxsuite_build"] == "proxsuite_pywrap"  # the reproducible build
     start = report["start"]
     proxy, fem = report["steps"][-1]["proxy_position"], report["steps"][-1]["fem_position"]
     assert proxy[0] > start[0] + 5.0 and fem[0] > start[0] + 5.0

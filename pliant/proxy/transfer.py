@@ -68,6 +68,7 @@ from dataclasses import asdict, dataclass, field, replace
 import numpy as np
 from scipy.optimize import lsq_linear
 
+from pliant._proxsuite import BUILD
 from pliant.constraints.base import EmbeddedPoints
 from pliant.constraints.control import InverseControl
 from pliant.constraints.effector import PositionEffector
@@ -325,6 +326,8 @@ class TransferResult:
             "final_gap_over_travel": self.final_gap / max(self.fem_travel, 1e-12),
             "failed_inverse_steps": self.failed_inverse_steps,
             "wall_time_s": self.wall_time,
+            # the inverse QP's build (pliant._proxsuite): the baseline one is reproducible
+            "proxsuite_build": BUILD,
             "steps": [asdict(s) for s in self.steps],
             "times": self.times,
             "proxy_trajectory": self.proxy_trajectory,
