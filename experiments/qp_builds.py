@@ -78,14 +78,10 @@ print(json.dumps(out))
 def measure(simd: bool, repeats: int) -> dict:
     code = MEASURE.replace("SIZES", repr(SIZES)).replace("REPEATS", str(repeats))
     env = {**os.environ, "PLIANT_PROXSUITE_SIMD": "1" if simd else "0"}
-    proc = subprocess.run(
-        [sys.executable, "-c", textwrap.dedent(code)],
-        capture_output=True,
-        text=True,
-        env=env,
-        check=True,
+    output = subprocess.check_output(
+        [sys.executable, "-c", textwrap.dedent(code)], env=env, text=True
     )
-    return json.loads(proc.stdout.strip().splitlines()[-1])
+    return json.loads(output.strip().splitlines()[-1])
 
 
 def main() -> None:
