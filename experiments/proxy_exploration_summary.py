@@ -36,8 +36,13 @@ def transferred(name: str, seed: int) -> dict:
     return both
 
 
+#: the ProxQP build of the transfers whose reports do not say (before session 36, this machine)
+EARLIER_BUILD = "proxsuite_pywrap_avx512"
+
+
 def proxy_side(tag: str, seeds=SEEDS) -> list[dict]:
-    """Each seed's policy on its proxy (proxy_rl.py's evaluation) and transferred to the FEM."""
+    """Each seed's policy on its proxy (proxy_rl.py's evaluation) and transferred to the FEM
+    (with the inverse QP's ProxQP build of the transfer)."""
     rows = []
     for s in seeds:
         name = seeded(f"rl_trunk{tag}", s)
@@ -52,6 +57,7 @@ def proxy_side(tag: str, seeds=SEEDS) -> list[dict]:
                 "on_fem_mm": moved["fem"]["mean_final_distance_mm"],
                 "on_fem_solved": moved["fem"]["solved_under_8mm"],
                 "training_seconds": own["training_seconds"],
+                "proxsuite_build": moved.get("proxsuite_build", EARLIER_BUILD),
             }
         )
     return rows

@@ -44,10 +44,12 @@ from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
+from proxy_exploration_summary import EARLIER_BUILD
 from proxy_rl import degraded, learn
 from proxy_vs_fem_rl import summary, transfer_proxy_policy
 
 from pliant._proxsuite import BUILD
+from pliant.condensed.dataset import atomic_write
 from pliant.learn.evaluate import load_policy
 from pliant.proxy.transfer import FORWARD, MULTIGAIT_GAINS, multigait_transfer
 
@@ -142,26 +144,23 @@ def plot_trunk(rows: list[dict], path: Path) -> None:
     fig.savefig(path, dpi=120)
 
 
-def retransfer(rows: list[dict], path: Path, tag: str) -> None:
+def retransfer(report: dict, path: Path, tag: str) -> None:
     """Transfer each row's Trunk policy again under this process's ProxQP build, the row's
-    earlier FEM mean kept beside it (``earlier_fem_mean_mm``, ``earlier_build``); rows already
-    transferred under this build are left alone, so a stopped run goes on."""
-    report = json.loads(path.read_text())
-    for row in rows:
+    earlier FEM mean kept beside it (``earlier_fem_mean_mm``, ``earlier_build``), the report
+    written back after each row; rows already transferred under this build are left alone, so
+    a stopped run goes on."""
+    for row in report["rows"]:
         earlier = row["transfer"]
         if earlier.get("proxsuite_build") == BUILD:
             continue
         name = f"rl_trunk{tag}_noise{row['level']:g}_draw{row['draw']}"
         row["transfer"] = trunk_transfer_summary(OUT / name)
         row["transfer"]["earlier_fem_mean_mm"] = earlier["fem"]["mean_final_distance_mm"]
-        row["transfer"]["earlier_build"] = earlier.get("proxsuite_build", "proxsuite_pywrap_avx512")
+        row["transfer"]["earlier_build"] = earlier.get("proxsuite_build", EARLIER_BUILD)
         fem = row["transfer"]["fem"]["mean_final_distance_mm"]
         print(f"{name}: FEM {fem:.2f} mm (earlier {row['transfer']['earlier_fem_mean_mm']:.2f})")
-        report["rows"] = rows
-        tmp = path.with_suffix(".tmp")
-        tmp.write_text(json.dumps(report, indent=1))
-        tmp.replace(path)
-    plot_trunk(rows, path.with_suffix(".png"))
+        atomic_write(path, lambda tmp: Path(tmp).write_text(json.dumps(report, indent=1)))
+    plot_trunk(report["rows"], path.with_suffix(".png"))
 
 
 def main() -> None:
@@ -193,14 +192,15 @@ def main() -> None:
     path = OUT / f"robustness{args.tag}.json"
     # One draw (seed 0) without --draws, named as before; a run with --draws resumes.
     draws = [None] if args.draws is None else list(range(args.draws))
-    rows = json.loads(path.read_text())["rows"] if args.draws is not None and path.exists() else []
-    done = {(row["level"], row.get("draw")) for row in rows}
-    base = None if args.parameters is None else json.loads(args.parameters.read_text())
+    earlier = json.loads(path.read_text()) if args.draws is not None and path.exists() else None
+    rows = earlier["rows"] if earlier else []
     if args.retransfer:
         if not trunk or not rows:
             parser.error("--retransfer takes --robot trunk and --draws, and a report with rows")
-        retransfer(rows, path, args.tag)
+        retransfer(earlier, path, args.tag)
         return
+    done = {(row["level"], row.get("draw")) for row in rows}
+    base = None if args.parameters is None else json.loads(args.parameters.read_text())
     for level in (float(v) for v in args.levels.split(",")):
         for draw in draws:
             if (level, draw) in done:

@@ -73,10 +73,6 @@ PAIRS = (
 )
 
 
-#: the ProxQP build of the transfers whose reports do not say (before session 36, this machine)
-EARLIER_BUILD = "proxsuite_pywrap_avx512"
-
-
 def run_seeds(report: Callable[[int], Path], seeds: range) -> tuple[list[int], list[int]]:
     """The seeds among `seeds` whose report (the path `report` gives for a seed) exists, and
     those missing (a run not done yet: the summary lists them rather than failing)."""
@@ -134,19 +130,13 @@ def main() -> None:
             lambda s, tag=tag: FEM / f"report_{seeded(f'rl_trunk{tag}', s)}.json", seeds
         )
         rows[label] = proxy_side(tag, seeds=done)
-        builds = {
-            json.loads((FEM / f"report_{seeded(f'rl_trunk{tag}', s)}.json").read_text()).get(
-                "proxsuite_build", EARLIER_BUILD
-            )
-            for s in done
-        }
         out["sides"][label] = {
             "tag": tag,
             "proxy_simulation_steps": simulation_steps,
             "missing_seeds": missing,
             # the inverse QP's build in the transfers: the baseline is reproducible, the
             # vectorised builds (every transfer before session 36) are not (docs/proxy.md)
-            "proxsuite_builds": sorted(builds),
+            "proxsuite_builds": sorted({r["proxsuite_build"] for r in rows[label]}),
             "seeds": rows[label],
             **means(rows[label], ("on_proxy_mm", "on_proxy_solved", "on_fem_mm", "on_fem_solved")),
         }
