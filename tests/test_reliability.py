@@ -673,3 +673,50 @@ def test_a_proxsuite_without_its_baseline_build_still_loads() -> None:
     """
     (out,) = run_isolated(code)
     assert out["build"].startswith("proxsuite_pywrap_")
+
+
+def _contradiction(n: int = 40):
+    """A QP whose two inequalities, a.x >= 1 and a.x <= 0.999, have no common point: ProxQP
+    with Pliant's tight certificates runs out its iterations on it without certifying."""
+    rng = np.random.default_rng(0)
+    m = rng.standard_normal((n, n))
+    a = rng.standard_normal(n)
+    free = np.full(n, 1e20)
+    return (
+        m @ m.T / n + 1e-3 * np.eye(n),
+        rng.standard_normal(n),
+        None,
+        None,
+        np.vstack([a, a]),
+        np.array([1.0, -1e20]),
+        np.array([1e20, 0.999]),
+        -free,
+        free,
+    )
+
+
+def test_an_infeasible_qp_is_found_after_the_first_attempt_not_the_full_one(monkeypatch) -> None:
+    """ProxQP's certificates are too tight to fire here (a full attempt: 1000 iterations,
+    unsolved, uncertified); the solve stops after its first bounded attempt, on HiGHS's
+    verdict."""
+    from pliant.constraints import inverse
+
+    full = inverse._proxqp(_contradiction(), 1e-9, 1000, None)
+    assert not full.solved and not full.infeasible and full.iterations == 1000
+    res = inverse._solve_qp(*_contradiction(), 1e-9, 1000)
+    assert not res.solved and res.infeasible
+    assert res.iterations <= inverse.FIRST_OUTER * inverse.FIRST_INNER
+
+
+def test_a_feasible_qp_past_the_first_attempt_is_solved_by_the_full_one(monkeypatch) -> None:
+    """With a first attempt of one iteration, which cannot solve it, a feasible QP is still
+    solved, to the answer of one full attempt, bit for bit."""
+    from pliant.constraints import inverse
+
+    data = list(_contradiction())
+    data[6] = np.array([1e20, 1.5])  # 1 <= a.x <= 1.5: feasible
+    full = inverse._proxqp(tuple(data), 1e-9, 1000, None)
+    assert full.solved
+    monkeypatch.setattr(inverse, "FIRST_OUTER", 1)
+    res = inverse._solve_qp(*data, 1e-9, 1000)
+    assert res.solved and np.array_equal(res.x, full.x)
