@@ -73,7 +73,7 @@ from pliant.constraints.base import EmbeddedPoints
 from pliant.constraints.control import InverseControl
 from pliant.constraints.effector import PositionEffector
 from pliant.envs.base import Ramp, SoftRobotEnv
-from pliant.errors import ModelError, PliantError, SolverError
+from pliant.errors import ContactConvergenceWarning, ModelError, PliantError, SolverError
 from pliant.fem.rotation import exp_map, log_map
 from pliant.mesh.multigait import CHAMBERS
 from pliant.model import Model, State
@@ -286,6 +286,9 @@ class TransferResult:
     fem_trajectory: list[list[float]] = field(default_factory=list)
     actuation: list[list[float]] = field(default_factory=list)
     failed_inverse_steps: int = 0
+    #: look-ahead steps of the inverse QP whose contact states did not settle, or had no
+    #: solution (their actuators kept the previous step's forces): ContactConvergenceWarning
+    unsettled_inverse_steps: int = 0
     wall_time: float = 0.0
     start: list[float] = field(default_factory=list)
 
@@ -325,6 +328,7 @@ class TransferResult:
             "fem_travel_mm": self.fem_travel,
             "final_gap_over_travel": self.final_gap / max(self.fem_travel, 1e-12),
             "failed_inverse_steps": self.failed_inverse_steps,
+            "unsettled_inverse_steps": self.unsettled_inverse_steps,
             "wall_time_s": self.wall_time,
             # the inverse QP's build (pliant._proxsuite): the baseline one is reproducible
             "proxsuite_build": BUILD,
@@ -458,8 +462,9 @@ class Transfer:
         contacts = self.fem.contacts
         friction = None if contacts is None else contacts.friction
         try:
-            with warnings.catch_warnings():  # a far goal widens the course: expected here
-                warnings.simplefilter("ignore")
+            # A far goal widens the course (expected here): the warnings are counted, not shown.
+            with warnings.catch_warnings(record=True) as caught:
+                warnings.simplefilter("always")
                 if contacts is not None and not g.lookahead_friction:
                     contacts.friction = np.zeros_like(friction)
                 for _ in range(g.inverse_steps):
@@ -467,6 +472,9 @@ class Transfer:
         finally:
             if contacts is not None:
                 contacts.friction = friction
+        self.result.unsettled_inverse_steps += sum(
+            issubclass(w.category, ContactConvergenceWarning) for w in caught
+        )
         return look.displacement
 
     def roll_out(self, actuation: np.ndarray) -> np.ndarray:
