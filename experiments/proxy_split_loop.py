@@ -20,14 +20,12 @@ from __future__ import annotations
 import argparse
 import json
 import time
-import warnings
 from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 
 from pliant.condensed.dataset import atomic_write
-from pliant.constraints.control import InverseControl
 from pliant.proxy.transfer import (
     MULTIGAIT_GAINS,
     EmbeddedPoints,
@@ -35,7 +33,6 @@ from pliant.proxy.transfer import (
     multigait_transfer,
     with_effector,
 )
-from pliant.robots.multigait import multigait
 from pliant.solvers import ImplicitEuler
 
 SEQUENCE = (4, 0, 0, 2, 5, 1, 3, 4)
@@ -65,43 +62,18 @@ def split_transfer(model: str, angle_gain: float) -> MultigaitTransfer:
     )
     t = multigait_transfer(gains=gains)
     rod = t.env.proxy.rod
-    every = t.points
     body = body_nodes(rod.n_centreline)
-    robot = multigait()
     tracked = EmbeddedPoints(
-        robot.body.mesh,
+        t.fem.body.mesh,
         rod.centreline(rod.rest_positions)[body],
         tolerance=5.0,
         outside="keep",
     )
-    t.fem = with_effector(robot, tracked)
+    t.fem = with_effector(t.fem, tracked)  # the records keep t.points: all 19
     t.solver = ImplicitEuler(t.fem, dt=t.env.dt / gains.fem_substeps)
-    t.state = t.fem.rest_state()
-    t.points = every
-
-    def qp_inverse(target: np.ndarray) -> np.ndarray:
-        look = t.state.copy()
-        contacts = t.fem.contacts
-        friction = contacts.friction
-        try:
-            with warnings.catch_warnings():
-                warnings.simplefilter("ignore")
-                contacts.friction = np.zeros_like(friction)
-                for _ in range(gains.inverse_steps):
-                    look = t.solver.step(look, InverseControl(goals=target[body]))
-        finally:
-            contacts.friction = friction
-        return look.displacement
-
-    def roll_out(actuation: np.ndarray) -> np.ndarray:
-        look = t.state.copy()
-        for _ in range(gains.inverse_steps):
-            look = t.solver.step(look, actuation)
-        return every.positions(look.positions)[body]
-
-    sensitivity = t.sensitivity_inverse
-    t.qp_inverse = qp_inverse
-    t.roll_out = roll_out
+    qp_inverse, roll_out, sensitivity = t.qp_inverse, t.roll_out, t.sensitivity_inverse
+    t.qp_inverse = lambda target: qp_inverse(target[body])
+    t.roll_out = lambda actuation: roll_out(actuation)[body]
     t.sensitivity_inverse = lambda target: sensitivity(target[body])
     return t
 

@@ -695,7 +695,7 @@ def _contradiction(n: int = 40):
     )
 
 
-def test_an_infeasible_qp_is_found_after_the_first_attempt_not_the_full_one(monkeypatch) -> None:
+def test_an_infeasible_qp_is_found_after_the_first_attempt_not_the_full_one() -> None:
     """ProxQP's certificates are too tight to fire here (a full attempt: 1000 iterations,
     unsolved, uncertified); the solve stops after its first bounded attempt, on HiGHS's
     verdict."""
