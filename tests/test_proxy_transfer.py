@@ -16,8 +16,10 @@ from pliant.proxy.transfer import (
     MULTIGAIT_VOLUMES,
     ActuationFilter,
     TransferGains,
+    impose_points,
     multigait_transfer,
     rigid_fit,
+    underside_points,
 )
 
 
@@ -44,7 +46,7 @@ def test_gains_refuse_a_rate_outside_0_1_and_crossed_bounds() -> None:
         dataclasses.replace(MULTIGAIT_GAINS, rate=1.5)
     with pytest.raises(ModelError, match="lower <= upper"):
         TransferGains(scale=1, time_register=0, rate=1.0, kp=0.0, lower=(1.0,), upper=(0.0,))
-    with pytest.raises(ModelError, match="'qp' or 'sensitivity'"):
+    with pytest.raises(ModelError, match="one of qp, twin, sensitivity"):
         dataclasses.replace(MULTIGAIT_GAINS, inverse_model="newton")
     with pytest.raises(ModelError, match="scale s"):
         dataclasses.replace(MULTIGAIT_GAINS, gain=0.0)
@@ -106,6 +108,58 @@ def test_a_short_multigait_transfer_moves_the_fem_as_the_proxy(short_multigait) 
     assert np.all(a >= np.array(loop.gains.lower)) and np.all(a <= np.array(loop.gains.upper))
     assert a[3:].min() > 0.0  # the rear chambers inflated
     assert result.failed_inverse_steps == 0
+
+
+def test_underside_points_lie_on_the_floor_at_rest_and_ride_rigidly_on_the_skeleton(
+    short_multigait,
+) -> None:
+    """The points under the Multigait proxy's nodes: on the floor (z = 0) under each node at
+    rest; turned and shifted with the skeleton (its nodes and frames moved rigidly by
+    impose_points), they move by that very motion."""
+    rod = short_multigait.env.proxy.rod
+    under = underside_points(rod)
+    rest = rod.rest_positions
+    nodes, points = rod.centreline(rest), under(rest)
+    np.testing.assert_allclose(points[:, 2], 0.0, atol=1e-12)
+    np.testing.assert_allclose(points[:, :2], nodes[:, :2], atol=1e-12)
+    turn = axis_angle([1.0, 0.5, 2.0], 0.6)
+    shift = np.array([4.0, -2.0, 7.0])
+    state = short_multigait.env.state
+    state = dataclasses.replace(state, positions=rest.copy())
+    moved = impose_points(rod, state, nodes @ turn.T + shift, np.zeros_like(nodes))
+    np.testing.assert_allclose(under(moved.positions), points @ turn.T + shift, atol=1e-9)
+
+
+def test_the_twin_goes_on_between_sub_steps_and_is_registered_at_the_realignment() -> None:
+    """inverse_model="twin" (the authors' inverse scene): the twin advances inverse_steps
+    steps a sub-step from where it was, so its clock runs twice the FEM's here, until the
+    realignment sets it to the FEM's state; the rear chambers inflate and the FEM's matched
+    points move the way the proxy's do (cosine > 0.7; measured 0.92), the matched points
+    on the underside here; a robot on a moving base refuses the twin."""
+    gains = dataclasses.replace(
+        MULTIGAIT_GAINS, scale=10, time_register=2, inverse_steps=2, inverse_model="twin"
+    )
+    loop = multigait_transfer(gains=gains, mesh_size=9.0, matched="underside")
+    dt = loop.env.dt
+    rest = loop.points.positions(loop.state.positions)
+    proxy_rest = loop.proxy_points(loop.env.state.positions)
+    clocks = []
+
+    def progress(k, record) -> None:
+        clocks.append((loop.state.time / dt, loop.twin.time / dt))
+
+    result = loop.run([4, 4, 4], progress=progress)
+    assert [s.realigned for s in result.steps] == [False, False, True]
+    np.testing.assert_allclose(clocks, [(10, 20), (20, 40), (30, 40)], atol=1e-6)
+    fem = loop.points.positions(loop.state.positions) - rest
+    proxy = loop.proxy_points(loop.env.state.positions) - proxy_rest
+    cosine = float(np.sum(fem * proxy) / (np.linalg.norm(fem) * np.linalg.norm(proxy)))
+    assert cosine > 0.7
+    assert loop.filter.value[3:].min() > 0.0
+    from pliant.proxy.transfer import TRUNK_GAINS, trunk_transfer
+
+    with pytest.raises(ModelError, match="moving base"):
+        trunk_transfer(gains=dataclasses.replace(TRUNK_GAINS, inverse_model="twin"))
 
 
 @pytest.fixture(scope="module")
@@ -254,7 +308,12 @@ def test_the_transfer_command_writes_both_trajectories_and_refuses_bad_actions(t
     assert report["failed_inverse_steps"] == 0
     assert report["steps"][-1]["fem_position"][0] > start[0] + 5.0
     refused = runner.invoke(app, [*args, "--inverse-model", "newton"])
-    assert refused.exit_code == 1 and "'qp' or 'sensitivity'" in refused.output
+    assert refused.exit_code == 1 and "one of qp, twin, sensitivity" in refused.output
+    refused = runner.invoke(app, [*args, "--inverse-model", "twin"])  # the base's clock
+    assert refused.exit_code == 1 and "moving base" in refused.output
+    for robot, matched in (("trunk", "underside"), ("multigait", "middle")):
+        refused = runner.invoke(app, ["proxy", "transfer", robot, "--matched", matched])
+        assert refused.exit_code == 2 and "--matched" in refused.output
     # --proxy: a calibration report's proxy, here the defaults touching through the surface.
     from pliant.proxy.builders import TRUNK_PARAMETERS
 

@@ -352,8 +352,17 @@ def transfer(
     inverse_model: Annotated[
         str | None,
         typer.Option(
-            help="'qp' (the thesis' inverse QP look-ahead) or 'sensitivity' (bounded least"
-            " squares on the FEM step's actuation Jacobian, roll-outs with its friction)"
+            help="'qp' (the inverse QP's look-ahead from the FEM's state), 'twin' (the"
+            " authors' inverse scene: a second FEM under the inverse QP, registered on the FEM"
+            " at the realignments) or 'sensitivity' (bounded least squares on the FEM step's"
+            " actuation Jacobian, roll-outs with its friction)"
+        ),
+    ] = None,
+    matched: Annotated[
+        str | None,
+        typer.Option(
+            help="multigait: the matched points, the skeleton's nodes at mid-thickness ('axis',"
+            " the default) or under them on the underside ('underside', the authors' effectors)"
         ),
     ] = None,
     goal: Annotated[
@@ -390,6 +399,12 @@ def transfer(
         if v is not None
     }
     options: dict = {"gains": dataclasses.replace(GAINS[robot], **changes)}
+    if matched is not None:
+        if robot != "multigait":
+            raise typer.BadParameter("--matched is the multigait's")
+        if matched not in ("axis", "underside"):
+            raise typer.BadParameter(f"--matched: 'axis' or 'underside', got {matched!r}")
+        options["matched"] = matched
     if goal is not None:
         if robot != "trunk":
             raise typer.BadParameter("--goal is the trunk's")

@@ -21,6 +21,12 @@ a position effector of the FEM robot on the same points, and for each sub-step:
    contact states in its 30 rounds, 7.5 s, then no friction states a few steps on), so the
    FEM does not move; frictionless, it solves.
    The FEM's own step (5.) keeps its friction.
+   ``inverse_model="twin"`` is the authors' arrangement (their ``ControllerWithProxy`` and
+   inverse scene): the look-ahead is not restarted from the FEM at each sub-step but is a
+   second FEM simulation, the twin, that the inverse QP drives ``inverse_steps`` steps a
+   sub-step towards g' and that goes on from where it is; it is registered on the FEM (set
+   to its state) only at the realignments. Its clock runs ``inverse_steps`` times the
+   FEM's, so a robot on a moving base refuses it.
    ``inverse_model="sensitivity"`` (a departure) instead linearises the FEM's own step, with
    its frictional contacts: the matched points p(a) after ``inverse_steps`` steps under a
    held actuation a are rolled out from the FEM's state at the applied actuation a_0 and at
@@ -81,6 +87,7 @@ from pliant.robots.multigait import chamber_amplitudes
 from pliant.solvers import ImplicitEuler
 
 FORWARD = np.array([-1.0, 0.0, 0.0])  # the Multigait's forward direction (its environments')
+INVERSE_MODELS = ("qp", "twin", "sensitivity")
 
 
 @dataclass(frozen=True)
@@ -105,9 +112,12 @@ class TransferGains:
             place on the floor: its goals are translated in the floor plane by the mean gap
             between the proxy's and the FEM's matched points (:meth:`Transfer.goal_shift`);
             how far the FEM walks is then left to its own contacts' friction.
-        inverse_model: "qp", the thesis' inverse QP look-ahead, or "sensitivity", the bounded
-            least squares on the FEM step's actuation Jacobian by finite differences of
-            roll-outs with the FEM's own (frictional) contacts (module docstring, 2.).
+        inverse_model: "qp", the inverse QP's look-ahead from a copy of the FEM's state at
+            each sub-step; "twin", the authors' inverse scene: a second FEM simulation under
+            the inverse QP, stepped ``inverse_steps`` times a sub-step and registered on the
+            FEM only at the realignments; or "sensitivity", the bounded least squares on the
+            FEM step's actuation Jacobian by finite differences of roll-outs with the FEM's
+            own (frictional) contacts (module docstring, 2.).
         sensitivity_step: the finite-difference step of "sensitivity", a fraction of each
             actuator's bound range.
         rest_offset: the goals carry the gap between the two models' matched points at the
@@ -138,9 +148,10 @@ class TransferGains:
     fem_substeps: int = 1
 
     def __post_init__(self) -> None:
-        if self.inverse_model not in ("qp", "sensitivity"):
+        if self.inverse_model not in INVERSE_MODELS:
             raise ModelError(
-                f"the inverse model is 'qp' or 'sensitivity', got {self.inverse_model!r}"
+                f"the inverse model is one of {', '.join(INVERSE_MODELS)},"
+                f" got {self.inverse_model!r}"
             )
         if not 0.0 < self.sensitivity_step <= 0.5:
             raise ModelError(
@@ -374,6 +385,11 @@ class Transfer:
             raise ModelError("the FEM model needs one effector and a bound pair per actuator")
         if gains.follow_shape and not self.follows_shape:
             raise ModelError(f"the {self.robot} transfer follows places: keep follow_shape off")
+        if gains.inverse_model == "twin" and base is not None:
+            raise ModelError(
+                "the twin runs inverse_steps times the FEM's clock, which moves the base:"
+                " keep the 'qp' inverse model for a robot on a moving base"
+            )
         if gains.rest_offset and not self.keeps_points:
             raise ModelError(
                 f"the {self.robot}'s realignment moves the proxy's points: keep rest_offset off"
@@ -392,6 +408,8 @@ class Transfer:
         self.recorder = _Recorder(env.sim)
         env.sim = self.recorder
         self.result = TransferResult(self.robot, gains)
+        #: the inverse model's own FEM simulation (``inverse_model="twin"``)
+        self.twin = state.copy()
 
     # ------------------------------------------------------------------ robot-specific parts
     def proxy_position(self, state: State) -> np.ndarray:
@@ -445,6 +463,8 @@ class Transfer:
         try:
             if g.inverse_model == "sensitivity":
                 inverse = self.sensitivity_inverse(target)
+            elif g.inverse_model == "twin":
+                inverse = self.twin_inverse(target)
             else:
                 inverse = self.qp_inverse(target)
         except PliantError:  # no inverse step: keep the actuation
@@ -457,8 +477,17 @@ class Transfer:
 
     def qp_inverse(self, target: np.ndarray) -> np.ndarray:
         """a_inv of the inverse QP's look-ahead towards `target` (module docstring, 2.)."""
+        return self._inverse_steps(self.state.copy(), target).displacement
+
+    def twin_inverse(self, target: np.ndarray) -> np.ndarray:
+        """a_inv of the twin's ``inverse_steps`` steps towards `target`; the twin goes on
+        from where they leave it (module docstring, 2.)."""
+        self.twin = self._inverse_steps(self.twin, target)
+        return self.twin.displacement
+
+    def _inverse_steps(self, look: State, target: np.ndarray) -> State:
+        """`look` after ``inverse_steps`` steps of the inverse QP towards `target`."""
         g = self.gains
-        look = self.state.copy()
         contacts = self.fem.contacts
         friction = None if contacts is None else contacts.friction
         try:
@@ -475,7 +504,7 @@ class Transfer:
         self.result.unsettled_inverse_steps += sum(
             issubclass(w.category, ContactConvergenceWarning) for w in caught
         )
-        return look.displacement
+        return look
 
     def roll_out(self, actuation: np.ndarray) -> np.ndarray:
         """(K, 3) the matched points after ``inverse_steps`` FEM steps under `actuation`
@@ -579,6 +608,7 @@ class Transfer:
             due = every > 0 and k > 0 and k % every == 0
             if due:  # the policy re-plans from what the FEM did
                 self.realign()
+                self.twin = self.state.copy()  # and the twin goes on from it
             action = actions[k] if policy is None else policy(self.observation())
             record = self.step(action, realigned=due)
             if progress is not None:
@@ -598,6 +628,13 @@ class MultigaitTransfer(Transfer):
     robot = "multigait"
     follows_shape = True
     keeps_points = False
+
+    def __init__(self, *args, skeleton_points: EmbeddedPoints | None = None, **kwargs) -> None:
+        super().__init__(*args, **kwargs)
+        #: the FEM's points where the skeleton's nodes lie (mid-thickness), which the
+        #: realignment imposes on the proxy: the matched points unless they are elsewhere
+        self.skeleton_points = self.points if skeleton_points is None else skeleton_points
+
     # The skeleton's nodes of each leg, root to tip (pliant.proxy.builders.multigait_proxy).
     LEGS = {name: np.arange(3 + 4 * k, 7 + 4 * k) for k, name in enumerate(CHAMBERS[1:])}
 
@@ -618,8 +655,8 @@ class MultigaitTransfer(Transfer):
         snapshot.state = impose_points(
             self.env.proxy.rod,
             snapshot.state,
-            self.points.positions(self.state.positions),
-            self.points.positions(self.state.velocities),
+            self.skeleton_points.positions(self.state.positions),
+            self.skeleton_points.positions(self.state.velocities),
         )
         self.env.set_state(snapshot)
 
@@ -727,6 +764,21 @@ def proxy_timing(
     return {**kwargs, "dt": proxy_dt, "substeps": scale}, gains
 
 
+def underside_points(rod) -> Callable[[np.ndarray], np.ndarray]:
+    """Positions of a flat skeleton -> (N, 3) the points under its nodes on the underside:
+    each node moved by its rest height above the floor along its frame's axis that stood
+    vertical at rest (the points ride on the nodes' frames, as the skinned surface does)."""
+    rest = rod.rest_positions
+    frames = rod.frames(rest)
+    axis = int(np.argmax(np.abs(frames[0, 2, :])))
+    lever = rod.centreline(rest)[:, 2] * np.sign(frames[:, 2, axis])
+
+    def points(positions: np.ndarray) -> np.ndarray:
+        return rod.centreline(positions) - lever[:, None] * rod.frames(positions)[:, :, axis]
+
+    return points
+
+
 def multigait_transfer(
     *,
     gains: TransferGains = MULTIGAIT_GAINS,
@@ -734,24 +786,36 @@ def multigait_transfer(
     dt: float = 0.01,
     seed: int = 0,
     env_kwargs: dict | None = None,
+    matched: str = "axis",
 ) -> MultigaitTransfer:
     """The Multigait proxy environment (calibrated proxy; `env_kwargs` those of the policy's
     training, its time step with them: :func:`proxy_timing`) and the FEM Multigait (default
-    mesh, volume-controlled chambers, steps of `dt`), both from rest."""
+    mesh, volume-controlled chambers, steps of `dt`), both from rest. `matched`: the matched
+    points are the skeleton's nodes at mid-thickness ("axis") or under them on the underside
+    ("underside", where the authors' effectors sit: :func:`underside_points`); either way the
+    realignment imposes the FEM's mid-thickness points on the nodes."""
     from pliant.envs.multigait_proxy import MultigaitProxyEnv
     from pliant.robots.multigait import multigait
 
+    if matched not in ("axis", "underside"):
+        raise ModelError(f"the matched points are 'axis' or 'underside', got {matched!r}")
     kwargs, gains = proxy_timing(env_kwargs, gains, dt)
     env = MultigaitProxyEnv(**kwargs)
     env.reset(seed=seed)
     rod = env.proxy.rod
     robot = multigait(mesh_size=mesh_size)
-    # Skeleton nodes that fall in a chamber's slot follow the nearest element (SOFA's mapping).
-    points = EmbeddedPoints(
-        robot.body.mesh, rod.centreline(rod.rest_positions), tolerance=5.0, outside="keep"
-    )
+
+    def embedded(points: np.ndarray) -> EmbeddedPoints:
+        # Points that fall in a chamber's slot follow the nearest element (SOFA's mapping).
+        return EmbeddedPoints(robot.body.mesh, points, tolerance=5.0, outside="keep")
+
+    skeleton = embedded(rod.centreline(rod.rest_positions))
+    proxy_points = rod.centreline if matched == "axis" else underside_points(rod)
+    points = skeleton if matched == "axis" else embedded(proxy_points(rod.rest_positions))
     fem = with_effector(robot, points)
-    return MultigaitTransfer(env, fem, fem.rest_state(), gains, rod.centreline)
+    return MultigaitTransfer(
+        env, fem, fem.rest_state(), gains, proxy_points, skeleton_points=skeleton
+    )
 
 
 #: the Trunk's push along x: both beams bent towards +x (the cube's side; +d2) by 0.02 more
