@@ -162,6 +162,38 @@ def test_the_twin_goes_on_between_sub_steps_and_is_registered_at_the_realignment
         trunk_transfer(gains=dataclasses.replace(TRUNK_GAINS, inverse_model="twin"))
 
 
+def test_a_twin_that_fails_a_step_is_registered_on_the_fem_at_once() -> None:
+    """A twin step that diverges (forced here on the third sub-step) is counted as a failed
+    inverse step, the actuation kept, and the twin set to the FEM's state, from which it
+    goes on at the next sub-step."""
+    from pliant.errors import DivergenceError
+
+    gains = dataclasses.replace(
+        MULTIGAIT_GAINS, scale=5, time_register=0, inverse_steps=2, inverse_model="twin"
+    )
+    loop = multigait_transfer(gains=gains, mesh_size=9.0)
+    steps, calls = loop._inverse_steps, []
+
+    def failing(look, target):
+        calls.append(loop.state.time)
+        if len(calls) == 3:
+            raise DivergenceError("forced", step=0, cause="forced")
+        return steps(look, target)
+
+    loop._inverse_steps = failing
+    kept = {}
+
+    def progress(k, record) -> None:
+        kept["twin"], kept["fem"] = loop.twin.time, loop.state.time
+
+    result = loop.run([4], progress=progress)
+    assert result.failed_inverse_steps == 1 and result.twin_resets == 1
+    assert result.to_dict()["twin_resets"] == 1
+    dt = loop.env.dt
+    # registered at the third sub-step (FEM time 2 dt), then two sub-steps of 2 twin steps
+    assert kept["fem"] == pytest.approx(5 * dt) and kept["twin"] == pytest.approx(6 * dt)
+
+
 @pytest.fixture(scope="module")
 def sensitive_multigait():
     """The coarse Multigait transfer of `short_multigait` with the sensitivity inverse."""

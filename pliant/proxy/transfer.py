@@ -25,8 +25,9 @@ a position effector of the FEM robot on the same points, and for each sub-step:
    inverse scene): the look-ahead is not restarted from the FEM at each sub-step but is a
    second FEM simulation, the twin, that the inverse QP drives ``inverse_steps`` steps a
    sub-step towards g' and that goes on from where it is; it is registered on the FEM (set
-   to its state) only at the realignments. Its clock runs ``inverse_steps`` times the
-   FEM's, so a robot on a moving base refuses it.
+   to its state) at the realignments, and at once where it fails a step (a departure: the
+   authors' twin had no such guard). Its clock runs ``inverse_steps`` times the FEM's, so a
+   robot on a moving base refuses it.
    ``inverse_model="sensitivity"`` (a departure) instead linearises the FEM's own step, with
    its frictional contacts: the matched points p(a) after ``inverse_steps`` steps under a
    held actuation a are rolled out from the FEM's state at the applied actuation a_0 and at
@@ -297,6 +298,9 @@ class TransferResult:
     fem_trajectory: list[list[float]] = field(default_factory=list)
     actuation: list[list[float]] = field(default_factory=list)
     failed_inverse_steps: int = 0
+    #: times the twin (``inverse_model="twin"``) failed a step (diverged) and was registered
+    #: on the FEM again at once
+    twin_resets: int = 0
     #: look-ahead steps of the inverse QP whose contact states did not settle, or had no
     #: solution (their actuators kept the previous step's forces): ContactConvergenceWarning
     unsettled_inverse_steps: int = 0
@@ -339,6 +343,7 @@ class TransferResult:
             "fem_travel_mm": self.fem_travel,
             "final_gap_over_travel": self.final_gap / max(self.fem_travel, 1e-12),
             "failed_inverse_steps": self.failed_inverse_steps,
+            "twin_resets": self.twin_resets,
             "unsettled_inverse_steps": self.unsettled_inverse_steps,
             "wall_time_s": self.wall_time,
             # the inverse QP's build (pliant._proxsuite): the baseline one is reproducible
@@ -481,8 +486,16 @@ class Transfer:
 
     def twin_inverse(self, target: np.ndarray) -> np.ndarray:
         """a_inv of the twin's ``inverse_steps`` steps towards `target`; the twin goes on
-        from where they leave it (module docstring, 2.)."""
-        self.twin = self._inverse_steps(self.twin, target)
+        from where they leave it (module docstring, 2.). A twin that fails a step (its
+        elements inverted, say) would fail every step until the next realignment: it is
+        registered on the FEM at once (counted in ``twin_resets``) and the error passed on,
+        so that this sub-step keeps its actuation."""
+        try:
+            self.twin = self._inverse_steps(self.twin, target)
+        except PliantError:
+            self.twin = self.state.copy()
+            self.result.twin_resets += 1
+            raise
         return self.twin.displacement
 
     def _inverse_steps(self, look: State, target: np.ndarray) -> State:
