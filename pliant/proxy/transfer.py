@@ -116,9 +116,9 @@ class TransferGains:
         inverse_model: "qp", the inverse QP's look-ahead from a copy of the FEM's state at
             each sub-step; "twin", the authors' inverse scene: a second FEM simulation under
             the inverse QP, stepped ``inverse_steps`` times a sub-step and registered on the
-            FEM only at the realignments; or "sensitivity", the bounded least squares on the
-            FEM step's actuation Jacobian by finite differences of roll-outs with the FEM's
-            own (frictional) contacts (module docstring, 2.).
+            FEM at the realignments (and where it fails a step); or "sensitivity", the
+            bounded least squares on the FEM step's actuation Jacobian by finite differences
+            of roll-outs with the FEM's own (frictional) contacts (module docstring, 2.).
         sensitivity_step: the finite-difference step of "sensitivity", a fraction of each
             actuator's bound range.
         rest_offset: the goals carry the gap between the two models' matched points at the
