@@ -46,6 +46,20 @@ def cases() -> dict[str, list[str]]:
     return out
 
 
+def run_jobs(jobs: list[list[str]], workers: int, env: dict) -> None:
+    """Run the commands `workers` at a time (their output discarded: each writes its JSON)."""
+    running: list[subprocess.Popen] = []
+    for command in jobs:
+        while len(running) >= workers:
+            running.pop(0).wait()
+        print(" ".join(command), flush=True)
+        running.append(
+            subprocess.Popen(command, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        )
+    for process in running:
+        process.wait()
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--gains", default="0,0.25,0.5,1")
@@ -63,16 +77,7 @@ def main() -> None:
                 command = ["pliant", "proxy", "transfer", "multigait", *source]
                 command += ["--feedforward", "1", "--angle-gain", f"{gain:g}", "--out", str(folder)]
                 jobs.append(command)
-    running: list[subprocess.Popen] = []
-    for command in jobs:
-        while len(running) >= args.workers:
-            running.pop(0).wait()
-        print(" ".join(command), flush=True)
-        running.append(
-            subprocess.Popen(command, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-        )
-    for process in running:
-        process.wait()
+    run_jobs(jobs, args.workers, env)
 
     rows = []
     for name in cases():

@@ -1,0 +1,137 @@
+"""The thesis' Multigait loop as the authors built it (session 38): the twin FEM under the
+inverse QP (``--inverse-model twin``), effectors on the underside (``--matched underside``)
+and the tip-angle corrector, against the look-ahead QP, on the thesis' test sequence, the
+learned policy of the surface proxy and PPO's other seeds, and the other proxies. One
+``pliant proxy transfer multigait`` a case, two at a time, each into its own folder under
+experiments/results/proxy/ (a case whose JSON is there is not run again); the summary in
+experiments/results/proxy/twin_summary.json and .png.
+
+    python experiments/proxy_twin.py
+
+About 2 minutes a case on one core (the travel proxy's 5.5: its twin diverges and is
+registered again); 18 cases.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+from proxy_corrector import run_jobs  # noqa: E402
+
+RESULTS = Path("experiments/results/proxy")
+CALIBRATIONS = Path("experiments/proxy")
+TWIN = ["--inverse-model", "twin"]
+UNDER = ["--matched", "underside"]
+CORRECTOR = ["--angle-gain", "0.5"]
+
+
+def cases() -> dict[str, tuple[list[str], Path]]:
+    """name -> (the transfer's options, its output folder)."""
+    out: dict[str, tuple[list[str], Path]] = {
+        "sequence, twin": (TWIN, RESULTS / "twin"),
+        "sequence, twin, corrector": (TWIN + CORRECTOR, RESULTS / "twin_corrector"),
+        "sequence, twin, underside": (TWIN + UNDER, RESULTS / "twin_underside"),
+        "sequence, twin, underside, corrector": (
+            TWIN + UNDER + CORRECTOR,
+            RESULTS / "twin_underside_corrector",
+        ),
+        "sequence, look-ahead, underside": (UNDER, RESULTS / "underside"),
+    }
+    for proxy in ("surface", "joint", "travel"):
+        report = CALIBRATIONS / proxy / "multigait-joint_calibration.json"
+        out[f"sequence, {proxy} proxy, twin, underside, corrector"] = (
+            ["--proxy", str(report), *TWIN, *UNDER, *CORRECTOR],
+            RESULTS / f"{proxy}_twin_underside_corrector",
+        )
+    policy = RESULTS / "rl_multigait_surface"
+    for tag, options in (
+        ("twin, corrector", TWIN + CORRECTOR),
+        ("twin, underside", TWIN + UNDER),
+        ("twin, underside, corrector", TWIN + UNDER + CORRECTOR),
+    ):
+        folder = policy / tag.replace(", ", "_")
+        out[f"policy, {tag}"] = (["--policy", str(policy), "--steps", "8", *options], folder)
+    for seed in range(1, 8):
+        policy = RESULTS / f"rl_multigait_surface_seed{seed}"
+        out[f"policy seed {seed}, twin, underside, corrector"] = (
+            ["--policy", str(policy), "--steps", "8", *TWIN, *UNDER, *CORRECTOR],
+            policy / "twin_underside_corrector",
+        )
+    return out
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--workers", type=int, default=2)
+    args = parser.parse_args()
+    env = {**os.environ, "OMP_NUM_THREADS": "1", "NUMBA_NUM_THREADS": "1"}
+    env["OPENBLAS_NUM_THREADS"] = "1"
+    jobs = []
+    for options, folder in cases().values():
+        if not (folder / "multigait_transfer.json").exists():  # resume: done ones stay
+            command = ["pliant", "proxy", "transfer", "multigait", *options]
+            jobs.append([*command, "--out", str(folder)])
+    run_jobs(jobs, args.workers, env)
+
+    rows = []
+    for name, (options, folder) in cases().items():
+        path = folder / "multigait_transfer.json"
+        if not path.exists():
+            print(f"missing: {path}", file=sys.stderr)
+            continue
+        report = json.loads(path.read_text())
+        steps = report["steps"]
+        proxy, fem = report["proxy_return"], report["fem_return"]
+        rows.append(
+            {
+                "case": name,
+                "options": options,
+                "folder": str(folder),
+                "actions": [s["action"] for s in steps],
+                "proxy_travel_mm": round(proxy, 3),
+                "fem_travel_mm": round(fem, 3),
+                "fem_over_proxy": round(fem / proxy, 4) if proxy else None,
+                "proxy_steps_mm": [round(s["proxy_reward"], 3) for s in steps],
+                "fem_steps_mm": [round(s["fem_reward"], 3) for s in steps],
+                "twin_resets": report.get("twin_resets", 0),
+                "failed_inverse_steps": report["failed_inverse_steps"],
+                "wall_time_s": round(report["wall_time_s"], 1),
+            }
+        )
+        print(f"{name}: proxy {proxy:.2f} FEM {fem:.2f} mm")
+    summary = {"command": "python experiments/proxy_twin.py " + " ".join(sys.argv[1:])}
+    summary["rows"] = rows
+    (RESULTS / "twin_summary.json").write_text(json.dumps(summary, indent=1))
+
+    fig, (left, right) = plt.subplots(1, 2, figsize=(12, 4.5), width_ratios=[1, 1.4])
+    head = next(r for r in rows if r["case"] == "sequence, twin, underside, corrector")
+    x = range(len(head["proxy_steps_mm"]))
+    left.bar([k - 0.2 for k in x], head["proxy_steps_mm"], 0.4, label="proxy")
+    left.bar([k + 0.2 for k in x], head["fem_steps_mm"], 0.4, label="FEM")
+    left.set_xticks(list(x), [str(a) for a in head["actions"]])
+    left.set_xlabel("action of the thesis' test sequence")
+    left.set_ylabel("forward travel over the step (mm)")
+    left.set_title("twin, underside effectors, corrector 0.5")
+    left.legend()
+    right.barh(
+        [r["case"] for r in rows], [100 * (r["fem_over_proxy"] or 0.0) for r in rows], color="C1"
+    )
+    right.axvline(95.0, color="k", ls="--", lw=0.8, label="thesis: within 5 %")
+    right.set_xlabel("FEM travel / proxy travel (%)")
+    right.invert_yaxis()
+    right.tick_params(axis="y", labelsize=7)
+    right.legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(RESULTS / "twin_summary.png", dpi=110)
+
+
+if __name__ == "__main__":
+    main()
