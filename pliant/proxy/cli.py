@@ -362,7 +362,8 @@ def transfer(
         str | None,
         typer.Option(
             help="multigait: the matched points, the skeleton's nodes at mid-thickness ('axis',"
-            " the default) or under them on the underside ('underside', the authors' effectors)"
+            " the default) or under them on the underside ('underside', the authors' effectors)",
+            callback=one_of("axis", "underside"),
         ),
     ] = None,
     goal: Annotated[
@@ -402,8 +403,6 @@ def transfer(
     if matched is not None:
         if robot != "multigait":
             raise typer.BadParameter("--matched is the multigait's")
-        if matched not in ("axis", "underside"):
-            raise typer.BadParameter(f"--matched: 'axis' or 'underside', got {matched!r}")
         options["matched"] = matched
     if goal is not None:
         if robot != "trunk":

@@ -413,8 +413,9 @@ class Transfer:
         self.recorder = _Recorder(env.sim)
         env.sim = self.recorder
         self.result = TransferResult(self.robot, gains)
-        #: the inverse model's own FEM simulation (``inverse_model="twin"``)
-        self.twin = state.copy()
+        #: the inverse model's own FEM simulation (``inverse_model="twin"``; None otherwise)
+        self.twin: State | None = None
+        self._register_twin()
 
     # ------------------------------------------------------------------ robot-specific parts
     def proxy_position(self, state: State) -> np.ndarray:
@@ -493,10 +494,15 @@ class Transfer:
         try:
             self.twin = self._inverse_steps(self.twin, target)
         except PliantError:
-            self.twin = self.state.copy()
+            self._register_twin()
             self.result.twin_resets += 1
             raise
         return self.twin.displacement
+
+    def _register_twin(self) -> None:
+        """Set the twin to the FEM's present state (``inverse_model="twin"`` only)."""
+        if self.gains.inverse_model == "twin":
+            self.twin = self.state.copy()
 
     def _inverse_steps(self, look: State, target: np.ndarray) -> State:
         """`look` after ``inverse_steps`` steps of the inverse QP towards `target`."""
@@ -621,7 +627,7 @@ class Transfer:
             due = every > 0 and k > 0 and k % every == 0
             if due:  # the policy re-plans from what the FEM did
                 self.realign()
-                self.twin = self.state.copy()  # and the twin goes on from it
+                self._register_twin()  # and the twin goes on from the FEM
             action = actions[k] if policy is None else policy(self.observation())
             record = self.step(action, realigned=due)
             if progress is not None:
