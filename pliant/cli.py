@@ -26,6 +26,7 @@ from pliant.cli_support import (
 )
 from pliant.condensed.cli import app as condensed_app
 from pliant.errors import UnreachableGoalWarning
+from pliant.files import write_json
 from pliant.learn import cli as learn_cli
 from pliant.learn.graph.cli import app as graph_app
 from pliant.planning.cli import plan
@@ -120,7 +121,7 @@ def run(
         from pliant.viz.viewer import SERIES_FILE
 
         (folder / "states").mkdir(parents=True, exist_ok=True)
-        (folder / "states" / SERIES_FILE).write_text(json.dumps({"robot": robot, "dt": dt}))
+        write_json(folder / "states" / SERIES_FILE, {"robot": robot, "dt": dt}, indent=None)
     with (
         VtuSeriesWriter(folder, robot, cells, cell_type) as vtu,
         Progress(console=console) as bar,

@@ -227,6 +227,26 @@ def test_the_multigait_proxy_has_19_nodes_and_curls_its_legs_on_the_floor() -> N
     assert x[:, 2].min() > 3.15 - 0.1
 
 
+def test_the_multigait_proxys_cross_beams_take_their_own_stiffness() -> None:
+    """`cross_stiffness`: the four cross beams' Young's modulus, by default the centre's (given
+    the centre's, the proxy moves as the default one to the last bit), carried in the proxy's
+    parameters; stiffer corners hold the centre higher when every chamber is on."""
+    default = multigait_proxy()
+    same = multigait_proxy(cross_stiffness=default.parameters["centre_stiffness"])
+    stiff = multigait_proxy(cross_stiffness=10000.0)
+    assert stiff.parameters["cross_stiffness"] == 10000.0
+    assert "cross_stiffness" not in default.parameters
+    shapes = []
+    for proxy in (default, same, stiff):
+        solver, state = ImplicitEuler(proxy.model, 0.01), proxy.model.rest_state()
+        proxy.apply([1.0] * 5)
+        for _ in range(60):
+            state = solver.step(state)
+        shapes.append(proxy.skeleton(state.positions))
+    np.testing.assert_array_equal(shapes[1], shapes[0])
+    assert shapes[2][1, 2] > shapes[0][1, 2] + 1.0  # the centre's middle node
+
+
 def test_the_trunk_proxy_bends_both_ways_and_translates_its_base() -> None:
     proxy = trunk_proxy(cube_position=None)
     assert proxy.rod.n_centreline == 30 and proxy.n_controls == 5
@@ -535,6 +555,12 @@ def test_the_calibrate_command_fits_the_travel_and_the_friction(tmp_path) -> Non
     assert result.exit_code == 0, result.output
     report = json.loads((tmp_path / "multigait_calibration.json").read_text())
     assert report["study"] == "multigait-underside" and report["neutral"] == "underside"
+    cross = ["--cross-stiffness", "1000,20000", "--trials", "1", "--out", str(tmp_path)]
+    result = runner.invoke(app, [*args, *cross])
+    assert result.exit_code == 0, result.output
+    report = json.loads((tmp_path / "multigait_calibration.json").read_text())
+    assert report["study"] == "multigait-cross"
+    assert 1000 <= report["parameters"]["cross_stiffness"] <= 20000
     for refused, needle in (
         ([*args, "--travel-actions", "2"], "no travel term"),
         (["proxy", "calibrate", "trunk", "--neutral", "underside"], "only the Multigait's"),
@@ -546,6 +572,8 @@ def test_the_calibrate_command_fits_the_travel_and_the_friction(tmp_path) -> Non
         (["proxy", "calibrate", "trunk-cube", "--travel-weight", "1"], "not a sequence"),
         ([*args, "--friction", "0.9,0.5"], "LOW < HIGH"),
         ([*args, "--contraction", "0,0.2"], "only the Trunk"),
+        (["proxy", "calibrate", "trunk", "--cross-stiffness", "1,2"], "has cross beams"),
+        ([*args, "--cross-stiffness", "2000,1000"], "0 < LOW < HIGH"),
         (["proxy", "calibrate", "trunk", "--contraction", "0.2,0.1"], "LOW < HIGH"),
         ([*args, "--start", str(tmp_path / "reference.npz")], "not a calibration report"),
     ):

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import itertools
+import json
 import xml.etree.ElementTree as ET
 
 import imageio.v3 as iio
@@ -212,6 +213,20 @@ def test_atomic_path_leaves_nothing_when_writing_fails(tmp_path):
         raise RuntimeError("writer crashed")
     assert target.read_text() == "old"
     assert [p.name for p in tmp_path.iterdir()] == ["out.txt"]
+
+
+def test_a_json_report_is_written_whole_or_not_at_all(tmp_path):
+    """pliant.files.write_json: the report, read back; one that cannot be serialised leaves
+    the previous file as it was and no temporary file beside it."""
+    from pliant.files import write_json
+
+    target = tmp_path / "report.json"
+    write_json(target, {"a": [1, 2.5], "b": None})
+    assert json.loads(target.read_text()) == {"a": [1, 2.5], "b": None}
+    with pytest.raises(TypeError):
+        write_json(target, {"a": object()})
+    assert json.loads(target.read_text()) == {"a": [1, 2.5], "b": None}
+    assert [p.name for p in tmp_path.iterdir()] == ["report.json"]
 
 
 def test_vtu_series_round_trip(tmp_path, cube):

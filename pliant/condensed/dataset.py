@@ -21,7 +21,6 @@ import json
 import math
 import numbers
 import os
-import tempfile
 from collections.abc import Callable
 from dataclasses import asdict, dataclass, field, fields
 from pathlib import Path
@@ -33,6 +32,7 @@ import pliant
 from pliant.condensed.layout import Layout
 from pliant.condensed.sampling import Box, grouped_train_test_points, train_test_points
 from pliant.errors import DatasetError, LearnedModelError
+from pliant.files import atomic_path
 
 FORMAT = "pliant-condensed-dataset"
 FORMAT_VERSION = 1
@@ -463,15 +463,9 @@ class Dataset:
 
 def atomic_write(path: Path, write: Callable[[str], object]) -> None:
     """write(tmp) into a temporary file beside `path`, then rename it to `path`: readers see
-    the old file or the whole new one, never a part."""
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=path.suffix)
-    os.close(fd)
-    try:
-        write(tmp)
-        os.replace(tmp, path)
-    finally:
-        if os.path.exists(tmp):
-            os.remove(tmp)
+    the old file or the whole new one, never a part (:func:`pliant.files.atomic_path`)."""
+    with atomic_path(path) as tmp:
+        write(str(tmp))
 
 
 def checksum(values: np.ndarray) -> str:

@@ -17,6 +17,7 @@ import torch
 from stable_baselines3.common.callbacks import BaseCallback
 from stable_baselines3.common.vec_env import VecEnvWrapper, VecNormalize
 
+from pliant.files import write_json
 from pliant.learn.config import OFF_POLICY
 from pliant.learn.evaluate import run_episodes, save_policy
 
@@ -149,7 +150,7 @@ class EvalCallback(BaseCallback):
         )
         entry = {"step": int(self.num_timesteps), **result.to_dict()}
         self.curve = [e for e in self.curve if e["step"] != entry["step"]] + [entry]
-        self.path.write_text(json.dumps(self.curve, indent=1))
+        write_json(self.path, self.curve, indent=1)
         if result.success_rate is not None:
             self.logger.record("eval/success_rate", result.success_rate)
         self.logger.record("eval/mean_reward", result.mean_return)

@@ -11,6 +11,8 @@ from typing import Annotated
 import typer
 from rich.console import Console
 
+from pliant.files import write_json
+
 console = Console()
 
 ALGO_HELP = "PPO, SAC, TD3, A2C, DQN or RecurrentPPO"
@@ -205,5 +207,5 @@ def tune(
         num_samples=num_samples,
         cpus_per_trial=cpus_per_trial,
     )
-    (Path(out) / "sweep_results.json").write_text(json.dumps(rows, indent=1, default=str))
+    write_json(Path(out) / "sweep_results.json", rows, indent=1, default=str)
     console.print_json(json.dumps(rows, default=str))

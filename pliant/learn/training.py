@@ -23,7 +23,6 @@ PyTorch, a different number of threads or another machine (floating-point reduct
 
 from __future__ import annotations
 
-import json
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -33,6 +32,7 @@ from stable_baselines3.common.utils import set_random_seed
 from stable_baselines3.common.vec_env import VecNormalize
 
 from pliant.errors import TrainingError
+from pliant.files import write_json
 from pliant.learn.callbacks import (
     CheckpointCallback,
     EvalCallback,
@@ -148,7 +148,7 @@ def train(
                 from pliant.learn.bc import pretrain
 
                 report = pretrain(model, config)
-                (run_dir / "bc.json").write_text(json.dumps(report, indent=1))
+                write_json(run_dir / "bc.json", report, indent=1)
                 # the cloned policy as it is before any RL, to evaluate beside the final one
                 save_policy(
                     model, run_dir / "cloned", config.algo, config.env_id, config.env_kwargs,
@@ -199,7 +199,7 @@ def train(
             "worker_restarts": counters.restarts,
             "final_evaluation": evaluation.curve[-1] if evaluation.curve else None,
         }
-        (run_dir / "summary.json").write_text(json.dumps(summary, indent=1))
+        write_json(run_dir / "summary.json", summary, indent=1)
         if evaluation.curve:
             from pliant.learn.plots import plot_learning_curve
 

@@ -14,6 +14,7 @@ from rich.console import Console
 from rich.markup import escape
 
 from pliant.errors import PlanningError, PliantError
+from pliant.files import write_json
 from pliant.planning.opd import OPD
 from pliant.planning.planner import Planner
 from pliant.planning.run import run_episode
@@ -96,8 +97,8 @@ def plan(
         **report.to_dict(),
         "gif": gif.name if gif else None,
     }
-    (out / "actions.json").write_text(json.dumps(report.actions))
-    (out / "report.json").write_text(json.dumps(summary, indent=1))
+    write_json(out / "actions.json", report.actions, indent=None)
+    write_json(out / "report.json", summary, indent=1)
     end = "terminated" if report.terminated else "truncated" if report.truncated else "stopped"
     console.print(
         f"{env_id}, {algo.upper()}: total reward {report.total_reward:.4g} in"

@@ -107,6 +107,7 @@ def multigait_proxy(
     centre_density: float = MULTIGAIT_PARAMETERS["centre_density"],
     leg_curvature: float = MULTIGAIT_PARAMETERS["leg_curvature"],
     centre_curvature: float = MULTIGAIT_PARAMETERS["centre_curvature"],
+    cross_stiffness: float | None = None,
     neutral: Literal["axis", "underside"] = "axis",
     poisson_ratio: float = 0.3,
     gravity: tuple[float, float, float] = (0.0, 0.0, -9810.0),
@@ -121,8 +122,11 @@ def multigait_proxy(
     The centre beam (3 nodes along x) and each leg (4 nodes along x, from its root beside a
     centre end to its tip) carry one actuated bending each, in the order of
     :data:`pliant.mesh.multigait.CHAMBERS`; four passive cross beams join the legs' roots to
-    the centre's ends. Section: the legs' (`leg_width` x `thickness`) for every beam, the
-    centre's difference folded into its calibrated stiffness. `neutral`: the layer a chamber
+    the centre's ends, of the centre's stiffness unless `cross_stiffness` (kPa) is given
+    (``pliant proxy calibrate multigait --cross-stiffness``: stiffer corners hold the centre
+    up when every chamber is on, as the FEM's is; docs/proxy.md). Section: the legs'
+    (`leg_width` x `thickness`) for every beam, the centre's difference folded into its
+    calibrated stiffness. `neutral`: the layer a chamber
     bends its beam about, the beam's axis (the thesis' inextensible beams) or its underside,
     the strain-limiting layer of a pneumatic network, which keeps its length as the chambers
     curl it (the FEM Multigait's underside: within 1 % at full inflation, where a beam bent
@@ -173,6 +177,8 @@ def multigait_proxy(
     stiffness, density = np.full(m, float(centre_stiffness)), np.full(m, float(centre_density))
     stiffness[groups["legs"]] = leg_stiffness
     density[groups["legs"]] = leg_density
+    if cross_stiffness is not None:
+        stiffness[groups["cross"]] = cross_stiffness
     rod = RodBody(
         np.array(points),
         RodSection.rectangle(thickness, leg_width),
@@ -211,7 +217,8 @@ def multigait_proxy(
             centre_density=centre_density,
             leg_curvature=leg_curvature,
             centre_curvature=centre_curvature,
-        ),
+        )
+        | ({} if cross_stiffness is None else {"cross_stiffness": cross_stiffness}),
     )
 
 

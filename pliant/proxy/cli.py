@@ -20,6 +20,7 @@ from pliant.cli_support import (
     one_of,
     output_folder,
 )
+from pliant.files import write_json
 
 app = typer.Typer(
     add_completion=False,
@@ -83,6 +84,13 @@ def calibrate(
             help="LOW,HIGH: also fit the proxy's floor friction in this box (Multigait)",
         ),
     ] = None,
+    cross_stiffness: Annotated[
+        str | None,
+        typer.Option(
+            help="LOW,HIGH (kPa): also fit the Multigait proxy's four cross beams' stiffness,"
+            " which otherwise is the centre's (a study of its own, -cross)",
+        ),
+    ] = None,
     contraction: Annotated[
         str | None,
         typer.Option(
@@ -123,7 +131,7 @@ def calibrate(
     OUT/ROBOT.db, report in OUT/ROBOT_calibration.json.
 
     The study is named after what it fits: ROBOT, with -mass, -travel{W}[x{K}], -friction,
-    -contraction, -underside and -surface for the options that change the search."""
+    -contraction, -cross, -underside and -surface for the options that change the search."""
     from pliant.proxy.calibrate import calibrate as fit
     from pliant.proxy.calibrate import travel, travel_error
     from pliant.proxy.references import Reference, setup
@@ -144,6 +152,15 @@ def calibrate(
         if not 0.0 <= low < high:
             raise typer.BadParameter(f"--friction: need 0 <= LOW < HIGH, got {friction}")
         space["friction"] = (low, high)
+    if cross_stiffness is not None:
+        if not robot.startswith("multigait"):
+            raise typer.BadParameter("--cross-stiffness: only the Multigait proxy has cross beams")
+        low, high = numbers_list(cross_stiffness, "--cross-stiffness", count=2)
+        if not 0.0 < low < high:
+            raise typer.BadParameter(
+                f"--cross-stiffness: need 0 < LOW < HIGH, got {cross_stiffness}"
+            )
+        space["cross_stiffness"] = (low, high)
     if contraction is not None:
         if robot != "trunk":
             raise typer.BadParameter("--contraction: only the Trunk proxy's beams contract")
@@ -192,6 +209,7 @@ def calibrate(
         + (f"x{travel_actions}" if travel_actions > 1 else "")
         + ("-friction" if friction is not None else "")
         + ("-contraction" if contraction is not None else "")
+        + ("-cross" if cross_stiffness is not None else "")
     )
     study += ("" if neutral == "axis" else f"-{neutral}") + (
         "" if contact == "nodes" else f"-{contact}"
@@ -250,7 +268,7 @@ def calibrate(
             "reference": str(out / f"{name}_reference.npz"),
             "error_mm": mean_distance(other.points, points),
         }
-    (out / f"{robot}_calibration.json").write_text(json.dumps(report, indent=2))
+    write_json(out / f"{robot}_calibration.json", report, indent=2)
     console.print_json(json.dumps(report))
 
 
@@ -444,7 +462,7 @@ def transfer(
     result = loop.run(sequence, policy=chooser, steps=steps, progress=progress)
     out.mkdir(parents=True, exist_ok=True)
     report = {"command": "pliant " + " ".join(sys.argv[1:]), **result.to_dict()}
-    (out / f"{robot}_transfer.json").write_text(json.dumps(report, indent=1))
+    write_json(out / f"{robot}_transfer.json", report, indent=1)
     plot_transfer(result, out / f"{robot}_transfer.png")
     if gif and frames:
         from pliant.viz.video import save_gif

@@ -7,10 +7,8 @@ target with `os.replace`, so a reader (or a crash) never sees half a file.
 from __future__ import annotations
 
 import os
-import uuid
 import xml.etree.ElementTree as ET
-from collections.abc import Iterable, Iterator, Mapping
-from contextlib import contextmanager
+from collections.abc import Iterable, Mapping
 from pathlib import Path
 from types import TracebackType
 from typing import Self
@@ -19,22 +17,7 @@ import imageio.v3 as iio
 import meshio
 import numpy as np
 
-
-@contextmanager
-def atomic_path(path: str | os.PathLike) -> Iterator[Path]:
-    """Yield a temporary path next to `path`; on success move it onto `path`, else delete it.
-
-    The temporary name keeps the suffix of `path`, so writers that choose a format by
-    extension still work. Missing parent directories are created.
-    """
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.stem}.{uuid.uuid4().hex[:12]}.tmp{path.suffix}")
-    try:
-        yield tmp
-        os.replace(tmp, path)
-    finally:
-        tmp.unlink(missing_ok=True)
+from pliant.files import atomic_path  # re-exported: the writers here and pliant.viz use it
 
 
 def _check_image(image: np.ndarray, what: str) -> np.ndarray:

@@ -14,6 +14,7 @@ import typer
 from rich.console import Console
 
 from pliant.cli_support import at_least_one, one_of, output_folder
+from pliant.files import write_json
 
 app = typer.Typer(
     add_completion=False,
@@ -113,7 +114,7 @@ def train_run(
         learner.save(checkpoint)
         meta = {"scene": scene_name, "method": method, "seed": seed, "config": config or {},
                 "env": env_kwargs or {}}  # fmt: skip
-        history_file.write_text(json.dumps({**meta, "evaluations": history}, indent=1))
+        write_json(history_file, {**meta, "evaluations": history}, indent=1)
         console.print(f"{method} seed {seed}: {result}")
 
     try:
