@@ -44,6 +44,12 @@ SETTINGS = {
     # the rate chosen by the cube's size (full for 40 mm, half for 35), what --bc-expert
     # sized_expert of trunk_debris_ppo.py clones
     "catchable_sized": (CATCHABLE, ("sized",)),
+    # the long cables' course 40 mm instead of 35 (session 39)
+    "catchable_course40": (VARIANTS["catchable_course40"], (1.0,)),
+    "catchable_course40_azimuth30": (
+        {**VARIANTS["catchable_course40"], "azimuth_range": float(np.radians(30.0))},
+        (1.0,),
+    ),
 }
 
 
@@ -60,7 +66,7 @@ def play(env_kwargs: dict, tests: int, rates: tuple) -> list[dict]:
                 obs, _, terminated, truncated, info = env.step(act(obs))
                 if terminated or truncated:
                     break
-            if info["is_success"]:
+            if info.get("is_success", False):  # a diverged episode's info has no verdict
                 break
         radius = float(np.hypot(*cube[:2]))
         records.append(
@@ -70,10 +76,10 @@ def play(env_kwargs: dict, tests: int, rates: tuple) -> list[dict]:
                 "z": float(cube[2]),
                 "radius": radius,
                 "azimuth_deg": float(np.degrees(np.arctan2(cube[1], cube[0]))),
-                "catch": bool(info["is_success"]),
+                "catch": bool(info.get("is_success", False)),
                 "rate": rate,
-                "held": int(info["held"]),
-                "faces_at_end": int(info["faces"]),
+                "held": int(info.get("held", 0)),
+                "faces_at_end": int(info.get("faces", 0)),
                 "lost": bool(terminated and not truncated),
                 "diverged": "diverged" in info,
             }
