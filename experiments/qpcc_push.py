@@ -18,9 +18,6 @@ starts. Writes experiments/results/qpcc_push.json and .png.
 from __future__ import annotations
 
 import argparse
-import json
-import os
-import tempfile
 import time
 import warnings
 from pathlib import Path
@@ -31,6 +28,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
+from pliant.files import write_json  # noqa: E402
 from pliant.robots.trunk_cube import PUSH_TARGETS, push_demo, trunk_push  # noqa: E402
 from pliant.solvers import ImplicitEuler  # noqa: E402
 
@@ -119,13 +117,6 @@ def plot(results: list[dict], path: Path) -> None:
     plt.close(fig)
 
 
-def write_json(data: dict, path: Path) -> None:
-    fd, tmp = tempfile.mkstemp(dir=path.parent, suffix=".tmp")
-    with os.fdopen(fd, "w") as f:
-        json.dump(data, f, indent=1)
-    os.replace(tmp, path)
-
-
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seconds", type=float, default=4.5)
@@ -142,7 +133,7 @@ def main() -> None:
             )
         print(f"  contact kept {100 * res['contact_kept_fraction']:.0f}% of the steps")
     plot(results, args.out / "qpcc_push.png")
-    write_json({"dt_s": DT, "runs": results}, args.out / "qpcc_push.json")
+    write_json(args.out / "qpcc_push.json", {"dt_s": DT, "runs": results})
 
 
 if __name__ == "__main__":

@@ -54,13 +54,14 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 import sys
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
+
+from pliant.files import write_json
 
 RESULTS = Path("experiments/results/rl/trunk_debris_expert")
 ENV_ID = "pliant/TrunkSpaceDebris-v0"
@@ -107,14 +108,6 @@ def placements(sizes, heights, gaps) -> list[dict]:
         for z in heights
         for g in gaps
     ]
-
-
-def write_json(path: Path, data) -> None:
-    """Write atomically: a temporary file in the same folder, then a rename."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(path.name + ".tmp")
-    tmp.write_text(json.dumps(data, indent=1))
-    os.replace(tmp, path)
 
 
 def on_hull(env) -> bool:
