@@ -53,6 +53,22 @@ SETTINGS = {
 }
 
 
+def episode(env, act, obs) -> dict:
+    """Play `act` (observation -> action) from `obs` to the episode's end; how it ended (a
+    diverged episode's info has no verdict: no catch)."""
+    for _ in range(env.unwrapped.horizon):
+        obs, _, terminated, truncated, info = env.step(act(obs))
+        if terminated or truncated:
+            break
+    return {
+        "catch": bool(info.get("is_success", False)),
+        "held": int(info.get("held", 0)),
+        "faces_at_end": int(info.get("faces", 0)),
+        "lost": bool(terminated and not truncated),
+        "diverged": "diverged" in info,
+    }
+
+
 def play(env_kwargs: dict, tests: int, rates: tuple) -> list[dict]:
     env = make("pliant/TrunkSpaceDebris-v0", **env_kwargs)
     records = []
@@ -62,26 +78,18 @@ def play(env_kwargs: dict, tests: int, rates: tuple) -> list[dict]:
             e = env.unwrapped
             cube = e.cube().copy()
             act = sized_expert(env) if rate == "sized" else expert(env, rate)
-            for _ in range(e.horizon):
-                obs, _, terminated, truncated, info = env.step(act(obs))
-                if terminated or truncated:
-                    break
-            if info.get("is_success", False):  # a diverged episode's info has no verdict
+            outcome = episode(env, act, obs)
+            if outcome["catch"]:
                 break
-        radius = float(np.hypot(*cube[:2]))
         records.append(
             {
                 "seed": 30_000 + k,
                 "cube_size": float(e.cube_size),
                 "z": float(cube[2]),
-                "radius": radius,
+                "radius": float(np.hypot(*cube[:2])),
                 "azimuth_deg": float(np.degrees(np.arctan2(cube[1], cube[0]))),
-                "catch": bool(info.get("is_success", False)),
                 "rate": rate,
-                "held": int(info.get("held", 0)),
-                "faces_at_end": int(info.get("faces", 0)),
-                "lost": bool(terminated and not truncated),
-                "diverged": "diverged" in info,
+                **outcome,
             }
         )
     env.close()

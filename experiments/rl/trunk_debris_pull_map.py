@@ -20,6 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
+from experiments.rl.trunk_debris_pull import episode
 from pliant.envs import make
 from pliant.envs.trunk_space_debris import expert
 from pliant.files import atomic_path, write_json
@@ -46,23 +47,8 @@ def play(course: float) -> list[dict]:
             for gap in GAPS:
                 position = beside_trunk(size, z, gap, 0.0)
                 obs, _ = env.reset(seed=0, options={"cube_size": size, "cube_position": position})
-                act = expert(env)
-                for _ in range(env.unwrapped.horizon):
-                    obs, _, terminated, truncated, info = env.step(act(obs))
-                    if terminated or truncated:
-                        break
-                records.append(
-                    {
-                        "cube_size": size,
-                        "z": z,
-                        "gap": gap,
-                        "catch": bool(info.get("is_success", False)),
-                        "held": int(info.get("held", 0)),
-                        "faces_at_end": int(info.get("faces", 0)),
-                        "lost": bool(terminated and not truncated),
-                        "diverged": "diverged" in info,
-                    }
-                )
+                outcome = episode(env, expert(env), obs)
+                records.append({"cube_size": size, "z": z, "gap": gap, **outcome})
     env.close()
     return records
 
