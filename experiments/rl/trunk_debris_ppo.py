@@ -161,10 +161,12 @@ def main() -> None:
     )
     parser.add_argument("--learning-rate", type=float, default=None, help="PPO's (3e-4)")
     parser.add_argument("--target-kl", type=float, default=None, help="PPO's (none)")
+    parser.add_argument("--tag", default="", help="appended to the run's and results' names")
     args = parser.parse_args()
     suffix = ("" if args.variant == "default" else f"_{args.variant}") + (
         ("_bc" if args.bc_expert == "expert" else "_bc_sized") if args.bc else ""
     )
+    suffix += f"_{args.tag}" if args.tag else ""
     args.run = args.run or Path(f"runs/trunk_debris_ppo{suffix}")
     results = RESULTS.with_name(RESULTS.name + suffix)
     torch.set_num_threads(args.threads)
@@ -239,7 +241,8 @@ def main() -> None:
             else ""
         )
         + (f" --learning-rate {args.learning_rate}" if args.learning_rate else "")
-        + (f" --target-kl {args.target_kl}" if args.target_kl else ""),
+        + (f" --target-kl {args.target_kl}" if args.target_kl else "")
+        + (f" --tag {args.tag}" if args.tag else ""),
     }
     (results / "summary.json").write_text(json.dumps(summary, indent=1))
     (results / "tests.json").write_text(json.dumps(records, indent=1))
