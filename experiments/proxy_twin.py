@@ -26,6 +26,8 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 from proxy_corrector import run_jobs  # noqa: E402
 
+from pliant.files import write_json  # noqa: E402
+
 RESULTS = Path("experiments/results/proxy")
 CALIBRATIONS = Path("experiments/proxy")
 TWIN = ["--inverse-model", "twin"]
@@ -109,7 +111,7 @@ def main() -> None:
         print(f"{name}: proxy {proxy:.2f} FEM {fem:.2f} mm")
     summary = {"command": "python experiments/proxy_twin.py " + " ".join(sys.argv[1:])}
     summary["rows"] = rows
-    (RESULTS / "twin_summary.json").write_text(json.dumps(summary, indent=1))
+    write_json(RESULTS / "twin_summary.json", summary)
 
     fig, (left, right) = plt.subplots(1, 2, figsize=(12, 4.5), width_ratios=[1, 1.4])
     head = next(r for r in rows if r["case"] == "sequence, twin, underside, corrector")

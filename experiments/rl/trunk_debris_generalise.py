@@ -23,7 +23,7 @@ import numpy as np
 
 from pliant.envs import make
 from pliant.files import write_json
-from pliant.learn.evaluate import load_policy
+from pliant.learn.evaluate import load_policy, run_episodes
 
 RESULTS = Path("experiments/results/rl/trunk_debris_generalise.json")
 SETTINGS = {
@@ -48,33 +48,18 @@ def main() -> None:
     }
     for name, change in SETTINGS.items():
         env = make("pliant/TrunkSpaceDebris-v0", **{**policy.env_kwargs, **change})
-        clock, records = time.perf_counter(), []
-        for k in range(args.tests):
-            obs, _ = env.reset(seed=50_000 + k)
-            start = env.unwrapped.cube().copy()
-            done = False
-            while not done:
-                action, _ = policy.model.predict(policy.normalize_obs(obs), deterministic=True)
-                obs, _, terminated, truncated, info = env.step(action)
-                done = terminated or truncated
-            records.append(
-                {
-                    "seed": 50_000 + k,
-                    "cube_size": float(env.unwrapped.cube_size),
-                    "start": start.round(2).tolist(),
-                    "catch": bool(info.get("is_success", False)),
-                    "lost": bool(terminated and not truncated),
-                    "diverged": "diverged" in info,
-                }
-            )
+        clock = time.perf_counter()
+        result = run_episodes(
+            policy.model, env, args.tests, normalize_obs=policy.normalize_obs, seed=50_000
+        )
         env.close()
         summary["settings"][name] = {
             "change": change,
-            "catch_rate": float(np.mean([r["catch"] for r in records])),
-            "diverged": int(sum(r["diverged"] for r in records)),
-            "lost": int(sum(r["lost"] for r in records)),
+            "catch_rate": result.success_rate,
+            "diverged": result.diverged,
+            "mean_return": result.mean_return,
             "wall_seconds": time.perf_counter() - clock,
-            "episodes": records,
+            "catches": result.successes,
         }
         write_json(RESULTS, summary)
         print(name, summary["settings"][name]["catch_rate"], flush=True)

@@ -45,6 +45,7 @@ import numpy as np
 import torch
 
 from pliant.envs import make
+from pliant.files import write_json
 from pliant.learn import load_config, train
 from pliant.learn.evaluate import load_policy
 from pliant.learn.plots import plot_learning_curve
@@ -206,7 +207,7 @@ def main() -> None:
     cloned = None
     if args.bc:
         cloned_records = test_episodes(args.run / "cloned", args.tests, None)
-        (results / "tests_cloned.json").write_text(json.dumps(cloned_records, indent=1))
+        write_json(results / "tests_cloned.json", cloned_records)
         cloned = {
             "fit": json.loads((args.run / "bc.json").read_text()),
             "success_rate": float(np.mean([r["success"] for r in cloned_records])),
@@ -244,8 +245,8 @@ def main() -> None:
         + (f" --target-kl {args.target_kl}" if args.target_kl else "")
         + (f" --tag {args.tag}" if args.tag else ""),
     }
-    (results / "summary.json").write_text(json.dumps(summary, indent=1))
-    (results / "tests.json").write_text(json.dumps(records, indent=1))
+    write_json(results / "summary.json", summary)
+    write_json(results / "tests.json", records)
     for name in ("evaluations.json", "config.yaml"):
         if (args.run / name).exists():
             shutil.copy(args.run / name, results / name)

@@ -19,7 +19,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 import time
 from pathlib import Path
 
@@ -28,6 +27,7 @@ import numpy as np
 from experiments.rl.trunk_debris_ppo import VARIANTS
 from pliant.envs import make
 from pliant.envs.trunk_space_debris import expert, sized_expert
+from pliant.files import write_json
 
 RESULTS = Path("experiments/results/rl/trunk_debris_pull")
 CATCHABLE = VARIANTS["catchable"]  # where the planner found catches
@@ -127,10 +127,7 @@ def main() -> None:
             "wall_seconds": time.perf_counter() - clock,
             "episodes": records,
         }
-        RESULTS.mkdir(parents=True, exist_ok=True)
-        tmp = path.with_name(path.name + ".tmp")
-        tmp.write_text(json.dumps(summary, indent=1))
-        os.replace(tmp, path)
+        write_json(path, summary)
         s = summary["settings"][name]
         print(name, s["catch_rate"], by_size, f"{s['wall_seconds']:.0f} s", flush=True)
 

@@ -478,7 +478,7 @@ def control(
     report["out_of_bounds_warnings"] = len(caught)
     if rate is not None:
         report["embedded_loop_hz"] = rate
-    write_json(folder / "report.json", report, indent=1)
+    write_json(folder / "report.json", report)
     for k, r in reached.items():
         console.print(f"{k}: mean distance to goal {r.errors.mean():.3f}, max {r.errors.max():.3f}")
     if "exact" in reached:
@@ -540,7 +540,7 @@ def calibrate(
     )
     out.mkdir(parents=True, exist_ok=True)
     report = {"truth": design, "start": initial, **dataclasses.asdict(result)}
-    write_json(out / "calibration.json", report, indent=1)
+    write_json(out / "calibration.json", report)
     plot_calibration(
         {"start " + ", ".join(f"{k}={v:g}" for k, v in initial.items()): result.history},
         fit.split(",")[0],
@@ -593,7 +593,7 @@ def design(
         )
     summary = study.summary()
     out.mkdir(parents=True, exist_ok=True)
-    write_json(out / "design.json", summary, indent=1)
+    write_json(out / "design.json", summary)
     plots = plot_design_study(study, out)
     table = Table(title=f"{len(study.grid)} designs, {int(study.pareto.sum())} on the Pareto front")
     for col in ("objective", *study.names, "value"):

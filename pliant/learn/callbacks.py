@@ -150,7 +150,7 @@ class EvalCallback(BaseCallback):
         )
         entry = {"step": int(self.num_timesteps), **result.to_dict()}
         self.curve = [e for e in self.curve if e["step"] != entry["step"]] + [entry]
-        write_json(self.path, self.curve, indent=1)
+        write_json(self.path, self.curve)
         if result.success_rate is not None:
             self.logger.record("eval/success_rate", result.success_rate)
         self.logger.record("eval/mean_reward", result.mean_return)

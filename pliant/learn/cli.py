@@ -207,5 +207,5 @@ def tune(
         num_samples=num_samples,
         cpus_per_trial=cpus_per_trial,
     )
-    write_json(Path(out) / "sweep_results.json", rows, indent=1, default=str)
+    write_json(Path(out) / "sweep_results.json", rows, default=str)
     console.print_json(json.dumps(rows, default=str))

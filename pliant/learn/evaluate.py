@@ -119,7 +119,7 @@ def save_policy(model, folder: Path, algo: str, env_id: str, env_kwargs: dict, v
     if vecnorm is not None:
         vecnorm.save(str(folder / "vecnormalize.pkl"))
     meta = {"algo": algo, "env_id": env_id, "env_kwargs": env_kwargs}
-    write_json(folder / "meta.json", meta, indent=1)
+    write_json(folder / "meta.json", meta)
 
 
 def load_policy(path: str | Path, algo: str | None = None, device: str = "cpu") -> SavedPolicy:

@@ -148,7 +148,7 @@ def train(
                 from pliant.learn.bc import pretrain
 
                 report = pretrain(model, config)
-                write_json(run_dir / "bc.json", report, indent=1)
+                write_json(run_dir / "bc.json", report)
                 # the cloned policy as it is before any RL, to evaluate beside the final one
                 save_policy(
                     model, run_dir / "cloned", config.algo, config.env_id, config.env_kwargs,
@@ -199,7 +199,7 @@ def train(
             "worker_restarts": counters.restarts,
             "final_evaluation": evaluation.curve[-1] if evaluation.curve else None,
         }
-        write_json(run_dir / "summary.json", summary, indent=1)
+        write_json(run_dir / "summary.json", summary)
         if evaluation.curve:
             from pliant.learn.plots import plot_learning_curve
 

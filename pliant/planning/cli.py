@@ -98,7 +98,7 @@ def plan(
         "gif": gif.name if gif else None,
     }
     write_json(out / "actions.json", report.actions, indent=None)
-    write_json(out / "report.json", summary, indent=1)
+    write_json(out / "report.json", summary)
     end = "terminated" if report.terminated else "truncated" if report.truncated else "stopped"
     console.print(
         f"{env_id}, {algo.upper()}: total reward {report.total_reward:.4g} in"

@@ -148,26 +148,16 @@ def calibrate(
     if friction is not None:
         if not robot.startswith("multigait"):
             raise typer.BadParameter("--friction: only the Multigait proxy's friction is fitted")
-        low, high = numbers_list(friction, "--friction", count=2)
-        if not 0.0 <= low < high:
-            raise typer.BadParameter(f"--friction: need 0 <= LOW < HIGH, got {friction}")
-        space["friction"] = (low, high)
+        space["friction"] = _box(friction, "--friction")
     if cross_stiffness is not None:
         if not robot.startswith("multigait"):
             raise typer.BadParameter("--cross-stiffness: only the Multigait proxy has cross beams")
-        low, high = numbers_list(cross_stiffness, "--cross-stiffness", count=2)
-        if not 0.0 < low < high:
-            raise typer.BadParameter(
-                f"--cross-stiffness: need 0 < LOW < HIGH, got {cross_stiffness}"
-            )
-        space["cross_stiffness"] = (low, high)
+        space["cross_stiffness"] = _box(cross_stiffness, "--cross-stiffness", positive=True)
     if contraction is not None:
         if robot != "trunk":
             raise typer.BadParameter("--contraction: only the Trunk proxy's beams contract")
-        low, high = numbers_list(contraction, "--contraction", count=2)
-        if not 0.0 <= low < high < 1.0:
-            raise typer.BadParameter(f"--contraction: need 0 <= LOW < HIGH < 1, got {contraction}")
-        space["lower_contraction"] = space["upper_contraction"] = (low, high)
+        box = _box(contraction, "--contraction", below=1.0)
+        space["lower_contraction"] = space["upper_contraction"] = box
     if neutral != "axis" and not robot.startswith("multigait"):
         raise typer.BadParameter("--neutral: only the Multigait's chambers bend a layer")
     builder = {"neutral": neutral} if neutral != "axis" else {}
@@ -270,6 +260,18 @@ def calibrate(
         }
     write_json(out / f"{robot}_calibration.json", report, indent=2)
     console.print_json(json.dumps(report))
+
+
+def _box(text: str, option: str, *, positive: bool = False, below: float | None = None):
+    """A search box "LOW,HIGH" with 0 <= LOW (0 < LOW if `positive`) < HIGH (< `below`);
+    BadParameter otherwise."""
+    low, high = numbers_list(text, option, count=2)
+    floor_met = low > 0.0 if positive else low >= 0.0
+    if not (floor_met and low < high and (below is None or high < below)):
+        bound = f" < {below:g}" if below is not None else ""
+        first = "0 < LOW" if positive else "0 <= LOW"
+        raise typer.BadParameter(f"{option}: need {first} < HIGH{bound}, got {text}")
+    return low, high
 
 
 def _fitted_parameters(path: Path) -> dict[str, float]:
@@ -462,7 +464,7 @@ def transfer(
     result = loop.run(sequence, policy=chooser, steps=steps, progress=progress)
     out.mkdir(parents=True, exist_ok=True)
     report = {"command": "pliant " + " ".join(sys.argv[1:]), **result.to_dict()}
-    write_json(out / f"{robot}_transfer.json", report, indent=1)
+    write_json(out / f"{robot}_transfer.json", report)
     plot_transfer(result, out / f"{robot}_transfer.png")
     if gif and frames:
         from pliant.viz.video import save_gif

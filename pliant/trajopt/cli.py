@@ -136,7 +136,7 @@ def diamond(
         ]
         written.append(save_gif(images, out / "diamond.gif", fps=10))
     report = out / "diamond.json"
-    write_json(report, {"scenario": "diamond", "runs": reports}, indent=1)
+    write_json(report, {"scenario": "diamond", "runs": reports})
     written.append(report)
     console.print("saved " + ", ".join(str(p) for p in written))
 
@@ -198,7 +198,7 @@ def diamond_mpc(
         title="Diamond: MPC closed on the FEM",
     )
     path = out / "diamond_mpc.json"
-    write_json(path, report, indent=1)
+    write_json(path, report)
     console.print(f"saved {plot}, {path}")
 
 
@@ -330,7 +330,7 @@ def run_scenario(
             written.append(save_gif(images, out / f"{name}.gif", fps=8))
     report = {"scenario": command, "quick": quick, "runs": reports}
     path = out / f"{command}.json"
-    write_json(path, report, indent=1)
+    write_json(path, report)
     written.append(path)
     console.print("saved " + ", ".join(str(p) for p in written))
     return report
@@ -532,7 +532,7 @@ def run_learned_mpc(
         "runs": reports,
     }
     path_json = out / f"{robot}_mpc_learned.json"
-    write_json(path_json, report, indent=1)
+    write_json(path_json, report)
     console.print(f"saved {plot}, {path_json}")
     return report
 

@@ -114,7 +114,7 @@ def train_run(
         learner.save(checkpoint)
         meta = {"scene": scene_name, "method": method, "seed": seed, "config": config or {},
                 "env": env_kwargs or {}}  # fmt: skip
-        write_json(history_file, {**meta, "evaluations": history}, indent=1)
+        write_json(history_file, {**meta, "evaluations": history})
         console.print(f"{method} seed {seed}: {result}")
 
     try:
