@@ -788,3 +788,51 @@ def test_malformed_constraints_are_rejected() -> None:
         PositionEffector(EmbeddedPoints.at_nodes([3]), x, axes=(False, False, False))
     with pytest.raises(ConstraintError):
         PositionEffector(EmbeddedPoints.at_nodes([3]), x, goals=np.zeros((2, 3)))
+
+
+def test_inverse_prior_decides_what_the_effectors_do_not() -> None:
+    """Two actuators that move one effector by their sum (W_ea = [1, 1], W_aa = I): the
+    effectors ask for lambda_1 + lambda_2 = 2 and do not say how to share it. The
+    regularisation alone shares it evenly (the least force); a prior at (2, 0) takes that
+    sharing at any weight, since it asks nothing the effector refuses; a prior at (0, 0)
+    trades the effector's error against it, more as its weight grows."""
+    w = np.array([[1.0, 0.0, 1.0], [0.0, 1.0, 1.0], [1.0, 1.0, 2.0]])
+    d = np.array([0.0, 0.0, -2.0])
+    slices = {"actuator": slice(0, 2), "effector": slice(2, 3), "contact": slice(3, 3)}
+    problem = CondensedProblem(w, d, slices)
+    actuators = [
+        CableActuator(EmbeddedPoints.at_nodes([0, 1]), _Commands.segment, name=f"a{i}")
+        for i in range(2)
+    ]
+
+    def solve(prior=None, weight=0.0):
+        return solve_inverse(
+            problem, actuators, np.zeros(2), prior=prior, prior_weight=weight
+        ).actuation
+
+    def exact(prior=(0.0, 0.0), weight=0.0):
+        # 0.5 (l1 + l2 - 2)^2 + 0.5 eps |l|^2 + 0.5 rho |l - prior|^2, with eps and rho the
+        # relative weights times ||W_ea^T W_ea|| = 2 over ||W_aa|| = ||W_aa^T W_aa|| = sqrt 2
+        eps, rho = 1e-3 * np.sqrt(2.0), weight * np.sqrt(2.0)
+        hess = np.ones((2, 2)) + (eps + rho) * np.eye(2)
+        return np.linalg.solve(hess, 2.0 + rho * np.array(prior))
+
+    np.testing.assert_allclose(solve(), exact(), atol=1e-9)
+    np.testing.assert_allclose(solve(), [1.0, 1.0], atol=1e-3)  # the least force
+    for weight in (0.1, 1.0, 10.0):
+        np.testing.assert_allclose(solve([2.0, 0.0], weight), exact([2.0, 0.0], weight), atol=1e-9)
+        np.testing.assert_allclose(solve([2.0, 0.0], weight), [2.0, 0.0], atol=1e-2 / weight)
+    sums = [solve([0.0, 0.0], weight).sum() for weight in (0.1, 1.0, 10.0)]
+    assert 2.0 > sums[0] > sums[1] > sums[2] > 0.0
+    with pytest.raises(InfeasibleProblemError, match="prior"):
+        solve([1.0, 2.0, 3.0], 1.0)
+
+
+def test_inverse_control_refuses_a_bad_prior() -> None:
+    from pliant.constraints.control import InverseControl
+    from pliant.errors import ModelError
+
+    model = two_cable_beam(effector_goal=[[58.0, 5.0, 15.0]])
+    for prior, weight in (([1.0, 2.0, 3.0], 1.0), ([np.nan, 0.0], 1.0), ([0.0, 0.0], -1.0)):
+        with pytest.raises(ModelError, match="prior"):
+            InverseControl(prior=np.array(prior), prior_weight=weight).prepare(model)

@@ -85,6 +85,10 @@ class InverseControl:
     QP may choose to close them; the rounds then open those it does not push on.
     contact_time_limit: seconds the QPCC's rounds may take per step (None: no limit); past
     it, the last feasible round's forces are applied with a ContactConvergenceWarning.
+    prior, prior_weight: the actuators' displacements to stay near where the effectors do not
+    decide between actuations, and the (relative) weight of that pull
+    (:func:`pliant.constraints.inverse.prior_terms`); the default regularisation alone pulls
+    the forces towards zero.
     """
 
     goals: list[np.ndarray] | np.ndarray | None = None
@@ -92,12 +96,14 @@ class InverseControl:
     course: str = "soft"
     seed_gap: float = 0.0
     contact_time_limit: float | None = 10.0
+    prior: np.ndarray | None = None
+    prior_weight: float = 0.0
     roles = ("actuator", "effector")
 
     def prepare(self, model) -> None:
         # Checked here, where they enter: a NaN or negative weight would only show later as
         # a QP that does not converge.
-        for name in ("seed_gap", "regularisation"):
+        for name in ("seed_gap", "regularisation", "prior_weight"):
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, numbers.Real):
                 raise ModelError(f"{name} must be a real number, got {value!r}")
@@ -112,6 +118,17 @@ class InverseControl:
             raise ModelError(f"contact_time_limit must be None or finite and > 0, got {limit!r}")
         if self.course not in ("soft", "hard"):
             raise ModelError(f"course must be 'soft' or 'hard', got {self.course!r}")
+        if self.prior is not None:
+            prior = np.asarray(self.prior)
+            if (
+                prior.dtype.kind not in "iuf"
+                or prior.shape != (len(model.actuators),)
+                or not np.all(np.isfinite(prior))
+            ):
+                raise ModelError(
+                    f"the prior needs one finite displacement per actuator"
+                    f" ({len(model.actuators)}), got shape {prior.shape}"
+                )
         if self.goals is None:
             return
         goals = [self.goals] if isinstance(self.goals, np.ndarray) else list(self.goals)
@@ -153,6 +170,8 @@ class InverseControl:
                 initial_active=closed,
                 initial_slip=slip,
                 time_limit=self.contact_time_limit,
+                prior=self.prior,
+                prior_weight=self.prior_weight,
             )
             actuation, rounds, settled = sol.forces[sa], sol.rounds, sol.settled
         except InfeasibleProblemError as exc:
@@ -211,6 +230,8 @@ class InverseControl:
             change_reference(model.actuators, state),
             regularisation=self.regularisation,
             course=self.course,
+            prior=self.prior,
+            prior_weight=self.prior_weight,
         )
         return sol.actuation
 

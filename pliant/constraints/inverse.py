@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 import time
 import warnings
 from dataclasses import dataclass
@@ -83,8 +84,16 @@ def solve_inverse(
     tolerance: float = 1e-9,
     max_iterations: int = 1000,
     course: str = "hard",
+    prior: np.ndarray | None = None,
+    prior_weight: float = 0.0,
 ) -> InverseSolution:
     """min ||W_ea l + d_e_free||^2 + eps l^T W_aa l  s.t. effort and course bounds.
+
+    With a `prior` (the actuators' displacements wanted where the effectors do not decide)
+    and `prior_weight` rho > 0, the objective gains rho' ||delta_a - prior||^2, delta_a =
+    W_aa l + d_a_free the actuators' displacements after the step, rho' = rho
+    ||W_ea^T W_ea|| / ||W_aa^T W_aa|| (relative, as eps): a Tikhonov term towards a
+    reference actuation instead of towards zero force (:func:`prior_terms`).
 
     The regularisation eps is relative: eps = regularisation * ||W_ea^T W_ea|| / ||W_aa||
     (Frobenius norms), so that it does not depend on the scene's units. ProxQP (proxsuite)
@@ -118,8 +127,9 @@ def solve_inverse(
         raise SolverError("the actuators have zero compliance: they cannot move the robot")
     hess = w_ea.T @ w_ea
     eps = regularisation * np.linalg.norm(hess) / max(np.linalg.norm(w_aa), 1e-300)
-    hess = (hess + eps * 0.5 * (w_aa + w_aa.T)) / c**2
-    grad = (w_ea.T @ de_free) / c
+    p_hess, p_grad = prior_terms(hess, w_aa, da_free, prior, prior_weight)
+    hess = (hess + eps * 0.5 * (w_aa + w_aa.T) + p_hess) / c**2
+    grad = (w_ea.T @ de_free + p_grad) / c
     lower, upper = dmin - da_free, dmax - da_free
     c_mat = w_aa / c
     lo_box, hi_box = lo * c, hi * c
@@ -157,6 +167,37 @@ def solve_inverse(
     mu = _polish(hess, grad, c_mat, lower, upper, lo_box, hi_box, mu, z)
     lam = np.clip(mu / c, lo, hi)
     return InverseSolution(lam, w_ea @ lam + de_free, iterations)
+
+
+def prior_terms(
+    hess: np.ndarray,
+    w_a: np.ndarray,
+    d_a: np.ndarray,
+    prior: np.ndarray | None,
+    weight: float,
+    rows: np.ndarray | None = None,
+) -> tuple[np.ndarray, np.ndarray]:
+    """(H, g) of the prior rho' ||W_a l + d_a - prior||^2 / 2 on the unknowns l, W_a (na, n)
+    the actuators' rows of the unknowns' compliance, d_a their free displacements; rho' =
+    `weight` ||hess|| / ||W_a^T W_a|| (over the unknowns `rows`, all by default), hess the
+    effectors' term W_e^T W_e, so that the weight is relative and free of units. Zeros
+    without a prior or with weight 0; InfeasibleProblemError for a prior of the wrong size,
+    not finite, or a weight that is negative or not finite."""
+    n = hess.shape[0]
+    if prior is None or weight == 0.0:
+        return np.zeros((n, n)), np.zeros(n)
+    prior = np.asarray(prior, dtype=float)
+    if prior.shape != d_a.shape or not np.all(np.isfinite(prior)):
+        raise InfeasibleProblemError(
+            f"the prior needs {d_a.size} finite actuator displacements, got {prior.shape}"
+        )
+    if not (math.isfinite(weight) and weight > 0.0):
+        raise InfeasibleProblemError(f"the prior's weight must be finite and >= 0, got {weight}")
+    pull = w_a.T @ w_a
+    index = np.arange(n) if rows is None else rows
+    scale = np.linalg.norm(pull[np.ix_(index, index)])
+    rho = weight * np.linalg.norm(hess[np.ix_(index, index)]) / max(scale, 1e-300)
+    return rho * pull, rho * (w_a.T @ (d_a - prior))
 
 
 def _bounded_least_squares(hess, grad, c_mat, lower, upper, lo_box, hi_box) -> np.ndarray:
@@ -455,6 +496,8 @@ def solve_inverse_with_contacts(
     initial_active: np.ndarray | None = None,
     initial_slip: np.ndarray | None = None,
     time_limit: float | None = None,
+    prior: np.ndarray | None = None,
+    prior_weight: float = 0.0,
 ) -> ContactInverseSolution:
     """Eq. 2.15 with contacts (a QP with complementarity constraints, QPCC).
 
@@ -514,8 +557,9 @@ def solve_inverse_with_contacts(
     ]
     eps = regularisation * np.linalg.norm(hess[np.ix_(active, active)])
     eps /= max(np.linalg.norm(w_xx[np.ix_(active, active)]), 1e-300)
-    hess = (hess + eps * 0.5 * (w_xx + w_xx.T)) / c**2
-    grad = (w_ex.T @ d[se]) / c
+    p_hess, p_grad = prior_terms(hess, w[sa][:, rows], d[sa], prior, prior_weight, active)
+    hess = (hess + eps * 0.5 * (w_xx + w_xx.T) + p_hess) / c**2
+    grad = (w_ex.T @ d[se] + p_grad) / c
     normal = na + 3 * np.arange(nc)
     w_rows = w[rows][:, rows] / c  # delta of the unknowns' rows = w_rows mu + d_rows
     d_rows = d[rows]

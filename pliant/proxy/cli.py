@@ -351,6 +351,13 @@ def transfer(
             help="Multigait: weight in [0, 1] of the proxy's commands fed forward (1: open loop)"
         ),
     ] = None,
+    prior_weight: Annotated[
+        float | None,
+        typer.Option(
+            help="Multigait: the inverse QP's pull towards the proxy's commands mapped onto the"
+            " chambers (a relative weight; 0, the thesis' loop, pulls towards zero force)"
+        ),
+    ] = None,
     lookahead_friction: Annotated[
         bool | None,
         typer.Option(help="friction in the inverse look-ahead (default: the robot's gains)"),
@@ -413,6 +420,7 @@ def transfer(
             ("angle_gain", angle_gain),
             ("lookahead_friction", lookahead_friction),
             ("feedforward", feedforward),
+            ("prior_weight", prior_weight),
             ("follow_shape", follow_shape),
             ("inverse_model", inverse_model),
             ("rest_offset", rest_offset),

@@ -28,6 +28,11 @@ a position effector of the FEM robot on the same points, and for each sub-step:
    to its state) at the realignments, and at once where it fails a step (a departure: the
    authors' twin had no such guard). Its clock runs ``inverse_steps`` times the FEM's, so a
    robot on a moving base refuses it.
+   With ``prior_weight`` > 0 (a departure, Pliant's) the QP's regularisation pulls the
+   actuators towards the proxy's commands of the sub-step mapped onto them (4.'s a_ff)
+   instead of towards zero force: where the matched points do not tell two actuations apart
+   (the Multigait's centre on, or off with its legs half inflated), the QP takes the
+   proxy's, not the weakest.
    ``inverse_model="sensitivity"`` (a departure) instead linearises the FEM's own step, with
    its frictional contacts: the matched points p(a) after ``inverse_steps`` steps under a
    held actuation a are rolled out from the FEM's state at the applied actuation a_0 and at
@@ -129,6 +134,11 @@ class TransferGains:
         fem_substeps: FEM steps per proxy sub-step, for a proxy that steps coarser than the
             FEM (:func:`proxy_timing`): the FEM follows the proxy's matched points
             interpolated linearly between its sub-steps.
+        prior_weight: the inverse QP's pull towards the proxy's commands mapped onto the
+            FEM's actuators (:meth:`Transfer.feedforward`), a relative weight
+            (:func:`pliant.constraints.inverse.prior_terms`); 0, the thesis' loop, pulls its
+            forces towards zero where the matched points do not decide (module docstring,
+            2.). Needs a robot with a feedforward map and the "qp" or "twin" model.
     """
 
     scale: int
@@ -147,6 +157,7 @@ class TransferGains:
     sensitivity_step: float = 0.02
     rest_offset: bool = False
     fem_substeps: int = 1
+    prior_weight: float = 0.0
 
     def __post_init__(self) -> None:
         if self.inverse_model not in INVERSE_MODELS:
@@ -163,6 +174,10 @@ class TransferGains:
             raise ModelError("scale and inverse_steps must be >= 1, time_register >= 0")
         if self.fem_substeps < 1:
             raise ModelError(f"fem_substeps must be >= 1, got {self.fem_substeps}")
+        if not (np.isfinite(self.prior_weight) and self.prior_weight >= 0.0):
+            raise ModelError(f"the prior's weight must be finite and >= 0, got {self.prior_weight}")
+        if self.prior_weight > 0.0 and self.inverse_model == "sensitivity":
+            raise ModelError("the prior pulls the inverse QP: use the 'qp' or 'twin' model")
         if not 0.0 <= self.feedforward <= 1.0:
             raise ModelError(f"the feedforward weight must lie in [0, 1], got {self.feedforward}")
         if not (np.isfinite(self.gain) and self.gain > 0.0):
@@ -395,6 +410,13 @@ class Transfer:
                 "the twin runs inverse_steps times the FEM's clock, which moves the base:"
                 " keep the 'qp' inverse model for a robot on a moving base"
             )
+        if (gains.prior_weight > 0.0 or gains.feedforward > 0.0) and (
+            type(self).feedforward is Transfer.feedforward
+        ):
+            raise ModelError(
+                f"the {self.robot} transfer has no feedforward map: keep feedforward and"
+                " prior_weight 0"
+            )
         if gains.rest_offset and not self.keeps_points:
             raise ModelError(
                 f"the {self.robot}'s realignment moves the proxy's points: keep rest_offset off"
@@ -466,13 +488,14 @@ class Transfer:
             goal = goal - self.goal_shift(goal, now)
         goal = goal + self.offset
         target = goal + g.kp * (goal - now)
+        prior = self.feedforward(commands) if g.prior_weight > 0.0 else None
         try:
             if g.inverse_model == "sensitivity":
                 inverse = self.sensitivity_inverse(target)
             elif g.inverse_model == "twin":
-                inverse = self.twin_inverse(target)
+                inverse = self.twin_inverse(target, prior)
             else:
-                inverse = self.qp_inverse(target)
+                inverse = self.qp_inverse(target, prior)
         except PliantError:  # no inverse step: keep the actuation
             self.result.failed_inverse_steps += 1
             inverse = self.filter.value / g.gain
@@ -481,18 +504,19 @@ class Transfer:
             inverse = w * self.feedforward(commands) + (1.0 - w) * inverse
         self.state = self.solver.step(self.state, self.filter.update(inverse))
 
-    def qp_inverse(self, target: np.ndarray) -> np.ndarray:
-        """a_inv of the inverse QP's look-ahead towards `target` (module docstring, 2.)."""
-        return self._inverse_steps(self.state.copy(), target).displacement
+    def qp_inverse(self, target: np.ndarray, prior: np.ndarray | None = None) -> np.ndarray:
+        """a_inv of the inverse QP's look-ahead towards `target` (module docstring, 2.),
+        pulled towards the actuation `prior` (``gains.prior_weight``)."""
+        return self._inverse_steps(self.state.copy(), target, prior).displacement
 
-    def twin_inverse(self, target: np.ndarray) -> np.ndarray:
+    def twin_inverse(self, target: np.ndarray, prior: np.ndarray | None = None) -> np.ndarray:
         """a_inv of the twin's ``inverse_steps`` steps towards `target`; the twin goes on
         from where they leave it (module docstring, 2.). A twin that fails a step (its
         elements inverted, say) would fail every step until the next realignment: it is
         registered on the FEM at once (counted in ``twin_resets``) and the error passed on,
         so that this sub-step keeps its actuation."""
         try:
-            self.twin = self._inverse_steps(self.twin, target)
+            self.twin = self._inverse_steps(self.twin, target, prior)
         except PliantError:
             self._register_twin()
             self.result.twin_resets += 1
@@ -504,8 +528,12 @@ class Transfer:
         if self.gains.inverse_model == "twin":
             self.twin = self.state.copy()
 
-    def _inverse_steps(self, look: State, target: np.ndarray) -> State:
-        """`look` after ``inverse_steps`` steps of the inverse QP towards `target`."""
+    def _inverse_steps(
+        self, look: State, target: np.ndarray, prior: np.ndarray | None = None
+    ) -> State:
+        """`look` after ``inverse_steps`` steps of the inverse QP towards `target`, pulled
+        towards the actuation `prior` (None: towards zero force)."""
+        control = InverseControl(goals=target, prior=prior, prior_weight=self.gains.prior_weight)
         g = self.gains
         contacts = self.fem.contacts
         friction = None if contacts is None else contacts.friction
@@ -516,7 +544,7 @@ class Transfer:
                 if contacts is not None and not g.lookahead_friction:
                     contacts.friction = np.zeros_like(friction)
                 for _ in range(g.inverse_steps):
-                    look = self.solver.step(look, InverseControl(goals=target))
+                    look = self.solver.step(look, control)
         finally:
             if contacts is not None:
                 contacts.friction = friction

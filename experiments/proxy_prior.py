@@ -1,0 +1,200 @@
+"""The Multigait's thesis loop with a prior in its inverse QP (session 40): the twin FEM under
+the inverse QP, effectors on the underside, the tip-angle corrector (the arrangement of
+experiments/proxy_twin.py), and the QP's regularisation pulling the chambers towards the
+proxy's commands mapped onto them (``--prior-weight W``) instead of towards zero pressure.
+
+The points do not tell the FEM's actuations apart where the proxy's shape is one the FEM
+reaches by several (the centre on, or the centre off with the legs half inflated: docs/proxy.md,
+"Why the inverse model keeps the centre low"); the default regularisation then picks the
+weakest. The prior picks the proxy's own. Cases: the weights 0.1, 1, 3, 10 and 30 (0 is
+proxy_twin.py's case) on the thesis' test sequence and on the learned policy
+(``rl_multigait_surface``, 8 steps); at 10, the other PPO seeds' policies, the policy without
+the corrector, and the test sequence on the surface proxy. One ``pliant proxy transfer
+multigait`` a case, two at a time, each into its own folder (a case whose JSON is there is not
+run again); the summary in experiments/results/proxy/prior_summary.json and .png.
+
+    python experiments/proxy_prior.py
+
+About 2 minutes a case on one core; 19 cases.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+from proxy_corrector import run_jobs  # noqa: E402
+
+from pliant.files import write_json  # noqa: E402
+
+RESULTS = Path("experiments/results/proxy")
+LOOP = ["--inverse-model", "twin", "--matched", "underside"]
+CORRECTOR = ["--angle-gain", "0.5"]
+WEIGHTS = (0.1, 1.0, 3.0, 10.0, 30.0)
+HEADLINE = 10.0
+SEEDS = range(1, 8)
+
+
+def prior(weight: float) -> list[str]:
+    return ["--prior-weight", f"{weight:g}"]
+
+
+def cases() -> dict[str, tuple[list[str], Path, float]]:
+    """name -> (the transfer's options, its output folder, the prior's weight)."""
+    out: dict[str, tuple[list[str], Path, float]] = {}
+    policy = RESULTS / "rl_multigait_surface"
+    learned = ["--policy", str(policy), "--steps", "8"]
+    for w in WEIGHTS:
+        out[f"policy, prior {w:g}"] = (
+            learned + LOOP + CORRECTOR + prior(w),
+            policy / f"twin_underside_corrector_prior{w:g}",
+            w,
+        )
+    for w in WEIGHTS:
+        out[f"sequence, prior {w:g}"] = (
+            LOOP + CORRECTOR + prior(w),
+            RESULTS / f"twin_underside_corrector_prior{w:g}",
+            w,
+        )
+    for seed in SEEDS:
+        folder = RESULTS / f"rl_multigait_surface_seed{seed}"
+        out[f"policy seed {seed}, prior {HEADLINE:g}"] = (
+            ["--policy", str(folder), "--steps", "8", *LOOP, *CORRECTOR, *prior(HEADLINE)],
+            folder / f"twin_underside_corrector_prior{HEADLINE:g}",
+            HEADLINE,
+        )
+    out[f"policy, no corrector, prior {HEADLINE:g}"] = (
+        learned + LOOP + prior(HEADLINE),
+        policy / f"twin_underside_prior{HEADLINE:g}",
+        HEADLINE,
+    )
+    surface = Path("experiments/proxy/surface/multigait-joint_calibration.json")
+    out[f"sequence, surface proxy, prior {HEADLINE:g}"] = (
+        ["--proxy", str(surface), *LOOP, *CORRECTOR, *prior(HEADLINE)],
+        RESULTS / f"surface_twin_underside_corrector_prior{HEADLINE:g}",
+        HEADLINE,
+    )
+    return out
+
+
+#: the same transfers without the prior (weight 0, experiments/proxy_twin.py) and open loop
+#: with the corrector (experiments/proxy_corrector.py), read for comparison where they exist
+def references() -> dict[str, Path]:
+    out = {
+        "sequence, prior 0": RESULTS / "twin_underside_corrector",
+        "policy, prior 0": RESULTS / "rl_multigait_surface/twin_underside_corrector",
+        "policy, open loop": RESULTS / "corrector/surface/gain0.5",
+        "sequence, open loop": RESULTS / "feedforward",
+    }
+    for seed in SEEDS:
+        folder = RESULTS / f"rl_multigait_surface_seed{seed}"
+        out[f"policy seed {seed}, prior 0"] = folder / "twin_underside_corrector"
+    return out
+
+
+def row(name: str, folder: Path, weight: float | None, options: list[str]) -> dict | None:
+    path = folder / "multigait_transfer.json"
+    if not path.exists():
+        print(f"missing: {path}", file=sys.stderr)
+        return None
+    report = json.loads(path.read_text())
+    steps = report["steps"]
+    proxy, fem = report["proxy_return"], report["fem_return"]
+    tracking = [s["tracking_error"] for s in steps]
+    return {
+        "case": name,
+        "prior_weight": weight,
+        "options": options,
+        "folder": str(folder),
+        "actions": [s["action"] for s in steps],
+        "proxy_travel_mm": round(proxy, 3),
+        "fem_travel_mm": round(fem, 3),
+        "fem_over_proxy": round(fem / proxy, 4) if proxy else None,
+        "relative_difference": round(abs(proxy - fem) / abs(fem), 4) if fem else None,
+        "tracking_mean_mm": round(float(np.mean(tracking)), 3),
+        "tracking_mm": [round(t, 3) for t in tracking],
+        "proxy_steps_mm": [round(s["proxy_reward"], 3) for s in steps],
+        "fem_steps_mm": [round(s["fem_reward"], 3) for s in steps],
+        "twin_resets": report.get("twin_resets", 0),
+        "failed_inverse_steps": report["failed_inverse_steps"],
+        "wall_time_s": round(report["wall_time_s"], 1),
+    }
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--workers", type=int, default=2)
+    args = parser.parse_args()
+    env = {**os.environ, "OMP_NUM_THREADS": "1", "NUMBA_NUM_THREADS": "1"}
+    env["OPENBLAS_NUM_THREADS"] = "1"
+    jobs = []
+    for options, folder, _ in cases().values():
+        if not (folder / "multigait_transfer.json").exists():  # resume: done ones stay
+            command = ["pliant", "proxy", "transfer", "multigait", *options]
+            jobs.append([*command, "--out", str(folder)])
+    run_jobs(jobs, args.workers, env)
+
+    rows = [row(name, folder, w, options) for name, (options, folder, w) in cases().items()]
+    rows += [row(name, folder, None, []) for name, folder in references().items()]
+    rows = [r for r in rows if r is not None]
+    for r in rows:
+        print(
+            f"{r['case']}: proxy {r['proxy_travel_mm']:.2f} FEM {r['fem_travel_mm']:.2f} mm,"
+            f" tracking {r['tracking_mean_mm']:.2f} mm"
+        )
+    summary = {"command": "python experiments/proxy_prior.py " + " ".join(sys.argv[1:])}
+    summary["rows"] = rows
+    write_json(RESULTS / "prior_summary.json", summary)
+
+    by = {r["case"]: r for r in rows}
+    fig, (left, right) = plt.subplots(1, 2, figsize=(12, 4.5))
+    for kind, colour in (("sequence", "C0"), ("policy", "C1")):
+        found = [(0.0, by.get(f"{kind}, prior 0"))]
+        found += [(w, by.get(f"{kind}, prior {w:g}")) for w in WEIGHTS]
+        found = [(w, r) for w, r in found if r is not None]
+        x = [max(w, 0.03) for w, _ in found]  # weight 0 drawn at the axis' left end
+        label = "thesis' test sequence" if kind == "sequence" else "learned policy"
+        left.plot(x, [100 * r["fem_over_proxy"] for _, r in found], "o-", color=colour, label=label)
+        left.plot(
+            x, [100 * r["tracking_mean_mm"] for _, r in found], "x:", color=colour,
+            label=f"{label}: tracking error (mm, x100)",
+        )  # fmt: skip
+    left.axhspan(95.0, 105.0, color="0.85", label="within 5 %")
+    left.set_xscale("log")
+    left.set_xlabel("prior weight (0 drawn at 0.03)")
+    left.set_ylabel("FEM travel / proxy travel (%)")
+    left.legend(fontsize=7)
+    names = ["policy"] + [f"policy seed {s}" for s in SEEDS]
+    for k, (suffix, colour, label) in enumerate(
+        (
+            ("prior 0", "C0", "prior 0"),
+            (f"prior {HEADLINE:g}", "C1", f"prior {HEADLINE:g}"),
+        )
+    ):
+        values = [by.get(f"{n}, {suffix}") for n in names]
+        right.bar(
+            [i + 0.4 * k - 0.2 for i in range(len(names))],
+            [100 * v["fem_over_proxy"] if v else 0.0 for v in values],
+            0.4,
+            color=colour,
+            label=label,
+        )
+    right.axhspan(95.0, 105.0, color="0.85")
+    right.set_xticks(range(len(names)), ["seed 0"] + [f"seed {s}" for s in SEEDS])
+    right.set_ylabel("FEM travel / proxy travel (%)")
+    right.set_title("PPO's eight policies, twin, underside, corrector 0.5")
+    right.legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(RESULTS / "prior_summary.png", dpi=110)
+
+
+if __name__ == "__main__":
+    main()
