@@ -11,11 +11,15 @@ proxy_twin.py's case) on the thesis' test sequence and on the learned policy
 (``rl_multigait_surface``, 8 steps); at 10, the other PPO seeds' policies, the policy without
 the corrector, and the test sequence on the surface proxy. One ``pliant proxy transfer
 multigait`` a case, two at a time, each into its own folder (a case whose JSON is there is not
-run again); the summary in experiments/results/proxy/prior_summary.json and .png.
+run again); the summary in experiments/results/proxy/prior_summary.json and .png. Then, at 10,
+the 12 policies of the robustness study (thesis §4.1.3: PPO again on the surface proxy with
+its parameters perturbed by 0, 0.1, 1 and 10 %, three draws each;
+experiments/proxy_robustness.py), beside their open-loop transfers with the corrector
+(experiments/results/proxy/corrector/corrector.json).
 
     python experiments/proxy_prior.py
 
-About 2 minutes a case on one core; 19 cases.
+About 2 minutes a case on one core; 31 cases.
 """
 
 from __future__ import annotations
@@ -41,6 +45,8 @@ CORRECTOR = ["--angle-gain", "0.5"]
 WEIGHTS = (0.1, 1.0, 3.0, 10.0, 30.0)
 HEADLINE = 10.0
 SEEDS = range(1, 8)
+LEVELS = ("0", "0.001", "0.01", "0.1")
+DRAWS = range(3)
 
 
 def prior(weight: float) -> list[str]:
@@ -82,6 +88,14 @@ def cases() -> dict[str, tuple[list[str], Path, float]]:
         RESULTS / f"surface_twin_underside_corrector_prior{HEADLINE:g}",
         HEADLINE,
     )
+    for level in LEVELS:
+        for draw in DRAWS:
+            folder = RESULTS / f"rl_multigait_surface_noise{level}_draw{draw}"
+            out[f"robustness {level} draw {draw}, prior {HEADLINE:g}"] = (
+                ["--policy", str(folder), "--steps", "8", *LOOP, *CORRECTOR, *prior(HEADLINE)],
+                folder / f"twin_underside_corrector_prior{HEADLINE:g}",
+                HEADLINE,
+            )
     return out
 
 
@@ -129,6 +143,21 @@ def row(name: str, folder: Path, weight: float | None, options: list[str]) -> di
     }
 
 
+def bars(axes, names: list[str], series: list[tuple[str, str, list]]) -> None:
+    """Grouped bars of FEM / proxy travel (%), cut at 200 % with the value written on top."""
+    width = 0.8 / len(series)
+    for k, (label, colour, values) in enumerate(series):
+        x = [i + width * (k + 0.5) - 0.4 for i in range(len(names))]
+        heights = [100 * v["fem_over_proxy"] if v else 0.0 for v in values]
+        axes.bar(x, [min(h, 200.0) for h in heights], width, color=colour, label=label)
+        for xi, h in zip(x, heights, strict=True):
+            if h > 200.0:
+                axes.text(xi, 190.0, f"{h:.0f}", ha="center", va="top", fontsize=6, rotation=90)
+    axes.axhspan(95.0, 105.0, color="0.85", zorder=0)
+    axes.set_ylim(-20.0, 200.0)
+    axes.set_ylabel("FEM travel / proxy travel (%)")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--workers", type=int, default=2)
@@ -145,17 +174,35 @@ def main() -> None:
     rows = [row(name, folder, w, options) for name, (options, folder, w) in cases().items()]
     rows += [row(name, folder, None, []) for name, folder in references().items()]
     rows = [r for r in rows if r is not None]
+    corrector = RESULTS / "corrector/corrector.json"
+    if corrector.exists():  # the robustness policies' open loop with the corrector at 0.5
+        for r in json.loads(corrector.read_text())["rows"]:
+            if r["angle_gain"] == 0.5 and r["case"].startswith("surface_noise"):
+                level, draw = r["case"][len("surface_noise") :].split("_draw")
+                rows.append(
+                    {
+                        "case": f"robustness {level} draw {draw}, open loop",
+                        "prior_weight": None,
+                        "folder": str(corrector),
+                        "actions": r["actions"],
+                        "proxy_travel_mm": r["proxy_travel_mm"],
+                        "fem_travel_mm": r["fem_travel_mm"],
+                        "fem_over_proxy": round(r["fem_travel_mm"] / r["proxy_travel_mm"], 4),
+                        "relative_difference": r["relative_difference"],
+                    }
+                )
     for r in rows:
+        tracking = r.get("tracking_mean_mm")
         print(
-            f"{r['case']}: proxy {r['proxy_travel_mm']:.2f} FEM {r['fem_travel_mm']:.2f} mm,"
-            f" tracking {r['tracking_mean_mm']:.2f} mm"
+            f"{r['case']}: proxy {r['proxy_travel_mm']:.2f} FEM {r['fem_travel_mm']:.2f} mm"
+            + ("" if tracking is None else f", tracking {tracking:.2f} mm")
         )
     summary = {"command": "python experiments/proxy_prior.py " + " ".join(sys.argv[1:])}
     summary["rows"] = rows
     write_json(RESULTS / "prior_summary.json", summary)
 
     by = {r["case"]: r for r in rows}
-    fig, (left, right) = plt.subplots(1, 2, figsize=(12, 4.5))
+    fig, (left, right, third) = plt.subplots(1, 3, figsize=(17, 4.5))
     for kind, colour in (("sequence", "C0"), ("policy", "C1")):
         found = [(0.0, by.get(f"{kind}, prior 0"))]
         found += [(w, by.get(f"{kind}, prior {w:g}")) for w in WEIGHTS]
@@ -167,31 +214,36 @@ def main() -> None:
             x, [100 * r["tracking_mean_mm"] for _, r in found], "x:", color=colour,
             label=f"{label}: tracking error (mm, x100)",
         )  # fmt: skip
-    left.axhspan(95.0, 105.0, color="0.85", label="within 5 %")
+    left.axhspan(95.0, 105.0, color="0.85", label="within 5 %", zorder=0)
     left.set_xscale("log")
     left.set_xlabel("prior weight (0 drawn at 0.03)")
     left.set_ylabel("FEM travel / proxy travel (%)")
     left.legend(fontsize=7)
     names = ["policy"] + [f"policy seed {s}" for s in SEEDS]
-    for k, (suffix, colour, label) in enumerate(
-        (
-            ("prior 0", "C0", "prior 0"),
-            (f"prior {HEADLINE:g}", "C1", f"prior {HEADLINE:g}"),
-        )
-    ):
-        values = [by.get(f"{n}, {suffix}") for n in names]
-        right.bar(
-            [i + 0.4 * k - 0.2 for i in range(len(names))],
-            [100 * v["fem_over_proxy"] if v else 0.0 for v in values],
-            0.4,
-            color=colour,
-            label=label,
-        )
-    right.axhspan(95.0, 105.0, color="0.85")
+    bars(
+        right,
+        names,
+        [
+            (suffix, colour, [by.get(f"{n}, {suffix}") for n in names])
+            for suffix, colour in (("prior 0", "C0"), (f"prior {HEADLINE:g}", "C1"))
+        ],
+    )
     right.set_xticks(range(len(names)), ["seed 0"] + [f"seed {s}" for s in SEEDS])
-    right.set_ylabel("FEM travel / proxy travel (%)")
     right.set_title("PPO's eight policies, twin, underside, corrector 0.5")
     right.legend(fontsize=7)
+    names = [f"robustness {level} draw {d}" for level in LEVELS for d in DRAWS]
+    bars(
+        third,
+        names,
+        [
+            (suffix, colour, [by.get(f"{n}, {suffix}") for n in names])
+            for suffix, colour in (("open loop", "C2"), (f"prior {HEADLINE:g}", "C1"))
+        ],
+    )
+    third.set_xticks(range(len(names)), [n[len("robustness ") :] for n in names], rotation=60)
+    third.tick_params(axis="x", labelsize=7)
+    third.set_title("robustness policies (noise, draw), corrector 0.5")
+    third.legend(fontsize=7)
     fig.tight_layout()
     fig.savefig(RESULTS / "prior_summary.png", dpi=110)
 
