@@ -309,8 +309,8 @@ def test_the_angle_corrector_acts_on_the_open_loop_too() -> None:
 def test_the_transfer_command_writes_both_trajectories_and_refuses_bad_actions(tmp_path) -> None:
     """`pliant proxy transfer trunk` on two steps bending onto the cube: JSON and PNG written,
     the FEM's cube pushed along +x as the proxy's, by the QP and by the sensitivity inverse;
-    a Multigait action outside Discrete(6) and an unknown inverse model are refused before
-    any work."""
+    a Multigait action outside Discrete(6), an unknown inverse model and a prior the robot
+    cannot take are refused before any work."""
     import json
 
     from typer.testing import CliRunner
@@ -343,6 +343,10 @@ def test_the_transfer_command_writes_both_trajectories_and_refuses_bad_actions(t
     assert refused.exit_code == 1 and "one of qp, twin, sensitivity" in refused.output
     refused = runner.invoke(app, [*args, "--inverse-model", "twin"])  # the base's clock
     assert refused.exit_code == 1 and "moving base" in refused.output
+    refused = runner.invoke(app, [*args, "--prior-weight", "1"])  # no map from its commands
+    assert refused.exit_code == 1 and "no feedforward map" in refused.output
+    refused = runner.invoke(app, ["proxy", "transfer", "multigait", "--prior-weight", "-1"])
+    assert refused.exit_code == 1 and "prior's weight" in refused.output
     for robot, matched in (("trunk", "underside"), ("multigait", "middle")):
         refused = runner.invoke(app, ["proxy", "transfer", robot, "--matched", matched])
         assert refused.exit_code == 2 and "--matched" in refused.output
