@@ -11,7 +11,9 @@ proxy_twin.py's case) on the thesis' test sequence and on the learned policy
 (``rl_multigait_surface``, 8 steps); at 10, the other PPO seeds' policies, the policy without
 the corrector, and the test sequence on the surface proxy. One ``pliant proxy transfer
 multigait`` a case, two at a time, each into its own folder (a case whose JSON is there is not
-run again); the summary in experiments/results/proxy/prior_summary.json and .png. Then, at 10,
+run again); the summary in experiments/results/proxy/prior_summary.json and .png. At 10 also
+the two policies PPO learned on the node-ball proxy (``rl_multigait``, observing the points and
+the commands; ``rl_multigait_points``, the points only, the thesis' observation). Then, at 10,
 the 12 policies of the robustness study (thesis §4.1.3: PPO again on the surface proxy with
 its parameters perturbed by 0, 0.1, 1 and 10 %, three draws each;
 experiments/proxy_robustness.py), beside their open-loop transfers with the corrector
@@ -19,7 +21,7 @@ experiments/proxy_robustness.py), beside their open-loop transfers with the corr
 
     python experiments/proxy_prior.py
 
-About 2 minutes a case on one core; 31 cases.
+About 2 minutes a case on one core; 33 cases.
 """
 
 from __future__ import annotations
@@ -88,6 +90,13 @@ def cases() -> dict[str, tuple[list[str], Path, float]]:
         RESULTS / f"surface_twin_underside_corrector_prior{HEADLINE:g}",
         HEADLINE,
     )
+    for name in ("rl_multigait", "rl_multigait_points"):  # PPO on the node-ball proxy
+        folder = RESULTS / name
+        out[f"{name}, prior {HEADLINE:g}"] = (
+            ["--policy", str(folder), "--steps", "8", *LOOP, *CORRECTOR, *prior(HEADLINE)],
+            folder / f"twin_underside_corrector_prior{HEADLINE:g}",
+            HEADLINE,
+        )
     for level in LEVELS:
         for draw in DRAWS:
             folder = RESULTS / f"rl_multigait_surface_noise{level}_draw{draw}"
