@@ -60,6 +60,52 @@ def run_jobs(jobs: list[list[str]], workers: int, env: dict) -> None:
         process.wait()
 
 
+def transfer_row(name: str, folder: Path, options: list[str]) -> dict | None:
+    """The summary of the transfer in `folder` (None, with a line on stderr, if it is not
+    there): its actions, both travels, their ratio and relative difference, the matched
+    points' mean distance at each step's end (tracking), each step's travels, the twin's
+    resets and the inverse steps that failed."""
+    path = Path(folder) / "multigait_transfer.json"
+    if not path.exists():
+        print(f"missing: {path}", file=sys.stderr)
+        return None
+    report = json.loads(path.read_text())
+    steps = report["steps"]
+    proxy, fem = report["proxy_return"], report["fem_return"]
+    tracking = [s["tracking_error"] for s in steps]
+    return {
+        "case": name,
+        "options": options,
+        "folder": str(folder),
+        "actions": [s["action"] for s in steps],
+        "proxy_travel_mm": round(proxy, 3),
+        "fem_travel_mm": round(fem, 3),
+        "fem_over_proxy": round(fem / proxy, 4) if proxy else None,
+        "relative_difference": round(abs(proxy - fem) / abs(fem), 4) if fem else None,
+        "tracking_mean_mm": round(float(np.mean(tracking)), 3),
+        "tracking_mm": [round(t, 3) for t in tracking],
+        "proxy_steps_mm": [round(s["proxy_reward"], 3) for s in steps],
+        "fem_steps_mm": [round(s["fem_reward"], 3) for s in steps],
+        "twin_resets": report.get("twin_resets", 0),
+        "failed_inverse_steps": report["failed_inverse_steps"],
+        "wall_time_s": round(report["wall_time_s"], 1),
+    }
+
+
+def run_transfers(cases, workers: int) -> None:
+    """Each (options, folder) of `cases` as ``pliant proxy transfer multigait OPTIONS --out
+    FOLDER``, `workers` at a time on one thread each; a folder whose JSON is there is not run
+    again (a study resumes)."""
+    env = {**os.environ, "OMP_NUM_THREADS": "1", "NUMBA_NUM_THREADS": "1"}
+    env["OPENBLAS_NUM_THREADS"] = "1"
+    jobs = [
+        ["pliant", "proxy", "transfer", "multigait", *options, "--out", str(folder)]
+        for options, folder in cases
+        if not (Path(folder) / "multigait_transfer.json").exists()
+    ]
+    run_jobs(jobs, workers, env)
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--gains", default="0,0.25,0.5,1")

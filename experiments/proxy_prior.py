@@ -28,7 +28,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 import sys
 from pathlib import Path
 
@@ -36,8 +35,7 @@ import matplotlib
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-from proxy_corrector import run_jobs  # noqa: E402
+from proxy_corrector import run_transfers, transfer_row  # noqa: E402
 
 from pliant.files import write_json  # noqa: E402
 
@@ -53,6 +51,13 @@ DRAWS = range(3)
 
 def prior(weight: float) -> list[str]:
     return ["--prior-weight", f"{weight:g}"]
+
+
+def at_headline(folder: Path) -> tuple[list[str], Path, float]:
+    """The case of the policy in `folder` (8 steps) by the loop with the corrector and the
+    prior at the headline weight, written beside it."""
+    options = ["--policy", str(folder), "--steps", "8", *LOOP, *CORRECTOR, *prior(HEADLINE)]
+    return options, folder / f"twin_underside_corrector_prior{HEADLINE:g}", HEADLINE
 
 
 def cases() -> dict[str, tuple[list[str], Path, float]]:
@@ -74,11 +79,7 @@ def cases() -> dict[str, tuple[list[str], Path, float]]:
         )
     for seed in SEEDS:
         folder = RESULTS / f"rl_multigait_surface_seed{seed}"
-        out[f"policy seed {seed}, prior {HEADLINE:g}"] = (
-            ["--policy", str(folder), "--steps", "8", *LOOP, *CORRECTOR, *prior(HEADLINE)],
-            folder / f"twin_underside_corrector_prior{HEADLINE:g}",
-            HEADLINE,
-        )
+        out[f"policy seed {seed}, prior {HEADLINE:g}"] = at_headline(folder)
     out[f"policy, no corrector, prior {HEADLINE:g}"] = (
         learned + LOOP + prior(HEADLINE),
         policy / f"twin_underside_prior{HEADLINE:g}",
@@ -91,20 +92,11 @@ def cases() -> dict[str, tuple[list[str], Path, float]]:
         HEADLINE,
     )
     for name in ("rl_multigait", "rl_multigait_points"):  # PPO on the node-ball proxy
-        folder = RESULTS / name
-        out[f"{name}, prior {HEADLINE:g}"] = (
-            ["--policy", str(folder), "--steps", "8", *LOOP, *CORRECTOR, *prior(HEADLINE)],
-            folder / f"twin_underside_corrector_prior{HEADLINE:g}",
-            HEADLINE,
-        )
+        out[f"{name}, prior {HEADLINE:g}"] = at_headline(RESULTS / name)
     for level in LEVELS:
         for draw in DRAWS:
             folder = RESULTS / f"rl_multigait_surface_noise{level}_draw{draw}"
-            out[f"robustness {level} draw {draw}, prior {HEADLINE:g}"] = (
-                ["--policy", str(folder), "--steps", "8", *LOOP, *CORRECTOR, *prior(HEADLINE)],
-                folder / f"twin_underside_corrector_prior{HEADLINE:g}",
-                HEADLINE,
-            )
+            out[f"robustness {level} draw {draw}, prior {HEADLINE:g}"] = at_headline(folder)
     return out
 
 
@@ -124,32 +116,8 @@ def references() -> dict[str, Path]:
 
 
 def row(name: str, folder: Path, weight: float | None, options: list[str]) -> dict | None:
-    path = folder / "multigait_transfer.json"
-    if not path.exists():
-        print(f"missing: {path}", file=sys.stderr)
-        return None
-    report = json.loads(path.read_text())
-    steps = report["steps"]
-    proxy, fem = report["proxy_return"], report["fem_return"]
-    tracking = [s["tracking_error"] for s in steps]
-    return {
-        "case": name,
-        "prior_weight": weight,
-        "options": options,
-        "folder": str(folder),
-        "actions": [s["action"] for s in steps],
-        "proxy_travel_mm": round(proxy, 3),
-        "fem_travel_mm": round(fem, 3),
-        "fem_over_proxy": round(fem / proxy, 4) if proxy else None,
-        "relative_difference": round(abs(proxy - fem) / abs(fem), 4) if fem else None,
-        "tracking_mean_mm": round(float(np.mean(tracking)), 3),
-        "tracking_mm": [round(t, 3) for t in tracking],
-        "proxy_steps_mm": [round(s["proxy_reward"], 3) for s in steps],
-        "fem_steps_mm": [round(s["fem_reward"], 3) for s in steps],
-        "twin_resets": report.get("twin_resets", 0),
-        "failed_inverse_steps": report["failed_inverse_steps"],
-        "wall_time_s": round(report["wall_time_s"], 1),
-    }
+    found = transfer_row(name, folder, options)
+    return None if found is None else {"case": name, "prior_weight": weight, **found}
 
 
 def bars(axes, names: list[str], series: list[tuple[str, str, list]]) -> None:
@@ -171,14 +139,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--workers", type=int, default=2)
     args = parser.parse_args()
-    env = {**os.environ, "OMP_NUM_THREADS": "1", "NUMBA_NUM_THREADS": "1"}
-    env["OPENBLAS_NUM_THREADS"] = "1"
-    jobs = []
-    for options, folder, _ in cases().values():
-        if not (folder / "multigait_transfer.json").exists():  # resume: done ones stay
-            command = ["pliant", "proxy", "transfer", "multigait", *options]
-            jobs.append([*command, "--out", str(folder)])
-    run_jobs(jobs, args.workers, env)
+    run_transfers([(options, folder) for options, folder, _ in cases().values()], args.workers)
 
     rows = [row(name, folder, w, options) for name, (options, folder, w) in cases().items()]
     rows += [row(name, folder, None, []) for name, folder in references().items()]

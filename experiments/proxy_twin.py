@@ -15,8 +15,6 @@ registered again); 18 cases.
 from __future__ import annotations
 
 import argparse
-import json
-import os
 import sys
 from pathlib import Path
 
@@ -24,7 +22,7 @@ import matplotlib
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
-from proxy_corrector import run_jobs  # noqa: E402
+from proxy_corrector import run_transfers, transfer_row  # noqa: E402
 
 from pliant.files import write_json  # noqa: E402
 
@@ -74,41 +72,12 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--workers", type=int, default=2)
     args = parser.parse_args()
-    env = {**os.environ, "OMP_NUM_THREADS": "1", "NUMBA_NUM_THREADS": "1"}
-    env["OPENBLAS_NUM_THREADS"] = "1"
-    jobs = []
-    for options, folder in cases().values():
-        if not (folder / "multigait_transfer.json").exists():  # resume: done ones stay
-            command = ["pliant", "proxy", "transfer", "multigait", *options]
-            jobs.append([*command, "--out", str(folder)])
-    run_jobs(jobs, args.workers, env)
+    run_transfers(cases().values(), args.workers)
 
-    rows = []
-    for name, (options, folder) in cases().items():
-        path = folder / "multigait_transfer.json"
-        if not path.exists():
-            print(f"missing: {path}", file=sys.stderr)
-            continue
-        report = json.loads(path.read_text())
-        steps = report["steps"]
-        proxy, fem = report["proxy_return"], report["fem_return"]
-        rows.append(
-            {
-                "case": name,
-                "options": options,
-                "folder": str(folder),
-                "actions": [s["action"] for s in steps],
-                "proxy_travel_mm": round(proxy, 3),
-                "fem_travel_mm": round(fem, 3),
-                "fem_over_proxy": round(fem / proxy, 4) if proxy else None,
-                "proxy_steps_mm": [round(s["proxy_reward"], 3) for s in steps],
-                "fem_steps_mm": [round(s["fem_reward"], 3) for s in steps],
-                "twin_resets": report.get("twin_resets", 0),
-                "failed_inverse_steps": report["failed_inverse_steps"],
-                "wall_time_s": round(report["wall_time_s"], 1),
-            }
-        )
-        print(f"{name}: proxy {proxy:.2f} FEM {fem:.2f} mm")
+    rows = [transfer_row(name, folder, options) for name, (options, folder) in cases().items()]
+    rows = [r for r in rows if r is not None]
+    for r in rows:
+        print(f"{r['case']}: proxy {r['proxy_travel_mm']:.2f} FEM {r['fem_travel_mm']:.2f} mm")
     summary = {"command": "python experiments/proxy_twin.py " + " ".join(sys.argv[1:])}
     summary["rows"] = rows
     write_json(RESULTS / "twin_summary.json", summary)
