@@ -9,7 +9,9 @@ reaches by several (the centre on, or the centre off with the legs half inflated
 weakest. The prior picks the proxy's own. Cases: the weights 0.1, 1, 3, 10 and 30 (0 is
 proxy_twin.py's case) on the thesis' test sequence and on the learned policy
 (``rl_multigait_surface``, 8 steps); at 10, the other PPO seeds' policies, the policy without
-the corrector, and the test sequence on the surface proxy. One ``pliant proxy transfer
+the corrector, the policy by the look-ahead QP restarted from the FEM at each sub-step (the
+loop's first reading, matched points at mid-thickness or on the underside) instead of the
+twin, and the test sequence on the surface proxy. One ``pliant proxy transfer
 multigait`` a case, two at a time, each into its own folder (a case whose JSON is there is not
 run again); the summary in experiments/results/proxy/prior_summary.json and .png. At 10 also
 the two policies PPO learned on the node-ball proxy (``rl_multigait``, observing the points and
@@ -21,7 +23,7 @@ experiments/proxy_robustness.py), beside their open-loop transfers with the corr
 
     python experiments/proxy_prior.py
 
-About 2 minutes a case on one core; 33 cases.
+About 2 minutes a case on one core; 35 cases.
 """
 
 from __future__ import annotations
@@ -85,6 +87,12 @@ def cases() -> dict[str, tuple[list[str], Path, float]]:
         policy / f"twin_underside_prior{HEADLINE:g}",
         HEADLINE,
     )
+    for tag, matched in (("axis", []), ("underside", ["--matched", "underside"])):
+        out[f"policy, look-ahead QP, {tag}, prior {HEADLINE:g}"] = (
+            learned + matched + CORRECTOR + prior(HEADLINE),
+            policy / f"lookahead_{tag}_corrector_prior{HEADLINE:g}",
+            HEADLINE,
+        )
     surface = Path("experiments/proxy/surface/multigait-joint_calibration.json")
     out[f"sequence, surface proxy, prior {HEADLINE:g}"] = (
         ["--proxy", str(surface), *LOOP, *CORRECTOR, *prior(HEADLINE)],
