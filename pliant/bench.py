@@ -251,6 +251,26 @@ def time_steps(
     )
 
 
+def host() -> dict:
+    """The host a timing was taken on: CPU model, cores and the load average, so that a reader
+    can tell a slower host or a busy one from a slower Pliant (ratios against SOFA's figures,
+    taken on another day, hold only on a host as fast and as quiet as theirs; SPEC §5)."""
+    model = platform.processor() or platform.machine()
+    try:
+        with open("/proc/cpuinfo") as fh:
+            names = [ln.split(":", 1)[1].strip() for ln in fh if ln.startswith("model name")]
+        model = names[0] if names else model
+    except OSError:
+        pass
+    load = os.getloadavg() if hasattr(os, "getloadavg") else (float("nan"),) * 3
+    return {
+        "machine": platform.platform(),
+        "cpu_model": model,
+        "cpus": os.cpu_count(),
+        "load_average_1_5_15_min": [round(x, 2) for x in load],
+    }
+
+
 def run_benchmarks(
     *,
     meshes: Path | None,
@@ -266,6 +286,7 @@ def run_benchmarks(
     gets the default step's error against the exact one and its time per part."""
     meshes = meshes or _default_meshes()
     results: list[Measurement] = []
+    host_before = host()
 
     def measure(
         scene: str,
@@ -520,6 +541,8 @@ def run_benchmarks(
         "pliant_version": __version__,
         "machine": platform.platform(),
         "cpus": os.cpu_count(),
+        "host_before": host_before,
+        "host_after": host(),
         "dt": 0.01,
         "repeats": repeats,
         "reference_meshes": str(meshes) if meshes else None,
@@ -535,6 +558,10 @@ def run_benchmarks(
         json.dump(payload, fh, indent=1)
     os.replace(tmp, out)
     _plot(results, out.with_suffix(".png"))
+    console.print(
+        f"host: {host_before['cpu_model']}, load {host_before['load_average_1_5_15_min'][0]}"
+        f" before, {payload['host_after']['load_average_1_5_15_min'][0]} after (1 min average)"
+    )
     console.print(f"peak memory {peak_mb:.0f} MB; wrote {out} and {out.with_suffix('.png')}")
     return results
 

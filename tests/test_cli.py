@@ -80,6 +80,10 @@ def test_bench_quick_writes_results(tmp_path, monkeypatch) -> None:
     for scene in report["scenes"]:
         assert scene["steps_per_s"] > 0.0 and len(scene["repeats"]) == 1, scene
     assert report["inverse_step_ms"] > 0.0
+    # The host it ran on, so a slower host can be told from a slower Pliant.
+    for host in (report["host_before"], report["host_after"]):
+        assert host["cpu_model"] and host["cpus"] >= 1
+        assert len(host["load_average_1_5_15_min"]) == 3
     # Each cantilever: the default's error against the exact step over 1 s, and where the
     # time of a step goes (the parts sum to at most the step).
     cantilever = next(s for s in report["scenes"] if s["scene"] == "cantilever-240")
