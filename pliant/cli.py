@@ -307,6 +307,14 @@ def bench(
         str,
         typer.Option(help="batched stepping: comma-separated copy counts to time ('' skips)"),
     ] = "1,8,32",
+    learner: Annotated[
+        bool,
+        typer.Option(
+            help="the learner's cost per training step alone (SAC CartStemContact, PPO"
+            " TrunkSpaceDebris: the thesis' networks on a stand-in task whose step is free),"
+            " with its arithmetic against this machine's matrix-product speed; learner.json"
+        ),
+    ] = False,
 ) -> None:
     """Median steps/s beside SOFA's measured figures; writes JSON and a log-log plot."""
     from pliant.bench import run_benchmarks
@@ -327,6 +335,10 @@ def bench(
 
         names = None if envs in ("all", "only") else [n.strip() for n in envs.split(",")]
         report_envs(names, quick=quick, out=out.with_name("envs.json"), console=console)
+    if learner:
+        from pliant.learn.speed import report_learner
+
+        report_learner(quick=quick, out=out.with_name("learner.json"), console=console)
 
 
 def _copy_counts(text: str) -> tuple[int, ...]:

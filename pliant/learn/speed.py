@@ -1,0 +1,192 @@
+"""What the learner costs per environment step, apart from the simulation (`pliant bench
+--learner`).
+
+A training step is a simulation step plus the learner's share: the policy's forward pass that
+picks the action, the replay or rollout buffer, and the gradient updates spread over the steps
+(SAC: ``gradient_steps`` updates every ``train_freq`` steps of ``n_envs`` environments; PPO:
+``n_epochs`` passes over ``n_steps * n_envs`` samples in minibatches). To see that share alone,
+the run's own configuration (``pliant/learn/configs``: the thesis' 3 x 512 networks) trains on
+a stand-in environment with the task's observation and action spaces whose step costs nothing.
+
+The arithmetic is counted, not guessed: PyTorch's profiler gives the floating-point operations
+of the learner's work, and the same process times a 256 x 512 by 512 x 512 matrix product, the
+kind of operation the updates are made of. Their ratio says whether the updates run at the
+machine's matrix-product speed (then only less arithmetic or more cores make them faster) or
+lose time elsewhere (threads, copies, per-update overheads). Measured side by side in one
+process, the ratio holds on a shared, noisy machine where the times alone do not.
+"""
+
+from __future__ import annotations
+
+import statistics
+import time
+from dataclasses import asdict, dataclass
+
+import gymnasium as gym
+import numpy as np
+
+from pliant.errors import TrainingError
+from pliant.learn.config import OFF_POLICY, load_config, sb3_kwargs
+from pliant.learn.evaluate import algorithm_class
+
+
+class FreeStepEnv(gym.Env):
+    """A task's observation and action spaces around a step that costs nothing: random
+    observations from the space, reward 0, episodes of `episode_steps`."""
+
+    def __init__(self, observation_space, action_space, episode_steps: int = 30) -> None:
+        self.observation_space = observation_space
+        self.action_space = action_space
+        self.episode_steps = episode_steps
+        self._t = 0
+
+    def reset(self, *, seed=None, options=None):
+        super().reset(seed=seed)
+        self.observation_space.seed(seed)
+        self._t = 0
+        return self.observation_space.sample(), {}
+
+    def step(self, action):
+        self._t += 1
+        return self.observation_space.sample(), 0.0, False, self._t >= self.episode_steps, {}
+
+
+@dataclass(frozen=True)
+class LearnerCost:
+    env_id: str
+    algo: str
+    net_arch: list
+    n_envs: int
+    torch_threads: int
+    env_steps: int
+    ms_per_env_step: float  # median over repeats: what the learner adds to each training step
+    learner_bound_steps_per_s: float  # training's ceiling if the simulation cost nothing
+    gflop_per_env_step: float  # PyTorch's profiler, forward + backward + optimiser
+    matmul_gflop_per_s: float  # median, same process, same threads
+    share_of_matmul_speed: float  # (gflop / time) / matmul speed
+    repeats: list
+
+    def to_dict(self) -> dict:
+        return asdict(self)
+
+
+def _matmul_speed(repeats: int = 200) -> float:
+    import torch
+
+    a, b = torch.randn(256, 512), torch.randn(512, 512)
+    for _ in range(10):
+        a @ b
+    t0 = time.perf_counter()
+    for _ in range(repeats):
+        a @ b
+    return 2.0 * 256 * 512 * 512 * repeats / (time.perf_counter() - t0) / 1e9
+
+
+def learner_cost(
+    env_id: str,
+    algo: str,
+    *,
+    env_steps: int = 512,
+    repeats: int = 3,
+    torch_threads: int = 1,
+    hyperparams: dict | None = None,
+    seed: int = 0,
+) -> LearnerCost:
+    """Time `env_steps` training steps of `algo` with `env_id`'s configuration on a stand-in
+    of the task whose step is free (module docstring). `hyperparams` override the config's
+    (e.g. a smaller network for a quick check)."""
+    import torch
+    from stable_baselines3.common.vec_env import DummyVecEnv
+    from torch.profiler import ProfilerActivity, profile
+
+    if env_steps < 1 or repeats < 1 or torch_threads < 1:
+        raise TrainingError(
+            f"env_steps, repeats and torch_threads must be >= 1, got {env_steps}, {repeats},"
+            f" {torch_threads}"
+        )
+    config = load_config(env_id, algo)
+    params = {**config.hyperparams, **(hyperparams or {})}
+    task = gym.make(env_id)
+    spaces = (task.observation_space, task.action_space)
+    episode = getattr(task.spec, "max_episode_steps", None) or 30
+    task.close()
+
+    saved = torch.get_num_threads()
+    torch.set_num_threads(torch_threads)
+    try:
+        venv = DummyVecEnv([lambda: FreeStepEnv(*spaces, episode)] * config.n_envs)
+        kwargs = sb3_kwargs(params)
+        if algo in OFF_POLICY:
+            kwargs["learning_starts"] = 0  # updates from the first step: the steady state
+        else:
+            # one rollout of n_steps per environment holds the whole update cycle
+            env_steps = max(env_steps, kwargs.get("n_steps", 2048) * config.n_envs)
+        model = algorithm_class(algo)(env=venv, seed=seed, device="cpu", verbose=0, **kwargs)
+        model.learn(min(env_steps, 64 * config.n_envs))  # buffers and kernels warmed up
+        with profile(activities=[ProfilerActivity.CPU], with_flops=True) as prof:
+            model.learn(env_steps, reset_num_timesteps=False)
+        gflop = sum(e.flops for e in prof.key_averages() if e.flops) / env_steps / 1e9
+        times, matmul = [], []
+        for _ in range(repeats):
+            matmul.append(_matmul_speed())
+            t0 = time.perf_counter()
+            model.learn(env_steps, reset_num_timesteps=False)
+            times.append((time.perf_counter() - t0) / env_steps)
+        venv.close()
+    finally:
+        torch.set_num_threads(saved)
+    per_step = statistics.median(times)
+    speed = statistics.median(matmul)
+    return LearnerCost(
+        env_id=env_id,
+        algo=algo,
+        net_arch=list(params.get("policy_kwargs", {}).get("net_arch", [])),
+        n_envs=config.n_envs,
+        torch_threads=torch_threads,
+        env_steps=env_steps,
+        ms_per_env_step=per_step * 1e3,
+        learner_bound_steps_per_s=1.0 / per_step,
+        gflop_per_env_step=gflop,
+        matmul_gflop_per_s=speed,
+        share_of_matmul_speed=float(np.clip(gflop / per_step / speed, 0.0, np.inf)),
+        repeats=[t * 1e3 for t in times],
+    )
+
+
+# The thesis' learning runs whose learner the bench times (configs/<Env>.yaml).
+THESIS_RUNS = (("pliant/CartStemContact-v0", "SAC"), ("pliant/TrunkSpaceDebris-v0", "PPO"))
+
+
+def report_learner(*, quick: bool, out, console, torch_threads: int = 1) -> list[LearnerCost]:
+    """Time the learner of each thesis run, print a table, write the JSON atomically."""
+    from rich.table import Table
+
+    from pliant.files import write_json
+
+    rows = [
+        learner_cost(
+            env_id,
+            algo,
+            env_steps=128 if quick else 1024,
+            repeats=1 if quick else 3,
+            torch_threads=torch_threads,
+        )
+        for env_id, algo in THESIS_RUNS
+    ]
+    table = Table(title="the learner alone (stand-in task, free step), per environment step")
+    for col in ("run", "net", "ms", "steps/s ceiling", "GFLOP", "matmul GFLOP/s", "share"):
+        table.add_column(col, justify="right")
+    for r in rows:
+        table.add_row(
+            f"{r.algo} {r.env_id.split('/')[-1]}",
+            "x".join(map(str, r.net_arch)),
+            f"{r.ms_per_env_step:.1f}",
+            f"{r.learner_bound_steps_per_s:.1f}",
+            f"{r.gflop_per_env_step:.2f}",
+            f"{r.matmul_gflop_per_s:.1f}",
+            f"{100 * r.share_of_matmul_speed:.0f} %",
+        )
+    console.print(table)
+    write_json(out, {"learner": [r.to_dict() for r in rows], "quick": quick})
+    console.print(f"saved {out}")
+    return rows

@@ -1,0 +1,38 @@
+"""The learner's cost per training step (`pliant bench --learner`): the arithmetic the
+profiler counts scales as the network's, and the report says what it measured."""
+
+from __future__ import annotations
+
+import pytest
+
+from pliant.errors import TrainingError
+from pliant.learn.speed import learner_cost
+
+
+def _cost(width: int):
+    return learner_cost(
+        "Pendulum-v1",  # SB3's defaults (configs/default.yaml), no simulation to build
+        "SAC",
+        env_steps=32,
+        repeats=1,
+        hyperparams={"batch_size": 64, "policy_kwargs": {"net_arch": [width] * 3}},
+    )
+
+
+def test_learner_arithmetic_scales_as_the_hidden_layers():
+    """Three hidden layers of width h on 3 observations and 1 action: the two h x h products
+    dominate every forward and backward pass, so doubling h multiplies the operations by
+    (2 * 256^2 + 12 * 256) / (2 * 128^2 + 12 * 128) = 3.86 up to the small layers' share
+    (the input and output layers' exact count differs between actor and critics)."""
+    small, large = _cost(128), _cost(256)
+    ratio = large.gflop_per_env_step / small.gflop_per_env_step
+    assert 3.5 < ratio < 4.1, ratio
+    for cost in (small, large):
+        assert cost.ms_per_env_step > 0.0 and cost.matmul_gflop_per_s > 0.0
+        assert cost.learner_bound_steps_per_s == pytest.approx(1e3 / cost.ms_per_env_step)
+        assert cost.net_arch == [cost.net_arch[0]] * 3 and cost.torch_threads == 1
+
+
+def test_learner_cost_refuses_empty_runs():
+    with pytest.raises(TrainingError, match="env_steps"):
+        learner_cost("Pendulum-v1", "SAC", env_steps=0)
