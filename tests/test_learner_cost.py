@@ -1,5 +1,5 @@
-"""The learner's cost per training step (`pliant bench --learner`): the arithmetic the
-profiler counts scales as the network's, and the report says what it measured."""
+"""The learner's cost per training step (`pliant bench --learner`): the arithmetic PyTorch's
+FLOP counter counts scales as the network's, and the report says what it measured."""
 
 from __future__ import annotations
 

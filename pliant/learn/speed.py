@@ -8,12 +8,13 @@ picks the action, the replay or rollout buffer, and the gradient updates spread 
 the run's own configuration (``pliant/learn/configs``: the thesis' 3 x 512 networks) trains on
 a stand-in environment with the task's observation and action spaces whose step costs nothing.
 
-The arithmetic is counted, not guessed: PyTorch's profiler gives the floating-point operations
-of the learner's work, and the same process times a 256 x 512 by 512 x 512 matrix product, the
-kind of operation the updates are made of. Their ratio says whether the updates run at the
-machine's matrix-product speed (then only less arithmetic or more cores make them faster) or
-lose time elsewhere (threads, copies, per-update overheads). Measured side by side in one
-process, the ratio holds on a shared, noisy machine where the times alone do not.
+The arithmetic is counted, not guessed: PyTorch's FLOP counter (``torch.utils.flop_counter``)
+gives the floating-point operations of the learner's work, and the same process times a
+256 x 512 by 512 x 512 matrix product, the kind of operation the updates are made of. Their
+ratio says whether the updates run at the machine's matrix-product speed (then only less
+arithmetic or more cores make them faster) or lose time elsewhere (threads, copies,
+per-update overheads). Measured side by side in one process, the ratio holds on a shared,
+noisy machine where the times alone do not.
 """
 
 from __future__ import annotations
@@ -61,7 +62,7 @@ class LearnerCost:
     env_steps: int
     ms_per_env_step: float  # median over repeats: what the learner adds to each training step
     learner_bound_steps_per_s: float  # training's ceiling if the simulation cost nothing
-    gflop_per_env_step: float  # PyTorch's profiler, forward + backward + optimiser
+    gflop_per_env_step: float  # PyTorch's FLOP counter: forward and backward products
     matmul_gflop_per_s: float  # median, same process, same threads
     share_of_matmul_speed: float  # (gflop / time) / matmul speed
     repeats: list
@@ -97,7 +98,7 @@ def learner_cost(
     (e.g. a smaller network for a quick check)."""
     import torch
     from stable_baselines3.common.vec_env import DummyVecEnv
-    from torch.profiler import ProfilerActivity, profile
+    from torch.utils.flop_counter import FlopCounterMode
 
     if env_steps < 1 or repeats < 1 or torch_threads < 1:
         raise TrainingError(
@@ -123,9 +124,10 @@ def learner_cost(
             env_steps = max(env_steps, kwargs.get("n_steps", 2048) * config.n_envs)
         model = algorithm_class(algo)(env=venv, seed=seed, device="cpu", verbose=0, **kwargs)
         model.learn(min(env_steps, 64 * config.n_envs))  # buffers and kernels warmed up
-        with profile(activities=[ProfilerActivity.CPU], with_flops=True) as prof:
+        counter = FlopCounterMode(display=False)  # counts per operation, records no trace
+        with counter:
             model.learn(env_steps, reset_num_timesteps=False)
-        gflop = sum(e.flops for e in prof.key_averages() if e.flops) / env_steps / 1e9
+        gflop = counter.get_total_flops() / env_steps / 1e9
         times, matmul = [], []
         for _ in range(repeats):
             matmul.append(_matmul_speed())
