@@ -21,6 +21,7 @@ of components.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import warnings
 from collections.abc import Sequence
@@ -47,7 +48,8 @@ from pliant.fem.supports import OnLine, OnPlane, Projection
 from pliant.mesh.quality import signed_volumes
 from pliant.mesh.tetmesh import TetMesh
 from pliant.model import Model, State
-from pliant.sofa.tree import SceneError, SceneNode, SceneObject, read_scene
+from pliant.sofa.components import FIELDS, is_visual
+from pliant.sofa.tree import SceneError, SceneNode, SceneObject, _suggestion, read_scene
 
 # Components that change nothing Pliant computes: plugins, loops, visual and output
 # components, linear solvers (Pliant factorises exactly, as SparseLDLSolver does), constraint
@@ -58,16 +60,6 @@ IGNORED = frozenset(
         "RequiredPlugin",
         "DefaultAnimationLoop",
         "FreeMotionAnimationLoop",
-        "DefaultVisualManagerLoop",
-        "VisualStyle",
-        "BackgroundSetting",
-        "InteractiveCamera",
-        "LightManager",
-        "OglSceneFrame",
-        "AttachBodyButtonSetting",
-        "OglModel",
-        "VisualModel",
-        "VTKExporter",
         "SparseLDLSolver",
         "AsyncSparseLDLSolver",
         "SparseCholeskySolver",
@@ -88,14 +80,31 @@ IGNORED = frozenset(
         "TetrahedronSetTopologyContainer",
         "TetrahedronSetTopologyModifier",
         "TetrahedronSetGeometryAlgorithms",
+        "TetrahedronSetTopologyAlgorithms",
         "TriangleSetTopologyContainer",
         "TriangleSetTopologyModifier",
         "TriangleSetGeometryAlgorithms",
+        "TriangleSetTopologyAlgorithms",
+        "EdgeSetTopologyContainer",
+        "EdgeSetTopologyModifier",
+        "EdgeSetGeometryAlgorithms",
+        "PointSetTopologyContainer",
+        "PointSetTopologyModifier",
+        "Tetra2TriangleTopologicalMapping",
+        # SoftRobots' volume engines: outputs (the cavity's volume), computed by Pliant's cavity
+        "VolumeFromTetrahedrons",
+        "VolumeFromTriangles",
     }
 )
 MESH_LOADERS = frozenset({"MeshVTKLoader", "MeshGmshLoader", "MeshSTLLoader", "MeshOBJLoader"})
 HYPERELASTIC = "TetrahedronHyperelasticityFEMForceField"
-FEM = frozenset({"TetrahedronFEMForceField", HYPERELASTIC})
+FAST_COROTATIONAL = "FastTetrahedralCorotationalForceField"
+FEM = frozenset({"TetrahedronFEMForceField", FAST_COROTATIONAL, HYPERELASTIC})
+# The element rotation of each FEM method: TetrahedronFEMForceField's "large" and
+# FastTetrahedralCorotationalForceField's "qr" both take the frame of the element's first
+# edge and first face (a QR factorisation of its edge vectors), "polar" (and "polar2") the
+# polar decomposition.
+ROTATIONS = {"large": "large", "qr": "large", "polar": "polar", "polar2": "polar", "svd": "polar"}
 # SOFA's hyperelastic materials that Pliant has a law for: the same strain energy, and the
 # meaning of each ParameterSet entry (SOFA's material headers).
 HYPERELASTIC_MATERIALS = {"NeoHookean": ("mu", "lambda")}
@@ -125,6 +134,7 @@ HANDLED = frozenset(
         "EulerImplicitSolver",
         "StaticSolver",
         "BarycentricMapping",
+        "IdentityMapping",
         "CableConstraint",
         "CableActuator",
         "PositionEffector",
@@ -147,6 +157,8 @@ PIPELINE = frozenset(
         "RuleBasedContactManager",
     }
 )
+RESPONSES = frozenset({"CollisionResponse", "DefaultContactManager", "RuleBasedContactManager"})
+MAPPINGS = frozenset({"BarycentricMapping", "IdentityMapping"})
 INTERSECTIONS = frozenset(
     {"LocalMinDistance", "MinProximityIntersection", "NewProximityIntersection"}
 )
@@ -173,6 +185,8 @@ class SofaScene:
     dt: float
     solver_kind: str
     path: Path
+    root: SceneNode | None = None
+    bindings: Bindings | None = None
 
     @property
     def name(self) -> str:
@@ -185,8 +199,93 @@ class SofaScene:
         from pliant.solvers import ImplicitEuler, StaticSolver
 
         if self.solver_kind == "static":
-            return StaticSolver(self.model)
-        return ImplicitEuler(self.model, self.dt, tangent=tangent)
+            solver = StaticSolver(self.model)
+        else:
+            solver = ImplicitEuler(self.model, self.dt, tangent=tangent)
+        return ControlledSolver(self, solver) if self.controllers() else solver
+
+    def controllers(self) -> list:
+        """The scene's Python controllers, in scene order."""
+        if self.root is None:
+            return []
+        return [c for node in self.root.walk() for c in node.controllers]
+
+    def begin_step(self, state: State) -> State:
+        """SOFA's AnimateBeginEvent: each controller's ``onAnimateBeginEvent``, then the data
+        they set (actuator values, effector goals, the body's positions) into the model;
+        returns the state the step starts from."""
+        self._fire("onAnimateBeginEvent", state)
+        return self.read_inputs(state)
+
+    def end_step(self, state: State) -> None:
+        """After a step: the state into the scene's data, then ``onAnimateEndEvent``."""
+        self.write_outputs(state)
+        self._fire("onAnimateEndEvent", state)
+
+    def _fire(self, method: str, state: State) -> None:
+        from pliant.sofa.script import scene_error
+
+        event = {"type": method[2:-5], "dt": self.dt, "time": state.time}
+        for controller in self.controllers():
+            handler = getattr(controller, method, None)
+            if handler is None:
+                continue
+            try:
+                handler(event)
+            except Exception as exc:
+                raise scene_error(self.path, exc, f"{type(controller).__name__}.{method}") from exc
+
+    def read_inputs(self, state: State) -> State:
+        """Actuator values, effector goals and the body's positions as the data hold them."""
+        bindings = self.bindings
+        for obj, actuator in zip(bindings.actuators, self.model.actuators, strict=True):
+            values = _floats(obj.attrs.get("value", "0"), f"{obj.path}.value")
+            actuator.value = float(values[int(_float(obj, "valueIndex", 0.0))])
+        for obj, effector in zip(bindings.effectors, self.model.effectors, strict=True):
+            goal = obj.attrs.get("effectorGoal")
+            if goal is None:
+                continue
+            if _is_link(goal):
+                source = _Builder(self.root, self.path, SOFA_CHOICES, []).link(obj.node, goal)
+                goal = None if source is None else source.attrs.get("position")
+            if goal is not None:
+                goals = _floats(goal, f"{obj.path}.effectorGoal").reshape(-1, 3)
+                if goals.shape[0] == 1:
+                    goals = np.repeat(goals, len(effector.points), axis=0)
+                effector.goals = goals
+        written = bindings.written
+        if bindings.body is not None and bindings.body.attrs.get("position") is not written:
+            positions = _floats(bindings.body.attrs["position"], f"{bindings.body.path}.position")
+            state = dataclasses.replace(state, positions=positions.reshape(-1, 3).copy())
+        return state
+
+    def write_outputs(self, state: State) -> None:
+        """The state into the data scripts read: the body's and the carried points'
+        ``position``, actuators' ``displacement`` / ``force`` (cables) and ``pressure`` /
+        ``volumeGrowth`` (cavities), rigid poses, and the root's ``time``."""
+        bindings = self.bindings
+        if bindings is None:
+            return
+        if bindings.body is not None:
+            bindings.written = _frozen(state.positions)
+            bindings.body.attrs["position"] = bindings.written
+            bindings.body.attrs["velocity"] = _frozen(state.velocities)
+        for dofs, points in bindings.mapped:
+            dofs.attrs["position"] = _frozen(points.positions(state.positions))
+        n = len(self.model.actuators)
+        force = state.actuation if len(state.actuation) == n else np.zeros(n)
+        shift = state.displacement if len(state.displacement) == n else np.zeros(n)
+        for obj, f, d in zip(bindings.actuators, force, shift, strict=True):
+            if obj.type in CAVITIES:
+                obj.attrs["pressure"], obj.attrs["volumeGrowth"] = float(f), float(d)
+            else:
+                obj.attrs["force"], obj.attrs["displacement"] = float(f), float(d)
+        for dofs, x, r in zip(
+            bindings.rigid, state.rigid_positions, state.rigid_rotations, strict=False
+        ):
+            dofs.attrs["position"] = _frozen(np.concatenate([x, Rotation.from_matrix(r).as_quat()]))
+        if self.root is not None:
+            self.root.attrs["time"] = float(state.time)
 
     def goal_path(self, n_goals: int) -> np.ndarray:
         """(n_goals, 3) goals on the straight line from the first effector point's rest
@@ -218,12 +317,50 @@ class SofaScene:
         return RobotEntry(lambda: self.model, lambda t: commands, goals, (20.0, -60.0))
 
     def simulate(self, n_steps: int, state: State | None = None) -> State:
-        """Run `n_steps` steps under the scene's commands; returns the last state."""
+        """Run `n_steps` steps under the scene's commands (and its controllers); returns the
+        last state."""
         solver = self.solver()
         state = self.model.rest_state() if state is None else state
         for _ in range(n_steps):
             state = solver.step(state)
         return state
+
+
+@dataclass
+class Bindings:
+    """Which components of the scene hold the model's inputs and outputs: the actuators'
+    and effectors' components (in the model's order), the body's MechanicalObject, those of
+    the points it carries (with their embedding) and the rigid bodies'."""
+
+    actuators: list[SceneObject] = dataclasses.field(default_factory=list)
+    effectors: list[SceneObject] = dataclasses.field(default_factory=list)
+    body: SceneObject | None = None
+    mapped: list[tuple[SceneObject, EmbeddedPoints]] = dataclasses.field(default_factory=list)
+    rigid: list[SceneObject] = dataclasses.field(default_factory=list)
+    written: np.ndarray | None = None  # the body's positions as last written
+
+
+class ControlledSolver:
+    """A scene's solver with its Python controllers around each step (SOFA's animation
+    events); every other attribute is the solver's."""
+
+    def __init__(self, scene: SofaScene, solver) -> None:
+        self.scene, self.solver = scene, solver
+
+    def step(self, state: State, control=None) -> State:
+        state = self.solver.step(self.scene.begin_step(state), control)
+        self.scene.end_step(state)
+        return state
+
+    def __getattr__(self, key: str):
+        return getattr(self.solver, key)
+
+
+def _frozen(values: np.ndarray) -> np.ndarray:
+    """A read-only copy, as SofaPython3 gives data arrays."""
+    array = np.array(values, dtype=float)
+    array.flags.writeable = False
+    return array
 
 
 @dataclass(frozen=True)
@@ -310,13 +447,28 @@ def _flag(obj: SceneObject, key: str, default: bool) -> bool:
     return bool(value)
 
 
+def _placed(obj: SceneObject, points: np.ndarray) -> np.ndarray:
+    """Points under a component's scale (``scale3d`` or uniform ``scale``), rotation (Euler
+    angles in degrees, Rz Ry Rx as SOFA composes them) and translation, in that order."""
+    scale = _floats(obj.attrs.get("scale3d", obj.attrs.get("scale", "1")), f"{obj.path}.scale")
+    euler = _floats(obj.attrs.get("rotation", "0 0 0"), f"{obj.path}.rotation")
+    shift = _floats(obj.attrs.get("translation", "0 0 0"), f"{obj.path}.translation")
+    rot = Rotation.from_euler("xyz", euler, degrees=True).as_matrix()
+    return (points * scale) @ rot.T + shift
+
+
 def _is_link(value) -> bool:
     return isinstance(value, str) and value.strip().startswith("@")
+
+
+# Data fields every SOFA component has.
+_COMMON = frozenset({"name", "template", "printLog", "tags", "bbox", "listening", "src"})
 
 
 class _Builder:
     def __init__(self, root: SceneNode, path: Path, choices: Choices, mesh_dirs: list[Path]):
         self.root, self.path, self.choices, self.mesh_dirs = root, path, choices, mesh_dirs
+        self.bindings = Bindings()
 
     # --- scene-wide ------------------------------------------------------------------------
     def build(self) -> SofaScene:
@@ -354,20 +506,36 @@ class _Builder:
             rigid_bodies=rigid,
             name=self.path.stem,
         )
-        return SofaScene(model, dt, solver_kind, self.path)
+        self.bindings.body = self._one(body_node, {"MechanicalObject"}, "MechanicalObjects")
+        self.bindings.rigid = [self._rigid_dofs(n) for n in self.root.walk() if self._is_rigid(n)]
+        scene = SofaScene(model, dt, solver_kind, self.path, self.root, self.bindings)
+        scene.write_outputs(model.rest_state())
+        return scene
 
     def _check_supported(self) -> None:
-        unknown = [
-            f"{obj.type} (at {obj.node.path})"
-            for node in self.root.walk()
-            for obj in node.objects
-            if obj.type not in HANDLED and obj.type not in IGNORED
-        ]
-        if unknown:
+        """One error for everything the scene holds that Pliant cannot simulate: components
+        it does not have and attributes that are no field of their component (a misspelt
+        name, close to one of its fields)."""
+        problems = []
+        for node in self.root.walk():
+            for obj in node.objects:
+                if obj.type not in HANDLED and obj.type not in IGNORED and not is_visual(obj.type):
+                    problems.append(f"{obj.type} (at {node.path})")
+                    continue
+                fields = FIELDS.get(obj.type)
+                if fields is None:
+                    continue
+                for key in obj.attrs:
+                    if key in fields or key in _COMMON:
+                        continue
+                    hint = _suggestion(key, fields)
+                    if hint:
+                        problems.append(f"{obj.type}.{key} (at {node.path}): no such data{hint}")
+        if problems:
             raise SceneError(
-                f"{self.path.name} uses components Pliant does not support: "
-                + "; ".join(unknown)
-                + " (docs/sofa.md lists those it does)"
+                f"{self.path.name} uses what Pliant does not support: "
+                + "; ".join(problems)
+                + " (docs/sofa.md lists what it does)"
             )
 
     # --- collisions ----------------------------------------------------------------------------
@@ -403,7 +571,10 @@ class _Builder:
             if id(node) in body_nodes:
                 if "PointCollisionModel" not in types:
                     raise SceneError(f"{node.path}: the body collides by points only")
-                if "BarycentricMapping" not in types:
+                if node is body_node:  # the body's own nodes collide
+                    points.append(body.rest_positions)
+                    continue
+                if not types & MAPPINGS:
                     raise SceneError(f"{node.path}: collision points not mapped on the body")
                 dofs = self._one(node, {"MechanicalObject"}, "MechanicalObjects")
                 points.append(np.unique(self._positions(node, dofs), axis=0))
@@ -424,9 +595,7 @@ class _Builder:
         return contacts, rigid
 
     def _friction(self) -> float:
-        responses = [
-            o for n in self.root.walk() for o in n.objects if o.type == "CollisionResponse"
-        ]
+        responses = [o for n in self.root.walk() for o in n.objects if o.type in RESPONSES]
         if not responses:
             return 0.0
         params = str(responses[0].attrs.get("responseParams", ""))
@@ -438,17 +607,47 @@ class _Builder:
 
     @staticmethod
     def _is_rigid(node: SceneNode) -> bool:
-        return any(
-            o.type == "MechanicalObject" and str(o.attrs.get("template", "")).startswith("Rigid3")
-            for o in node.objects
+        """A moving rigid body: a Rigid3 MechanicalObject whose collision models move (STLIB
+        marks a static one, a floor, moving=False and simulated=False)."""
+        if not _Builder._rigid_dofs(node):
+            return False
+        models = [o for n in node.walk() for o in n.objects if o.type in COLLISION_MODELS]
+        return not models or any(
+            _flag(o, "moving", True) or _flag(o, "simulated", True) for o in models
         )
 
-    def _rigid_body(self, node: SceneNode, friction: float) -> RigidBody:
-        dofs = self._one(node, {"MechanicalObject"}, "MechanicalObjects")
+    @staticmethod
+    def _rigid_dofs(node: SceneNode | None) -> SceneObject | None:
+        if node is None:
+            return None
+        return next(
+            (
+                o
+                for o in node.objects
+                if o.type == "MechanicalObject"
+                and str(o.attrs.get("template", "")).startswith("Rigid3")
+            ),
+            None,
+        )
+
+    @staticmethod
+    def _pose(dofs: SceneObject) -> tuple[np.ndarray, np.ndarray]:
+        """A Rigid3 MechanicalObject's position and rotation matrix: its `position` (x y z
+        and the quaternion x y z w), then its ``rotation2`` (Euler angles, degrees) and
+        ``translation2``."""
         pose = _floats(dofs.attrs.get("position", "0 0 0 0 0 0 1"), f"{dofs.path}.position")
         if pose.size != 7:
             raise SceneError(f"{dofs.path}.position: one Rigid3 pose (7 values) expected")
-        rotation = Rotation.from_quat(pose[3:]).as_matrix()  # SOFA: x y z w, as scipy
+        rotation = Rotation.from_quat(pose[3:])  # SOFA: x y z w, as scipy
+        turn = Rotation.from_euler(
+            "xyz", _floats(dofs.attrs.get("rotation2", "0 0 0"), f"{dofs.path}.rotation2"), True
+        )
+        shift = _floats(dofs.attrs.get("translation2", "0 0 0"), f"{dofs.path}.translation2")
+        return turn.apply(pose[:3]) + shift, (turn * rotation).as_matrix()
+
+    def _rigid_body(self, node: SceneNode, friction: float) -> RigidBody:
+        dofs = self._one(node, {"MechanicalObject"}, "MechanicalObjects")
+        position, rotation = self._pose(dofs)
         mass = self._one(node, {"UniformMass"}, "masses")
         if mass is None or "vertexMass" not in mass.attrs:
             raise SceneError(f"{node.path}: a rigid body needs a UniformMass with vertexMass")
@@ -467,7 +666,7 @@ class _Builder:
         if np.linalg.norm(offset) > 1e-9 * np.linalg.norm(half):
             raise SceneError(f"{node.path}: the box must be centred on the rigid frame")
         return RigidBody(
-            Box(half, position=pose[:3], rotation=rotation),
+            Box(half, position=position, rotation=rotation),
             values[0],
             values[0] * values[2:].reshape(3, 3),
             friction=friction,
@@ -496,6 +695,10 @@ class _Builder:
             raise SceneError(f"{node.path}: a moving obstacle needs a body (not supported)")
         dofs = self._one(node, {"MechanicalObject"}, "MechanicalObjects")
         points = self._positions(node, dofs)
+        frame = self._rigid_dofs(node.parent)
+        if frame is not None and any(o.type == "RigidMapping" for o in node.objects):
+            position, rotation = self._pose(frame)  # a static rigid object: its frame's points
+            points = points @ rotation.T + position
         topology = self._one(node, {"MeshTopology"}, "topologies")
         if topology is not None and "triangles" in topology.attrs:
             faces = _floats(topology.attrs["triangles"], f"{topology.path}.triangles")
@@ -561,12 +764,14 @@ class _Builder:
             material: Material = self._hyperelastic(fem)
             rotation = "none"
         else:
-            method = str(fem.attrs.get("method", "large")).lower()
-            if method not in ("large", "polar", "svd"):
+            default = "qr" if fem.type == FAST_COROTATIONAL else "large"
+            method = str(fem.attrs.get("method", default)).lower()
+            if method not in ROTATIONS:
                 raise SceneError(
-                    f"{fem.path}: method {method!r} is not supported (large, polar or svd)"
+                    f"{fem.path}: method {method!r} is not supported"
+                    f" ({', '.join(sorted(ROTATIONS))})"
                 )
-            large = method == "large" and self.choices.rotation == "scene"
+            large = ROTATIONS[method] == "large" and self.choices.rotation == "scene"
             rotation = "large" if large else "polar"
             material = Corotational(
                 _float(fem, "youngModulus", 5000.0),
@@ -627,17 +832,19 @@ class _Builder:
     def _mesh_loader(self, node: SceneNode) -> SceneObject:
         """The loader the body's topology reads (``src="@loader"``), or the node's only one."""
         for obj in node.objects:
-            src = obj.attrs.get("src")
-            if obj.type in ("MeshTopology", "TetrahedronSetTopologyContainer") and _is_link(src):
-                found = self._link(node, src)
-                if found is not None and found.type in MESH_LOADERS:
-                    return found
+            if obj.type not in ("MeshTopology", "TetrahedronSetTopologyContainer"):
+                continue
+            for key in ("src", "tetrahedra", "tetras", "position"):
+                if _is_link(obj.attrs.get(key)):
+                    found = self.link(node, obj.attrs[key])
+                    if found is not None and found.type in MESH_LOADERS:
+                        return found
         loader = self._one(node, MESH_LOADERS, "mesh loaders")
         if loader is None:
             raise SceneError(f"{node.path}: the body has no mesh loader (MeshVTKLoader, ...)")
         return loader
 
-    def _link(self, node: SceneNode, link: str) -> SceneObject | None:
+    def link(self, node: SceneNode, link: str) -> SceneObject | None:
         """The component a link such as ``@loader``, ``@boxROI.indices``, ``@../loader`` or
         ``@../../goal/goalMO.position`` names: by its path from `node` (or from the root for
         ``@/...``) where the path leads to it, else by its name here or in an ancestor."""
@@ -672,12 +879,7 @@ class _Builder:
         cells: dict[str, list[np.ndarray]] = {}
         for block in raw.cells:
             cells.setdefault(block.type, []).append(np.asarray(block.data, dtype=np.int64))
-        scale = _floats(loader.attrs.get("scale3d", loader.attrs.get("scale", "1")), "scale")
-        euler = _floats(loader.attrs.get("rotation", "0 0 0"), f"{loader.path}.rotation")
-        shift = _floats(loader.attrs.get("translation", "0 0 0"), f"{loader.path}.translation")
-        # SOFA's Euler angles (degrees) compose as Rz Ry Rx: scipy's extrinsic "xyz".
-        rot = Rotation.from_euler("xyz", euler, degrees=True).as_matrix()
-        points = (np.asarray(raw.points, dtype=float) * scale) @ rot.T + shift
+        points = _placed(loader, np.asarray(raw.points, dtype=float))
         return points, {k: np.concatenate(v) for k, v in cells.items()}
 
     def _read_mesh(self, loader: SceneObject) -> tuple[np.ndarray, np.ndarray]:
@@ -731,7 +933,7 @@ class _Builder:
         if value is None:
             return None
         if _is_link(value):
-            source = self._link(node, value)
+            source = self.link(node, value)
             if source is None or source.type != "BoxROI":
                 raise SceneError(f"{obj.path}.{key}: {value!r} names no BoxROI")
             return self._box_nodes(source, points)
@@ -742,17 +944,30 @@ class _Builder:
         values = _floats(box.attrs.get("box", ""), f"{box.path}.box")
         if values.size == 0 or values.size % 6:
             raise SceneError(f"{box.path}.box: groups of six numbers expected")
-        found = [nodes_in_box(points, b.reshape(2, 3)) for b in values.reshape(-1, 6)]
+        # SOFA orders each axis of a box itself: corners may come max-first.
+        boxes = np.sort(values.reshape(-1, 2, 3), axis=1)
+        found = [nodes_in_box(points, b) for b in boxes]
         return np.unique(np.concatenate(found))
+
+    @staticmethod
+    def _context(node: SceneNode) -> list[SceneObject]:
+        """The components acting on `node`'s degrees of freedom: its own and those of its
+        descendants that have no MechanicalObject of their own (SOFA's context: STLIB's
+        FixedBox is such a child)."""
+        found = list(node.objects)
+        for child in node.children:
+            if not any(o.type == "MechanicalObject" for o in child.objects):
+                found += _Builder._context(child)
+        return found
 
     def _fixed_nodes(self, node: SceneNode, points: np.ndarray) -> np.ndarray:
         fixed = [np.zeros(0, dtype=np.int64)]
-        for obj in node.objects:
+        for obj in self._context(node):
             if obj.type in ("FixedConstraint", "FixedProjectiveConstraint"):
                 if _flag(obj, "fixAll", False):
                     fixed.append(np.arange(points.shape[0]))
                     continue
-                idx = self._indices(node, obj, "indices", points)
+                idx = self._indices(obj.node, obj, "indices", points)
                 if idx is None:
                     raise SceneError(f"{obj.path}: no indices")
                 fixed.append(idx)
@@ -760,9 +975,9 @@ class _Builder:
 
     def _fixed_components(self, node: SceneNode, points: np.ndarray) -> np.ndarray:
         dofs = [np.zeros(0, dtype=np.int64)]
-        for obj in node.objects:
+        for obj in self._context(node):
             if obj.type in ("PartialFixedConstraint", "PartialFixedProjectiveConstraint"):
-                idx = self._indices(node, obj, "indices", points)
+                idx = self._indices(obj.node, obj, "indices", points)
                 if idx is None or _flag(obj, "fixAll", False):
                     idx = np.arange(points.shape[0])
                 axes = _floats(obj.attrs.get("fixedDirections", "1 1 1"), f"{obj.path}")
@@ -775,11 +990,11 @@ class _Builder:
         it there at the start; Pliant asks for a mesh whose nodes lie on it."""
         found: list[Projection] = []
         size = float(np.linalg.norm(np.ptp(points, axis=0)))
-        for obj in node.objects:
+        for obj in self._context(node):
             if obj.type not in PROJECTIONS:
                 continue
             key, kind = PROJECTIONS[obj.type]
-            idx = self._indices(node, obj, "indices", points)
+            idx = self._indices(obj.node, obj, "indices", points)
             if idx is None:
                 raise SceneError(f"{obj.path}: no indices")
             default = "0 0 1" if key == "normal" else "1 0 0"
@@ -795,11 +1010,11 @@ class _Builder:
 
     def _loads(self, node: SceneNode, points: np.ndarray) -> list[Load]:
         loads: list[Load] = []
-        for obj in node.objects:
+        for obj in self._context(node):
             if obj.type not in ("ConstantForceField", "RestShapeSpringsForceField"):
                 continue
             key = "indices" if obj.type == "ConstantForceField" else "points"
-            idx = self._indices(node, obj, key, points)
+            idx = self._indices(obj.node, obj, key, points)
             idx = np.arange(points.shape[0]) if idx is None else idx
             if obj.type == "RestShapeSpringsForceField":
                 if "external_rest_shape" in obj.attrs:
@@ -825,10 +1040,13 @@ class _Builder:
         constraints += [o for o in node.objects if o.type == "PositionEffector"]
         if dofs is None or not constraints:
             return [], []
-        if not any(o.type == "BarycentricMapping" for o in node.objects):
+        if not any(o.type in MAPPINGS for o in node.objects):
             raise SceneError(f"{node.path}: points without a BarycentricMapping to the body")
         positions = self._positions(node, dofs)
         outside = self.choices.outside
+        self.bindings.mapped.append(
+            (dofs, EmbeddedPoints(mesh, positions, tolerance=0.1 * body.extent, outside=outside))
+        )
         actuators, effectors = [], []
         for obj in constraints:
             if obj.type in CAVITIES:
@@ -836,6 +1054,7 @@ class _Builder:
                     mesh, positions, tolerance=0.1 * body.extent, outside=outside
                 )
                 actuators.append(self._cavity(node, obj, embedded, body))
+                self.bindings.actuators.append(obj)
                 continue
             idx = self._indices(node, obj, "indices", positions)
             pts = positions if idx is None else positions[idx]
@@ -843,13 +1062,17 @@ class _Builder:
             embedded = EmbeddedPoints(mesh, pts, tolerance=0.1 * body.extent, outside=outside)
             if obj.type == "PositionEffector":
                 effectors.append(self._effector(node, obj, embedded, body))
+                self.bindings.effectors.append(obj)
             else:
                 actuators.append(self._cable(obj, embedded, body))
+                self.bindings.actuators.append(obj)
         return actuators, effectors
 
     def _positions(self, node: SceneNode, dofs: SceneObject) -> np.ndarray:
         """The points of a MechanicalObject: its `position`, a link to positions, or the
-        mesh of its `src` loader or of its node's topology."""
+        mesh of its `src` (a loader, or a topology reading one) or of its node's only loader;
+        then its own transform (scale, rotation, translation), as SOFA's MechanicalObject
+        applies it at initialisation."""
         value = dofs.attrs.get("position", dofs.attrs.get("src"))
         if value is None:
             loaders = [o for o in node.objects if o.type in MESH_LOADERS]
@@ -857,16 +1080,24 @@ class _Builder:
                 raise SceneError(f"{dofs.path}: no position (and no single mesh loader)")
             return self._loaded(loaders[0])[0]
         if _is_link(value):
-            source = self._link(node, value)
+            source = self.link(node, value)
+            for _ in range(4):  # a topology's src, or its position link, names the loader
+                if source is None or source.type in MESH_LOADERS or "position" in source.attrs:
+                    break
+                if not _is_link(source.attrs.get("src")):
+                    break
+                source = self.link(source.node, source.attrs["src"])
             if source is not None and source.type in MESH_LOADERS:
                 return self._loaded(source)[0]
             if source is None or "position" not in source.attrs:
                 raise SceneError(f"{dofs.path}.position: {value!r} names no positions")
+            if _is_link(source.attrs["position"]):
+                return self._positions(source.node, source)
             value = source.attrs["position"]
         pts = _floats(value, f"{dofs.path}.position")
         if pts.size == 0 or pts.size % 3:
             raise SceneError(f"{dofs.path}.position: triples of numbers expected")
-        return pts.reshape(-1, 3)
+        return _placed(dofs, pts.reshape(-1, 3))
 
     def _cable(self, obj: SceneObject, points: EmbeddedPoints, body: TetBody) -> CableActuator:
         # SoftRobots: a pull point unless hasPullPoint is false, at the origin unless given.
@@ -901,9 +1132,9 @@ class _Builder:
         carried by the body; a pressure (force mode) or a volume growth (displacement)."""
         value = obj.attrs.get("triangles")
         if value is None or _is_link(value):
-            source = self._link(node, value) if value is not None else None
+            source = self.link(node, value) if value is not None else None
             if source is not None and source.type not in MESH_LOADERS:
-                source = self._link(node, str(source.attrs.get("src", "")))
+                source = self.link(node, str(source.attrs.get("src", "")))
             if source is None:
                 loaders = [o for o in node.objects if o.type in MESH_LOADERS]
                 source = loaders[0] if len(loaders) == 1 else None
@@ -948,7 +1179,7 @@ class _Builder:
         goals = None
         if goal is not None:
             if _is_link(goal):
-                source = self._link(node, goal)
+                source = self.link(node, goal)
                 if source is None or "position" not in source.attrs:
                     raise SceneError(f"{obj.path}.effectorGoal: {goal!r} names no positions")
                 goal = source.attrs["position"]
