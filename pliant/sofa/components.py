@@ -60,7 +60,7 @@ _CABLE = {
     "indices": _EMPTY,
     "pullPoint": [0.0, 0.0, 0.0],
     "hasPullPoint": True,
-    "value": 0.0,
+    "value": [0.0],
     "valueIndex": 0,
     "valueType": "displacement",
     "minForce": 0.0,
@@ -84,7 +84,7 @@ _CABLE = {
 _CAVITY = {
     "triangles": _EMPTY,
     "quads": _EMPTY,
-    "value": 0.0,
+    "value": [0.0],
     "valueIndex": 0,
     "valueType": "pressure",
     "minPressure": 0.0,

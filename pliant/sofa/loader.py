@@ -51,6 +51,9 @@ from pliant.model import Model, State
 from pliant.sofa.components import FIELDS, is_visual
 from pliant.sofa.tree import SceneError, SceneNode, SceneObject, _suggestion, read_scene
 
+# SOFA's BarycentricMapping carries a point wherever it lies; Pliant still refuses one farther
+# from the mesh than this share of the body's extent (a typo in a coordinate).
+SOFA_REACH = 1.0
 # Components that change nothing Pliant computes: plugins, loops, visual and output
 # components, linear solvers (Pliant factorises exactly, as SparseLDLSolver does), constraint
 # solvers and corrections (Pliant solves the constraint problem exactly; SOFA's Gauss-Seidel
@@ -416,7 +419,12 @@ def load_scene(
     if choices.inversion not in ("tolerate", "refuse"):
         raise SceneError(f"inversion is 'tolerate' or 'refuse', got {choices.inversion!r}")
     root = read_scene(path)
-    return _Builder(root, path, choices, [Path(d) for d in mesh_dirs]).build()
+    try:
+        return _Builder(root, path, choices, [Path(d) for d in mesh_dirs]).build()
+    except SceneError:
+        raise
+    except ModelError as exc:  # what Pliant's model refuses in the scene, named with it
+        raise SceneError(f"{path.name}: {exc}") from exc
 
 
 def _floats(value, what: str) -> np.ndarray:
@@ -455,6 +463,36 @@ def _placed(obj: SceneObject, points: np.ndarray) -> np.ndarray:
     shift = _floats(obj.attrs.get("translation", "0 0 0"), f"{obj.path}.translation")
     rot = Rotation.from_euler("xyz", euler, degrees=True).as_matrix()
     return (points * scale) @ rot.T + shift
+
+
+def _in_oriented_box(points: np.ndarray, box: np.ndarray) -> np.ndarray:
+    """Nodes in SOFA's oriented box: the parallelogram p0, p1, p2 (edges p1 - p0 and
+    p2 - p1) extruded by half the depth on each side of its plane."""
+    p0, p1, p2, depth = box[0:3], box[3:6], box[6:9], box[9]
+    u, v = p1 - p0, p2 - p1
+    n = np.cross(u, v)
+    n /= np.linalg.norm(n)
+    a, b, c = np.linalg.solve(np.column_stack([u, v, n]), (points - p0).T)
+    eps = 1e-12
+    inside = (a >= -eps) & (a <= 1 + eps) & (b >= -eps) & (b <= 1 + eps)
+    return np.flatnonzero(inside & (np.abs(c) <= 0.5 * depth + eps))
+
+
+def _read_obj(file: Path) -> meshio.Mesh:
+    """An OBJ file's vertices and faces (polygons fanned into triangles), for files meshio
+    refuses (texture coordinates that do not match the vertices)."""
+    points, faces = [], []
+    for line in file.read_text(errors="replace").splitlines():
+        parts = line.split()
+        if not parts:
+            continue
+        if parts[0] == "v":
+            points.append([float(x) for x in parts[1:4]])
+        elif parts[0] == "f":
+            ids = [int(p.split("/")[0]) for p in parts[1:]]
+            ids = [i - 1 if i > 0 else len(points) + i for i in ids]
+            faces += [[ids[0], ids[k], ids[k + 1]] for k in range(1, len(ids) - 1)]
+    return meshio.Mesh(np.array(points), [("triangle", np.array(faces, dtype=np.int64))])
 
 
 def _is_link(value) -> bool:
@@ -582,12 +620,15 @@ class _Builder:
                 obstacles.append(self._obstacle(node))
         if not points:
             raise SceneError(f"{self.path.name}: the body has no collision points")
-        if not obstacles and not rigid:
-            raise SceneError(f"{self.path.name}: collision points but nothing to collide with")
+        if not obstacles and not rigid:  # SOFA detects nothing: no contact to solve
+            return None, []
         if not obstacles:
             raise SceneError(f"{self.path.name}: rigid bodies need a static obstacle too")
         embedded = EmbeddedPoints(
-            mesh, np.vstack(points), tolerance=0.1 * body.extent, outside=self.choices.outside
+            mesh,
+            np.vstack(points),
+            tolerance=SOFA_REACH * body.extent,
+            outside=self.choices.outside,
         )
         contacts = Contacts(
             obstacles, friction=friction, margin=margin, points=embedded, thickness=thickness
@@ -873,7 +914,12 @@ class _Builder:
             with warnings.catch_warnings():
                 # meshio sniffs an ASCII STL as binary first, with an integer overflow warning.
                 warnings.simplefilter("ignore", RuntimeWarning)
-                raw = meshio.read(file)
+                # SOFA's MeshVTKLoader reads XML files (VTU) under the .vtk name too.
+                xml = file.suffix == ".vtk" and file.read_bytes()[:64].lstrip().startswith(b"<")
+                if file.suffix.lower() == ".obj":
+                    raw = _read_obj(file)
+                else:
+                    raw = meshio.read(file, file_format="vtu" if xml else None)
         except Exception as exc:  # meshio reports malformed files with many exception types
             raise SceneError(f"{loader.path}: cannot read {str(file)!r}: {exc}") from exc
         cells: dict[str, list[np.ndarray]] = {}
@@ -941,12 +987,18 @@ class _Builder:
 
     def _box_nodes(self, box: SceneObject, points: np.ndarray) -> np.ndarray:
         """Nodes inside any of the BoxROI's boxes (xmin ymin zmin xmax ymax zmax each)."""
+        oriented = _floats(box.attrs.get("orientedBox", ""), f"{box.path}.orientedBox")
+        if oriented.size % 10:
+            raise SceneError(f"{box.path}.orientedBox: groups of ten numbers expected")
+        inside = [_in_oriented_box(points, o) for o in oriented.reshape(-1, 10)]
         values = _floats(box.attrs.get("box", ""), f"{box.path}.box")
+        if values.size == 0 and inside:
+            return np.unique(np.concatenate(inside))
         if values.size == 0 or values.size % 6:
             raise SceneError(f"{box.path}.box: groups of six numbers expected")
         # SOFA orders each axis of a box itself: corners may come max-first.
         boxes = np.sort(values.reshape(-1, 2, 3), axis=1)
-        found = [nodes_in_box(points, b) for b in boxes]
+        found = [nodes_in_box(points, b) for b in boxes] + inside
         return np.unique(np.concatenate(found))
 
     @staticmethod
@@ -1043,23 +1095,23 @@ class _Builder:
         if not any(o.type in MAPPINGS for o in node.objects):
             raise SceneError(f"{node.path}: points without a BarycentricMapping to the body")
         positions = self._positions(node, dofs)
-        outside = self.choices.outside
         self.bindings.mapped.append(
-            (dofs, EmbeddedPoints(mesh, positions, tolerance=0.1 * body.extent, outside=outside))
+            (
+                dofs,
+                self._embed(mesh, positions, body),
+            )
         )
         actuators, effectors = [], []
         for obj in constraints:
             if obj.type in CAVITIES:
-                embedded = EmbeddedPoints(
-                    mesh, positions, tolerance=0.1 * body.extent, outside=outside
-                )
+                embedded = self._embed(mesh, positions, body)
                 actuators.append(self._cavity(node, obj, embedded, body))
                 self.bindings.actuators.append(obj)
                 continue
             idx = self._indices(node, obj, "indices", positions)
             pts = positions if idx is None else positions[idx]
             # SOFA maps a point wherever it lies; Pliant keeps a generous check against typos.
-            embedded = EmbeddedPoints(mesh, pts, tolerance=0.1 * body.extent, outside=outside)
+            embedded = self._embed(mesh, pts, body)
             if obj.type == "PositionEffector":
                 effectors.append(self._effector(node, obj, embedded, body))
                 self.bindings.effectors.append(obj)
@@ -1067,6 +1119,12 @@ class _Builder:
                 actuators.append(self._cable(obj, embedded, body))
                 self.bindings.actuators.append(obj)
         return actuators, effectors
+
+    def _embed(self, mesh: TetMesh, points: np.ndarray, body: TetBody) -> EmbeddedPoints:
+        """Points carried by the body (SOFA's BarycentricMapping)."""
+        return EmbeddedPoints(
+            mesh, points, tolerance=SOFA_REACH * body.extent, outside=self.choices.outside
+        )
 
     def _positions(self, node: SceneNode, dofs: SceneObject) -> np.ndarray:
         """The points of a MechanicalObject: its `position`, a link to positions, or the

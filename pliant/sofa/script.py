@@ -2,7 +2,8 @@
 
 The script runs with the SofaPython3 stand-ins (:mod:`pliant.sofa.sofapython3`) and the
 STLIB / SPLIB / SoftRobots prefabs (:mod:`pliant.sofa.prefabs`) importable, and its own folder
-on the import path (scenes import their local modules); all of it is removed afterwards. What
+on the import path and as the working folder (scenes import their local modules and open
+their data by relative paths); all of it is removed afterwards. What
 goes wrong inside the script is the scene's error: a :class:`SceneError` naming the script's
 file and line.
 """
@@ -10,6 +11,7 @@ file and line.
 from __future__ import annotations
 
 import inspect
+import os
 import runpy
 import sys
 import traceback
@@ -100,9 +102,12 @@ def _stand_ins(folder: Path):
     before = set(sys.modules)
     sys.modules.update(modules)
     sys.path.insert(0, str(folder))
+    cwd = os.getcwd()
+    os.chdir(folder)  # scripts open their data by paths relative to their folder
     try:
         yield
     finally:
+        os.chdir(cwd)
         sys.path.remove(str(folder))
         for name in set(sys.modules) - before:  # the scene's own modules import the stand-ins
             file = getattr(sys.modules[name], "__file__", None)

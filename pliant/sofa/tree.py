@@ -74,7 +74,18 @@ class Data:
 
     @property
     def value(self):
-        return data_value(self.owner.attrs.get(self.key, self.default))
+        value = data_value(self.owner.attrs.get(self.key, self.default))
+        if not isinstance(value, (np.ndarray, float, int)) or isinstance(value, bool):
+            return value
+        if self.key in POINT_FIELDS:  # a vector of points: (n, 3), or (n, 7) for rigid poses
+            width = 7 if str(self.owner.attrs.get("template", "")).startswith("Rigid3") else 3
+            value = np.asarray(value, dtype=float).reshape(-1, width)
+        elif isinstance(self.default, (list, tuple)):  # a vector field, whatever its length
+            value = np.atleast_1d(value)
+        else:
+            return value
+        value.flags.writeable = False
+        return value
 
     @value.setter
     def value(self, value) -> None:
@@ -88,6 +99,11 @@ class Data:
 
     def getName(self) -> str:  # noqa: N802 (SofaPython3's API)
         return self.key
+
+    def setParent(self, parent) -> None:  # noqa: N802
+        """Links this field to another (a Data or a ``@path.field`` link)."""
+        link = parent.getLinkPath() if isinstance(parent, Data) else str(parent)
+        self.owner.attrs[self.key] = link
 
     def getValueString(self) -> str:  # noqa: N802
         value = self.value
@@ -126,6 +142,12 @@ class Data:
     def __repr__(self) -> str:
         return f"Data({self.key}={self.value!r})"
 
+
+# Data fields that hold a vector of points (SofaPython3 gives them as (n, 3) arrays).
+POINT_FIELDS = frozenset(
+    {"position", "velocity", "rest_position", "force", "externalForce", "free_position",
+     "effectorGoal"}
+)  # fmt: skip
 
 # Data fields every component and node answers with SOFA's defaults, set or not.
 OBJECT_DEFAULTS = {"listening": False, "printLog": False, "tags": "", "bbox": ""}
@@ -179,12 +201,10 @@ class SceneObject:
         return data
 
     def findData(self, key: str) -> Data | None:  # noqa: N802 (SofaPython3's API)
-        if key in self.attrs:
-            return Data(self, key)
         from pliant.sofa.components import FIELDS
 
         defaults = FIELDS.get(self.type, {})
-        if key in defaults or key in OBJECT_DEFAULTS:
+        if key in self.attrs or key in defaults or key in OBJECT_DEFAULTS:
             return Data(self, key, defaults.get(key, OBJECT_DEFAULTS.get(key)))
         return None
 

@@ -25,15 +25,14 @@ def prefab_modules() -> dict[str, types.ModuleType]:
         "AnimationManager": splib.AnimationManager,
         "Animation": splib.Animation,
     }
-    numerics = {
+    vec3 = {"Vec3": splib.Vec3, "vadd": splib.vadd, "vsub": splib.vsub}
+    numerics = {  # SPLIB's numerics hold math's functions too
+        **{k: v for k, v in vars(math).items() if not k.startswith("_")},
         "to_radians": splib.to_radians,
         "to_degrees": splib.to_degrees,
-        "sin": math.sin,
-        "cos": math.cos,
-        "sqrt": math.sqrt,
-        "pi": math.pi,
-        "Vec3": splib.Vec3,
+        "getOrientedBoxFromTransform": splib.getOrientedBoxFromTransform,
         "Quat": splib.Quat,
+        **vec3,
     }
     keys = {k: v for k, v in vars(_Key).items() if k[0] != "_"}
     members = {
@@ -54,10 +53,12 @@ def prefab_modules() -> dict[str, types.ModuleType]:
         "splib3.animation": animation,
         "splib3.animation.animate": animation,
         "splib3.animation.easing": {"LinearRamp": splib.LinearRamp},
-        "splib3.numerics": {**numerics, "vec3": types.SimpleNamespace(Vec3=splib.Vec3)},
+        "splib3.numerics": numerics,
+        "splib3.numerics.vec3": vec3,
         "splib3.numerics.quat": {"Quat": splib.Quat},
         "splib3.constants": {"Key": types.SimpleNamespace(**keys)},
         "splib3.constants.Key": keys,
+        "splib3.objectmodel": {"setData": splib.setData},
         "splib3.loaders": {"loadPointListFromFile": splib.loadPointListFromFile},
         "softrobots": {},
         "softrobots.actuators": {

@@ -125,53 +125,155 @@ def to_degrees(radians):
     return np.degrees(radians) if np.ndim(radians) else math.degrees(radians)
 
 
-class Vec3(list):
-    """A 3-vector as a list, with the norm and arithmetic scenes use."""
+def _euler(v, axes: str, degrees: bool = False) -> Rotation:
+    """SPLIB's axes strings: "sxyz" static (extrinsic) axes, "rxyz" rotating (intrinsic)."""
+    return Rotation.from_euler(axes[1:] if axes[0] == "s" else axes[1:].upper(), v, degrees)
 
-    def __init__(self, *values):
-        super().__init__(values[0] if len(values) == 1 else (values or (0.0, 0.0, 0.0)))
 
-    def norm(self) -> float:
+class Vec3(np.ndarray):
+    """SPLIB's 3-vector: a float array of three with in-place transforms."""
+
+    def __new__(cls, *args):
+        values = args[0] if len(args) == 1 else (args or (0.0, 0.0, 0.0))
+        return np.array(values, dtype=float).reshape(3).view(cls)
+
+    def getNorm(self) -> float:  # noqa: N802 (SPLIB's names)
         return float(np.linalg.norm(self))
 
-    def __add__(self, other):
-        return Vec3(list(np.add(self, other)))
+    def toList(self) -> list:  # noqa: N802
+        return [float(v) for v in self]
 
-    def __sub__(self, other):
-        return Vec3(list(np.subtract(self, other)))
+    def toString(self) -> str:  # noqa: N802
+        return " ".join(str(v) for v in self.toList())
 
-    def __mul__(self, scale):
-        return Vec3(list(np.multiply(self, scale)))
+    def normalize(self, *args) -> Vec3:
+        self[:] = self / (self.getNorm() if not args else args[0])
+        return self
 
+    def translate(self, *args) -> Vec3:
+        self[:] = self + np.asarray(args[0] if len(args) == 1 else args, dtype=float)
+        return self
 
-class Quat(list):
-    """A unit quaternion [x, y, z, w] (SOFA's order), built and composed with scipy."""
+    def scale(self, *args) -> Vec3:
+        self[:] = self * np.asarray(args[0] if len(args) == 1 else args, dtype=float)
+        return self
 
-    def __init__(self, *values):
-        super().__init__(values[0] if len(values) == 1 else (values or (0.0, 0.0, 0.0, 1.0)))
+    def rotateFromQuat(self, q) -> Vec3:  # noqa: N802
+        self[:] = Rotation.from_quat(np.asarray(q, dtype=float)).apply(np.asarray(self))
+        return self
+
+    def rotateFromEuler(self, v, axis: str = "sxyz") -> Vec3:  # noqa: N802
+        self[:] = _euler(v, axis).apply(np.asarray(self))
+        return self
+
+    def rotateFromAxisAngle(self, axis, angle: float) -> Vec3:  # noqa: N802
+        return self.rotateFromQuat(Quat.createFromAxisAngle(axis, angle))
 
     @staticmethod
-    def createFromEuler(angles, axes: str = "sxyz", inDegree: bool = False) -> Quat:  # noqa: N802, N803
-        frame = axes[1:] if axes[0] == "s" else axes[1:].upper()
-        return Quat(list(Rotation.from_euler(frame, angles, degrees=inDegree).as_quat()))
+    def dot(v1, v2) -> float:
+        return float(np.dot(v1, v2))
+
+    @staticmethod
+    def cross(v1, v2) -> Vec3:
+        return Vec3(np.cross(v1, v2))
+
+
+def vadd(a, b):
+    return Vec3(np.add(a, b))
+
+
+def vsub(a, b):
+    return Vec3(np.subtract(a, b))
+
+
+class Quat(np.ndarray):
+    """SPLIB's unit quaternion [x, y, z, w] (SOFA's order), composed with scipy."""
+
+    def __new__(cls, *args):
+        values = args[0] if len(args) == 1 else (args or (0.0, 0.0, 0.0, 1.0))
+        return np.array(values, dtype=float).reshape(4).view(cls)
+
+    @staticmethod
+    def createFromEuler(v, axes: str = "sxyz", inDegree: bool = False) -> Quat:  # noqa: N802, N803
+        return Quat(_euler(v, axes, inDegree).as_quat())
 
     @staticmethod
     def createFromAxisAngle(axis, angle: float) -> Quat:  # noqa: N802
         axis = np.asarray(axis, dtype=float)
-        return Quat(list(Rotation.from_rotvec(axis / np.linalg.norm(axis) * angle).as_quat()))
+        return Quat(Rotation.from_rotvec(axis / np.linalg.norm(axis) * angle).as_quat())
 
-    def rotateFromQuat(self, other) -> None:  # noqa: N802
-        self[:] = (Rotation.from_quat(other) * Rotation.from_quat(self)).as_quat().tolist()
+    @staticmethod
+    def createFromVectors(v1, v2) -> Quat:  # noqa: N802
+        rotation, _ = Rotation.align_vectors([np.asarray(v2, float)], [np.asarray(v1, float)])
+        return Quat(rotation.as_quat())
 
-    def rotateFromEuler(self, angles, axes: str = "sxyz", inDegree: bool = False) -> None:  # noqa: N802, N803
-        self.rotateFromQuat(Quat.createFromEuler(angles, axes, inDegree))
+    @staticmethod
+    def product(qa, qb) -> Quat:
+        return Quat((Rotation.from_quat(qa) * Rotation.from_quat(qb)).as_quat())
+
+    def _rotation(self) -> Rotation:
+        return Rotation.from_quat(np.asarray(self))
+
+    def normalize(self, *_args) -> None:
+        self[:] = self / np.linalg.norm(self)
+
+    def rotateFromQuat(self, qb) -> None:  # noqa: N802
+        self[:] = (self._rotation() * Rotation.from_quat(qb)).as_quat()
+
+    def rotateFromEuler(self, v, axes: str = "sxyz") -> None:  # noqa: N802
+        self.rotateFromQuat(Quat.createFromEuler(v, axes))
+
+    def rotate(self, v):
+        return self._rotation().apply(np.asarray(v, dtype=float))
+
+    def getNorm(self) -> float:  # noqa: N802
+        return float(np.linalg.norm(self))
+
+    def getAxisAngle(self):  # noqa: N802
+        rotvec = self._rotation().as_rotvec()
+        angle = float(np.linalg.norm(rotvec))
+        return (rotvec / angle if angle else np.array([1.0, 0.0, 0.0])), angle
 
     def getEulerAngles(self, axes: str = "sxyz"):  # noqa: N802
         frame = axes[1:] if axes[0] == "s" else axes[1:].upper()
-        return Rotation.from_quat(self).as_euler(frame).tolist()
+        return self._rotation().as_euler(frame)
 
     def getMatrix(self):  # noqa: N802
-        return Rotation.from_quat(self).as_matrix()
+        return self._rotation().as_matrix()
+
+    def getConjugate(self) -> Quat:  # noqa: N802
+        return Quat([-self[0], -self[1], -self[2], self[3]])
+
+    getInverse = getConjugate  # noqa: N815 (a unit quaternion)
+
+    def toList(self) -> list:  # noqa: N802
+        return [float(v) for v in self]
+
+
+def getOrientedBoxFromTransform(  # noqa: N802
+    translation=(0.0, 0.0, 0.0),
+    rotation=(0.0, 0.0, 0.0, 1.0),
+    eulerRotation=None,  # noqa: N803
+    scale=(1.0, 1.0, 1.0),
+) -> list[float]:
+    """SOFA's ``orientedBox`` (three corners of a face and the depth) of a unit cube
+    centred at the origin, scaled, rotated (a quaternion, or Euler angles in degrees) and
+    translated."""
+    turn = (
+        Rotation.from_euler("xyz", eulerRotation, degrees=True)
+        if eulerRotation is not None
+        else Rotation.from_quat(rotation)
+    )
+    half = 0.5 * np.asarray(scale, dtype=float)
+    corners = np.array([[-1.0, -1.0, 0.0], [1.0, -1.0, 0.0], [1.0, 1.0, 0.0]]) * half
+    corners = turn.apply(corners) + np.asarray(translation, dtype=float)
+    return [*corners.ravel().tolist(), float(2.0 * half[2])]
+
+
+def setData(target, **values) -> None:  # noqa: N802
+    """Sets several data fields of a component or node."""
+    for key, value in values.items():
+        setattr(target, key, value)
 
 
 def loadPointListFromFile(path: str | Path):  # noqa: N802

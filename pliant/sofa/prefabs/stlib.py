@@ -8,9 +8,8 @@ defaults. Rigid shapes that STLIB loads from SOFA's shared meshes (``mesh/cube.o
 from __future__ import annotations
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
-from pliant.sofa.prefabs.splib import AnimationManager
+from pliant.sofa.prefabs.splib import AnimationManager, getOrientedBoxFromTransform
 from pliant.sofa.sofapython3 import Prefab
 from pliant.sofa.tree import SceneNode
 
@@ -373,14 +372,10 @@ def addOrientedBoxRoi(  # noqa: N802
 ):
     """A BoxROI whose box is a unit cube scaled, rotated (Euler angles, degrees) and
     translated: SOFA's ``orientedBox`` (three corners and a depth)."""
-    rotation = Rotation.from_euler("xyz", eulerRotation, degrees=True).as_matrix()
-    half = 0.5 * np.asarray(scale, dtype=float)
-    corners = np.array([[-1, -1, 0], [1, -1, 0], [1, 1, 0]], dtype=float) * half
-    corners = corners @ rotation.T + np.asarray(translation, dtype=float)
     return parent.addObject(
         "BoxROI",
         name=name,
         position=position,
-        orientedBox=[*corners.ravel().tolist(), 2.0 * half[2]],
+        orientedBox=getOrientedBoxFromTransform(translation, None, eulerRotation, scale),
         drawBoxes=drawBoxes,
     )

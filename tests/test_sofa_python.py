@@ -1,0 +1,274 @@
+"""SofaPython3 scene scripts as SoftRobots users write them: STLIB / SPLIB / SoftRobots
+prefabs, Python controllers driving actuators each step, data read back, visual components.
+
+Each scene of tests/sofa_scenes/ (written for these tests) is checked against the same model
+built with Pliant's own API, stepped with the same commands: the two agree to round-off.
+"""
+
+from __future__ import annotations
+
+import shutil
+import sys
+import textwrap
+from pathlib import Path
+
+import meshio
+import numpy as np
+import pytest
+
+from pliant.constraints.base import EmbeddedPoints
+from pliant.constraints.cable import CableActuator
+from pliant.constraints.cavity import CavityActuator, enclosed_volume
+from pliant.fem.body import TetBody, nodes_in_box
+from pliant.fem.loads import RestShapeSprings
+from pliant.fem.material import Corotational
+from pliant.mesh import box_beam
+from pliant.model import Model
+from pliant.sofa import SceneError, load_scene
+from pliant.solvers import ImplicitEuler
+
+SCENES = Path(__file__).parent / "sofa_scenes"
+
+
+@pytest.fixture
+def meshes(tmp_path):
+    """The meshes the test scenes load: a 60 x 10 x 10 beam and a 10 mm block with its
+    boundary as a cavity surface."""
+    beam = box_beam(60.0, 10.0, 10.0, 6, 2, 2)
+    meshio.write(tmp_path / "beam.vtu", meshio.Mesh(beam.points, [("tetra", beam.tets)]))
+    block = box_beam(10.0, 10.0, 10.0, 2, 2, 2)
+    meshio.write(tmp_path / "block.vtu", meshio.Mesh(block.points, [("tetra", block.tets)]))
+    surface = block.boundary_triangles()
+    meshio.write(tmp_path / "cavity.stl", meshio.Mesh(block.points, [("triangle", surface)]))
+    return {"beam": beam, "block": block, "surface": surface, "folder": tmp_path}
+
+
+def _step_all(solver, state, n_steps, before=None):
+    states = []
+    for k in range(n_steps):
+        if before is not None:
+            before(k)
+        state = solver.step(state)
+        states.append(state)
+    return states
+
+
+def test_a_controller_drives_the_cable_as_the_api_does(meshes) -> None:
+    """cable_beam.py's controller raises the cable's value by 0.2 each step: the same beam,
+    springs and cable built with Pliant's API, the command set before each step, ends at
+    the same positions to round-off; the data the controller reads back are the states'."""
+    scene = load_scene(SCENES / "cable_beam.py", mesh_dirs=[meshes["folder"]])
+    assert len(scene.model.actuators) == 1 and scene.solver_kind == "dynamic"
+    solver = scene.solver()
+    by_scene = _step_all(solver, scene.model.rest_state(), 5)
+
+    mesh = meshes["beam"]
+    held = nodes_in_box(mesh.points, np.array([[-1.0, -1.0, -1.0], [1.0, 11.0, 11.0]]))
+    body = TetBody(
+        mesh,
+        Corotational(500.0, 0.3, "large", inversion="tolerate"),
+        mass="uniform",
+        total_mass=0.05,
+        frame_nodes=mesh.tets[:, :3],
+        loads=[RestShapeSprings(held, mesh.points, 1e12)],
+        gravity=(0.0, -9810.0, 0.0),
+    )
+    points = np.array([[x, 8.0, 5.0] for x in (10.0, 20.0, 30.0, 40.0, 50.0, 60.0)])
+    cable = CableActuator(
+        EmbeddedPoints(mesh, points, tolerance=0.1 * body.extent, outside="keep"),
+        mesh.points,
+        pull_point=np.array([0.0, 8.0, 5.0]),
+        change_reference="lagged",
+    )
+    model = Model(body, actuators=[cable])
+
+    def pull(k):
+        cable.value = 0.2 * (k + 1)
+
+    by_api = _step_all(ImplicitEuler(model, 0.01, tangent="fresh"), model.rest_state(), 5, pull)
+    motion = np.abs(by_api[-1].positions - mesh.points).max()
+    assert motion > 0.5
+    for a, b in zip(by_scene, by_api, strict=True):
+        np.testing.assert_allclose(a.positions, b.positions, rtol=0, atol=1e-9 * motion)
+    controller = scene.root.getObject("controller")
+    tips = np.array([s.positions[-1] for s in by_scene])
+    np.testing.assert_array_equal(np.array(controller.tips), tips)
+    cable_data = scene.root.Simulation.Modelling.Beam.Cable.CableConstraint
+    assert cable_data.displacement.value == pytest.approx(by_scene[-1].displacement[0])
+    assert cable_data.value.value[0] == pytest.approx(1.0)
+
+
+def test_an_animation_ramps_the_cavity_pressure_as_the_api_does(meshes) -> None:
+    """cavity_block.py: splib3's animate ramps the pressure from 0 to 30 over 0.05 s
+    (factor (t - t_first) / 0.05 at each step's begin, t_first = dt); the API's cavity with
+    the same pressures, on the same block, ends at the same positions to round-off."""
+    scene = load_scene(SCENES / "cavity_block.py", mesh_dirs=[meshes["folder"]])
+    by_scene = scene.simulate(8)
+
+    mesh = meshes["block"]
+    body = TetBody(
+        mesh,
+        Corotational(1000.0, 0.3, "large", inversion="tolerate"),
+        mass="uniform",
+        total_mass=0.01,
+        frame_nodes=mesh.tets[:, :3],
+        fixed_nodes=np.flatnonzero(mesh.points[:, 0] <= 0.1),
+        gravity=(0.0, 0.0, 0.0),
+        rayleigh_mass=0.1,
+        rayleigh_stiffness=0.1,
+    )
+    # The cavity's surface as the STL file holds it (single precision), carried by the body.
+    stl = meshio.read(meshes["folder"] / "cavity.stl")
+    walls = np.asarray(stl.points, dtype=float)
+    surface = stl.cells_dict["triangle"]
+    embedded = EmbeddedPoints(mesh, walls, tolerance=0.1 * body.extent, outside="keep")
+    cavity = CavityActuator(
+        surface,
+        mesh.points,
+        points=embedded,
+        flip_normals=enclosed_volume(walls, surface) < 0.0,
+        mode="force",
+        min_force=-np.inf,
+        change_reference="lagged",
+    )
+    model = Model(body, actuators=[cavity])
+
+    def ramp(k):
+        cavity.value = 30.0 * min(k * 0.01 / 0.05, 1.0)
+
+    by_api = _step_all(ImplicitEuler(model, 0.01, tangent="fresh"), model.rest_state(), 8, ramp)[-1]
+    motion = np.abs(by_api.positions - mesh.points).max()
+    assert motion > 0.05
+    np.testing.assert_allclose(by_scene.positions, by_api.positions, rtol=0, atol=1e-9 * motion)
+    assert scene.model.actuators[0].value == 30.0
+
+
+def test_the_sofa_modules_exist_only_while_a_scene_loads(meshes) -> None:
+    before = {name for name in sys.modules if name.split(".")[0] in ("Sofa", "stlib3")}
+    load_scene(SCENES / "cable_beam.py", mesh_dirs=[meshes["folder"]])
+    after = {name for name in sys.modules if name.split(".")[0] in ("Sofa", "stlib3")}
+    assert before == after == set()
+
+
+def _scene(tmp_path: Path, body: str, extra: str = "") -> Path:
+    """A script with a small beam (a Pliant mesh file beside it) and `body` inside
+    createScene."""
+    beam = box_beam(20.0, 5.0, 5.0, 2, 1, 1)
+    meshio.write(tmp_path / "beam.vtu", meshio.Mesh(beam.points, [("tetra", beam.tets)]))
+    script = tmp_path / "scene.py"
+    script.write_text(
+        textwrap.dedent(extra)
+        + "\ndef createScene(rootNode):\n"
+        + "    body = rootNode.addChild('Body')\n"
+        + "    body.addObject('StaticSolver')\n"
+        + "    body.addObject('MeshVTKLoader', name='loader', filename='beam.vtu')\n"
+        + "    body.addObject('MechanicalObject', name='dofs')\n"
+        + "    body.addObject('UniformMass', totalMass=0.01)\n"
+        + textwrap.indent(textwrap.dedent(body), "    ")
+    )
+    return script
+
+
+FEM = "body.addObject('TetrahedronFEMForceField', youngModulus=100, poissonRatio=0.3)\n"
+
+
+@pytest.mark.parametrize(
+    ("body", "extra", "message"),
+    [
+        (
+            FEM + "body.addObject('HexahedronFEMForceField')\nbody.addObject('Foo')\n",
+            "",
+            r"HexahedronFEMForceField \(at root/Body\); Foo \(at root/Body\)",
+        ),
+        (
+            "body.addObject('TetrahedronFEMForceField', youngModulos=100)\n",
+            "",
+            r"TetrahedronFEMForceField.youngModulos \(at root/Body\): no such data \(did you"
+            r" mean 'youngModulus'\?\)",
+        ),
+        (FEM + "x = 1 / 0\n", "", r"scene.py, line 9 \(in createScene\): ZeroDivisionError"),
+        (
+            FEM + "body.dofs.positon.value\n",
+            "",
+            r"line 9 .*root/Body/dofs: a MechanicalObject has no data field 'positon' \(did you"
+            r" mean 'position'\?\)",
+        ),
+        (FEM + "rootNode.Bodyy\n", "", r"line 9 .*no child.*'Bodyy' \(did you mean 'Body'\?\)"),
+        (
+            FEM,
+            "from stlib3.physics.mixedmaterial import Rigidify\n",
+            r"imports 'stlib3.physics.mixedmaterial', which Pliant does not provide",
+        ),
+    ],
+    ids=["unknown", "misspelt", "python-error", "misspelt-read", "missing-child", "import"],
+)
+def test_what_a_scene_cannot_do_is_one_scene_error(tmp_path, body, extra, message) -> None:
+    with pytest.raises(SceneError, match=message):
+        load_scene(_scene(tmp_path, body, extra))
+
+
+def test_a_controller_error_is_the_scenes_at_its_line(tmp_path) -> None:
+    extra = """
+    import Sofa.Core
+
+
+    class Broken(Sofa.Core.Controller):
+        def onAnimateBeginEvent(self, event):
+            raise RuntimeError("no pressure sensor")
+    """
+    held = "body.addObject('FixedConstraint', indices=[0, 1, 2, 3])\n"
+    script = _scene(tmp_path, FEM + held + "rootNode.addObject(Broken(name='broken'))\n", extra)
+    scene = load_scene(script)
+    with pytest.raises(SceneError, match=r"Broken.onAnimateBeginEvent failed at scene.py, line 7"):
+        scene.simulate(1)
+
+
+def test_pliant_run_reports_a_failing_create_scene_in_one_line(tmp_path) -> None:
+    from typer.testing import CliRunner
+
+    from pliant.cli import app
+
+    script = _scene(tmp_path, FEM + "raise RuntimeError('mesh not ready')\n")
+    result = CliRunner().invoke(app, ["run", str(script), "--out", str(tmp_path / "out")])
+    assert result.exit_code != 0
+    assert "scene.py, line 9 (in createScene): RuntimeError: mesh not ready" in result.output
+    assert "a bug in Pliant" not in result.output
+
+
+def test_box_corners_and_fem_variants_follow_sofa(tmp_path) -> None:
+    """A BoxROI given max corner first holds the same nodes; SOFA's
+    FastTetrahedralCorotationalForceField ("qr", the edge frame) bends the beam as
+    TetrahedronFEMForceField's "large" does; a PointCollisionModel on the body's own
+    MechanicalObject is accepted."""
+    fixed = "body.addObject('BoxROI', name='box', box={})\n"
+    fixed += "body.addObject('FixedConstraint', indices='@box.indices')\n"
+    fixed += "body.addObject('BoxROI', name='tip', box=[19.9, -1, -1, 21, 6, 6])\n"
+    fixed += "body.addObject('ConstantForceField', indices='@tip.indices', force=[0, -0.5, 0])\n"
+    ends = []
+    for fem, box in [
+        (FEM, [-1, -1, -1, 0.1, 6, 6]),
+        (FEM, [0.1, 6, 6, -1, -1, -1]),
+        (FEM.replace("TetrahedronFEM", "FastTetrahedralCorotational"), [0.1, 6, 6, -1, -1, -1]),
+    ]:
+        ends.append(load_scene(_scene(tmp_path, fem + fixed.format(box))).simulate(1).positions)
+    assert np.abs(ends[0] - box_beam(20.0, 5.0, 5.0, 2, 1, 1).points).max() > 0.01
+    np.testing.assert_array_equal(ends[0], ends[1])
+    np.testing.assert_array_equal(ends[0], ends[2])
+
+
+def test_visual_only_scenes_still_need_a_body(tmp_path) -> None:
+    script = tmp_path / "visual.py"
+    script.write_text(
+        "def createScene(root):\n"
+        "    root.addObject('OglModel')\n"
+        "    root.addObject('LightManager')\n"
+        "    root.addObject('OglSceneFrame')\n"
+    )
+    with pytest.raises(SceneError, match="no deformable body"):
+        load_scene(script)
+
+
+def test_the_tutorial_scene_files_are_not_copied(tmp_path, meshes) -> None:
+    """A scene runs from any folder: its meshes are found through mesh_dirs."""
+    shutil.copy(SCENES / "cable_beam.py", tmp_path / "copy.py")
+    assert load_scene(tmp_path / "copy.py").model.actuators
