@@ -170,7 +170,10 @@ _MAPPING = {
 }
 
 FIELDS: dict[str, dict] = {
-    **dict.fromkeys(["MeshVTKLoader", "MeshGmshLoader", "MeshSTLLoader", "MeshOBJLoader"], _LOADER),
+    **dict.fromkeys(
+        ["MeshVTKLoader", "MeshGmshLoader", "MeshSTLLoader", "MeshOBJLoader", "GIDMeshLoader"],
+        _LOADER,
+    ),
     **dict.fromkeys(["TetrahedronFEMForceField", "FastTetrahedralCorotationalForceField"], _FEM),
     "TetrahedronHyperelasticityFEMForceField": {
         "materialName": "ArrudaBoyce",

@@ -99,7 +99,9 @@ IGNORED = frozenset(
         "VolumeFromTriangles",
     }
 )
-MESH_LOADERS = frozenset({"MeshVTKLoader", "MeshGmshLoader", "MeshSTLLoader", "MeshOBJLoader"})
+MESH_LOADERS = frozenset(
+    {"MeshVTKLoader", "MeshGmshLoader", "MeshSTLLoader", "MeshOBJLoader", "GIDMeshLoader"}
+)
 HYPERELASTIC = "TetrahedronHyperelasticityFEMForceField"
 FAST_COROTATIONAL = "FastTetrahedralCorotationalForceField"
 FEM = frozenset({"TetrahedronFEMForceField", FAST_COROTATIONAL, HYPERELASTIC})
@@ -429,14 +431,29 @@ def load_scene(
 
 def _floats(value, what: str) -> np.ndarray:
     """A scene value (string of numbers, number, or sequence) as a flat float array."""
-    if isinstance(value, str):
-        parts = value.replace(",", " ").split()
-    else:
-        parts = list(np.ravel(np.asarray(value, dtype=object)))
+    parts = value.replace(",", " ").split() if isinstance(value, str) else list(_flatten(value))
     try:
         return np.array([float(p) for p in parts], dtype=float)
     except (TypeError, ValueError) as exc:
         raise SceneError(f"{what}: expected numbers, got {value!r}") from exc
+
+
+def _flatten(value):
+    """The numbers of a nested sequence (lists, tuples, arrays, mixed as scripts build them)."""
+    if isinstance(value, (list, tuple, np.ndarray)):
+        for item in value:
+            yield from _flatten(item)
+    else:
+        yield value
+
+
+def _value_type(obj: SceneObject, options: tuple[str, ...]) -> str:
+    """An option of the component's ``valueType``, by name or by index (SOFA's option groups
+    take either)."""
+    raw = str(obj.attrs.get("valueType", options[0])).strip()
+    if raw.isdigit() and int(raw) < len(options):
+        return options[int(raw)].lower()
+    return raw.lower()
 
 
 def _float(obj: SceneObject, key: str, default: float) -> float:
@@ -493,6 +510,28 @@ def _read_obj(file: Path) -> meshio.Mesh:
             ids = [i - 1 if i > 0 else len(points) + i for i in ids]
             faces += [[ids[0], ids[k], ids[k + 1]] for k in range(1, len(ids) - 1)]
     return meshio.Mesh(np.array(points), [("triangle", np.array(faces, dtype=np.int64))])
+
+
+def _read_gid(file: Path) -> meshio.Mesh:
+    """A GiD mesh (GIDMeshLoader): numbered ``Coordinates`` and tetrahedral ``Elements``
+    (node numbers from 1, an optional material number after them)."""
+    points, tets, section = {}, [], None
+    for line in file.read_text().splitlines():
+        words = line.split()
+        if not words:
+            continue
+        head = words[0].lower()
+        if head in ("coordinates", "elements"):
+            section = head
+        elif head in ("end", "mesh"):
+            section = None
+        elif section == "coordinates":
+            points[int(words[0])] = [float(x) for x in words[1:4]]
+        elif section == "elements":
+            tets.append([int(n) for n in words[1:5]])
+    order = {number: k for k, number in enumerate(sorted(points))}
+    cells = np.array([[order[n] for n in tet] for tet in tets], dtype=np.int64)
+    return meshio.Mesh(np.array([points[n] for n in sorted(points)]), [("tetra", cells)])
 
 
 def _is_link(value) -> bool:
@@ -588,11 +627,8 @@ class _Builder:
         models = [o for n in self.root.walk() for o in n.objects if o.type in COLLISION_MODELS]
         if not models:
             return None, []
-        if not intersection:
-            raise SceneError(
-                f"{self.path.name}: collision models without a collision pipeline"
-                " (LocalMinDistance or MinProximityIntersection)"
-            )
+        if not intersection:  # SOFA detects no collision without a pipeline
+            return None, []
         proximity = intersection[0]
         margin = _float(proximity, "alarmDistance", 1.0)
         thickness = _float(proximity, "contactDistance", 0.5)
@@ -871,19 +907,24 @@ class _Builder:
         return NeoHookean(mu * (3.0 * lam + 2.0 * mu) / (lam + mu), lam / (2.0 * (lam + mu)))
 
     def _mesh_loader(self, node: SceneNode) -> SceneObject:
-        """The loader the body's topology reads (``src="@loader"``), or the node's only one."""
-        for obj in node.objects:
-            if obj.type not in ("MeshTopology", "TetrahedronSetTopologyContainer"):
-                continue
-            for key in ("src", "tetrahedra", "tetras", "position"):
-                if _is_link(obj.attrs.get(key)):
-                    found = self.link(node, obj.attrs[key])
-                    if found is not None and found.type in MESH_LOADERS:
-                        return found
-        loader = self._one(node, MESH_LOADERS, "mesh loaders")
-        if loader is None:
-            raise SceneError(f"{node.path}: the body has no mesh loader (MeshVTKLoader, ...)")
-        return loader
+        """The loader the body's topology reads (``src="@loader"``), or the node's only one;
+        else the same in the nearest ancestor (SOFA's context: a topology above the body's
+        node serves it)."""
+        at: SceneNode | None = node
+        while at is not None:
+            for obj in at.objects:
+                if obj.type not in ("MeshTopology", "TetrahedronSetTopologyContainer"):
+                    continue
+                for key in ("src", "tetrahedra", "tetras", "position"):
+                    if _is_link(obj.attrs.get(key)):
+                        found = self.link(at, obj.attrs[key])
+                        if found is not None and found.type in MESH_LOADERS:
+                            return found
+            loader = self._one(at, MESH_LOADERS, "mesh loaders")
+            if loader is not None:
+                return loader
+            at = at.parent
+        raise SceneError(f"{node.path}: the body has no mesh loader (MeshVTKLoader, ...)")
 
     def link(self, node: SceneNode, link: str) -> SceneObject | None:
         """The component a link such as ``@loader``, ``@boxROI.indices``, ``@../loader`` or
@@ -899,7 +940,10 @@ class _Builder:
             if part == "..":
                 at = at.parent
             elif part not in ("", "."):
-                at = next((c for c in at.children if c.name == part), None)
+                # a node a script moved elsewhere (SOFA's nodes may have several parents)
+                at = next((c for c in at.children if c.name == part), None) or next(
+                    (n for n in self.root.walk() if n.name == part), None
+                )
         if at is not None and len(parts) > 1:
             found = next((o for o in at.objects if o.name == target), None)
             if found is not None:
@@ -918,6 +962,8 @@ class _Builder:
                 xml = file.suffix == ".vtk" and file.read_bytes()[:64].lstrip().startswith(b"<")
                 if file.suffix.lower() == ".obj":
                     raw = _read_obj(file)
+                elif loader.type == "GIDMeshLoader":
+                    raw = _read_gid(file)
                 else:
                     raw = meshio.read(file, file_format="vtu" if xml else None)
         except Exception as exc:  # meshio reports malformed files with many exception types
@@ -1163,7 +1209,7 @@ class _Builder:
         pull_point = _floats(obj.attrs.get("pullPoint", "0 0 0"), f"{obj.path}.pullPoint")
         values = _floats(obj.attrs.get("value", "0"), f"{obj.path}.value")
         index = int(_float(obj, "valueIndex", 0.0))
-        mode = str(obj.attrs.get("valueType", "displacement")).lower()
+        mode = _value_type(obj, ("displacement", "force"))
         if mode not in ("displacement", "force"):
             raise SceneError(f"{obj.path}.valueType: 'displacement' or 'force', not {mode!r}")
         change = obj.attrs.get("maxDispVariation")
@@ -1207,7 +1253,7 @@ class _Builder:
         rest = points.positions(body.rest_positions)
         values = _floats(obj.attrs.get("value", "0"), f"{obj.path}.value")
         index = int(_float(obj, "valueIndex", 0.0))
-        kind = str(obj.attrs.get("valueType", "pressure")).lower()
+        kind = _value_type(obj, ("pressure", "volumeGrowth"))
         if kind not in ("pressure", "volumegrowth"):
             raise SceneError(f"{obj.path}.valueType: 'pressure' or 'volumeGrowth', not {kind!r}")
         change = obj.attrs.get("maxVolumeGrowthVariation")

@@ -59,7 +59,10 @@ def prefab_modules() -> dict[str, types.ModuleType]:
         "splib3.constants": {"Key": types.SimpleNamespace(**keys)},
         "splib3.constants.Key": keys,
         "splib3.objectmodel": {"setData": splib.setData},
-        "splib3.loaders": {"loadPointListFromFile": splib.loadPointListFromFile},
+        "splib3.loaders": {
+            "loadPointListFromFile": splib.loadPointListFromFile,
+            "getLoadingLocation": splib.getLoadingLocation,
+        },
         "softrobots": {},
         "softrobots.actuators": {
             "PullingCable": softrobots.PullingCable,

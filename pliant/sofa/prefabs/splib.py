@@ -276,6 +276,11 @@ def setData(target, **values) -> None:  # noqa: N802
         setattr(target, key, value)
 
 
+def getLoadingLocation(filename: str, source: str) -> str:  # noqa: N802
+    """`filename` in the folder of the file `source` (a scene's ``__file__``)."""
+    return str(Path(source).resolve().parent / filename)
+
+
 def loadPointListFromFile(path: str | Path):  # noqa: N802
     """A JSON list of points."""
     return json.loads(Path(path).read_text())
