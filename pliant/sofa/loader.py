@@ -314,10 +314,11 @@ class SofaScene:
 
     def entry(self):
         """The scene as a registered robot (:class:`pliant.robots.RobotEntry`) for the
-        command line: built once, its commands held constant."""
+        command line: built once, its commands held constant, or set by its controllers
+        (through :meth:`solver`)."""
         from pliant.robots import RobotEntry
 
-        commands = self.commands()
+        commands = None if self.controllers() else self.commands()  # None: the controllers'
         goals = {"goal": self.goal_path} if self.model.effectors else {}
         return RobotEntry(lambda: self.model, lambda t: commands, goals, (20.0, -60.0))
 
