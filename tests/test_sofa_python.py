@@ -305,3 +305,46 @@ def test_pliant_run_steps_a_scene_with_its_controller(meshes, tmp_path) -> None:
     result = CliRunner().invoke(app, args)
     assert result.exit_code == 0, result.output
     assert "-> displacement [0.5" in result.output.replace("\n", " ")  # not 0: driven
+
+
+def test_the_object_model_answers_as_sofapython3(tmp_path) -> None:
+    """Node and component calls scenes make, recorded by the script into a Python attribute
+    of its root; SofaGym's createScene(rootNode, config) gets an empty configuration."""
+    body = FEM + textwrap.dedent(
+        """
+        body.addObject('FixedConstraint', name='held', indices=[0, 1, 2, 3])
+        root = body.getRoot()
+        rootNode.gravity.value = [0.0, 0.0, -9.81]
+        rootNode.findData('dt').value = 0.02
+        rootNode.checks = {
+            "root": root is rootNode,
+            "child": rootNode.getChild("Body") is body and rootNode.Body is body,
+            "children": [c.name.value for c in rootNode.children],
+            "objects": [o.getName() for o in body.objects][:3],
+            "state": body.getMechanicalState().getLinkPath(),
+            "link": body.held.indices.getLinkPath(),
+            "indices": body.held.indices.value.tolist(),
+            "missing": body.getObject("nothing"),
+            "young": body.getObject("TetrahedronFEMForceField").youngModulus.value,
+            "config": config,
+        }
+        """
+    )
+    script = _scene(tmp_path, body)
+    script.write_text(
+        script.read_text().replace("createScene(rootNode)", "createScene(rootNode, config)")
+    )
+    scene = load_scene(script)
+    assert scene.root.checks == {
+        "root": True,
+        "child": True,
+        "children": ["Body"],
+        "objects": ["StaticSolver", "loader", "dofs"],
+        "state": "@/Body/dofs",
+        "link": "@/Body/held.indices",
+        "indices": [0, 1, 2, 3],
+        "missing": None,
+        "young": 100.0,
+        "config": {},
+    }
+    assert scene.dt == 0.02 and scene.model.body.gravity.tolist() == [0.0, 0.0, -9.81]

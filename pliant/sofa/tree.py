@@ -80,6 +80,8 @@ class Data:
         if self.key in POINT_FIELDS:  # a vector of points: (n, 3), or (n, 7) for rigid poses
             width = 7 if str(self.owner.attrs.get("template", "")).startswith("Rigid3") else 3
             value = np.asarray(value, dtype=float).reshape(-1, width)
+        elif self.key in INDEX_FIELDS:
+            value = np.atleast_1d(value).astype(np.int64)
         elif isinstance(self.default, (list, tuple)):  # a vector field, whatever its length
             value = np.atleast_1d(value)
         else:
@@ -148,6 +150,11 @@ POINT_FIELDS = frozenset(
     {"position", "velocity", "rest_position", "force", "externalForce", "free_position",
      "effectorGoal"}
 )  # fmt: skip
+
+# Data fields that hold indices (SofaPython3 gives them as integer arrays).
+INDEX_FIELDS = frozenset(
+    {"indices", "points", "edges", "triangles", "quads", "tetrahedra", "tetras", "hexahedra"}
+)
 
 # Data fields every component and node answers with SOFA's defaults, set or not.
 OBJECT_DEFAULTS = {"listening": False, "printLog": False, "tags": "", "bbox": ""}
@@ -361,10 +368,10 @@ class SceneNode:
             object.__setattr__(self, key, Name(value))
         elif key in SceneNode.__dataclass_fields__ or key.startswith("_"):
             object.__setattr__(self, key, value)
-        elif callable(value) or isinstance(value, (SceneNode, SceneObject)):
-            self.extras[key] = value  # a prefab's method or handle (scene.addMainHeader)
-        else:  # root.dt = 0.01, root.gravity = [...]
+        elif key in self.attrs or key in NODE_DEFAULTS:  # root.dt = 0.01, root.gravity = [...]
             self.attrs[key] = value
+        else:  # a Python attribute of the script's (a prefab's method, handles, lists)
+            self.extras[key] = value
 
     def __getattr__(self, key: str):
         if key.startswith("__") or "children" not in self.__dict__:
