@@ -49,7 +49,7 @@ from pliant.mesh.quality import signed_volumes
 from pliant.mesh.tetmesh import TetMesh
 from pliant.model import Model, State
 from pliant.sofa.components import FIELDS, is_visual
-from pliant.sofa.tree import SceneError, SceneNode, SceneObject, _suggestion, read_scene
+from pliant.sofa.tree import SceneError, SceneNode, SceneObject, close_match, read_scene
 
 # SOFA's BarycentricMapping carries a point wherever it lies; Pliant still refuses one farther
 # from the mesh than this share of the body's extent (a typo in a coordinate).
@@ -606,7 +606,7 @@ class _Builder:
                 for key in obj.attrs:
                     if key in fields or key in _COMMON:
                         continue
-                    hint = _suggestion(key, fields)
+                    hint = close_match(key, fields)
                     if hint:
                         problems.append(f"{obj.type}.{key} (at {node.path}): no such data{hint}")
         if problems:

@@ -77,8 +77,8 @@ def _import_error(path: Path, exc: ImportError) -> SceneError:
 
 
 def _where(path: Path, exc: BaseException, *, message: bool = True) -> str:
-    """ "scene.py, line 12 (in createScene): ValueError: ..." at the innermost frame in the
-    scene's folder (the script or a module of its own)."""
+    """Where `exc` happened, as "scene.py, line 12 (in createScene): ValueError: ...": the
+    innermost frame in the scene's folder (the script or a module of its own)."""
     folder = path.resolve().parent
     frames = [
         f

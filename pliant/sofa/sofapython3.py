@@ -68,7 +68,7 @@ class Prefab(SceneNode):
         """Builds the prefab's components (subclasses)."""
 
 
-class _Key:
+class Key:
     """SOFA's key codes (``Sofa.constants.Key``): letters and digits are their characters'
     codes, the arrows SOFA's own. Key events are never fired in Pliant."""
 
@@ -78,9 +78,9 @@ class _Key:
 
 
 for _code in [*range(ord("A"), ord("Z") + 1), *range(ord("0"), ord("9") + 1)]:
-    setattr(_Key, chr(_code), _code)
+    setattr(Key, chr(_code), _code)
 for _digit in range(10):
-    setattr(_Key, f"KP_{_digit}", ord(str(_digit)))
+    setattr(Key, f"KP_{_digit}", ord(str(_digit)))
 
 
 def _message(*_args: Any, **_kwargs: Any) -> None:
@@ -121,7 +121,7 @@ MESSAGES = {
 
 def sofa_modules() -> dict[str, types.ModuleType]:
     """The SofaPython3 modules by name, fresh for one scene."""
-    key = module("Sofa.constants.Key", {k: v for k, v in vars(_Key).items() if k[0] != "_"})
+    key = module("Sofa.constants.Key", {k: v for k, v in vars(Key).items() if k[0] != "_"})
     core = {
         "Node": SceneNode,
         "Controller": Controller,

@@ -203,7 +203,7 @@ class SceneObject:
         if data is None:
             raise SceneAttributeError(
                 f"{self.path}: a {self.type} has no data field {key!r}"
-                + _suggestion(key, self.attrs.keys() | _fields(self.type))
+                + close_match(key, self.attrs.keys() | _fields(self.type))
             )
         return data
 
@@ -251,7 +251,7 @@ def _fields(type_name: str) -> set[str]:
     return set(FIELDS.get(type_name, {})) | set(OBJECT_DEFAULTS)
 
 
-def _suggestion(key: str, known) -> str:
+def close_match(key: str, known) -> str:
     close = difflib.get_close_matches(key, sorted(known), n=1, cutoff=0.75)
     return f" (did you mean {close[0]!r}?)" if close else ""
 
@@ -392,7 +392,7 @@ class SceneNode:
             return data
         known = [c.name for c in self.children] + [o.name for o in self.objects]
         raise SceneAttributeError(
-            f"{self.path}: no child, component or data field {key!r}" + _suggestion(key, known)
+            f"{self.path}: no child, component or data field {key!r}" + close_match(key, known)
         )
 
     def walk(self):

@@ -8,7 +8,7 @@ import math
 import types
 
 from pliant.sofa.prefabs import softrobots, splib, stlib
-from pliant.sofa.sofapython3 import _Key, module
+from pliant.sofa.sofapython3 import Key, module
 
 
 def prefab_modules() -> dict[str, types.ModuleType]:
@@ -34,7 +34,7 @@ def prefab_modules() -> dict[str, types.ModuleType]:
         "Quat": splib.Quat,
         **vec3,
     }
-    keys = {k: v for k, v in vars(_Key).items() if k[0] != "_"}
+    keys = {k: v for k, v in vars(Key).items() if k[0] != "_"}
     members = {
         "stlib3": {},
         "stlib3.scene": scene,
