@@ -106,10 +106,11 @@ HYPERELASTIC = "TetrahedronHyperelasticityFEMForceField"
 FAST_COROTATIONAL = "FastTetrahedralCorotationalForceField"
 FEM = frozenset({"TetrahedronFEMForceField", FAST_COROTATIONAL, HYPERELASTIC})
 # The element rotation of each FEM method: TetrahedronFEMForceField's "large" and
-# FastTetrahedralCorotationalForceField's "qr" both take the frame of the element's first
-# edge and first face (a QR factorisation of its edge vectors), "polar" (and "polar2") the
-# polar decomposition.
-ROTATIONS = {"large": "large", "qr": "large", "polar": "polar", "polar2": "polar", "svd": "polar"}
+# FastTetrahedralCorotationalForceField's "qr" (also called "large" there) both take the frame
+# of the element's first edge and first face (Gram-Schmidt on its first two edges), "polar"
+# the polar decomposition of F. FastTetrahedralCorotational's "polar2" (the polar factor of
+# the edge matrix) and "none" (linear elasticity) have no Pliant rotation.
+ROTATIONS = {"large": "large", "qr": "large", "polar": "polar", "svd": "polar"}
 # SOFA's hyperelastic materials that Pliant has a law for: the same strain energy, and the
 # meaning of each ParameterSet entry (SOFA's material headers).
 HYPERELASTIC_MATERIALS = {"NeoHookean": ("mu", "lambda")}
@@ -606,7 +607,10 @@ class _Builder:
                 for key in obj.attrs:
                     if key in fields or key in _COMMON:
                         continue
-                    hint = close_match(key, fields)
+                    # A misspelling: a field's name within an edit or two; any other unknown
+                    # attribute SOFA only warns about, and so does Pliant: it ignores it.
+                    near = [f for f in fields if abs(len(f) - len(key)) <= 2]
+                    hint = close_match(key, near, cutoff=0.85)
                     if hint:
                         problems.append(f"{obj.type}.{key} (at {node.path}): no such data{hint}")
         if problems:

@@ -251,8 +251,9 @@ def _fields(type_name: str) -> set[str]:
     return set(FIELDS.get(type_name, {})) | set(OBJECT_DEFAULTS)
 
 
-def close_match(key: str, known) -> str:
-    close = difflib.get_close_matches(key, sorted(known), n=1, cutoff=0.75)
+def close_match(key: str, known, cutoff: float = 0.75) -> str:
+    """The hint " (did you mean 'x'?)" for the known name closest to `key`, or empty."""
+    close = difflib.get_close_matches(key, sorted(known), n=1, cutoff=cutoff)
     return f" (did you mean {close[0]!r}?)" if close else ""
 
 
