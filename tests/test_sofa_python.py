@@ -348,3 +348,10 @@ def test_the_object_model_answers_as_sofapython3(tmp_path) -> None:
         "config": {},
     }
     assert scene.dt == 0.02 and scene.model.body.gravity.tolist() == [0.0, 0.0, -9.81]
+
+
+def test_a_prefab_refusal_names_the_scripts_line(tmp_path) -> None:
+    extra = "from softrobots.actuators import PneumaticCavity\n"
+    script = _scene(tmp_path, FEM + "PneumaticCavity(attachedTo=body)\n", extra)
+    with pytest.raises(SceneError, match=r"scene.py, line 10 \(in createScene\): PneumaticCavity"):
+        load_scene(script)

@@ -36,13 +36,14 @@ def read_script(path: Path) -> SceneNode:
             namespace = runpy.run_path(str(path), run_name="pliant_sofa_scene")
             create = namespace.get("createScene")
             if create is None:
-                raise SceneError(f"{str(path)!r} defines no createScene(rootNode)")
+                raise SceneError(f"{path.name} defines no createScene(rootNode)")
             if len(_required(create)) >= 2:  # SofaGym's createScene(rootNode, config)
                 create(root, {})
             else:
                 create(root)
-        except SceneError:
-            raise
+        except SceneError as exc:  # a prefab's or stand-in's refusal: where the script called
+            where = _where(path, exc, message=False)
+            raise SceneError(f"{where}{exc}" if where != f"{path.name}: " else str(exc)) from exc
         except ImportError as exc:
             raise _import_error(path, exc) from exc
         except Exception as exc:
