@@ -355,3 +355,26 @@ def test_a_prefab_refusal_names_the_scripts_line(tmp_path) -> None:
     script = _scene(tmp_path, FEM + "PneumaticCavity(attachedTo=body)\n", extra)
     with pytest.raises(SceneError, match=r"scene.py, line 10 \(in createScene\): PneumaticCavity"):
         load_scene(script)
+
+
+@pytest.mark.parametrize("value_type", ["pressure", "1"])
+def test_a_cavity_pressure_acts_from_the_first_step(meshes, value_type) -> None:
+    """PneumaticCavity(initialValue=20, valueType="pressure") inflates the block in the
+    first step as the same scene at 0 does with its command set to 20 through the API
+    ("1" is the option's index, as older scenes write it, and means volumeGrowth there)."""
+    text = (SCENES / "cavity_block.py").read_text()
+    text = text.replace('valueType="pressure",', f'valueType="{value_type}", initialValue=20.0,')
+    text = text.replace("    animate(inflate", "    # animate(inflate")
+    (meshes["folder"] / "initial.py").write_text(text)
+    scene = load_scene(meshes["folder"] / "initial.py")
+    first = scene.simulate(1).positions
+    by_api = load_scene(SCENES / "cavity_block.py", mesh_dirs=[meshes["folder"]])
+    by_api.model.actuators[0].value = 20.0
+    if value_type == "1":
+        assert scene.model.actuators[0].mode == "displacement"
+        return
+    expected = by_api.model.rest_state()
+    expected = by_api.solver().solver.step(expected)  # without the scene's animation
+    motion = np.abs(expected.positions - meshes["block"].points).max()
+    assert motion > 0.01
+    np.testing.assert_allclose(first, expected.positions, rtol=0, atol=1e-9 * motion)
