@@ -178,13 +178,16 @@ POINT_CONSTRAINTS = frozenset({"CableConstraint", "CableActuator", "PositionEffe
 
 @dataclass
 class SofaScene:
-    """A scene read into Pliant: the model, SOFA's time step and solver kind.
+    """A scene read into Pliant: the model, SOFA's time step and solver kind, and the scene
+    tree a script's controllers read and write between steps.
 
     Attributes:
         model: the Pliant model (actuators hold the scene's commands).
         dt: the root node's time step.
         solver_kind: "dynamic" (EulerImplicitSolver) or "static" (StaticSolver).
         path: the scene file.
+        root: the scene's root node (its data hold the last state, see :meth:`write_outputs`).
+        bindings: which components hold the model's inputs and outputs.
     """
 
     model: Model
