@@ -187,6 +187,7 @@ FEM = "body.addObject('TetrahedronFEMForceField', youngModulus=100, poissonRatio
             r" mean 'youngModulus'\?\)",
         ),
         (FEM + "x = 1 / 0\n", "", r"scene.py, line 9 \(in createScene\): ZeroDivisionError"),
+        (FEM + "raise SystemExit(2)\n", "", r"scene.py, line 9 \(in createScene\): SystemExit"),
         (
             FEM + "body.dofs.positon.value\n",
             "",
@@ -200,7 +201,7 @@ FEM = "body.addObject('TetrahedronFEMForceField', youngModulus=100, poissonRatio
             r"imports 'stlib3.physics.mixedmaterial', which Pliant does not provide",
         ),
     ],
-    ids=["unknown", "misspelt", "python-error", "misspelt-read", "missing-child", "import"],
+    ids=["unknown", "misspelt", "python-error", "exit", "misspelt-read", "missing-child", "import"],
 )
 def test_what_a_scene_cannot_do_is_one_scene_error(tmp_path, body, extra, message) -> None:
     with pytest.raises(SceneError, match=message):

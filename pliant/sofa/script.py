@@ -46,7 +46,7 @@ def read_script(path: Path) -> SceneNode:
             raise SceneError(f"{where}{exc}" if where != f"{path.name}: " else str(exc)) from exc
         except ImportError as exc:
             raise _import_error(path, exc) from exc
-        except Exception as exc:
+        except (Exception, SystemExit) as exc:  # a script's sys.exit() ends the scene only
             raise scene_error(path, exc) from exc
     return root
 
