@@ -90,6 +90,7 @@ def test_a_controller_drives_the_cable_as_the_api_does(meshes) -> None:
     assert motion > 0.5
     for a, b in zip(by_scene, by_api, strict=True):
         np.testing.assert_allclose(a.positions, b.positions, rtol=0, atol=1e-9 * motion)
+    assert scene.root.Modelling is scene.root.Simulation.Modelling  # moved: two parents
     controller = scene.root.getObject("controller")
     tips = np.array([s.positions[-1] for s in by_scene])
     np.testing.assert_array_equal(np.array(controller.tips), tips)

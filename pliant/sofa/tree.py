@@ -292,7 +292,10 @@ class SceneNode:
     def addChild(self, child: str | SceneNode, **attrs) -> SceneNode:  # noqa: N802 (SofaPython3)
         if isinstance(child, SceneNode):  # a node built apart (Sofa.Core.Node, a prefab)
             if child.parent is not None and child in child.parent.children:
+                # SOFA's node then has two parents; Pliant's tree keeps it under the new one
+                # and the old one still answers its name.
                 child.parent.children.remove(child)
+                child.parent.extras[str(child.name)] = child
             child.parent = self
             self.children.append(child)
             return child
@@ -321,7 +324,9 @@ class SceneNode:
         self.controllers = [c for c in self.controllers if c is not obj]
 
     def getChild(self, name: str) -> SceneNode | None:  # noqa: N802
-        return next((c for c in self.children if c.name == name), None)
+        found = next((c for c in self.children if c.name == name), None)
+        moved = self.extras.get(name)
+        return found if found is not None or not isinstance(moved, SceneNode) else moved
 
     def getObject(self, name: str):  # noqa: N802
         found = next((o for o in self.objects if o.name == name), None)
