@@ -380,3 +380,29 @@ def test_a_cavity_pressure_acts_from_the_first_step(meshes, value_type) -> None:
     motion = np.abs(expected.positions - meshes["block"].points).max()
     assert motion > 0.01
     np.testing.assert_allclose(first, expected.positions, rtol=0, atol=1e-9 * motion)
+
+
+def test_a_controller_moves_the_body_through_its_positions(tmp_path) -> None:
+    """Positions a controller writes into the body's MechanicalObject are where the next
+    step starts: a body shifted 1 mm along z, without load, stays there (a rigid motion)."""
+    extra = """
+    import Sofa.Core
+
+
+    class Shift(Sofa.Core.Controller):
+        def __init__(self, *args, **kwargs):
+            Sofa.Core.Controller.__init__(self, *args, **kwargs)
+            self.dofs = kwargs["dofs"]
+
+        def onAnimateBeginEvent(self, event):
+            if event["time"] == 0.0:
+                with self.dofs.position.writeable() as x:
+                    x[:, 2] += 1.0
+    """
+    body = FEM + "rootNode.gravity = [0, 0, 0]\nrootNode.addObject(Shift(dofs=body.dofs))\n"
+    script = _scene(tmp_path, body, extra)
+    script.write_text(script.read_text().replace("'StaticSolver'", "'EulerImplicitSolver'"))
+    scene = load_scene(script)
+    state = scene.simulate(2)
+    rest = scene.model.body.rest_positions
+    np.testing.assert_allclose(state.positions, rest + [0.0, 0.0, 1.0], rtol=0, atol=1e-9)
