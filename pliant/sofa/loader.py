@@ -21,6 +21,7 @@ of components.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import warnings
 from collections.abc import Sequence
@@ -47,8 +48,12 @@ from pliant.fem.supports import OnLine, OnPlane, Projection
 from pliant.mesh.quality import signed_volumes
 from pliant.mesh.tetmesh import TetMesh
 from pliant.model import Model, State
-from pliant.sofa.tree import SceneError, SceneNode, SceneObject, read_scene
+from pliant.sofa.components import FIELDS, is_visual
+from pliant.sofa.tree import SceneError, SceneNode, SceneObject, close_match, read_scene
 
+# SOFA's BarycentricMapping carries a point wherever it lies; Pliant still refuses one farther
+# from the mesh than this share of the body's extent (a typo in a coordinate).
+SOFA_REACH = 1.0
 # Components that change nothing Pliant computes: plugins, loops, visual and output
 # components, linear solvers (Pliant factorises exactly, as SparseLDLSolver does), constraint
 # solvers and corrections (Pliant solves the constraint problem exactly; SOFA's Gauss-Seidel
@@ -58,16 +63,6 @@ IGNORED = frozenset(
         "RequiredPlugin",
         "DefaultAnimationLoop",
         "FreeMotionAnimationLoop",
-        "DefaultVisualManagerLoop",
-        "VisualStyle",
-        "BackgroundSetting",
-        "InteractiveCamera",
-        "LightManager",
-        "OglSceneFrame",
-        "AttachBodyButtonSetting",
-        "OglModel",
-        "VisualModel",
-        "VTKExporter",
         "SparseLDLSolver",
         "AsyncSparseLDLSolver",
         "SparseCholeskySolver",
@@ -88,14 +83,34 @@ IGNORED = frozenset(
         "TetrahedronSetTopologyContainer",
         "TetrahedronSetTopologyModifier",
         "TetrahedronSetGeometryAlgorithms",
+        "TetrahedronSetTopologyAlgorithms",
         "TriangleSetTopologyContainer",
         "TriangleSetTopologyModifier",
         "TriangleSetGeometryAlgorithms",
+        "TriangleSetTopologyAlgorithms",
+        "EdgeSetTopologyContainer",
+        "EdgeSetTopologyModifier",
+        "EdgeSetGeometryAlgorithms",
+        "PointSetTopologyContainer",
+        "PointSetTopologyModifier",
+        "Tetra2TriangleTopologicalMapping",
+        # SoftRobots' volume engines: outputs (the cavity's volume), computed by Pliant's cavity
+        "VolumeFromTetrahedrons",
+        "VolumeFromTriangles",
     }
 )
-MESH_LOADERS = frozenset({"MeshVTKLoader", "MeshGmshLoader", "MeshSTLLoader", "MeshOBJLoader"})
+MESH_LOADERS = frozenset(
+    {"MeshVTKLoader", "MeshGmshLoader", "MeshSTLLoader", "MeshOBJLoader", "GIDMeshLoader"}
+)
 HYPERELASTIC = "TetrahedronHyperelasticityFEMForceField"
-FEM = frozenset({"TetrahedronFEMForceField", HYPERELASTIC})
+FAST_COROTATIONAL = "FastTetrahedralCorotationalForceField"
+FEM = frozenset({"TetrahedronFEMForceField", FAST_COROTATIONAL, HYPERELASTIC})
+# The element rotation of each FEM method: TetrahedronFEMForceField's "large" and
+# FastTetrahedralCorotationalForceField's "qr" (also called "large" there) both take the frame
+# of the element's first edge and first face (Gram-Schmidt on its first two edges), "polar"
+# the polar decomposition of F. FastTetrahedralCorotational's "polar2" (the polar factor of
+# the edge matrix) and "none" (linear elasticity) have no Pliant rotation.
+ROTATIONS = {"large": "large", "qr": "large", "polar": "polar", "svd": "polar"}
 # SOFA's hyperelastic materials that Pliant has a law for: the same strain energy, and the
 # meaning of each ParameterSet entry (SOFA's material headers).
 HYPERELASTIC_MATERIALS = {"NeoHookean": ("mu", "lambda")}
@@ -125,6 +140,7 @@ HANDLED = frozenset(
         "EulerImplicitSolver",
         "StaticSolver",
         "BarycentricMapping",
+        "IdentityMapping",
         "CableConstraint",
         "CableActuator",
         "PositionEffector",
@@ -147,6 +163,8 @@ PIPELINE = frozenset(
         "RuleBasedContactManager",
     }
 )
+RESPONSES = frozenset({"CollisionResponse", "DefaultContactManager", "RuleBasedContactManager"})
+MAPPINGS = frozenset({"BarycentricMapping", "IdentityMapping"})
 INTERSECTIONS = frozenset(
     {"LocalMinDistance", "MinProximityIntersection", "NewProximityIntersection"}
 )
@@ -160,19 +178,24 @@ POINT_CONSTRAINTS = frozenset({"CableConstraint", "CableActuator", "PositionEffe
 
 @dataclass
 class SofaScene:
-    """A scene read into Pliant: the model, SOFA's time step and solver kind.
+    """A scene read into Pliant: the model, SOFA's time step and solver kind, and the scene
+    tree a script's controllers read and write between steps.
 
     Attributes:
         model: the Pliant model (actuators hold the scene's commands).
         dt: the root node's time step.
         solver_kind: "dynamic" (EulerImplicitSolver) or "static" (StaticSolver).
         path: the scene file.
+        root: the scene's root node (its data hold the last state, see :meth:`write_outputs`).
+        bindings: which components hold the model's inputs and outputs.
     """
 
     model: Model
     dt: float
     solver_kind: str
     path: Path
+    root: SceneNode | None = None
+    bindings: Bindings | None = None
 
     @property
     def name(self) -> str:
@@ -185,8 +208,93 @@ class SofaScene:
         from pliant.solvers import ImplicitEuler, StaticSolver
 
         if self.solver_kind == "static":
-            return StaticSolver(self.model)
-        return ImplicitEuler(self.model, self.dt, tangent=tangent)
+            solver = StaticSolver(self.model)
+        else:
+            solver = ImplicitEuler(self.model, self.dt, tangent=tangent)
+        return ControlledSolver(self, solver) if self.controllers() else solver
+
+    def controllers(self) -> list:
+        """The scene's Python controllers, in scene order."""
+        if self.root is None:
+            return []
+        return [c for node in self.root.walk() for c in node.controllers]
+
+    def begin_step(self, state: State) -> State:
+        """SOFA's AnimateBeginEvent: each controller's ``onAnimateBeginEvent``, then the data
+        they set (actuator values, effector goals, the body's positions) into the model;
+        returns the state the step starts from."""
+        self._fire("onAnimateBeginEvent", state)
+        return self.read_inputs(state)
+
+    def end_step(self, state: State) -> None:
+        """After a step: the state into the scene's data, then ``onAnimateEndEvent``."""
+        self.write_outputs(state)
+        self._fire("onAnimateEndEvent", state)
+
+    def _fire(self, method: str, state: State) -> None:
+        from pliant.sofa.script import scene_error
+
+        event = {"type": method[2:-5], "dt": self.dt, "time": state.time}
+        for controller in self.controllers():
+            handler = getattr(controller, method, None)
+            if handler is None:
+                continue
+            try:
+                handler(event)
+            except Exception as exc:
+                raise scene_error(self.path, exc, f"{type(controller).__name__}.{method}") from exc
+
+    def read_inputs(self, state: State) -> State:
+        """Actuator values, effector goals and the body's positions as the data hold them."""
+        bindings = self.bindings
+        for obj, actuator in zip(bindings.actuators, self.model.actuators, strict=True):
+            values = _floats(obj.attrs.get("value", "0"), f"{obj.path}.value")
+            actuator.value = float(values[int(_float(obj, "valueIndex", 0.0))])
+        for obj, effector in zip(bindings.effectors, self.model.effectors, strict=True):
+            goal = obj.attrs.get("effectorGoal")
+            if goal is None:
+                continue
+            if _is_link(goal):
+                source = _Builder(self.root, self.path, SOFA_CHOICES, []).link(obj.node, goal)
+                goal = None if source is None else source.attrs.get("position")
+            if goal is not None:
+                goals = _floats(goal, f"{obj.path}.effectorGoal").reshape(-1, 3)
+                if goals.shape[0] == 1:
+                    goals = np.repeat(goals, len(effector.points), axis=0)
+                effector.goals = goals
+        written = bindings.written
+        if bindings.body is not None and bindings.body.attrs.get("position") is not written:
+            positions = _floats(bindings.body.attrs["position"], f"{bindings.body.path}.position")
+            state = dataclasses.replace(state, positions=positions.reshape(-1, 3).copy())
+        return state
+
+    def write_outputs(self, state: State) -> None:
+        """The state into the data scripts read: the body's and the carried points'
+        ``position``, actuators' ``displacement`` / ``force`` (cables) and ``pressure`` /
+        ``volumeGrowth`` (cavities), rigid poses, and the root's ``time``."""
+        bindings = self.bindings
+        if bindings is None:
+            return
+        if bindings.body is not None:
+            bindings.written = _frozen(state.positions)
+            bindings.body.attrs["position"] = bindings.written
+            bindings.body.attrs["velocity"] = _frozen(state.velocities)
+        for dofs, points in bindings.mapped:
+            dofs.attrs["position"] = _frozen(points.positions(state.positions))
+        n = len(self.model.actuators)
+        force = state.actuation if len(state.actuation) == n else np.zeros(n)
+        shift = state.displacement if len(state.displacement) == n else np.zeros(n)
+        for obj, f, d in zip(bindings.actuators, force, shift, strict=True):
+            if obj.type in CAVITIES:
+                obj.attrs["pressure"], obj.attrs["volumeGrowth"] = float(f), float(d)
+            else:
+                obj.attrs["force"], obj.attrs["displacement"] = float(f), float(d)
+        for dofs, x, r in zip(
+            bindings.rigid, state.rigid_positions, state.rigid_rotations, strict=False
+        ):
+            dofs.attrs["position"] = _frozen(np.concatenate([x, Rotation.from_matrix(r).as_quat()]))
+        if self.root is not None:
+            self.root.attrs["time"] = float(state.time)
 
     def goal_path(self, n_goals: int) -> np.ndarray:
         """(n_goals, 3) goals on the straight line from the first effector point's rest
@@ -210,20 +318,59 @@ class SofaScene:
 
     def entry(self):
         """The scene as a registered robot (:class:`pliant.robots.RobotEntry`) for the
-        command line: built once, its commands held constant."""
+        command line: built once, its commands held constant, or set by its controllers
+        (through :meth:`solver`)."""
         from pliant.robots import RobotEntry
 
-        commands = self.commands()
+        commands = None if self.controllers() else self.commands()  # None: the controllers'
         goals = {"goal": self.goal_path} if self.model.effectors else {}
         return RobotEntry(lambda: self.model, lambda t: commands, goals, (20.0, -60.0))
 
     def simulate(self, n_steps: int, state: State | None = None) -> State:
-        """Run `n_steps` steps under the scene's commands; returns the last state."""
+        """Run `n_steps` steps under the scene's commands (and its controllers); returns the
+        last state."""
         solver = self.solver()
         state = self.model.rest_state() if state is None else state
         for _ in range(n_steps):
             state = solver.step(state)
         return state
+
+
+@dataclass
+class Bindings:
+    """Which components of the scene hold the model's inputs and outputs: the actuators'
+    and effectors' components (in the model's order), the body's MechanicalObject, those of
+    the points it carries (with their embedding) and the rigid bodies'."""
+
+    actuators: list[SceneObject] = dataclasses.field(default_factory=list)
+    effectors: list[SceneObject] = dataclasses.field(default_factory=list)
+    body: SceneObject | None = None
+    mapped: list[tuple[SceneObject, EmbeddedPoints]] = dataclasses.field(default_factory=list)
+    rigid: list[SceneObject] = dataclasses.field(default_factory=list)
+    written: np.ndarray | None = None  # the body's positions as last written
+
+
+class ControlledSolver:
+    """A scene's solver with its Python controllers around each step (SOFA's animation
+    events); every other attribute is the solver's."""
+
+    def __init__(self, scene: SofaScene, solver) -> None:
+        self.scene, self.solver = scene, solver
+
+    def step(self, state: State, control=None) -> State:
+        state = self.solver.step(self.scene.begin_step(state), control)
+        self.scene.end_step(state)
+        return state
+
+    def __getattr__(self, key: str):
+        return getattr(self.solver, key)
+
+
+def _frozen(values: np.ndarray) -> np.ndarray:
+    """A read-only copy, as SofaPython3 gives data arrays."""
+    array = np.array(values, dtype=float)
+    array.flags.writeable = False
+    return array
 
 
 @dataclass(frozen=True)
@@ -279,19 +426,39 @@ def load_scene(
     if choices.inversion not in ("tolerate", "refuse"):
         raise SceneError(f"inversion is 'tolerate' or 'refuse', got {choices.inversion!r}")
     root = read_scene(path)
-    return _Builder(root, path, choices, [Path(d) for d in mesh_dirs]).build()
+    try:
+        return _Builder(root, path, choices, [Path(d) for d in mesh_dirs]).build()
+    except SceneError:
+        raise
+    except ModelError as exc:  # what Pliant's model refuses in the scene, named with it
+        raise SceneError(f"{path.name}: {exc}") from exc
 
 
 def _floats(value, what: str) -> np.ndarray:
     """A scene value (string of numbers, number, or sequence) as a flat float array."""
-    if isinstance(value, str):
-        parts = value.replace(",", " ").split()
-    else:
-        parts = list(np.ravel(np.asarray(value, dtype=object)))
+    parts = value.replace(",", " ").split() if isinstance(value, str) else list(_flatten(value))
     try:
         return np.array([float(p) for p in parts], dtype=float)
     except (TypeError, ValueError) as exc:
         raise SceneError(f"{what}: expected numbers, got {value!r}") from exc
+
+
+def _flatten(value):
+    """The numbers of a nested sequence (lists, tuples, arrays, mixed as scripts build them)."""
+    if isinstance(value, (list, tuple, np.ndarray)):
+        for item in value:
+            yield from _flatten(item)
+    else:
+        yield value
+
+
+def _value_type(obj: SceneObject, options: tuple[str, ...]) -> str:
+    """An option of the component's ``valueType``, by name or by index (SOFA's option groups
+    take either)."""
+    raw = str(obj.attrs.get("valueType", options[0])).strip()
+    if raw.isdigit() and int(raw) < len(options):
+        return options[int(raw)].lower()
+    return raw.lower()
 
 
 def _float(obj: SceneObject, key: str, default: float) -> float:
@@ -310,13 +477,80 @@ def _flag(obj: SceneObject, key: str, default: bool) -> bool:
     return bool(value)
 
 
+def _placed(obj: SceneObject, points: np.ndarray) -> np.ndarray:
+    """Points under a component's scale (``scale3d`` or uniform ``scale``), rotation (Euler
+    angles in degrees, Rz Ry Rx as SOFA composes them) and translation, in that order."""
+    scale = _floats(obj.attrs.get("scale3d", obj.attrs.get("scale", "1")), f"{obj.path}.scale")
+    euler = _floats(obj.attrs.get("rotation", "0 0 0"), f"{obj.path}.rotation")
+    shift = _floats(obj.attrs.get("translation", "0 0 0"), f"{obj.path}.translation")
+    rot = Rotation.from_euler("xyz", euler, degrees=True).as_matrix()
+    return (points * scale) @ rot.T + shift
+
+
+def _in_oriented_box(points: np.ndarray, box: np.ndarray) -> np.ndarray:
+    """Nodes in SOFA's oriented box: the parallelogram p0, p1, p2 (edges p1 - p0 and
+    p2 - p1) extruded by half the depth on each side of its plane."""
+    p0, p1, p2, depth = box[0:3], box[3:6], box[6:9], box[9]
+    u, v = p1 - p0, p2 - p1
+    n = np.cross(u, v)
+    n /= np.linalg.norm(n)
+    a, b, c = np.linalg.solve(np.column_stack([u, v, n]), (points - p0).T)
+    eps = 1e-12
+    inside = (a >= -eps) & (a <= 1 + eps) & (b >= -eps) & (b <= 1 + eps)
+    return np.flatnonzero(inside & (np.abs(c) <= 0.5 * depth + eps))
+
+
+def _read_obj(file: Path) -> meshio.Mesh:
+    """An OBJ file's vertices and faces (polygons fanned into triangles), for files meshio
+    refuses (texture coordinates that do not match the vertices)."""
+    points, faces = [], []
+    for line in file.read_text(errors="replace").splitlines():
+        parts = line.split()
+        if not parts:
+            continue
+        if parts[0] == "v":
+            points.append([float(x) for x in parts[1:4]])
+        elif parts[0] == "f":
+            ids = [int(p.split("/")[0]) for p in parts[1:]]
+            ids = [i - 1 if i > 0 else len(points) + i for i in ids]
+            faces += [[ids[0], ids[k], ids[k + 1]] for k in range(1, len(ids) - 1)]
+    return meshio.Mesh(np.array(points), [("triangle", np.array(faces, dtype=np.int64))])
+
+
+def _read_gid(file: Path) -> meshio.Mesh:
+    """A GiD mesh (GIDMeshLoader): numbered ``Coordinates`` and tetrahedral ``Elements``
+    (node numbers from 1, an optional material number after them)."""
+    points, tets, section = {}, [], None
+    for line in file.read_text().splitlines():
+        words = line.split()
+        if not words:
+            continue
+        head = words[0].lower()
+        if head in ("coordinates", "elements"):
+            section = head
+        elif head in ("end", "mesh"):
+            section = None
+        elif section == "coordinates":
+            points[int(words[0])] = [float(x) for x in words[1:4]]
+        elif section == "elements":
+            tets.append([int(n) for n in words[1:5]])
+    order = {number: k for k, number in enumerate(sorted(points))}
+    cells = np.array([[order[n] for n in tet] for tet in tets], dtype=np.int64)
+    return meshio.Mesh(np.array([points[n] for n in sorted(points)]), [("tetra", cells)])
+
+
 def _is_link(value) -> bool:
     return isinstance(value, str) and value.strip().startswith("@")
+
+
+# Data fields every SOFA component has.
+_COMMON = frozenset({"name", "template", "printLog", "tags", "bbox", "listening", "src"})
 
 
 class _Builder:
     def __init__(self, root: SceneNode, path: Path, choices: Choices, mesh_dirs: list[Path]):
         self.root, self.path, self.choices, self.mesh_dirs = root, path, choices, mesh_dirs
+        self.bindings = Bindings()
 
     # --- scene-wide ------------------------------------------------------------------------
     def build(self) -> SofaScene:
@@ -354,20 +588,39 @@ class _Builder:
             rigid_bodies=rigid,
             name=self.path.stem,
         )
-        return SofaScene(model, dt, solver_kind, self.path)
+        self.bindings.body = self._one(body_node, {"MechanicalObject"}, "MechanicalObjects")
+        self.bindings.rigid = [self._rigid_dofs(n) for n in self.root.walk() if self._is_rigid(n)]
+        scene = SofaScene(model, dt, solver_kind, self.path, self.root, self.bindings)
+        scene.write_outputs(model.rest_state())
+        return scene
 
     def _check_supported(self) -> None:
-        unknown = [
-            f"{obj.type} (at {obj.node.path})"
-            for node in self.root.walk()
-            for obj in node.objects
-            if obj.type not in HANDLED and obj.type not in IGNORED
-        ]
-        if unknown:
+        """One error for everything the scene holds that Pliant cannot simulate: components
+        it does not have and attributes that are no field of their component (a misspelt
+        name, close to one of its fields)."""
+        problems = []
+        for node in self.root.walk():
+            for obj in node.objects:
+                if obj.type not in HANDLED and obj.type not in IGNORED and not is_visual(obj.type):
+                    problems.append(f"{obj.type} (at {node.path})")
+                    continue
+                fields = FIELDS.get(obj.type)
+                if fields is None:
+                    continue
+                for key in obj.attrs:
+                    if key in fields or key in _COMMON:
+                        continue
+                    # A misspelling: a field's name within an edit or two; any other unknown
+                    # attribute SOFA only warns about, and so does Pliant: it ignores it.
+                    near = [f for f in fields if abs(len(f) - len(key)) <= 2]
+                    hint = close_match(key, near, cutoff=0.85)
+                    if hint:
+                        problems.append(f"{obj.type}.{key} (at {node.path}): no such data{hint}")
+        if problems:
             raise SceneError(
-                f"{self.path.name} uses components Pliant does not support: "
-                + "; ".join(unknown)
-                + " (docs/sofa.md lists those it does)"
+                f"{self.path.name} uses what Pliant does not support: "
+                + "; ".join(problems)
+                + " (docs/sofa.md lists what it does)"
             )
 
     # --- collisions ----------------------------------------------------------------------------
@@ -382,11 +635,8 @@ class _Builder:
         models = [o for n in self.root.walk() for o in n.objects if o.type in COLLISION_MODELS]
         if not models:
             return None, []
-        if not intersection:
-            raise SceneError(
-                f"{self.path.name}: collision models without a collision pipeline"
-                " (LocalMinDistance or MinProximityIntersection)"
-            )
+        if not intersection:  # SOFA detects no collision without a pipeline
+            return None, []
         proximity = intersection[0]
         margin = _float(proximity, "alarmDistance", 1.0)
         thickness = _float(proximity, "contactDistance", 0.5)
@@ -403,7 +653,10 @@ class _Builder:
             if id(node) in body_nodes:
                 if "PointCollisionModel" not in types:
                     raise SceneError(f"{node.path}: the body collides by points only")
-                if "BarycentricMapping" not in types:
+                if node is body_node:  # the body's own nodes collide
+                    points.append(body.rest_positions)
+                    continue
+                if not types & MAPPINGS:
                     raise SceneError(f"{node.path}: collision points not mapped on the body")
                 dofs = self._one(node, {"MechanicalObject"}, "MechanicalObjects")
                 points.append(np.unique(self._positions(node, dofs), axis=0))
@@ -411,12 +664,15 @@ class _Builder:
                 obstacles.append(self._obstacle(node))
         if not points:
             raise SceneError(f"{self.path.name}: the body has no collision points")
-        if not obstacles and not rigid:
-            raise SceneError(f"{self.path.name}: collision points but nothing to collide with")
+        if not obstacles and not rigid:  # SOFA detects nothing: no contact to solve
+            return None, []
         if not obstacles:
             raise SceneError(f"{self.path.name}: rigid bodies need a static obstacle too")
         embedded = EmbeddedPoints(
-            mesh, np.vstack(points), tolerance=0.1 * body.extent, outside=self.choices.outside
+            mesh,
+            np.vstack(points),
+            tolerance=SOFA_REACH * body.extent,
+            outside=self.choices.outside,
         )
         contacts = Contacts(
             obstacles, friction=friction, margin=margin, points=embedded, thickness=thickness
@@ -424,9 +680,7 @@ class _Builder:
         return contacts, rigid
 
     def _friction(self) -> float:
-        responses = [
-            o for n in self.root.walk() for o in n.objects if o.type == "CollisionResponse"
-        ]
+        responses = [o for n in self.root.walk() for o in n.objects if o.type in RESPONSES]
         if not responses:
             return 0.0
         params = str(responses[0].attrs.get("responseParams", ""))
@@ -438,17 +692,47 @@ class _Builder:
 
     @staticmethod
     def _is_rigid(node: SceneNode) -> bool:
-        return any(
-            o.type == "MechanicalObject" and str(o.attrs.get("template", "")).startswith("Rigid3")
-            for o in node.objects
+        """A moving rigid body: a Rigid3 MechanicalObject whose collision models move (STLIB
+        marks a static one, a floor, moving=False and simulated=False)."""
+        if not _Builder._rigid_dofs(node):
+            return False
+        models = [o for n in node.walk() for o in n.objects if o.type in COLLISION_MODELS]
+        return not models or any(
+            _flag(o, "moving", True) or _flag(o, "simulated", True) for o in models
         )
 
-    def _rigid_body(self, node: SceneNode, friction: float) -> RigidBody:
-        dofs = self._one(node, {"MechanicalObject"}, "MechanicalObjects")
+    @staticmethod
+    def _rigid_dofs(node: SceneNode | None) -> SceneObject | None:
+        if node is None:
+            return None
+        return next(
+            (
+                o
+                for o in node.objects
+                if o.type == "MechanicalObject"
+                and str(o.attrs.get("template", "")).startswith("Rigid3")
+            ),
+            None,
+        )
+
+    @staticmethod
+    def _pose(dofs: SceneObject) -> tuple[np.ndarray, np.ndarray]:
+        """A Rigid3 MechanicalObject's position and rotation matrix: its `position` (x y z
+        and the quaternion x y z w), then its ``rotation2`` (Euler angles, degrees) and
+        ``translation2``."""
         pose = _floats(dofs.attrs.get("position", "0 0 0 0 0 0 1"), f"{dofs.path}.position")
         if pose.size != 7:
             raise SceneError(f"{dofs.path}.position: one Rigid3 pose (7 values) expected")
-        rotation = Rotation.from_quat(pose[3:]).as_matrix()  # SOFA: x y z w, as scipy
+        rotation = Rotation.from_quat(pose[3:])  # SOFA: x y z w, as scipy
+        turn = Rotation.from_euler(
+            "xyz", _floats(dofs.attrs.get("rotation2", "0 0 0"), f"{dofs.path}.rotation2"), True
+        )
+        shift = _floats(dofs.attrs.get("translation2", "0 0 0"), f"{dofs.path}.translation2")
+        return turn.apply(pose[:3]) + shift, (turn * rotation).as_matrix()
+
+    def _rigid_body(self, node: SceneNode, friction: float) -> RigidBody:
+        dofs = self._one(node, {"MechanicalObject"}, "MechanicalObjects")
+        position, rotation = self._pose(dofs)
         mass = self._one(node, {"UniformMass"}, "masses")
         if mass is None or "vertexMass" not in mass.attrs:
             raise SceneError(f"{node.path}: a rigid body needs a UniformMass with vertexMass")
@@ -467,7 +751,7 @@ class _Builder:
         if np.linalg.norm(offset) > 1e-9 * np.linalg.norm(half):
             raise SceneError(f"{node.path}: the box must be centred on the rigid frame")
         return RigidBody(
-            Box(half, position=pose[:3], rotation=rotation),
+            Box(half, position=position, rotation=rotation),
             values[0],
             values[0] * values[2:].reshape(3, 3),
             friction=friction,
@@ -496,6 +780,10 @@ class _Builder:
             raise SceneError(f"{node.path}: a moving obstacle needs a body (not supported)")
         dofs = self._one(node, {"MechanicalObject"}, "MechanicalObjects")
         points = self._positions(node, dofs)
+        frame = self._rigid_dofs(node.parent)
+        if frame is not None and any(o.type == "RigidMapping" for o in node.objects):
+            position, rotation = self._pose(frame)  # a static rigid object: its frame's points
+            points = points @ rotation.T + position
         topology = self._one(node, {"MeshTopology"}, "topologies")
         if topology is not None and "triangles" in topology.attrs:
             faces = _floats(topology.attrs["triangles"], f"{topology.path}.triangles")
@@ -561,12 +849,14 @@ class _Builder:
             material: Material = self._hyperelastic(fem)
             rotation = "none"
         else:
-            method = str(fem.attrs.get("method", "large")).lower()
-            if method not in ("large", "polar", "svd"):
+            default = "qr" if fem.type == FAST_COROTATIONAL else "large"
+            method = str(fem.attrs.get("method", default)).lower()
+            if method not in ROTATIONS:
                 raise SceneError(
-                    f"{fem.path}: method {method!r} is not supported (large, polar or svd)"
+                    f"{fem.path}: method {method!r} is not supported"
+                    f" ({', '.join(sorted(ROTATIONS))})"
                 )
-            large = method == "large" and self.choices.rotation == "scene"
+            large = ROTATIONS[method] == "large" and self.choices.rotation == "scene"
             rotation = "large" if large else "polar"
             material = Corotational(
                 _float(fem, "youngModulus", 5000.0),
@@ -625,19 +915,26 @@ class _Builder:
         return NeoHookean(mu * (3.0 * lam + 2.0 * mu) / (lam + mu), lam / (2.0 * (lam + mu)))
 
     def _mesh_loader(self, node: SceneNode) -> SceneObject:
-        """The loader the body's topology reads (``src="@loader"``), or the node's only one."""
-        for obj in node.objects:
-            src = obj.attrs.get("src")
-            if obj.type in ("MeshTopology", "TetrahedronSetTopologyContainer") and _is_link(src):
-                found = self._link(node, src)
-                if found is not None and found.type in MESH_LOADERS:
-                    return found
-        loader = self._one(node, MESH_LOADERS, "mesh loaders")
-        if loader is None:
-            raise SceneError(f"{node.path}: the body has no mesh loader (MeshVTKLoader, ...)")
-        return loader
+        """The loader the body's topology reads (``src="@loader"``), or the node's only one;
+        else the same in the nearest ancestor (SOFA's context: a topology above the body's
+        node serves it)."""
+        at: SceneNode | None = node
+        while at is not None:
+            for obj in at.objects:
+                if obj.type not in ("MeshTopology", "TetrahedronSetTopologyContainer"):
+                    continue
+                for key in ("src", "tetrahedra", "tetras", "position"):
+                    if _is_link(obj.attrs.get(key)):
+                        found = self.link(at, obj.attrs[key])
+                        if found is not None and found.type in MESH_LOADERS:
+                            return found
+            loader = self._one(at, MESH_LOADERS, "mesh loaders")
+            if loader is not None:
+                return loader
+            at = at.parent
+        raise SceneError(f"{node.path}: the body has no mesh loader (MeshVTKLoader, ...)")
 
-    def _link(self, node: SceneNode, link: str) -> SceneObject | None:
+    def link(self, node: SceneNode, link: str) -> SceneObject | None:
         """The component a link such as ``@loader``, ``@boxROI.indices``, ``@../loader`` or
         ``@../../goal/goalMO.position`` names: by its path from `node` (or from the root for
         ``@/...``) where the path leads to it, else by its name here or in an ancestor."""
@@ -651,7 +948,10 @@ class _Builder:
             if part == "..":
                 at = at.parent
             elif part not in ("", "."):
-                at = next((c for c in at.children if c.name == part), None)
+                # a node a script moved elsewhere (SOFA's nodes may have several parents)
+                at = next((c for c in at.children if c.name == part), None) or next(
+                    (n for n in self.root.walk() if n.name == part), None
+                )
         if at is not None and len(parts) > 1:
             found = next((o for o in at.objects if o.name == target), None)
             if found is not None:
@@ -666,18 +966,20 @@ class _Builder:
             with warnings.catch_warnings():
                 # meshio sniffs an ASCII STL as binary first, with an integer overflow warning.
                 warnings.simplefilter("ignore", RuntimeWarning)
-                raw = meshio.read(file)
+                # SOFA's MeshVTKLoader reads XML files (VTU) under the .vtk name too.
+                xml = file.suffix == ".vtk" and file.read_bytes()[:64].lstrip().startswith(b"<")
+                if file.suffix.lower() == ".obj":
+                    raw = _read_obj(file)
+                elif loader.type == "GIDMeshLoader":
+                    raw = _read_gid(file)
+                else:
+                    raw = meshio.read(file, file_format="vtu" if xml else None)
         except Exception as exc:  # meshio reports malformed files with many exception types
             raise SceneError(f"{loader.path}: cannot read {str(file)!r}: {exc}") from exc
         cells: dict[str, list[np.ndarray]] = {}
         for block in raw.cells:
             cells.setdefault(block.type, []).append(np.asarray(block.data, dtype=np.int64))
-        scale = _floats(loader.attrs.get("scale3d", loader.attrs.get("scale", "1")), "scale")
-        euler = _floats(loader.attrs.get("rotation", "0 0 0"), f"{loader.path}.rotation")
-        shift = _floats(loader.attrs.get("translation", "0 0 0"), f"{loader.path}.translation")
-        # SOFA's Euler angles (degrees) compose as Rz Ry Rx: scipy's extrinsic "xyz".
-        rot = Rotation.from_euler("xyz", euler, degrees=True).as_matrix()
-        points = (np.asarray(raw.points, dtype=float) * scale) @ rot.T + shift
+        points = _placed(loader, np.asarray(raw.points, dtype=float))
         return points, {k: np.concatenate(v) for k, v in cells.items()}
 
     def _read_mesh(self, loader: SceneObject) -> tuple[np.ndarray, np.ndarray]:
@@ -731,7 +1033,7 @@ class _Builder:
         if value is None:
             return None
         if _is_link(value):
-            source = self._link(node, value)
+            source = self.link(node, value)
             if source is None or source.type != "BoxROI":
                 raise SceneError(f"{obj.path}.{key}: {value!r} names no BoxROI")
             return self._box_nodes(source, points)
@@ -739,20 +1041,39 @@ class _Builder:
 
     def _box_nodes(self, box: SceneObject, points: np.ndarray) -> np.ndarray:
         """Nodes inside any of the BoxROI's boxes (xmin ymin zmin xmax ymax zmax each)."""
+        oriented = _floats(box.attrs.get("orientedBox", ""), f"{box.path}.orientedBox")
+        if oriented.size % 10:
+            raise SceneError(f"{box.path}.orientedBox: groups of ten numbers expected")
+        inside = [_in_oriented_box(points, o) for o in oriented.reshape(-1, 10)]
         values = _floats(box.attrs.get("box", ""), f"{box.path}.box")
+        if values.size == 0 and inside:
+            return np.unique(np.concatenate(inside))
         if values.size == 0 or values.size % 6:
             raise SceneError(f"{box.path}.box: groups of six numbers expected")
-        found = [nodes_in_box(points, b.reshape(2, 3)) for b in values.reshape(-1, 6)]
+        # SOFA orders each axis of a box itself: corners may come max-first.
+        boxes = np.sort(values.reshape(-1, 2, 3), axis=1)
+        found = [nodes_in_box(points, b) for b in boxes] + inside
         return np.unique(np.concatenate(found))
+
+    @staticmethod
+    def _context(node: SceneNode) -> list[SceneObject]:
+        """The components acting on `node`'s degrees of freedom: its own and those of its
+        descendants that have no MechanicalObject of their own (SOFA's context: STLIB's
+        FixedBox is such a child)."""
+        found = list(node.objects)
+        for child in node.children:
+            if not any(o.type == "MechanicalObject" for o in child.objects):
+                found += _Builder._context(child)
+        return found
 
     def _fixed_nodes(self, node: SceneNode, points: np.ndarray) -> np.ndarray:
         fixed = [np.zeros(0, dtype=np.int64)]
-        for obj in node.objects:
+        for obj in self._context(node):
             if obj.type in ("FixedConstraint", "FixedProjectiveConstraint"):
                 if _flag(obj, "fixAll", False):
                     fixed.append(np.arange(points.shape[0]))
                     continue
-                idx = self._indices(node, obj, "indices", points)
+                idx = self._indices(obj.node, obj, "indices", points)
                 if idx is None:
                     raise SceneError(f"{obj.path}: no indices")
                 fixed.append(idx)
@@ -760,9 +1081,9 @@ class _Builder:
 
     def _fixed_components(self, node: SceneNode, points: np.ndarray) -> np.ndarray:
         dofs = [np.zeros(0, dtype=np.int64)]
-        for obj in node.objects:
+        for obj in self._context(node):
             if obj.type in ("PartialFixedConstraint", "PartialFixedProjectiveConstraint"):
-                idx = self._indices(node, obj, "indices", points)
+                idx = self._indices(obj.node, obj, "indices", points)
                 if idx is None or _flag(obj, "fixAll", False):
                     idx = np.arange(points.shape[0])
                 axes = _floats(obj.attrs.get("fixedDirections", "1 1 1"), f"{obj.path}")
@@ -775,11 +1096,11 @@ class _Builder:
         it there at the start; Pliant asks for a mesh whose nodes lie on it."""
         found: list[Projection] = []
         size = float(np.linalg.norm(np.ptp(points, axis=0)))
-        for obj in node.objects:
+        for obj in self._context(node):
             if obj.type not in PROJECTIONS:
                 continue
             key, kind = PROJECTIONS[obj.type]
-            idx = self._indices(node, obj, "indices", points)
+            idx = self._indices(obj.node, obj, "indices", points)
             if idx is None:
                 raise SceneError(f"{obj.path}: no indices")
             default = "0 0 1" if key == "normal" else "1 0 0"
@@ -795,11 +1116,11 @@ class _Builder:
 
     def _loads(self, node: SceneNode, points: np.ndarray) -> list[Load]:
         loads: list[Load] = []
-        for obj in node.objects:
+        for obj in self._context(node):
             if obj.type not in ("ConstantForceField", "RestShapeSpringsForceField"):
                 continue
             key = "indices" if obj.type == "ConstantForceField" else "points"
-            idx = self._indices(node, obj, key, points)
+            idx = self._indices(obj.node, obj, key, points)
             idx = np.arange(points.shape[0]) if idx is None else idx
             if obj.type == "RestShapeSpringsForceField":
                 if "external_rest_shape" in obj.attrs:
@@ -825,31 +1146,45 @@ class _Builder:
         constraints += [o for o in node.objects if o.type == "PositionEffector"]
         if dofs is None or not constraints:
             return [], []
-        if not any(o.type == "BarycentricMapping" for o in node.objects):
+        if not any(o.type in MAPPINGS for o in node.objects):
             raise SceneError(f"{node.path}: points without a BarycentricMapping to the body")
         positions = self._positions(node, dofs)
-        outside = self.choices.outside
+        self.bindings.mapped.append(
+            (
+                dofs,
+                self._embed(mesh, positions, body),
+            )
+        )
         actuators, effectors = [], []
         for obj in constraints:
             if obj.type in CAVITIES:
-                embedded = EmbeddedPoints(
-                    mesh, positions, tolerance=0.1 * body.extent, outside=outside
-                )
+                embedded = self._embed(mesh, positions, body)
                 actuators.append(self._cavity(node, obj, embedded, body))
+                self.bindings.actuators.append(obj)
                 continue
             idx = self._indices(node, obj, "indices", positions)
             pts = positions if idx is None else positions[idx]
             # SOFA maps a point wherever it lies; Pliant keeps a generous check against typos.
-            embedded = EmbeddedPoints(mesh, pts, tolerance=0.1 * body.extent, outside=outside)
+            embedded = self._embed(mesh, pts, body)
             if obj.type == "PositionEffector":
                 effectors.append(self._effector(node, obj, embedded, body))
+                self.bindings.effectors.append(obj)
             else:
                 actuators.append(self._cable(obj, embedded, body))
+                self.bindings.actuators.append(obj)
         return actuators, effectors
+
+    def _embed(self, mesh: TetMesh, points: np.ndarray, body: TetBody) -> EmbeddedPoints:
+        """Points carried by the body (SOFA's BarycentricMapping)."""
+        return EmbeddedPoints(
+            mesh, points, tolerance=SOFA_REACH * body.extent, outside=self.choices.outside
+        )
 
     def _positions(self, node: SceneNode, dofs: SceneObject) -> np.ndarray:
         """The points of a MechanicalObject: its `position`, a link to positions, or the
-        mesh of its `src` loader or of its node's topology."""
+        mesh of its `src` (a loader, or a topology reading one) or of its node's only loader;
+        then its own transform (scale, rotation, translation), as SOFA's MechanicalObject
+        applies it at initialisation."""
         value = dofs.attrs.get("position", dofs.attrs.get("src"))
         if value is None:
             loaders = [o for o in node.objects if o.type in MESH_LOADERS]
@@ -857,16 +1192,24 @@ class _Builder:
                 raise SceneError(f"{dofs.path}: no position (and no single mesh loader)")
             return self._loaded(loaders[0])[0]
         if _is_link(value):
-            source = self._link(node, value)
+            source = self.link(node, value)
+            for _ in range(4):  # a topology's src, or its position link, names the loader
+                if source is None or source.type in MESH_LOADERS or "position" in source.attrs:
+                    break
+                if not _is_link(source.attrs.get("src")):
+                    break
+                source = self.link(source.node, source.attrs["src"])
             if source is not None and source.type in MESH_LOADERS:
                 return self._loaded(source)[0]
             if source is None or "position" not in source.attrs:
                 raise SceneError(f"{dofs.path}.position: {value!r} names no positions")
+            if _is_link(source.attrs["position"]):
+                return self._positions(source.node, source)
             value = source.attrs["position"]
         pts = _floats(value, f"{dofs.path}.position")
         if pts.size == 0 or pts.size % 3:
             raise SceneError(f"{dofs.path}.position: triples of numbers expected")
-        return pts.reshape(-1, 3)
+        return _placed(dofs, pts.reshape(-1, 3))
 
     def _cable(self, obj: SceneObject, points: EmbeddedPoints, body: TetBody) -> CableActuator:
         # SoftRobots: a pull point unless hasPullPoint is false, at the origin unless given.
@@ -874,7 +1217,7 @@ class _Builder:
         pull_point = _floats(obj.attrs.get("pullPoint", "0 0 0"), f"{obj.path}.pullPoint")
         values = _floats(obj.attrs.get("value", "0"), f"{obj.path}.value")
         index = int(_float(obj, "valueIndex", 0.0))
-        mode = str(obj.attrs.get("valueType", "displacement")).lower()
+        mode = _value_type(obj, ("displacement", "force"))
         if mode not in ("displacement", "force"):
             raise SceneError(f"{obj.path}.valueType: 'displacement' or 'force', not {mode!r}")
         change = obj.attrs.get("maxDispVariation")
@@ -901,9 +1244,9 @@ class _Builder:
         carried by the body; a pressure (force mode) or a volume growth (displacement)."""
         value = obj.attrs.get("triangles")
         if value is None or _is_link(value):
-            source = self._link(node, value) if value is not None else None
+            source = self.link(node, value) if value is not None else None
             if source is not None and source.type not in MESH_LOADERS:
-                source = self._link(node, str(source.attrs.get("src", "")))
+                source = self.link(node, str(source.attrs.get("src", "")))
             if source is None:
                 loaders = [o for o in node.objects if o.type in MESH_LOADERS]
                 source = loaders[0] if len(loaders) == 1 else None
@@ -918,7 +1261,7 @@ class _Builder:
         rest = points.positions(body.rest_positions)
         values = _floats(obj.attrs.get("value", "0"), f"{obj.path}.value")
         index = int(_float(obj, "valueIndex", 0.0))
-        kind = str(obj.attrs.get("valueType", "pressure")).lower()
+        kind = _value_type(obj, ("pressure", "volumeGrowth"))
         if kind not in ("pressure", "volumegrowth"):
             raise SceneError(f"{obj.path}.valueType: 'pressure' or 'volumeGrowth', not {kind!r}")
         change = obj.attrs.get("maxVolumeGrowthVariation")
@@ -948,7 +1291,7 @@ class _Builder:
         goals = None
         if goal is not None:
             if _is_link(goal):
-                source = self._link(node, goal)
+                source = self.link(node, goal)
                 if source is None or "position" not in source.attrs:
                     raise SceneError(f"{obj.path}.effectorGoal: {goal!r} names no positions")
                 goal = source.attrs["position"]

@@ -8,13 +8,14 @@ it into a Pliant model.
 
 from __future__ import annotations
 
-import runpy
-import sys
-import types
+import difflib
 import xml.etree.ElementTree as ET
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
+
+import numpy as np
 
 from pliant.errors import ModelError
 
@@ -23,36 +24,249 @@ class SceneError(ModelError):
     """A SOFA scene cannot be read or holds what Pliant cannot simulate."""
 
 
-@dataclass
+class SceneAttributeError(AttributeError):
+    """A scene script reads a child, component or data field that is not there (SofaPython3
+    raises AttributeError too; :func:`pliant.sofa.script.read_script` reports it as the
+    scene's error, at the script's line)."""
+
+
+class Name(str):
+    """A node's or component's name: a string that also answers SofaPython3's ``.value``."""
+
+    @property
+    def value(self) -> str:
+        return str(self)
+
+
+def data_value(raw):
+    """A data field as SofaPython3 reads it: numbers as a float (one value) or a read-only
+    array (several), text as text, anything else as it was set."""
+    if isinstance(raw, str):
+        parts = raw.replace(",", " ").split()
+        if not parts:
+            return raw
+        try:
+            numbers = [float(p) for p in parts]
+        except ValueError:
+            return raw
+        if len(numbers) == 1:
+            return numbers[0]
+        raw = numbers
+    if isinstance(raw, (list, tuple, np.ndarray)) and not isinstance(raw, Name):
+        try:
+            array = np.array(raw, dtype=float)
+        except (TypeError, ValueError):
+            return raw
+        array.flags.writeable = False
+        return array
+    return raw
+
+
+class Data:
+    """One data field of a component or node, as SofaPython3 gives it: ``.value`` to read
+    (SofaPython3's arrays are read-only) and to write, ``writeable()`` to edit in place,
+    ``getLinkPath()`` for a ``@path.field`` link, and the sequence protocol on the value."""
+
+    def __init__(self, owner: SceneObject | SceneNode, key: str, default=None):
+        object.__setattr__(self, "owner", owner)
+        object.__setattr__(self, "key", key)
+        object.__setattr__(self, "default", default)
+
+    @property
+    def value(self):
+        value = data_value(self.owner.attrs.get(self.key, self.default))
+        if not isinstance(value, (np.ndarray, float, int)) or isinstance(value, bool):
+            return value
+        if self.key in POINT_FIELDS:  # a vector of points: (n, 3), or (n, 7) for rigid poses
+            width = 7 if str(self.owner.attrs.get("template", "")).startswith("Rigid3") else 3
+            value = np.asarray(value, dtype=float).reshape(-1, width)
+        elif self.key in INDEX_FIELDS:
+            value = np.atleast_1d(value).astype(np.int64)
+        elif isinstance(self.default, (list, tuple)):  # a vector field, whatever its length
+            value = np.atleast_1d(value)
+        else:
+            return value
+        value.flags.writeable = False
+        return value
+
+    @value.setter
+    def value(self, value) -> None:
+        self.owner.attrs[self.key] = value
+
+    @contextmanager
+    def writeable(self):
+        array = np.array(self.value, dtype=float)
+        yield array
+        self.owner.attrs[self.key] = array
+
+    def getName(self) -> str:  # noqa: N802 (SofaPython3's API)
+        return self.key
+
+    def setParent(self, parent) -> None:  # noqa: N802
+        """Links this field to another (a Data or a ``@path.field`` link)."""
+        link = parent.getLinkPath() if isinstance(parent, Data) else str(parent)
+        self.owner.attrs[self.key] = link
+
+    def getValueString(self) -> str:  # noqa: N802
+        value = self.value
+        if isinstance(value, np.ndarray):
+            return " ".join(f"{v:g}" for v in value.ravel())
+        return str(value)
+
+    def getLinkPath(self) -> str:  # noqa: N802
+        return f"{self.owner.getLinkPath()}.{self.key}"
+
+    @property
+    def linkpath(self) -> str:
+        return self.getLinkPath()
+
+    def __getitem__(self, index):
+        return self.value[index]
+
+    def __len__(self) -> int:
+        return len(self.value)
+
+    def __iter__(self):
+        return iter(self.value)
+
+    def __array__(self, dtype=None, copy=None):
+        return np.asarray(self.value, dtype=dtype)
+
+    def __float__(self) -> float:
+        return float(self.value)
+
+    def __bool__(self) -> bool:
+        return bool(np.any(self.value)) if isinstance(self.value, np.ndarray) else bool(self.value)
+
+    def __str__(self) -> str:
+        return self.getValueString()
+
+    def __repr__(self) -> str:
+        return f"Data({self.key}={self.value!r})"
+
+
+# Data fields that hold a vector of points (SofaPython3 gives them as (n, 3) arrays).
+POINT_FIELDS = frozenset(
+    {"position", "velocity", "rest_position", "force", "externalForce", "free_position",
+     "effectorGoal"}
+)  # fmt: skip
+
+# Data fields that hold indices (SofaPython3 gives them as integer arrays).
+INDEX_FIELDS = frozenset(
+    {"indices", "points", "edges", "triangles", "quads", "tetrahedra", "tetras", "hexahedra"}
+)
+
+# Data fields every component and node answers with SOFA's defaults, set or not.
+OBJECT_DEFAULTS = {"listening": False, "printLog": False, "tags": "", "bbox": ""}
+NODE_DEFAULTS = {
+    "dt": 0.01,
+    "gravity": [0.0, -9.81, 0.0],
+    "time": 0.0,
+    "animate": False,
+    "activated": True,
+}
+
+
+@dataclass(eq=False)
 class SceneObject:
-    """One component: its SOFA type and attributes (``name`` among them)."""
+    """One component: its SOFA type and attributes (``name`` among them).
+
+    Offers SofaPython3's component API to scripts: data fields as attributes (``obj.position``,
+    a :class:`Data`), assignment (``obj.value = [2]``), ``findData`` / ``getData``,
+    ``getLinkPath`` and the name. A field read that the component does not hold is a
+    :class:`SceneAttributeError`; which fields SOFA gives each type (set or not) is
+    :data:`pliant.sofa.components.FIELDS`.
+    """
 
     type: str
     attrs: dict[str, Any]
     node: SceneNode = field(repr=False)
 
     @property
-    def name(self) -> str:
-        return str(self.attrs.get("name", self.type))
+    def name(self) -> Name:
+        return Name(self.attrs.get("name", self.type))
 
     @property
     def path(self) -> str:
         return f"{self.node.path}/{self.name}"
 
+    def __setattr__(self, key: str, value) -> None:
+        if key in SceneObject.__dataclass_fields__:
+            object.__setattr__(self, key, value)
+        else:  # SofaPython3: obj.value = [2] sets the data field
+            self.attrs[key] = value
+
     def __getattr__(self, key: str):
-        # Scripts read data back (``loader.position``): give the attribute when it was set.
-        attrs = self.__dict__.get("attrs", {})
-        if key in attrs:
-            return attrs[key]
-        raise AttributeError(key)
+        if key.startswith("__") or "attrs" not in self.__dict__:
+            raise AttributeError(key)
+        data = self.findData(key)
+        if data is None:
+            raise SceneAttributeError(
+                f"{self.path}: a {self.type} has no data field {key!r}"
+                + close_match(key, self.attrs.keys() | _fields(self.type))
+            )
+        return data
+
+    def findData(self, key: str) -> Data | None:  # noqa: N802 (SofaPython3's API)
+        from pliant.sofa.components import FIELDS
+
+        defaults = FIELDS.get(self.type, {})
+        if key in self.attrs or key in defaults or key in OBJECT_DEFAULTS:
+            return Data(self, key, defaults.get(key, OBJECT_DEFAULTS.get(key)))
+        return None
+
+    def getData(self, key: str) -> Data | None:  # noqa: N802
+        return self.findData(key)
+
+    def getName(self) -> str:  # noqa: N802
+        return str(self.name)
+
+    def getPathName(self) -> str:  # noqa: N802
+        return self.node.sofa_path.rstrip("/") + "/" + self.name
+
+    def getLinkPath(self) -> str:  # noqa: N802
+        return "@" + self.getPathName()
+
+    @property
+    def linkpath(self) -> str:
+        return self.getLinkPath()
+
+    def getContext(self) -> SceneNode:  # noqa: N802
+        return self.node
+
+    getOwner = getContext  # noqa: N815
+
+    def getClassName(self) -> str:  # noqa: N802
+        return self.type
+
+    def init(self) -> None:
+        """SOFA initialises components after the scene is built; Pliant reads them then."""
+
+    reinit = bwdInit = init  # noqa: N815
 
 
-@dataclass
+def _fields(type_name: str) -> set[str]:
+    from pliant.sofa.components import FIELDS
+
+    return set(FIELDS.get(type_name, {})) | set(OBJECT_DEFAULTS)
+
+
+def close_match(key: str, known, cutoff: float = 0.75) -> str:
+    """The hint " (did you mean 'x'?)" for the known name closest to `key`, or empty."""
+    close = difflib.get_close_matches(key, sorted(known), n=1, cutoff=cutoff)
+    return f" (did you mean {close[0]!r}?)" if close else ""
+
+
+@dataclass(eq=False)
 class SceneNode:
     """A node: its attributes, components in order, and child nodes.
 
-    Offers the SofaPython3 calls scene scripts use to build it: ``addChild`` /
-    ``createChild``, ``addObject`` / ``createObject``, and attribute assignment (``root.dt``).
+    Offers SofaPython3's Node API to scene scripts: ``addChild`` / ``addObject`` (also their
+    SofaPython 2 names ``createChild`` / ``createObject``), ``getChild``, ``getObject``,
+    ``getMechanicalState``, ``getRoot``, children and components as attributes, and the
+    node's data (``root.dt``, ``root.gravity``) read as :class:`Data` and assigned directly.
+    Python controllers (:class:`pliant.sofa.sofapython3.Controller`) added to a node are kept
+    apart in ``controllers``.
     """
 
     name: str
@@ -60,42 +274,132 @@ class SceneNode:
     objects: list[SceneObject] = field(default_factory=list)
     children: list[SceneNode] = field(default_factory=list)
     parent: SceneNode | None = field(default=None, repr=False)
+    controllers: list[Any] = field(default_factory=list, repr=False)
+    extras: dict[str, Any] = field(default_factory=dict, repr=False)
+
+    def __post_init__(self) -> None:
+        self.name = Name(self.name)
 
     @property
     def path(self) -> str:
         return self.name if self.parent is None else f"{self.parent.path}/{self.name}"
 
-    def addChild(self, name: str, **attrs) -> SceneNode:  # noqa: N802 (SofaPython3's API)
-        child = SceneNode(str(name), dict(attrs), parent=self)
-        self.children.append(child)
-        return child
+    @property
+    def sofa_path(self) -> str:
+        """SofaPython3's path: "/" for the root, "/Body/cable" below it."""
+        return "/" if self.parent is None else f"{self.parent.sofa_path.rstrip('/')}/{self.name}"
+
+    def addChild(self, child: str | SceneNode, **attrs) -> SceneNode:  # noqa: N802 (SofaPython3)
+        if isinstance(child, SceneNode):  # a node built apart (Sofa.Core.Node, a prefab)
+            if child.parent is not None and child in child.parent.children:
+                # SOFA's node then has two parents; Pliant's tree keeps it under the new one
+                # and the old one still answers its name.
+                child.parent.children.remove(child)
+                child.parent.extras[str(child.name)] = child
+            child.parent = self
+            self.children.append(child)
+            return child
+        node = SceneNode(Name(child), dict(attrs), parent=self)
+        self.children.append(node)
+        return node
 
     createChild = addChild  # noqa: N815 (SofaPython 2's name)
 
-    def addObject(self, type_name: str, **attrs) -> SceneObject:  # noqa: N802
+    def addObject(self, type_name, **attrs):  # noqa: N802
+        if not isinstance(type_name, str):  # a Python controller
+            type_name.__dict__["_sofa_node"] = self
+            self.controllers.append(type_name)
+            return type_name
         obj = SceneObject(str(type_name), dict(attrs), self)
         self.objects.append(obj)
         return obj
 
     createObject = addObject  # noqa: N815
 
+    def removeChild(self, child: SceneNode | str) -> None:  # noqa: N802
+        self.children = [c for c in self.children if c is not child and c.name != child]
+
+    def removeObject(self, obj) -> None:  # noqa: N802
+        self.objects = [o for o in self.objects if o is not obj]
+        self.controllers = [c for c in self.controllers if c is not obj]
+
+    def getChild(self, name: str) -> SceneNode | None:  # noqa: N802
+        found = next((c for c in self.children if c.name == name), None)
+        moved = self.extras.get(name)
+        return found if found is not None or not isinstance(moved, SceneNode) else moved
+
+    def getObject(self, name: str):  # noqa: N802
+        found = next((o for o in self.objects if o.name == name), None)
+        if found is None:
+            found = next((c for c in self.controllers if _controller_name(c) == name), None)
+        return found
+
+    def hasObject(self, name: str) -> bool:  # noqa: N802
+        return self.getObject(name) is not None
+
+    def getMechanicalState(self) -> SceneObject | None:  # noqa: N802
+        return next((o for o in self.objects if o.type == "MechanicalObject"), None)
+
+    def getRoot(self) -> SceneNode:  # noqa: N802
+        return self if self.parent is None else self.parent.getRoot()
+
+    def getName(self) -> str:  # noqa: N802
+        return str(self.name)
+
+    def getPathName(self) -> str:  # noqa: N802
+        return self.sofa_path
+
+    def getLinkPath(self) -> str:  # noqa: N802
+        return "@" + self.sofa_path
+
+    def getContext(self) -> SceneNode:  # noqa: N802
+        return self
+
+    def findData(self, key: str) -> Data | None:  # noqa: N802
+        if key in self.attrs or key in NODE_DEFAULTS:
+            return Data(self, key, NODE_DEFAULTS.get(key))
+        return None
+
+    getData = findData  # noqa: N815
+
+    def addData(self, name: str, value=None, **_info) -> Data:  # noqa: N802
+        self.attrs[name] = value if value is not None else _info.get("default")
+        return Data(self, name)
+
+    def init(self) -> None:
+        """SOFA initialises the graph after the scene is built; Pliant reads it then."""
+
     def __setattr__(self, key: str, value) -> None:
-        if key in SceneNode.__dataclass_fields__:
+        if key == "name":
+            object.__setattr__(self, key, Name(value))
+        elif key in SceneNode.__dataclass_fields__ or key.startswith("_"):
             object.__setattr__(self, key, value)
-        else:  # root.dt = 0.01, root.gravity = [...]
+        elif key in self.attrs or key in NODE_DEFAULTS:  # root.dt = 0.01, root.gravity = [...]
             self.attrs[key] = value
+        else:  # a Python attribute of the script's (a prefab's method, handles, lists)
+            self.extras[key] = value
 
     def __getattr__(self, key: str):
+        if key.startswith("__") or "children" not in self.__dict__:
+            raise AttributeError(key)
         for child in self.__dict__.get("children", []):
             if child.name == key:
                 return child
         for obj in self.__dict__.get("objects", []):
             if obj.name == key:
                 return obj
-        attrs = self.__dict__.get("attrs", {})
-        if key in attrs:
-            return attrs[key]
-        raise AttributeError(key)
+        for controller in self.__dict__.get("controllers", []):
+            if _controller_name(controller) == key:
+                return controller
+        if key in self.__dict__.get("extras", {}):
+            return self.extras[key]
+        data = self.findData(key)
+        if data is not None:
+            return data
+        known = [c.name for c in self.children] + [o.name for o in self.objects]
+        raise SceneAttributeError(
+            f"{self.path}: no child, component or data field {key!r}" + close_match(key, known)
+        )
 
     def walk(self):
         """This node and its descendants, depth first in scene order."""
@@ -114,13 +418,19 @@ class SceneNode:
         return None
 
 
+def _controller_name(controller) -> str:
+    return str(getattr(controller, "name", type(controller).__name__))
+
+
 def read_scene(path: str | Path) -> SceneNode:
     """Read a ``.scn`` / ``.xml`` scene or a ``.py`` scene script (its ``createScene(root)``)."""
     path = Path(path)
     if not path.is_file():
         raise SceneError(f"scene file {str(path)!r} does not exist")
     if path.suffix == ".py":
-        return _read_script(path)
+        from pliant.sofa.script import read_script
+
+        return read_script(path)
     try:
         element = ET.parse(path).getroot()
     except ET.ParseError as exc:
@@ -141,37 +451,3 @@ def _from_xml(element: ET.Element, parent: SceneNode | None) -> SceneNode:
         else:
             node.objects.append(SceneObject(child.tag, dict(child.attrib), node))
     return node
-
-
-def _read_script(path: Path) -> SceneNode:
-    """Run the script with stand-ins for the ``Sofa`` modules and call its createScene."""
-    stubs = {}
-    for name in ("Sofa", "Sofa.Core", "Sofa.Simulation", "SofaRuntime", "Sofa.Gui"):
-        module = types.ModuleType(name)
-        module.Node = SceneNode  # type: ignore[attr-defined]
-        module.importPlugin = lambda *_a, **_k: None  # type: ignore[attr-defined]
-        stubs[name] = module
-    stubs["Sofa"].Core = stubs["Sofa.Core"]  # type: ignore[attr-defined]
-    stubs["Sofa"].Simulation = stubs["Sofa.Simulation"]  # type: ignore[attr-defined]
-    saved = {name: sys.modules.get(name) for name in stubs}
-    sys.modules.update(stubs)
-    try:
-        namespace = runpy.run_path(str(path), run_name="pliant_sofa_scene")
-        create = namespace.get("createScene")
-        if create is None:
-            raise SceneError(f"{str(path)!r} defines no createScene(rootNode)")
-        root = SceneNode("root")
-        create(root)
-    except ImportError as exc:
-        raise SceneError(
-            f"{str(path)!r} imports {exc.name!r}, which Pliant does not provide: scene scripts"
-            " may use addChild / addObject on the root node only (no SOFA prefabs such as"
-            " stlib3)"
-        ) from exc
-    finally:
-        for name, module in saved.items():
-            if module is None:
-                sys.modules.pop(name, None)
-            else:
-                sys.modules[name] = module
-    return root

@@ -1,0 +1,286 @@
+"""SPLIB3's helpers that scenes use, written for Pliant from SPLIB's documentation: the
+animation manager and ``animate`` (callbacks driven by the simulated time), easing, numerics
+(angles, 3-vectors, quaternions), key codes and point-list loading."""
+
+from __future__ import annotations
+
+import json
+import math
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from pliant.sofa.sofapython3 import Controller
+from pliant.sofa.tree import SceneError, SceneNode
+
+
+class Animation:
+    """One clip: ``onUpdate(factor=f, **params)`` with f from 0 to 1 over `duration`
+    seconds; then, by `mode`, "once" calls ``onDone``, "loop" starts again, "pingpong" runs
+    back."""
+
+    def __init__(self, on_update: Callable, params: dict, duration: float, mode: str, on_done):
+        self.on_update, self.params, self.duration = on_update, dict(params), float(duration)
+        self.mode, self.on_done = mode, on_done
+        self.start: float | None = self.params.pop("startTime", None)
+        self.direction = 1.0
+        self.factor = 0.0
+
+    def update(self, time: float) -> bool:
+        """Calls onUpdate at `time`; False once the clip is over."""
+        if self.start is None:
+            self.start = time
+        progress = 1.0 if self.duration == 0.0 else (time - self.start) / self.duration
+        progress = min(max(progress, 0.0), 1.0)
+        self.factor = progress if self.direction > 0 else 1.0 - progress
+        self.on_update(factor=self.factor, **self.params)
+        if progress < 1.0:
+            return True
+        if self.mode in ("loop", "pingpong"):
+            self.start = time
+            if self.mode == "pingpong":
+                self.direction = -self.direction
+            return True
+        if self.on_done is not None:
+            self.on_done(factor=self.factor, **self.params)
+        return False
+
+
+class AnimationManagerController(Controller):
+    """Advances the animations at each step's begin event, by the root's time step."""
+
+    def __init__(self, node: SceneNode, *args, **kwargs):
+        super().__init__(*args, name="AnimationManager", **kwargs)
+        self.node = node
+        self.time = 0.0
+        self.animations: list[Animation] = []
+
+    def addAnimation(self, animation: Animation) -> None:  # noqa: N802 (SPLIB's name)
+        self.animations.append(animation)
+
+    def onAnimateBeginEvent(self, event) -> None:  # noqa: N802
+        self.time += float(self.node.getRoot().dt.value)
+        self.animations = [a for a in self.animations if a.update(self.time)]
+
+
+class Animations:
+    """The scene's animation manager (one per loaded scene) and ``animate``."""
+
+    def __init__(self) -> None:
+        self.manager: AnimationManagerController | None = None
+
+    def AnimationManager(self, node: SceneNode) -> AnimationManagerController:  # noqa: N802
+        """The scene's manager, added to `node` the first time."""
+        if self.manager is None:
+            self.manager = AnimationManagerController(node)
+            node.addObject(self.manager)
+        return self.manager
+
+    def animate(
+        self,
+        onUpdate: Callable,  # noqa: N803
+        params: dict,
+        duration: float,
+        mode: str = "once",
+        onDone: Callable | None = None,  # noqa: N803
+        terminationDelay: float | None = None,  # noqa: N803
+    ) -> Animation:
+        """Starts a clip (see :class:`Animation`) on the scene's manager."""
+        if self.manager is None:
+            raise SceneError("animate() before an AnimationManager (MainHeader or Scene adds one)")
+        animation = Animation(onUpdate, params, duration, mode, onDone)
+        self.manager.addAnimation(animation)
+        return animation
+
+
+_ACTIVE = Animations()
+
+
+def AnimationManager(node: SceneNode) -> AnimationManagerController:  # noqa: N802
+    """The loaded scene's animation manager (added to `node` the first time)."""
+    return _ACTIVE.AnimationManager(node)
+
+
+def reset_animations() -> None:
+    """A fresh manager for the next scene."""
+    _ACTIVE.manager = None
+
+
+def animate(onUpdate, params, duration, mode="once", onDone=None, terminationDelay=None):  # noqa: N803
+    return _ACTIVE.animate(onUpdate, params, duration, mode, onDone, terminationDelay)
+
+
+def LinearRamp(beginValue: float, endValue: float, scale: float) -> float:  # noqa: N802, N803
+    """Linear interpolation from beginValue (scale 0) to endValue (scale 1)."""
+    return (endValue - beginValue) * scale + beginValue
+
+
+def to_radians(degrees):
+    return np.radians(degrees) if np.ndim(degrees) else math.radians(degrees)
+
+
+def to_degrees(radians):
+    return np.degrees(radians) if np.ndim(radians) else math.degrees(radians)
+
+
+def _euler(v, axes: str, degrees: bool = False) -> Rotation:
+    """SPLIB's axes strings: "sxyz" static (extrinsic) axes, "rxyz" rotating (intrinsic)."""
+    return Rotation.from_euler(axes[1:] if axes[0] == "s" else axes[1:].upper(), v, degrees)
+
+
+class Vec3(np.ndarray):
+    """SPLIB's 3-vector: a float array of three with in-place transforms."""
+
+    def __new__(cls, *args):
+        values = args[0] if len(args) == 1 else (args or (0.0, 0.0, 0.0))
+        return np.array(values, dtype=float).reshape(3).view(cls)
+
+    def getNorm(self) -> float:  # noqa: N802 (SPLIB's names)
+        return float(np.linalg.norm(self))
+
+    def toList(self) -> list:  # noqa: N802
+        return [float(v) for v in self]
+
+    def toString(self) -> str:  # noqa: N802
+        return " ".join(str(v) for v in self.toList())
+
+    def normalize(self, *args) -> Vec3:
+        self[:] = self / (self.getNorm() if not args else args[0])
+        return self
+
+    def translate(self, *args) -> Vec3:
+        self[:] = self + np.asarray(args[0] if len(args) == 1 else args, dtype=float)
+        return self
+
+    def scale(self, *args) -> Vec3:
+        self[:] = self * np.asarray(args[0] if len(args) == 1 else args, dtype=float)
+        return self
+
+    def rotateFromQuat(self, q) -> Vec3:  # noqa: N802
+        self[:] = Rotation.from_quat(np.asarray(q, dtype=float)).apply(np.asarray(self))
+        return self
+
+    def rotateFromEuler(self, v, axis: str = "sxyz") -> Vec3:  # noqa: N802
+        self[:] = _euler(v, axis).apply(np.asarray(self))
+        return self
+
+    def rotateFromAxisAngle(self, axis, angle: float) -> Vec3:  # noqa: N802
+        return self.rotateFromQuat(Quat.createFromAxisAngle(axis, angle))
+
+    @staticmethod
+    def dot(v1, v2) -> float:
+        return float(np.dot(v1, v2))
+
+    @staticmethod
+    def cross(v1, v2) -> Vec3:
+        return Vec3(np.cross(v1, v2))
+
+
+def vadd(a, b):
+    return Vec3(np.add(a, b))
+
+
+def vsub(a, b):
+    return Vec3(np.subtract(a, b))
+
+
+class Quat(np.ndarray):
+    """SPLIB's unit quaternion [x, y, z, w] (SOFA's order), composed with scipy."""
+
+    def __new__(cls, *args):
+        values = args[0] if len(args) == 1 else (args or (0.0, 0.0, 0.0, 1.0))
+        return np.array(values, dtype=float).reshape(4).view(cls)
+
+    @staticmethod
+    def createFromEuler(v, axes: str = "sxyz", inDegree: bool = False) -> Quat:  # noqa: N802, N803
+        return Quat(_euler(v, axes, inDegree).as_quat())
+
+    @staticmethod
+    def createFromAxisAngle(axis, angle: float) -> Quat:  # noqa: N802
+        axis = np.asarray(axis, dtype=float)
+        return Quat(Rotation.from_rotvec(axis / np.linalg.norm(axis) * angle).as_quat())
+
+    @staticmethod
+    def createFromVectors(v1, v2) -> Quat:  # noqa: N802
+        rotation, _ = Rotation.align_vectors([np.asarray(v2, float)], [np.asarray(v1, float)])
+        return Quat(rotation.as_quat())
+
+    @staticmethod
+    def product(qa, qb) -> Quat:
+        return Quat((Rotation.from_quat(qa) * Rotation.from_quat(qb)).as_quat())
+
+    def _rotation(self) -> Rotation:
+        return Rotation.from_quat(np.asarray(self))
+
+    def normalize(self, *_args) -> None:
+        self[:] = self / np.linalg.norm(self)
+
+    def rotateFromQuat(self, qb) -> None:  # noqa: N802
+        self[:] = (self._rotation() * Rotation.from_quat(qb)).as_quat()
+
+    def rotateFromEuler(self, v, axes: str = "sxyz") -> None:  # noqa: N802
+        self.rotateFromQuat(Quat.createFromEuler(v, axes))
+
+    def rotate(self, v):
+        return self._rotation().apply(np.asarray(v, dtype=float))
+
+    def getNorm(self) -> float:  # noqa: N802
+        return float(np.linalg.norm(self))
+
+    def getAxisAngle(self):  # noqa: N802
+        rotvec = self._rotation().as_rotvec()
+        angle = float(np.linalg.norm(rotvec))
+        return (rotvec / angle if angle else np.array([1.0, 0.0, 0.0])), angle
+
+    def getEulerAngles(self, axes: str = "sxyz"):  # noqa: N802
+        frame = axes[1:] if axes[0] == "s" else axes[1:].upper()
+        return self._rotation().as_euler(frame)
+
+    def getMatrix(self):  # noqa: N802
+        return self._rotation().as_matrix()
+
+    def getConjugate(self) -> Quat:  # noqa: N802
+        return Quat([-self[0], -self[1], -self[2], self[3]])
+
+    getInverse = getConjugate  # noqa: N815 (a unit quaternion)
+
+    def toList(self) -> list:  # noqa: N802
+        return [float(v) for v in self]
+
+
+def getOrientedBoxFromTransform(  # noqa: N802
+    translation=(0.0, 0.0, 0.0),
+    rotation=(0.0, 0.0, 0.0, 1.0),
+    eulerRotation=None,  # noqa: N803
+    scale=(1.0, 1.0, 1.0),
+) -> list[float]:
+    """SOFA's ``orientedBox`` (three corners of a face and the depth) of a unit cube
+    centred at the origin, scaled, rotated (a quaternion, or Euler angles in degrees) and
+    translated."""
+    turn = (
+        Rotation.from_euler("xyz", eulerRotation, degrees=True)
+        if eulerRotation is not None
+        else Rotation.from_quat(rotation)
+    )
+    half = 0.5 * np.asarray(scale, dtype=float)
+    corners = np.array([[-1.0, -1.0, 0.0], [1.0, -1.0, 0.0], [1.0, 1.0, 0.0]]) * half
+    corners = turn.apply(corners) + np.asarray(translation, dtype=float)
+    return [*corners.ravel().tolist(), float(2.0 * half[2])]
+
+
+def setData(target, **values) -> None:  # noqa: N802
+    """Sets several data fields of a component or node."""
+    for key, value in values.items():
+        setattr(target, key, value)
+
+
+def getLoadingLocation(filename: str, source: str) -> str:  # noqa: N802
+    """`filename` in the folder of the file `source` (a scene's ``__file__``)."""
+    return str(Path(source).resolve().parent / filename)
+
+
+def loadPointListFromFile(path: str | Path):  # noqa: N802
+    """A JSON list of points."""
+    return json.loads(Path(path).read_text())

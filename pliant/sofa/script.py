@@ -1,0 +1,121 @@
+"""A SofaPython3 scene script run into a :class:`pliant.sofa.tree.SceneNode` tree.
+
+The script runs with the SofaPython3 stand-ins (:mod:`pliant.sofa.sofapython3`) and the
+STLIB / SPLIB / SoftRobots prefabs (:mod:`pliant.sofa.prefabs`) importable, and its own folder
+on the import path and as the working folder (scenes import their local modules and open
+their data by relative paths); all of it is removed afterwards. What
+goes wrong inside the script is the scene's error: a :class:`SceneError` naming the script's
+file and line.
+"""
+
+from __future__ import annotations
+
+import inspect
+import os
+import runpy
+import sys
+import traceback
+from contextlib import contextmanager
+from pathlib import Path
+
+from pliant.sofa.prefabs import prefab_modules
+from pliant.sofa.sofapython3 import sofa_modules
+from pliant.sofa.tree import SceneError, SceneNode
+
+# Module families Pliant stands in for: an import of one of theirs that Pliant lacks is a
+# missing piece of Pliant, not an error of the scene.
+FAMILIES = ("Sofa", "SofaRuntime", "stlib3", "splib3", "softrobots", "stlib", "splib")
+
+
+def read_script(path: Path) -> SceneNode:
+    """Run the script's ``createScene(rootNode)`` (``createScene(rootNode, config)`` for
+    SofaGym's scenes, with an empty configuration) and return the root."""
+    root = SceneNode("root")
+    with _stand_ins(path.resolve().parent):
+        try:
+            namespace = runpy.run_path(str(path), run_name="pliant_sofa_scene")
+            create = namespace.get("createScene")
+            if create is None:
+                raise SceneError(f"{path.name} defines no createScene(rootNode)")
+            if len(_required(create)) >= 2:  # SofaGym's createScene(rootNode, config)
+                create(root, {})
+            else:
+                create(root)
+        except SceneError as exc:  # a prefab's or stand-in's refusal: where the script called
+            where = _where(path, exc, message=False)
+            raise SceneError(f"{where}{exc}" if where != f"{path.name}: " else str(exc)) from exc
+        except ImportError as exc:
+            raise _import_error(path, exc) from exc
+        except (Exception, SystemExit) as exc:  # a script's sys.exit() ends the scene only
+            raise scene_error(path, exc) from exc
+    return root
+
+
+def _required(function) -> list[str]:
+    """The positional parameters of `function` without a default."""
+    return [
+        p.name
+        for p in inspect.signature(function).parameters.values()
+        if p.default is p.empty and p.kind in (p.POSITIONAL_ONLY, p.POSITIONAL_OR_KEYWORD)
+    ]
+
+
+def scene_error(path: Path, exc: BaseException, during: str = "createScene") -> SceneError:
+    """An exception raised by the scene's own code (its createScene, a controller's event)
+    as the scene's error, at the script's line."""
+    return SceneError(f"{path.name}: {during} failed at {_where(path, exc)}")
+
+
+def _import_error(path: Path, exc: ImportError) -> SceneError:
+    name = exc.name or ""
+    if name.split(".")[0] in FAMILIES or not name:
+        what = f"{name!r}" if name else str(exc)
+        return SceneError(
+            f"{_where(path, exc, message=False)}imports {what}, which Pliant does not provide"
+            " (docs/sofa.md lists the SofaPython3 modules and prefabs it has)"
+        )
+    return SceneError(_where(path, exc))
+
+
+def _where(path: Path, exc: BaseException, *, message: bool = True) -> str:
+    """Where `exc` happened, as "scene.py, line 12 (in createScene): ValueError: ...": the
+    innermost frame in the scene's folder (the script or a module of its own)."""
+    folder = path.resolve().parent
+    frames = [
+        f
+        for f in traceback.extract_tb(exc.__traceback__)
+        if Path(f.filename).resolve().is_relative_to(folder)
+    ]
+    at = f"{path.name}"
+    if frames:
+        frame = frames[-1]
+        at = f"{Path(frame.filename).name}, line {frame.lineno} (in {frame.name})"
+    if not message:
+        return f"{at}: "
+    return f"{at}: {type(exc).__name__}: {exc}"
+
+
+@contextmanager
+def _stand_ins(folder: Path):
+    """The stand-in modules and the script's folder, for the duration of the load only."""
+    modules = {**sofa_modules(), **prefab_modules()}
+    saved = {name: sys.modules.get(name) for name in modules}
+    before = set(sys.modules)
+    sys.modules.update(modules)
+    sys.path.insert(0, str(folder))
+    cwd = os.getcwd()
+    os.chdir(folder)  # scripts open their data by paths relative to their folder
+    try:
+        yield
+    finally:
+        os.chdir(cwd)
+        sys.path.remove(str(folder))
+        for name in set(sys.modules) - before:  # the scene's own modules import the stand-ins
+            file = getattr(sys.modules[name], "__file__", None)
+            if file and Path(file).resolve().is_relative_to(folder):
+                del sys.modules[name]
+        for name, module in saved.items():
+            if module is None:
+                sys.modules.pop(name, None)
+            else:
+                sys.modules[name] = module
