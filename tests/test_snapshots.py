@@ -19,18 +19,12 @@ import pliant.envs as envs
 from pliant.envs import ENVS
 
 IDS = sorted(ENVS)
-#: Seconds a quick variant takes to build or step make these the slow ones (minutes in all).
-SLOW = {"BubbleMotion", "Multigait", "ReducedMultigait"}
 #: Steps of the random-action history, at most (a whole episode where one is shorter).
 EPISODE = 12
 
 
 def make(name: str) -> gym.Env:
     return gym.make(f"pliant/{name}-v0", **ENVS[name].quick)
-
-
-def _ids():
-    return [pytest.param(n, marks=pytest.mark.slow) if n in SLOW else n for n in IDS]
 
 
 def _steps(env: gym.Env, actions) -> list:
@@ -70,7 +64,7 @@ def _replay(env: gym.Env, blob: bytes, actions: list) -> list:
     return _steps(env, actions)
 
 
-@pytest.mark.parametrize("name", _ids())
+@pytest.mark.parametrize("name", IDS)
 def test_restore_is_exact_after_check_env_and_an_episode(name):
     env, blob, actions, first = _reference(name)
     with warnings.catch_warnings():
@@ -95,17 +89,10 @@ def _replay_fresh(cases: list[tuple[str, bytes, list]]) -> list[list]:
     return out
 
 
-@pytest.mark.parametrize(
-    "names",
-    [
-        pytest.param([n for n in IDS if n not in SLOW], id="quick"),
-        pytest.param(sorted(SLOW), id="slow", marks=pytest.mark.slow),
-    ],
-)
-def test_restore_is_exact_in_a_fresh_process(names):
-    references = {n: _reference(n) for n in names}
+def test_restore_is_exact_in_a_fresh_process():
+    references = {n: _reference(n) for n in IDS}
     cases = [(n, blob, actions) for n, (_, blob, actions, _) in references.items()]
     with mp.get_context("spawn").Pool(1) as pool:
         there = pool.apply(_replay_fresh, (cases,))
-    for name, steps in zip(names, there, strict=True):
+    for name, steps in zip(IDS, there, strict=True):
         _assert_same(references[name][3], steps)

@@ -32,6 +32,8 @@ from typing import Any
 
 import yaml
 
+from pliant.files import atomic_path, read_checked
+
 CONFIG_DIR = Path(__file__).parent / "configs"
 ALGOS = ("PPO", "SAC", "TD3", "A2C", "DQN", "RecurrentPPO")
 OFF_POLICY = ("SAC", "TD3", "DQN")
@@ -94,11 +96,24 @@ class TrainConfig:
         return dataclasses.asdict(self)
 
     def save(self, path: Path) -> None:
-        path.write_text(yaml.safe_dump(_plain(self.to_dict()), sort_keys=False))
+        text = yaml.safe_dump(_plain(self.to_dict()), sort_keys=False)
+        with atomic_path(path) as tmp:  # what --resume reads: never half written
+            tmp.write_text(text)
 
     @classmethod
     def load(cls, path: Path) -> TrainConfig:
-        return cls(**yaml.safe_load(Path(path).read_text()))
+        """Raises CorruptFileError when the file is not a readable configuration."""
+
+        def read(p: Path) -> TrainConfig:
+            try:
+                data = yaml.safe_load(p.read_text())
+            except yaml.YAMLError as exc:
+                raise ValueError(exc) from exc
+            if not isinstance(data, dict):
+                raise ValueError(f"a YAML mapping was expected, got {type(data).__name__}")
+            return cls(**data)
+
+        return read_checked(Path(path), read, "a training configuration")
 
 
 BC_KEYS = ("expert", "epochs", "episodes", "batch_size", "learning_rate", "successful_only", "std")
