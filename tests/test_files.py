@@ -335,3 +335,29 @@ def test_a_signal_stops_training_at_a_checkpoint_and_resume_is_exact(tmp_path, s
     a, b = parameters(whole.model), parameters(resumed.model)
     for key in a:
         np.testing.assert_array_equal(a[key], b[key], err_msg=key)
+
+
+def test_a_full_disk_during_a_checkpoint_keeps_the_earlier_ones(run, tmp_path, monkeypatch):
+    """The disk fills while the checkpoint at step 400 is written: the run stops with a
+    TrainingError naming it, no partial folder is left, and --resume goes on from step 300."""
+    import errno
+
+    from pliant.errors import TrainingError
+    from pliant.learn import callbacks
+
+    copy = _copy(run, tmp_path)
+    real = callbacks.write_manifest
+
+    def full(folder):
+        if folder.name == ".step_400.tmp":
+            raise OSError(errno.ENOSPC, "No space left on device")
+        real(folder)
+
+    monkeypatch.setattr(callbacks, "write_manifest", full)
+    with pytest.raises(TrainingError, match=r"step 400: cannot write the checkpoint .*step_400"):
+        train(run_dir=copy, resume=True, total_timesteps=500)
+    monkeypatch.undo()
+    names = sorted(p.name for p in (copy / "checkpoints").iterdir())
+    assert names == ["step_100", "step_200", "step_300"]
+    resumed = train(run_dir=copy, resume=True, total_timesteps=500)
+    assert resumed.summary["resumed_from"] == 300 and resumed.summary["steps"] == 500

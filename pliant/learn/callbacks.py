@@ -23,7 +23,7 @@ import torch
 from stable_baselines3.common.callbacks import BaseCallback
 from stable_baselines3.common.vec_env import VecEnvWrapper, VecNormalize
 
-from pliant.errors import CheckpointWarning, CorruptFileError
+from pliant.errors import CheckpointWarning, CorruptFileError, TrainingError
 from pliant.files import check_manifest, read_checked, write_json, write_manifest
 from pliant.learn.config import OFF_POLICY
 from pliant.learn.evaluate import run_episodes, save_policy
@@ -249,6 +249,22 @@ class CheckpointCallback(BaseCallback):
         final = self.folder / f"step_{step}"
         tmp = self.folder / f".step_{step}.tmp"
         shutil.rmtree(tmp, ignore_errors=True)
+        try:
+            self._write(tmp, step)
+        except OSError as exc:  # a full disk, a folder gone: the earlier checkpoints stand
+            shutil.rmtree(tmp, ignore_errors=True)
+            raise TrainingError(
+                f"step {step}: cannot write the checkpoint {final} ({exc}); the earlier"
+                " checkpoints are intact: free space and go on with --resume"
+            ) from exc
+        shutil.rmtree(final, ignore_errors=True)
+        tmp.rename(final)
+        self.last_saved = step
+        for old in sorted(self.folder.glob("step_*"), key=lambda p: int(p.name[5:]))[: -self.keep]:
+            shutil.rmtree(old, ignore_errors=True)
+        return final
+
+    def _write(self, tmp: Path, step: int) -> None:
         env = self.model.get_env()
         vecnorm = self.model.get_vec_normalize_env()
         save_policy(
@@ -271,12 +287,6 @@ class CheckpointCallback(BaseCallback):
             pickle.dump(state, f)
         # Read back on resume: a damaged file (a full disk, a copy cut short) is told apart.
         write_manifest(tmp)
-        shutil.rmtree(final, ignore_errors=True)
-        tmp.rename(final)
-        self.last_saved = step
-        for old in sorted(self.folder.glob("step_*"), key=lambda p: int(p.name[5:]))[: -self.keep]:
-            shutil.rmtree(old, ignore_errors=True)
-        return final
 
 
 @contextmanager
