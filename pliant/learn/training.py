@@ -4,7 +4,8 @@ evaluation, full-state checkpoints and exact resume.
 A run lives in one folder::
 
     RUN/config.yaml          the resolved TrainConfig (what --resume reads)
-    RUN/checkpoints/step_N/  model.zip, replay_buffer.pkl, vecnormalize.pkl, state.pkl
+    RUN/checkpoints/step_N/  model.zip, replay_buffer.pkl, vecnormalize.pkl, state.pkl,
+                             manifest.json (sizes and SHA-256 of the others)
     RUN/tb/                  TensorBoard logs
     RUN/evaluations.json     the learning curve (evaluation success rate and return)
     RUN/episodes.csv         every training episode (step, return, length, success, diverged)
