@@ -33,7 +33,7 @@ from pliant.fem.rod import RodBody
 
 
 @dataclass(frozen=True)
-class Layout:
+class ModelLayout:
     """What a state's arrays mean in the model that made it: its node count, its actuators
     (name and kind, in the order of the actuation vector), effectors, rigid bodies and the
     body's loads. A state made by one model and stepped by another whose layout differs
@@ -49,7 +49,7 @@ class Layout:
     loads: tuple[str, ...] = ()
 
     @classmethod
-    def of(cls, model: Model) -> Layout:
+    def of(cls, model: Model) -> ModelLayout:
         def named(items) -> tuple[str, ...]:
             return tuple(f"{c.name} ({type(c).__name__})" for c in items)
 
@@ -61,7 +61,7 @@ class Layout:
             tuple(type(a.load).__name__ for a in getattr(model.body, "loads", ())),
         )
 
-    def differences(self, other: Layout) -> list[str]:
+    def differences(self, other: ModelLayout) -> list[str]:
         """What differs from `other` (the model's), in words."""
         out = []
         for name in ("nodes", "actuators", "effectors", "rigid_bodies", "loads"):
@@ -76,7 +76,7 @@ class Layout:
         return json.dumps(dataclasses.asdict(self))
 
     @classmethod
-    def from_json(cls, text: str) -> Layout:
+    def from_json(cls, text: str) -> ModelLayout:
         d = json.loads(text)
         return cls(
             int(d["nodes"]),
@@ -102,7 +102,7 @@ class State:
         rigid_positions, rigid_rotations, rigid_velocities, rigid_angular_velocities: the
             model's rigid bodies: centres of mass (b, 3), rotations body -> world (b, 3, 3),
             linear and angular velocities in the world (b, 3); empty without rigid bodies.
-        layout: the :class:`Layout` of the model that made the state (None for a state made
+        layout: the :class:`ModelLayout` of the model that made the state (None for a state made
             by hand), checked where the state enters a solver step.
 
     The nodes carried by drivers are part of positions and velocities (their velocity is the
@@ -121,7 +121,7 @@ class State:
     rigid_velocities: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
     rigid_angular_velocities: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
     displacement_before: np.ndarray = field(default_factory=lambda: np.zeros(0))
-    layout: Layout | None = None
+    layout: ModelLayout | None = None
 
     _RIGID = ("rigid_positions", "rigid_rotations", "rigid_velocities", "rigid_angular_velocities")
     _FIELDS = (
@@ -224,7 +224,7 @@ class State:
                         for name in (*cls._RIGID, "displacement_before")
                         if name in d.files
                     },
-                    layout=Layout.from_json(str(d["layout"])) if "layout" in d.files else None,
+                    layout=ModelLayout.from_json(str(d["layout"])) if "layout" in d.files else None,
                 )
         except StateError:
             raise
@@ -347,7 +347,7 @@ class Model:
         names = [c.name for c in self.actuators + self.effectors]
         if len(set(names)) != len(names):
             raise ModelError(f"constraint names must be unique, got {names}")
-        self.layout = Layout.of(self)
+        self.layout = ModelLayout.of(self)
 
     def geometric_pattern(self) -> tuple[np.ndarray, np.ndarray] | None:
         """Free-DoF (rows, cols) of the actuators' load stiffness -lambda d^2 delta/dx^2 (the
@@ -500,7 +500,7 @@ class Model:
         forces and displacements only start the next step: those of another actuator count (a
         state of the same body under other actuators, released) are dropped, as for a state
         that records none, unless `strict` (a state file loaded for this model), which
-        refuses them. A state that records the :class:`Layout` of the model that made it
+        refuses them. A state that records the :class:`ModelLayout` of the model that made it
         (every solver step and ``rest_state`` do) is refused when that layout is not this
         model's (other actuators, effectors, rigid bodies or loads), the differences named: an
         identity test per step for the model's own states, a comparison of a few short tuples
@@ -512,8 +512,10 @@ class Model:
             raise StateError(f"{what} must be a pliant State, got {type(state).__name__}")
         layout = state.layout
         if layout is not None and layout is not self.layout and layout != self.layout:
-            if not isinstance(layout, Layout):
-                raise StateError(f"{what}: layout must be a Layout, got {type(layout).__name__}")
+            if not isinstance(layout, ModelLayout):
+                raise StateError(
+                    f"{what}: layout must be a ModelLayout, got {type(layout).__name__}"
+                )
             raise StateError(
                 f"{what} was made by another model than {self.name}: "
                 + "; ".join(layout.differences(self.layout))

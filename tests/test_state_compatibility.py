@@ -13,7 +13,7 @@ import pytest
 from pliant import robots
 from pliant.envs import ENVS, EnvStateError, make
 from pliant.errors import StateError
-from pliant.model import Layout, Model, State
+from pliant.model import Model, ModelLayout, State
 from pliant.solvers import ImplicitEuler, StaticSolver
 
 
@@ -43,14 +43,14 @@ def test_a_saved_state_of_four_cables_is_refused_by_a_two_cable_model(diamonds, 
 
 
 def test_each_part_of_the_layout_is_named():
-    base = Layout(10, ("a (CableActuator)",), ("e (PositionEffector)",), ("cube",), ())
-    other = Layout(12, (), ("e (PositionEffector)",), (), ("SurfacePressure",))
+    base = ModelLayout(10, ("a (CableActuator)",), ("e (PositionEffector)",), ("cube",), ())
+    other = ModelLayout(12, (), ("e (PositionEffector)",), (), ("SurfacePressure",))
     said = "; ".join(other.differences(base))
     for part in ("nodes 12 where the model has 10", "actuators none", "rigid bodies none"):
         assert part in said
     assert "loads ['SurfacePressure'] where the model has none" in said
     assert "effectors" not in said
-    assert Layout.from_json(base.to_json()) == base
+    assert ModelLayout.from_json(base.to_json()) == base
 
 
 def test_a_hand_made_state_is_checked_by_its_shapes_only(diamonds):
@@ -65,7 +65,7 @@ def test_an_environment_refuses_a_snapshot_of_another_layout():
     env = make("pliant/Diamond-v0", **ENVS["Diamond"].quick).unwrapped
     env.reset(seed=0)
     snap = env.get_state()
-    snap.state.layout = Layout(snap.n_nodes, ("north (CableActuator)",))
+    snap.state.layout = ModelLayout(snap.n_nodes, ("north (CableActuator)",))
     with pytest.raises(EnvStateError, match="actuators"):
         env.set_state(snap)
 
