@@ -190,7 +190,10 @@ def train(
                 )
         wall = time.perf_counter() - clock
         vecnorm = model.get_vec_normalize_env()
-        stopped = checkpoints.stop_requested  # then the run is not over: no final/, no video
+        # A signal stopped the run before its end: no final/, no video (--resume goes on).
+        stopped = checkpoints.stop_requested
+        if model.num_timesteps >= config.total_timesteps:
+            stopped = None
         if stopped is None:
             save_policy(
                 model, run_dir / "final", config.algo, config.env_id, config.env_kwargs, vecnorm
