@@ -361,3 +361,14 @@ def test_a_full_disk_during_a_checkpoint_keeps_the_earlier_ones(run, tmp_path, m
     assert names == ["step_100", "step_200", "step_300"]
     resumed = train(run_dir=copy, resume=True, total_timesteps=500)
     assert resumed.summary["resumed_from"] == 300 and resumed.summary["steps"] == 500
+
+
+@pytest.mark.parametrize("text", ["a: [1,\n", "", "- just\n- a list\n"])
+def test_a_training_configuration_that_is_not_yaml_is_one_line(tmp_path, text):
+    path = tmp_path / "bad.yaml"
+    path.write_text(text)
+    args = ["train", "pliant-test/PointReach-v0", "--config", str(path), "--out", str(tmp_path)]
+    result = CliRunner().invoke(app, args)
+    assert result.exit_code != 0
+    assert "bad.yaml" in result.output and "a bug in Pliant" not in result.output
+    assert len(result.output.strip().splitlines()) == 1, result.output
