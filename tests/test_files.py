@@ -372,3 +372,16 @@ def test_a_training_configuration_that_is_not_yaml_is_one_line(tmp_path, text):
     assert result.exit_code != 0
     assert "bad.yaml" in result.output and "a bug in Pliant" not in result.output
     assert len(result.output.strip().splitlines()) == 1, result.output
+
+
+@pytest.mark.parametrize("how", DAMAGE)
+def test_a_damaged_learning_curve_is_named_on_resume(tmp_path, how):
+    from pliant.files import write_json
+    from pliant.learn.callbacks import EvalCallback
+
+    curve = EvalCallback(tmp_path, None, 100, 2, None)
+    write_json(curve.path, [{"step": 100, "mean_return": -1.0, "success_rate": 0.5}] * 20)
+    curve.load_curve(100)
+    damage(curve.path, how)
+    with pytest.raises(CorruptFileError, match="evaluations.json"):
+        curve.load_curve(100)

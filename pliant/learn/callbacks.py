@@ -136,7 +136,8 @@ class EvalCallback(BaseCallback):
     def load_curve(self, up_to_step: int) -> None:
         """Resume: keep the evaluations made before the checkpoint."""
         if self.path.exists():
-            self.curve = [e for e in json.loads(self.path.read_text()) if e["step"] <= up_to_step]
+            curve = read_checked(self.path, lambda p: json.loads(p.read_text()), "a learning curve")
+            self.curve = [e for e in curve if e["step"] <= up_to_step]
         if self.curve:
             self.next_eval = self.curve[-1]["step"] + self.freq
             self.best = max(self._score(e) for e in self.curve)
