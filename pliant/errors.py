@@ -135,3 +135,16 @@ class TrajectoryOptimisationError(PliantError, ValueError):
 class ReductionError(PliantError, ValueError):
     """A reduced model cannot be built or used: snapshots with NaN, a basis or reduced model
     that does not match the model's mesh, a tolerance outside its range."""
+
+
+class CorruptFileError(PliantError, ValueError):
+    """A file Pliant wrote and reads back is empty, truncated, corrupt or not of its kind (a
+    checkpoint, a saved model, a dataset); the message names the file and what is wrong."""
+
+    def __init__(self, message: str, path=None) -> None:
+        super().__init__(message)
+        self.path = path
+
+
+class CheckpointWarning(UserWarning):
+    """A damaged checkpoint was skipped: the run resumes from an older intact one (named)."""

@@ -4,12 +4,20 @@ one, never a part."""
 
 from __future__ import annotations
 
+import hashlib
 import json
 import os
+import pickle
 import uuid
-from collections.abc import Iterator
+import zipfile
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
+from typing import TypeVar
+
+import numpy as np
+
+T = TypeVar("T")
 
 
 @contextmanager
@@ -34,3 +42,128 @@ def write_json(path: str | os.PathLike, data, *, indent: int | None = 1, **kwarg
     text = json.dumps(data, indent=indent, **kwargs)
     with atomic_path(path) as tmp:
         tmp.write_text(text)
+
+
+#: The file of a folder written by :func:`write_manifest`: each file's size and SHA-256.
+MANIFEST = "manifest.json"
+
+# What reading a damaged file raises, by the readers Pliant uses (zip, pickle, NumPy, HDF5,
+# JSON, PyTorch, SB3's asserts): converted into a CorruptFileError naming the file.
+_DAMAGE = (
+    AssertionError,
+    EOFError,
+    ValueError,
+    TypeError,
+    KeyError,
+    AttributeError,
+    IndexError,
+    ImportError,
+    RuntimeError,
+    pickle.UnpicklingError,
+    zipfile.BadZipFile,
+    UnicodeDecodeError,
+)
+
+
+def sha256(path: str | os.PathLike) -> str:
+    digest = hashlib.sha256()
+    with open(path, "rb") as f:
+        for block in iter(lambda: f.read(1 << 20), b""):
+            digest.update(block)
+    return digest.hexdigest()
+
+
+def write_manifest(folder: str | os.PathLike) -> None:
+    """Record the size and SHA-256 of every file under `folder` in its manifest (atomically):
+    :func:`check_manifest` then tells an intact folder from a damaged one."""
+    folder = Path(folder)
+    files = {
+        p.relative_to(folder).as_posix(): {"bytes": p.stat().st_size, "sha256": sha256(p)}
+        for p in sorted(folder.rglob("*"))
+        if p.is_file() and p.name != MANIFEST
+    }
+    write_json(folder / MANIFEST, {"files": files})
+
+
+def check_manifest(folder: str | os.PathLike) -> bool:
+    """Check every file of `folder` against its manifest; False when it has none (a folder
+    written before manifests existed).
+
+    Raises:
+        CorruptFileError: naming the first file missing, of another size or another hash, or
+            the manifest itself when it cannot be read.
+    """
+    from pliant.errors import CorruptFileError
+
+    folder = Path(folder)
+    manifest = folder / MANIFEST
+    if not manifest.is_file():
+        return False
+    try:
+        files = json.loads(manifest.read_text())["files"]
+        items = [(name, int(e["bytes"]), str(e["sha256"])) for name, e in files.items()]
+    except (OSError, *_DAMAGE) as exc:
+        raise CorruptFileError(f"{manifest}: not a readable manifest ({exc})", manifest) from exc
+    for name, size, digest in items:
+        path = folder / name
+        if not path.is_file():
+            raise CorruptFileError(f"{path}: missing (listed in {manifest})", path)
+        if path.stat().st_size != size:
+            raise CorruptFileError(
+                f"{path}: {path.stat().st_size} bytes where {size} were written (truncated or"
+                " overwritten)",
+                path,
+            )
+        if sha256(path) != digest:
+            raise CorruptFileError(f"{path}: its content changed since it was written", path)
+    return True
+
+
+def read_checked(
+    path: str | os.PathLike, read: Callable[[Path], T], what: str, error: type | None = None
+) -> T:
+    """`read(path)`, with an empty or damaged file reported as an `error` (default
+    CorruptFileError) naming it and `what` it should be, the file in its ``path`` attribute
+    (a missing file stays FileNotFoundError, Pliant's own errors pass)."""
+    from pliant.errors import CorruptFileError, PliantError
+
+    path = Path(path)
+    error = error or CorruptFileError
+
+    def damaged(message: str) -> Exception:
+        exc = error(message)
+        exc.path = path
+        return exc
+
+    if path.is_file() and path.stat().st_size == 0:
+        raise damaged(f"{path}: an empty file, not {what}")
+    try:
+        return read(path)
+    except (FileNotFoundError, PliantError):
+        raise
+    except (OSError, *_DAMAGE) as exc:
+        raise damaged(
+            f"{path}: not {what} (truncated or corrupt?): {type(exc).__name__}: {exc}"
+        ) from exc
+
+
+def save_npz(path: str | os.PathLike, *, compressed: bool = False, **arrays) -> Path:
+    """NumPy's ``savez`` (or ``savez_compressed``) of `arrays` to `path`, atomically; `path`
+    gets NumPy's ``.npz`` ending when it lacks it. Returns the path written."""
+    path = Path(path)
+    if path.suffix != ".npz":
+        path = path.with_name(path.name + ".npz")
+    with atomic_path(path) as tmp:
+        (np.savez_compressed if compressed else np.savez)(tmp, **arrays)
+    return path
+
+
+def load_npz(path: str | os.PathLike, what: str, error: type | None = None) -> dict:
+    """Every array of an ``.npz`` file, read now (each member's CRC-32 checked), no pickles;
+    a damaged file raises `error` (default CorruptFileError) naming it and `what` it is."""
+
+    def read(p: Path) -> dict:
+        with np.load(p, allow_pickle=False) as data:
+            return {name: data[name] for name in data.files}
+
+    return read_checked(path, read, what, error)

@@ -8,6 +8,8 @@ optimisation rely on.
 
 from __future__ import annotations
 
+import dataclasses
+import json
 import math
 import numbers
 import os
@@ -30,6 +32,58 @@ from pliant.fem.rigid import DrivenNodes, RigidBody
 from pliant.fem.rod import RodBody
 
 
+@dataclass(frozen=True)
+class ModelLayout:
+    """What a state's arrays mean in the model that made it: its node count, its actuators
+    (name and kind, in the order of the actuation vector), effectors, rigid bodies and the
+    body's loads. A state made by one model and stepped by another whose layout differs
+    (a state saved on a four-cable Diamond, stepped by the two-cable one) is refused with
+    the difference named (:meth:`Model.check_state`). Actuator modes are not part of it: a
+    controller may switch a cable from displacement to force between steps, and the state's
+    actuator forces mean the same in both modes."""
+
+    nodes: int
+    actuators: tuple[str, ...] = ()
+    effectors: tuple[str, ...] = ()
+    rigid_bodies: tuple[str, ...] = ()
+    loads: tuple[str, ...] = ()
+
+    @classmethod
+    def of(cls, model: Model) -> ModelLayout:
+        def named(items) -> tuple[str, ...]:
+            return tuple(f"{c.name} ({type(c).__name__})" for c in items)
+
+        return cls(
+            int(model.body.n_nodes),
+            named(model.actuators),
+            named(model.effectors),
+            tuple(b.name for b in model.rigid_bodies),
+            tuple(type(a.load).__name__ for a in getattr(model.body, "loads", ())),
+        )
+
+    def differences(self, other: ModelLayout) -> list[str]:
+        """What differs from `other` (the model's), in words."""
+        out = []
+        for name in ("nodes", "actuators", "effectors", "rigid_bodies", "loads"):
+            mine, theirs = getattr(self, name), getattr(other, name)
+            if mine != theirs:
+                show = (lambda v: v) if name == "nodes" else (lambda v: list(v) or "none")
+                label = name.replace("_", " ")
+                out.append(f"{label} {show(mine)} where the model has {show(theirs)}")
+        return out
+
+    def to_json(self) -> str:
+        return json.dumps(dataclasses.asdict(self))
+
+    @classmethod
+    def from_json(cls, text: str) -> ModelLayout:
+        d = json.loads(text)
+        return cls(
+            int(d["nodes"]),
+            *(tuple(d[k]) for k in ("actuators", "effectors", "rigid_bodies", "loads")),
+        )
+
+
 @dataclass
 class State:
     """Positions and velocities of the nodes, time, step count and the last constraint forces.
@@ -48,6 +102,8 @@ class State:
         rigid_positions, rigid_rotations, rigid_velocities, rigid_angular_velocities: the
             model's rigid bodies: centres of mass (b, 3), rotations body -> world (b, 3, 3),
             linear and angular velocities in the world (b, 3); empty without rigid bodies.
+        layout: the :class:`ModelLayout` of the model that made the state (None for a state made
+            by hand), checked where the state enters a solver step.
 
     The nodes carried by drivers are part of positions and velocities (their velocity is the
     one of the last step, (p(t) - p(t - h)) / h), so that a restored state replays exactly.
@@ -65,6 +121,7 @@ class State:
     rigid_velocities: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
     rigid_angular_velocities: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
     displacement_before: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    layout: ModelLayout | None = None
 
     _RIGID = ("rigid_positions", "rigid_rotations", "rigid_velocities", "rigid_angular_velocities")
     _FIELDS = (
@@ -89,6 +146,7 @@ class State:
             self.contact_forces.copy(),
             *(getattr(self, name).copy() for name in self._RIGID),
             self.displacement_before.copy(),
+            self.layout,
         )
 
     def allclose(self, other: State, *, atol: float = 0.0) -> bool:
@@ -126,6 +184,7 @@ class State:
                     contact_keys=self.contact_forces.keys,
                     contact_forces=self.contact_forces.forces,
                     **{name: getattr(self, name) for name in self._RIGID},
+                    **({} if self.layout is None else {"layout": self.layout.to_json()}),
                 )
             os.replace(tmp, path)
         except OSError as exc:
@@ -165,10 +224,19 @@ class State:
                         for name in (*cls._RIGID, "displacement_before")
                         if name in d.files
                     },
+                    layout=ModelLayout.from_json(str(d["layout"])) if "layout" in d.files else None,
                 )
         except StateError:
             raise
-        except (OSError, EOFError, ValueError, TypeError, KeyError, zipfile.BadZipFile) as exc:
+        except (
+            OSError,
+            EOFError,
+            ValueError,
+            TypeError,
+            KeyError,
+            AttributeError,
+            zipfile.BadZipFile,
+        ) as exc:
             raise StateError(
                 f"{str(path)!r} is not a readable state file (truncated or corrupt?): {exc}"
             ) from exc
@@ -279,6 +347,7 @@ class Model:
         names = [c.name for c in self.actuators + self.effectors]
         if len(set(names)) != len(names):
             raise ModelError(f"constraint names must be unique, got {names}")
+        self.layout = ModelLayout.of(self)
 
     def geometric_pattern(self) -> tuple[np.ndarray, np.ndarray] | None:
         """Free-DoF (rows, cols) of the actuators' load stiffness -lambda d^2 delta/dx^2 (the
@@ -419,6 +488,7 @@ class Model:
             rigid_rotations=np.array([x.rotation for x in b]).reshape(-1, 3, 3),
             rigid_velocities=np.array([x.velocity for x in b]).reshape(-1, 3),
             rigid_angular_velocities=np.array([x.angular_velocity for x in b]).reshape(-1, 3),
+            layout=self.layout,
         )
 
     def check_state(self, state: State, *, what: str = "the state", strict: bool = False) -> State:
@@ -430,12 +500,26 @@ class Model:
         forces and displacements only start the next step: those of another actuator count (a
         state of the same body under other actuators, released) are dropped, as for a state
         that records none, unless `strict` (a state file loaded for this model), which
-        refuses them. Arrays of another real dtype (integers, float32) are accepted and
+        refuses them. A state that records the :class:`ModelLayout` of the model that made it
+        (every solver step and ``rest_state`` do) is refused when that layout is not this
+        model's (other actuators, effectors, rigid bodies or loads), the differences named: an
+        identity test per step for the model's own states, a comparison of a few short tuples
+        for one pickled or loaded. Arrays of another real dtype (integers, float32) are accepted and
         returned as float64 in a copy; the checks are O(1) but for one sum per array (a
         finite sum shows every value finite).
         """
         if not isinstance(state, State):
             raise StateError(f"{what} must be a pliant State, got {type(state).__name__}")
+        layout = state.layout
+        if layout is not None and layout is not self.layout and layout != self.layout:
+            if not isinstance(layout, ModelLayout):
+                raise StateError(
+                    f"{what}: layout must be a ModelLayout, got {type(layout).__name__}"
+                )
+            raise StateError(
+                f"{what} was made by another model than {self.name}: "
+                + "; ".join(layout.differences(self.layout))
+            )
         n = self.body.n_nodes
         b = len(self.rigid_bodies)
         expected = {
@@ -495,6 +579,7 @@ class Model:
             time=float(state.time),
             step=int(state.step),
             contact_forces=ContactForces(keys.astype(np.int64), values),
+            layout=layout,
             **cast,
         )
 

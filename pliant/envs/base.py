@@ -34,7 +34,13 @@ from typing import Any, ClassVar, Literal
 import gymnasium as gym
 import numpy as np
 
-from pliant.errors import ConstraintError, DivergenceError, PliantError, SolverError
+from pliant.errors import (
+    ConstraintError,
+    DivergenceError,
+    PliantError,
+    SolverError,
+    StateError,
+)
 from pliant.model import Model, State
 from pliant.solvers import ImplicitEuler
 
@@ -341,6 +347,11 @@ class SoftRobotEnv(gym.Env):
             )
         if snapshot.commands.shape != self.commands.shape:
             raise EnvStateError(f"{self.name}: the snapshot's actuators are not this model's")
+        try:  # a reduced model's state is its solver's to check, at its step
+            if isinstance(snapshot.state, State):
+                self.model.check_state(snapshot.state, what=f"{self.name}: the snapshot's state")
+        except StateError as exc:
+            raise EnvStateError(str(exc)) from exc
         self.state = snapshot.state.copy()
         self.commands = snapshot.commands.copy()
         for k, r in self.ramps.items():

@@ -9,7 +9,13 @@ import json
 import pickle
 import random
 import shutil
+import signal
+import threading
 import time
+import warnings
+import zipfile
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np
@@ -17,7 +23,8 @@ import torch
 from stable_baselines3.common.callbacks import BaseCallback
 from stable_baselines3.common.vec_env import VecEnvWrapper, VecNormalize
 
-from pliant.files import write_json
+from pliant.errors import CheckpointWarning, CorruptFileError, TrainingError
+from pliant.files import check_manifest, read_checked, write_json, write_manifest
 from pliant.learn.config import OFF_POLICY
 from pliant.learn.evaluate import run_episodes, save_policy
 
@@ -129,7 +136,8 @@ class EvalCallback(BaseCallback):
     def load_curve(self, up_to_step: int) -> None:
         """Resume: keep the evaluations made before the checkpoint."""
         if self.path.exists():
-            self.curve = [e for e in json.loads(self.path.read_text()) if e["step"] <= up_to_step]
+            curve = read_checked(self.path, lambda p: json.loads(p.read_text()), "a learning curve")
+            self.curve = [e for e in curve if e["step"] <= up_to_step]
         if self.curve:
             self.next_eval = self.curve[-1]["step"] + self.freq
             self.best = max(self._score(e) for e in self.curve)
@@ -191,6 +199,9 @@ class CheckpointCallback(BaseCallback):
     Saved when a rollout starts, where the previous rollout is stored and trained on: nothing
     is half done. Resuming from it (:func:`pliant.learn.training.train` with ``resume=True``)
     continues as if the run had not stopped.
+
+    :meth:`request_stop` (SIGTERM or SIGINT, see :func:`stop_on_signals`) saves a checkpoint
+    at the next rollout start and ends the training there.
     """
 
     def __init__(self, run_dir: Path, freq: int, keep: int, config, counters: TrainingState):
@@ -202,15 +213,25 @@ class CheckpointCallback(BaseCallback):
         self.counters = counters
         self.next_save = self.freq
         self.last_saved = -1
+        #: the signal that asked the run to stop (its name), None while it runs on.
+        self.stop_requested: str | None = None
+        self._stopping = False
+
+    def request_stop(self, reason: str) -> None:
+        self.stop_requested = reason
 
     def _on_training_start(self) -> None:
         self._clock = time.perf_counter()
         self._wall_before = self.counters.wall_seconds
 
     def _on_step(self) -> bool:
-        return True
+        return not self._stopping
 
     def _on_rollout_start(self) -> None:
+        if self.stop_requested is not None:
+            self.save()
+            self._stopping = True  # the rollout's first step ends the training
+            return
         if self.freq > 0 and self.num_timesteps >= self.next_save:
             while self.next_save <= self.num_timesteps:
                 self.next_save += self.freq
@@ -229,6 +250,22 @@ class CheckpointCallback(BaseCallback):
         final = self.folder / f"step_{step}"
         tmp = self.folder / f".step_{step}.tmp"
         shutil.rmtree(tmp, ignore_errors=True)
+        try:
+            self._write(tmp, step)
+        except OSError as exc:  # a full disk, a folder gone: the earlier checkpoints stand
+            shutil.rmtree(tmp, ignore_errors=True)
+            raise TrainingError(
+                f"step {step}: cannot write the checkpoint {final} ({exc}); the earlier"
+                " checkpoints are intact: free space and go on with --resume"
+            ) from exc
+        shutil.rmtree(final, ignore_errors=True)
+        tmp.rename(final)
+        self.last_saved = step
+        for old in sorted(self.folder.glob("step_*"), key=lambda p: int(p.name[5:]))[: -self.keep]:
+            shutil.rmtree(old, ignore_errors=True)
+        return final
+
+    def _write(self, tmp: Path, step: int) -> None:
         env = self.model.get_env()
         vecnorm = self.model.get_vec_normalize_env()
         save_policy(
@@ -249,12 +286,32 @@ class CheckpointCallback(BaseCallback):
         }
         with open(tmp / "state.pkl", "wb") as f:
             pickle.dump(state, f)
-        shutil.rmtree(final, ignore_errors=True)
-        tmp.rename(final)
-        self.last_saved = step
-        for old in sorted(self.folder.glob("step_*"), key=lambda p: int(p.name[5:]))[: -self.keep]:
-            shutil.rmtree(old, ignore_errors=True)
-        return final
+        # Read back on resume: a damaged file (a full disk, a copy cut short) is told apart.
+        write_manifest(tmp)
+
+
+@contextmanager
+def stop_on_signals(checkpoints: CheckpointCallback) -> Iterator[None]:
+    """While training: SIGTERM or SIGINT asks `checkpoints` to save at the next rollout start
+    and stop there (a resume from it is exact); a second one acts as it would have without
+    this (SIGINT: KeyboardInterrupt). Outside the main thread signals cannot be caught: no-op."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = {s: signal.getsignal(s) for s in (signal.SIGTERM, signal.SIGINT)}
+
+    def handler(number, frame) -> None:
+        for s, h in previous.items():
+            signal.signal(s, h)
+        checkpoints.request_stop(signal.Signals(number).name)
+
+    for s in previous:
+        signal.signal(s, handler)
+    try:
+        yield
+    finally:
+        for s, h in previous.items():
+            signal.signal(s, h)
 
 
 def restore_checkpoint(model, folder: Path, counters: TrainingState) -> dict:
@@ -287,5 +344,62 @@ def restore_checkpoint(model, folder: Path, counters: TrainingState) -> dict:
 
 
 def latest_checkpoint(run_dir: Path) -> Path | None:
-    found = sorted((run_dir / "checkpoints").glob("step_*"), key=lambda p: int(p.name[5:]))
+    found = _checkpoints(run_dir)
     return found[-1] if found else None
+
+
+def _checkpoints(run_dir: Path) -> list[Path]:
+    found = [p for p in (run_dir / "checkpoints").glob("step_*") if p.name[5:].isdigit()]
+    return sorted(found, key=lambda p: int(p.name[5:]))
+
+
+def check_checkpoint(folder: Path) -> None:
+    """Raise a CorruptFileError naming the damaged file of a checkpoint: against its
+    manifest, or, for a checkpoint written before manifests, by opening its files."""
+    if check_manifest(folder):
+        return
+
+    def zip_archive(path: Path) -> None:
+        with zipfile.ZipFile(path) as z:
+            bad = z.testzip()
+        if bad is not None:
+            raise ValueError(f"its member {bad} is corrupt")
+
+    def unpickle(path: Path) -> None:
+        with open(path, "rb") as f:
+            pickle.load(f)
+
+    read_checked(folder / "model.zip", zip_archive, "a saved model (a zip archive)")
+    read_checked(folder / "state.pkl", unpickle, "a checkpoint's state (a pickle)")
+    if (folder / "vecnormalize.pkl").exists():
+        read_checked(folder / "vecnormalize.pkl", unpickle, "VecNormalize statistics")
+
+
+def intact_checkpoint(run_dir: Path) -> Path | None:
+    """The newest checkpoint of a run whose files are intact (None when it has none), with a
+    CheckpointWarning naming each newer one skipped and the one used.
+
+    Raises:
+        CorruptFileError: the run has checkpoints, none of them intact (each one's damage
+            named).
+    """
+    damaged = []
+    for folder in reversed(_checkpoints(run_dir)):
+        try:
+            check_checkpoint(folder)
+        except (CorruptFileError, FileNotFoundError) as exc:
+            damaged.append(f"{folder.name}: {exc}")
+            continue
+        if damaged:
+            warnings.warn(
+                f"skipped damaged checkpoints ({'; '.join(damaged)}); resuming from {folder}",
+                CheckpointWarning,
+                stacklevel=2,
+            )
+        return folder
+    if damaged:
+        raise CorruptFileError(
+            f"no intact checkpoint in {run_dir / 'checkpoints'}: {'; '.join(damaged)}",
+            run_dir / "checkpoints",
+        )
+    return None

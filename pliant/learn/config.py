@@ -32,6 +32,9 @@ from typing import Any
 
 import yaml
 
+from pliant.errors import CorruptFileError, TrainingError
+from pliant.files import atomic_path, read_checked
+
 CONFIG_DIR = Path(__file__).parent / "configs"
 ALGOS = ("PPO", "SAC", "TD3", "A2C", "DQN", "RecurrentPPO")
 OFF_POLICY = ("SAC", "TD3", "DQN")
@@ -94,11 +97,20 @@ class TrainConfig:
         return dataclasses.asdict(self)
 
     def save(self, path: Path) -> None:
-        path.write_text(yaml.safe_dump(_plain(self.to_dict()), sort_keys=False))
+        text = yaml.safe_dump(_plain(self.to_dict()), sort_keys=False)
+        with atomic_path(path) as tmp:  # what --resume reads: never half written
+            tmp.write_text(text)
 
     @classmethod
     def load(cls, path: Path) -> TrainConfig:
-        return cls(**yaml.safe_load(Path(path).read_text()))
+        """Raises CorruptFileError when the file is not a readable configuration."""
+
+        path = Path(path)
+        data = _read_yaml(path, CorruptFileError)
+        try:
+            return cls(**data)
+        except TypeError as exc:  # unknown settings
+            raise CorruptFileError(f"{path}: not a training configuration: {exc}", path) from exc
 
 
 BC_KEYS = ("expert", "epochs", "episodes", "batch_size", "learning_rate", "successful_only", "std")
@@ -158,6 +170,24 @@ def _section(data: dict | None, algo: str) -> dict:
     return data
 
 
+def _read_yaml(path: Path, error: type | None = None) -> dict:
+    """The mapping of a YAML file; a file that is not one raises `error` (default
+    TrainingError) naming it."""
+
+    def read(p: Path) -> dict:
+        try:
+            data = yaml.safe_load(p.read_text())
+        except yaml.YAMLError as exc:  # its text spans lines: the CLI's error is one
+            mark = getattr(exc, "problem_mark", None)
+            where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark else ""
+            raise ValueError(f"{getattr(exc, 'problem', None) or exc}{where}") from exc
+        if not isinstance(data, dict):
+            raise ValueError(f"a YAML mapping was expected, got {type(data).__name__}")
+        return data
+
+    return read_checked(path, read, "a training configuration (YAML)", error or TrainingError)
+
+
 def load_config(
     env_id: str,
     algo: str,
@@ -174,7 +204,7 @@ def load_config(
         if source.exists():
             merged = deep_merge(merged, _section(yaml.safe_load(source.read_text()), algo))
     if path is not None:
-        merged = deep_merge(merged, _section(yaml.safe_load(Path(path).read_text()), algo))
+        merged = deep_merge(merged, _section(_read_yaml(Path(path)), algo))
     merged = deep_merge(merged, {k: v for k, v in (overrides or {}).items() if v is not None})
     unknown = set(merged) - fields
     if unknown:

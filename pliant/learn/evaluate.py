@@ -3,12 +3,15 @@
 from __future__ import annotations
 
 import json
+import pickle
+import zipfile
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
 import numpy as np
 
-from pliant.files import write_json
+from pliant.errors import CorruptFileError, TrainingError
+from pliant.files import atomic_path, read_checked, write_json
 from pliant.learn.config import ALGOS
 from pliant.learn.vec import make_env
 
@@ -113,20 +116,25 @@ class SavedPolicy:
 
 
 def save_policy(model, folder: Path, algo: str, env_id: str, env_kwargs: dict, vecnorm) -> None:
-    """model.zip, vecnormalize.pkl (if any) and meta.json in `folder`."""
+    """model.zip, vecnormalize.pkl (if any) and meta.json in `folder`, each written
+    atomically (a run killed while it saves its best model keeps the previous one)."""
     folder.mkdir(parents=True, exist_ok=True)
-    model.save(folder / "model.zip")
+    with atomic_path(folder / "model.zip") as tmp:
+        model.save(tmp)
     if vecnorm is not None:
-        vecnorm.save(str(folder / "vecnormalize.pkl"))
+        with atomic_path(folder / "vecnormalize.pkl") as tmp:
+            vecnorm.save(str(tmp))
     meta = {"algo": algo, "env_id": env_id, "env_kwargs": env_kwargs}
     write_json(folder / "meta.json", meta)
 
 
 def load_policy(path: str | Path, algo: str | None = None, device: str = "cpu") -> SavedPolicy:
     """A model saved by training: a ``model.zip``, the folder holding it, or a run folder
-    (its ``final/``, else its latest checkpoint)."""
-    import pickle
+    (its ``final/``, else its latest checkpoint).
 
+    Raises:
+        CorruptFileError: the model, its meta.json or its statistics are not readable.
+    """
     path = Path(path)
     if path.is_dir():
         candidates = [path / "model.zip", path / "final" / "model.zip"]
@@ -136,20 +144,27 @@ def load_policy(path: str | Path, algo: str | None = None, device: str = "cpu") 
         path = next((c for c in candidates if c.exists()), candidates[0])
     if not path.exists():
         raise FileNotFoundError(f"no saved model at {path}")
+    if not zipfile.is_zipfile(path):
+        raise CorruptFileError(f"{path}: not a saved model (model.zip is a zip archive)", path)
     folder = path.parent
     meta = {}
     if (folder / "meta.json").exists():
-        meta = json.loads((folder / "meta.json").read_text())
+        meta = read_checked(folder / "meta.json", lambda p: json.loads(p.read_text()), "JSON")
     algo = algo or meta.get("algo")
     if algo is None:
-        raise ValueError(f"{folder} has no meta.json: give the algorithm (--algo)")
-    model = algorithm_class(algo).load(path, device=device)
+        raise TrainingError(f"{folder} has no meta.json: give the algorithm (--algo)")
+    learner = algorithm_class(algo)
+    model = read_checked(path, lambda p: learner.load(p, device=device), f"a saved {algo} model")
     vecnorm = None
     if (folder / "vecnormalize.pkl").exists():
-        with open(folder / "vecnormalize.pkl", "rb") as f:
-            vecnorm = pickle.load(f)
+        vecnorm = read_checked(folder / "vecnormalize.pkl", _unpickle, "VecNormalize statistics")
         vecnorm.training = False
     return SavedPolicy(model, algo, meta.get("env_id"), meta.get("env_kwargs") or {}, vecnorm)
+
+
+def _unpickle(path: Path):
+    with open(path, "rb") as f:
+        return pickle.load(f)
 
 
 def _step_of(path: Path) -> int:

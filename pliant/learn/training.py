@@ -4,7 +4,8 @@ evaluation, full-state checkpoints and exact resume.
 A run lives in one folder::
 
     RUN/config.yaml          the resolved TrainConfig (what --resume reads)
-    RUN/checkpoints/step_N/  model.zip, replay_buffer.pkl, vecnormalize.pkl, state.pkl
+    RUN/checkpoints/step_N/  model.zip, replay_buffer.pkl, vecnormalize.pkl, state.pkl,
+                             manifest.json (sizes and SHA-256 of the others)
     RUN/tb/                  TensorBoard logs
     RUN/evaluations.json     the learning curve (evaluation success rate and return)
     RUN/episodes.csv         every training episode (step, return, length, success, diverged)
@@ -12,7 +13,10 @@ A run lives in one folder::
     RUN/bc.json, RUN/cloned/ with behaviour cloning: the fit, and the policy as cloned
     RUN/summary.json, RUN/learning_curve.png, RUN/eval.gif
 
-Exact resume: ``train(config, run_dir, resume=True)`` loads the latest checkpoint and ends with
+Exact resume: ``train(config, run_dir, resume=True)`` loads the latest intact checkpoint (each
+checkpoint's files are checked against the sizes and SHA-256 hashes of its ``manifest.json``;
+a damaged one is skipped with a CheckpointWarning naming it, and a run with none intact stops
+with a CorruptFileError naming the damage) and ends with
 the same parameters as an uninterrupted run, bit for bit, when the environments run in this
 process or in one worker (``n_envs=1``, tested). With several worker processes the result is
 the same too as long as each worker's environment is deterministic given its snapshot (Pliant's
@@ -38,8 +42,9 @@ from pliant.learn.callbacks import (
     EvalCallback,
     RobustnessCallback,
     TrainingState,
-    latest_checkpoint,
+    intact_checkpoint,
     restore_checkpoint,
+    stop_on_signals,
 )
 from pliant.learn.config import OFF_POLICY, TrainConfig, sb3_kwargs
 from pliant.learn.evaluate import algorithm_class, save_policy
@@ -89,7 +94,7 @@ def train(
         if not (run_dir / "config.yaml").exists():
             raise FileNotFoundError(f"nothing to resume in {run_dir}: no config.yaml")
         config = TrainConfig.load(run_dir / "config.yaml")
-        checkpoint = latest_checkpoint(run_dir)
+        checkpoint = intact_checkpoint(run_dir)
         if checkpoint is None:
             raise FileNotFoundError(f"nothing to resume in {run_dir}: no checkpoint yet")
     if config is None:
@@ -175,18 +180,24 @@ def train(
         remaining = config.total_timesteps - model.num_timesteps
         clock = time.perf_counter()
         if remaining > 0:
-            model.learn(
-                remaining,
-                callback=[robust, evaluation, checkpoints, *(extra_callbacks or [])],
-                reset_num_timesteps=checkpoint is None,
-                tb_log_name="run",
-                progress_bar=progress_bar,
-            )
+            with stop_on_signals(checkpoints):
+                model.learn(
+                    remaining,
+                    callback=[robust, evaluation, checkpoints, *(extra_callbacks or [])],
+                    reset_num_timesteps=checkpoint is None,
+                    tb_log_name="run",
+                    progress_bar=progress_bar,
+                )
         wall = time.perf_counter() - clock
         vecnorm = model.get_vec_normalize_env()
-        save_policy(
-            model, run_dir / "final", config.algo, config.env_id, config.env_kwargs, vecnorm
-        )
+        # A signal stopped the run before its end: no final/, no video (--resume goes on).
+        stopped = checkpoints.stop_requested
+        if model.num_timesteps >= config.total_timesteps:
+            stopped = None
+        if stopped is None:
+            save_policy(
+                model, run_dir / "final", config.algo, config.env_id, config.env_kwargs, vecnorm
+            )
         summary = {
             "env_id": config.env_id,
             "algo": config.algo,
@@ -198,13 +209,15 @@ def train(
             "diverged_episodes": counters.diverged,
             "worker_restarts": counters.restarts,
             "final_evaluation": evaluation.curve[-1] if evaluation.curve else None,
+            # SIGTERM or SIGINT: stopped at a checkpoint, `--resume` goes on from it exactly.
+            "stopped_by": stopped,
         }
         write_json(run_dir / "summary.json", summary)
         if evaluation.curve:
             from pliant.learn.plots import plot_learning_curve
 
             plot_learning_curve(run_dir)
-        if config.video_episodes > 0:
+        if config.video_episodes > 0 and stopped is None:
             from pliant.learn.evaluate import evaluate_saved
 
             evaluate_saved(

@@ -73,6 +73,9 @@ class Proxy:
         self.actuation.apply(u[: len(self.actuation)])
         if self.base is not None:
             self.base.set(u[-1])
+            # The carriage memoises its last pose by time: the look-ahead of the last step
+            # asked for this step's end with the old command (the base would lag a step).
+            self.model.trajectories_changed()
 
     def skeleton(self, positions: np.ndarray) -> np.ndarray:
         """(N, 3) the skeleton's nodes at a state's positions."""

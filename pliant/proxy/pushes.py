@@ -25,6 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from pliant.errors import ModelError
+from pliant.files import load_npz, save_npz
 
 #: What chooses an action on the FEM: (observation, episode's rng) -> action (Box(9)).
 Policy = Callable[[np.ndarray, np.random.Generator], np.ndarray]
@@ -54,11 +55,12 @@ class Pushes:
             )
 
     def save(self, path) -> None:
-        np.savez_compressed(path, actions=self.actions, cubes=self.cubes, kinds=self.kinds)
+        save_npz(path, compressed=True, actions=self.actions, cubes=self.cubes, kinds=self.kinds)
 
     @classmethod
     def load(cls, path) -> Pushes:
-        data = np.load(path)
+        """Raises CorruptFileError for a damaged file, FileNotFoundError for none."""
+        data = load_npz(path, "a set of proxy pushes")
         return cls(data["actions"], data["cubes"], data["kinds"].astype(str))
 
     def __add__(self, other: Pushes) -> Pushes:

@@ -24,6 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from pliant.errors import ModelError, UnknownRobotError
+from pliant.files import load_npz, save_npz
 from pliant.mesh.multigait import CHAMBERS
 from pliant.proxy.builders import MULTIGAIT_PARAMETERS, Proxy, multigait_proxy, trunk_proxy
 from pliant.proxy.calibrate import rollout
@@ -44,14 +45,15 @@ class Reference:
     mass: float = float("nan")
 
     def save(self, path) -> None:
-        np.savez_compressed(
-            path, commands=self.commands, points=self.points, surface=self.surface, dt=self.dt,
-            mass=self.mass,
+        save_npz(
+            path, compressed=True, commands=self.commands, points=self.points,
+            surface=self.surface, dt=self.dt, mass=self.mass,
         )  # fmt: skip
 
     @classmethod
     def load(cls, path) -> Reference:
-        data = np.load(path)
+        """Raises CorruptFileError for a damaged file, FileNotFoundError for none."""
+        data = load_npz(path, "a proxy calibration reference")
         mass = float(data["mass"]) if "mass" in data else float("nan")
         return cls(data["commands"], data["points"], data["surface"], float(data["dt"]), mass)
 

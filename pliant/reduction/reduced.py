@@ -8,14 +8,13 @@ robot, the tolerances, the training errors and the sizes.
 from __future__ import annotations
 
 import json
-import os
-import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
 from pliant.errors import ReductionError
+from pliant.files import atomic_path, read_checked
 from pliant.model import Model
 from pliant.reduction.basis import ReducedBasis, mesh_fingerprint
 from pliant.reduction.ecsw import IntegrationDomain, Selection
@@ -55,21 +54,23 @@ class ReducedModel:
             "n_membranes": len(self.domain.membranes),
             "errors": [self.domain.tets.error, *(s.error for s in self.domain.membranes)],
         }
-        fd, tmp = tempfile.mkstemp(dir=path.parent, suffix=".npz")
-        os.close(fd)
-        np.savez(tmp, metadata=np.array(json.dumps(header)), **arrays)
-        os.replace(tmp, path if path.suffix == ".npz" else path.with_suffix(".npz"))
+        with atomic_path(path if path.suffix == ".npz" else path.with_suffix(".npz")) as tmp:
+            np.savez(tmp, metadata=np.array(json.dumps(header)), **arrays)
         return path
 
     @classmethod
     def load(cls, path: str | Path, model: Model | None = None) -> ReducedModel:
         """Read a reduced model; with `model`, ReductionError unless it is of that mesh."""
         path = Path(path)
-        try:
-            data = np.load(path, allow_pickle=False)
-        except (OSError, ValueError) as exc:
-            raise ReductionError(f"cannot read a reduced model from {path}: {exc}") from exc
-        with data:
+        if not path.is_file():
+            raise ReductionError(f"cannot read a reduced model from {path}: no such file")
+        # A damaged file (empty, cut short, overwritten) fails the members' CRC-32 or the
+        # archive's structure here, named, rather than later in the solver.
+        return read_checked(path, lambda p: cls._read(p, model), "a reduced model", ReductionError)
+
+    @classmethod
+    def _read(cls, path: Path, model: Model | None) -> ReducedModel:
+        with np.load(path, allow_pickle=False) as data:
             meta = json.loads(str(data["metadata"]))
             errors = meta.pop("errors")
             basis = ReducedBasis(

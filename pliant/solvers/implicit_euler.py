@@ -225,6 +225,7 @@ class ImplicitEuler:
             model.actuator_distances(positions),
             contact_forces,
             displacement_before=state.displacement,
+            layout=model.layout,
         )
         if rigid is not None:
             twists = (

@@ -262,6 +262,7 @@ class StaticSolver:
             model.actuator_distances(q),
             guide.contact_forces,
             displacement_before=state.displacement,
+            layout=model.layout,
         )
 
     def _iterate(

@@ -8,6 +8,7 @@ import gymnasium as gym
 import numpy as np
 import torch
 
+from pliant.files import atomic_path, read_checked
 from pliant.learn.graph.hierarchy import GraphConfig, check_schedule, episode_means
 from pliant.learn.graph.sac import SAC, ReplayBuffer
 
@@ -89,10 +90,13 @@ class FlatSAC:
         state = {"steps": self.steps, "rng": self.rng.bit_generator.state}
         state |= {"update_debt": self._update_debt}
         state |= {"sac": self.sac.checkpoint(), "buffer": self.buffer.state_dict()}
-        torch.save(state | {"torch_rng": torch.get_rng_state()}, path)
+        with atomic_path(path) as tmp:
+            torch.save(state | {"torch_rng": torch.get_rng_state()}, tmp)
 
     def load(self, path: str | Path) -> None:
-        state = torch.load(path, weights_only=False)
+        state = read_checked(
+            path, lambda p: torch.load(p, weights_only=False), "a graph agent checkpoint"
+        )
         self.steps, self.rng.bit_generator.state = state["steps"], state["rng"]
         self._update_debt = state.get("update_debt", 0.0)  # older checkpoints: whole rates
         self.sac.restore(state["sac"])

@@ -14,7 +14,7 @@ import typer
 from rich.console import Console
 
 from pliant.cli_support import at_least_one, one_of, output_folder
-from pliant.files import write_json
+from pliant.files import read_checked, write_json
 
 app = typer.Typer(
     add_completion=False,
@@ -101,7 +101,9 @@ def train_run(
     history = []
     if resume and checkpoint.exists():
         learner.load(checkpoint)
-        history = json.loads(history_file.read_text())["evaluations"]
+        history = read_checked(
+            history_file, lambda p: json.loads(p.read_text())["evaluations"], "a graph history"
+        )
     start = time.perf_counter() - (history[-1]["wall_s"] if history else 0.0)
     logger = configure(str(out / "tb"), ["tensorboard"])
 

@@ -27,6 +27,7 @@ import numpy as np
 import torch
 
 from pliant.errors import TrainingError
+from pliant.files import atomic_path, read_checked
 from pliant.learn.graph.agents import (
     EXTERNAL_REWARDS,
     ControllerAgent,
@@ -474,7 +475,11 @@ class GraphAgent:
         self.evaluator_buffer.load_state_dict(state["evaluator_buffer"])
 
     def save(self, path: str | Path) -> None:
-        torch.save(self.state_dict(), path)
+        with atomic_path(path) as tmp:
+            torch.save(self.state_dict(), tmp)
 
     def load(self, path: str | Path) -> None:
-        self.load_state_dict(torch.load(path, weights_only=False))
+        state = read_checked(
+            path, lambda p: torch.load(p, weights_only=False), "a graph agent checkpoint"
+        )
+        self.load_state_dict(state)
