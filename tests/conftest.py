@@ -7,10 +7,13 @@ from collections.abc import Callable
 import numpy as np
 import pytest
 
+from pliant.constraints.base import EmbeddedPoints
+from pliant.constraints.cable import CableActuator
 from pliant.fem.body import TetBody
 from pliant.fem.material import Corotational, Material, NeoHookean
+from pliant.fem.rod import RodBody, RodSection
 from pliant.mesh import TetMesh, box_beam
-from pliant.model import Model
+from pliant.model import Model, State
 
 MATERIALS: dict[str, type[Material]] = {"corotational": Corotational, "neo-hookean": NeoHookean}
 
@@ -95,3 +98,39 @@ def two_cable_beam(*, max_displacement: float = 1.0, effector_goal=None, **model
     eff = PositionEffector(EmbeddedPoints(mesh, [[60.0, 5.0, 5.0]]), x, goals=effector_goal)
     body = clamped_body(mesh, Corotational(100.0, 0.3), density=1e-6)
     return Model(body, actuators=cables, effectors=[eff], **model_kwargs)
+
+
+# A clamped rod along +x (tests/fem/test_rod.py, tests/constraints/test_attachment.py).
+ROD_L, ROD_E, ROD_RADIUS = 100.0, 1000.0, 1.0  # mm, kPa, mm
+
+
+def straight_rod(n: int, *, nu: float = 0.3, **kwargs) -> RodBody:
+    """n elements along +x from the origin, clamped at x = 0."""
+    points = np.column_stack([np.linspace(0.0, ROD_L, n + 1), np.zeros(n + 1), np.zeros(n + 1)])
+    kwargs.setdefault("density", 1e-6)
+    kwargs.setdefault("clamped", [0])
+    return RodBody(points, RodSection.circle(ROD_RADIUS), Material(ROD_E, nu), **kwargs)
+
+
+def dead_load(rod: RodBody, node: int, direction) -> CableActuator:
+    """A constant force on a node in force mode: a cable pulled from 1e6 mm away along
+    `direction` (its direction turns by at most the node's motion / 1e6)."""
+    x = rod.rest_positions
+    far = x[node] + 1e6 * np.asarray(direction, dtype=float)
+    return CableActuator(
+        EmbeddedPoints.at_nodes([node]), x, pull_point=far, mode="force", name=f"load_{node}"
+    )
+
+
+def mechanical_energy(model: Model, state: State) -> float:
+    """Kinetic + gravitational + elastic energy of the body and of the rigid bodies."""
+    body = model.body
+    g = body.gravity
+    total = 0.5 * float(np.sum(body.node_masses[:, None] * state.velocities**2))
+    total -= float(np.sum(body.node_masses * (state.positions @ g)))
+    total += body.linearise(state.positions).energy
+    for i, b in enumerate(model.rigid_bodies):
+        w = state.rigid_rotations[i].T @ state.rigid_angular_velocities[i]
+        total += 0.5 * b.mass * float(state.rigid_velocities[i] @ state.rigid_velocities[i])
+        total += 0.5 * float(w @ b.inertia @ w) - b.mass * float(g @ state.rigid_positions[i])
+    return total

@@ -6,7 +6,7 @@ the node is held) with the weights `weights[i, n, a]` (0 where held). Written as
 few (point, node, axis) triples: as NumPy expressions, their gathers and the einsums over
 (k, 3, k, 3) blocks cost more than the products themselves (the reference, solving every
 column, is :meth:`pliant.solvers.implicit_euler.ImplicitEuler._condense`, compared with these in
-tests/test_contact_fem.py).
+tests/contact/test_contact_fem.py).
 """
 
 from __future__ import annotations

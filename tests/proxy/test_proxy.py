@@ -156,7 +156,7 @@ def test_a_contracting_bending_shortens_its_beam_whichever_way_it_bends() -> Non
 def test_rest_curvature_and_a_small_tip_load_superpose() -> None:
     """Small rest curvature (tip rise 1e-3 L) and a small tip load along z (Timoshenko
     deflection w = P L^3 / (3 E I) + P L / (k G A), met by the rod to its O(1/N^2) bending
-    error, tests/test_rod.py): the tip under both is the sum of the tip under each, to the
+    error, tests/fem/test_rod.py): the tip under both is the sum of the tip under each, to the
     geometric nonlinearity's order (1e-3 of either)."""
     n = 16
     rod = cantilever(n)

@@ -22,7 +22,7 @@ from pliant.condensed.learned import LearnedCondensedModel  # noqa: E402
 from pliant.trajopt.learned import LearnedCondensedDynamics, LearnedMPC  # noqa: E402
 from pliant.trajopt.scenarios import finger_two_goals  # noqa: E402
 
-MODEL = Path(__file__).parents[1] / "experiments/results/trajopt/learned/finger.pt"
+MODEL = Path(__file__).parents[2] / "experiments/results/trajopt/learned/finger.pt"
 
 
 @pytest.fixture(scope="module")

@@ -8,6 +8,10 @@ import pytest
 import scipy.integrate
 import scipy.linalg
 import scipy.optimize
+from conftest import ROD_E as E  # noqa: E402  (shared with tests/constraints)
+from conftest import ROD_L as L  # noqa: E402
+from conftest import ROD_RADIUS as RADIUS  # noqa: E402
+from conftest import dead_load, straight_rod  # noqa: E402
 
 from pliant.constraints.base import EmbeddedPoints
 from pliant.constraints.cable import CableActuator
@@ -22,26 +26,6 @@ from pliant.fem.rotation import exp_map, log_map
 from pliant.model import Model
 from pliant.robots.common import smooth_ramp
 from pliant.solvers import ImplicitEuler, StaticSolver
-
-L, E, RADIUS = 100.0, 1000.0, 1.0  # mm, kPa, mm
-
-
-def straight_rod(n: int, *, nu: float = 0.3, **kwargs) -> RodBody:
-    """n elements along +x from the origin, clamped at x = 0."""
-    points = np.column_stack([np.linspace(0.0, L, n + 1), np.zeros(n + 1), np.zeros(n + 1)])
-    kwargs.setdefault("density", 1e-6)
-    kwargs.setdefault("clamped", [0])
-    return RodBody(points, RodSection.circle(RADIUS), Material(E, nu), **kwargs)
-
-
-def dead_load(rod: RodBody, node: int, direction) -> CableActuator:
-    """A constant force on a node in force mode: a cable pulled from 1e6 mm away along
-    `direction` (its direction turns by at most the node's motion / 1e6)."""
-    x = rod.rest_positions
-    far = x[node] + 1e6 * np.asarray(direction, dtype=float)
-    return CableActuator(
-        EmbeddedPoints.at_nodes([node]), x, pull_point=far, mode="force", name=f"load_{node}"
-    )
 
 
 def helix(n: int = 24) -> RodBody:

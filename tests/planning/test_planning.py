@@ -21,7 +21,7 @@ from pliant.planning import OPD, UCT, Simulator, check_restorable, run_episode
 from pliant.planning.toys import ChainEnv, GridWorldEnv
 
 GAMMA = 0.9
-DOCS = Path(__file__).parents[1] / "docs" / "planning.md"
+DOCS = Path(__file__).parents[2] / "docs" / "planning.md"
 
 
 class GambleEnv(gym.Env):

@@ -431,7 +431,7 @@ def test_bad_input_raises_clear_errors(trained, tmp_path):
         snapshots.load(path, other)
 
 
-DOCS = Path(__file__).parents[1] / "docs" / "reduction.md"
+DOCS = Path(__file__).parents[2] / "docs" / "reduction.md"
 BLOCKS = re.findall(r"```python\n(.*?)```", DOCS.read_text(), flags=re.S)
 
 

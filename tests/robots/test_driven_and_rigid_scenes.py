@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from conftest import mechanical_energy
 
 from pliant.constraints.collision import Box, Plane, Sphere
 from pliant.constraints.contact import Contacts
@@ -125,20 +126,6 @@ def test_rigid_box_resting_on_a_soft_block_weighs_on_it() -> None:
     assert box.shape.signed_distance(state.positions).gap.min() > -model.contacts.tolerance
 
 
-def _energy(model: Model, state: State) -> float:
-    """Kinetic + gravitational + elastic energy of the body and of the rigid bodies."""
-    body = model.body
-    g = body.gravity
-    total = 0.5 * float(np.sum(body.node_masses[:, None] * state.velocities**2))
-    total -= float(np.sum(body.node_masses * (state.positions @ g)))
-    total += body.linearise(state.positions).energy
-    for i, b in enumerate(model.rigid_bodies):
-        w = state.rigid_rotations[i].T @ state.rigid_angular_velocities[i]
-        total += 0.5 * b.mass * float(state.rigid_velocities[i] @ state.rigid_velocities[i])
-        total += 0.5 * float(w @ b.inertia @ w) - b.mass * float(g @ state.rigid_positions[i])
-    return total
-
-
 def test_sphere_dropped_on_a_soft_slab_loses_energy_and_comes_to_rest() -> None:
     """A 4 g rigid sphere dropped from 3 mm onto the block: the impact exchanges momentum
     (the block moves), the total energy never grows beyond what the contact solver's
@@ -149,10 +136,10 @@ def test_sphere_dropped_on_a_soft_slab_loses_energy_and_comes_to_rest() -> None:
     )
     solver = ImplicitEuler(model, 0.005)
     state = model.rest_state()
-    energies, block_speed = [_energy(model, state)], 0.0
+    energies, block_speed = [mechanical_energy(model, state)], 0.0
     for _ in range(200):
         state = solver.step(state)
-        energies.append(_energy(model, state))
+        energies.append(mechanical_energy(model, state))
         block_speed = max(block_speed, np.abs(state.velocities).max())
     allowance = 10 * (model.body.total_mass + sphere.mass) * G * model.contacts.tolerance
     assert np.diff(energies).max() <= allowance, np.diff(energies).max()

@@ -1,5 +1,6 @@
-"""Faulty stand-ins for a collection worker's task, for tests/test_faults.py. They live in an
-importable module (not a test file) so that spawned worker processes can unpickle them."""
+"""Faulty stand-ins for a collection worker's task, for tests/reliability/test_faults.py. They
+live in an importable module (not a test file) so that spawned worker processes can unpickle
+them."""
 
 from __future__ import annotations
 

@@ -389,7 +389,7 @@ def test_cli_options_fail_with_one_line_never_a_traceback(command, value) -> Non
 
 @pytest.mark.skipif(CHILD, reason="this is the child")
 def test_isolated_properties_in_a_child() -> None:
-    root = Path(__file__).resolve().parents[1]
+    root = Path(__file__).resolve().parents[2]
     proc = subprocess.run(
         [sys.executable, "-m", "pytest", __file__, "-q", "-k", "crash_prone"],
         cwd=root,

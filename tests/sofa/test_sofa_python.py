@@ -1,7 +1,7 @@
 """SofaPython3 scene scripts as SoftRobots users write them: STLIB / SPLIB / SoftRobots
 prefabs, Python controllers driving actuators each step, data read back, visual components.
 
-Each scene of tests/sofa_scenes/ (written for these tests) is checked against the same model
+Each scene of tests/sofa/sofa_scenes/ (written for these tests) is checked against the same model
 built with Pliant's own API, stepped with the same commands: the two agree to round-off.
 """
 

@@ -6,9 +6,7 @@ import math
 
 import numpy as np
 import pytest
-from test_rod import E as ROD_E
-from test_rod import L as ROD_L
-from test_rod import dead_load, straight_rod
+from conftest import ROD_E, ROD_L, dead_load, straight_rod
 
 from pliant.constraints.attachment import Attachment, Weld
 from pliant.constraints.base import EmbeddedPoints

@@ -29,7 +29,7 @@ from pliant.learn import TrainConfig, train  # noqa: E402
 from pliant.learn.callbacks import check_checkpoint, intact_checkpoint  # noqa: E402
 from pliant.learn.evaluate import load_policy  # noqa: E402
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 DAMAGE = ("truncated", "empty", "random bytes")
 
 

@@ -35,7 +35,7 @@ from pliant.mesh import (
 )
 from pliant.mesh.shapes import pneunet_cavity_boxes
 
-REFERENCE_MESHES = Path(__file__).resolve().parents[2] / "shared" / "meshes"
+REFERENCE_MESHES = Path(__file__).resolve().parents[3] / "shared" / "meshes"
 
 # A single positively oriented tetrahedron.
 UNIT_TET_POINTS = np.array([[0.0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]])

@@ -33,7 +33,7 @@ needs_reference = pytest.mark.skipif(
 )
 
 
-DOCS = Path(__file__).parents[1] / "docs" / "sofa.md"
+DOCS = Path(__file__).parents[2] / "docs" / "sofa.md"
 
 
 @needs_reference

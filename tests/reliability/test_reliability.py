@@ -36,7 +36,7 @@ from pliant.mesh.quality import validate_mesh
 from pliant.model import State
 from pliant.solvers import ImplicitEuler, StaticSolver
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 
 
 def run_isolated(code: str, timeout: float = 300) -> list[dict]:

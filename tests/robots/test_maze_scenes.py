@@ -10,7 +10,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from test_scenes import _energy  # kinetic + gravitational + elastic, body and rigid bodies
+from conftest import mechanical_energy
 from typer.testing import CliRunner
 
 from pliant.cli import app
@@ -153,16 +153,16 @@ def test_ball_rolls_down_the_tilted_maze_at_five_sevenths_g_sin_theta() -> None:
 def test_energy_never_grows_without_actuation(scene, tripod_mesh) -> None:
     """Commands held at zero from rest: the pad or tripod sags under the maze and the ball
     rolls to a corner; the total energy only falls, up to what the contact solver's tolerance
-    allows (as tests/test_scenes.py)."""
+    allows (as tests/robots/test_driven_and_rigid_scenes.py)."""
     if scene == "simple_maze":
         model = simple_maze.simple_maze(tilt=lambda t: (0.0, 0.0))
     else:
         model = tripod.tripod_maze(mesh=tripod_mesh, servo_angles=lambda t: np.zeros(3))
     solver, state = ImplicitEuler(model, DT), model.rest_state()
-    energies = [_energy(model, state)]
+    energies = [mechanical_energy(model, state)]
     for _ in range(40):
         state = solver.step(state)
-        energies.append(_energy(model, state))
+        energies.append(mechanical_energy(model, state))
     mass = model.body.total_mass + sum(b.mass for b in model.rigid_bodies)
     allowance = 10 * mass * G * model.contacts.tolerance
     assert np.diff(energies).max() <= allowance, np.diff(energies).max()
@@ -261,7 +261,7 @@ def test_pliant_run_renders_the_simple_maze(tmp_path) -> None:
 
 
 REFERENCE_TRIPOD = (
-    Path(__file__).parents[2] / "shared" / "meshes" / "Maze_tripod_coarse_04_test.vtk"
+    Path(__file__).parents[3] / "shared" / "meshes" / "Maze_tripod_coarse_04_test.vtk"
 )
 
 

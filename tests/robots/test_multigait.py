@@ -14,7 +14,7 @@ from pliant.mesh.multigait import CHAMBERS, multigait_chambers, reference_cavity
 from pliant.robots.multigait import centre_of_mass, demo_actuation, multigait
 from pliant.solvers import ImplicitEuler
 
-MESHES = Path(__file__).resolve().parents[2] / "shared" / "meshes"
+MESHES = Path(__file__).resolve().parents[3] / "shared" / "meshes"
 
 
 @pytest.fixture(scope="module")

@@ -1,4 +1,4 @@
-"""Task checks of the environments beyond the API (tests/test_envs.py): experts and scripted
+"""Task checks of the environments beyond the API (tests/envs/test_envs.py): experts and scripted
 actions reach their goals, rewards follow their definitions, options do what they say."""
 
 from __future__ import annotations
@@ -227,7 +227,7 @@ def test_cart_stem_contact_whipping_off_an_obstacle_misses_no_contact():
                 env.step(action)
 
 
-DOCS = Path(__file__).parents[1] / "docs" / "environments.md"
+DOCS = Path(__file__).parents[2] / "docs" / "environments.md"
 
 
 @pytest.mark.parametrize("code", re.findall(r"```python\n(.*?)```", DOCS.read_text(), flags=re.S))

@@ -35,7 +35,7 @@ from pliant.condensed.train import TrainConfig, fit, train_condensed  # noqa: E4
 from pliant.errors import DatasetError, LearnedModelError, TrainingError  # noqa: E402
 from pliant.processes import driver_identity, exit_with_process  # noqa: E402
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 # The coarse Finger, cables 0-4 mm: 16 + 4 samples in chunks of 2, a second on one core.
 PLAN = CollectionPlan("finger", ((0.0, 4.0), (0.0, 4.0)), 16, chunk_size=2, seed=3)
 TRAINING = TrainConfig(epochs=6, batch_size=4, learning_rate=1e-3, hidden=(16,), progress=False)
@@ -77,7 +77,9 @@ def _start_collection(out: Path, task: str, **env: str) -> subprocess.Popen:
             print(type(exc).__name__, exc, flush=True)
             sys.exit(3)
     """
-    path = os.pathsep.join([str(ROOT), str(ROOT / "tests"), os.environ.get("PYTHONPATH", "")])
+    path = os.pathsep.join(
+        [str(ROOT), str(Path(__file__).parent), os.environ.get("PYTHONPATH", "")]
+    )
     return subprocess.Popen(
         [sys.executable, "-c", textwrap.dedent(code)],
         cwd=ROOT,

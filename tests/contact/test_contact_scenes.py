@@ -13,7 +13,7 @@ from pliant.bench import TRUNK_CUBE_WARMUP, _contact_counts, trunk_cables_cube
 from pliant.errors import ContactMarginWarning
 from pliant.solvers import ImplicitEuler
 
-REFERENCE_MESHES = Path(__file__).resolve().parents[2] / "shared" / "meshes"
+REFERENCE_MESHES = Path(__file__).resolve().parents[3] / "shared" / "meshes"
 
 
 def test_reference_trunk_touches_the_cube_over_the_bench_window() -> None:
