@@ -5,7 +5,7 @@ g (sin theta - mu cos theta), above it sticks; the floor's force stays in the fr
 import numpy as np
 from _common import QUICK, save_figure
 
-from pliant.constraints.collision import Plane
+from pliant.geometry.collision import Plane
 from pliant.constraints.contact import Contacts
 from pliant.fem.body import TetBody
 from pliant.fem.material import Corotational

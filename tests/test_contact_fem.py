@@ -10,12 +10,12 @@ import pytest
 from conftest import clamped_body, two_cable_beam
 
 from pliant.constraints.base import Actuator, JacobianRows
-from pliant.constraints.collision import Box, Plane
 from pliant.constraints.contact import Contacts
 from pliant.constraints.control import InverseControl
 from pliant.errors import ContactError, ContactMarginWarning
 from pliant.fem.body import TetBody
 from pliant.fem.material import Corotational
+from pliant.geometry.collision import Box, Plane
 from pliant.mesh import TetMesh, box_beam
 from pliant.model import Model, State
 from pliant.solvers import ImplicitEuler, StaticSolver

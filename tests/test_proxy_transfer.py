@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from pliant.errors import ModelError
-from pliant.fem.rotation import axis_angle
+from pliant.geometry.rotation import axis_angle
 from pliant.proxy.transfer import (
     MULTIGAIT_GAINS,
     MULTIGAIT_VOLUMES,

@@ -28,7 +28,7 @@ from pliant.constraints.condensed import CondensedProblem
 from pliant.errors import ModelError, SolverError
 from pliant.fem import rod_kernels
 from pliant.fem.rigid import RigidBody
-from pliant.fem.rotation import log_map
+from pliant.geometry.rotation import log_map
 
 
 class Attachment(Constraint):

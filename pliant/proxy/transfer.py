@@ -86,7 +86,7 @@ from pliant.constraints.control import InverseControl
 from pliant.constraints.effector import PositionEffector
 from pliant.envs.base import Ramp, SoftRobotEnv
 from pliant.errors import ContactConvergenceWarning, ModelError, PliantError, SolverError
-from pliant.fem.rotation import exp_map, log_map
+from pliant.geometry.rotation import exp_map, log_map
 from pliant.mesh.multigait import CHAMBERS
 from pliant.model import Model, State
 from pliant.robots.multigait import chamber_amplitudes
