@@ -31,6 +31,7 @@ import numpy as np
 from pliant.constraints.cable import CableActuator
 from pliant.constraints.control import InverseControl
 from pliant.errors import PliantError, StateError
+from pliant.mesh.tetmesh import TetMesh
 from pliant.model import Model, State
 from pliant.viz.shapes import shape_surface
 
@@ -358,8 +359,6 @@ class PlaybackViewer:
         self.frames = [m.points for m in meshes]
         cells = meshes[0].cells_dict
         if "tetra" in cells:
-            from pliant.mesh.tetmesh import TetMesh
-
             self.triangles = TetMesh(meshes[0].points, cells["tetra"]).boundary_triangles()
         else:
             raise ViewerError(f"{folder}: the series holds no tetrahedra to draw")
