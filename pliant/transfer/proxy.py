@@ -95,6 +95,9 @@ from pliant.robots.common import settled
 from pliant.robots.multigait import chamber_amplitudes, multigait
 from pliant.robots.trunk_cube import trunk_cube
 from pliant.solvers import ImplicitEuler
+from pliant.viz.model_view import RobotCamera
+from pliant.viz.render import offscreen_figure
+from pliant.viz.video import atomic_path
 
 FORWARD = np.array([-1.0, 0.0, 0.0])  # the Multigait's forward direction (its environments')
 INVERSE_MODELS = ("qp", "twin", "sensitivity")
@@ -908,9 +911,6 @@ SEQUENCES = {"multigait": MULTIGAIT_SEQUENCE, "trunk": TRUNK_SEQUENCE}
 def plot_transfer(result: TransferResult, path) -> None:
     """PNG of both trajectories: the Multigait's forward position of its centre of mass, the
     Trunk's cube (x and z), against time; and both models' summed rewards per proxy step."""
-    from pliant.viz.render import offscreen_figure
-    from pliant.viz.video import atomic_path
-
     fig = offscreen_figure(10.0, 4.0)
     left, right = fig.subplots(1, 2)
     t = np.asarray(result.times)
@@ -943,8 +943,6 @@ def plot_transfer(result: TransferResult, path) -> None:
 
 def frame(transfer: Transfer, cameras: dict) -> np.ndarray:
     """The FEM robot and the proxy side by side (one frame of a GIF)."""
-    from pliant.viz.model_view import RobotCamera
-
     env = transfer.env
     if not cameras:
         cameras["fem"] = RobotCamera(transfer.fem, view=env.view, size=(400, 300))
