@@ -5,10 +5,10 @@ g (sin theta - mu cos theta), above it sticks; the floor's force stays in the fr
 import numpy as np
 from _common import QUICK, save_figure
 
-from pliant.geometry.collision import Plane
 from pliant.constraints.contact import Contacts
 from pliant.fem.body import TetBody
 from pliant.fem.material import Corotational
+from pliant.geometry.collision import Plane
 from pliant.mesh import box_beam
 from pliant.model import Model
 from pliant.solvers import ImplicitEuler

@@ -26,6 +26,7 @@ from pathlib import Path
 import numpy as np
 
 from pliant.condensed.dataset import atomic_write
+from pliant.solvers import ImplicitEuler
 from pliant.transfer.proxy import (
     MULTIGAIT_GAINS,
     EmbeddedPoints,
@@ -33,7 +34,6 @@ from pliant.transfer.proxy import (
     multigait_transfer,
     with_effector,
 )
-from pliant.solvers import ImplicitEuler
 
 SEQUENCE = (4, 0, 0, 2, 5, 1, 3, 4)
 CASES = {

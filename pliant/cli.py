@@ -30,10 +30,10 @@ from pliant.files import write_json
 from pliant.learn import cli as learn_cli
 from pliant.learn.graph.cli import app as graph_app
 from pliant.planning.cli import plan
-from pliant.transfer.cli import app as proxy_app
 from pliant.reduction.cli import reduce_command
 from pliant.solvers import ImplicitEuler, StaticSolver
 from pliant.trajopt.cli import app as trajopt_app
+from pliant.transfer.cli import app as proxy_app
 
 app = typer.Typer(
     cls=ErrorHandlingGroup,

@@ -434,8 +434,8 @@ def test_inverse_control_of_a_walker_resting_with_friction_keeps_its_contacts_st
     a warning; frictionless, the same step always solved."""
     from pliant.constraints.base import EmbeddedPoints
     from pliant.errors import ContactConvergenceWarning
-    from pliant.transfer.proxy import with_effector
     from pliant.robots.multigait import multigait
+    from pliant.transfer.proxy import with_effector
 
     robot = multigait(mesh_size=6.0)
     rest = robot.body.rest_positions
