@@ -1,11 +1,11 @@
 """Pliant: simulate, control and learn soft robots with the finite element method.
 
 The core is at hand from the package itself (``from pliant import Model, TetBody,
-CableActuator, ImplicitEuler``): the model and its state, bodies and materials, actuators,
-effectors, contacts, loads and supports, the solvers, the robots, the environments' registry
-(``make``, ``ENVS``) and the SOFA loader (``load_scene``). Each name is imported on first use
-(PEP 562), so that ``import pliant`` stays as light as it was and does not import gymnasium or
-torch, which only the environments and the learners need.
+CableActuator, ImplicitEuler``): the model and its state, meshes, collision shapes, bodies and
+materials, actuators, effectors, contacts, loads and supports, the solvers, the robots, the
+environments' registry (``make``, ``ENVS``) and the SOFA loader (``load_scene``). Each name is
+imported on first use (PEP 562), so that ``import pliant`` stays as light as it was and does
+not import gymnasium or torch, which only the environments and the learners need.
 
 Importing pliant sets how the compiled and BLAS code uses threads, before NumPy, SciPy or numba
 start any (each choice is the user's to override, and is measured where it is made below):
@@ -91,12 +91,21 @@ _FACE = {
     "PositionEffector": "pliant.constraints",
     "RigidEffector": "pliant.constraints",
     "Contacts": "pliant.constraints",
+    "Plane": "pliant.geometry",
+    "Box": "pliant.geometry",
+    "Sphere": "pliant.geometry",
+    "Capsule": "pliant.geometry",
+    "TriangleMesh": "pliant.geometry",
     "EmbeddedPoints": "pliant.constraints",
     "InverseControl": "pliant.constraints",
     "DirectControl": "pliant.constraints",
     "ImplicitEuler": "pliant.solvers",
+    "RigidSolver": "pliant.solvers",
+    "RigidWorld": "pliant.solvers",
     "StaticSolver": "pliant.solvers",
     "BatchedImplicitEuler": "pliant.solvers",
+    "TetMesh": "pliant.mesh",
+    "load_mesh": "pliant.mesh",
     "build_robot": "pliant.robots",
     "ROBOTS": "pliant.robots",
     "make": "pliant.envs",
