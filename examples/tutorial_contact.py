@@ -5,13 +5,8 @@ g (sin theta - mu cos theta), above it sticks; the floor's force stays in the fr
 import numpy as np
 from _common import QUICK, save_figure
 
-from pliant.constraints.collision import Plane
-from pliant.constraints.contact import Contacts
-from pliant.fem.body import TetBody
-from pliant.fem.material import Corotational
+from pliant import Contacts, Corotational, ImplicitEuler, Model, Plane, TetBody
 from pliant.mesh import box_beam
-from pliant.model import Model
-from pliant.solvers import ImplicitEuler
 from pliant.viz.render import offscreen_figure
 
 G = 9810.0  # mm/s^2

@@ -7,13 +7,9 @@ and the Trunk are made of (mesh -> body -> constraints -> model -> solver -> sta
 import numpy as np
 from _common import QUICK, out
 
-from pliant.constraints.base import EmbeddedPoints
-from pliant.constraints.cable import CableActuator
-from pliant.fem.body import TetBody, nodes_in_box
-from pliant.fem.material import Corotational
+from pliant import CableActuator, Corotational, EmbeddedPoints, ImplicitEuler, Model, TetBody
+from pliant.fem import nodes_in_box
 from pliant.mesh import box_beam
-from pliant.model import Model
-from pliant.solvers import ImplicitEuler
 from pliant.viz import save_gif
 from pliant.viz.model_view import RobotCamera
 

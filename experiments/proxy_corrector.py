@@ -1,6 +1,6 @@
 """The Multigait's actuation correction on top of the open-loop transfer: each learned policy's
 8 steps replayed on the FEM as volumes (``--feedforward 1``, realignment every 7 steps), with
-the tip-angle corrector (thesis Fig. 4.2.2, :mod:`pliant.proxy.transfer`) at several gains,
+the tip-angle corrector (thesis Fig. 4.2.2, :mod:`pliant.transfer.proxy`) at several gains,
 0 the plain open loop. One ``pliant proxy transfer`` a (policy, gain), two at a time; each
 transfer's JSON in OUT/NAME/gainG/, the summary in OUT/corrector.json and .png.
 

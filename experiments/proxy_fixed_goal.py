@@ -106,7 +106,7 @@ def learn(side: str, goal: str, seed: int, env_steps: int, resume: bool) -> dict
         "curve": curve,
     }
     if side == "proxy":
-        from pliant.proxy.transfer import TRUNK_GAINS
+        from pliant.transfer.proxy import TRUNK_GAINS
 
         report["transfer"] = transfer_episode(saved, offset, TRUNK_GAINS, TOLERANCE)
     path = out / f"report_{side}.json"

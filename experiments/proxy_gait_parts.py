@@ -26,7 +26,7 @@ import numpy as np
 
 from pliant.envs.multigait import FORWARD
 from pliant.proxy.calibrate import fitted_proxy
-from pliant.proxy.transfer import MULTIGAIT_GAINS, multigait_transfer
+from pliant.transfer.proxy import MULTIGAIT_GAINS, multigait_transfer
 
 #: the skeleton's nodes (pliant.proxy.builders.multigait_proxy): the centre, then 4 a leg in
 #: the order front left, front right, rear left, rear right, root to tip.

@@ -2,7 +2,7 @@
 FEM's pushes"): the proxy's trunk stays as its calibration made it (the shortening beams of
 experiments/proxy/contraction/trunk_calibration.json); what the cube does when the trunk
 strikes it is fitted to what the FEM's cube does under the same actuation
-(:mod:`pliant.proxy.pushes`).
+(:mod:`pliant.transfer.pushes`).
 
 Reference (made once, kept in OUT/fem_pushes.npz): whole episodes of the FEM task
 (pliant/TrunkPush-v0 with 14/8 mm courses, 10 steps of 0.3 s), by the five PPO policies learnt
@@ -43,7 +43,7 @@ import numpy as np
 
 from pliant.learn.evaluate import load_policy
 from pliant.proxy.calibrate import calibrate, mean_distance
-from pliant.proxy.pushes import Pushes, cube_travel, fem_pushes, proxy_pushes, random_policy
+from pliant.transfer.pushes import Pushes, cube_travel, fem_pushes, proxy_pushes, random_policy
 
 sys.path.insert(0, str(Path(__file__).parent))
 from proxy_rl import SETTINGS  # noqa: E402

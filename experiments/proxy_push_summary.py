@@ -6,7 +6,7 @@ seeds 0 and 1 of both with three times the steps.
 
 Besides the reports the commands in docs/proxy.md wrote, it measures one thing itself: the
 five FEM policies' greedy episodes on the 20 evaluation goals (seeds 1000-1019, which none of
-the calibrations saw), replayed open loop on each proxy (:mod:`pliant.proxy.pushes`): how far
+the calibrations saw), replayed open loop on each proxy (:mod:`pliant.transfer.pushes`): how far
 the proxy's cube is from the FEM's along them, and where it ends. About 3 minutes.
 
     python experiments/proxy_push_summary.py
@@ -26,7 +26,7 @@ from scipy.stats import wilcoxon
 
 from pliant.envs.trunk_push_proxy import TrunkPushProxyEnv
 from pliant.learn.evaluate import load_policy
-from pliant.proxy.pushes import fem_pushes, proxy_pushes
+from pliant.transfer.pushes import fem_pushes, proxy_pushes
 
 sys.path.insert(0, str(Path(__file__).parent))
 from proxy_exploration_summary import FEM, fem_side, mean, proxy_side, seeded  # noqa: E402

@@ -51,7 +51,7 @@ from proxy_vs_fem_rl import summary, transfer_proxy_policy
 from pliant._proxsuite import BUILD
 from pliant.condensed.dataset import atomic_write
 from pliant.learn.evaluate import load_policy
-from pliant.proxy.transfer import FORWARD, MULTIGAIT_GAINS, multigait_transfer
+from pliant.transfer.proxy import FORWARD, MULTIGAIT_GAINS, multigait_transfer
 
 OUT = Path("experiments/results/proxy")
 #: the Trunk's study: the proxy it degrades, and its PPO settings (the pipeline's)

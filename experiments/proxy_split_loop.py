@@ -8,7 +8,7 @@ the corrector pull the legs' tips towards two different goals.
     python experiments/proxy_split_loop.py --out experiments/results/proxy/split_loop.json
 
 The thesis' test sequence [4,0,0,2,5,1,3,4] on the default proxy, the thesis' gains
-(:data:`pliant.proxy.transfer.MULTIGAIT_GAINS`, frictionless look-ahead), corrector gains 0.5
+(:data:`pliant.transfer.proxy.MULTIGAIT_GAINS`, frictionless look-ahead), corrector gains 0.5
 and 1 with the inverse QP, and 0.5 with the sensitivity model (look-ahead 1); each case's
 per-step rewards, matched-point errors and chamber volumes at each step's end. About 5
 minutes on one core; the JSON is rewritten (atomically) after each case and a rerun skips the
@@ -26,14 +26,14 @@ from pathlib import Path
 import numpy as np
 
 from pliant.condensed.dataset import atomic_write
-from pliant.proxy.transfer import (
+from pliant.solvers import ImplicitEuler
+from pliant.transfer.proxy import (
     MULTIGAIT_GAINS,
     EmbeddedPoints,
     MultigaitTransfer,
     multigait_transfer,
     with_effector,
 )
-from pliant.solvers import ImplicitEuler
 
 SEQUENCE = (4, 0, 0, 2, 5, 1, 3, 4)
 CASES = {

@@ -45,7 +45,7 @@ import numpy as np
 from pliant.envs.trunk_push import TrunkPushEnv
 from pliant.learn.evaluate import load_policy
 from pliant.proxy.calibrate import mean_distance
-from pliant.proxy.pushes import Pushes, cube_travel, proxy_pushes
+from pliant.transfer.pushes import Pushes, cube_travel, proxy_pushes
 
 sys.path.insert(0, str(Path(__file__).parent))
 from proxy_push_calibration import POLICIES, reference  # noqa: E402

@@ -25,7 +25,7 @@ from pathlib import Path
 import numpy as np
 
 from pliant.proxy.calibrate import fitted_proxy
-from pliant.proxy.transfer import SEQUENCES, TRUNK_GAINS, trunk_transfer
+from pliant.transfer.proxy import SEQUENCES, TRUNK_GAINS, trunk_transfer
 
 
 def main() -> None:

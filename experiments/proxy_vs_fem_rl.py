@@ -137,7 +137,7 @@ def transfer_episode(saved, offset_xz, gains, tolerance: float = 8.0, seed: int 
     environment runs it (the direct RL's evaluation too), 10 steps ended at the first that
     leaves the FEM's cube within `tolerance` mm of the goal; `seed` labels the row (the goal's
     draw)."""
-    from pliant.proxy.transfer import trunk_transfer
+    from pliant.transfer.proxy import trunk_transfer
 
     normalize = saved.normalize_obs or (lambda obs: obs)
     loop = trunk_transfer(gains=gains, goal_offset=tuple(offset_xz), env_kwargs=saved.env_kwargs)
@@ -175,7 +175,7 @@ def transfer_proxy_policy(
     not due within an episode); `rest_offset`: the gains' (the FEM follows the proxy's
     displacements from its own settled shape)."""
     from pliant.envs.trunk_push_proxy import TrunkPushProxyEnv
-    from pliant.proxy.transfer import TRUNK_GAINS
+    from pliant.transfer.proxy import TRUNK_GAINS
 
     saved = load_policy(policy_dir)  # its algorithm from its meta.json
     probe = TrunkPushProxyEnv(**saved.env_kwargs)

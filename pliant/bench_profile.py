@@ -24,6 +24,8 @@ from collections.abc import Callable
 
 import numpy as np
 
+from pliant.solvers import BatchedImplicitEuler, ImplicitEuler
+
 # Profiled functions (file suffix, function name) of each part. A part's time is the
 # cumulative time of its functions, which do not call one another.
 PARTS: dict[str, tuple[tuple[str, str], ...]] = {
@@ -105,7 +107,6 @@ def default_error(
     exact: str = "fresh",
 ) -> dict[str, float]:
     """The default step's departure from the exact one over `steps` steps from rest (mm)."""
-    from pliant.solvers import ImplicitEuler
 
     def trajectory(tangent: str) -> np.ndarray:
         solver = ImplicitEuler(model, dt, tangent=tangent)
@@ -137,8 +138,6 @@ def batch_throughput(
     count N, beside N single solvers stepped one after the other in a loop (same commands
     `commands`, (n_actuators,) or None, for every copy); both from rest after `warmup`
     steps."""
-    from pliant.solvers import BatchedImplicitEuler, ImplicitEuler
-
     out = []
     for n in counts:
         singles = [ImplicitEuler(model, 0.01) for _ in range(n)]

@@ -30,10 +30,10 @@ from pliant.files import write_json
 from pliant.learn import cli as learn_cli
 from pliant.learn.graph.cli import app as graph_app
 from pliant.planning.cli import plan
-from pliant.proxy.cli import app as proxy_app
 from pliant.reduction.cli import reduce_command
 from pliant.solvers import ImplicitEuler, StaticSolver
 from pliant.trajopt.cli import app as trajopt_app
+from pliant.transfer.cli import app as proxy_app
 
 app = typer.Typer(
     cls=ErrorHandlingGroup,
@@ -351,6 +351,65 @@ def _copy_counts(text: str) -> tuple[int, ...]:
     return tuple(int(c) for c in counts)
 
 
+def open_viewer(
+    target: str,
+    *,
+    host: str = "127.0.0.1",
+    port: int = 8080,
+    dt: float = 0.01,
+    policy: Path | None = None,
+    playing: bool = True,
+    robot: str | None = None,
+):
+    """The viewer of a robot name, an environment id, a run folder or saved states (checked
+    before any server starts).
+
+    Saved states (an ``.npz`` file, a folder of them, or a run folder with ``states/``) are
+    drawn with the model of `robot`, by default the one their ``series.json`` names."""
+    import pliant.envs as envs
+    from pliant.viz.viewer import (
+        EnvironmentViewer,
+        PlaybackViewer,
+        SimulationViewer,
+        StatePlaybackViewer,
+        ViewerError,
+        load_policy,
+        read_states,
+        series_robot,
+        state_files,
+    )
+
+    if target in robots.ROBOTS:
+        model = robots.build(target)
+        return SimulationViewer(
+            model, ImplicitEuler(model, dt=dt), host=host, port=port, playing=playing
+        )
+    names = {f"pliant/{n}-v0": n for n in envs.ENVS}
+    if target in names or target in envs.ENVS:
+        env_id = target if target in names else f"pliant/{target}-v0"
+        act = None if policy is None else load_policy(policy)
+        return EnvironmentViewer(
+            envs.make(env_id), policy=act, host=host, port=port, playing=playing
+        )
+    files = state_files(Path(target))
+    if files:
+        name = robot or series_robot(files)
+        if name not in robots.ROBOTS:
+            raise ViewerError(
+                f"{target}: saved states need their robot: give --robot"
+                f" ({', '.join(sorted(robots.ROBOTS))})"
+                + ("" if name is None else f", not {name!r}")
+            )
+        model = robots.build(name)
+        return StatePlaybackViewer(model, read_states(files, model), host=host, port=port)
+    if Path(target).is_dir():
+        return PlaybackViewer(Path(target), host=host, port=port)
+    raise ViewerError(
+        f"{target!r} is not a robot ({', '.join(sorted(robots.ROBOTS))}), an environment"
+        f" ({', '.join(sorted(names))}), a folder of a run or saved states (.npz)"
+    )
+
+
 @app.command()
 def view(
     target: Annotated[
@@ -373,7 +432,7 @@ def view(
 ) -> None:
     """Open ROBOT, ENV or RUN_DIR in the browser (viser): the simulation live, actuators on
     sliders, a goal to drag for inverse control, play/pause/step/reset, playback of a run."""
-    from pliant.viz.viewer import ViewerError, open_viewer
+    from pliant.viz.viewer import ViewerError
 
     try:
         viewer = open_viewer(target, host=host, port=port, dt=dt, policy=policy, robot=robot)

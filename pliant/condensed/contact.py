@@ -24,7 +24,7 @@ from pliant.constraints.base import Actuator, EmbeddedPoints, JacobianRows
 from pliant.constraints.condensed import CondensedProblem
 from pliant.constraints.effector import PositionEffector
 from pliant.errors import ModelError
-from pliant.fem.rotation import exp_map
+from pliant.geometry.rotation import exp_map
 from pliant.model import Model, State
 from pliant.solvers import StaticSolver
 

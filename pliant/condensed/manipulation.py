@@ -32,7 +32,7 @@ from pliant.condensed.sampling import Box
 from pliant.constraints.condensed import CondensedProblem
 from pliant.constraints.inverse import solve_inverse
 from pliant.errors import DivergenceError, ModelError, SolverError
-from pliant.fem.rotation import exp_map, log_map, skew
+from pliant.geometry.rotation import exp_map, log_map, skew
 from pliant.model import Model, State
 
 

@@ -28,7 +28,8 @@ from pliant.constraints.condensed import CondensedProblem
 from pliant.errors import ModelError, SolverError
 from pliant.fem import rod_kernels
 from pliant.fem.rigid import RigidBody
-from pliant.fem.rotation import log_map
+from pliant.fem.rod import RodBody
+from pliant.geometry.rotation import log_map
 
 
 class Attachment(Constraint):
@@ -129,8 +130,6 @@ class Weld(Attachment):
     """
 
     def __init__(self, rod, nodes, body: RigidBody, *, name: str = "weld") -> None:
-        from pliant.fem.rod import RodBody
-
         if not isinstance(rod, RodBody):
             raise ModelError(
                 f"{name}: a weld holds a rod's nodes and frames; got {type(rod).__name__} (a"

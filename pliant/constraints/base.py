@@ -15,6 +15,7 @@ from typing import Literal
 import numpy as np
 
 from pliant.errors import ConstraintError, ModelError
+from pliant.mesh import locate_points
 from pliant.mesh.tetmesh import TetMesh
 
 
@@ -47,8 +48,6 @@ class EmbeddedPoints:
     ) -> None:
         """Embed `points`; `tolerance` is the largest distance outside the mesh accepted
         (default 1 % of the bounding-box diagonal), `outside` how such a point is attached."""
-        from pliant.mesh import locate_points
-
         pts = np.atleast_2d(np.asarray(points, dtype=float))
         if pts.ndim != 2 or pts.shape[1] != 3 or pts.shape[0] == 0:
             raise ModelError(f"points must be a non-empty (k, 3) array, got shape {pts.shape}")

@@ -13,7 +13,7 @@ distance a surface point travels towards an obstacle in one step.
 
 Rigid bodies of the model (:class:`pliant.fem.rigid.RigidBody`) are detected too, posed at the
 step's start: the body's points against their shapes, and each rigid body against the
-obstacles and the later rigid bodies (:func:`pliant.constraints.collision.collide`, with a
+obstacles and the later rigid bodies (:func:`pliant.geometry.collision.collide`, with a
 margin grown by the distance the bodies can travel in the step). These rows also move the
 rigid bodies: with u their twists and G (3 rows per contact, `CoupledContact.rigid_jacobian`)
 the velocity of the contact point of side a relative to side b due to them,
@@ -34,10 +34,11 @@ from dataclasses import replace
 import numpy as np
 
 from pliant.constraints.base import Constraint, EmbeddedPoints, JacobianRows
-from pliant.constraints.collision import ContactSet, Shape, collide, detect, shape_velocities
-from pliant.constraints.friction import ContactConstraint, check_friction
+from pliant.constraints.friction import ContactConstraint
 from pliant.errors import ContactError, ContactMarginWarning
+from pliant.fem.material import check_friction
 from pliant.fem.rigid import RigidBody, RigidStep, contact_twist_jacobian
+from pliant.geometry.collision import ContactSet, Shape, collide, detect, shape_velocities
 
 
 class Contacts:

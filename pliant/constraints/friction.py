@@ -63,9 +63,10 @@ from pliant.constraints.base import (
     JacobianRows,
     actuator_bounds,
 )
-from pliant.constraints.collision import ContactSet
 from pliant.constraints.condensed import CondensedProblem
 from pliant.errors import ContactConvergenceWarning, ContactError
+from pliant.fem.material import check_friction
+from pliant.geometry.collision import ContactSet
 
 
 @dataclass(frozen=True)
@@ -110,22 +111,6 @@ class ContactSolution:
     @property
     def actuation(self) -> np.ndarray:
         return self.forces[self.slices["actuator"]]
-
-
-def check_friction(friction, n_contacts: int) -> np.ndarray:
-    """mu as a (k,) array from a scalar or k values; ContactError if any is < 0 or not finite."""
-    values = np.asarray(friction, dtype=float).reshape(-1)
-    if values.size not in (1, n_contacts):
-        raise ContactError(f"expected 1 or {n_contacts} friction coefficients, got {values.size}")
-    bad = ~(np.isfinite(values) & (values >= 0.0))
-    if np.any(bad):
-        i = int(np.argmax(bad))
-        raise ContactError(
-            f"friction coefficients must be finite and >= 0, got mu = {float(values[i])}"
-            f" (contact {i})"
-        )
-    mu = np.broadcast_to(values, (n_contacts,)).copy()
-    return mu
 
 
 def _check_problem(problem: CondensedProblem) -> tuple[np.ndarray, np.ndarray]:

@@ -43,6 +43,7 @@ from pliant.errors import (
 )
 from pliant.model import Model, State
 from pliant.solvers import ImplicitEuler
+from pliant.viz.model_view import RobotCamera
 
 ActionType = Literal["discrete", "continuous"]
 
@@ -370,8 +371,6 @@ class SoftRobotEnv(gym.Env):
         if self.render_mode is None:
             gym.logger.warn("render() called without a render_mode; give render_mode='rgb_array'")
             return None
-        from pliant.viz.model_view import RobotCamera
-
         if self._camera is None:
             self._camera = RobotCamera(self.model, view=self.view, size=(480, 360))
         frame = self._camera.frame(

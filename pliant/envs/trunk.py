@@ -18,27 +18,10 @@ from pliant.constraints.base import EmbeddedPoints
 from pliant.envs.base import ActionType, scaled_box
 from pliant.envs.reaching import CableReachingEnv, ContinuousMode, RewardVariant
 from pliant.model import Model, State
+from pliant.robots.common import settled
 from pliant.robots.trunk import trunk
 
 LENGTH = 195.0
-
-
-def settled(model: Model, sim, steps: int) -> State:
-    """The rest state after `steps` unactuated steps, its clock back at 0 (the ramps start
-    there): positions, velocities and rigid bodies, without the contact warm start."""
-    state = model.rest_state()
-    for _ in range(steps):
-        state = sim.step(state, np.zeros(len(model.actuators)))
-    return State(
-        state.positions,
-        state.velocities,
-        displacement=state.displacement,
-        actuation=state.actuation,
-        rigid_positions=state.rigid_positions,
-        rigid_rotations=state.rigid_rotations,
-        rigid_velocities=state.rigid_velocities,
-        rigid_angular_velocities=state.rigid_angular_velocities,
-    )
 
 
 def neutral_fibre(model: Model, n_points: int) -> EmbeddedPoints:

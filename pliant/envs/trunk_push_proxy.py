@@ -32,12 +32,12 @@ import gymnasium as gym
 import numpy as np
 
 from pliant.envs.base import ActionType, SoftRobotEnv, scaled_box
-from pliant.envs.trunk import settled
 from pliant.envs.trunk_push import CubePushTask
 from pliant.model import Model, State
 from pliant.proxy import trunk_proxy
 from pliant.proxy.actuation import ProxySolver
 from pliant.proxy.references import trunk_commands
+from pliant.robots.common import settled
 
 #: The FEM Trunk's cable courses (mm): four long cables, then four short ones (SoftRobots').
 CABLE_COURSES = np.array([70.0] * 4 + [40.0] * 4)

@@ -1,2 +1,56 @@
 """Deformable bodies (tetrahedra, rods, membranes), materials, rigid bodies and the compiled
 kernels of their forces and tangents."""
+
+from pliant.fem.body import TetBody, nodes_in_box
+from pliant.fem.loads import (
+    FollowerForce,
+    Load,
+    NodalForces,
+    RestShapeSprings,
+    SurfacePressure,
+    SurfaceTraction,
+)
+from pliant.fem.material import MATERIALS, Corotational, Material, NeoHookean
+from pliant.fem.membrane import Membrane
+from pliant.fem.rigid import (
+    AttachedPoints,
+    BodyForce,
+    DrivenNodes,
+    KinematicBody,
+    RigidBody,
+    motor,
+    rail,
+    servo,
+)
+from pliant.fem.rod import ClampedEnd, RodBody, RodSection
+from pliant.fem.supports import OnLine, OnPlane, Projection
+
+__all__ = [
+    "MATERIALS",
+    "AttachedPoints",
+    "BodyForce",
+    "ClampedEnd",
+    "Corotational",
+    "DrivenNodes",
+    "FollowerForce",
+    "KinematicBody",
+    "Load",
+    "Material",
+    "Membrane",
+    "NeoHookean",
+    "NodalForces",
+    "OnLine",
+    "OnPlane",
+    "Projection",
+    "RestShapeSprings",
+    "RigidBody",
+    "RodBody",
+    "RodSection",
+    "SurfacePressure",
+    "SurfaceTraction",
+    "TetBody",
+    "motor",
+    "nodes_in_box",
+    "rail",
+    "servo",
+]

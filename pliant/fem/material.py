@@ -1,4 +1,5 @@
-"""Constitutive laws of the tetrahedral bodies.
+"""Constitutive laws of the tetrahedral bodies, and the Coulomb friction coefficients of
+contacts.
 
 A material is a small immutable object: its Lamé parameters and an integer tag that the
 compiled kernels (:mod:`pliant.fem.kernels`) dispatch on.
@@ -11,7 +12,9 @@ import numbers
 from dataclasses import dataclass
 from typing import ClassVar, Literal
 
-from pliant.errors import MaterialError
+import numpy as np
+
+from pliant.errors import ContactError, MaterialError
 
 COROTATIONAL = 0
 NEO_HOOKEAN = 1
@@ -141,3 +144,19 @@ MATERIALS: dict[str, type[Material]] = {
     "corotational": Corotational,
     "neo-hookean": NeoHookean,
 }
+
+
+def check_friction(friction, n_contacts: int) -> np.ndarray:
+    """mu as a (k,) array from a scalar or k values; ContactError if any is < 0 or not finite."""
+    values = np.asarray(friction, dtype=float).reshape(-1)
+    if values.size not in (1, n_contacts):
+        raise ContactError(f"expected 1 or {n_contacts} friction coefficients, got {values.size}")
+    bad = ~(np.isfinite(values) & (values >= 0.0))
+    if np.any(bad):
+        i = int(np.argmax(bad))
+        raise ContactError(
+            f"friction coefficients must be finite and >= 0, got mu = {float(values[i])}"
+            f" (contact {i})"
+        )
+    mu = np.broadcast_to(values, (n_contacts,)).copy()
+    return mu

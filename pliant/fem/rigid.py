@@ -1,8 +1,9 @@
 """Rigid bodies, kinematic bodies, points attached to a rigid frame, deformable nodes driven by
-a kinematic body (`DrivenNodes`), and a rigid-body world stepped with frictional contact in the
-constraint space. The free motion, M^-1 and contact Jacobian pieces (`RigidStep`,
-`contact_twist_jacobian`) also serve rigid bodies coupled to a deformable body by contact
-(pliant.constraints.contact, pliant.solvers.implicit_euler).
+a kinematic body (`DrivenNodes`), and the pieces of their step with frictional contact in the
+constraint space: the free motion, M^-1 and the contact Jacobian (`RigidStep`,
+`contact_twist_jacobian`), which serve a world of rigid bodies (pliant.solvers.rigid) and rigid
+bodies coupled to a deformable body by contact (pliant.constraints.contact,
+pliant.solvers.implicit_euler).
 
 A rigid body has 6 DoF: the position x of its frame origin (the centre of mass), its rotation R
 (body -> world), and the twist u = (v, w): linear and angular velocity, both in the world.
@@ -33,82 +34,18 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass
 
 import numpy as np
 
-from pliant.constraints import contact_kernels
-from pliant.constraints.collision import (
-    Box,
-    BoxUnion,
-    Capsule,
-    ContactSet,
-    Shape,
-    Sphere,
-    collide,
-    cross,
-)
-from pliant.constraints.condensed import CondensedProblem
-from pliant.constraints.friction import (
-    ContactForces,
-    ContactReport,
-    check_friction,
-    solve_contact,
-)
 from pliant.errors import DivergenceError, ModelError
-from pliant.fem.rotation import axis_angle, check_rotation, exp_map, log_map, skew
+from pliant.fem import rigid_kernels
+from pliant.fem.material import check_friction
+from pliant.geometry.collision import Box, BoxUnion, Capsule, Shape, Sphere, cross
+from pliant.geometry.inertia import box_inertia, box_union_inertia, capsule_inertia, sphere_inertia
+from pliant.geometry.rotation import axis_angle, check_rotation, exp_map, log_map, skew
 
 Trajectory = Callable[[float], tuple[np.ndarray, np.ndarray]]
-
-
-def sphere_inertia(mass: float, radius: float) -> np.ndarray:
-    """Solid sphere about its centre: 2/5 m r^2 I."""
-    return 0.4 * mass * radius**2 * np.eye(3)
-
-
-def box_inertia(mass: float, half_extents) -> np.ndarray:
-    """Solid box about its centre, half extents (a, b, c): m/3 diag(b^2+c^2, a^2+c^2, a^2+b^2)."""
-    a2, b2, c2 = np.asarray(half_extents, dtype=float) ** 2
-    return mass / 3.0 * np.diag([b2 + c2, a2 + c2, a2 + b2])
-
-
-def cylinder_inertia(mass: float, radius: float, half_length: float, axis: int = 2) -> np.ndarray:
-    """Solid cylinder about its centre: m r^2 / 2 about its axis, m (3 r^2 + (2L)^2) / 12 across."""
-    across = mass * (3.0 * radius**2 + 4.0 * half_length**2) / 12.0
-    inertia = np.full(3, across)
-    inertia[axis] = 0.5 * mass * radius**2
-    return np.diag(inertia)
-
-
-def capsule_inertia(mass: float, radius: float, half_length: float) -> np.ndarray:
-    """Solid capsule along z (cylinder of height H = 2L capped by hemispheres), uniform density:
-    with m_c, m_h the masses of the cylinder and of one hemisphere,
-    I_z = m_c r^2 / 2 + 4/5 m_h r^2 and, across, m_c (H^2/12 + r^2/4)
-    + 2 m_h (2/5 r^2 + H^2/4 + 3 H r / 8) (each hemisphere moved from its centroid, 3r/8
-    from its flat face, to the capsule's centre)."""
-    height = 2.0 * half_length
-    cylinder, hemisphere = np.pi * radius**2 * height, 2.0 / 3.0 * np.pi * radius**3
-    scale = mass / (cylinder + 2.0 * hemisphere)
-    m_c, m_h = scale * cylinder, scale * hemisphere
-    axial = 0.5 * m_c * radius**2 + 0.8 * m_h * radius**2
-    across = m_c * (height**2 / 12.0 + radius**2 / 4.0) + 2.0 * m_h * (
-        0.4 * radius**2 + height**2 / 4.0 + 3.0 * height * radius / 8.0
-    )
-    return np.diag([across, across, axial])
-
-
-def box_union_inertia(mass: float, union: BoxUnion) -> np.ndarray:
-    """Solid union of non-overlapping boxes, uniform density, about the union's frame origin:
-    each box's inertia turned into that frame, R_j I_j R_j^T, and moved from its centre d_j
-    by the parallel-axis theorem, + m_j (|d_j|^2 I - d_j d_j^T), with m_j its share of the
-    volume."""
-    volumes = np.array([np.prod(b.half_extents) for b in union.boxes])
-    total = np.zeros((3, 3))
-    for box, volume in zip(union.boxes, volumes, strict=True):
-        m, d = mass * volume / volumes.sum(), box.position
-        turned = box.rotation @ box_inertia(m, box.half_extents) @ box.rotation.T
-        total += turned + m * (d @ d * np.eye(3) - np.outer(d, d))
-    return total
 
 
 def twist_jacobian(arms: np.ndarray) -> np.ndarray:
@@ -173,7 +110,7 @@ def _check_friction(friction: float, name: str) -> float:
     return float(check_friction(friction, 1)[0])
 
 
-def _speed_bound(shape: Shape, velocity: np.ndarray, angular_velocity: np.ndarray) -> float:
+def speed_bound(shape: Shape, velocity: np.ndarray, angular_velocity: np.ndarray) -> float:
     """Largest speed of a point of the shape: |v| + |w| (bounding radius about its origin)."""
     return float(
         np.linalg.norm(velocity) + np.linalg.norm(angular_velocity) * shape.bounding_radius()
@@ -494,7 +431,7 @@ class RigidStep:
         """Largest speed of a point of each body's shape over the step (free motion)."""
         return np.array(
             [
-                _speed_bound(b.shape, u[:3], u[3:])
+                speed_bound(b.shape, u[:3], u[3:])
                 for b, u in zip(bodies, self.twists_free, strict=True)
             ]
         )
@@ -523,240 +460,6 @@ def contact_twist_jacobian(
 
     A row f gives f . (v + w x a) = f . v + (a x f) . w, a = p - x the arm (compiled: the
     plain definition is frames[c] @ twist_jacobian(points[c] - centres[bodies[c]]))."""
-    return contact_kernels.contact_twist_rows(
+    return rigid_kernels.contact_twist_rows(
         frames, points, np.asarray(bodies, dtype=np.int64), centres, n
     )
-
-
-@dataclass
-class RigidState:
-    """Poses and twists of the dynamic bodies, time, step count and the last contact forces
-    (kept so that a restored state warm-starts exactly as it did the first time)."""
-
-    positions: np.ndarray  # (n, 3)
-    rotations: np.ndarray  # (n, 3, 3)
-    velocities: np.ndarray  # (n, 3)
-    angular_velocities: np.ndarray  # (n, 3)
-    time: float = 0.0
-    step: int = 0
-    contacts: ContactForces = field(default_factory=ContactForces.empty)
-
-    def copy(self) -> RigidState:
-        return RigidState(
-            self.positions.copy(),
-            self.rotations.copy(),
-            self.velocities.copy(),
-            self.angular_velocities.copy(),
-            self.time,
-            self.step,
-            self.contacts.copy(),
-        )
-
-    def allclose(self, other: RigidState, *, atol: float = 0.0) -> bool:
-        pairs = (
-            (self.positions, other.positions),
-            (self.rotations, other.rotations),
-            (self.velocities, other.velocities),
-            (self.angular_velocities, other.angular_velocities),
-        )
-        return self.step == other.step and all(
-            np.allclose(a, b, rtol=0.0, atol=atol) for a, b in pairs
-        )
-
-
-class RigidWorld:
-    """Dynamic rigid bodies, obstacles (kinematic bodies, or plain shapes held still) and
-    gravity. The model: built once; what changes lives in RigidState."""
-
-    def __init__(
-        self,
-        bodies: list[RigidBody],
-        obstacles: list[KinematicBody | Shape] = (),
-        *,
-        gravity=(0.0, 0.0, -9.81),
-    ) -> None:
-        self.bodies = list(bodies)
-        self.obstacles = [
-            o if isinstance(o, KinematicBody) else KinematicBody(o) for o in obstacles
-        ]
-        self.gravity = np.asarray(gravity, dtype=float).reshape(3)
-        if not np.all(np.isfinite(self.gravity)):
-            raise ModelError("gravity must be finite")
-        shapes = [c.shape for c in self.colliders]
-        if len({id(s) for s in shapes}) != len(shapes):
-            raise ModelError("each body and obstacle needs its own shape object")
-
-    @property
-    def colliders(self) -> list[RigidBody | KinematicBody]:
-        """Bodies then obstacles: a contact's index_a / index_b index this list."""
-        return [*self.bodies, *self.obstacles]
-
-    def initial_state(self) -> RigidState:
-        b = self.bodies
-        return RigidState(
-            np.array([x.position for x in b]).reshape(-1, 3),
-            np.array([x.rotation for x in b]).reshape(-1, 3, 3),
-            np.array([x.velocity for x in b]).reshape(-1, 3),
-            np.array([x.angular_velocity for x in b]).reshape(-1, 3),
-        )
-
-    def inverse_inertias(self, state: RigidState) -> np.ndarray:
-        """(n, 3, 3) world inverse inertia R I^-1 R^T of each body."""
-        inv = np.array([b.inverse_inertia for b in self.bodies]).reshape(-1, 3, 3)
-        return state.rotations @ inv @ state.rotations.transpose(0, 2, 1)
-
-    def energy(self, state: RigidState) -> float:
-        """Kinetic plus gravitational potential energy: sum 1/2 m v^2 + 1/2 w.I w - m g.x."""
-        total = 0.0
-        for i, b in enumerate(self.bodies):
-            w = state.rotations[i].T @ state.angular_velocities[i]
-            total += 0.5 * b.mass * state.velocities[i] @ state.velocities[i]
-            total += 0.5 * w @ b.inertia @ w - b.mass * self.gravity @ state.positions[i]
-        return float(total)
-
-
-class RigidSolver:
-    """Steps a RigidWorld (see the module docstring for the scheme).
-
-    Args:
-        world: the bodies and obstacles.
-        dt: time step h.
-        margin: contacts are detected up to this gap plus the distance the fastest bodies can
-            travel in the step (speculative contacts).
-        tolerance, max_iterations: of the contact solver (tolerance in length units).
-    """
-
-    def __init__(
-        self,
-        world: RigidWorld,
-        dt: float = 1e-3,
-        *,
-        margin: float = 0.0,
-        tolerance: float = 1e-10,
-        max_iterations: int = 1000,
-    ) -> None:
-        if not (math.isfinite(dt) and dt > 0.0):
-            raise ModelError(f"the time step must be finite and > 0, got {dt!r}")
-        if not (math.isfinite(margin) and margin >= 0.0):
-            raise ModelError(f"the margin must be finite and >= 0, got {margin!r}")
-        self.world = world
-        self.dt = float(dt)
-        self.margin = float(margin)
-        self.tolerance = tolerance
-        self.max_iterations = max_iterations
-        self.last_report = ContactReport()
-        self.last_contacts = ContactSet.empty()
-
-    def _detect(self, state: RigidState, speed: float) -> ContactSet:
-        """Pose every shape, then collide each body with the later colliders whose boxes,
-        grown by the margin, overlap its own."""
-        world, h = self.world, self.dt
-        colliders = world.colliders
-        for i, b in enumerate(world.bodies):
-            b.shape.set_pose(state.positions[i], state.rotations[i])
-            b.shape.set_twist(state.velocities[i], state.angular_velocities[i])
-        for o in world.obstacles:
-            o.place(state.time, h)
-            if o.shape.bounds() is not None:
-                speed = max(
-                    speed, _speed_bound(o.shape, o.shape.linear_velocity, o.shape.angular_velocity)
-                )
-        # Two bodies approach each other at most at the sum of their largest point speeds.
-        margin = self.margin + 2.0 * h * speed
-        boxes = [c.shape.bounds() for c in colliders]
-        found = []
-        for i in range(len(world.bodies)):
-            for j in range(i + 1, len(colliders)):
-                a, b = boxes[i], boxes[j]
-                if b is not None and (np.any(a[0] > b[1] + margin) or np.any(b[0] > a[1] + margin)):
-                    continue
-                pair = collide(colliders[i].shape, colliders[j].shape, margin)
-                k = len(pair)
-                found.append(replace(pair, index_a=np.full(k, i), index_b=np.full(k, j)))
-        return ContactSet.concatenate(found)
-
-    def _contact_jacobian(
-        self, state: RigidState, contacts: ContactSet
-    ) -> tuple[np.ndarray, np.ndarray]:
-        """J (3k, 6n) with J u the velocity of a's contact point relative to b's in each
-        contact frame, and the part of that relative velocity due to obstacles (k, 3)."""
-        n, k = len(self.world.bodies), len(contacts)
-        colliders = self.world.colliders
-        frames = contacts.frames
-        jac = contact_twist_jacobian(
-            frames, contacts.point_a, contacts.index_a, state.positions, n
-        ) - contact_twist_jacobian(frames, contacts.point_b, contacts.index_b, state.positions, n)
-        obstacle_velocity = np.zeros((k, 3))
-        for c in range(k):
-            for i, point, sign in (
-                (int(contacts.index_a[c]), contacts.point_a[c], 1.0),
-                (int(contacts.index_b[c]), contacts.point_b[c], -1.0),
-            ):
-                if i >= n:
-                    velocity = colliders[i].shape.point_velocity(point[None])[0]
-                    obstacle_velocity[c] += sign * frames[c] @ velocity
-        return jac, obstacle_velocity
-
-    def step(self, state: RigidState) -> RigidState:
-        """The state one step h later (see the module docstring); raises DivergenceError if
-        it is not finite."""
-        world, h = self.world, self.dt
-        bodies = world.bodies
-        twists_free = free_twists(
-            bodies,
-            state.rotations,
-            state.velocities,
-            state.angular_velocities,
-            world.gravity,
-            h,
-        )
-        speed = max(
-            (_speed_bound(b.shape, u[:3], u[3:]) for b, u in zip(bodies, twists_free, strict=True)),
-            default=0.0,
-        )
-        contacts = self._detect(state, speed)
-        k = len(contacts)
-        u_free = twists_free.reshape(-1)
-        m_inv = inverse_mass(bodies, state.rotations, h)
-        jac, obstacle_velocity = self._contact_jacobian(state, contacts)
-        delta_free = h * (jac @ u_free + obstacle_velocity.reshape(-1))
-        delta_free[0::3] += contacts.gap
-        compliance = h * h * (jac @ m_inv @ jac.T)
-        colliders = world.colliders
-        mu = np.sqrt(
-            np.array([colliders[i].friction for i in contacts.index_a])
-            * np.array([colliders[j].friction for j in contacts.index_b])
-        )
-        empty = slice(0, 0)
-        problem = CondensedProblem(
-            0.5 * (compliance + compliance.T),
-            delta_free,
-            {"actuator": empty, "effector": empty, "contact": slice(0, 3 * k)},
-        )
-        solution = solve_contact(
-            problem,
-            mu,
-            initial=state.contacts.warm_start(contacts),
-            tolerance=self.tolerance,
-            max_iterations=self.max_iterations,
-        )
-        u = (u_free + h * (m_inv @ (jac.T @ solution.forces))).reshape(-1, 6)
-        if not np.all(np.isfinite(u)):
-            raise DivergenceError(
-                f"step {state.step + 1}: the rigid bodies' velocities became non-finite;"
-                f" reduce the time step (now {h})",
-                step=state.step + 1,
-                cause="non-finite",
-            )
-        positions, rotations = integrate_poses(state.positions, state.rotations, u, h)
-        self.last_report = solution.report
-        self.last_contacts = contacts
-        return RigidState(
-            positions,
-            rotations,
-            u[:, :3].copy(),
-            u[:, 3:].copy(),
-            state.time + h,
-            state.step + 1,
-            ContactForces.from_multipliers(contacts, solution.contact_forces),
-        )

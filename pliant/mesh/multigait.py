@@ -22,6 +22,7 @@ import gmsh
 import numpy as np
 
 from pliant.errors import MeshError
+from pliant.geometry.collision import TriangleMesh
 from pliant.mesh.gmsh_session import gmsh_model, mesh_volumes, retry_meshing
 from pliant.mesh.shapes import _finish, _require_positive
 from pliant.mesh.tetmesh import TetMesh
@@ -207,8 +208,6 @@ def reference_cavity_surfaces(
 
     Raises MeshError when a surface matches no boundary triangle or an open set of them.
     """
-    from pliant.constraints.collision import TriangleMesh
-
     boundary = mesh.boundary_triangles()
     centres = mesh.points[boundary].mean(axis=1)
     out = {}

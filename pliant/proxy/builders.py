@@ -11,12 +11,12 @@ from typing import Literal
 
 import numpy as np
 
-from pliant.constraints.collision import Box, Plane
 from pliant.constraints.contact import Contacts
 from pliant.errors import ModelError
 from pliant.fem.material import Material
 from pliant.fem.rigid import KinematicBody, RigidBody, rail
 from pliant.fem.rod import ClampedEnd, RodBody, RodSection
+from pliant.geometry.collision import Box, Plane
 from pliant.model import Model
 from pliant.proxy.actuation import Bending, CurvatureActuation
 from pliant.proxy.skinning import Skinning

@@ -29,6 +29,10 @@ from pliant.mesh.multigait import CHAMBERS
 from pliant.proxy.builders import MULTIGAIT_PARAMETERS, Proxy, multigait_proxy, trunk_proxy
 from pliant.proxy.calibrate import rollout
 from pliant.proxy.skinning import Skinning
+from pliant.robots.common import settled
+from pliant.robots.multigait import _face_nodes, chamber_amplitudes, demo_actuation, multigait
+from pliant.robots.trunk import trunk
+from pliant.robots.trunk_cube import trunk_cube
 from pliant.solvers import ImplicitEuler
 
 
@@ -102,13 +106,6 @@ def multigait_reference(
     """The FEM Multigait walking its hand gait for `duration` s, or (`actions`) a sequence of
     the proxy environment's actions of 0.6 s each (:data:`MULTIGAIT_PATTERNS`); matched
     points: its underside nodes, one per `spacing` mm cell and along the outline."""
-    from pliant.robots.multigait import (
-        _face_nodes,
-        chamber_amplitudes,
-        demo_actuation,
-        multigait,
-    )
-
     model = multigait(mesh_size=mesh_size)
     nodes = _face_nodes(model.body.mesh, spacing)
     amplitude = chamber_amplitudes()  # demo_actuation's (mm^3 of volume growth)
@@ -209,8 +206,6 @@ def trunk_reference(
 ) -> Reference:
     """The FEM Trunk through `phases` (:data:`TRUNK_PHASES`); matched points: its surface
     nodes; `axial`: the commands of a proxy with axial commands (:func:`trunk_commands`)."""
-    from pliant.robots.trunk import trunk
-
     model = trunk(mesh_size=mesh_size)
     nodes = np.unique(model.body.mesh.boundary_triangles())
     solver, state = ImplicitEuler(model, dt), model.rest_state()
@@ -239,9 +234,6 @@ def trunk_cube_reference(*, dt: float = 0.01, mesh_size: float = 8.0) -> Referen
     bending 0.1, reached in five 0.3 s ramps and held 2.1 s) and pushes it; the points are
     the cube's centre (T, 1, 3), the commands the bendings the cables reach
     (:func:`trunk_commands`)."""
-    from pliant.envs.trunk import settled
-    from pliant.robots.trunk_cube import trunk_cube
-
     model = trunk_cube(mesh_size=mesh_size, base_motion=lambda t: 0.0)
     solver = ImplicitEuler(model, dt)
     state = settled(model, solver, SETTLE_STEPS)

@@ -15,12 +15,14 @@ from pathlib import Path
 
 import numpy as np
 
+from pliant.mesh.multigait import CHAMBERS
 from pliant.model import Model
 from pliant.reduction import snapshots as snap
 from pliant.reduction.basis import check_tolerance, mesh_fingerprint, pod
 from pliant.reduction.ecsw import hyper_reduce
 from pliant.reduction.reduced import ReducedModel
 from pliant.reduction.snapshots import LoadCase
+from pliant.robots.multigait import demo_actuation
 
 
 def build(
@@ -151,9 +153,6 @@ def multigait_cases(
     group (rear pair, centre, front pair) inflated, held and deflated alone, and `sequences`
     random sequences of six of the environment's discrete actions (a group to its amplitude
     or to zero over a phase)."""
-    from pliant.mesh.multigait import CHAMBERS
-    from pliant.robots.multigait import demo_actuation
-
     groups = (("rear_left", "rear_right"), ("centre",), ("front_left", "front_right"))
     centre, leg = amplitude
     full = np.array([centre if c == "centre" else leg for c in CHAMBERS])

@@ -14,11 +14,11 @@ import numpy as np
 
 from pliant.constraints.base import EmbeddedPoints
 from pliant.constraints.cavity import CavityActuator
-from pliant.constraints.collision import Plane, Sphere
 from pliant.constraints.contact import Contacts
 from pliant.errors import ModelError
 from pliant.fem.body import TetBody
 from pliant.fem.rigid import RigidBody
+from pliant.geometry.collision import Plane, Sphere
 from pliant.mesh.gmsh_session import gmsh_model, mesh_volumes, retry_meshing
 from pliant.mesh.shapes import _cavity_surfaces, _finish, _require_positive
 from pliant.mesh.tetmesh import TetMesh

@@ -20,7 +20,6 @@ from typing import Literal
 import numpy as np
 
 from pliant.constraints.base import EmbeddedPoints
-from pliant.constraints.collision import Box
 from pliant.constraints.contact import Contacts
 from pliant.constraints.effector import PositionEffector
 from pliant.errors import ModelError
@@ -28,6 +27,7 @@ from pliant.fem.body import TetBody
 from pliant.fem.material import Material
 from pliant.fem.rigid import DrivenNodes, KinematicBody, rail
 from pliant.fem.rod import ClampedEnd, RodBody, RodSection
+from pliant.geometry.collision import Box
 from pliant.mesh import box_beam
 from pliant.mesh.tetmesh import TetMesh
 from pliant.model import Model

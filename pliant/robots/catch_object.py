@@ -17,11 +17,11 @@ import gmsh
 import numpy as np
 
 from pliant.constraints.cavity import CavityActuator
-from pliant.constraints.collision import Box, Plane, Sphere
 from pliant.constraints.contact import Contacts
 from pliant.errors import ModelError
 from pliant.fem.body import TetBody
 from pliant.fem.rigid import DrivenNodes, KinematicBody, RigidBody, rail
+from pliant.geometry.collision import Box, Plane, Sphere
 from pliant.mesh.gmsh_session import gmsh_model, mesh_volumes, retry_meshing
 from pliant.mesh.shapes import _cavity_surfaces, _finish, _require_positive
 from pliant.mesh.tetmesh import TetMesh

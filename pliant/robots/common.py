@@ -14,6 +14,7 @@ from pliant.fem.body import TetBody, nodes_in_box
 from pliant.fem.material import MATERIALS, Corotational, Material
 from pliant.mesh.quality import validate_mesh
 from pliant.mesh.tetmesh import TetMesh
+from pliant.model import Model, State
 
 MaterialName = Literal[
     "corotational", "corotational-large", "corotational-large-tolerant", "neo-hookean"
@@ -90,3 +91,21 @@ def smooth_ramp(t: float, start: float, duration: float) -> float:
     (zero velocity at both ends): how scripted carts and bases move."""
     s = min(max((t - start) / duration, 0.0), 1.0)
     return s * s * (3.0 - 2.0 * s)
+
+
+def settled(model: Model, sim, steps: int) -> State:
+    """The rest state after `steps` unactuated steps, its clock back at 0 (the ramps start
+    there): positions, velocities and rigid bodies, without the contact warm start."""
+    state = model.rest_state()
+    for _ in range(steps):
+        state = sim.step(state, np.zeros(len(model.actuators)))
+    return State(
+        state.positions,
+        state.velocities,
+        displacement=state.displacement,
+        actuation=state.actuation,
+        rigid_positions=state.rigid_positions,
+        rigid_rotations=state.rigid_rotations,
+        rigid_velocities=state.rigid_velocities,
+        rigid_angular_velocities=state.rigid_angular_velocities,
+    )

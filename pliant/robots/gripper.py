@@ -19,11 +19,11 @@ import numpy as np
 
 from pliant.constraints.base import EmbeddedPoints
 from pliant.constraints.cable import CableActuator
-from pliant.constraints.collision import Box, Plane
 from pliant.constraints.contact import Contacts
 from pliant.errors import ModelError
 from pliant.fem.body import TetBody
 from pliant.fem.rigid import DrivenNodes, KinematicBody, RigidBody, Trajectory
+from pliant.geometry.collision import Box, Plane
 from pliant.mesh.gmsh_session import gmsh_model, mesh_volumes, retry_meshing
 from pliant.mesh.tetmesh import TetMesh
 from pliant.model import Model

@@ -33,11 +33,11 @@ import numpy as np
 
 from pliant.constraints.base import EmbeddedPoints
 from pliant.constraints.cavity import CavityActuator
-from pliant.constraints.collision import Plane
 from pliant.constraints.contact import Contacts
 from pliant.errors import ModelError
 from pliant.fem.body import TetBody
 from pliant.fem.membrane import Membrane
+from pliant.geometry.collision import Plane
 from pliant.mesh import multigait as geometry
 from pliant.mesh.tetmesh import TetMesh
 from pliant.model import Model

@@ -3,7 +3,7 @@ simple_maze-v0); the maze and ball shared with the Tripod scene (:mod:`pliant.ro
 
 The maze is a square floor with border walls and inner walls that leave a serpentine path of
 parallel corridors along y (`maze_boxes`): one rigid body whose shape, a
-:class:`pliant.constraints.collision.BoxUnion`, meets the ball box by box (a ball against a
+:class:`pliant.geometry.collision.BoxUnion`, meets the ball box by box (a ball against a
 floor and a wall gets both contacts). The ball is a rigid sphere with friction.
 
 A Model needs a deformable body, and a Model's moving supports are driven nodes: the maze
@@ -22,12 +22,12 @@ from collections.abc import Callable
 import numpy as np
 
 from pliant.constraints.base import EmbeddedPoints
-from pliant.constraints.collision import Box, BoxUnion, Plane, Sphere
 from pliant.constraints.contact import Contacts
 from pliant.errors import ConstraintError, ModelError
 from pliant.fem.body import TetBody
 from pliant.fem.rigid import DrivenNodes, KinematicBody, RigidBody, Trajectory
-from pliant.fem.rotation import axis_angle
+from pliant.geometry.collision import Box, BoxUnion, Plane, Sphere
+from pliant.geometry.rotation import axis_angle
 from pliant.mesh import box_beam
 from pliant.mesh.shapes import _require_positive
 from pliant.mesh.tetmesh import TetMesh

@@ -20,12 +20,12 @@ import numpy as np
 
 from pliant.constraints.base import EmbeddedPoints
 from pliant.constraints.cable import CableActuator
-from pliant.constraints.collision import Box, Plane
 from pliant.constraints.contact import Contacts
 from pliant.constraints.control import InverseControl
 from pliant.constraints.effector import PositionEffector, RigidEffector
 from pliant.errors import ModelError
 from pliant.fem.rigid import DrivenNodes, KinematicBody, RigidBody, rail
+from pliant.geometry.collision import Box, Plane
 from pliant.mesh.tetmesh import TetMesh
 from pliant.model import Model
 from pliant.robots.common import MaterialName, landmark, smooth_ramp

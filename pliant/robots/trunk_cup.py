@@ -16,10 +16,10 @@ from collections.abc import Callable
 
 import numpy as np
 
-from pliant.constraints.collision import Plane, TriangleMesh
 from pliant.constraints.contact import Contacts
 from pliant.errors import ModelError
 from pliant.fem.rigid import RigidBody
+from pliant.geometry.collision import Plane, TriangleMesh
 from pliant.mesh.shapes import _require_positive
 from pliant.mesh.tetmesh import TetMesh
 from pliant.model import Model

@@ -13,9 +13,9 @@ import math
 
 import numpy as np
 
-from pliant.constraints.collision import Box, Plane
 from pliant.constraints.contact import Contacts
 from pliant.fem.rigid import RigidBody
+from pliant.geometry.collision import Box, Plane
 from pliant.mesh.shapes import _require_positive
 from pliant.mesh.tetmesh import TetMesh
 from pliant.model import Model

@@ -36,7 +36,6 @@ from scipy.spatial.transform import Rotation
 from pliant.constraints.base import EmbeddedPoints
 from pliant.constraints.cable import CableActuator
 from pliant.constraints.cavity import CavityActuator, enclosed_volume
-from pliant.constraints.collision import Box, Plane, TriangleMesh
 from pliant.constraints.contact import Contacts
 from pliant.constraints.effector import PositionEffector
 from pliant.errors import ModelError
@@ -45,6 +44,7 @@ from pliant.fem.loads import Load, NodalForces, RestShapeSprings
 from pliant.fem.material import Corotational, Material, NeoHookean
 from pliant.fem.rigid import RigidBody
 from pliant.fem.supports import OnLine, OnPlane, Projection
+from pliant.geometry.collision import Box, Plane, TriangleMesh
 from pliant.mesh.quality import signed_volumes
 from pliant.mesh.tetmesh import TetMesh
 from pliant.model import Model, State

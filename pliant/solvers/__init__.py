@@ -1,8 +1,18 @@
-"""Time steppers and static solvers, sharing ``step(state, control) -> state``."""
+"""Time steppers and static solvers, sharing ``step(state, control) -> state``, and the
+stepper of a world of rigid bodies (``step(state) -> state``)."""
 
 from pliant.solvers.batched import BatchedImplicitEuler
 from pliant.solvers.implicit_euler import ImplicitEuler
+from pliant.solvers.rigid import RigidSolver, RigidState, RigidWorld
 from pliant.solvers.static import StaticSolver
 from pliant.solvers.system import LinearisedSystem
 
-__all__ = ["BatchedImplicitEuler", "ImplicitEuler", "LinearisedSystem", "StaticSolver"]
+__all__ = [
+    "BatchedImplicitEuler",
+    "ImplicitEuler",
+    "LinearisedSystem",
+    "RigidSolver",
+    "RigidState",
+    "RigidWorld",
+    "StaticSolver",
+]

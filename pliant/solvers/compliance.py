@@ -18,6 +18,8 @@ from __future__ import annotations
 import numpy as np
 
 from pliant.constraints.base import EmbeddedPoints
+from pliant.constraints.cable import CableActuator, CableBundle
+from pliant.constraints.effector import PositionEffector
 from pliant.solvers import compliance_kernels as kernels
 
 
@@ -131,9 +133,6 @@ class PointRows:
     """
 
     def __init__(self, constraints: list, free_index: np.ndarray) -> None:
-        from pliant.constraints.cable import CableActuator, CableBundle
-        from pliant.constraints.effector import PositionEffector
-
         self.constraints = constraints
         nodes, weights, self._offsets = [], [], []
         cable_rows, cable_points = [], []  # the cables' rows, and their points' (row, point)

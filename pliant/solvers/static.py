@@ -29,6 +29,7 @@ from contextlib import contextmanager
 
 import numpy as np
 
+from pliant.constraints.cable import CableActuator
 from pliant.constraints.condensed import CondensedProblem
 from pliant.constraints.control import DirectControl, as_control, constraint_forces
 from pliant.constraints.friction import ContactConstraint
@@ -148,8 +149,6 @@ class StaticSolver:
 
     def _augmentation_pattern(self) -> list[tuple[int, np.ndarray]]:
         """(actuator index, free DoFs its row touches) of each displacement-controlled cable."""
-        from pliant.constraints.cable import CableActuator
-
         free = self.model.body.free_index
         found = []
         for i, a in enumerate(self.model.actuators):

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from pliant.constraints.collision import Box, Capsule, Plane, Shape, Sphere, TriangleMesh
+from pliant.geometry.collision import Box, Capsule, Plane, Shape, Sphere, TriangleMesh
 
 
 def _uv_sphere(radius: float, n: int = 12) -> tuple[np.ndarray, np.ndarray]:

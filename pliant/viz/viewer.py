@@ -31,6 +31,7 @@ import numpy as np
 from pliant.constraints.cable import CableActuator
 from pliant.constraints.control import InverseControl
 from pliant.errors import PliantError, StateError
+from pliant.mesh.tetmesh import TetMesh
 from pliant.model import Model, State
 from pliant.viz.shapes import shape_surface
 
@@ -358,8 +359,6 @@ class PlaybackViewer:
         self.frames = [m.points for m in meshes]
         cells = meshes[0].cells_dict
         if "tetra" in cells:
-            from pliant.mesh.tetmesh import TetMesh
-
             self.triangles = TetMesh(meshes[0].points, cells["tetra"]).boundary_triangles()
         else:
             raise ViewerError(f"{folder}: the series holds no tetrahedra to draw")
@@ -474,54 +473,3 @@ def load_policy(path: Path):
             continue
         return lambda obs: model.predict(obs, deterministic=True)[0]
     raise ViewerError(f"{path}: not a Stable-Baselines3 model")
-
-
-def open_viewer(
-    target: str,
-    *,
-    host: str = "127.0.0.1",
-    port: int = 8080,
-    dt: float = 0.01,
-    policy: Path | None = None,
-    playing: bool = True,
-    robot: str | None = None,
-):
-    """The viewer of a robot name, an environment id, a run folder or saved states (checked
-    before any server starts).
-
-    Saved states (an ``.npz`` file, a folder of them, or a run folder with ``states/``) are
-    drawn with the model of `robot`, by default the one their ``series.json`` names."""
-    from pliant import robots
-    from pliant.solvers import ImplicitEuler
-
-    if target in robots.ROBOTS:
-        model = robots.build(target)
-        return SimulationViewer(
-            model, ImplicitEuler(model, dt=dt), host=host, port=port, playing=playing
-        )
-    import pliant.envs as envs
-
-    names = {f"pliant/{n}-v0": n for n in envs.ENVS}
-    if target in names or target in envs.ENVS:
-        env_id = target if target in names else f"pliant/{target}-v0"
-        act = None if policy is None else load_policy(policy)
-        return EnvironmentViewer(
-            envs.make(env_id), policy=act, host=host, port=port, playing=playing
-        )
-    files = state_files(Path(target))
-    if files:
-        name = robot or series_robot(files)
-        if name not in robots.ROBOTS:
-            raise ViewerError(
-                f"{target}: saved states need their robot: give --robot"
-                f" ({', '.join(sorted(robots.ROBOTS))})"
-                + ("" if name is None else f", not {name!r}")
-            )
-        model = robots.build(name)
-        return StatePlaybackViewer(model, read_states(files, model), host=host, port=port)
-    if Path(target).is_dir():
-        return PlaybackViewer(Path(target), host=host, port=port)
-    raise ViewerError(
-        f"{target!r} is not a robot ({', '.join(sorted(robots.ROBOTS))}), an environment"
-        f" ({', '.join(sorted(names))}), a folder of a run or saved states (.npz)"
-    )

@@ -32,7 +32,7 @@ from pliant.condensed.sampling import Box  # noqa: E402
 from pliant.condensed.train import TrainConfig, evaluate, train_condensed  # noqa: E402
 from pliant.constraints.condensed import CondensedProblem  # noqa: E402
 from pliant.errors import DatasetError, LearnedModelError, ModelError  # noqa: E402
-from pliant.fem.rotation import exp_map  # noqa: E402
+from pliant.geometry.rotation import exp_map  # noqa: E402
 
 HANGING = {"gravity": [9810.0, 0.0, 0.0]}  # the Finger pointing down, as in the gripper
 # Cable 0 closes the finger onto the button, cable 1 mostly slack; the contact points held up

@@ -11,7 +11,6 @@ from conftest import ROD_E, ROD_L, dead_load, straight_rod
 from pliant.constraints.attachment import Attachment, Weld
 from pliant.constraints.base import EmbeddedPoints
 from pliant.constraints.cable import CableActuator
-from pliant.constraints.collision import Box, Plane
 from pliant.constraints.contact import Contacts
 from pliant.constraints.control import InverseControl
 from pliant.constraints.effector import PositionEffector
@@ -19,7 +18,8 @@ from pliant.errors import DivergenceError, ModelError
 from pliant.fem.body import TetBody
 from pliant.fem.material import Corotational
 from pliant.fem.rigid import KinematicBody, RigidBody, rail
-from pliant.fem.rotation import log_map
+from pliant.geometry.collision import Box, Plane
+from pliant.geometry.rotation import log_map
 from pliant.mesh import box_beam
 from pliant.model import Model
 from pliant.solvers import ImplicitEuler, StaticSolver

@@ -8,10 +8,24 @@ import time
 import numpy as np
 import pytest
 
-from pliant.constraints import contact_kernels as kernels
 from pliant.constraints.base import EmbeddedPoints
 from pliant.constraints.cable import CableActuator
-from pliant.constraints.collision import (
+from pliant.constraints.condensed import CondensedProblem
+from pliant.constraints.direct import solve_direct
+from pliant.constraints.friction import ContactConstraint, ContactForces, solve_contact
+from pliant.errors import ContactConvergenceWarning, ContactError, ModelError
+from pliant.fem.material import Corotational
+from pliant.fem.rigid import (
+    AttachedPoints,
+    KinematicBody,
+    RigidBody,
+    contact_twist_jacobian,
+    rail,
+    servo,
+    twist_jacobian,
+)
+from pliant.geometry import collision_kernels as kernels
+from pliant.geometry.collision import (
     Box,
     Capsule,
     ContactSet,
@@ -23,27 +37,10 @@ from pliant.constraints.collision import (
     shape_velocities,
     tangent_frame,
 )
-from pliant.constraints.condensed import CondensedProblem
-from pliant.constraints.direct import solve_direct
-from pliant.constraints.friction import ContactConstraint, ContactForces, solve_contact
-from pliant.errors import ContactConvergenceWarning, ContactError, ModelError
-from pliant.fem.material import Corotational
-from pliant.fem.rigid import (
-    AttachedPoints,
-    KinematicBody,
-    RigidBody,
-    RigidSolver,
-    RigidWorld,
-    box_inertia,
-    capsule_inertia,
-    contact_twist_jacobian,
-    rail,
-    servo,
-    sphere_inertia,
-    twist_jacobian,
-)
-from pliant.fem.rotation import axis_angle, exp_map, log_map
+from pliant.geometry.inertia import box_inertia, capsule_inertia, sphere_inertia
+from pliant.geometry.rotation import axis_angle, exp_map, log_map
 from pliant.mesh import box_beam
+from pliant.solvers.rigid import RigidSolver, RigidWorld
 
 G = 9.81
 
@@ -400,7 +397,7 @@ def test_broad_phase_finds_exactly_the_brute_force_contacts(rng):
 
 
 def test_compiled_detection_matches_the_plain_signed_distances(rng):
-    """detect's compiled pass over primitives (contact_kernels.primitive_contacts) against the
+    """detect's compiled pass over primitives (collision_kernels.primitive_contacts) against the
     shapes' NumPy signed distances, for balls of radius r: the same contacts, gaps, normals
     and contact points; points on a box's faces, edges and centre and on a capsule's axis
     included (the ties of the closest feature). The frames against tangent_frame."""

@@ -10,12 +10,12 @@ import pytest
 from conftest import clamped_body, two_cable_beam
 
 from pliant.constraints.base import Actuator, JacobianRows
-from pliant.constraints.collision import Box, Plane
 from pliant.constraints.contact import Contacts
 from pliant.constraints.control import InverseControl
 from pliant.errors import ContactError, ContactMarginWarning
 from pliant.fem.body import TetBody
 from pliant.fem.material import Corotational
+from pliant.geometry.collision import Box, Plane
 from pliant.mesh import TetMesh, box_beam
 from pliant.model import Model, State
 from pliant.solvers import ImplicitEuler, StaticSolver
@@ -434,8 +434,8 @@ def test_inverse_control_of_a_walker_resting_with_friction_keeps_its_contacts_st
     a warning; frictionless, the same step always solved."""
     from pliant.constraints.base import EmbeddedPoints
     from pliant.errors import ContactConvergenceWarning
-    from pliant.proxy.transfer import with_effector
     from pliant.robots.multigait import multigait
+    from pliant.transfer.proxy import with_effector
 
     robot = multigait(mesh_size=6.0)
     rest = robot.body.rest_positions

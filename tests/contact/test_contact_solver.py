@@ -11,10 +11,11 @@ import pytest
 from pliant.constraints import contact_kernels as kernels
 from pliant.constraints.base import EmbeddedPoints
 from pliant.constraints.cable import CableActuator
-from pliant.constraints.collision import tangent_frame
 from pliant.constraints.condensed import CondensedProblem
 from pliant.constraints.friction import ContactBlocks, solve_contact
-from pliant.fem.rigid import box_inertia, contact_twist_jacobian
+from pliant.fem.rigid import contact_twist_jacobian
+from pliant.geometry.collision import tangent_frame
+from pliant.geometry.inertia import box_inertia
 
 # ---------------------------------------------------------------------------- helpers
 

@@ -7,12 +7,13 @@ import warnings
 import numpy as np
 import pytest
 
-from pliant.constraints.collision import Box, Sphere
 from pliant.constraints.control import InverseControl
 from pliant.errors import ModelError
-from pliant.fem.rigid import RigidBody, RigidSolver, RigidWorld
+from pliant.fem.rigid import RigidBody
+from pliant.geometry.collision import Box, Sphere
 from pliant.robots.trunk_cube import PushControl, trunk_push
 from pliant.solvers import ImplicitEuler
+from pliant.solvers.rigid import RigidSolver, RigidWorld
 
 
 def test_drag_decays_a_free_body_as_implicit_euler_predicts() -> None:

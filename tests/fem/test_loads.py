@@ -376,9 +376,10 @@ def test_a_body_force_turns_with_a_rigid_body() -> None:
     start of the step). Its tangent against differences of the wrench under small turns."""
     from scipy.spatial.transform import Rotation
 
-    from pliant.constraints.collision import Box
-    from pliant.fem.rigid import BodyForce, RigidBody, RigidSolver, RigidWorld
-    from pliant.fem.rotation import exp_map
+    from pliant.fem.rigid import BodyForce, RigidBody
+    from pliant.geometry.collision import Box
+    from pliant.geometry.rotation import exp_map
+    from pliant.solvers.rigid import RigidSolver, RigidWorld
 
     mass, half, f, arm = 2.0, np.array([3.0, 2.0, 1.0]), 5.0, 2.0
     push = BodyForce([0.0, arm, 0.0], [f, 0.0, 0.0])

@@ -15,14 +15,14 @@ from conftest import dead_load, straight_rod  # noqa: E402
 
 from pliant.constraints.base import EmbeddedPoints
 from pliant.constraints.cable import CableActuator
-from pliant.constraints.collision import Box
 from pliant.constraints.effector import PositionEffector
 from pliant.constraints.joint import RotationActuator
 from pliant.errors import ConstraintError, DivergenceError, MaterialError, ModelError
 from pliant.fem.material import Material
 from pliant.fem.rigid import KinematicBody, motor, rail, servo
 from pliant.fem.rod import ClampedEnd, RodBody, RodSection, parallel_frames
-from pliant.fem.rotation import exp_map, log_map
+from pliant.geometry.collision import Box
+from pliant.geometry.rotation import exp_map, log_map
 from pliant.model import Model
 from pliant.robots.common import smooth_ramp
 from pliant.solvers import ImplicitEuler, StaticSolver
@@ -466,8 +466,8 @@ def test_a_rod_resting_on_the_floor_carries_its_weight_on_its_surface() -> None:
     """A free rod of radius 2 dropped from 0.5 mm onto a plane with friction: its nodes,
     contact balls of the rod's radius, come to rest at height 2 (within the contact solver's
     tolerance) and the floor's normal forces add up to the weight."""
-    from pliant.constraints.collision import Plane
     from pliant.constraints.contact import Contacts
+    from pliant.geometry.collision import Plane
 
     points = np.column_stack([np.linspace(0.0, L, 11), np.zeros(11), np.full(11, 2.5)])
     rod = RodBody(

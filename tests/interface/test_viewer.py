@@ -13,13 +13,12 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
-from pliant.cli import app
+from pliant.cli import app, open_viewer
 from pliant.viz.viewer import (
     PlaybackViewer,
     StatePlaybackViewer,
     ViewerError,
     free_port,
-    open_viewer,
 )
 
 CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")

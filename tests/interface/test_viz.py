@@ -308,7 +308,7 @@ def test_shape_surfaces_enclose_their_shapes() -> None:
     """Drawn solids are closed and outward: their enclosed volume is the shape's (a UV sphere
     of 12 rings is inscribed, a few % smaller), at the pose given."""
     from pliant.constraints.cavity import enclosed_volume
-    from pliant.constraints.collision import Box, Capsule, Plane, Sphere
+    from pliant.geometry.collision import Box, Capsule, Plane, Sphere
     from pliant.viz.shapes import shape_surface
 
     rot = np.array([[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])

@@ -12,7 +12,7 @@ from pliant.constraints.cable import CableActuator
 from pliant.errors import ModelError
 from pliant.fem.material import Material
 from pliant.fem.rod import RodBody, RodSection
-from pliant.fem.rotation import exp_map, log_map
+from pliant.geometry.rotation import exp_map, log_map
 from pliant.mesh.multigait import CHAMBERS
 from pliant.model import Model
 from pliant.proxy import Bending, CurvatureActuation, Skinning, multigait_proxy, trunk_proxy

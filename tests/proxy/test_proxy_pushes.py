@@ -1,5 +1,5 @@
 """The FEM Trunk's pushes of the cube, recorded and replayed on its proxy
-(:mod:`pliant.proxy.pushes`), and the proxy's cube keywords they are fitted with."""
+(:mod:`pliant.transfer.pushes`), and the proxy's cube keywords they are fitted with."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ import pytest
 
 from pliant.errors import ModelError
 from pliant.proxy import trunk_proxy
-from pliant.proxy.pushes import Pushes, cube_travel, fem_pushes, proxy_pushes
+from pliant.transfer.pushes import Pushes, cube_travel, fem_pushes, proxy_pushes
 
 FEM = {"substeps": 30, "max_long_displacement": 14.0, "max_short_displacement": 8.0}
 

@@ -1,4 +1,4 @@
-"""Transfer of a proxy's strategy to the FEM robot (pliant.proxy.transfer, thesis §4.1.1):
+"""Transfer of a proxy's strategy to the FEM robot (pliant.transfer.proxy, thesis §4.1.1):
 the actuation filter's recurrence and bounds, realignment imposing the FEM's points (and
 cube) on the proxy, and a short Multigait transfer in which the FEM moves as the proxy."""
 
@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 
 from pliant.errors import ModelError
-from pliant.fem.rotation import axis_angle
-from pliant.proxy.transfer import (
+from pliant.geometry.rotation import axis_angle
+from pliant.transfer.proxy import (
     MULTIGAIT_GAINS,
     MULTIGAIT_VOLUMES,
     ActuationFilter,
@@ -156,7 +156,7 @@ def test_the_twin_goes_on_between_sub_steps_and_is_registered_at_the_realignment
     cosine = float(np.sum(fem * proxy) / (np.linalg.norm(fem) * np.linalg.norm(proxy)))
     assert cosine > 0.7
     assert loop.filter.value[3:].min() > 0.0
-    from pliant.proxy.transfer import TRUNK_GAINS, trunk_transfer
+    from pliant.transfer.proxy import TRUNK_GAINS, trunk_transfer
 
     with pytest.raises(ModelError, match="moving base"):
         trunk_transfer(gains=dataclasses.replace(TRUNK_GAINS, inverse_model="twin"))
@@ -271,7 +271,7 @@ def test_the_open_loop_feedforward_replays_the_proxy_commands_as_volumes() -> No
     assert seen[-1][3:].min() > 0.0 and np.all(seen[-1][:3] == 0.0)  # the rear legs only
     with pytest.raises(ModelError, match="feedforward"):
         dataclasses.replace(MULTIGAIT_GAINS, feedforward=1.5)
-    from pliant.proxy.transfer import TRUNK_GAINS, Transfer
+    from pliant.transfer.proxy import TRUNK_GAINS, Transfer
 
     with pytest.raises(ModelError, match="no feedforward map"):
         Transfer.feedforward(type("T", (), {"robot": "trunk"})(), np.zeros(5))
@@ -401,7 +401,7 @@ def test_following_the_shape_moves_the_goals_by_the_mean_gap_along_the_floor() -
     """follow_shape: the goals lose the mean gap between the proxy's and the FEM's points in x
     and y (not z), so a proxy walked ahead along the floor asks the inverse model for the same
     shape where the FEM stands; the Trunk's transfer, which follows places, refuses it."""
-    from pliant.proxy.transfer import TRUNK_GAINS, MultigaitTransfer, trunk_transfer
+    from pliant.transfer.proxy import TRUNK_GAINS, MultigaitTransfer, trunk_transfer
 
     rng = np.random.default_rng(3)
     fem, shape = rng.normal(size=(19, 3)), rng.normal(scale=0.1, size=(19, 3))
@@ -421,7 +421,7 @@ def test_rest_offset_makes_the_fem_follow_the_proxys_displacements() -> None:
     FEM Trunk sags under gravity more than its proxy), so a proxy held still leaves the FEM
     where it settled, where without it the inverse model pulls the FEM's tip up towards the
     proxy's; the Multigait, whose realignment moves the proxy's points, refuses it."""
-    from pliant.proxy.transfer import (
+    from pliant.transfer.proxy import (
         MULTIGAIT_GAINS,
         TRUNK_GAINS,
         multigait_transfer,
@@ -448,7 +448,7 @@ def test_rest_offset_makes_the_fem_follow_the_proxys_displacements() -> None:
 def test_a_transfer_stops_at_the_first_step_its_until_holds() -> None:
     """`until`: the run ends after the first step at which it holds (an episode its task
     ends early), the steps before it all recorded; without it every step is taken."""
-    from pliant.proxy.transfer import trunk_transfer
+    from pliant.transfer.proxy import trunk_transfer
 
     push = [(0.0, 0.05, 0.0, 0.05, 0.0)] * 3
     asked = []
@@ -467,7 +467,7 @@ def test_a_coarser_proxy_is_followed_by_the_fem_in_its_own_steps() -> None:
     them: the same simulated time, and the FEM follows as closely as under a proxy at the
     FEM's step; a proxy step that is no whole number of the FEM's, or not positive, is
     refused."""
-    from pliant.proxy.transfer import TRUNK_GAINS, proxy_timing, trunk_transfer
+    from pliant.transfer.proxy import TRUNK_GAINS, proxy_timing, trunk_transfer
 
     push = [(0.0, 0.05, 0.0, 0.05, 0.0)] * 2
     loops = {
@@ -546,7 +546,7 @@ def test_the_prior_pulls_the_inverse_towards_the_proxys_commands() -> None:
         dataclasses.replace(MULTIGAIT_GAINS, prior_weight=-1.0)
     with pytest.raises(ModelError, match="prior"):
         dataclasses.replace(MULTIGAIT_GAINS, prior_weight=1.0, inverse_model="sensitivity")
-    from pliant.proxy.transfer import TRUNK_GAINS, trunk_transfer
+    from pliant.transfer.proxy import TRUNK_GAINS, trunk_transfer
 
     with pytest.raises(ModelError, match="no feedforward map"):
         trunk_transfer(gains=dataclasses.replace(TRUNK_GAINS, prior_weight=1.0))

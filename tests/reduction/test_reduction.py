@@ -15,12 +15,12 @@ import pytest
 from pliant.constraints.base import EmbeddedPoints
 from pliant.constraints.cable import CableActuator
 from pliant.constraints.cavity import CavityActuator
-from pliant.constraints.collision import Plane
 from pliant.constraints.contact import Contacts
 from pliant.errors import ReductionError, SolverError
 from pliant.fem.body import TetBody
 from pliant.fem.material import NeoHookean
 from pliant.fem.membrane import Membrane
+from pliant.geometry.collision import Plane
 from pliant.mesh import box_beam
 from pliant.model import Model
 from pliant.reduction import (

@@ -7,11 +7,11 @@ import numpy as np
 import pytest
 from conftest import mechanical_energy
 
-from pliant.constraints.collision import Box, Plane, Sphere
 from pliant.constraints.contact import Contacts
 from pliant.fem.body import TetBody
 from pliant.fem.material import Corotational
 from pliant.fem.rigid import DrivenNodes, KinematicBody, RigidBody, rail
+from pliant.geometry.collision import Box, Plane, Sphere
 from pliant.mesh import box_beam
 from pliant.model import Model, State
 from pliant.robots import cartstem, gripper, trunk_cube

@@ -14,10 +14,11 @@ from conftest import mechanical_energy
 from typer.testing import CliRunner
 
 from pliant.cli import app
-from pliant.constraints.collision import Box, BoxUnion, Sphere, TriangleMesh, collide
 from pliant.errors import ConstraintError, ContactError, ModelError
-from pliant.fem.rigid import RigidBody, box_inertia, box_union_inertia
-from pliant.fem.rotation import log_map
+from pliant.fem.rigid import RigidBody
+from pliant.geometry.collision import Box, BoxUnion, Sphere, TriangleMesh, collide
+from pliant.geometry.inertia import box_inertia, box_union_inertia
+from pliant.geometry.rotation import log_map
 from pliant.model import Model, State
 from pliant.robots import simple_maze, tripod
 from pliant.robots.common import smooth_ramp

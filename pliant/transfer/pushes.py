@@ -24,6 +24,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from pliant.envs.trunk_push import TrunkPushEnv
+from pliant.envs.trunk_push_proxy import CABLE_COURSES, TrunkPushProxyEnv
 from pliant.errors import ModelError
 from pliant.files import load_npz, save_npz
 
@@ -94,9 +96,6 @@ def fem_pushes(
     under `policy`, episode k reset with seed `seed` + k (its goal; the cube starts where it
     always does) and run its `steps` steps whether or not the goal is reached. ModelError if
     the FEM diverges: a reference must be a physical trajectory."""
-    from pliant.envs.trunk_push import TrunkPushEnv
-    from pliant.envs.trunk_push_proxy import CABLE_COURSES
-
     if episodes < 1 or steps < 1:
         raise ModelError(f"pushes need at least one episode of one step, got {episodes}, {steps}")
     kwargs = dict(env_kwargs or {})
@@ -131,8 +130,6 @@ def proxy_pushes(pushes: Pushes, env_kwargs: Mapping | None = None) -> np.ndarra
     """(E, T + 1, 3) the proxy's cube at the start and after each step of `pushes` replayed on
     ``TrunkPushProxyEnv(actions="cables", **env_kwargs)`` (its bend_limit must be the FEM's
     courses over 70/40 mm, 0.2 for 14/8 mm). ModelError if the proxy diverges."""
-    from pliant.envs.trunk_push_proxy import TrunkPushProxyEnv
-
     env = TrunkPushProxyEnv(**{**dict(env_kwargs or {}), "actions": "cables"})
     cubes = np.zeros(pushes.cubes.shape)
     for e, episode in enumerate(pushes.actions):

@@ -85,12 +85,19 @@ from pliant.constraints.base import EmbeddedPoints
 from pliant.constraints.control import InverseControl
 from pliant.constraints.effector import PositionEffector
 from pliant.envs.base import Ramp, SoftRobotEnv
+from pliant.envs.multigait_proxy import MultigaitProxyEnv
+from pliant.envs.trunk_push_proxy import TrunkPushProxyEnv
 from pliant.errors import ContactConvergenceWarning, ModelError, PliantError, SolverError
-from pliant.fem.rotation import exp_map, log_map
+from pliant.geometry.rotation import exp_map, log_map
 from pliant.mesh.multigait import CHAMBERS
 from pliant.model import Model, State
-from pliant.robots.multigait import chamber_amplitudes
+from pliant.robots.common import settled
+from pliant.robots.multigait import chamber_amplitudes, multigait
+from pliant.robots.trunk_cube import trunk_cube
 from pliant.solvers import ImplicitEuler
+from pliant.viz.model_view import RobotCamera
+from pliant.viz.render import offscreen_figure
+from pliant.viz.video import atomic_path
 
 FORWARD = np.array([-1.0, 0.0, 0.0])  # the Multigait's forward direction (its environments')
 INVERSE_MODELS = ("qp", "twin", "sensitivity")
@@ -841,9 +848,6 @@ def multigait_transfer(
     points are the skeleton's nodes at mid-thickness ("axis") or under them on the underside
     ("underside", where the authors' effectors sit: :func:`underside_points`); either way the
     realignment imposes the FEM's mid-thickness points on the nodes."""
-    from pliant.envs.multigait_proxy import MultigaitProxyEnv
-    from pliant.robots.multigait import multigait
-
     if matched not in ("axis", "underside"):
         raise ModelError(f"the matched points are 'axis' or 'underside', got {matched!r}")
     kwargs, gains = proxy_timing(env_kwargs, gains, dt)
@@ -885,10 +889,6 @@ def trunk_transfer(
     `goal_offset` in (x, z); `env_kwargs` those of the policy's training, its time step with
     them: :func:`proxy_timing`) and the FEM Trunk on its base (mesh 8 mm, steps of `dt`), both
     settled under gravity."""
-    from pliant.envs.trunk import settled
-    from pliant.envs.trunk_push_proxy import TrunkPushProxyEnv
-    from pliant.robots.trunk_cube import trunk_cube
-
     kwargs, gains = proxy_timing(env_kwargs, gains, dt)
     env = TrunkPushProxyEnv(**kwargs)
     start = env.state.rigid_positions[0]
@@ -911,9 +911,6 @@ SEQUENCES = {"multigait": MULTIGAIT_SEQUENCE, "trunk": TRUNK_SEQUENCE}
 def plot_transfer(result: TransferResult, path) -> None:
     """PNG of both trajectories: the Multigait's forward position of its centre of mass, the
     Trunk's cube (x and z), against time; and both models' summed rewards per proxy step."""
-    from pliant.viz.render import offscreen_figure
-    from pliant.viz.video import atomic_path
-
     fig = offscreen_figure(10.0, 4.0)
     left, right = fig.subplots(1, 2)
     t = np.asarray(result.times)
@@ -946,8 +943,6 @@ def plot_transfer(result: TransferResult, path) -> None:
 
 def frame(transfer: Transfer, cameras: dict) -> np.ndarray:
     """The FEM robot and the proxy side by side (one frame of a GIF)."""
-    from pliant.viz.model_view import RobotCamera
-
     env = transfer.env
     if not cameras:
         cameras["fem"] = RobotCamera(transfer.fem, view=env.view, size=(400, 300))

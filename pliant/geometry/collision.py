@@ -17,7 +17,7 @@ the margin, found either by testing every point against that box or by a ball qu
 tree (scipy.spatial.cKDTree) of the points. The test costs O(points) per shape, the tree
 O(points log points) once and then O(hits) per shape; "auto" picks the tree from
 `_TREE_MIN_SHAPES` bounded shapes on. The primitives (plane, sphere, box, capsule) are met in
-one compiled pass per shape, box test included (contact_kernels.primitive_contacts), the plain
+one compiled pass per shape, box test included (collision_kernels.primitive_contacts), the plain
 definitions below being its reference. Measured on 10k points spread in a 100 mm cube with
 primitives and meshes of 1-6 mm (times per call, box test / tree; the 2-core machine shared
 with another job): 8 shapes 10.3 / 9.7 ms, 16 shapes 7.6 / 7.1 ms, 64 shapes 49 / 23 ms,
@@ -45,9 +45,9 @@ from functools import cached_property
 import numpy as np
 from scipy.spatial import cKDTree
 
-from pliant.constraints import contact_kernels as kernels
 from pliant.errors import ContactError
-from pliant.fem.rotation import check_rotation
+from pliant.geometry import collision_kernels as kernels
+from pliant.geometry.rotation import check_rotation
 
 _TREE_MIN_SHAPES = 12
 _NO_BOUND = (np.full(3, -np.inf), np.full(3, np.inf))
@@ -168,7 +168,7 @@ class Shape(ABC):
         """(phi, n, closest) for points in the shape frame."""
 
     def _primitive(self) -> tuple[int, np.ndarray] | None:
-        """(kind, sizes) of a shape the compiled detection knows (contact_kernels.PLANE, ...),
+        """(kind, sizes) of a shape the compiled detection knows (collision_kernels.PLANE, ...),
         None for the others (meshes), detected through `_local_distance`."""
         return None
 
@@ -625,7 +625,7 @@ def _contacts_with_shape(
     bounds: tuple[np.ndarray, np.ndarray] = _NO_BOUND,
 ) -> ContactSet:
     """Contacts of the candidate points inside `bounds` (spheres of `radius` around them) with
-    one shape: the primitives in one compiled pass (contact_kernels.primitive_contacts), meshes
+    one shape: the primitives in one compiled pass (collision_kernels.primitive_contacts), meshes
     through their signed distance."""
     candidates = candidates.astype(np.int64, copy=False)
     primitive = shape._primitive()

@@ -291,7 +291,7 @@ def _fitted_parameters(path: Path) -> dict[str, float]:
 def _actions(robot: str, text: str | None) -> list:
     """The action sequence: Multigait "4,0,0,2" (discrete), Trunk "0,0.2,0,0.2,0;..." (one
     continuous action of 5 values per group); None: the robot's default sequence."""
-    from pliant.proxy.transfer import SEQUENCES
+    from pliant.transfer.proxy import SEQUENCES
 
     if text is None:
         return list(SEQUENCES[robot])
@@ -408,7 +408,7 @@ def transfer(
     import dataclasses
     import sys
 
-    from pliant.proxy.transfer import GAINS, TRANSFERS, frame, plot_transfer
+    from pliant.transfer.proxy import GAINS, TRANSFERS, frame, plot_transfer
 
     sequence = None if policy is not None else _actions(robot, actions)
     changes = {
