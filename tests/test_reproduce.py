@@ -195,3 +195,16 @@ def test_a_figure_path_outside_the_repository_is_refused():
     assert all(
         not Path(f.file).is_absolute() and ".." not in f.file for s in STUDIES for f in s.figures
     )
+
+
+def test_docs_results_page_is_filled_from_the_registry():
+    from pliant.reproduce.docs_hook import MARKERS, on_page_markdown
+
+    page = (ROOT / "docs" / "results.md").read_text()
+    assert all(marker in page for marker in MARKERS)
+    rendered = on_page_markdown(page, page=None)
+    assert not any(marker in rendered for marker in MARKERS)
+    for entry in STUDIES:
+        assert f"`{entry.name}`" in rendered
+        for figure in entry.figures:
+            assert figure.ours_text(figure.read()) in rendered

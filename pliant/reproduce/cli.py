@@ -89,6 +89,7 @@ def reproduce_command(
         raise typer.BadParameter("--all runs the quick variants (--quick) or the --check")
     chosen = STUDIES if all_ else (study(name),)
     rows: list[runner.Row] = []
+    failed: list[str] = []  # studies whose command failed
     if check:
         for entry in chosen:
             rows += runner.check(entry)
@@ -98,7 +99,12 @@ def reproduce_command(
             if entry.quick is None:
                 console.print(f"{entry.name}: no quick variant ({entry.no_quick})")
                 continue
-            found, seconds = runner.quick(entry)
+            try:
+                found, seconds = runner.quick(entry)
+            except runner.StudyFailed as error:
+                console.print(f"{entry.name}: FAIL, {error}")
+                failed.append(entry.name)
+                continue
             console.print(f"{entry.name}: quick variant took {seconds:.0f} s")
             rows += found
         console.print(_rows_table("quick variants: figures produced", rows, "committed"))
@@ -106,5 +112,5 @@ def reproduce_command(
         rows, seconds = runner.rerun(chosen[0])
         console.print(f"{chosen[0].name}: {seconds:.0f} s")
         console.print(_rows_table("re-run against the committed figures", rows, "committed"))
-    if not all(row.ok for row in rows):
+    if failed or not all(row.ok for row in rows):
         raise typer.Exit(1)

@@ -12,6 +12,7 @@
 from __future__ import annotations
 
 import math
+import os
 import subprocess
 import tempfile
 import time
@@ -38,8 +39,13 @@ class Row:
 
 
 def _shell(command: str, root: Path) -> float:
+    # A script run by path puts its own folder first on sys.path, not the root: PYTHONPATH makes
+    # it import this checkout's pliant rather than another installed one.
+    path = os.pathsep.join(filter(None, [str(root), os.environ.get("PYTHONPATH")]))
     start = time.perf_counter()
-    result = subprocess.run(["bash", "-c", command], cwd=root)
+    result = subprocess.run(
+        ["bash", "-c", command], cwd=root, env={**os.environ, "PYTHONPATH": path}
+    )
     if result.returncode != 0:
         raise StudyFailed(f"{command!r} exited with {result.returncode}")
     return time.perf_counter() - start

@@ -83,7 +83,7 @@ STUDIES: tuple[Study, ...] = (
             ),
         ),
         quick=Quick(
-            "python experiments/planning/table_3_1.py --goals 1 --budget 4"
+            "python experiments/planning/table_3_1.py --goals 1 --budget 16"
             " --out {out}/table_3_1.json",
             {_PLANNING: "table_3_1.json"},
             seconds=0.0,
