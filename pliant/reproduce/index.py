@@ -31,20 +31,25 @@ def _cell(text: str) -> str:
 
 
 def figures_table(studies: tuple[Study, ...] = STUDIES, root: Path = ROOT) -> str:
-    """One row a figure: thesis result, study, figure, thesis value, ours, departure."""
+    """One row a figure: thesis result, study, figure, thesis value, ours (and where it is
+    read), whether it meets the thesis' value, the departure from the thesis."""
     lines = [
-        "| thesis | study | figure | thesis value | ours | departure from the thesis |",
-        "|---|---|---|---|---|---|",
+        "| thesis | study | figure | thesis value | ours | read from | meets the thesis |"
+        " departure from the thesis |",
+        "|---|---|---|---|---|---|---|---|",
     ]
+    verdicts = {True: "yes", False: "no", None: "-"}
     for study in studies:
         for figure in study.figures:
             try:
-                ours = figure.ours_text(figure.read(root))
+                value = figure.read(root)
+                ours, verdict = figure.ours_text(value), verdicts[figure.meets_thesis(value)]
             except FigureError:
-                ours = "missing"
+                ours, verdict = "missing", "-"
             lines.append(
                 f"| {study.thesis} | `{study.name}` | {_cell(figure.name)} | "
-                f"{figure.thesis_text()} | {ours} | {_cell(figure.departure)} |"
+                f"{figure.thesis_text()} | {ours} | `{figure.file}`: `{figure.path}` | {verdict} |"
+                f" {_cell(figure.departure)} |"
             )
     return "\n".join(lines) + "\n"
 

@@ -88,16 +88,18 @@ class Figure:
             return ours >= self.thesis
         return abs(ours - self.thesis) <= self.tolerance * abs(self.thesis)
 
-    def format(self, value: float) -> str:
-        """``value`` written with ``fmt``, exponents as the docs write them (4.78e-7)."""
-        return re.sub(
-            r"e([+-])0*(\d)", lambda m: "e" + m[1].lstrip("+") + m[2], self.fmt.format(value)
-        )
+    def format(self, value: float, fmt: str | None = None) -> str:
+        """``value`` written with ``fmt`` (default the figure's), exponents as the docs write
+        them (4.78e-7)."""
+        text = (fmt or self.fmt).format(value)
+        return re.sub(r"e([+-])0*(\d)", lambda m: "e" + m[1].lstrip("+") + m[2], text)
 
     def thesis_text(self) -> str:
         if self.thesis is None:
             return "-"
-        return f"{self.format(self.thesis)} {self.thesis_unit or self.unit}".rstrip()
+        # the thesis' value as the thesis gives it, not rounded to our precision
+        fmt = "{:.0f}" if float(self.thesis).is_integer() else "{:.4g}"
+        return f"{self.format(self.thesis, fmt)} {self.thesis_unit or self.unit}".rstrip()
 
     def ours_text(self, ours: float) -> str:
         return f"{self.format(ours)} {self.unit}".rstrip()

@@ -199,8 +199,9 @@ STUDIES: tuple[Study, ...] = (
                 docs="docs/learning.md",
             ),
         ),
-        no_quick="trunk_debris_ppo.py writes into experiments/results/rl/ (no output option)"
-        " and its 400 tests alone take 17 min",
+        no_quick="its figure is 400 tests of a policy cloned from 40 planner episodes then"
+        " trained by PPO: the tests alone take 17 min; the script writes into"
+        " experiments/results/rl/ (no output option)",
     ),
     Study(
         name="cartstem-sac",
@@ -245,8 +246,9 @@ STUDIES: tuple[Study, ...] = (
                 fmt="{:.0f}",
             ),
         ),
-        no_quick="cartstem_sac.py writes into experiments/results/rl/ (no output option); 1000"
-        " warm-up steps and one evaluation take about 3 min",
+        no_quick="its figures are the best policy's 100-goal evaluations (400 episodes of up to"
+        " 30 steps of 0.3 s) after SAC's 1000 warm-up steps: over 10 min; the script writes into"
+        " experiments/results/rl/ (no output option)",
     ),
     Study(
         name="table-4.1",
@@ -317,7 +319,8 @@ STUDIES: tuple[Study, ...] = (
             ),
         ),
         quick=Quick(
-            "python experiments/proxy_speed.py --steps 3 --out {out}/proxy_speed.json",
+            "python experiments/proxy_speed.py --steps 3 --cases trunk_fem trunk_proxy"
+            " --out {out}/proxy_speed.json",
             {_SPEED: "proxy_speed.json"},
             seconds=0.0,
         ),
@@ -753,7 +756,15 @@ STUDIES: tuple[Study, ...] = (
                 fmt="{:.3f}",
             ),
         ),
-        no_quick="needs the models of Table 5.1 and 5.2 (out/, not kept: 25 min each to train)",
+        quick=Quick(
+            "python experiments/condensed/table_5_1.py --finger-samples 32 --diamond-samples 32"
+            " --epochs 3 --work {out}/work --out {out} && python experiments/condensed/"
+            "trajectories.py {out}/work/finger_32.pt {out}/work/diamond_32.pt --iterations 1"
+            " --out {out} && python experiments/condensed/calibration.py --samples 16 --epochs 3"
+            " --iterations 5 --work {out}/work --out {out}",
+            {_TABLE_5_8: "trajectories.json", _CALIBRATION: "calibration_finger.json"},
+            seconds=0.0,
+        ),
     ),
     Study(
         name="trajopt-diamond",
@@ -785,8 +796,11 @@ STUDIES: tuple[Study, ...] = (
                 fmt="{:.0f}",
             ),
         ),
-        no_quick="trajopt_diamond.py writes experiments/results/trajopt/diamond.json (no output"
-        " option) and runs 7 variants of 17-300 s",
+        quick=Quick(
+            "python experiments/trajopt_diamond.py --max-iterations 1 --out {out}",
+            {_TRAJOPT: "diamond.json"},
+            seconds=0.0,
+        ),
     ),
 )
 
