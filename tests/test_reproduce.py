@@ -48,6 +48,13 @@ def test_registry_is_consistent():
         study("table-9.9")
 
 
+def test_commands_name_scripts_that_exist():
+    for entry in STUDIES:
+        commands = entry.command + ("" if entry.quick is None else " " + entry.quick.command)
+        for script in re.findall(r"\S+\.py\b", commands):
+            assert (ROOT / script).is_file(), f"{entry.name}: no {script}"
+
+
 def test_every_reproduced_thesis_result_has_a_study():
     covered = " ".join(s.thesis for s in STUDIES)
     for result in (

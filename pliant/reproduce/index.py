@@ -22,7 +22,8 @@ differs from what the registry generates. Ours is read from the result file, nev
 - `pliant reproduce NAME`: re-run a study and compare its figures with the committed ones
   (the tolerance is per figure); `--quick`: its quick variant, which checks the pipeline
   still produces its figures; `--check`: the committed figures against the thesis.
-- `pliant reproduce --all --quick`: every quick variant (CI).
+- `pliant reproduce --all --quick`: every quick variant (`.ci/reproduce-quick` in CI); the
+  times beside them were measured on the shared 2-core machine at load 6-10.
 """
 
 

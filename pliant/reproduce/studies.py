@@ -1,7 +1,8 @@
 """The studies: every thesis table and section the project reproduces, declared once.
 
 Ours is never written here: each figure names the committed file and the JSON path that hold it.
-Quick variants' times were measured on the project's shared 2-core machine (load 4-8).
+Quick variants' times were measured one at a time on the project's 2-core machine while other
+jobs loaded it (load average 6-10, 2026-12-06): expect less on a quiet machine.
 """
 
 from __future__ import annotations
@@ -86,7 +87,7 @@ STUDIES: tuple[Study, ...] = (
             "python experiments/planning/table_3_1.py --goals 1 --budget 16"
             " --out {out}/table_3_1.json",
             {_PLANNING: "table_3_1.json"},
-            seconds=0.0,
+            seconds=71.0,
         ),
     ),
     Study(
@@ -153,8 +154,14 @@ STUDIES: tuple[Study, ...] = (
                 docs="docs/reduction.md",
             ),
         ),
-        no_quick="the replay needs the trained PPO run (16 min of training on 2 cores), which"
-        " is not kept (runs/ is ignored)",
+        quick=Quick(
+            "pliant train pliant/ReducedMultigait-v0 --algo PPO --config"
+            " pliant/learn/configs/Multigait.yaml --out {out}/run --steps 64 --n-envs 1"
+            " --eval-freq 32 --eval-episodes 1 --video-episodes 0 --no-progress"
+            " && python experiments/reduction_table_3_2.py --run {out}/run --out {out}",
+            {_TABLE_3_2: "table_3_2.json"},
+            seconds=0.0,
+        ),
     ),
     Study(
         name="trunk-debris",
@@ -163,9 +170,10 @@ STUDIES: tuple[Study, ...] = (
         command=(
             "python experiments/rl/trunk_debris_ppo.py --steps 30720 --tests 400 --variant"
             " catchable_course40 --workers 1 --bc --bc-epochs 1000 --learning-rate 3e-5"
-            " --target-kl 0.02 --tag _1e5 && python experiments/rl/trunk_debris_ppo.py"
+            " --target-kl 0.02 --tag 1e5 && python experiments/rl/trunk_debris_ppo.py"
             " --steps 102400 --tests 400 --variant catchable_course40 --workers 1 --bc"
-            " --bc-epochs 1000 --learning-rate 3e-5 --target-kl 0.02 --tag _1e5"
+            " --bc-epochs 1000 --learning-rate 3e-5 --target-kl 0.02 --tag 1e5"
+            " && python experiments/rl/trunk_debris_ppo.py"
         ),
         docs="docs/learning.md",
         figures=(
@@ -322,7 +330,7 @@ STUDIES: tuple[Study, ...] = (
             "python experiments/proxy_speed.py --steps 3 --cases trunk_fem trunk_proxy"
             " --out {out}/proxy_speed.json",
             {_SPEED: "proxy_speed.json"},
-            seconds=0.0,
+            seconds=22.0,
         ),
     ),
     Study(
@@ -399,7 +407,7 @@ STUDIES: tuple[Study, ...] = (
         quick=Quick(
             "pliant proxy calibrate trunk --trials 2 --out {out}",
             {_TRUNK_PROXY: "trunk_calibration.json"},
-            seconds=0.0,
+            seconds=43.0,
         ),
     ),
     Study(
@@ -446,7 +454,7 @@ STUDIES: tuple[Study, ...] = (
             "rl_multigait_surface --steps 1 --inverse-model twin --matched underside"
             " --angle-gain 0.5 --prior-weight 10 --out {out}",
             {_TRANSFER: "multigait_transfer.json"},
-            seconds=0.0,
+            seconds=177.0,
         ),
     ),
     Study(
@@ -475,7 +483,7 @@ STUDIES: tuple[Study, ...] = (
         quick=Quick(
             "python experiments/graph/selector.py --train 2000 --test 1000 --epochs 2 --out {out}",
             {_SELECTOR: "selector.json"},
-            seconds=0.0,
+            seconds=21.0,
         ),
     ),
     Study(
@@ -534,6 +542,7 @@ STUDIES: tuple[Study, ...] = (
         command=(
             "python experiments/condensed/table_5_1.py --workers 2 --work out/condensed_full"
             " && python experiments/condensed/table_5_1_corner.py --corner-samples 300"
+            " --uniform-samples 6200 --epochs 1500"
         ),
         docs="docs/condensed.md",
         figures=(
@@ -577,10 +586,10 @@ STUDIES: tuple[Study, ...] = (
             ),
         ),
         quick=Quick(
-            "python experiments/condensed/table_5_1.py --finger-samples 32 --diamond-samples 32"
-            " --epochs 3 --work {out}/work --out {out}",
+            "python experiments/condensed/table_5_1.py --finger-samples 16 --diamond-samples 16"
+            " --epochs 2 --work {out}/work --out {out}",
             {_TABLE_5_1: "table_5_1.json"},
-            seconds=0.0,
+            seconds=60.0,
         ),
     ),
     Study(
@@ -632,17 +641,19 @@ STUDIES: tuple[Study, ...] = (
             ),
         ),
         quick=Quick(
-            "python experiments/condensed/table_5_2.py --samples 16 --epochs 3"
-            " --iterations 100 --work {out}/work --out {out}",
+            "python experiments/condensed/table_5_2.py --samples 8 --epochs 2"
+            " --iterations 50 --work {out}/work --out {out}",
             {_TABLE_5_2: "table_5_2.json"},
-            seconds=0.0,
+            seconds=122.0,
         ),
     ),
     Study(
         name="table-5.4",
         thesis="Table 5.4",
         title="Stiff-Flop, pressure actuation: standardised test loss",
-        command="python experiments/condensed/stiff_flop.py",
+        command=(
+            "python experiments/condensed/stiff_flop.py --samples 40000 --epochs 200 --workers 2"
+        ),
         docs="docs/condensed.md",
         figures=(
             Figure(
@@ -664,7 +675,13 @@ STUDIES: tuple[Study, ...] = (
         name="table-5.7",
         thesis="Table 5.7",
         title="Finger design parameters: test losses of G and F",
-        command="python experiments/condensed/table_5_7.py",
+        command=(
+            "python experiments/condensed/table_5_7.py --dataset mechanical --samples 10000"
+            " --epochs 1000 --design-epochs 10000 --batch-size 256 --learning-rate 2e-3"
+            " --activation silu --schedule cosine && python experiments/condensed/table_5_7.py"
+            " --dataset geometric --samples 50000 --epochs 60 --design-epochs 60 --batch-size 256"
+            " --learning-rate 2e-3 --activation silu --schedule cosine --workers 2"
+        ),
         docs="docs/condensed.md",
         figures=(
             Figure(
@@ -757,13 +774,13 @@ STUDIES: tuple[Study, ...] = (
             ),
         ),
         quick=Quick(
-            "python experiments/condensed/table_5_1.py --finger-samples 32 --diamond-samples 32"
-            " --epochs 3 --work {out}/work --out {out} && python experiments/condensed/"
-            "trajectories.py {out}/work/finger_32.pt {out}/work/diamond_32.pt --iterations 1"
+            "python experiments/condensed/table_5_1.py --finger-samples 16 --diamond-samples 16"
+            " --epochs 2 --work {out}/work --out {out} && python experiments/condensed/"
+            "trajectories.py {out}/work/finger_16.pt {out}/work/diamond_16.pt --iterations 1"
             " --out {out} && python experiments/condensed/calibration.py --samples 16 --epochs 3"
             " --iterations 5 --work {out}/work --out {out}",
             {_TABLE_5_8: "trajectories.json", _CALIBRATION: "calibration_finger.json"},
-            seconds=0.0,
+            seconds=140.0,
         ),
     ),
     Study(
@@ -799,7 +816,7 @@ STUDIES: tuple[Study, ...] = (
         quick=Quick(
             "python experiments/trajopt_diamond.py --max-iterations 1 --out {out}",
             {_TRAJOPT: "diamond.json"},
-            seconds=0.0,
+            seconds=144.0,
         ),
     ),
 )
