@@ -118,8 +118,11 @@ def test_list_shows_every_study_with_ours(monkeypatch):
 def test_check_and_bad_arguments_through_the_cli(monkeypatch):
     monkeypatch.setenv("COLUMNS", "300")
     assert CliRunner().invoke(app, ["reproduce", "table-3.1", "--check"]).exit_code == 0
-    assert CliRunner().invoke(app, ["reproduce"]).exit_code != 0
-    assert CliRunner().invoke(app, ["reproduce", "--all"]).exit_code != 0
+    for args in (["reproduce"], ["reproduce", "--all"], ["reproduce", "table-9.9", "--check"]):
+        result = CliRunner().invoke(app, args)
+        lines = [line for line in result.output.splitlines() if line.strip()]
+        assert result.exit_code == 2 and len(lines) == 1, result.output
+        assert lines[0].startswith("error: ")
 
 
 # The reading of paths and the runner, on a small made-up study.

@@ -87,7 +87,10 @@ def reproduce_command(
         raise typer.BadParameter("give a study NAME or --all (or --list, --write-index)")
     if all_ and not (quick or check):
         raise typer.BadParameter("--all runs the quick variants (--quick) or the --check")
-    chosen = STUDIES if all_ else (study(name),)
+    try:
+        chosen = STUDIES if all_ else (study(name),)
+    except KeyError as error:
+        raise typer.BadParameter(error.args[0]) from error
     rows: list[runner.Row] = []
     failed: list[str] = []  # studies whose command failed
     if check:
