@@ -163,6 +163,7 @@ def test_meeting_the_thesis():
     assert not _figure(better="closer").meets_thesis(2.5)
     assert _figure(thesis_unit="cm", departure="other units").meets_thesis(1.0) is None
     assert _figure(fmt="{:.2e}").format(4.78e-7) == "4.78e-7"
+    assert _figure(fmt="{:,.0f}").format(40000.2) == "40 000"
     with pytest.raises(ValueError, match="departure"):
         Study("s", "T", "t", "true", (_figure(thesis_unit="cm"),), no_quick="none")
     with pytest.raises(ValueError, match="quick variant"):

@@ -89,9 +89,9 @@ class Figure:
         return abs(ours - self.thesis) <= self.tolerance * abs(self.thesis)
 
     def format(self, value: float, fmt: str | None = None) -> str:
-        """``value`` written with ``fmt`` (default the figure's), exponents as the docs write
-        them (4.78e-7)."""
-        text = (fmt or self.fmt).format(value)
+        """``value`` written with ``fmt`` (default the figure's) as the docs write numbers:
+        exponents short (4.78e-7), thousands (a ``,`` in ``fmt``) apart by spaces (40 000)."""
+        text = (fmt or self.fmt).format(value).replace(",", " ")
         return re.sub(r"e([+-])0*(\d)", lambda m: "e" + m[1].lstrip("+") + m[2], text)
 
     def thesis_text(self) -> str:

@@ -225,7 +225,8 @@ STUDIES: tuple[Study, ...] = (
                 departure="success within 1 mm (1 % of the 100 mm beam; the thesis 0.5 % of"
                 " SofaGym's 30 cm); the checkpoint is chosen by the evaluation it is reported"
                 " on; the run is partial (SAC collapsed after 68k steps)",
-                fmt="{:.0f}",
+                fmt="{:,.0f}",
+                docs="docs/learning.md",
             ),
             Figure(
                 "that policy on 100 goals, sampled actions, success",
@@ -237,6 +238,7 @@ STUDIES: tuple[Study, ...] = (
                 tolerance=0.1,
                 scale=100.0,
                 fmt="{:.0f}",
+                docs="docs/learning.md",
             ),
             Figure(
                 "that policy on 100 goals, mean actions, success",
@@ -248,6 +250,7 @@ STUDIES: tuple[Study, ...] = (
                 tolerance=0.1,
                 scale=100.0,
                 fmt="{:.0f}",
+                docs="docs/learning.md",
             ),
         ),
         no_quick="its figures are the best policy's 100-goal evaluations (400 episodes of up to"
@@ -503,7 +506,8 @@ STUDIES: tuple[Study, ...] = (
                 tolerance=0.3,
                 departure="Pliant's CartStemContact (100 mm beam, 1 mm success), 10 goals an"
                 " evaluation, 3 seeds",
-                fmt="{:.0f}",
+                fmt="{:,.0f}",
+                docs="docs/graph.md",
             ),
             Figure(
                 "graph, learned internal agents, mean of 3 seeds",
@@ -514,7 +518,8 @@ STUDIES: tuple[Study, ...] = (
                 better="lower",
                 tolerance=0.3,
                 departure="slower than plain SAC here (+88 %), where the thesis' is 42 % faster",
-                fmt="{:.0f}",
+                fmt="{:,.0f}",
+                docs="docs/graph.md",
             ),
             Figure(
                 "graph, the FEM inverse as internal agents, mean of 3 seeds",
@@ -525,7 +530,8 @@ STUDIES: tuple[Study, ...] = (
                 better="lower",
                 tolerance=0.3,
                 departure="the static FEM inverse as the convex internal agent",
-                fmt="{:.0f}",
+                fmt="{:,.0f}",
+                docs="docs/graph.md",
             ),
         ),
         no_quick="one seed of the graph method needs about 600 steps (0.08 s each) before its"
@@ -663,6 +669,7 @@ STUDIES: tuple[Study, ...] = (
                 departure="volume change 0-100 mm^3 (thesis 0-30), 40 000 samples, 200 epochs"
                 " (thesis 50 000)",
                 fmt="{:.2e}",
+                docs="docs/condensed.md",
             ),
         ),
         no_quick="the Stiff-Flop's collection alone takes tens of minutes",
@@ -689,6 +696,7 @@ STUDIES: tuple[Study, ...] = (
                 better="lower",
                 tolerance=0.5,
                 fmt="{:.2e}",
+                docs="docs/condensed.md",
             ),
             Figure(
                 "mechanical parameters, F",
@@ -699,6 +707,7 @@ STUDIES: tuple[Study, ...] = (
                 better="lower",
                 tolerance=0.5,
                 fmt="{:.2e}",
+                docs="docs/condensed.md",
             ),
             Figure(
                 "geometry, G",
@@ -710,6 +719,7 @@ STUDIES: tuple[Study, ...] = (
                 tolerance=0.5,
                 departure="G stays flat from its first epoch (train and test alike)",
                 fmt="{:.3g}",
+                docs="docs/condensed.md",
             ),
             Figure(
                 "geometry, F",
@@ -720,6 +730,7 @@ STUDIES: tuple[Study, ...] = (
                 better="lower",
                 tolerance=0.5,
                 fmt="{:.3g}",
+                docs="docs/condensed.md",
             ),
         ),
         no_quick="10 000 and 50 000 samples, each its own design and mesh: hours",
@@ -745,6 +756,7 @@ STUDIES: tuple[Study, ...] = (
                 tolerance=0.5,
                 scale=100.0,
                 fmt="{:.1f}",
+                docs="docs/condensed.md",
             ),
             Figure(
                 "Diamond lifted circle, open loop, trajectory error",
@@ -757,6 +769,7 @@ STUDIES: tuple[Study, ...] = (
                 scale=100.0,
                 departure="the circle lifted to z = 140 mm, inside the learned box",
                 fmt="{:.1f}",
+                docs="docs/condensed.md",
             ),
             Figure(
                 "nu calibrated from 0.45, 0.47 and 0.49 (truth 0.47), mean",
@@ -767,6 +780,7 @@ STUDIES: tuple[Study, ...] = (
                 better="closer",
                 tolerance=0.01,
                 fmt="{:.3f}",
+                docs="docs/condensed.md",
             ),
         ),
         quick=Quick(
@@ -796,6 +810,7 @@ STUDIES: tuple[Study, ...] = (
                 tolerance=0.1,
                 departure="Pliant's Diamond (mesh 20 mm), its own goals and weights",
                 fmt="{:.0f}",
+                docs="docs/trajopt.md",
             ),
             Figure(
                 "non-linear part (the thesis' lift), iterations before it stalls",
@@ -807,6 +822,7 @@ STUDIES: tuple[Study, ...] = (
                 tolerance=0.1,
                 departure="stalls (no cost decrease) where the thesis runs to its cap",
                 fmt="{:.0f}",
+                docs="docs/trajopt.md",
             ),
         ),
         quick=Quick(
