@@ -2,7 +2,9 @@
 
 Ours is never written here: each figure names the committed file and the JSON path that hold it.
 Quick variants' times were measured one at a time on the project's 2-core machine while other
-jobs loaded it (load average 6-10, 2026-12-06): expect less on a quiet machine.
+jobs loaded it (load average 6-10, 2026-12-06), the first run of each (cold caches): expect less
+on a quiet machine (all nine in sequence by `.ci/reproduce-quick`, at load 5-7 with Numba's
+cache warm: 249 s).
 """
 
 from __future__ import annotations
