@@ -55,6 +55,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--max-iterations", type=int, default=100)
     parser.add_argument("--tolerance", type=float, default=1e-4)
+    parser.add_argument("--out", type=Path, default=OUT, help="folder of diamond.json and .png")
     args = parser.parse_args()
     runs = {
         "linear": ({}, "numpy", True),
@@ -130,17 +131,17 @@ def main() -> None:
         "fem_rollout_s": result.forward_time / result.rollouts,
     }
     print(json.dumps(comparison, indent=1))
-    OUT.mkdir(parents=True, exist_ok=True)
+    args.out.mkdir(parents=True, exist_ok=True)
     times = np.arange(scenario.cost.horizon + 1) * scenario.dynamics.dt
     plot_trajectory(
         times,
         plotted,
         scenario.goals,
         box,
-        OUT / "diamond.png",
+        args.out / "diamond.png",
         title="Diamond, two successive goals: box-DDP, full-FEM forward pass",
     )
-    (OUT / "diamond.json").write_text(
+    (args.out / "diamond.json").write_text(
         json.dumps(
             {
                 "command": "python experiments/trajopt_diamond.py",
@@ -163,7 +164,7 @@ def main() -> None:
             indent=1,
         )
     )
-    print(f"wrote {OUT / 'diamond.json'} and {OUT / 'diamond.png'}")
+    print(f"wrote {args.out / 'diamond.json'} and {args.out / 'diamond.png'}")
 
 
 if __name__ == "__main__":

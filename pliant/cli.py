@@ -31,6 +31,7 @@ from pliant.learn import cli as learn_cli
 from pliant.learn.graph.cli import app as graph_app
 from pliant.planning.cli import plan
 from pliant.reduction.cli import reduce_command
+from pliant.reproduce.cli import reproduce_command
 from pliant.solvers import ImplicitEuler, StaticSolver
 from pliant.trajopt.cli import app as trajopt_app
 from pliant.transfer.cli import app as proxy_app
@@ -46,6 +47,7 @@ app.add_typer(condensed_app, name="condensed")
 app.command()(plan)
 app.add_typer(trajopt_app, name="trajopt")
 app.command("reduce")(reduce_command)
+app.command("reproduce")(reproduce_command)
 app.command("train")(learn_cli.train)
 app.command("eval")(learn_cli.eval_)
 app.command("enjoy")(learn_cli.enjoy)
