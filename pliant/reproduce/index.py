@@ -15,7 +15,7 @@ _HEADER = """\
 # Experiments: the thesis' results, reproduced
 
 Generated from the results registry (`pliant/reproduce/studies.py`) and the committed result
-files by `pliant reproduce --write-index`; `tests/test_reproduce.py` fails when this file
+files by `pliant reproduce --write-index`; `tests/interface/test_reproduce.py` fails when this file
 differs from what the registry generates. Ours is read from the result file, never typed in.
 
 - `pliant reproduce --list`: every study, the thesis' value and ours.
