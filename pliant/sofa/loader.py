@@ -24,7 +24,7 @@ from __future__ import annotations
 import dataclasses
 import math
 import warnings
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Literal
@@ -396,6 +396,7 @@ def load_scene(
     outside: Literal["keep", "project"] | None = None,
     change_reference: Literal["lagged", "last"] | None = None,
     inversion: Literal["tolerate", "refuse"] | None = None,
+    config: Mapping | None = None,
 ) -> SofaScene:
     """Read a SOFA scene (``.scn`` XML or a ``createScene`` Python script) into a model.
 
@@ -410,6 +411,8 @@ def load_scene(
             "project"), what a cable's maxDispVariation is measured from ("lagged", "last"),
             what an inverted element of the "large" frame does ("tolerate": keeps its force,
             as in SOFA; "refuse": the step raises DivergenceError).
+        config: the configuration a SofaGym scene's ``createScene(rootNode, config)`` is
+            called with (without it: the scene's own default, or an empty one).
 
     Raises:
         SceneError: the scene cannot be read, uses components Pliant does not support (all
@@ -425,7 +428,7 @@ def load_scene(
     )
     if choices.inversion not in ("tolerate", "refuse"):
         raise SceneError(f"inversion is 'tolerate' or 'refuse', got {choices.inversion!r}")
-    root = read_scene(path)
+    root = read_scene(path, config)
     try:
         return _Builder(root, path, choices, [Path(d) for d in mesh_dirs]).build()
     except SceneError:
@@ -599,8 +602,13 @@ class _Builder:
         it does not have and attributes that are no field of their component (a misspelt
         name, close to one of its fields)."""
         problems = []
+        # SOFA detects no collision without an intersection method: collision models of any
+        # shape are then inert (SofaGym's goal markers carry a sphere model).
+        detects = any(o.type in INTERSECTIONS for n in self.root.walk() for o in n.objects)
         for node in self.root.walk():
             for obj in node.objects:
+                if not detects and obj.type.endswith("CollisionModel"):
+                    continue
                 if obj.type not in HANDLED and obj.type not in IGNORED and not is_visual(obj.type):
                     problems.append(f"{obj.type} (at {node.path})")
                     continue

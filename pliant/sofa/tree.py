@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import difflib
 import xml.etree.ElementTree as ET
+from collections.abc import Mapping
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -156,6 +157,18 @@ INDEX_FIELDS = frozenset(
     {"indices", "points", "edges", "triangles", "quads", "tetrahedra", "tetras", "hexahedra"}
 )
 
+# SOFA's other names for components (registered aliases: older and case variants).
+ALIASES = {
+    "MeshObjLoader": "MeshOBJLoader",
+    "TTriangleModel": "TriangleCollisionModel",
+    "TriangleModel": "TriangleCollisionModel",
+    "TLineModel": "LineCollisionModel",
+    "LineModel": "LineCollisionModel",
+    "TPointModel": "PointCollisionModel",
+    "PointModel": "PointCollisionModel",
+    "SphereModel": "SphereCollisionModel",
+}
+
 # Data fields every component and node answers with SOFA's defaults, set or not.
 OBJECT_DEFAULTS = {"listening": False, "printLog": False, "tags": "", "bbox": ""}
 NODE_DEFAULTS = {
@@ -181,6 +194,9 @@ class SceneObject:
     type: str
     attrs: dict[str, Any]
     node: SceneNode = field(repr=False)
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "type", ALIASES.get(self.type, self.type))
 
     @property
     def name(self) -> Name:
@@ -422,15 +438,18 @@ def _controller_name(controller) -> str:
     return str(getattr(controller, "name", type(controller).__name__))
 
 
-def read_scene(path: str | Path) -> SceneNode:
-    """Read a ``.scn`` / ``.xml`` scene or a ``.py`` scene script (its ``createScene(root)``)."""
+def read_scene(path: str | Path, config: Mapping | None = None) -> SceneNode:
+    """Read a ``.scn`` / ``.xml`` scene or a ``.py`` scene script (its ``createScene(root)``,
+    or ``createScene(root, config)`` with `config`, as SofaGym calls its scenes)."""
     path = Path(path)
     if not path.is_file():
         raise SceneError(f"scene file {str(path)!r} does not exist")
     if path.suffix == ".py":
         from pliant.sofa.script import read_script
 
-        return read_script(path)
+        return read_script(path, config)
+    if config is not None:
+        raise SceneError(f"{path.name}: a configuration is for a createScene script, not XML")
     try:
         element = ET.parse(path).getroot()
     except ET.ParseError as exc:
