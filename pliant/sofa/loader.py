@@ -70,6 +70,7 @@ IGNORED = frozenset(
         "EigenSparseLU",
         "SparseLUSolver",
         "CGLinearSolver",
+        "ShewchukPCGLinearSolver",
         "BlockGaussSeidelConstraintSolver",
         "GenericConstraintSolver",
         "ProjectedGaussSeidelConstraintSolver",
@@ -602,9 +603,7 @@ class _Builder:
         it does not have and attributes that are no field of their component (a misspelt
         name, close to one of its fields)."""
         problems = []
-        # SOFA detects no collision without an intersection method: collision models of any
-        # shape are then inert (SofaGym's goal markers carry a sphere model).
-        detects = any(o.type in INTERSECTIONS for n in self.root.walk() for o in n.objects)
+        detects = self._detects()
         for node in self.root.walk():
             for obj in node.objects:
                 if not detects and obj.type.endswith("CollisionModel"):
@@ -632,6 +631,21 @@ class _Builder:
             )
 
     # --- collisions ----------------------------------------------------------------------------
+    def _detects(self) -> bool:
+        """Whether SOFA detects any collision: it needs an intersection method and collision
+        models on two nodes at least (a model does not collide with itself unless asked).
+        Otherwise collision models of any shape are inert (SofaGym's goal markers carry a
+        sphere model)."""
+        if not any(o.type in INTERSECTIONS for n in self.root.walk() for o in n.objects):
+            return False
+        carriers = [
+            [o for o in n.objects if o.type.endswith("CollisionModel")] for n in self.root.walk()
+        ]
+        carriers = [models for models in carriers if models]
+        return len(carriers) >= 2 or any(
+            _flag(o, "selfCollision", False) for models in carriers for o in models
+        )
+
     def _collisions(self, body_node: SceneNode, body: TetBody, mesh: TetMesh):
         """Contacts and rigid bodies from the collision pipeline: the body's collision points
         (a child node with a PointCollisionModel mapped on it), static triangle obstacles (a
@@ -641,9 +655,7 @@ class _Builder:
         the response's ``mu`` the friction everywhere."""
         intersection = [o for n in self.root.walk() for o in n.objects if o.type in INTERSECTIONS]
         models = [o for n in self.root.walk() for o in n.objects if o.type in COLLISION_MODELS]
-        if not models:
-            return None, []
-        if not intersection:  # SOFA detects no collision without a pipeline
+        if not models or not self._detects():
             return None, []
         proximity = intersection[0]
         margin = _float(proximity, "alarmDistance", 1.0)

@@ -160,6 +160,7 @@ INDEX_FIELDS = frozenset(
 # SOFA's other names for components (registered aliases: older and case variants).
 ALIASES = {
     "MeshObjLoader": "MeshOBJLoader",
+    "FreeMotionMasterSolver": "FreeMotionAnimationLoop",  # until SOFA v24.12
     "TTriangleModel": "TriangleCollisionModel",
     "TriangleModel": "TriangleCollisionModel",
     "TLineModel": "LineCollisionModel",
