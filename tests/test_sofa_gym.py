@@ -1,6 +1,7 @@
 """SofaGym's environment scenes in Pliant: ``createScene(rootNode, config)`` called with the
 environment's configuration, SofaGym's shared helpers (``sofagym.header``), the scene's own
-toolbox module beside it, and its reward, goal and action controllers on the root.
+toolbox module beside it, its reward, goal and action controllers on the root, and SofaGym's
+environment loop around it (:class:`pliant.envs.sofagym.SofaGymEnv`).
 
 tests/sofa_scenes/gym_finger/ (written for these tests in SofaGym's form) is checked against
 the same finger built with Pliant's API under the same cable commands: they agree to
@@ -9,15 +10,20 @@ round-off, and the toolbox's reward and goal read and move the scene as the API'
 
 from __future__ import annotations
 
+import shutil
 import textwrap
 from pathlib import Path
 
+import gymnasium as gym
 import meshio
 import numpy as np
 import pytest
+from gymnasium.utils.env_checker import check_env
 
 from pliant.constraints.base import EmbeddedPoints
 from pliant.constraints.cable import CableActuator
+from pliant.envs.base import ActionError
+from pliant.envs.sofagym import SofaGymEnv
 from pliant.fem.body import TetBody, nodes_in_box
 from pliant.fem.material import Corotational
 from pliant.mesh import box_beam
@@ -181,3 +187,70 @@ def test_what_pliant_lacks_of_sofagym_is_one_scene_error(tmp_path, body, message
     with pytest.raises(SceneError) as error:
         load_scene(_scene(tmp_path, body), config={"dt": 0.01})
     assert message in str(error.value)
+
+
+def test_sofagym_env_runs_sofagyms_loop_on_pliants_simulation(mesh_dir) -> None:
+    """SofaGymEnv's step is SofaGym's: the toolbox's startCmd ramps the cable by 5 mm over
+    dt (scale_factor - 1) (factor 0, 1/4, ..., 1 at the begin of the 5 steps), then getState
+    and getReward; the observation is the API finger's tip under those commands and the goal,
+    and the episode is truncated after timer_limit steps."""
+    config = {
+        **CONFIG,
+        "action": None,
+        "goal": True,
+        "goalList": [[55.0, 14.0, 5.0]],
+        "timer_limit": 2,
+        "dim_state": 6,
+    }
+    env = SofaGymEnv(SCENE, config, action_space=gym.spaces.Discrete(2), mesh_dirs=[mesh_dir])
+    obs, info = env.reset(seed=0)
+    assert info["goal"] == [55.0, 14.0, 5.0] and env.observation_space.contains(obs)
+    np.testing.assert_allclose(obs, [60.0, 5.0, 5.0, 55.0, 14.0, 5.0])
+    obs, reward, done, truncated, _ = env.step(0)
+    assert not done and not truncated
+
+    model, cable, tip = _finger_by_api(CONFIG["youngModulus"])
+    api = ImplicitEuler(model, CONFIG["dt"], tangent="fresh")
+    state = model.rest_state()
+    for factor in (0.0, 0.25, 0.5, 0.75, 1.0):
+        cable.value = 5.0 * factor
+        state = api.step(state)
+    np.testing.assert_allclose(obs[:3], tip.positions(state.positions)[0], rtol=0, atol=1e-4)
+    goal = np.array(config["goalList"][0])
+    before = np.linalg.norm(np.array([60.0, 5.0, 5.0]) - goal)
+    after = np.linalg.norm(tip.positions(state.positions)[0] - goal)
+    assert reward == pytest.approx((before - after) / before, abs=1e-9)
+    assert env.step(1)[3]  # truncated: timer_limit reached
+    with pytest.raises(ActionError):
+        env.step(2)
+
+
+def test_a_failing_toolbox_is_the_scenes_error(mesh_dir, tmp_path) -> None:
+    """An exception in the toolbox's functions is a SceneError at the toolbox's line."""
+    folder = tmp_path / "scene"
+    shutil.copytree(SCENE.parent, folder)
+    toolbox = folder / "GymFingerToolbox.py"
+    toolbox.write_text(toolbox.read_text().replace("PULL[action]", "PULL[action].missing"))
+    config = {**CONFIG, "action": None, "timer_limit": 2, "dim_state": 6}
+    env = SofaGymEnv(
+        folder / SCENE.name, config, action_space=gym.spaces.Discrete(2), mesh_dirs=[mesh_dir]
+    )
+    env.reset(seed=0)
+    with pytest.raises(SceneError, match=r"GymFingerToolbox.startCmd failed at GymFingerToolbox"):
+        env.step(0)
+
+
+def test_sofagym_env_passes_gymnasiums_checks(mesh_dir) -> None:
+    """Gymnasium's check_env: spaces, seeded resets (the goal drawn from goalList), steps.
+    The states are SofaGym's, unbounded: the checker's warning about it is expected."""
+    config = {
+        **CONFIG,
+        "action": None,
+        "goal": True,
+        "goalList": [[55.0, 14.0, 5.0], [50.0, -8.0, 5.0]],
+        "timer_limit": 3,
+        "dim_state": 6,
+    }
+    env = SofaGymEnv(SCENE, config, action_space=gym.spaces.Discrete(2), mesh_dirs=[mesh_dir])
+    with pytest.warns(UserWarning, match="infinity"):
+        check_env(env, skip_render_check=True)

@@ -17,6 +17,7 @@ import re
 import runpy
 import sys
 import traceback
+import types
 from collections.abc import Mapping
 from contextlib import contextmanager
 from pathlib import Path
@@ -39,7 +40,7 @@ def read_script(path: Path, config: Mapping | None = None) -> SceneNode:
     """
     path = path.resolve()  # the script runs in its own folder
     root = SceneNode("root")
-    with _stand_ins(path.parent):
+    with _stand_ins(path.parent) as own_modules:
         try:
             namespace = runpy.run_path(str(path), run_name="pliant_sofa_scene")
             create = namespace.get("createScene")
@@ -63,6 +64,7 @@ def read_script(path: Path, config: Mapping | None = None) -> SceneNode:
             raise _import_error(path, exc) from exc
         except (Exception, SystemExit) as exc:  # a script's sys.exit() ends the scene only
             raise scene_error(path, exc) from exc
+    root.modules = own_modules
     return root
 
 
@@ -125,15 +127,16 @@ def _stand_ins(folder: Path):
     sys.path.insert(0, str(folder))
     cwd = os.getcwd()
     os.chdir(folder)  # scripts open their data by paths relative to their folder
+    own: dict[str, types.ModuleType] = {}  # the script's own modules, filled at the end
     try:
-        yield
+        yield own
     finally:
         os.chdir(cwd)
         sys.path[:] = path
         for name in set(sys.modules) - before:  # the scene's own modules import the stand-ins
             file = getattr(sys.modules[name], "__file__", None)
             if file and Path(file).resolve().is_relative_to(folder):
-                del sys.modules[name]
+                own[name] = sys.modules.pop(name)
         for name, module in saved.items():
             if module is None:
                 sys.modules.pop(name, None)

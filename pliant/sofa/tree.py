@@ -124,6 +124,41 @@ class Data:
     def __getitem__(self, index):
         return self.value[index]
 
+    # Arithmetic on the value (SofaPython3's array data): ``cable.value += 1`` computes the
+    # sum and assigns it to the field.
+    def __add__(self, other):
+        return np.add(self.value, other)
+
+    def __radd__(self, other):
+        return np.add(other, self.value)
+
+    def __sub__(self, other):
+        return np.subtract(self.value, other)
+
+    def __rsub__(self, other):
+        return np.subtract(other, self.value)
+
+    def __mul__(self, other):
+        return np.multiply(self.value, other)
+
+    def __rmul__(self, other):
+        return np.multiply(other, self.value)
+
+    def __truediv__(self, other):
+        return np.divide(self.value, other)
+
+    def __neg__(self):
+        return np.negative(self.value)
+
+    @property
+    def shape(self) -> tuple[int, ...]:
+        """The value's array shape, as SofaPython3's array data give it."""
+        return np.shape(self.value)
+
+    @property
+    def ndim(self) -> int:
+        return len(self.shape)
+
     def __len__(self) -> int:
         return len(self.value)
 
@@ -293,6 +328,10 @@ class SceneNode:
     parent: SceneNode | None = field(default=None, repr=False)
     controllers: list[Any] = field(default_factory=list, repr=False)
     extras: dict[str, Any] = field(default_factory=dict, repr=False)
+    #: the root of a script's scene: the modules of the script's folder that it imported, by
+    #: name (out of ``sys.modules`` after the load; SofaGym's toolbox functions are called
+    #: on the scene after it is built).
+    modules: dict[str, Any] = field(default_factory=dict, repr=False)
 
     def __post_init__(self) -> None:
         self.name = Name(self.name)

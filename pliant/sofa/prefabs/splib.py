@@ -44,7 +44,8 @@ class Animation:
         if self.start is None:
             self.start = time
         progress = 1.0 if self.duration == 0.0 else (time - self.start) / self.duration
-        progress = min(max(progress, 0.0), 1.0)
+        # The clock sums time steps: a step that lands on the clip's end to round-off ends it.
+        progress = 1.0 if progress > 1.0 - 1e-9 else max(progress, 0.0)
         self.factor = progress if self.direction > 0 else 1.0 - progress
         self.on_update(factor=self.factor, **self.params)
         if progress < 1.0:

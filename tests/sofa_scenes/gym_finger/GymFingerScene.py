@@ -1,8 +1,9 @@
 """A cable-driven finger written, for the tests, as SofaGym writes its environments' scenes:
 ``createScene(rootNode, config, mode)`` reading the environment's configuration, SofaGym's
 ``addHeader`` / ``addVisu``, a goal node that the effector's goal links to, and the reward,
-goal and action controllers of the scene's own toolbox module added to the root; the first
-command starts as an animation over one environment step (``scale_factor`` steps)."""
+goal and action controllers of the scene's own toolbox module added to the root; a first
+command (``config["action"]``) starts as an animation over one environment step
+(``scale_factor`` steps)."""
 
 import os
 import pathlib
@@ -87,5 +88,6 @@ def createScene(
     rootNode.addObject(rewardShaper(name="Reward", rootNode=rootNode, goalPos=config["goalPos"]))
     rootNode.addObject(goalSetter(name="GoalSetter", goalMO=goal_mo, goalPos=config["goalPos"]))
     rootNode.addObject(applyAction(name="applyAction", root=rootNode))
-    startCmd(rootNode, config["action"], config["scale_factor"] * config["dt"])
+    if config.get("action") is not None:  # a first command, started by the scene itself
+        startCmd(rootNode, config["action"], config["scale_factor"] * config["dt"])
     return rootNode

@@ -1,6 +1,7 @@
 """The toolbox of gym_finger (written for the tests, in the form SofaGym gives its
 environments' toolboxes): the reward, the goal and the action as Sofa.Core.Controllers that
-the scene adds to its root, and the command started as an SPLIB animation."""
+the scene adds to its root, the command started as an SPLIB animation (``startCmd``), and
+the functions the environment calls (``getState``, ``getReward``)."""
 
 import numpy as np
 import Sofa.Core
@@ -87,3 +88,9 @@ def startCmd(root, action, duration):
 
 def getState(root):
     return [*tip_position(root), *np.array(root.Goal.GoalMO.position.value[0])]
+
+
+def getReward(root):
+    """Whether the tip is within 1 mm of the goal, and the reward."""
+    reward, distance = root.Reward.getReward()
+    return distance < 1.0, reward
