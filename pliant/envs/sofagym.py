@@ -72,14 +72,12 @@ class SofaGymEnv(gym.Env):
             shape = tuple(int(n) for n in np.atleast_1d(config["dim_state"]))
             observation_space = gym.spaces.Box(-np.inf, np.inf, shape, dtype=np.float32)
         self.observation_space = observation_space
-        self.scene = None
+        self.scene = None  # the episode's scene (pliant.sofa.SofaScene), built by reset
+        self.episode_config: dict | None = None  # the configuration it was built with
         self.toolbox = None
+        self.solver = None
         self.state = None
         self.timer = 0
-
-    @property
-    def root(self):
-        return self.scene.root
 
     def reset(self, *, seed: int | None = None, options: dict | None = None):
         super().reset(seed=seed)
@@ -104,7 +102,7 @@ class SofaGymEnv(gym.Env):
         if root.getObject("Reward") is not None:
             goal = config.get("goalPos")
             root.Reward.update(goal) if goal is not None else root.Reward.update()
-        self.active_config = config
+        self.episode_config = config
         return self._observe(), {"goal": config.get("goalPos")}
 
     def step(self, action):
