@@ -24,7 +24,7 @@ from __future__ import annotations
 import dataclasses
 import math
 import warnings
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Literal
@@ -70,6 +70,7 @@ IGNORED = frozenset(
         "EigenSparseLU",
         "SparseLUSolver",
         "CGLinearSolver",
+        "ShewchukPCGLinearSolver",
         "BlockGaussSeidelConstraintSolver",
         "GenericConstraintSolver",
         "ProjectedGaussSeidelConstraintSolver",
@@ -396,6 +397,7 @@ def load_scene(
     outside: Literal["keep", "project"] | None = None,
     change_reference: Literal["lagged", "last"] | None = None,
     inversion: Literal["tolerate", "refuse"] | None = None,
+    config: Mapping | None = None,
 ) -> SofaScene:
     """Read a SOFA scene (``.scn`` XML or a ``createScene`` Python script) into a model.
 
@@ -410,6 +412,8 @@ def load_scene(
             "project"), what a cable's maxDispVariation is measured from ("lagged", "last"),
             what an inverted element of the "large" frame does ("tolerate": keeps its force,
             as in SOFA; "refuse": the step raises DivergenceError).
+        config: the configuration a SofaGym scene's ``createScene(rootNode, config)`` is
+            called with (without it: the scene's own default, or an empty one).
 
     Raises:
         SceneError: the scene cannot be read, uses components Pliant does not support (all
@@ -425,7 +429,7 @@ def load_scene(
     )
     if choices.inversion not in ("tolerate", "refuse"):
         raise SceneError(f"inversion is 'tolerate' or 'refuse', got {choices.inversion!r}")
-    root = read_scene(path)
+    root = read_scene(path, config)
     try:
         return _Builder(root, path, choices, [Path(d) for d in mesh_dirs]).build()
     except SceneError:
@@ -599,8 +603,11 @@ class _Builder:
         it does not have and attributes that are no field of their component (a misspelt
         name, close to one of its fields)."""
         problems = []
+        detects = self._detects()
         for node in self.root.walk():
             for obj in node.objects:
+                if not detects and obj.type.endswith("CollisionModel"):
+                    continue
                 if obj.type not in HANDLED and obj.type not in IGNORED and not is_visual(obj.type):
                     problems.append(f"{obj.type} (at {node.path})")
                     continue
@@ -624,6 +631,21 @@ class _Builder:
             )
 
     # --- collisions ----------------------------------------------------------------------------
+    def _detects(self) -> bool:
+        """Whether SOFA detects any collision: it needs an intersection method and collision
+        models on two nodes at least (a model does not collide with itself unless asked).
+        Otherwise collision models of any shape are inert (SofaGym's goal markers carry a
+        sphere model)."""
+        if not any(o.type in INTERSECTIONS for n in self.root.walk() for o in n.objects):
+            return False
+        carriers = [
+            [o for o in n.objects if o.type.endswith("CollisionModel")] for n in self.root.walk()
+        ]
+        carriers = [models for models in carriers if models]
+        return len(carriers) >= 2 or any(
+            _flag(o, "selfCollision", False) for models in carriers for o in models
+        )
+
     def _collisions(self, body_node: SceneNode, body: TetBody, mesh: TetMesh):
         """Contacts and rigid bodies from the collision pipeline: the body's collision points
         (a child node with a PointCollisionModel mapped on it), static triangle obstacles (a
@@ -633,9 +655,7 @@ class _Builder:
         the response's ``mu`` the friction everywhere."""
         intersection = [o for n in self.root.walk() for o in n.objects if o.type in INTERSECTIONS]
         models = [o for n in self.root.walk() for o in n.objects if o.type in COLLISION_MODELS]
-        if not models:
-            return None, []
-        if not intersection:  # SOFA detects no collision without a pipeline
+        if not models or not self._detects():
             return None, []
         proximity = intersection[0]
         margin = _float(proximity, "alarmDistance", 1.0)

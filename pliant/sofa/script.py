@@ -10,11 +10,15 @@ file and line.
 
 from __future__ import annotations
 
+import copy
 import inspect
 import os
+import re
 import runpy
 import sys
 import traceback
+import types
+from collections.abc import Mapping
 from contextlib import contextmanager
 from pathlib import Path
 
@@ -24,20 +28,32 @@ from pliant.sofa.tree import SceneError, SceneNode
 
 # Module families Pliant stands in for: an import of one of theirs that Pliant lacks is a
 # missing piece of Pliant, not an error of the scene.
-FAMILIES = ("Sofa", "SofaRuntime", "stlib3", "splib3", "softrobots", "stlib", "splib")
+FAMILIES = ("Sofa", "SofaRuntime", "stlib3", "splib3", "softrobots", "stlib", "splib", "sofagym")
 
 
-def read_script(path: Path) -> SceneNode:
-    """Run the script's ``createScene(rootNode)`` (``createScene(rootNode, config)`` for
-    SofaGym's scenes, with an empty configuration) and return the root."""
+def read_script(path: Path, config: Mapping | None = None) -> SceneNode:
+    """Run the script's ``createScene(rootNode)`` and return the root.
+
+    SofaGym's scenes take ``createScene(rootNode, config)``: they get `config` (a copy, as
+    each SofaGym environment gives its scene its own configuration), or, without one, their
+    own default configuration, or an empty one where they have none.
+    """
+    path = path.resolve()  # the script runs in its own folder
     root = SceneNode("root")
-    with _stand_ins(path.resolve().parent):
+    with _stand_ins(path.parent) as own_modules:
         try:
             namespace = runpy.run_path(str(path), run_name="pliant_sofa_scene")
             create = namespace.get("createScene")
             if create is None:
                 raise SceneError(f"{path.name} defines no createScene(rootNode)")
-            if len(_required(create)) >= 2:  # SofaGym's createScene(rootNode, config)
+            takes_config = len(_positional(create)) >= 2
+            if config is not None and not takes_config:
+                raise SceneError(
+                    f"{path.name}: createScene(rootNode) takes no configuration, one was given"
+                )
+            if config is not None:
+                create(root, copy.deepcopy(dict(config)))
+            elif len(_positional(create, required=True)) >= 2:
                 create(root, {})
             else:
                 create(root)
@@ -48,15 +64,17 @@ def read_script(path: Path) -> SceneNode:
             raise _import_error(path, exc) from exc
         except (Exception, SystemExit) as exc:  # a script's sys.exit() ends the scene only
             raise scene_error(path, exc) from exc
+    root.modules = own_modules
     return root
 
 
-def _required(function) -> list[str]:
-    """The positional parameters of `function` without a default."""
+def _positional(function, *, required: bool = False) -> list[str]:
+    """The positional parameters of `function` (only those without a default: `required`)."""
     return [
         p.name
         for p in inspect.signature(function).parameters.values()
-        if p.default is p.empty and p.kind in (p.POSITIONAL_ONLY, p.POSITIONAL_OR_KEYWORD)
+        if p.kind in (p.POSITIONAL_ONLY, p.POSITIONAL_OR_KEYWORD)
+        and not (required and p.default is not p.empty)
     ]
 
 
@@ -70,6 +88,9 @@ def _import_error(path: Path, exc: ImportError) -> SceneError:
     name = exc.name or ""
     if name.split(".")[0] in FAMILIES or not name:
         what = f"{name!r}" if name else str(exc)
+        missing = re.match(r"cannot import name '([^']+)'", str(exc))
+        if name and missing:  # the module is Pliant's, the name in it is not
+            what = f"{missing.group(1)} from {name!r}"
         return SceneError(
             f"{_where(path, exc, message=False)}imports {what}, which Pliant does not provide"
             " (docs/sofa.md lists the SofaPython3 modules and prefabs it has)"
@@ -102,18 +123,20 @@ def _stand_ins(folder: Path):
     saved = {name: sys.modules.get(name) for name in modules}
     before = set(sys.modules)
     sys.modules.update(modules)
+    path = list(sys.path)  # scripts add folders of their own (SofaGym's its parent)
     sys.path.insert(0, str(folder))
     cwd = os.getcwd()
     os.chdir(folder)  # scripts open their data by paths relative to their folder
+    own: dict[str, types.ModuleType] = {}  # the script's own modules, filled at the end
     try:
-        yield
+        yield own
     finally:
         os.chdir(cwd)
-        sys.path.remove(str(folder))
+        sys.path[:] = path
         for name in set(sys.modules) - before:  # the scene's own modules import the stand-ins
             file = getattr(sys.modules[name], "__file__", None)
             if file and Path(file).resolve().is_relative_to(folder):
-                del sys.modules[name]
+                own[name] = sys.modules.pop(name)
         for name, module in saved.items():
             if module is None:
                 sys.modules.pop(name, None)

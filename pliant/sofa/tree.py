@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import difflib
 import xml.etree.ElementTree as ET
+from collections.abc import Mapping
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -123,6 +124,41 @@ class Data:
     def __getitem__(self, index):
         return self.value[index]
 
+    # Arithmetic on the value (SofaPython3's array data): ``cable.value += 1`` computes the
+    # sum and assigns it to the field.
+    def __add__(self, other):
+        return np.add(self.value, other)
+
+    def __radd__(self, other):
+        return np.add(other, self.value)
+
+    def __sub__(self, other):
+        return np.subtract(self.value, other)
+
+    def __rsub__(self, other):
+        return np.subtract(other, self.value)
+
+    def __mul__(self, other):
+        return np.multiply(self.value, other)
+
+    def __rmul__(self, other):
+        return np.multiply(other, self.value)
+
+    def __truediv__(self, other):
+        return np.divide(self.value, other)
+
+    def __neg__(self):
+        return np.negative(self.value)
+
+    @property
+    def shape(self) -> tuple[int, ...]:
+        """The value's array shape, as SofaPython3's array data give it."""
+        return np.shape(self.value)
+
+    @property
+    def ndim(self) -> int:
+        return len(self.shape)
+
     def __len__(self) -> int:
         return len(self.value)
 
@@ -156,6 +192,19 @@ INDEX_FIELDS = frozenset(
     {"indices", "points", "edges", "triangles", "quads", "tetrahedra", "tetras", "hexahedra"}
 )
 
+# SOFA's other names for components (registered aliases: older and case variants).
+ALIASES = {
+    "MeshObjLoader": "MeshOBJLoader",
+    "FreeMotionMasterSolver": "FreeMotionAnimationLoop",  # until SOFA v24.12
+    "TTriangleModel": "TriangleCollisionModel",
+    "TriangleModel": "TriangleCollisionModel",
+    "TLineModel": "LineCollisionModel",
+    "LineModel": "LineCollisionModel",
+    "TPointModel": "PointCollisionModel",
+    "PointModel": "PointCollisionModel",
+    "SphereModel": "SphereCollisionModel",
+}
+
 # Data fields every component and node answers with SOFA's defaults, set or not.
 OBJECT_DEFAULTS = {"listening": False, "printLog": False, "tags": "", "bbox": ""}
 NODE_DEFAULTS = {
@@ -181,6 +230,9 @@ class SceneObject:
     type: str
     attrs: dict[str, Any]
     node: SceneNode = field(repr=False)
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "type", ALIASES.get(self.type, self.type))
 
     @property
     def name(self) -> Name:
@@ -276,6 +328,10 @@ class SceneNode:
     parent: SceneNode | None = field(default=None, repr=False)
     controllers: list[Any] = field(default_factory=list, repr=False)
     extras: dict[str, Any] = field(default_factory=dict, repr=False)
+    #: the root of a script's scene: the modules of the script's folder that it imported, by
+    #: name (out of ``sys.modules`` after the load; SofaGym's toolbox functions are called
+    #: on the scene after it is built).
+    modules: dict[str, Any] = field(default_factory=dict, repr=False)
 
     def __post_init__(self) -> None:
         self.name = Name(self.name)
@@ -422,15 +478,18 @@ def _controller_name(controller) -> str:
     return str(getattr(controller, "name", type(controller).__name__))
 
 
-def read_scene(path: str | Path) -> SceneNode:
-    """Read a ``.scn`` / ``.xml`` scene or a ``.py`` scene script (its ``createScene(root)``)."""
+def read_scene(path: str | Path, config: Mapping | None = None) -> SceneNode:
+    """Read a ``.scn`` / ``.xml`` scene or a ``.py`` scene script (its ``createScene(root)``,
+    or ``createScene(root, config)`` with `config`, as SofaGym calls its scenes)."""
     path = Path(path)
     if not path.is_file():
         raise SceneError(f"scene file {str(path)!r} does not exist")
     if path.suffix == ".py":
         from pliant.sofa.script import read_script
 
-        return read_script(path)
+        return read_script(path, config)
+    if config is not None:
+        raise SceneError(f"{path.name}: a configuration is for a createScene script, not XML")
     try:
         element = ET.parse(path).getroot()
     except ET.ParseError as exc:

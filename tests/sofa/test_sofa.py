@@ -40,7 +40,7 @@ DOCS = Path(__file__).parents[2] / "docs" / "sofa.md"
 @pytest.mark.parametrize(
     "code",
     re.findall(r"```python\n(.*?)```", DOCS.read_text(), flags=re.S),
-    ids=["port", "choice", "stlib", "supports"],
+    ids=["port", "choice", "stlib", "sofagym", "sofagym-env", "supports"],
 )
 def test_docs_examples_run(code: str) -> None:
     exec(compile(code, str(DOCS), "exec"), {})

@@ -1,5 +1,6 @@
-"""STLIB3, SPLIB3 and SoftRobots' Python prefabs re-implemented for Pliant, importable by
-the names scenes use (``stlib3.scene``, ``splib3.animation``, ``softrobots.actuators``, ...)
+"""STLIB3, SPLIB3 and SoftRobots' Python prefabs and SofaGym's scene helpers re-implemented
+for Pliant, importable by the names scenes use (``stlib3.scene``, ``splib3.animation``,
+``softrobots.actuators``, ``sofagym.header``, ...)
 only while Pliant loads a scene script (:func:`prefab_modules`)."""
 
 from __future__ import annotations
@@ -7,7 +8,7 @@ from __future__ import annotations
 import math
 import types
 
-from pliant.sofa.prefabs import softrobots, splib, stlib
+from pliant.sofa.prefabs import sofagym, softrobots, splib, stlib
 from pliant.sofa.sofapython3 import Key, module
 
 
@@ -23,6 +24,7 @@ def prefab_modules() -> dict[str, types.ModuleType]:
     animation = {
         "animate": splib.animate,
         "AnimationManager": splib.AnimationManager,
+        "AnimationManagerController": splib.AnimationManagerController,
         "Animation": splib.Animation,
     }
     vec3 = {"Vec3": splib.Vec3, "vadd": splib.vadd, "vsub": splib.vsub}
@@ -58,11 +60,18 @@ def prefab_modules() -> dict[str, types.ModuleType]:
         "splib3.numerics.quat": {"Quat": splib.Quat},
         "splib3.constants": {"Key": types.SimpleNamespace(**keys)},
         "splib3.constants.Key": keys,
-        "splib3.objectmodel": {"setData": splib.setData},
+        "splib3.objectmodel": {
+            "setData": splib.setData,
+            "SofaPrefab": splib.SofaPrefab,
+            "SofaObject": splib.SofaObject,
+        },
         "splib3.loaders": {
             "loadPointListFromFile": splib.loadPointListFromFile,
             "getLoadingLocation": splib.getLoadingLocation,
         },
+        "sofagym": {},
+        "sofagym.header": sofagym.header_members(),
+        "sofagym.utils": sofagym.utils_members(),
         "softrobots": {},
         "softrobots.actuators": {
             "PullingCable": softrobots.PullingCable,

@@ -19,9 +19,20 @@ from pliant.sofa.tree import SceneError, SceneNode
 class Animation:
     """One clip: ``onUpdate(factor=f, **params)`` with f from 0 to 1 over `duration`
     seconds; then, by `mode`, "once" calls ``onDone``, "loop" starts again, "pingpong" runs
-    back."""
+    back. SPLIB's keywords; the clock is the simulated time (``realTimeClock=True``, SPLIB's
+    wall clock, would make a scene's result depend on the machine's speed)."""
 
-    def __init__(self, on_update: Callable, params: dict, duration: float, mode: str, on_done):
+    def __init__(
+        self,
+        onUpdate: Callable,  # noqa: N803 (SPLIB's keywords)
+        params: dict,
+        duration: float,
+        mode: str = "once",
+        onDone: Callable | None = None,  # noqa: N803
+        realTimeClock: bool = False,  # noqa: N803
+        terminationDelay: float | None = None,  # noqa: N803
+    ):
+        on_update, on_done = onUpdate, onDone
         self.on_update, self.params, self.duration = on_update, dict(params), float(duration)
         self.mode, self.on_done = mode, on_done
         self.start: float | None = self.params.pop("startTime", None)
@@ -33,7 +44,8 @@ class Animation:
         if self.start is None:
             self.start = time
         progress = 1.0 if self.duration == 0.0 else (time - self.start) / self.duration
-        progress = min(max(progress, 0.0), 1.0)
+        # The clock sums time steps: a step that lands on the clip's end to round-off ends it.
+        progress = 1.0 if progress > 1.0 - 1e-9 else max(progress, 0.0)
         self.factor = progress if self.direction > 0 else 1.0 - progress
         self.on_update(factor=self.factor, **self.params)
         if progress < 1.0:
@@ -52,10 +64,13 @@ class AnimationManagerController(Controller):
     """Advances the animations at each step's begin event, by the root's time step."""
 
     def __init__(self, node: SceneNode, *args, **kwargs):
-        super().__init__(*args, name="AnimationManager", **kwargs)
+        kwargs.setdefault("name", "AnimationManager")
+        super().__init__(*args, **kwargs)
         self.node = node
         self.time = 0.0
         self.animations: list[Animation] = []
+        if _ACTIVE.manager is None:  # made by the scene itself (SofaGym's): animate() uses it
+            _ACTIVE.manager = self
 
     def addAnimation(self, animation: Animation) -> None:  # noqa: N802 (SPLIB's name)
         self.animations.append(animation)
@@ -274,6 +289,24 @@ def setData(target, **values) -> None:  # noqa: N802
     """Sets several data fields of a component or node."""
     for key, value in values.items():
         setattr(target, key, value)
+
+
+def SofaPrefab(cls):  # noqa: N802 (SPLIB's name)
+    """SPLIB's prefab decorator: the class unchanged (Pliant's tree needs no registration)."""
+    return cls
+
+
+class SofaObject:
+    """SPLIB's base of prefabs written as Python classes: a node (``self.node``, a child
+    `name` of `node`) whose children, components and data the object answers as its own."""
+
+    def __init__(self, node: SceneNode, name: str) -> None:
+        self.node = node.addChild(name)
+
+    def __getattr__(self, key: str):
+        if key.startswith("__") or "node" not in self.__dict__:
+            raise AttributeError(key)
+        return getattr(self.node, key)
 
 
 def getLoadingLocation(filename: str, source: str) -> str:  # noqa: N802
