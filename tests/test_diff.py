@@ -396,3 +396,46 @@ def test_set_parameters_and_errors():
         rollout_gradient(model, ImplicitEuler(model, DT), model.rest_state(), controls, loss)
     with pytest.raises(ModelError, match="regions"):
         set_parameters(model, young_modulus=1.0, regions=np.zeros(3, int))
+
+
+def test_finger_rollout_gradient_against_finite_differences():
+    """The coarse Soft Finger (1610 tetrahedra) closing on its cable for 4 steps: the
+    effector's distance to a goal, by cable commands, E, nu and Rayleigh damping (set in place
+    by set_parameters, as a calibration does)."""
+    from pliant import robots
+
+    n_steps = 4
+    model = robots.soft_finger(rayleigh_mass=0.1, rayleigh_stiffness=0.01)
+    points = model.effectors[0].points
+    goal = points.positions(model.body.rest_positions) + np.array([0.0, 0.0, -2.0])
+    loss = PointTracking(points, goal, n_steps=n_steps)
+    controls = np.column_stack([np.linspace(0.5, 2.0, n_steps), np.zeros(n_steps)])
+    names = ("controls", "young_modulus", "poisson_ratio", "rayleigh_mass")
+    solver = ImplicitEuler(model, DT, tangent="fresh")
+    result = rollout_gradient(model, solver, model.rest_state(), controls, loss, wrt=names)
+    # (value, relative step): the loss's dependence on alpha is weak, and the kernels' polar
+    # iteration (stopped at 1e-6 steps) leaves ~1e-12 noise in the loss: a larger step.
+    base = {
+        "young_modulus": (3000.0, 1e-4),
+        "poisson_ratio": (0.47, 1e-4),
+        "rayleigh_mass": (0.1, 1e-2),
+    }
+
+    def value(c=controls, **moved):
+        m = robots.soft_finger(rayleigh_mass=0.1, rayleigh_stiffness=0.01)
+        set_parameters(m, **moved)
+        return _rollout_loss(m, c, loss)
+
+    for i in (0, 3):
+        moved = []
+        for e in (1e-3, -1e-3):
+            c = controls.copy()
+            c[i, 0] += e
+            moved.append(value(c))
+        assert (
+            relative_error((moved[0] - moved[1]) / 2e-3, result.gradients["controls"][i, 0]) < TOL
+        )
+    for name, (v, step) in base.items():
+        moved = [value(**{name: v * (1 + e)}) for e in (step, -step)]
+        fd = (moved[0] - moved[1]) / (2 * step * v)
+        assert relative_error(fd, result.gradients[name]) < TOL, name

@@ -268,7 +268,7 @@ class StepAdjoint:
         return out
 
     def _parameter(self, name, mu_v, mu_l, mu_e, v_e, shape, local):
-        model, body, h = self.model, self.model.body, self.h
+        body, h = self.model.body, self.h
         v_new, v = self.v_new, body.gather(self.v)
         if name == "controls":
             force_rows = ~self.rows.equality
