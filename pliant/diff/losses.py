@@ -119,14 +119,28 @@ class Losses:
 
 
 class StateCotangents:
-    """The linear loss sum_n <dq_n, q_n> + <dv_n, v_n> for given cotangents (T + 1, n, 3):
-    the vector-Jacobian product of a trajectory (what a torch backward pass hands over)."""
+    """The linear loss sum_n <dq_n, q_n> + <dv_n, v_n> for given cotangents (T + 1, n, 3)
+    (with `points`, of the points' positions, (T + 1, k, 3)): the vector-Jacobian product of
+    a trajectory, what a torch backward pass hands over."""
 
-    def __init__(self, positions: np.ndarray, velocities: np.ndarray | None = None) -> None:
+    def __init__(
+        self,
+        positions: np.ndarray,
+        velocities: np.ndarray | None = None,
+        *,
+        points: EmbeddedPoints | None = None,
+    ) -> None:
         self.positions = np.asarray(positions, dtype=float)
         self.velocities = None if velocities is None else np.asarray(velocities, dtype=float)
+        self.points = points
 
     def stage(self, n: int, state: State, control: np.ndarray | None) -> StageGradient:
+        if self.points is not None:
+            value = float(np.sum(self.positions[n] * self.points.positions(state.positions)))
+            grad = np.zeros_like(state.positions)
+            spread = self.points.weights[:, :, None] * self.positions[n][:, None, :]
+            np.add.at(grad, self.points.nodes, spread)
+            return StageGradient(value, positions=grad)
         value = float(np.sum(self.positions[n] * state.positions))
         dv = None
         if self.velocities is not None:
