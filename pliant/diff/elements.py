@@ -50,9 +50,9 @@ class ElementShape:
 def rest_shape(body: TetBody, rest: np.ndarray, frame_local: np.ndarray | None) -> ElementShape:
     """Rest gradients, volumes and frames of the elements whose rest corners are `rest`
     (m, 4, 3): the kernel's :func:`~pliant.fem.kernels.rest_gradients` in analytic form."""
-    dm = np.swapaxes(rest[:, 1:] - rest[:, :1], 1, 2)  # columns X_k - X_0
+    dm = np.swapaxes(rest[..., 1:, :] - rest[..., :1, :], -1, -2)  # columns X_k - X_0
     dm_inv = np.linalg.inv(dm)
-    grads = np.concatenate([-dm_inv.sum(axis=1, keepdims=True), dm_inv], axis=1)
+    grads = np.concatenate([-dm_inv.sum(axis=-2, keepdims=True), dm_inv], axis=-2)
     volumes = np.linalg.det(dm) / 6.0
     frames = None if frame_local is None else edge_frames(rest, frame_local)
     return ElementShape(grads, volumes, frames)
@@ -81,24 +81,29 @@ def check_material(body: TetBody) -> None:
 
 
 def edge_frames(x: np.ndarray, local: np.ndarray) -> np.ndarray:
-    """Edge frames Q (m, 3, 3) of the corners `x` (m, 4, 3), first three nodes `local` (m, 3)."""
-    idx = np.arange(x.shape[0])
-    a, b, c = (x[idx, local[:, k]] for k in range(3))
+    """Edge frames Q (..., m, 3, 3) of the corners `x` (..., m, 4, 3), first three nodes
+    `local` (m, 3)."""
+    a, b, c = (
+        np.take_along_axis(x, np.broadcast_to(local[:, k, None, None], (*x.shape[:-2], 1, 3)), -2)[
+            ..., 0, :
+        ]
+        for k in range(3)
+    )
     u, w = b - a, c - a
     n = np.cross(u, w)
-    u = u / np.sqrt(np.sum(u * u, axis=1))[:, None]
-    n = n / np.sqrt(np.sum(n * n, axis=1))[:, None]
-    return np.stack([u, np.cross(n, u), n], axis=2)
+    u = u / np.sqrt(np.sum(u * u, axis=-1))[..., None]
+    n = n / np.sqrt(np.sum(n * n, axis=-1))[..., None]
+    return np.stack([u, np.cross(n, u), n], axis=-1)
 
 
 def polar_rotations(f: np.ndarray) -> np.ndarray:
-    """R of F = R S for each F (m, 3, 3), by scaled Newton iterations to round-off."""
+    """R of F = R S for each F (..., 3, 3), by scaled Newton iterations to round-off."""
     r = f.copy()
     settled = 0
     for _ in range(60):
         det = np.linalg.det(r)
-        scale = np.where(np.abs(det.real - 1.0) > 0.05, det ** (-1.0 / 3.0), 1.0)[:, None, None]
-        nxt = 0.5 * (scale * r + np.swapaxes(np.linalg.inv(r), 1, 2) / scale)
+        scale = np.where(np.abs(det.real - 1.0) > 0.05, det ** (-1.0 / 3.0), 1.0)[..., None, None]
+        nxt = 0.5 * (scale * r + np.swapaxes(np.linalg.inv(r), -1, -2) / scale)
         change = float(np.max(np.abs((nxt - r).real), initial=0.0))
         r = nxt
         # Two more iterations once the real part is at round-off settle the derivative part,
@@ -118,76 +123,74 @@ def element_terms(
     mu: np.ndarray,
     lam: np.ndarray,
 ) -> tuple[np.ndarray, np.ndarray | None]:
-    """Element forces f_e (m, 4, 3) and tangent products (K_s w)_e (m, 4, 3) (None without
-    `w`) at corners `x` (m, 4, 3), for Lamé parameters `mu`, `lam` (m,). Inactive elements
-    (det F <= 0, unless the law tolerates inversion) contribute nothing, as in the kernels."""
+    """Element forces f_e (..., m, 4, 3) and tangent products (K_s w)_e (None without `w`)
+    at corners `x` (..., m, 4, 3) (leading dimensions: a batch of configurations), for Lamé
+    parameters `mu`, `lam` (m,). Inactive elements (det F <= 0, unless the law tolerates
+    inversion) contribute nothing, as in the kernels."""
     tag = body.material.kernel_tag
     g, vol = shape.grads, shape.volumes
-    f = np.einsum("mai,maj->mij", x, g)
+    f = np.einsum("...ai,...aj->...ij", x, g)
     det = np.linalg.det(f)
     active = (det.real > 0.0) | (tag == COROTATIONAL_LARGE_INVERTIBLE)
     eye = np.eye(3)
-    mu_, lam_ = mu[:, None, None], lam[:, None, None]
+    mu_, lam_ = mu[..., None, None], lam[..., None, None]
     if tag == NEO_HOOKEAN:
-        safe = np.where(active[:, None, None], f, eye)
+        safe = np.where(active[..., None, None], f, eye)
         finv = np.linalg.inv(safe)
-        finv_t = np.swapaxes(finv, 1, 2)
-        lnj = np.log(np.where(active, det, 1.0))[:, None, None]
+        finv_t = np.swapaxes(finv, -1, -2)
+        lnj = np.log(np.where(active, det, 1.0))[..., None, None]
         p = mu_ * safe + (lam_ * lnj - mu_) * finv_t
     else:
         if tag == COROTATIONAL:
-            r = polar_rotations(np.where(active[:, None, None], f, eye))
+            r = polar_rotations(np.where(active[..., None, None], f, eye))
         else:
-            r = edge_frames(x, frame_local) @ np.swapaxes(shape.rest_frames, 1, 2)
-        s = np.swapaxes(r, 1, 2) @ f
-        eps = 0.5 * (s + np.swapaxes(s, 1, 2)) - eye
-        tr = np.trace(eps, axis1=1, axis2=2)[:, None, None]
+            r = edge_frames(x, frame_local) @ np.swapaxes(shape.rest_frames, -1, -2)
+        s = np.swapaxes(r, -1, -2) @ f
+        eps = 0.5 * (s + np.swapaxes(s, -1, -2)) - eye
+        tr = np.trace(eps, axis1=-2, axis2=-1)[..., None, None]
         p = r @ (2.0 * mu_ * eps + lam_ * tr * eye)
-    forces = -vol[:, None, None] * np.einsum("mij,maj->mai", p, g)
-    forces = np.where(active[:, None, None], forces, 0.0)
+    forces = -vol[..., None, None] * np.einsum("...ij,...aj->...ai", p, g)
+    forces = np.where(active[..., None, None], forces, 0.0)
     if w is None:
         return forces, None
-    df = np.einsum("mai,maj->mij", w, g)
+    df = np.einsum("...ai,...aj->...ij", w, g)
     if tag == NEO_HOOKEAN:
-        tr = np.einsum("mik,mki->m", finv, df)[:, None, None]
+        tr = np.einsum("...ik,...ki->...", finv, df)[..., None, None]
         dp = (
             mu_ * df
-            + (mu_ - lam_ * lnj) * finv_t @ np.swapaxes(df, 1, 2) @ finv_t
+            + (mu_ - lam_ * lnj) * finv_t @ np.swapaxes(df, -1, -2) @ finv_t
             + lam_ * tr * finv_t
         )
     else:
-        w1 = np.swapaxes(r, 1, 2) @ df
-        tr = np.trace(w1, axis1=1, axis2=2)[:, None, None]
-        dp = r @ (mu_ * (w1 + np.swapaxes(w1, 1, 2)) + lam_ * tr * eye)
-    kw = vol[:, None, None] * np.einsum("mij,maj->mai", dp, g)
-    return forces, np.where(active[:, None, None], kw, 0.0)
+        w1 = np.swapaxes(r, -1, -2) @ df
+        tr = np.trace(w1, axis1=-2, axis2=-1)[..., None, None]
+        dp = r @ (mu_ * (w1 + np.swapaxes(w1, -1, -2)) + lam_ * tr * eye)
+    kw = vol[..., None, None] * np.einsum("...ij,...aj->...ai", dp, g)
+    return forces, np.where(active[..., None, None], kw, 0.0)
+
+
+def _perturbed(x: np.ndarray) -> np.ndarray:
+    """The 12 complex-step perturbations of every element's corners at once: (12, m, 4, 3),
+    entry j moving local coordinate j of every element by i h."""
+    xc = np.broadcast_to(x, (12, *x.shape)).astype(complex)
+    for j in range(12):
+        xc[j, :, j // 3, j % 3] += 1j * COMPLEX_STEP
+    return xc
 
 
 def complex_step_gradient(function, x: np.ndarray) -> np.ndarray:
-    """Gradient (m, 4, 3) of a per-element scalar `function(x) -> (m,)` of the corners
-    `x` (m, 4, 3): one complex-step evaluation per local coordinate (12), all elements at
-    once (each element's value depends on its own corners only)."""
-    out = np.empty(x.shape)
-    xc = x.astype(complex)
-    for a in range(4):
-        for i in range(3):
-            xc[:, a, i] += 1j * COMPLEX_STEP
-            out[:, a, i] = function(xc).imag / COMPLEX_STEP
-            xc[:, a, i] = x[:, a, i]
-    return out
+    """Gradient (m, 4, 3) of a per-element scalar `function(x) -> (..., m)` of the corners
+    `x` (m, 4, 3): one batched evaluation of the 12 complex-step perturbations (each element's
+    value depends on its own corners only)."""
+    values = function(_perturbed(x)).imag / COMPLEX_STEP  # (12, m)
+    return np.moveaxis(values, 0, -1).reshape(x.shape)
 
 
 def complex_step_jacobian(function, x: np.ndarray) -> np.ndarray:
-    """Jacobian blocks (m, 12, 12) of per-element outputs `function(x) -> (m, 4, 3)`."""
+    """Jacobian blocks (m, 12, 12) of per-element outputs `function(x) -> (..., m, 4, 3)`."""
     m = x.shape[0]
-    out = np.empty((m, 12, 12))
-    xc = x.astype(complex)
-    for a in range(4):
-        for i in range(3):
-            xc[:, a, i] += 1j * COMPLEX_STEP
-            out[:, :, 3 * a + i] = function(xc).imag.reshape(m, 12) / COMPLEX_STEP
-            xc[:, a, i] = x[:, a, i]
-    return out
+    values = function(_perturbed(x)).imag.reshape(12, m, 12) / COMPLEX_STEP
+    return np.moveaxis(values, 0, -1)
 
 
 def nodal_sum(body: TetBody, element_values: np.ndarray) -> np.ndarray:

@@ -133,7 +133,7 @@ def _held_nodes(model, q, lam, grad_q, mu_e, mu_full, mu_l, shape, local) -> np.
 
     def element_value(x):
         f = element_terms(body, x, None, shape, local, body.mu, body.lam)[0]
-        return np.einsum("mai,mai->m", mu_e, f)
+        return np.einsum("...mai,mai->...m", f, mu_e)
 
     through = nodal_sum(body, complex_step_gradient(element_value, q[body.tets]))
     through += row_hessian_product(model, q, lam, mu_full) + full_rows_t(model, q, mu_l)
@@ -169,7 +169,7 @@ def _rest_positions(model: Model, q, mu_e, mu_l, local) -> np.ndarray:
     def element_value(rest):
         shape = rest_shape(body, rest, local)
         f = element_terms(body, x, None, shape, local, body.mu, body.lam)[0]
-        value = np.einsum("mai,mai->m", mu_e, f)
+        value = np.einsum("...mai,mai->...m", f, mu_e)
         return value + shape.volumes * weight if lumped else value
 
     grad = -nodal_sum(body, complex_step_gradient(element_value, body.rest_positions[body.tets]))

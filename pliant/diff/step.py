@@ -255,7 +255,7 @@ class StepAdjoint:
 
         def element_value(x, shape=shape, mu=body.mu, lam=body.lam):
             f, kw = element_terms(body, x, v_e, shape, local, mu, lam)
-            return np.einsum("mai,mai->m", mu_e, self.a_k * kw - h * f)
+            return np.einsum("...mai,mai->...m", self.a_k * kw - h * f, mu_e)
 
         dq = dq_new - nodal_sum(body, complex_step_gradient(element_value, self.q[tets]))
         # lambda of every row multiplies H(q): -h lambda.H(q) mu_v, and h mu_l.H_d(q) v'.
@@ -310,7 +310,7 @@ class StepAdjoint:
         def element_value(rest):
             shape = rest_shape(body, rest, local)
             f, kw = element_terms(body, x, v_e, shape, local, body.mu, body.lam)
-            value = np.einsum("mai,mai->m", mu_e, self.a_k * kw - h * f)
+            value = np.einsum("...mai,mai->...m", self.a_k * kw - h * f, mu_e)
             return value + shape.volumes * mass_share if lumped else value
 
         grad = -nodal_sum(
