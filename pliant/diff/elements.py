@@ -51,9 +51,9 @@ def rest_shape(body: TetBody, rest: np.ndarray, frame_local: np.ndarray | None) 
     """Rest gradients, volumes and frames of the elements whose rest corners are `rest`
     (m, 4, 3): the kernel's :func:`~pliant.fem.kernels.rest_gradients` in analytic form."""
     dm = np.swapaxes(rest[..., 1:, :] - rest[..., :1, :], -1, -2)  # columns X_k - X_0
-    dm_inv = np.linalg.inv(dm)
+    dm_inv = np.swapaxes(inv3_transposed(dm)[0], -1, -2)
     grads = np.concatenate([-dm_inv.sum(axis=-2, keepdims=True), dm_inv], axis=-2)
-    volumes = np.linalg.det(dm) / 6.0
+    volumes = det3(dm) / 6.0
     frames = None if frame_local is None else edge_frames(rest, frame_local)
     return ElementShape(grads, volumes, frames)
 
@@ -96,14 +96,30 @@ def edge_frames(x: np.ndarray, local: np.ndarray) -> np.ndarray:
     return np.stack([u, np.cross(n, u), n], axis=-1)
 
 
+def det3(a: np.ndarray) -> np.ndarray:
+    """det of each 3x3 matrix (..., 3, 3), written out (LAPACK's batched call costs more)."""
+    return (
+        a[..., 0, 0] * (a[..., 1, 1] * a[..., 2, 2] - a[..., 1, 2] * a[..., 2, 1])
+        - a[..., 0, 1] * (a[..., 1, 0] * a[..., 2, 2] - a[..., 1, 2] * a[..., 2, 0])
+        + a[..., 0, 2] * (a[..., 1, 0] * a[..., 2, 1] - a[..., 1, 1] * a[..., 2, 0])
+    )
+
+
+def inv3_transposed(a: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(a^-T, det a) for each 3x3 matrix: the cofactor matrix over the determinant."""
+    cof = np.cross(a[..., [1, 2, 0], :], a[..., [2, 0, 1], :])  # rows: a_1 x a_2, ...
+    det = np.einsum("...j,...j->...", a[..., 0, :], cof[..., 0, :])
+    return cof / det[..., None, None], det
+
+
 def polar_rotations(f: np.ndarray) -> np.ndarray:
     """R of F = R S for each F (..., 3, 3), by scaled Newton iterations to round-off."""
     r = f.copy()
     settled = 0
     for _ in range(60):
-        det = np.linalg.det(r)
+        inv_t, det = inv3_transposed(r)
         scale = np.where(np.abs(det.real - 1.0) > 0.05, det ** (-1.0 / 3.0), 1.0)[..., None, None]
-        nxt = 0.5 * (scale * r + np.swapaxes(np.linalg.inv(r), -1, -2) / scale)
+        nxt = 0.5 * (scale * r + inv_t / scale)
         change = float(np.max(np.abs((nxt - r).real), initial=0.0))
         r = nxt
         # Two more iterations once the real part is at round-off settle the derivative part,
@@ -130,14 +146,14 @@ def element_terms(
     tag = body.material.kernel_tag
     g, vol = shape.grads, shape.volumes
     f = np.einsum("...ai,...aj->...ij", x, g)
-    det = np.linalg.det(f)
+    det = det3(f)
     active = (det.real > 0.0) | (tag == COROTATIONAL_LARGE_INVERTIBLE)
     eye = np.eye(3)
     mu_, lam_ = mu[..., None, None], lam[..., None, None]
     if tag == NEO_HOOKEAN:
         safe = np.where(active[..., None, None], f, eye)
-        finv = np.linalg.inv(safe)
-        finv_t = np.swapaxes(finv, -1, -2)
+        finv_t = inv3_transposed(safe)[0]
+        finv = np.swapaxes(finv_t, -1, -2)
         lnj = np.log(np.where(active, det, 1.0))[..., None, None]
         p = mu_ * safe + (lam_ * lnj - mu_) * finv_t
     else:
