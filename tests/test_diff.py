@@ -475,3 +475,26 @@ def test_calibration_recovers_the_parameters_of_a_synthetic_trajectory():
         calibrate(
             fitted, solver, fitted.rest_state(), controls, points, observed, {"mass": 1.0}, {}
         )
+
+
+def test_a_rate_limited_cable_follows_the_state():
+    """With max_displacement_change binding, the target is the state's displacement plus the
+    change: no gradient to the command, an exact one to the state (3 steps)."""
+    n_steps = 3
+    model = beam()
+    model.actuators[0].max_displacement_change = 0.3
+    loss = _tip_loss(model, n_steps)
+    controls = np.column_stack([np.full(n_steps, 2.0), np.full(n_steps, 5.0)])
+    solver = ImplicitEuler(model, DT, tangent="fresh")
+    result = rollout_gradient(model, solver, model.rest_state(), controls, loss, wrt="controls")
+    # Only the effort penalty's share: the command does not reach the body.
+    assert np.allclose(result.gradients["controls"][:, 0], 1e-3 * controls[:, 0], rtol=1e-12)
+    rng = np.random.default_rng(6)
+    d = rng.standard_normal((model.body.n_nodes, 3)) * (model.body.free_index >= 0).reshape(-1, 3)
+    moved = []
+    for e in (1e-3, -1e-3):
+        s = model.rest_state()
+        s.velocities = e * d
+        moved.append(_rollout_loss(model, controls, loss, s))
+    fd = (moved[0] - moved[1]) / 2e-3
+    assert relative_error(fd, np.sum(result.gradients["initial_velocities"] * d)) < TOL

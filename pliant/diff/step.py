@@ -37,6 +37,9 @@ vbar = dL/dv' + h dL/dq', the adjoint mu = (mu_v, mu_l) solves dF/dy^T mu = (vba
   difference; grad_q mu_l.delta_d = H_d^T mu_l.
 * commands: a force row's command enters as lambda_f: h H_f mu_v; an equality row's
   displacement command as t_d: mu_l (zero where the command was clipped to its course).
+  A target clipped to the rate bound t_d = delta_d(q) + c (``max_displacement_change``
+  measured from the step's start) follows q: delta_d cancels from F2, and so does its
+  H_d^T mu_l.
 * mu_e, lam_e (Lamé parameters, per element): f and K_s are linear in them, so
   -mu_v.(a_k K_s^e v' - h f^e) evaluated with unit parameters; E and nu by the chain rule.
 * alpha: dF1/dalpha = h M v'; beta: dF1/dbeta = h K_s v'.
@@ -137,10 +140,14 @@ class ActuatorRows:
     """How each actuator row entered a step (see the module docstring).
 
     equality: its lambda was solved for a displacement target (else it was given);
-    command_enters: its command is that target or that force (not clipped, not replaced)."""
+    command_enters: its command is that target or that force (not clipped, not replaced);
+    follows_state: its target is the rate bound delta(q) +- max_displacement_change measured
+    from the step's own start (change_reference "last"), so that delta_d(q) cancels from F2.
+    A rate bound measured from the step before ("lagged") is held: its state is not (q, v)."""
 
     equality: np.ndarray
     command_enters: np.ndarray
+    follows_state: np.ndarray
 
     @classmethod
     def classify(
@@ -148,7 +155,8 @@ class ActuatorRows:
     ) -> ActuatorRows:
         """Read the rows' roles from the forward step's commands and forces."""
         acts = model.actuators
-        lo, hi, dmin, dmax = actuator_bounds(acts, change_reference(acts, state))
+        previous = change_reference(acts, state)
+        lo, hi, dmin, dmax = actuator_bounds(acts, previous)
         displacement = np.array([a.mode == "displacement" for a in acts], dtype=bool)
         inside_force = (actuation > lo) & (actuation < hi)
         commanded = np.clip(commands, lo, hi)
@@ -159,7 +167,14 @@ class ActuatorRows:
             equality & (commands > dmin) & (commands < dmax),
             force_free & (commands > lo) & (commands < hi),
         )
-        return cls(equality, enters)
+        change = np.array([a.max_displacement_change or np.nan for a in acts])
+        last = np.array([getattr(a, "change_reference", "last") == "last" for a in acts])
+        target = np.clip(commands, dmin, dmax)
+        rate = ((target == dmax) & (dmax == previous + change)) | (
+            (target == dmin) & (dmin == previous - change)
+        )
+        follows = equality & displacement & last & rate & (state.displacement.size == len(acts))
+        return cls(equality, enters, follows)
 
 
 def full_rows_t(model: Model, x: np.ndarray, coefficients: np.ndarray) -> np.ndarray:
@@ -261,7 +276,7 @@ class StepAdjoint:
         # lambda of every row multiplies H(q): -h lambda.H(q) mu_v, and h mu_l.H_d(q) v'.
         dq += h * row_hessian_product(model, self.q, self.lam, mu_full)
         dq -= h * row_hessian_product(model, self.q, mu_l, v_full)
-        dq -= full_rows_t(model, self.q, mu_l)
+        dq -= full_rows_t(model, self.q, np.where(self.rows.follows_state, 0.0, mu_l))
         out["positions"] = dq
         for name in wrt:
             out[name] = self._parameter(name, mu_v, mu_l, mu_e, v_e, shape, local)
