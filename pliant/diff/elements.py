@@ -8,7 +8,8 @@ perturbation x + i h e_j gives d/dx_j of any smooth output as Im(out) / h, exact
 (Squire & Trapp 1998; no step to tune, no cancellation):
 
 * polar rotation R of F = R S: Higham's Newton iteration X <- (z X + X^-T / z) / 2 run to
-  round-off (z = det(X)^(-1/3), scaling the first iterations), analytic in F;
+  round-off (z = det(X)^(-1/3), scaling the first iterations), and for a complex F its exact
+  first variation (what the complex step of the iteration converges to);
 * SOFA's "large" rotation R = Q(x) Q(X)^T from the edge frames, norms as sqrt(sum of squares);
 * Neo-Hookean P = mu (F - F^-T) + lam ln J F^-T.
 
@@ -113,21 +114,41 @@ def inv3_transposed(a: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 def polar_rotations(f: np.ndarray) -> np.ndarray:
-    """R of F = R S for each F (..., 3, 3), by scaled Newton iterations to round-off."""
-    r = f.copy()
+    """R of F = R S for each F (..., 3, 3). Real part: scaled Newton iterations to round-off.
+    A complex F = F_r + i dF (a complex step) gets R + i dR with the exact first variation
+    dR = R [w]x, (tr(S) I - S) w = axial(R^T dF - dF^T R) (the kernels' exact tangent), which
+    is what the complex step of the iteration converges to, for one solve instead of the
+    iterations in complex arithmetic."""
+    r = np.ascontiguousarray(f.real)
     settled = 0
     for _ in range(60):
         inv_t, det = inv3_transposed(r)
-        scale = np.where(np.abs(det.real - 1.0) > 0.05, det ** (-1.0 / 3.0), 1.0)[..., None, None]
+        scale = np.where(np.abs(det - 1.0) > 0.05, np.cbrt(det) ** -1.0, 1.0)[..., None, None]
         nxt = 0.5 * (scale * r + inv_t / scale)
-        change = float(np.max(np.abs((nxt - r).real), initial=0.0))
+        change = float(np.max(np.abs(nxt - r), initial=0.0))
         r = nxt
-        # Two more iterations once the real part is at round-off settle the derivative part,
-        # which converges at the same (quadratic) rate.
         settled = settled + 1 if change < 1e-14 else 0
-        if settled == 3:
+        if settled == 2:
             break
-    return r
+    if not np.iscomplexobj(f):
+        return r
+    rt = np.swapaxes(r, -1, -2)
+    w1 = rt @ f.imag
+    s = rt @ f.real
+    axial = np.stack(
+        [
+            w1[..., 2, 1] - w1[..., 1, 2],
+            w1[..., 0, 2] - w1[..., 2, 0],
+            w1[..., 1, 0] - w1[..., 0, 1],
+        ],
+        axis=-1,
+    )
+    m = np.trace(s, axis1=-2, axis2=-1)[..., None, None] * np.eye(3) - s
+    w = np.linalg.solve(m, axial[..., None])[..., 0]
+    skew = np.zeros(w.shape[:-1] + (3, 3))
+    skew[..., 0, 1], skew[..., 0, 2], skew[..., 1, 2] = -w[..., 2], w[..., 1], -w[..., 0]
+    skew[..., 1, 0], skew[..., 2, 0], skew[..., 2, 1] = w[..., 2], -w[..., 1], w[..., 0]
+    return r + 1j * (r @ skew)
 
 
 def element_terms(

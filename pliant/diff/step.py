@@ -69,9 +69,11 @@ from pliant.diff.elements import (
     nodal_sum,
     rest_shape,
 )
+from pliant.diff.kernels import corotational_value_gradient
 from pliant.errors import ModelError
 from pliant.fem.body import TetBody
 from pliant.fem.loads import NodalForces
+from pliant.fem.material import NEO_HOOKEAN
 from pliant.model import Model, State
 from pliant.solvers.linear import sparse_cholesky
 
@@ -268,11 +270,7 @@ class StepAdjoint:
         tets = body.tets
         mu_e, v_e = mu_full[tets], v_full[tets]
 
-        def element_value(x, shape=shape, mu=body.mu, lam=body.lam):
-            f, kw = element_terms(body, x, v_e, shape, local, mu, lam)
-            return np.einsum("...mai,mai->...m", self.a_k * kw - h * f, mu_e)
-
-        dq = dq_new - nodal_sum(body, complex_step_gradient(element_value, self.q[tets]))
+        dq = dq_new - nodal_sum(body, self._element_gradient(mu_full, v_full, shape, local))
         # lambda of every row multiplies H(q): -h lambda.H(q) mu_v, and h mu_l.H_d(q) v'.
         dq += h * row_hessian_product(model, self.q, self.lam, mu_full)
         dq -= h * row_hessian_product(model, self.q, mu_l, v_full)
@@ -281,6 +279,39 @@ class StepAdjoint:
         for name in wrt:
             out[name] = self._parameter(name, mu_v, mu_l, mu_e, v_e, shape, local)
         return out
+
+    def _element_gradient(self, mu_full, v_full, shape, local) -> np.ndarray:
+        """grad_q of sum_e mu_e.(a_k K_s(q) v' - h f(q)) per element corner (m, 4, 3), by
+        complex step: compiled for the corotational laws, the NumPy reference otherwise."""
+        body, h = self.model.body, self.h
+        tag = body.material.kernel_tag
+        if tag != NEO_HOOKEAN:
+            out = np.empty((body.n_elements, 4, 3))
+            frames = np.empty((0, 3), np.int64) if local is None else local.astype(np.int64)
+            corotational_value_gradient(
+                self.q,
+                v_full,
+                mu_full,
+                body.tets,
+                body.grads,
+                body.volumes,
+                body.mu,
+                body.lam,
+                tag,
+                frames,
+                body.rest_frames,
+                self.a_k,
+                h,
+                out,
+            )
+            return out
+        mu_e, v_e = mu_full[body.tets], v_full[body.tets]
+
+        def element_value(x):
+            f, kw = element_terms(body, x, v_e, shape, local, body.mu, body.lam)
+            return np.einsum("...mai,mai->...m", self.a_k * kw - h * f, mu_e)
+
+        return complex_step_gradient(element_value, self.q[body.tets])
 
     def _parameter(self, name, mu_v, mu_l, mu_e, v_e, shape, local):
         body, h = self.model.body, self.h
