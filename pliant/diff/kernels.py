@@ -12,7 +12,7 @@ perturbed corners.
 from __future__ import annotations
 
 import numpy as np
-from numba import njit, prange
+from numba import njit
 
 STEP = 1e-30
 
@@ -70,14 +70,14 @@ def _edge_frame(xc, local, q):
     q[0, 2], q[1, 2], q[2, 2] = n0, n1, n2
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True)
 def corotational_value_gradient(
     x, w, c, tets, grads, vols, mu, lam, tag, local, rest_frames, a_k, h, out
 ):
     """out[e] (4, 3) = grad of phi_e at the corners x[tets[e]] (see the module docstring);
     `w`, `c` (n, 3): the tangent's argument and the cotangent; tags 0, 2, 3."""
     m = tets.shape[0]
-    for e in prange(m):
+    for e in range(m):
         g = grads[e]
         xc = np.empty((4, 3), np.complex128)
         f = np.zeros((3, 3))
@@ -114,11 +114,16 @@ def corotational_value_gradient(
             minv = np.linalg.inv(mm)
         rc = np.empty((3, 3), np.complex128)
         q = np.empty((3, 3), np.complex128)
+        fc = np.empty((3, 3), np.complex128)
+        sc = np.empty((3, 3), np.complex128)
+        w1 = np.empty((3, 3), np.complex128)
+        sig = np.empty((3, 3), np.complex128)
+        comb = np.empty((3, 3), np.complex128)
         for j in range(12):
             a, i = j // 3, j % 3
-            fc = f.astype(np.complex128)
-            for k in range(3):
-                fc[i, k] += 1j * STEP * g[a, k]
+            for p in range(3):
+                for k in range(3):
+                    fc[p, k] = f[p, k] + (1j * STEP * g[a, k] if p == i else 0.0)
             if tag == 0:
                 # w1 = R^T dF with dF = e_i (x) g_a: w1[p, k] = r0[i, p] g[a, k].
                 b0 = r0[i, 2] * g[a, 1] - r0[i, 1] * g[a, 2]
@@ -139,25 +144,25 @@ def corotational_value_gradient(
                 for p in range(3):
                     for k in range(3):
                         rc[p, k] = q[p, 0] * q0[k, 0] + q[p, 1] * q0[k, 1] + q[p, 2] * q0[k, 2]
-            # P = R (2 mu eps + lam tr eps I), eps = sym(R^T F) - I
-            sc = rc.T @ fc
+            # sc = R^T F, w1 = R^T dFw
+            for p in range(3):
+                for k in range(3):
+                    sc[p, k] = rc[0, p] * fc[0, k] + rc[1, p] * fc[1, k] + rc[2, p] * fc[2, k]
+                    w1[p, k] = rc[0, p] * dfw[0, k] + rc[1, p] * dfw[1, k] + rc[2, p] * dfw[2, k]
             treps = sc[0, 0] + sc[1, 1] + sc[2, 2] - 3.0
-            sig = np.empty((3, 3), np.complex128)
-            for p in range(3):
-                for k in range(3):
-                    sig[p, k] = mu[e] * (sc[p, k] + sc[k, p]) - (2.0 * mu[e] if p == k else 0.0)
-                sig[p, p] += lam[e] * treps
-            pk = rc @ sig
-            # dP(dFw) = R (mu (w1 + w1^T) + lam tr(w1) I), w1 = R^T dFw
-            w1 = rc.T @ dfw.astype(np.complex128)
             trw = w1[0, 0] + w1[1, 1] + w1[2, 2]
+            # a_k dP(dFw) + h P = R (a_k (mu (w1 + w1^T) + lam tr(w1) I)
+            #                       + h (2 mu eps + lam tr(eps) I)), eps = sym(sc) - I
             for p in range(3):
                 for k in range(3):
-                    sig[p, k] = mu[e] * (w1[p, k] + w1[k, p])
-                sig[p, p] += lam[e] * trw
-            dp = rc @ sig
+                    sig[p, k] = a_k * mu[e] * (w1[p, k] + w1[k, p]) + h * mu[e] * (
+                        sc[p, k] + sc[k, p]
+                    )
+                sig[p, p] += a_k * lam[e] * trw + h * (lam[e] * treps - 2.0 * mu[e])
+            for p in range(3):
+                for k in range(3):
+                    comb[p, k] = rc[p, 0] * sig[0, k] + rc[p, 1] * sig[1, k] + rc[p, 2] * sig[2, k]
             # phi = sum_b c_b . (a_k V dP g_b + h V P g_b)
-            comb = a_k * dp + h * pk
             phi = 0.0j
             for b in range(4):
                 node = tets[e, b]
