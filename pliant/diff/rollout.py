@@ -3,10 +3,12 @@
 Forward: T steps of the solver from s_0 under the controls, keeping every k-th state
 (checkpoints) and summing the loss's stage terms. Reverse: segment by segment from the last,
 the segment's states are recomputed from its checkpoint (the step is deterministic: the
-"fresh" policy refactorises each step), then each step's adjoint (:class:`pliant.diff.step.
-StepAdjoint`: its linearisation and factorisation, one block solve, the complex-step element
-terms) carries the cotangent of s_{n+1} back to s_n and adds its parameters' share. With
-k ~ sqrt(T), 2 sqrt(T) states are held at a time for 2 T forward steps in all.
+"fresh" policy refactorises each step; the last segment is kept from the forward pass), then
+each step's adjoint (:class:`pliant.diff.step.StepAdjoint`: its linearisation and
+factorisation, one block solve, the complex-step element terms) carries the cotangent of
+s_{n+1} back to s_n and adds its parameters' share. With k ~ sqrt(T), 2 sqrt(T) states are
+held at a time for 2 T forward steps in all; with k = T (the default for trajectories that
+fit in memory), T states and T forward steps.
 """
 
 from __future__ import annotations
@@ -23,6 +25,9 @@ from pliant.diff.step import StepAdjoint, check_model, check_parameters
 from pliant.errors import ModelError
 from pliant.model import Model, State
 from pliant.solvers.implicit_euler import ImplicitEuler
+
+#: A trajectory whose states take at most this is kept whole by default (no recomputation).
+KEEP_ALL_BYTES = 256 * 2**20
 
 
 @dataclass
@@ -98,7 +103,10 @@ def rollout_gradient(
         controls: one row of actuator commands per step, in the actuators' modes.
         loss: stage terms (:mod:`pliant.diff.losses`).
         wrt: parameters (:data:`pliant.diff.step.PARAMETERS`).
-        checkpoint_every: k, the states kept in the forward pass (default ceil(sqrt(T))).
+        checkpoint_every: keep every k-th state in the forward pass and recompute the
+            segments between them (k ~ sqrt(T) holds 2 sqrt(T) states for 2 T steps). Default:
+            every state when the trajectory takes at most KEEP_ALL_BYTES (256 MiB; 1000
+            steps of the Trunk take 32 MB), else ceil(sqrt(T)).
         regions: element -> region index, for E and nu per region (default: the body's).
 
     Raises:
@@ -111,7 +119,13 @@ def rollout_gradient(
     controls = check_controls(model, controls)
     state0 = model.check_state(state0)
     n_steps = controls.shape[0]
-    k = checkpoint_every or max(1, math.ceil(math.sqrt(n_steps)))
+    state_bytes = 2 * state0.positions.nbytes
+    if checkpoint_every is not None:
+        k = checkpoint_every
+    elif (n_steps + 1) * state_bytes <= KEEP_ALL_BYTES:
+        k = n_steps  # every state kept from the forward pass: nothing recomputed
+    else:
+        k = max(1, math.ceil(math.sqrt(n_steps)))
     if int(k) != k or k < 1:
         raise ModelError(f"checkpoint_every must be a positive integer, got {k!r}")
     saved = [a.value for a in model.actuators]
@@ -127,11 +141,14 @@ def _sweep(model, solver, state0, controls, loss, names, k, regions) -> RolloutG
     checkpoints = {0: state0.copy()}
     stage_values = [loss.stage(0, state0, None).value]
     state = state0
+    tail = [state0]  # the states since the last checkpoint: the last segment, not recomputed
     for n in range(n_steps):
         state = solver.step(state, DirectControl(controls[n].copy()))
         stage_values.append(loss.stage(n + 1, state, controls[n]).value)
+        tail.append(state)
         if (n + 1) % k == 0 and n + 1 < n_steps:
             checkpoints[n + 1] = state.copy()
+            tail = [checkpoints[n + 1]]
     final = state
     steps = n_steps
     n_nodes = model.body.n_nodes
@@ -142,10 +159,10 @@ def _sweep(model, solver, state0, controls, loss, names, k, regions) -> RolloutG
     held = len(checkpoints)
     for start in sorted(checkpoints, reverse=True):
         stop = min(start + k, n_steps)
-        segment = [checkpoints[start]]
-        for n in range(start, stop):
+        segment, tail = (tail, None) if tail is not None else ([checkpoints[start]], None)
+        for n in range(start + len(segment) - 1, stop):
             segment.append(solver.step(segment[-1], DirectControl(controls[n].copy())))
-        steps += stop - start
+            steps += 1
         held = max(held, len(checkpoints) + len(segment))
         for n in range(stop - 1, start - 1, -1):
             new = segment[n + 1 - start]
