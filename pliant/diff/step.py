@@ -41,7 +41,8 @@ vbar = dL/dv' + h dL/dq', the adjoint mu = (mu_v, mu_l) solves dF/dy^T mu = (vba
   measured from the step's start) follows q: delta_d cancels from F2, and so does its
   H_d^T mu_l.
 * mu_e, lam_e (Lamé parameters, per element): f and K_s are linear in them, so
-  -mu_v.(a_k K_s^e v' - h f^e) evaluated with unit parameters; E and nu by the chain rule.
+  -mu_v.(a_k K_s^e v' - h f^e) evaluated with unit parameters (the compiled kernels); E and
+  nu by the chain rule.
 * alpha: dF1/dalpha = h M v'; beta: dF1/dbeta = h K_s v'.
 * density rho (M and g scale with it): dF1/drho = (a_m M v' - M v - h g) / rho.
 * a constant nodal force f_ext: h mu_v.
@@ -71,6 +72,7 @@ from pliant.diff.elements import (
 )
 from pliant.diff.kernels import corotational_value_gradient
 from pliant.errors import ModelError
+from pliant.fem import kernels as fem_kernels
 from pliant.fem.body import TetBody
 from pliant.fem.loads import NodalForces
 from pliant.fem.material import NEO_HOOKEAN
@@ -253,6 +255,7 @@ class StepAdjoint:
         "poisson_ratio" per element (m,), "density", "rayleigh_mass", "rayleigh_stiffness"
         (floats), "external_forces" and "rest_positions" (n, 3)."""
         model, body, h = self.model, self.model.body, self.h
+        self._lame = None  # this cotangent's (E, nu) shares, computed once for both
         d = self.rows.equality
         vbar = body.gather(dv_new) + h * body.gather(dq_new)
         cols = self.factor.solve(np.column_stack([vbar, self.ht[:, d]]))
@@ -278,6 +281,33 @@ class StepAdjoint:
         out["positions"] = dq
         for name in wrt:
             out[name] = self._parameter(name, mu_v, mu_l, mu_e, v_e, shape, local)
+        return out
+
+    def _unit_law_terms(self, v_full: np.ndarray, mu_e: np.ndarray) -> list[np.ndarray]:
+        """-mu_e.(a_k K_s^e v' - h f^e) per element with (mu, lam) = (1, 0) and (0, 1): f and
+        K_s are linear in the Lamé parameters (the compiled kernel, twice)."""
+        body, h = self.model.body, self.h
+        m = body.n_elements
+        out = []
+        for mu, lam in ((np.ones(m), np.zeros(m)), (np.zeros(m), np.ones(m))):
+            forces, kv = np.empty((m, 4, 3)), np.empty((m, 4, 3))
+            fem_kernels.internal_forces(
+                self.q,
+                v_full,
+                body.tets,
+                body.grads,
+                body.volumes,
+                mu,
+                lam,
+                body.material.kernel_tag,
+                body.frame_nodes,
+                body.rest_frames,
+                forces,
+                kv,
+                np.empty((m, 3, 3)),
+                np.empty(m),
+            )
+            out.append(-np.einsum("mai,mai->m", self.a_k * kv - h * forces, mu_e))
         return out
 
     def _element_gradient(self, mu_full, v_full, shape, local) -> np.ndarray:
@@ -321,12 +351,11 @@ class StepAdjoint:
             ctrl = np.where(force_rows, h * (self.ht.T @ mu_v), mu_l)
             return np.where(self.rows.command_enters, ctrl, 0.0)
         if name in ("young_modulus", "poisson_ratio"):
-            # f and K_s are linear in (mu, lam): both unit laws in one batched evaluation.
-            unit = np.eye(2)[:, :, None] * np.ones(body.n_elements)
-            f, kw = element_terms(body, self.q[body.tets], v_e, shape, local, *unit)
-            bars = -np.einsum("...mai,mai->...m", self.a_k * kw - h * f, mu_e)
-            e_bar, nu_bar = lame_to_young_poisson(body.mu, body.lam, *bars)
-            return e_bar if name == "young_modulus" else nu_bar
+            if self._lame is None:
+                self._lame = lame_to_young_poisson(
+                    body.mu, body.lam, *self._unit_law_terms(body.scatter(v_new), mu_e)
+                )
+            return self._lame[0] if name == "young_modulus" else self._lame[1]
         if name == "rayleigh_mass":
             return float(-h * mu_v @ body.mass_matvec(v_new))
         if name == "rayleigh_stiffness":
