@@ -9,14 +9,12 @@ parameters again.
 
 from __future__ import annotations
 
-import json
-
 import matplotlib
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
-from _common import QUICK, out, save_figure  # noqa: E402
+from _common import QUICK, save_figure  # noqa: E402
 
 from pliant.constraints.base import EmbeddedPoints  # noqa: E402
 from pliant.constraints.cable import CableActuator  # noqa: E402
@@ -90,13 +88,3 @@ axes[1].axhline(1.0, color="k", lw=0.5)
 axes[1].set(xlabel="rollout + adjoint", ylabel="value / truth")
 axes[1].legend(fontsize=7)
 save_figure(fig, "diff_calibration.png")
-out("diff_calibration.json").write_text(
-    json.dumps(
-        {
-            "parameters": result.parameters,
-            "relative_errors": errors,
-            "evaluations": result.evaluations,
-        },
-        indent=1,
-    )
-)
