@@ -4,6 +4,7 @@ equilibrium, trajectory gradients with checkpointing, torch bindings (:mod:`plia
 See docs/diff.md for the method and what is held fixed.
 """
 
+from pliant.diff.calibration import CalibrationResult, calibrate
 from pliant.diff.losses import (
     ControlPenalty,
     Loss,
@@ -14,10 +15,12 @@ from pliant.diff.losses import (
 )
 from pliant.diff.parameters import element_young_poisson, set_parameters
 from pliant.diff.rollout import RolloutGradient, rollout, rollout_gradient
+from pliant.diff.static import static_gradient
 from pliant.diff.step import PARAMETERS, StepAdjoint
 
 __all__ = [
     "PARAMETERS",
+    "CalibrationResult",
     "ControlPenalty",
     "Loss",
     "Losses",
@@ -26,8 +29,10 @@ __all__ = [
     "StageGradient",
     "StateCotangents",
     "StepAdjoint",
+    "calibrate",
     "element_young_poisson",
     "rollout",
     "rollout_gradient",
     "set_parameters",
+    "static_gradient",
 ]
