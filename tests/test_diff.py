@@ -304,13 +304,14 @@ def test_rollout_gradient_against_finite_differences_and_checkpointing():
         assert relative_error(fd, result.gradients[name]) < TOL, name
     rng = np.random.default_rng(3)
     d = rng.standard_normal((model.body.n_nodes, 3)) * (model.body.free_index >= 0).reshape(-1, 3)
-    moved = []
-    for e in (1e-3, -1e-3):
-        s = model.rest_state()
-        s.velocities = e * d
-        moved.append(_rollout_loss(model, controls, loss, s))
-    fd = (moved[0] - moved[1]) / 2e-3
-    assert relative_error(fd, np.sum(result.gradients["initial_velocities"] * d)) < TOL
+    for name in ("velocities", "positions"):
+        moved = []
+        for e in (1e-3, -1e-3):
+            s = model.rest_state()
+            setattr(s, name, getattr(s, name) + e * d)
+            moved.append(_rollout_loss(model, controls, loss, s))
+        fd = (moved[0] - moved[1]) / 2e-3
+        assert relative_error(fd, np.sum(result.gradients[f"initial_{name}"] * d)) < TOL, name
 
 
 @pytest.mark.parametrize("law", ["polar", "large"])
