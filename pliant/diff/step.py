@@ -172,7 +172,9 @@ class ActuatorRows:
             force_free & (commands > lo) & (commands < hi),
         )
         change = np.array([a.max_displacement_change or np.nan for a in acts])
-        last = np.array([getattr(a, "change_reference", "last") == "last" for a in acts])
+        last = np.array(
+            [getattr(a, "change_reference", "last") == "last" for a in acts], dtype=bool
+        )
         target = np.clip(commands, dmin, dmax)
         rate = ((target == dmax) & (dmax == previous + change)) | (
             (target == dmin) & (dmin == previous - change)
