@@ -246,7 +246,6 @@ class StepAdjoint:
         self.factor.factorize(data)
         space = model.constraint_space(self.q, roles=("actuator",))
         self.ht = space.jacobian_t[:, space.slices["actuator"]]
-        self.time = state.time
 
     def vjp(
         self, dq_new: np.ndarray, dv_new: np.ndarray, wrt: tuple[str, ...] = ()
