@@ -566,3 +566,33 @@ def test_young_modulus_per_region_against_finite_differences():
         moved.append(_rollout_loss(model, controls, loss))
     fd = (moved[0] - moved[1]) / 2e-2
     assert relative_error(fd, result.gradients["young_modulus"][1]) < TOL
+
+
+@pytest.mark.parametrize(("mode", "command"), [("force", 20.0), ("displacement", 50.0)])
+def test_pneunet_cavity_gradient_against_finite_differences(mode, command):
+    """The PneuNet's cavity (2430 tetrahedra) for 3 steps, pressure or volume commanded: the
+    command and E (a cavity's rows are gradients of its volume)."""
+    from pliant import robots
+
+    n_steps = 3
+    model = robots.pneunet(mesh_size=8.0)
+    model.actuators[0].mode = mode
+    points = model.effectors[0].points
+    loss = PointTracking(points, points.positions(model.body.rest_positions) + 1.0, n_steps=n_steps)
+    controls = np.full((n_steps, 1), command)
+    solver = ImplicitEuler(model, DT, tangent="fresh")
+    result = rollout_gradient(
+        model, solver, model.rest_state(), controls, loss, wrt=("controls", "young_modulus")
+    )
+    moved = []
+    for e in (1e-3, -1e-3):
+        c = controls.copy()
+        c[0, 0] += e
+        moved.append(_rollout_loss(model, c, loss))
+    assert relative_error((moved[0] - moved[1]) / 2e-3, result.gradients["controls"][0, 0]) < TOL
+    moved = []
+    for e in (1e-4, -1e-4):
+        set_parameters(model, young_modulus=500.0 * (1 + e))
+        moved.append(_rollout_loss(model, controls, loss))
+    fd = (moved[0] - moved[1]) / (2e-4 * 500.0)
+    assert relative_error(fd, result.gradients["young_modulus"]) < TOL
