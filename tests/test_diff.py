@@ -596,3 +596,36 @@ def test_pneunet_cavity_gradient_against_finite_differences(mode, command):
         moved.append(_rollout_loss(model, controls, loss))
     fd = (moved[0] - moved[1]) / (2e-4 * 500.0)
     assert relative_error(fd, result.gradients["young_modulus"]) < TOL
+
+
+def test_finger_static_gradient_against_finite_differences():
+    """The coarse Soft Finger's equilibrium under 3 mm of cable: the effector's position by the
+    command and E (implicit-function theorem, exact tangent and the cable's geometric
+    stiffness)."""
+    from pliant import robots
+
+    model = robots.soft_finger()
+    points = model.effectors[0].points
+    rng = np.random.default_rng(8)
+    w = rng.standard_normal((len(points), 3))
+
+    def solve(commands):
+        solver = StaticSolver(model)
+        eq = solver.step(model.rest_state(), DirectControl(np.array(commands, float)))
+        return solver, eq, float(np.sum(w * points.positions(eq.positions)))
+
+    commands = [3.0, 0.0]
+    solver, eq, _ = solve(commands)
+    grad_q = np.zeros_like(eq.positions)
+    np.add.at(grad_q, points.nodes, points.weights[:, :, None] * w[:, None, :])
+    grads = static_gradient(
+        model, solver, eq, np.array(commands), grad_q, wrt=("controls", "young_modulus")
+    )
+    moved = [solve([3.0 + e, 0.0])[2] for e in (1e-3, -1e-3)]
+    assert relative_error((moved[0] - moved[1]) / 2e-3, grads["controls"][0]) < TOL
+    moved = []
+    for e in (1e-4, -1e-4):
+        set_parameters(model, young_modulus=3000.0 * (1 + e))
+        moved.append(solve(commands)[2])
+    set_parameters(model, young_modulus=3000.0)
+    assert relative_error((moved[0] - moved[1]) / 0.6, grads["young_modulus"]) < TOL
