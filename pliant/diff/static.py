@@ -1,0 +1,176 @@
+"""Gradients of a static equilibrium by the implicit-function theorem.
+
+At the equilibrium of :class:`pliant.solvers.StaticSolver` (free DoFs q, actuator rows as in
+:mod:`pliant.diff.step`: equality rows d with lambda_d unknown, force rows with lambda known)
+
+    R1 = f(q; p) + g + f_ext + H(q)^T lambda = 0,     R2 = delta_d(q) - t_d = 0.
+
+With K_c = -dR1/dq = K(q) - sum_r lambda_r Hess delta_r (the exact material tangent, from
+complex-step element Jacobians, whatever the law: the large-frame corotational one is not
+symmetric; and the cables' geometric stiffness), dR/dy = [[-K_c, H_d^T], [H_d, 0]]. For a
+loss L(q), the adjoint mu = (mu_q, mu_l) solves dR/dy^T mu = (dL/dq, 0):
+
+    (H_d K_c^-T H_d^T) mu_l = H_d K_c^-T qbar,    mu_q = K_c^-T (H_d^T mu_l - qbar),
+
+and each parameter gets pbar = -(dR/dp)^T mu: mu_e, lam_e: -mu_q.f^e(unit parameters);
+(the held nodes stay at their rest positions, so their share of dL/dq and of
+-grad_q mu.R joins the rest positions');
+density: -mu_q.g / rho; a force command: -H_f mu_q; a displacement target: mu_l; a nodal force:
+-mu_q; rest positions: -grad_X mu_q.(f + g) + H_d(X)^T mu_l. For a law homogeneous of degree
+one in E (both here), q depends on f_ext / E only, so E dq/dE = -f_ext . dq/df_ext: for a
+linear response, d delta / dE = -delta / E (the tests check both).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+
+from pliant.diff.elements import (
+    body_shape,
+    complex_step_gradient,
+    complex_step_jacobian,
+    element_terms,
+    frame_local_nodes,
+    nodal_sum,
+    rest_shape,
+)
+from pliant.diff.parameters import check_regions, region_sum
+from pliant.diff.step import (
+    ActuatorRows,
+    check_model,
+    check_parameters,
+    full_rows_t,
+    lame_to_young_poisson,
+    row_hessian_product,
+)
+from pliant.errors import ModelError
+from pliant.model import Model, State
+from pliant.solvers.static import StaticSolver
+
+
+def static_gradient(
+    model: Model,
+    solver: StaticSolver,
+    equilibrium: State,
+    commands: np.ndarray,
+    positions_gradient: np.ndarray,
+    *,
+    wrt: tuple[str, ...] | str = ("controls",),
+    regions: np.ndarray | None = None,
+) -> dict[str, np.ndarray | float]:
+    """Gradients of a loss L(q) of the equilibrium `equilibrium` (solved by `solver` under
+    `commands`), given dL/dq (n, 3), with respect to `wrt` (as
+    :func:`pliant.diff.rollout_gradient`; the Rayleigh coefficients do not enter a static
+    equilibrium and get 0).
+
+    Raises:
+        ModelError: unsupported model, solver or parameter; wrong shapes.
+    """
+    check_model(model)
+    if not isinstance(solver, StaticSolver) or solver.model is not model:
+        raise ModelError("static_gradient needs the model's StaticSolver")
+    names = check_parameters(wrt)
+    regions = check_regions(model, regions)
+    body = model.body
+    grad_q = np.asarray(positions_gradient, dtype=float)
+    if grad_q.shape != (body.n_nodes, 3):
+        raise ModelError(f"positions_gradient must be ({body.n_nodes}, 3), got {grad_q.shape}")
+    commands = np.asarray(commands, dtype=float)
+    if commands.shape != (model.n_actuators,):
+        raise ModelError(f"commands must be ({model.n_actuators},), got {commands.shape}")
+    q, lam = equilibrium.positions, np.asarray(equilibrium.actuation, dtype=float)
+    rows = ActuatorRows.classify(model, commands, lam, equilibrium)
+    d = rows.equality
+    shape, local = body_shape(body), frame_local_nodes(body)
+    x = q[body.tets]
+
+    def forces(xe):
+        return element_terms(body, xe, None, shape, local, body.mu, body.lam)[0]
+
+    k_c = _tangent(model, q, lam, -complex_step_jacobian(forces, x))
+    lu = spla.splu(k_c.T.tocsc())
+    space = model.constraint_space(q, roles=("actuator",))
+    ht = space.jacobian_t[:, space.slices["actuator"]]
+    qbar = body.gather(grad_q)
+    cols = lu.solve(np.column_stack([qbar, ht[:, d]]))
+    mu_l = np.zeros(lam.size)
+    mu_q = -cols[:, 0]
+    if d.any():
+        schur = ht[:, d].T @ cols[:, 1:]
+        mu_l[d] = np.linalg.solve(schur, ht[:, d].T @ cols[:, 0])
+        mu_q = cols[:, 1:] @ mu_l[d] - cols[:, 0]
+    mu_full = body.scatter(mu_q)
+    mu_e = mu_full[body.tets]
+    out: dict[str, np.ndarray | float] = {}
+    for name in names:
+        if name == "controls":
+            out[name] = np.where(rows.command_enters, np.where(d, mu_l, -(ht.T @ mu_q)), 0.0)
+        elif name in ("young_modulus", "poisson_ratio"):
+            ones, zeros = np.ones(body.n_elements), np.zeros(body.n_elements)
+            bars = [
+                -np.einsum("mai,mai->m", mu_e, element_terms(body, x, None, shape, local, a, b)[0])
+                for a, b in ((ones, zeros), (zeros, ones))
+            ]
+            e_bar, nu_bar = lame_to_young_poisson(body.mu, body.lam, *bars)
+            out[name] = region_sum(e_bar if name == "young_modulus" else nu_bar, regions)
+        elif name == "density":
+            out[name] = float(-(mu_q @ body.gather(body.gravity_forces())) / body.density)
+        elif name in ("rayleigh_mass", "rayleigh_stiffness"):
+            out[name] = 0.0
+        elif name == "external_forces":
+            out[name] = -mu_full
+        else:
+            out[name] = _rest_positions(model, q, mu_e, mu_l, local)
+            out[name] += _held_nodes(model, q, lam, grad_q, mu_e, mu_full, mu_l, shape, local)
+    return out
+
+
+def _held_nodes(model, q, lam, grad_q, mu_e, mu_full, mu_l, shape, local) -> np.ndarray:
+    """The held nodes stay at their rest positions: dL/dq there less grad_q (mu.R) there."""
+    body = model.body
+
+    def element_value(x):
+        f = element_terms(body, x, None, shape, local, body.mu, body.lam)[0]
+        return np.einsum("...mai,mai->...m", f, mu_e)
+
+    through = nodal_sum(body, complex_step_gradient(element_value, q[body.tets]))
+    through += row_hessian_product(model, q, lam, mu_full) + full_rows_t(model, q, mu_l)
+    held = (body.free_index < 0).reshape(-1, 3)
+    return np.where(held, grad_q - through, 0.0)
+
+
+def _tangent(model: Model, q: np.ndarray, lam: np.ndarray, blocks: np.ndarray) -> sp.csc_matrix:
+    """K_c on the free DoFs: element blocks (m, 12, 12) of -df/dx and the actuators' load
+    stiffness at forces `lam`."""
+    body = model.body
+    dofs = body.free_index[(3 * body.tets[:, :, None] + np.arange(3)).reshape(-1, 12)]
+    rows = np.repeat(dofs[:, :, None], 12, axis=2)
+    cols = np.repeat(dofs[:, None, :], 12, axis=1)
+    keep = (rows >= 0) & (cols >= 0)
+    n = body.n_free
+    k = sp.coo_matrix((blocks[keep], (rows[keep], cols[keep])), shape=(n, n)).tocsc()
+    pattern = model.geometric_pattern()
+    if pattern is not None:
+        values = model.geometric_stiffness(q, lam)
+        k = k + sp.coo_matrix((values, pattern), shape=(n, n)).tocsc()
+    return k
+
+
+def _rest_positions(model: Model, q, mu_e, mu_l, local) -> np.ndarray:
+    body = model.body
+    if body.mass_type == "consistent":
+        raise ModelError("rest-position gradients need a lumped or uniform mass")
+    lumped = body.mass_type == "lumped"
+    weight = np.einsum("mai,i->m", mu_e, body.gravity) * body.density / 4.0
+    x = q[body.tets]
+
+    def element_value(rest):
+        shape = rest_shape(body, rest, local)
+        f = element_terms(body, x, None, shape, local, body.mu, body.lam)[0]
+        value = np.einsum("...mai,mai->...m", f, mu_e)
+        return value + shape.volumes * weight if lumped else value
+
+    grad = -nodal_sum(body, complex_step_gradient(element_value, body.rest_positions[body.tets]))
+    return grad + full_rows_t(model, body.rest_positions, mu_l)
