@@ -3,7 +3,7 @@ environment's configuration, SofaGym's shared helpers (``sofagym.header``), the 
 toolbox module beside it, its reward, goal and action controllers on the root, and SofaGym's
 environment loop around it (:class:`pliant.envs.sofagym.SofaGymEnv`).
 
-tests/sofa_scenes/gym_finger/ (written for these tests in SofaGym's form) is checked against
+tests/sofa/sofa_scenes/gym_finger/ (written for these tests in SofaGym's form) is checked against
 the same finger built with Pliant's API under the same cable commands: they agree to
 round-off, and the toolbox's reward and goal read and move the scene as the API's states do.
 """
