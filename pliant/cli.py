@@ -317,6 +317,13 @@ def bench(
             " with its arithmetic against this machine's matrix-product speed; learner.json"
         ),
     ] = False,
+    gradient: Annotated[
+        bool,
+        typer.Option(
+            help="what a rollout gradient (pliant.diff) costs beside the rollout, on the coarse"
+            " Finger and the Diamond; gradient.json"
+        ),
+    ] = False,
 ) -> None:
     """Median steps/s beside SOFA's measured figures; writes JSON and a log-log plot."""
     from pliant.bench import run_benchmarks
@@ -341,6 +348,10 @@ def bench(
         from pliant.learn.speed import report_learner
 
         report_learner(quick=quick, out=out.with_name("learner.json"), console=console)
+    if gradient:
+        from pliant.bench import report_gradient
+
+        report_gradient(quick=quick, out=out.with_name("gradient.json"), console=console)
 
 
 def _copy_counts(text: str) -> tuple[int, ...]:
