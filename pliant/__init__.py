@@ -103,6 +103,8 @@ _FACE = {
     "RigidSolver": "pliant.solvers",
     "RigidWorld": "pliant.solvers",
     "StaticSolver": "pliant.solvers",
+    "Solver": "pliant.solvers",
+    "CondensingSolver": "pliant.solvers",
     "BatchedImplicitEuler": "pliant.solvers",
     "TetMesh": "pliant.mesh",
     "load_mesh": "pliant.mesh",

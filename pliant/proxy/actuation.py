@@ -102,7 +102,7 @@ class CurvatureActuation:
 
 
 class ProxySolver:
-    """A solver of a proxy with Pliant's one solver interface: ``step(state, controls)``
+    """A solver of a proxy with Pliant's one solver interface: ``step(state, control)``
     applies the commands as the proxy's rest curvatures (and base) and steps `solver`, so
     that controllers and environments drive a proxy as they drive a FEM robot. Everything
     else (dt, model, system) is the wrapped solver's."""
@@ -111,9 +111,9 @@ class ProxySolver:
         self.proxy = proxy
         self.solver = solver
 
-    def step(self, state, controls=None):
-        if controls is not None:
-            self.proxy.apply(controls)
+    def step(self, state, control=None):
+        if control is not None:
+            self.proxy.apply(control)
         return self.solver.step(state)
 
     def __getattr__(self, name: str):
