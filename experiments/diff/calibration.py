@@ -20,7 +20,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import sys
 import time
 from pathlib import Path
 
@@ -30,11 +29,10 @@ import optuna
 from pliant.constraints.base import EmbeddedPoints
 from pliant.diff import rollout, set_parameters
 from pliant.diff.calibration import calibrate, observe, relative_errors, trajectory_loss
+from pliant.diff.scenes import cable_beam as beam
 from pliant.solvers import ImplicitEuler
 
 ROOT = Path(__file__).resolve().parents[2]
-sys.path.insert(0, str(ROOT / "tests"))
-from test_diff import beam  # noqa: E402  (the verified test scene)
 
 OUT = ROOT / "experiments" / "results" / "diff" / "calibration.json"
 DT = 0.01

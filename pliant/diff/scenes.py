@@ -1,0 +1,70 @@
+"""The small scene the gradients are verified on (tests/diff) and the calibration study
+calibrates (experiments/diff/calibration.py): a coarse beam with two cables and a tip load."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from pliant.constraints.base import EmbeddedPoints
+from pliant.constraints.cable import CableActuator
+from pliant.fem.body import TetBody
+from pliant.fem.loads import NodalForces
+from pliant.fem.material import Corotational, NeoHookean
+from pliant.mesh.shapes import box_beam
+from pliant.model import Model
+
+
+def cable_beam(
+    *,
+    young_modulus=200.0,
+    poisson_ratio=0.3,
+    density=1e-6,
+    rayleigh_mass=0.5,
+    rayleigh_stiffness=0.01,
+    law="polar",
+    points=None,
+    tip_force=(0.0, 0.0, -1.0),
+    modes=("displacement", "force"),
+):
+    """A 60 x 10 x 10 mm beam of 30 tetrahedra held at x = 0, a cable along its top edge and
+    one along a bottom edge (through nodes, so that moving the rest nodes keeps the cables'
+    embedding), a tip load."""
+    mesh = box_beam(60.0, 10.0, 10.0, 5, 1, 1)
+    if points is not None:
+        mesh = type(mesh)(points, mesh.tets)
+    rest = box_beam(60.0, 10.0, 10.0, 5, 1, 1).points
+    near = np.isclose
+    fixed = np.flatnonzero(near(rest[:, 0], 0.0))
+    top = np.flatnonzero(near(rest[:, 2], 10.0) & near(rest[:, 1], 0.0) & ~near(rest[:, 0], 0.0))
+    bottom = np.flatnonzero(near(rest[:, 2], 0.0) & near(rest[:, 1], 10.0) & ~near(rest[:, 0], 0.0))
+    tip = np.flatnonzero(near(rest[:, 0], 60.0))
+    material = (
+        NeoHookean(young_modulus, poisson_ratio)
+        if law == "neo-hookean"
+        else Corotational(young_modulus, poisson_ratio, rotation=law)
+    )
+    body = TetBody(
+        mesh,
+        material,
+        density=density,
+        fixed_nodes=fixed,
+        gravity=(0.0, 0.0, -9810.0),
+        rayleigh_mass=rayleigh_mass,
+        rayleigh_stiffness=rayleigh_stiffness,
+        loads=[NodalForces(tip, np.asarray(tip_force) / tip.size)],
+    )
+    cables = [
+        CableActuator(
+            EmbeddedPoints.at_nodes(nodes[np.argsort(rest[nodes, 0])]),
+            body.rest_positions,
+            pull_point=np.array(pull),
+            name=name,
+            mode=mode,
+            max_force=1e3,
+        )
+        for name, nodes, pull, mode in (
+            ("top", top, [-10.0, 0.0, 10.0], modes[0]),
+            ("bottom", bottom, [-10.0, 10.0, 0.0], modes[1]),
+        )
+    ]
+    return Model(body, actuators=cables, name="beam")
