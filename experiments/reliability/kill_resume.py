@@ -4,9 +4,9 @@ with ``--resume``, compared bit for bit with an uninterrupted run.
 One run type, SB3 training: PPO on the toy ``pliant-test/PointReach-v0`` (VecNormalize on, one
 environment in the learner's process, a checkpoint every ``--checkpoint`` steps, one PyTorch
 thread). Each run is a fresh process (``train(config, run)``); it is killed (SIGKILL) at a time
-drawn uniformly over the first 90 % of the reference run's training time (seeded: ``--seed`` and the run's
-index), then a fresh process resumes it (``train(run_dir=run, resume=True)``, what ``pliant
-train --resume`` calls). A run killed before its first checkpoint has nothing to resume from
+drawn uniformly over the first 90 % of the reference run's training time (seeded: ``--seed``
+and the run's index), then a fresh process resumes it (``train(run_dir=run, resume=True)``,
+what ``pliant train --resume`` calls). A run killed before its first checkpoint has nothing to resume from
 and is started again, as a user would (counted apart). The final policy parameters and
 VecNormalize statistics are compared with the uninterrupted reference run's, bit for bit.
 
