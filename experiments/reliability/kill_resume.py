@@ -6,8 +6,8 @@ environment in the learner's process, a checkpoint every ``--checkpoint`` steps,
 thread). Each run is a fresh process (``train(config, run)``); it is killed (SIGKILL) at a time
 drawn uniformly over the first 90 % of the reference run's training time (seeded: ``--seed``
 and the run's index), then a fresh process resumes it (``train(run_dir=run, resume=True)``,
-what ``pliant train --resume`` calls). A run killed before its first checkpoint has nothing to resume from
-and is started again, as a user would (counted apart). The final policy parameters and
+what ``pliant train --resume`` calls). A run killed before its first checkpoint has nothing to
+resume from and is started again, as a user would (counted apart). The final policy parameters and
 VecNormalize statistics are compared with the uninterrupted reference run's, bit for bit.
 
 The study resumes itself: the results are written (atomically) after each run, and a rerun of
