@@ -22,7 +22,7 @@ are written (atomically) after each run, and the same command goes on from the f
 run. From the repository root::
 
     python experiments/reliability/kill_resume.py --kind sb3 --runs 25
-    python experiments/reliability/kill_resume.py --kind collect --runs 20 --samples 24
+    python experiments/reliability/kill_resume.py --kind collect --runs 25 --samples 80
 
 write ``experiments/results/reliability/kill_resume_<kind>.json``.
 """
