@@ -24,6 +24,8 @@ run. From the repository root::
     python experiments/reliability/kill_resume.py --kind sb3 --runs 25
     python experiments/reliability/kill_resume.py --kind collect --runs 25 --samples 80
 
+(``--runs`` larger than the results hold adds runs to them; other settings start afresh.)
+
 write ``experiments/results/reliability/kill_resume_<kind>.json``.
 """
 
@@ -81,6 +83,7 @@ def _finish(process: subprocess.Popen, what: str, log: Path) -> str:
 # --------------------------------------------------------------------------- SB3 training
 class Training:
     kind = "sb3"
+    result = ".npz"  # what a run leaves: <label>.npz
 
     def __init__(self, args: argparse.Namespace) -> None:
         self.config = dict(
@@ -187,6 +190,7 @@ def child(action: str, run_dir: str, config_json: str) -> None:
 # ------------------------------------------------------------------ condensed collection
 class Collection:
     kind = "collect"
+    result = ".h5"
 
     def __init__(self, args: argparse.Namespace) -> None:
         self.options = [
@@ -307,7 +311,7 @@ def main() -> None:
     parser.add_argument("--seed", type=int, default=0, help="seed of the kill times")
     parser.add_argument("--steps", type=int, default=6000, help="sb3: training steps of a run")
     parser.add_argument("--checkpoint", type=int, default=640, help="sb3: steps a checkpoint")
-    parser.add_argument("--samples", type=int, default=40, help="collect: training samples")
+    parser.add_argument("--samples", type=int, default=80, help="collect: training samples")
     parser.add_argument("--chunk", type=int, default=2, help="collect: samples a chunk")
     parser.add_argument("--work", type=Path, help="default: runs/kill_resume_<kind>")
     parser.add_argument("--out", type=Path, help="default: experiments/results/reliability/")
@@ -319,9 +323,9 @@ def main() -> None:
         args.out
         or ROOT / "experiments" / "results" / "reliability" / f"kill_resume_{args.kind}.json"
     )
-    setup = {**kind.setup(), "seed": args.seed, "runs_asked": args.runs}
+    setup = {**kind.setup(), "seed": args.seed}
     report = json.loads(out.read_text()) if out.exists() else {}
-    if report.get("setup") != setup or not any(work.glob("reference.*")):
+    if report.get("setup") != setup or not (work / f"reference{kind.result}").exists():
         work.mkdir(parents=True, exist_ok=True)
         seconds = reference(kind, work)
         report = {"setup": setup, "reference_s": round(seconds, 2), "results": []}
