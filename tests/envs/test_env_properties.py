@@ -1,5 +1,6 @@
-"""Property tests (Hypothesis) of the environment API, for every registered id (quick variants,
-built as `tests/envs/test_snapshots.py` builds them): for any seed, action sequence and restore point,
+"""Property tests (Hypothesis) of the environment API, for every registered id (quick
+variants, built as `tests/envs/test_snapshots.py` builds them): for any seed, action sequence
+and restore point,
 
 - every observation is finite, inside the observation space and not a view of the previous one;
 - every reward is finite and equals the sum of ``info["reward_parts"]``;
