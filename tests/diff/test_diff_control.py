@@ -7,7 +7,14 @@ import pytest
 from test_diff import DT, beam
 
 from pliant.constraints.base import EmbeddedPoints
-from pliant.diff import ControlPenalty, Losses, PointTracking, optimise_controls, rollout
+from pliant.diff import (
+    ControlPenalty,
+    Losses,
+    PointTracking,
+    optimise_controls,
+    rollout,
+    rollout_gradient,
+)
 from pliant.errors import ConstraintError, InfeasibleProblemError, ModelError
 from pliant.solvers.implicit_euler import ImplicitEuler
 
@@ -78,3 +85,31 @@ def test_bad_bounds_and_shapes_raise():
     with pytest.raises(ModelError, match="fresh"):
         lagged = ImplicitEuler(model, DT, tangent="lagged")
         optimise_controls(model, lagged, state, loss, start)
+
+
+def test_force_command_at_its_bound_gets_the_inside_derivative():
+    """A force command at min_force = 0 enters with the derivative from inside the box (what
+    L-BFGS-B's projected steps need), checked with a second-order one-sided difference
+    (-3 L(c) + 4 L(c + e) - L(c + 2 e)) / (2 e); the loss also tracks the tip's velocity."""
+    model, solver, tip, _, _ = _problem()
+    controls = np.column_stack([np.zeros(T), np.linspace(30.0, 50.0, T)])
+    goal = tip.positions(model.body.rest_positions) + [0.0, 0.0, 2.0]
+    loss = Losses(
+        PointTracking(tip, goal, n_steps=T),
+        PointTracking(tip, np.zeros((len(tip), 3)), n_steps=T, weight=0.1, quantity="velocities"),
+    )
+    state = model.rest_state()
+    grad = rollout_gradient(model, solver, state, controls, loss).gradients["controls"]
+
+    def value(c):
+        states = rollout(model, solver, state, c)
+        return sum(loss.stage(n, s, None).value for n, s in enumerate(states))
+
+    e = 1e-3
+    for n in (0, T - 1):
+        bump = np.zeros_like(controls)
+        bump[n, 0] = e
+        moved = [value(controls + k * bump) for k in (0, 1, 2)]
+        one_sided = (-3 * moved[0] + 4 * moved[1] - moved[2]) / (2 * e)
+        assert grad[n, 0] != 0.0
+        assert abs(one_sided - grad[n, 0]) <= 1e-5 * abs(grad[n, 0])
