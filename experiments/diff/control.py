@@ -19,7 +19,7 @@ L-BFGS-B's), and the L-BFGS-B solution's largest change per step is reported.
 Runs, in this order in one process (wall times side by side, on the shared 2-core machine
 under other jobs' load): box-DDP with the change bound, box-DDP without it (numpy backward
 pass, linear state derivative, tolerance 1e-4 on the cost decrease, at most 100 iterations),
-L-BFGS-B from zero controls (pliant.diff.optimise_controls, at most `--lbfgs-iterations`).
+L-BFGS-B from zero controls (pliant.diff.optimise_controls, at most 100 iterations too).
 Both are warmed up first (numba compilation, untimed). Every final cost is evaluated again
 on the same full-FEM rollout (pliant.diff's loss).
 
@@ -110,7 +110,7 @@ def main() -> None:
     parser.add_argument("--quick", action="store_true", help="N = 10, 5 iterations each")
     parser.add_argument("--fresh", action="store_true", help="rerun runs already in the file")
     parser.add_argument("--ddp-iterations", type=int, default=100)
-    parser.add_argument("--lbfgs-iterations", type=int, default=60)
+    parser.add_argument("--lbfgs-iterations", type=int, default=100)
     parser.add_argument("--out", type=Path, default=None)
     args = parser.parse_args()
     horizon = 10 if args.quick else 100
@@ -183,14 +183,20 @@ def main() -> None:
             lower=bounds.lower,
             upper=bounds.upper,
             max_iterations=lbfgs_iterations,
-            callback=lambda i, e, v: print(f"L-BFGS-B {i}: {e} evaluations, loss {v:.2f}"),
+            callback=lambda i, e, v, t: print(
+                f"L-BFGS-B {i}: {e} evaluations, {t:.0f} s, loss {v:.2f}"
+            ),
         )
         below = {}
         for other, report in runs.items():
             hit = next(
                 (it for it in result.iteration_losses if it[2] <= report["cost_full_fem"]), None
             )
-            below[other] = None if hit is None else {"iteration": hit[0], "evaluations": hit[1]}
+            below[other] = (
+                None
+                if hit is None
+                else {"iteration": hit[0], "evaluations": hit[1], "wall_time_s": hit[3]}
+            )
         runs[name] = {
             "iterations": result.iterations,
             "converged": result.converged,

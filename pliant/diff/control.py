@@ -45,8 +45,8 @@ class ControlResult:
         simulated_steps: solver steps taken in all (forward passes and recomputations).
         wall_time: seconds spent in the optimisation.
         history: the loss at each evaluation.
-        iteration_losses: the loss at the end of each iteration (with the evaluations spent
-            by then): [(iteration, evaluations, loss), ...].
+        iteration_losses: the loss at the end of each iteration, with the evaluations and
+            the seconds spent by then: [(iteration, evaluations, loss, seconds), ...].
         message: the optimiser's.
         converged: whether L-BFGS-B met its tolerance (rather than its iteration cap).
     """
@@ -58,7 +58,7 @@ class ControlResult:
     simulated_steps: int
     wall_time: float
     history: list[float] = field(default_factory=list)
-    iteration_losses: list[tuple[int, int, float]] = field(default_factory=list)
+    iteration_losses: list[tuple[int, int, float, float]] = field(default_factory=list)
     message: str = ""
     converged: bool = False
 
@@ -146,7 +146,7 @@ def optimise_controls(
         gradient_tolerance: stop when the projected gradient (in scaled units) falls below it.
         memory: the number of correction pairs L-BFGS keeps.
         checkpoint_every: passed on to :func:`pliant.diff.rollout_gradient`.
-        callback: ``callback(iteration, evaluations, loss)`` after each iteration.
+        callback: ``callback(iteration, evaluations, loss, seconds)`` after each iteration.
 
     Raises:
         ModelError: wrong shape or non-finite `initial`, a model or solver pliant.diff does
@@ -169,7 +169,7 @@ def optimise_controls(
     start = np.clip(initial, lo, hi) / unit
     box = list(zip(np.tile(lo / unit, n_steps), np.tile(hi / unit, n_steps), strict=True))
     history: list[float] = []
-    iterations: list[tuple[int, int, float]] = []
+    iterations: list[tuple[int, int, float, float]] = []
     best = {"loss": np.inf, "controls": start * unit}
     steps = [0]
 
@@ -191,7 +191,8 @@ def optimise_controls(
         return result.value, (result.gradients["controls"] * unit).reshape(-1)
 
     def report(x: np.ndarray) -> None:
-        iterations.append((len(iterations) + 1, len(history), history[-1]))
+        seconds = time.perf_counter() - clock
+        iterations.append((len(iterations) + 1, len(history), history[-1], seconds))
         if callback is not None:
             callback(*iterations[-1])
 
