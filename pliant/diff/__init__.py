@@ -1,10 +1,12 @@
 """Exact gradients through the FEM step: adjoints of the implicit Euler step and of the static
-equilibrium, trajectory gradients with checkpointing, torch bindings (:mod:`pliant.diff.torch`).
+equilibrium, trajectory gradients with checkpointing, calibration and control by L-BFGS-B,
+torch bindings (:mod:`pliant.diff.torch`).
 
 See docs/diff.md for the method and what is held fixed.
 """
 
 from pliant.diff.calibration import CalibrationResult, calibrate
+from pliant.diff.control import ControlResult, actuator_box, optimise_controls
 from pliant.diff.losses import (
     ControlPenalty,
     Loss,
@@ -22,6 +24,7 @@ __all__ = [
     "PARAMETERS",
     "CalibrationResult",
     "ControlPenalty",
+    "ControlResult",
     "Loss",
     "Losses",
     "PointTracking",
@@ -29,8 +32,10 @@ __all__ = [
     "StageGradient",
     "StateCotangents",
     "StepAdjoint",
+    "actuator_box",
     "calibrate",
     "element_young_poisson",
+    "optimise_controls",
     "rollout",
     "rollout_gradient",
     "set_parameters",

@@ -40,6 +40,8 @@ class Loss(Protocol):
 class PointTracking:
     """0.5 weight |p_n - target_n|^2 summed over points (embedded in the body: nodes, an
     effector's points) and over the stages `stages` (default all, "final" for the last).
+    With ``quantity="velocities"`` p_n is the points' velocity (the same barycentric sum of
+    the nodes' velocities), e.g. a velocity penalty with zero targets.
 
     Args:
         points: the tracked points, e.g. ``model.effectors[0].points``.
@@ -47,6 +49,7 @@ class PointTracking:
         weight: the term's weight.
         stages: "all", "final", or the stage indices.
         n_steps: T, needed for "final" and checked against per-stage targets.
+        quantity: "positions" or "velocities" of the points.
     """
 
     def __init__(
@@ -57,7 +60,11 @@ class PointTracking:
         n_steps: int,
         weight: float = 1.0,
         stages: str | list[int] = "all",
+        quantity: str = "positions",
     ) -> None:
+        if quantity not in ("positions", "velocities"):
+            raise ModelError(f"quantity must be 'positions' or 'velocities', got {quantity!r}")
+        self.quantity = quantity
         self.points = points
         self.targets = np.asarray(targets, dtype=float)
         k = len(points)
@@ -79,11 +86,14 @@ class PointTracking:
     def stage(self, n: int, state: State, control: np.ndarray | None) -> StageGradient:
         if n not in self.stages:
             return StageGradient(0.0)
-        residual = self.points.positions(state.positions) - self.target(n)
-        grad = np.zeros_like(state.positions)
+        values = getattr(state, self.quantity)
+        residual = self.points.positions(values) - self.target(n)
+        grad = np.zeros_like(values)
         spread = self.weight * self.points.weights[:, :, None] * residual[:, None, :]
         np.add.at(grad, self.points.nodes, spread)
-        return StageGradient(0.5 * self.weight * float(np.sum(residual**2)), positions=grad)
+        return StageGradient(
+            0.5 * self.weight * float(np.sum(residual**2)), **{self.quantity: grad}
+        )
 
 
 class ControlPenalty:

@@ -50,7 +50,9 @@ vbar = dL/dv' + h dL/dq', the adjoint mu = (mu_v, mu_l) solves dF/dy^T mu = (vba
   held): the elements' g, V and rest frames and the lumped masses read X (complex step
   again), and a row's rest value delta_d = g(x) - g(X) gives H_d(X)^T mu_l.
 
-What is held: the active set of the actuator bounds (a command crossing a bound is a kink);
+What is held: the active set of the actuator bounds (a command crossing a bound is a kink; a
+force command exactly at its bound gets the derivative from inside the bounds, the one-sided
+derivative a bound-constrained optimiser needs);
 the "lagged" policy is refused (its A is an earlier step's, not a function of this one).
 """
 
@@ -169,7 +171,9 @@ class ActuatorRows:
         enters = np.where(
             displacement,
             equality & (commands > dmin) & (commands < dmax),
-            force_free & (commands > lo) & (commands < hi),
+            # A force command exactly at its bound enters with the inside (one-sided)
+            # derivative: what a projected-gradient method such as L-BFGS-B needs there.
+            force_free & (commands >= lo) & (commands <= hi),
         )
         change = np.array([a.max_displacement_change or np.nan for a in acts])
         last = np.array(
