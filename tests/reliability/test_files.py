@@ -212,7 +212,7 @@ def _reference():
 
 
 def _pushes():
-    from pliant.proxy.pushes import Pushes
+    from pliant.transfer.pushes import Pushes
 
     rng = np.random.default_rng(2)
     return Pushes(rng.random((3, 5, 9)), rng.random((3, 6, 3)), np.array(["a", "b", "c"]))
@@ -222,7 +222,7 @@ def _pushes():
 @pytest.mark.parametrize("kind", ["reduced model", "proxy reference", "proxy pushes"])
 def test_damaged_model_and_study_files_name_the_file(tmp_path, kind, how):
     from pliant.errors import ReductionError
-    from pliant.proxy.pushes import Pushes
+    from pliant.transfer.pushes import Pushes
     from pliant.proxy.references import Reference
     from pliant.reduction.reduced import ReducedModel
 
