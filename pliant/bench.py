@@ -132,10 +132,7 @@ def trunk_cables_cube(meshes: Path):
     """SOFA's own Trunk-and-cube scene (``sofa-reference/trunk_cables_cube.scn`` beside the
     meshes), read by the scene loader: the scene SOFA's 16.2 steps/s were measured on. None
     where the reference folder is absent."""
-    from pliant.sofa import load_scene
-
-    path = Path(meshes).parent / "sofa-reference" / "trunk_cables_cube.scn"
-    return load_scene(path, mesh_dirs=[meshes]) if path.is_file() else None
+    return sofa_scene(meshes, "trunk_cables_cube.scn")
 
 
 def multigait_on_floor(meshes: Path) -> Model:

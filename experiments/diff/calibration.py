@@ -152,33 +152,14 @@ def sofa_diamond(reference: Path, meshes: Path, trials: int) -> dict:
         set_parameters(model, young_modulus=start)
         solver = ImplicitEuler(model, DT, tangent="fresh")
         bounds = {"young_modulus": (60.0, 600.0)}
+        # the same problem for both methods: model, solver, start, actuation, data, box
+        problem = (model, solver, model.rest_state(), controls, points, observed)
+        start_box = ({"young_modulus": start}, bounds)
         t0 = time.perf_counter()
-        result = calibrate(
-            model,
-            solver,
-            model.rest_state(),
-            controls,
-            points,
-            observed,
-            {"young_modulus": start},
-            bounds,
-            stages="final",
-            max_iterations=30,
-        )
+        result = calibrate(*problem, *start_box, stages="final", max_iterations=30)
         wall = time.perf_counter() - t0
         set_parameters(model, young_modulus=start)
-        params, value, curve, tpe_wall = tpe(
-            model,
-            solver,
-            model.rest_state(),
-            controls,
-            points,
-            observed,
-            {"young_modulus": start},
-            bounds,
-            trials,
-            "final",
-        )
+        params, value, curve, tpe_wall = tpe(*problem, *start_box, trials, "final")
         runs[str(start)] = {
             "lbfgsb_adjoint": {
                 "young_modulus": result.parameters["young_modulus"],
