@@ -26,8 +26,9 @@ from dataclasses import asdict, dataclass
 import gymnasium as gym
 import numpy as np
 
+import pliant.envs  # noqa: F401  (registers the pliant/ ids with Gymnasium)
 from pliant.errors import TrainingError
-from pliant.learn.config import OFF_POLICY, load_config, sb3_kwargs
+from pliant.learn.config import ALGOS, OFF_POLICY, load_config, sb3_kwargs
 from pliant.learn.evaluate import algorithm_class
 
 
@@ -105,9 +106,14 @@ def learner_cost(
             f"env_steps, repeats and torch_threads must be >= 1, got {env_steps}, {repeats},"
             f" {torch_threads}"
         )
+    if algo not in ALGOS:
+        raise TrainingError(f"algo must be one of {', '.join(ALGOS)}, got {algo!r}")
     config = load_config(env_id, algo)
     params = {**config.hyperparams, **(hyperparams or {})}
-    task = gym.make(env_id)
+    try:
+        task = gym.make(env_id)
+    except gym.error.Error as exc:
+        raise TrainingError(f"no environment {env_id!r} to time the learner on: {exc}") from exc
     spaces = (task.observation_space, task.action_space)
     episode = getattr(task.spec, "max_episode_steps", None) or 30
     task.close()

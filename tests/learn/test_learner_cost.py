@@ -33,6 +33,10 @@ def test_learner_arithmetic_scales_as_the_hidden_layers():
         assert cost.net_arch == [cost.net_arch[0]] * 3 and cost.torch_threads == 1
 
 
-def test_learner_cost_refuses_empty_runs():
+def test_learner_cost_refuses_empty_runs_unknown_algorithms_and_environments():
     with pytest.raises(TrainingError, match="env_steps"):
         learner_cost("Pendulum-v1", "SAC", env_steps=0)
+    with pytest.raises(TrainingError, match="algo must be one of"):
+        learner_cost("Pendulum-v1", "XYZ")
+    with pytest.raises(TrainingError, match="no environment 'pliant/NoSuch-v0'"):
+        learner_cost("pliant/NoSuch-v0", "SAC")
