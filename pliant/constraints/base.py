@@ -107,11 +107,34 @@ class EmbeddedPoints:
         )
 
 
+@dataclass(frozen=True)
+class PointRowForm:
+    """How a constraint's rows read the positions of its embedded points, for solvers that
+    condense in the points' space (:class:`pliant.solvers.compliance.PointRows`).
+
+    points: the embedded points the rows read.
+    coefficients: (n_rows, 3 k) constant d delta / d p when the rows are affine in the points'
+        positions (position effectors); None for one row whose gradient changes with the
+        configuration, given by its class's bundle as ``point_gradients(x)`` (cables).
+    """
+
+    points: EmbeddedPoints
+    coefficients: np.ndarray | None
+
+
 class Constraint(ABC):
-    """A set of constraint rows: distances delta(x) and Jacobian H(x)."""
+    """A set of constraint rows: distances delta(x) and Jacobian H(x).
+
+    Besides its rows, a constraint tells the solvers what it needs of them through three
+    answers, so that no solver tests constraint types: :meth:`point_row_form` (rows that are
+    combinations of point positions), :attr:`rigid_body` (rows on a rigid body's motion) and,
+    for actuators, :meth:`Actuator.augmented_nodes`.
+    """
 
     role: Literal["actuator", "effector", "contact"]
     name: str
+    # The rigid body of the model whose motion the rows read (None: the deformable body).
+    rigid_body = None
 
     @property
     @abstractmethod
@@ -128,6 +151,11 @@ class Constraint(ABC):
     def distance_and_jacobian(self, x: np.ndarray) -> tuple[np.ndarray, JacobianRows]:
         """Both at once; constraints that share work between them override this."""
         return self.distance(x), self.jacobian(x)
+
+    def point_row_form(self) -> PointRowForm | None:
+        """The rows as combinations of embedded points' positions, or None when they are not
+        (the solver then condenses them through the whole body's DoFs)."""
+        return None
 
     @classmethod
     def bundle(cls, constraints: list[Constraint]) -> Constraint | None:
@@ -246,6 +274,12 @@ class Actuator(Constraint):
     @property
     def n_rows(self) -> int:
         return 1
+
+    def augmented_nodes(self) -> np.ndarray | None:
+        """The nodes whose DoFs a held course of this row couples, when the static solver's
+        consistent Newton step should augment the row (a displacement held on a few DoFs), or
+        None (the default: no augmentation)."""
+        return None
 
 
 def change_reference(actuators: list[Actuator], state) -> np.ndarray:

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from pliant.constraints.base import Actuator, EmbeddedPoints, JacobianRows
+from pliant.constraints.base import Actuator, EmbeddedPoints, JacobianRows, PointRowForm
 from pliant.errors import ConstraintError
 
 
@@ -78,6 +78,15 @@ class CableActuator(Actuator):
     @classmethod
     def bundle(cls, cables: list[CableActuator]) -> CableBundle:
         return CableBundle(cables)
+
+    def point_row_form(self) -> PointRowForm:
+        """One row whose point gradients follow the cable's path (its bundle's
+        ``point_gradients``)."""
+        return PointRowForm(self.points, None)
+
+    def augmented_nodes(self) -> np.ndarray | None:
+        """The cable's nodes when its shortening is held (displacement mode)."""
+        return np.unique(self.points.nodes) if self.mode == "displacement" else None
 
     def polyline(self, x: np.ndarray) -> np.ndarray:
         """Current cable path, for drawing."""

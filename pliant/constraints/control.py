@@ -38,6 +38,9 @@ class DirectControl:
     # Its contact solution solves a complementarity problem: a contact left out of it at zero
     # force whose gap stays open is part of the whole problem's solution (contact screening).
     complementarity = True
+    # The commands are the user's, not answers to the state: a step they make diverge is an
+    # error to report, not a feedback answer to fall back from (StaticSolver).
+    feedback = False
 
     def prepare(self, model) -> None:
         if self.values is not None:
@@ -241,8 +244,11 @@ def as_control(control):
     `prepare(model)` and `actuation(problem, model, state)`; an optional `roles` attribute names
     the constraint roles whose rows the control reads (absent or None: every row), an optional
     `begin(model, state)` is called after `prepare` with the state the step starts from (a
-    feedback control sets its effectors' goals there), and an optional
-    `actuation_with_contacts(problem, model, state, contact)` handles steps with contacts."""
+    feedback control sets its effectors' goals there), an optional
+    `actuation_with_contacts(problem, model, state, contact)` handles steps with contacts, and
+    an optional `feedback` (default True) says whether the control answers the state (the
+    static solver then falls back to the step's start when the answer diverges) or only
+    applies given commands (False: the divergence is raised)."""
     if control is None:
         return DirectControl()
     if hasattr(control, "actuation") and hasattr(control, "prepare"):

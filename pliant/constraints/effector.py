@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from pliant.constraints.base import Constraint, EmbeddedPoints, JacobianRows
+from pliant.constraints.base import Constraint, EmbeddedPoints, JacobianRows, PointRowForm
 from pliant.errors import ConstraintError
 
 
@@ -63,6 +63,15 @@ class PositionEffector(Constraint):
     def distance(self, x: np.ndarray) -> np.ndarray:
         return self.weight * (self.points.positions(x) - self._goals)[:, self.axes].reshape(-1)
 
+    def point_row_form(self) -> PointRowForm:
+        """Constant rows: the weight on each selected axis of each point."""
+        k, na = len(self.points), self.axes.size
+        coefficients = np.zeros((k * na, 3 * k))
+        for j in range(k):
+            for i, ax in enumerate(self.axes):
+                coefficients[j * na + i, 3 * j + ax] = self.weight
+        return PointRowForm(self.points, coefficients)
+
     def jacobian(self, x: np.ndarray) -> JacobianRows:
         k, na = len(self.points), self.axes.size
         values = np.zeros((k, na, 4, 3))
@@ -113,6 +122,11 @@ class RigidEffector(Constraint):
     @goals.setter
     def goals(self, goals: np.ndarray) -> None:
         self._goals = _goal_array(goals, 1, self.name)
+
+    @property
+    def rigid_body(self):
+        """The body whose centre the rows read."""
+        return self.body
 
     @property
     def n_rows(self) -> int:

@@ -308,6 +308,14 @@ class ContactConstraint(Constraint):
     """
 
     role = "contact"
+    # The rows' dependence on rigid bodies' twists: none here; a
+    # :class:`pliant.constraints.contact.CoupledContact` carries the body's rows and its own.
+    rigid_jacobian = None
+
+    @property
+    def rows(self) -> ContactConstraint:
+        """The deformable body's contact rows: all of them."""
+        return self
 
     def __init__(
         self,

@@ -18,8 +18,6 @@ from __future__ import annotations
 import numpy as np
 
 from pliant.constraints.base import EmbeddedPoints
-from pliant.constraints.cable import CableActuator, CableBundle
-from pliant.constraints.effector import PositionEffector
 from pliant.solvers import compliance_kernels as kernels
 
 
@@ -135,26 +133,26 @@ class PointRows:
     def __init__(self, constraints: list, free_index: np.ndarray) -> None:
         self.constraints = constraints
         nodes, weights, self._offsets = [], [], []
-        cable_rows, cable_points = [], []  # the cables' rows, and their points' (row, point)
-        const_rows = []  # (row, column of G, value): the effectors' constant coefficients
-        self._effectors: list[tuple[int, PositionEffector]] = []  # with their first rows
+        varying, varying_rows, varying_points = [], [], []  # one-row constraints, (row, point)
+        constant = []  # (first row, first point column, coefficients) of the constant rows
+        self._fixed: list[tuple[int, object]] = []  # constraints with constant rows, first rows
         self.slices: dict[str, slice] = {}
         row = 0
         for c in constraints:
-            if not isinstance(c, CableActuator | PositionEffector):
+            form = c.point_row_form()
+            if form is None:
                 raise TypeError(f"{type(c).__name__} rows are not combinations of point rows")
             off = sum(len(n) for n in nodes)
             self._offsets.append(off)
-            nodes.append(c.points.nodes)
-            weights.append(c.points.weights)
-            if isinstance(c, CableActuator):
-                cable_rows.append(row)
-                cable_points += [(row, off + j) for j in range(len(c.points))]
+            nodes.append(form.points.nodes)
+            weights.append(form.points.weights)
+            if form.coefficients is None:
+                varying.append(c)
+                varying_rows.append(row)
+                varying_points += [(row, off + j) for j in range(len(form.points))]
             else:
-                self._effectors.append((row, c))
-                for j in range(len(c.points)):
-                    for i, ax in enumerate(c.axes):
-                        const_rows.append((row + j * c.axes.size + i, 3 * (off + j) + ax, c.weight))
+                self._fixed.append((row, c))
+                constant.append((row, 3 * off, form.coefficients))
             role = self.slices.get(c.role)
             self.slices[c.role] = slice(row if role is None else role.start, row + c.n_rows)
             row += c.n_rows
@@ -167,20 +165,29 @@ class PointRows:
         self.n_points = len(points)
         self.cache = PointCompliance(points, free_index)
         self._index = np.arange(self.n_points)
-        cables = [c for c in constraints if isinstance(c, CableActuator)]
-        self._cables = CableBundle(cables) if cables else None
-        self._cable_rows = np.array(cable_rows, dtype=np.int64)
-        pairs = np.array(cable_points, dtype=np.int64).reshape(-1, 2)
+        # The rows whose point gradients change with the configuration, evaluated together by
+        # their class's bundle (the cables').
+        self._varying = None
+        if varying:
+            kind = type(varying[0])
+            if any(type(c) is not kind for c in varying) or any(c.n_rows != 1 for c in varying):
+                raise TypeError("varying point rows must be one-row constraints of one class")
+            self._varying = kind.bundle(varying)
+            if not hasattr(self._varying, "point_gradients"):
+                raise TypeError(f"{kind.__name__}'s bundle gives no point gradients")
+        self._varying_rows = np.array(varying_rows, dtype=np.int64)
+        pairs = np.array(varying_points, dtype=np.int64).reshape(-1, 2)
         self._g_rows = pairs[:, :1]
         self._g_cols = 3 * pairs[:, 1:] + np.arange(3)
         self._g0 = np.zeros((self.n_rows, 3 * self.n_points))
-        for r, col, value in const_rows:
-            self._g0[r, col] = value
+        for r, col, block in constant:
+            self._g0[r : r + block.shape[0], col : col + block.shape[1]] = block
         self._block: tuple[int, np.ndarray] | None = None
 
     @classmethod
     def build(cls, constraints: list, free_index: np.ndarray) -> PointRows | None:
-        """PointRows for `constraints` if all are cables or position effectors and their
+        """PointRows for `constraints` if all give a point-row form (cables, position
+        effectors: :meth:`~pliant.constraints.base.Constraint.point_row_form`) and their
         points' columns (3 per point) are no more than 4 steps' worth of row columns."""
         if not constraints:
             return None
@@ -194,11 +201,11 @@ class PointRows:
         """The rows' distances delta(x) (rows,) and coefficients G (rows, 3 points) at x."""
         g = self._g0.copy()
         delta = np.zeros(self.n_rows)
-        if self._cables is not None:
-            delta[self._cable_rows], grads = self._cables.point_gradients(x)
+        if self._varying is not None:
+            delta[self._varying_rows], grads = self._varying.point_gradients(x)
             g[self._g_rows, self._g_cols] = grads
-        for row, effector in self._effectors:
-            delta[row : row + effector.n_rows] = effector.distance(x)
+        for row, c in self._fixed:
+            delta[row : row + c.n_rows] = c.distance(x)
         return delta, g
 
     def condense(self, solve, factorisation: int, x: np.ndarray, motion: np.ndarray):

@@ -48,10 +48,9 @@ from typing import NamedTuple
 import numpy as np
 
 from pliant.constraints.attachment import eliminate
+from pliant.constraints.base import Constraint
 from pliant.constraints.condensed import CondensedProblem
-from pliant.constraints.contact import CoupledContact
 from pliant.constraints.control import as_control, constraint_forces
-from pliant.constraints.effector import RigidEffector
 from pliant.constraints.friction import ContactForces, ContactReport, ContactSolution
 from pliant.errors import ConstraintError, DivergenceError, ModelError, SolverError
 from pliant.fem.body import PARALLEL_MIN_TETS
@@ -361,8 +360,8 @@ class ImplicitEuler:
         whole one, to the contact tolerance. It needs no compliance columns: a push moving a
         few of the points within the margin solves the columns of those few."""
         h, cache, model = self.dt, self._points, self.model
-        coupled = isinstance(contact, CoupledContact)
-        rows = contact.rows if coupled else contact
+        coupled = contact.rigid_jacobian is not None
+        rows = contact.rows
         index, frames = rows.contacts.index_a, rows.frames
         k = index.size
         distance = rows.distance(at)[0::3]
@@ -415,8 +414,7 @@ class ImplicitEuler:
         effector columns are solved at every step (in `free`)."""
         h, cache = self.dt, self._points
         space, dv_free, a_inv_ht = free.space, free.dv_free, free.a_inv_ht
-        coupled = isinstance(contact, CoupledContact)
-        rows = contact.rows if coupled else contact
+        rows = contact.rows
         index, frames = rows.contacts.index_a, rows.frames
         k, n_s, n_c = index.size, space.distance.size, contact.n_rows
         n_b = 0 if free.attached is None else free.attached.distance.size
@@ -483,7 +481,7 @@ class ImplicitEuler:
         h, model = self.dt, self.model
         n = len(model.rigid_bodies)
         g = np.zeros((delta_free.size, 6 * n))
-        if isinstance(contact, CoupledContact):
+        if contact is not None and contact.rigid_jacobian is not None:
             g[slices["contact"]] = contact.rigid_jacobian
         se = slices["effector"]
         if self._object_rows is not None and se.stop > se.start:
@@ -494,16 +492,17 @@ class ImplicitEuler:
         delta_free += h * (g @ rigid.twists_free.reshape(-1))
         return g
 
-    def _find_objects(self) -> tuple[list[tuple[int, RigidEffector]], np.ndarray | None]:
+    def _find_objects(self) -> tuple[list[tuple[int, Constraint]], np.ndarray | None]:
         """The rigid-body effectors, each with its body's index, and their rows' dependence on
         the twists over all effector rows (None without such effectors)."""
         model, found, row = self.model, [], 0
         n_bodies = len(model.rigid_bodies)
         rows = np.zeros((sum(e.n_rows for e in model.effectors), 6 * n_bodies))
         for effector in model.effectors:
-            if isinstance(effector, RigidEffector):
+            if effector.rigid_body is not None:
                 index = next(
-                    (i for i, b in enumerate(model.rigid_bodies) if b is effector.body), None
+                    (i for i, b in enumerate(model.rigid_bodies) if b is effector.rigid_body),
+                    None,
                 )
                 if index is None:
                     raise ModelError(f"{effector.name}: its rigid body is not one of the model's")

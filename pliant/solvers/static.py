@@ -29,7 +29,6 @@ from contextlib import contextmanager
 
 import numpy as np
 
-from pliant.constraints.cable import CableActuator
 from pliant.constraints.condensed import CondensedProblem
 from pliant.constraints.control import DirectControl, as_control, constraint_forces
 from pliant.constraints.friction import ContactConstraint
@@ -148,12 +147,14 @@ class StaticSolver:
         self.last_report = StepReport()
 
     def _augmentation_pattern(self) -> list[tuple[int, np.ndarray]]:
-        """(actuator index, free DoFs its row touches) of each displacement-controlled cable."""
+        """(actuator index, free DoFs its row touches) of each actuator that asks for its row to
+        be augmented (:meth:`~pliant.constraints.base.Actuator.augmented_nodes`: a held cable)."""
         free = self.model.body.free_index
         found = []
         for i, a in enumerate(self.model.actuators):
-            if isinstance(a, CableActuator) and a.mode == "displacement":
-                dofs = free[3 * np.unique(a.points.nodes)[:, None] + np.arange(3)].ravel()
+            nodes = a.augmented_nodes()
+            if nodes is not None:
+                dofs = free[3 * nodes[:, None] + np.arange(3)].ravel()
                 found.append((i, dofs[dofs >= 0]))
         return found
 
@@ -223,7 +224,7 @@ class StaticSolver:
         # Each iteration chooses the total constraint forces; the previous iterate's warm-start
         # the next (course bounds still refer to the state the step starts from).
         guide = state.copy()
-        feedback = not isinstance(ctrl, DirectControl)
+        feedback = getattr(ctrl, "feedback", True)
         with _kept_commands(model):
             try:
                 q, it, held, problem, contact_report = self._iterate(q, ctrl, guide, step, feedback)

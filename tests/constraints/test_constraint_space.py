@@ -836,3 +836,29 @@ def test_inverse_control_refuses_a_bad_prior() -> None:
     for prior, weight in (([1.0, 2.0, 3.0], 1.0), ([np.nan, 0.0], 1.0), ([0.0, 0.0], -1.0)):
         with pytest.raises(ModelError, match="prior"):
             InverseControl(prior=np.array(prior), prior_weight=weight).prepare(model)
+
+
+def test_point_row_forms_give_each_constraints_own_jacobian(rng) -> None:
+    """The solvers condense cables and effectors through their point-row forms alone (no type
+    tests): G from the forms, spread over the points' nodes by their weights, is H; the cavity
+    gives no form, so PointRows refuses a set that holds it."""
+    from pliant.solvers.compliance import PointRows
+
+    model = _model()
+    x = model.body.rest_positions + 0.3 * rng.standard_normal(model.body.rest_positions.shape)
+    pulled, anchored, cavity = model.actuators
+    rows_of = [pulled, anchored, *model.effectors]
+    assert cavity.point_row_form() is None
+    free = model.body.free_index
+    assert PointRows.build([pulled, cavity], free) is None
+    rows = PointRows(rows_of, free)
+    delta, g = rows.evaluate(x)
+    nodes = np.concatenate([c.point_row_form().points.nodes for c in rows_of])
+    weights = np.concatenate([c.point_row_form().points.weights for c in rows_of])
+    h = np.zeros((rows.n_rows, x.size))
+    for p in range(len(nodes)):
+        for a, w in zip(nodes[p], weights[p], strict=True):
+            h[:, 3 * a : 3 * a + 3] += w * g[:, 3 * p : 3 * p + 3]
+    expected = np.vstack([_dense_rows(c, x) for c in rows_of])
+    np.testing.assert_allclose(h, expected, atol=1e-12)
+    np.testing.assert_allclose(delta, np.concatenate([c.distance(x) for c in rows_of]), atol=1e-12)
