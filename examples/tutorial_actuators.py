@@ -5,8 +5,7 @@ cable's tension and the cavity's volume growth against the command."""
 import numpy as np
 from _common import QUICK, save_figure
 
-from pliant import robots
-from pliant.solvers import ImplicitEuler
+from pliant import ImplicitEuler, robots
 from pliant.viz.model_view import RobotCamera
 from pliant.viz.render import offscreen_figure
 

@@ -9,7 +9,7 @@ from pathlib import Path
 
 from _common import QUICK, out
 
-from pliant import robots
+from pliant import StaticSolver, robots
 from pliant.condensed import (
     CollectionPlan,
     ExactCondensed,
@@ -21,7 +21,6 @@ from pliant.condensed import (
 )
 from pliant.condensed.collect import collect
 from pliant.condensed.plots import plot_reached
-from pliant.solvers import StaticSolver
 
 # 1. Collect: each sample is a static equilibrium of the finger at cable displacements drawn
 # from a scrambled Halton sequence in the box; W = H K^-1 H^T and delta_free are recorded.

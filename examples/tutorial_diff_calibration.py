@@ -16,14 +16,16 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 from _common import QUICK, save_figure  # noqa: E402
 
-from pliant.constraints.base import EmbeddedPoints  # noqa: E402
-from pliant.constraints.cable import CableActuator  # noqa: E402
+from pliant import (  # noqa: E402
+    CableActuator,
+    Corotational,
+    EmbeddedPoints,
+    ImplicitEuler,
+    Model,
+    TetBody,
+)
 from pliant.diff.calibration import calibrate, observe, relative_errors  # noqa: E402
-from pliant.fem.body import TetBody  # noqa: E402
-from pliant.fem.material import Corotational  # noqa: E402
-from pliant.mesh.shapes import box_beam  # noqa: E402
-from pliant.model import Model  # noqa: E402
-from pliant.solvers import ImplicitEuler  # noqa: E402
+from pliant.mesh import box_beam  # noqa: E402
 
 
 def pulled_beam(young_modulus, poisson_ratio, rayleigh_mass, rayleigh_stiffness) -> Model:

@@ -4,10 +4,9 @@ QP choosing the four cable forces, first without then with a contact-free static
 import numpy as np
 from _common import QUICK, out
 
-from pliant import robots
+from pliant import ImplicitEuler, robots
 from pliant.scenario import track_goals
-from pliant.solvers import ImplicitEuler
-from pliant.viz.plots import plot_trajectory
+from pliant.viz import plot_trajectory
 
 model = robots.diamond(mesh_size=20.0 if QUICK else 13.0)
 sim = ImplicitEuler(model, dt=0.01)

@@ -5,8 +5,8 @@ trunk-cube contact, so the inverse QP must choose cable forces *and* which conta
 import numpy as np
 from _common import QUICK, save_figure
 
+from pliant import ImplicitEuler
 from pliant.robots.trunk_cube import PushControl, trunk_push
-from pliant.solvers import ImplicitEuler
 from pliant.viz.model_view import RobotCamera
 from pliant.viz.render import offscreen_figure
 

@@ -7,11 +7,11 @@ import time
 import numpy as np
 from _common import QUICK, save_figure
 
+from pliant import ImplicitEuler
 from pliant.mesh.multigait import CHAMBERS
 from pliant.proxy import multigait_proxy
 from pliant.proxy.actuation import ProxySolver
 from pliant.robots.multigait import demo_actuation, multigait
-from pliant.solvers import ImplicitEuler
 from pliant.viz.render import offscreen_figure
 
 steps = 60 if QUICK else 1080  # 3 gait cycles of 3.6 s at dt = 0.01 s

@@ -8,9 +8,8 @@ import time
 import numpy as np
 from _common import QUICK, save_figure
 
-from pliant import robots
+from pliant import ImplicitEuler, robots
 from pliant.reduction import build
-from pliant.solvers import ImplicitEuler
 from pliant.viz.render import offscreen_figure
 
 model = robots.diamond(mesh_size=20.0 if QUICK else 13.0)
