@@ -2,7 +2,10 @@
 
 ``import pliant.envs`` registers them; then ``gymnasium.make("pliant/Diamond-v0")``. Each is a
 thin layer over a robot builder (:mod:`pliant.robots`); :mod:`pliant.envs.base` holds what
-they share: ramped commands, exact save/restore (``env.unwrapped.get_state()`` /
+they share: one simulation config (:class:`pliant.envs.config.SimulationConfig`: ``dt``,
+``substeps``, ``action_type``, ``tangent``, ``render_mode``, given as ``config=`` or as
+keywords), action maps that turn actions into commands (:mod:`pliant.envs.actions`), ramped
+commands, exact save/restore (``env.unwrapped.get_state()`` /
 ``set_state()``), divergence handling (the episode is truncated, ``info["diverged"]`` says
 why) and rendering.
 
@@ -20,6 +23,7 @@ from functools import partial
 import gymnasium as gym
 
 from pliant.envs.base import EnvSnapshot, EnvStateError, SoftRobotEnv
+from pliant.envs.config import SimulationConfig
 
 
 @dataclass(frozen=True)
@@ -150,6 +154,7 @@ __all__ = [
     "ENVS",
     "EnvSnapshot",
     "EnvStateError",
+    "SimulationConfig",
     "SoftRobotEnv",
     "env_ids",
     "get_state",

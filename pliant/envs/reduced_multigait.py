@@ -21,7 +21,7 @@ from typing import Literal
 
 import numpy as np
 
-from pliant.envs.base import ActionType, scaled_box
+from pliant.envs.actions import scaled_box
 from pliant.envs.multigait import FORWARD, MultigaitEnv
 from pliant.model import Model
 from pliant.reduction import ReducedImplicitEuler, ReducedModel
@@ -42,36 +42,18 @@ class ReducedMultigaitEnv(MultigaitEnv):
     def __init__(
         self,
         *,
-        dt: float = 0.01,
-        substeps: int = 60,
-        action_type: ActionType = "discrete",
-        symmetric: bool = True,
         reward: Literal["thesis", "sofagym"] = "sofagym",
         amplitude: tuple[float, float] = (4900.0, 3300.0),
         n_observed: int = 32,
-        mesh_size: float = 6.0,
         reduced_model: str | Path | None = None,
         training: dict | None = None,
-        render_mode: str | None = None,
-        tangent: str = "lagged",
-        **robot_kwargs,
+        **kwargs,
     ) -> None:
         self.reduced_model = reduced_model
         self.training = {**TRAINING, **(training or {})}
         self._amplitude = tuple(amplitude)
         self.n_observed = int(n_observed)
-        super().__init__(
-            dt=dt,
-            substeps=substeps,
-            action_type=action_type,
-            symmetric=symmetric,
-            reward=reward,
-            amplitude=amplitude,
-            mesh_size=mesh_size,
-            render_mode=render_mode,
-            tangent=tangent,
-            **robot_kwargs,
-        )
+        super().__init__(reward=reward, amplitude=amplitude, **kwargs)
         self.sim = self._reduced
         self.observation_space = scaled_box(-1.0, 1.0, (self.n_observed,))
 
@@ -87,7 +69,7 @@ class ReducedMultigaitEnv(MultigaitEnv):
                 sequences=t["sequences"],
                 cycles=t["cycles"],
             )
-            settings = {"mesh_size": self.mesh_size, "amplitude": self._amplitude}
+            settings = {"mesh_size": self.robot_kwargs["mesh_size"], "amplitude": self._amplitude}
             reduced = cached(
                 model,
                 cases,

@@ -5,12 +5,14 @@ observations, rewards, end flags and commands recorded in ``data/env_rollouts.np
 The recording was made before the environments' constructors and action maps were refactored
 (one simulation config, composable action maps), so that the refactor is held to the
 behaviour it replaced. It is bit-exact on the machine that recorded it; the tolerance absorbs
-another CPU's rounding of the compiled kernels. Regenerate (only when a behaviour change is
-intended) with ``python tests/envs/test_env_rollouts.py``.
+another CPU's rounding of the compiled kernels. CI runs each environment's default action
+space and a few option variants (about 20 of the 51); the rest are marked slow. Regenerate
+(only when a behaviour change is intended) with ``python tests/envs/test_env_rollouts.py``.
 """
 
 from __future__ import annotations
 
+import importlib
 import warnings
 from pathlib import Path
 
@@ -44,12 +46,28 @@ EXTRA = [
 ]
 
 
+#: Variants CI runs (``-m "not slow"``): each environment in its default action space (but the
+#: two FEM Multigaits, whose chamber groups MultigaitProxy runs through the same action map)
+#: and the option variants whose action maps take other paths; the rest are marked slow.
+FAST_EXTRA = {"TrunkPush-planar-discrete", "TrunkPush-increment", "TrunkPushProxy-cables"}
+SLOW_ENVS = {"Multigait", "ReducedMultigait"}
+
+
 def variants() -> list[tuple[str, str, dict]]:
     out = []
     for name in sorted(ENVS):
         for kind in ("discrete", "continuous"):
             out.append((f"{name}-{kind}", name, {"action_type": kind}))
     return out + EXTRA
+
+
+def _fast(variant: str, name: str) -> bool:
+    if variant in FAST_EXTRA or variant == "Gripper-push":
+        return True
+    default = gym.spec(f"pliant/{name}-v0").entry_point
+    module, cls = default.split(":")
+    kind = getattr(importlib.import_module(module), cls).default_config.action_type
+    return name not in SLOW_ENVS and variant == f"{name}-{kind}"
 
 
 def rollout(name: str, kwargs: dict) -> dict[str, np.ndarray]:
@@ -80,7 +98,10 @@ def rollout(name: str, kwargs: dict) -> dict[str, np.ndarray]:
 
 
 def _ids() -> list:
-    return [pytest.param(v, n, k, id=v) for v, n, k in variants()]
+    slow = pytest.mark.slow
+    return [
+        pytest.param(v, n, k, id=v, marks=() if _fast(v, n) else slow) for v, n, k in variants()
+    ]
 
 
 @pytest.fixture(scope="module")
