@@ -29,6 +29,8 @@ from typing import TYPE_CHECKING, Any, Literal
 import gymnasium as gym
 import numpy as np
 
+from pliant.envs.config import check_positive
+
 if TYPE_CHECKING:
     from pliant.envs.base import SoftRobotEnv
 
@@ -269,16 +271,29 @@ class RampTarget(ActionMap):
         return commands.with_ramp(self.ramp, target, **remembered)
 
 
-def cart(max_move: float, max_speed: float, step_time: float, ramp: str = "cart") -> RampTarget:
-    """A cart on x driven by position: discrete, 3 actions (left, stay, right: its target moves
-    by ``max_speed x step_time``); continuous, its target ``max_move x a``; the target within
-    +-`max_move`, remembered in the task's ``"target"``, reached at most at `max_speed`."""
-    reach = max_speed * step_time
-    return RampTarget(
-        ramp,
-        -max_move,
-        max_move,
-        steps=[[-reach], [0.0], [reach]],
-        speed=max_speed,
-        memory="target",
-    )
+@dataclass(frozen=True)
+class CartDrive:
+    """A cart on x driven by position (CartStemContact, CatchTheObject): its target within
+    +-``max_move`` mm, reached at most at ``max_speed`` mm/s. The environments take the fields
+    as keywords, over their class's ``cart_drive``."""
+
+    max_move: float = 40.0
+    max_speed: float = 40.0
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "max_move", check_positive("max_move", self.max_move))
+        object.__setattr__(self, "max_speed", check_positive("max_speed", self.max_speed))
+
+    def actions(self, step_time: float, ramp: str = "cart") -> RampTarget:
+        """Discrete, 3 actions (left, stay, right: the target moves by ``max_speed x
+        step_time``); continuous, the target ``max_move x a``; remembered in the task's
+        ``"target"``."""
+        reach = self.max_speed * step_time
+        return RampTarget(
+            ramp,
+            -self.max_move,
+            self.max_move,
+            steps=[[-reach], [0.0], [reach]],
+            speed=self.max_speed,
+            memory="target",
+        )

@@ -35,7 +35,13 @@ import gymnasium as gym
 import numpy as np
 
 from pliant.envs.actions import ActionMap, Commands
-from pliant.envs.config import ActionType, EnvConfigError, SimulationConfig
+from pliant.envs.config import (
+    ActionType,
+    EnvConfigError,
+    SimulationConfig,
+    check_choice,
+    with_keywords,
+)
 from pliant.errors import (
     ConstraintError,
     DivergenceError,
@@ -128,25 +134,42 @@ class SoftRobotEnv(gym.Env):
 
     Keyword arguments: ``config``, a :class:`pliant.envs.config.SimulationConfig`, or its
     fields (``dt``, ``substeps``, ``action_type``, ``tangent``, ``render_mode``) as keywords
-    over the class's ``default_config``; the subclass's own; the rest go to the robot builder
+    over the class's ``default_config``; ``reward`` and ``observation``, one of the class's
+    ``rewards`` and ``observations``; the subclass's own; the rest go to the robot builder
     (``self.robot_kwargs``, over ``robot_defaults``).
     """
 
     metadata: ClassVar[dict] = {"render_modes": ["rgb_array", "human"], "render_fps": 10}
-    #: registered name (``pliant/<name>-v0``) and snapshot version.
+    #: registered name (``pliant/<name>-v0``) and snapshot version (raised where a change
+    #: makes older snapshots unfit).
     name: ClassVar[str] = "Base"
-    version: ClassVar[int] = 0
+    version: ClassVar[int] = 1
     #: camera (elevation, azimuth) of renders.
     view: ClassVar[tuple[float, float]] = (20.0, -60.0)
 
     #: the simulation config of a constructor given none (its keywords override each field).
     default_config: ClassVar[SimulationConfig] = SimulationConfig()
+    #: the task's reward and observation variants, the default first (``reward="sofagym"``,
+    #: ``observation="sofagym"``: SofaGym's definitions beside the thesis').
+    rewards: ClassVar[tuple[str, ...]] = ("thesis",)
+    observations: ClassVar[tuple[str, ...]] = ("thesis",)
     #: the robot builder's keywords of this environment where they are not the builder's own
     #: defaults (the constructor's other keywords override them).
     robot_defaults: ClassVar[dict[str, Any]] = {}
 
-    def __init__(self, *, config: SimulationConfig | None = None, **kwargs) -> None:
-        self.config = self.default_config.updated(config, kwargs)
+    def __init__(
+        self,
+        *,
+        config: SimulationConfig | None = None,
+        reward: str | None = None,
+        observation: str | None = None,
+        **kwargs,
+    ) -> None:
+        self.config = with_keywords(self.default_config if config is None else config, kwargs)
+        self.reward_variant = self.rewards[0] if reward is None else reward
+        self.observation_variant = self.observations[0] if observation is None else observation
+        check_choice("reward", self.reward_variant, self.rewards)
+        check_choice("observation", self.observation_variant, self.observations)
         render_mode = self.config.render_mode
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise EnvConfigError(

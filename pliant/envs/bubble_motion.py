@@ -29,7 +29,6 @@ from pliant.robots.bubble_motion import bubble_motion
 
 class BubbleMotionEnv(SoftRobotEnv):
     name = "BubbleMotion"
-    version = 1
     view = (45.0, -60.0)
     default_config = SimulationConfig(substeps=20, action_type="continuous")
     robot_defaults = {"size": 60.0, "mesh_size": 5.0, "top_mesh_size": 2.0}

@@ -22,20 +22,17 @@ positions; ``options={"shift": o}`` pins the shift). Terminated when
 
 from __future__ import annotations
 
-from typing import Literal
-
 import numpy as np
 
-from pliant.envs.actions import cart, scaled_box
+from pliant.envs.actions import CartDrive, scaled_box
 from pliant.envs.base import SoftRobotEnv
-from pliant.envs.config import EnvConfigError, SimulationConfig, check_choice, check_positive
+from pliant.envs.config import EnvConfigError, SimulationConfig, with_keywords
 from pliant.model import Model
 from pliant.robots.cartstem import cartstem_contact
 
 
 class CartStemContactEnv(SoftRobotEnv):
     name = "CartStemContact"
-    version = 1
     view = (5.0, -90.0)
     default_config = SimulationConfig(substeps=30, action_type="continuous")
     # Released from an obstacle, the beam whips back on its first bending mode (about 7 Hz with
@@ -43,34 +40,30 @@ class CartStemContactEnv(SoftRobotEnv):
     # default detection margin, and contacts were missed under random policies. 12 mm leaves
     # no warning over random episodes and costs 5 % of the step.
     robot_defaults = {"stem": "tetrahedra", "length": 100.0, "contact_margin": 12.0}
+    rewards = observations = ("thesis", "sofagym")
+    cart_drive = CartDrive(max_move=40.0, max_speed=40.0)
 
     def __init__(
         self,
         *,
-        observation: Literal["thesis", "sofagym"] = "thesis",
-        reward: Literal["thesis", "sofagym"] = "thesis",
-        max_move: float = 40.0,
-        max_speed: float = 40.0,
         goal_range: float = 35.0,
         goal_tolerance: float = 1.0,
         cart_range: float = 10.0,
         obstacle_shift: float = 0.0,
         **kwargs,
     ) -> None:
-        check_choice("observation", observation, ("thesis", "sofagym"))
-        check_choice("reward", reward, ("thesis", "sofagym"))
-        self.max_move = check_positive("max_move", max_move)
-        self.max_speed = check_positive("max_speed", max_speed)
-        self.observation_variant = observation
-        self.reward_variant = reward
+        self.cart_drive = with_keywords(self.cart_drive, kwargs)
+        self.max_move, self.max_speed = self.cart_drive.max_move, self.cart_drive.max_speed
         self.goal_range = float(goal_range)
         self.goal_tolerance = float(goal_tolerance)
         self.cart_range = float(cart_range)
         self.obstacle_shift = float(obstacle_shift)
         super().__init__(**kwargs)
         self.length = float(self.robot_kwargs["length"])
-        self.use_actions(cart(self.max_move, self.max_speed, self.step_time))
-        self.observation_space = scaled_box(-5.0, 5.0, (7 if observation == "thesis" else 8,))
+        self.use_actions(self.cart_drive.actions(self.step_time))
+        self.observation_space = scaled_box(
+            -5.0, 5.0, (7 if self.observation_variant == "thesis" else 8,)
+        )
         boxes = self.model.contacts.shapes
         self.obstacles = np.array([b.position for b in boxes])
         self._obstacles_at_rest = self.obstacles.copy()

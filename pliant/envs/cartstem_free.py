@@ -50,7 +50,6 @@ class CartAcceleration(ActionMap):
 
 class CartStemEnv(SoftRobotEnv):
     name = "CartStem"
-    version = 1
     view = (5.0, -90.0)
     default_config = SimulationConfig(substeps=10)
     robot_defaults = {"stem": "rod", "length": 100.0, "young_modulus": 300.0}

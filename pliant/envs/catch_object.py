@@ -23,25 +23,23 @@ from __future__ import annotations
 
 import numpy as np
 
-from pliant.envs.actions import Commands, cart, scaled_box
+from pliant.envs.actions import CartDrive, Commands, scaled_box
 from pliant.envs.base import SoftRobotEnv
-from pliant.envs.config import SimulationConfig, check_positive
+from pliant.envs.config import SimulationConfig, check_positive, with_keywords
 from pliant.model import Model
 from pliant.robots.catch_object import catch_object
 
 
 class CatchTheObjectEnv(SoftRobotEnv):
     name = "CatchTheObject"
-    version = 1
     view = (10.0, -80.0)
     default_config = SimulationConfig(substeps=10, action_type="continuous")
     robot_defaults = {"mesh_size": 6.0}
+    cart_drive = CartDrive(max_move=40.0, max_speed=100.0)
 
     def __init__(
         self,
         *,
-        max_move: float = 40.0,
-        max_speed: float = 100.0,
         ball_range: float = 30.0,
         ball_height: float = 150.0,
         throw_speed: float = 2000.0,
@@ -50,8 +48,8 @@ class CatchTheObjectEnv(SoftRobotEnv):
         length_scale: float = 100.0,
         **kwargs,
     ) -> None:
-        self.max_move = check_positive("max_move", max_move)
-        self.max_speed = check_positive("max_speed", max_speed)
+        self.cart_drive = with_keywords(self.cart_drive, kwargs)
+        self.max_move, self.max_speed = self.cart_drive.max_move, self.cart_drive.max_speed
         self.throw_speed = check_positive("throw_speed", throw_speed)
         self.ball_range = float(ball_range)
         self.ball_height = float(ball_height)
@@ -65,7 +63,7 @@ class CatchTheObjectEnv(SoftRobotEnv):
         self.max_distance = float(
             np.hypot(self.ball_range + self.max_move, self.ball_height - self.palm_top)
         )
-        self.use_actions(cart(self.max_move, self.max_speed, self.step_time))
+        self.use_actions(self.cart_drive.actions(self.step_time))
         self.observation_space = scaled_box(-5.0, 5.0, (5,))
 
     def _build(self) -> Model:

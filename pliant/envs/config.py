@@ -55,13 +55,16 @@ class SimulationConfig:
         """Simulated seconds per environment step."""
         return self.dt * self.substeps
 
-    def updated(
-        self, config: SimulationConfig | None, keywords: dict[str, Any]
-    ) -> SimulationConfig:
-        """`config` (this one when None) with the fields that `keywords` names, which are taken
-        out of `keywords` (the rest are the environment's and its robot builder's)."""
-        given = {f.name: keywords.pop(f.name) for f in fields(self) if f.name in keywords}
-        return replace(config if config is not None else self, **given)
+
+def with_keywords(group, keywords: dict[str, Any]):
+    """The frozen dataclass `group` with the fields that `keywords` names, which are taken out
+    of `keywords` (the rest are the environment's and its robot builder's)."""
+    return replace(group, **taken(type(group), keywords))
+
+
+def taken(group: type, keywords: dict[str, Any]) -> dict[str, Any]:
+    """The keywords that name fields of the dataclass `group`, taken out of `keywords`."""
+    return {f.name: keywords.pop(f.name) for f in fields(group) if f.name in keywords}
 
 
 def check_choice(name: str, value, options: tuple) -> None:

@@ -24,7 +24,6 @@ from pliant.robots.diamond import diamond
 
 class DiamondEnv(CableReachingEnv):
     name = "Diamond"
-    version = 1
     view = (20.0, -60.0)
     robot_defaults = {"mesh_size": 13.0}
 

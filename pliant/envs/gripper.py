@@ -31,14 +31,12 @@ the cube's velocity at the step's start.
 
 from __future__ import annotations
 
-from typing import Literal
-
 import gymnasium as gym
 import numpy as np
 
 from pliant.envs.actions import ActuatorTargets, RampTarget, scaled_box
 from pliant.envs.base import SoftRobotEnv
-from pliant.envs.config import check_choice, check_interval, check_positive
+from pliant.envs.config import check_interval, check_positive
 from pliant.model import Model
 from pliant.robots.gripper import soft_gripper
 
@@ -69,15 +67,13 @@ class BaseIncrement(RampTarget):
 
 class GripperEnv(SoftRobotEnv):
     name = "Gripper"
-    version = 1
     view = (15.0, -70.0)
     robot_defaults = {"mesh_size": 5.0}
+    rewards = observations = ("thesis", "sofagym")
 
     def __init__(
         self,
         *,
-        observation: Literal["thesis", "sofagym"] = "thesis",
-        reward: Literal["thesis", "sofagym"] = "thesis",
         action_scale: float = 1.0,
         base_low: tuple[float, float, float] = (-15.0, -15.0, -5.0),
         base_high: tuple[float, float, float] = (15.0, 15.0, 40.0),
@@ -90,12 +86,8 @@ class GripperEnv(SoftRobotEnv):
         length_scale: float = 50.0,
         **kwargs,
     ) -> None:
-        check_choice("observation", observation, ("thesis", "sofagym"))
-        check_choice("reward", reward, ("thesis", "sofagym"))
         self.action_scale = check_positive("action_scale", action_scale)
         check_interval("goal", goal_low, goal_high, floor=0.0, strict=False)
-        self.observation_variant = observation
-        self.reward_variant = reward
         self.base_low = np.asarray(base_low, dtype=float)
         self.base_high = np.asarray(base_high, dtype=float)
         self.cube_range = float(cube_range)
@@ -136,7 +128,7 @@ class GripperEnv(SoftRobotEnv):
             shared=True,
         )
         self.use_actions(base + cable)
-        n_obs = 13 if observation == "thesis" else 31
+        n_obs = 13 if self.observation_variant == "thesis" else 31
         self.observation_space = scaled_box(-5.0, 5.0, (n_obs,))
 
     def _build(self) -> Model:

@@ -168,7 +168,6 @@ class _MazeTask(SoftRobotEnv):
 
 class SimpleMazeEnv(_MazeTask):
     name = "SimpleMaze"
-    version = 1
     view = (45.0, -70.0)
     default_config = SimulationConfig(substeps=10)
     moved = ("tilt", 2)
@@ -191,7 +190,6 @@ class SimpleMazeEnv(_MazeTask):
 
 class MazeEnv(_MazeTask):
     name = "Maze"
-    version = 1
     view = (35.0, -70.0)
     moved = ("servos", 3)
     n_observations = 10

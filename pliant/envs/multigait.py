@@ -15,13 +15,11 @@ Forward is -x in the builder's frame (away from the legs inflated first in the h
 
 from __future__ import annotations
 
-from typing import Literal
-
 import numpy as np
 
 from pliant.envs.actions import ActionMap, scaled_box
 from pliant.envs.base import SoftRobotEnv
-from pliant.envs.config import SimulationConfig, check_choice
+from pliant.envs.config import SimulationConfig
 from pliant.mesh.multigait import CHAMBERS
 from pliant.model import Model
 from pliant.robots.multigait import centre_of_mass, multigait
@@ -72,22 +70,19 @@ def farthest_points(points: np.ndarray, k: int) -> np.ndarray:
 
 class MultigaitEnv(SoftRobotEnv):
     name = "Multigait"
-    version = 1
     view = (35.0, -60.0)
     default_config = SimulationConfig(substeps=60)
     robot_defaults = {"mesh_size": 6.0}
+    rewards = ("thesis", "sofagym")
 
     def __init__(
         self,
         *,
         symmetric: bool = True,
-        reward: Literal["thesis", "sofagym"] = "thesis",
         amplitude: tuple[float, float] = (4900.0, 3300.0),
         n_points: int = 20,
         **kwargs,
     ) -> None:
-        check_choice("reward", reward, ("thesis", "sofagym"))
-        self.reward_variant = reward
         self.symmetric = bool(symmetric)
         self.n_points = int(n_points)
         centre, leg = amplitude

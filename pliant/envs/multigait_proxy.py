@@ -26,7 +26,6 @@ from pliant.proxy.actuation import ProxySolver
 
 class MultigaitProxyEnv(MultigaitEnv):
     name = "MultigaitProxy"
-    version = 1
     robot_defaults = {}
 
     def __init__(self, *, observe_commands: bool = False, **kwargs) -> None:

@@ -29,23 +29,22 @@ class CableReachingEnv(SoftRobotEnv):
     :meth:`effector_position` and :meth:`sofagym_progress`, and set ``observation_space``;
     :meth:`cable_actions` may add to the cables' action map."""
 
+    rewards = ("thesis", "sofagym")
+
     def __init__(
         self,
         *,
         continuous_mode: ContinuousMode = "absolute",
         action_scale: float = 1.0,
-        reward: RewardVariant = "thesis",
         goal_low,
         goal_high,
         goal_tolerance: float,
         **kwargs,
     ) -> None:
-        check_choice("reward", reward, ("thesis", "sofagym"))
         check_choice("continuous_mode", continuous_mode, ("absolute", "increment"))
         self.action_scale = check_positive("action_scale", action_scale)
         self.goal_tolerance = check_positive("goal_tolerance", goal_tolerance)
         self.continuous_mode = continuous_mode
-        self.reward_variant = reward
         self.goal_low = np.asarray(goal_low, dtype=float)
         self.goal_high = np.asarray(goal_high, dtype=float)
         super().__init__(**kwargs)

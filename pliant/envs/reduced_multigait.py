@@ -17,7 +17,6 @@ built on first use from the full model's training load cases
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Literal
 
 import numpy as np
 
@@ -37,12 +36,11 @@ TRAINING = {"sequences": 20, "cycles": 1, "phase": 0.6, "pod_tolerance": 1e-3, "
 
 class ReducedMultigaitEnv(MultigaitEnv):
     name = "ReducedMultigait"
-    version = 1
+    rewards = ("sofagym", "thesis")
 
     def __init__(
         self,
         *,
-        reward: Literal["thesis", "sofagym"] = "sofagym",
         amplitude: tuple[float, float] = (4900.0, 3300.0),
         n_observed: int = 32,
         reduced_model: str | Path | None = None,
@@ -53,7 +51,7 @@ class ReducedMultigaitEnv(MultigaitEnv):
         self.training = {**TRAINING, **(training or {})}
         self._amplitude = tuple(amplitude)
         self.n_observed = int(n_observed)
-        super().__init__(reward=reward, amplitude=amplitude, **kwargs)
+        super().__init__(amplitude=amplitude, **kwargs)
         self.sim = self._reduced
         self.observation_space = scaled_box(-1.0, 1.0, (self.n_observed,))
 

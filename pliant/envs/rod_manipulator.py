@@ -24,29 +24,26 @@ Goal angle drawn uniformly in [goal_low, goal_high] rad (authors': (initial, 360
 
 from __future__ import annotations
 
-from typing import Literal
-
 import numpy as np
 
 from pliant.constraints.base import EmbeddedPoints
 from pliant.envs.actions import ActuatorTargets, RampTarget, scaled_box
 from pliant.envs.base import SoftRobotEnv
-from pliant.envs.config import SimulationConfig, check_choice, check_interval
+from pliant.envs.config import SimulationConfig, check_interval
 from pliant.model import Model
 from pliant.robots.rod_manipulator import rod_angle, rod_manipulator
 
 
 class RodManipulatorEnv(SoftRobotEnv):
     name = "RodManipulator"
-    version = 1
     view = (45.0, -30.0)
     default_config = SimulationConfig(substeps=10, action_type="continuous")
     robot_defaults = {"mesh_size": 4.0}
+    rewards = ("thesis", "sofagym")
 
     def __init__(
         self,
         *,
-        reward: Literal["thesis", "sofagym"] = "thesis",
         action_scale: float = 1.0,
         base_low: float = -10.0,
         base_high: float = 5.0,
@@ -57,10 +54,8 @@ class RodManipulatorEnv(SoftRobotEnv):
         length_scale: float = 50.0,
         **kwargs,
     ) -> None:
-        check_choice("reward", reward, ("thesis", "sofagym"))
         check_interval("base", base_low, base_high, contains=0.0)
         check_interval("goal", goal_low, goal_high, floor=0.0)
-        self.reward_variant = reward
         self.action_scale = float(action_scale)
         self.base_low, self.base_high = float(base_low), float(base_high)
         self.base_step = float(base_step)

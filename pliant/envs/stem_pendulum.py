@@ -49,7 +49,6 @@ class Torque(ActionMap):
 
 class StemPendulumEnv(SoftRobotEnv):
     name = "StemPendulum"
-    version = 1
     view = (5.0, -90.0)
     default_config = SimulationConfig(substeps=10, action_type="continuous")
     robot_defaults = {"length": 100.0}

@@ -35,7 +35,6 @@ def neutral_fibre(model: Model, n_points: int) -> EmbeddedPoints:
 
 class TrunkEnv(CableReachingEnv):
     name = "Trunk"
-    version = 1
     view = (20.0, -60.0)
     robot_defaults = {"mesh_size": 5.2}
     #: the builder of the scene (the Trunk alone, or with an object: a cup, a cube)

@@ -35,7 +35,6 @@ def _still(t: float) -> float:
 
 class TrunkCupEnv(TrunkEnv):
     name = "TrunkCup"
-    version = 1
     view = (25.0, -40.0)
     robot_defaults = {"mesh_size": 8.0, "base_motion": _still}
     builder = staticmethod(trunk_cup)

@@ -27,14 +27,42 @@ the thesis' iteration). The trunk starts settled under gravity.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from pliant.envs.actions import ActionMap, RampTarget, scaled_box
 from pliant.envs.base import floor_goal
-from pliant.envs.config import SimulationConfig, check_interval, check_positive
+from pliant.envs.config import SimulationConfig, check_interval, check_positive, taken
 from pliant.envs.trunk import LENGTH, TrunkEnv
 from pliant.model import Model
 from pliant.robots.trunk_cube import trunk_cube
+
+
+@dataclass(frozen=True)
+class CubePush:
+    """The cube-pushing task's settings, the same for the FEM Trunk and its proxy: the reward's
+    contact weight, the base's range (mm, 0 inside it), speed (mm/s) and discrete step (mm),
+    the goal's offset range (x, z) from the cube's start and tolerance (mm), the observed
+    points, whether the action drives the trunk in the floor's plane only, and the steps it
+    settles under gravity. Given as keywords of either environment."""
+
+    contact_weight: float = 0.2
+    base_low: float = -40.0
+    base_high: float = 40.0
+    base_speed: float = 100.0
+    base_step: float = 5.0
+    goal_low: tuple[float, float] = (5.0, -30.0)
+    goal_high: tuple[float, float] = (40.0, 20.0)
+    goal_tolerance: float = 8.0
+    n_points: int = 16
+    planar: bool = False
+    settle_steps: int = 30
+
+    def __post_init__(self) -> None:
+        check_interval("base", self.base_low, self.base_high, contains=0.0)
+        check_positive("base_speed", self.base_speed)
+        check_positive("base_step", self.base_step)
 
 
 class CubePushTask:
@@ -42,8 +70,16 @@ class CubePushTask:
     rigid body), a goal on the floor drawn relative to it, the distance in the x-z plane, and
     the reward: -d / length, plus (``contact=True``) -w d_contact / length, d_contact the
     distance from the cube to the nearest observed trunk point (favours contact, §4.1.2).
-    Hosts define ``contact_distance()``, ``goal_low``, ``goal_high``, ``goal_tolerance`` and
-    ``contact_weight``."""
+    Hosts define ``contact_distance()`` and take their settings with :meth:`_take_push`."""
+
+    def _take_push(self, kwargs: dict) -> CubePush:
+        """The :class:`CubePush` settings taken out of the constructor's keywords, and kept."""
+        push = self.push = CubePush(**taken(CubePush, kwargs))
+        self.contact_weight = float(push.contact_weight)
+        self.base_low, self.base_high = float(push.base_low), float(push.base_high)
+        self.base_speed, self.base_step = float(push.base_speed), float(push.base_step)
+        self.planar = bool(push.planar)
+        return push
 
     def cube(self) -> np.ndarray:
         return self.state.rigid_positions[0]
@@ -70,41 +106,21 @@ class CubePushTask:
 
 class TrunkPushEnv(CubePushTask, TrunkEnv):
     name = "TrunkPush"
-    version = 1
     view = (60.0, -60.0)
     default_config = SimulationConfig(substeps=30, action_type="continuous")
     robot_defaults = {"mesh_size": 8.0}
 
-    def __init__(
-        self,
-        *,
-        action_scale: float = 5.0,
-        contact_weight: float = 0.2,
-        base_low: float = -40.0,
-        base_high: float = 40.0,
-        base_speed: float = 100.0,
-        base_step: float = 5.0,
-        goal_low: tuple[float, float] = (5.0, -30.0),
-        goal_high: tuple[float, float] = (40.0, 20.0),
-        goal_tolerance: float = 8.0,
-        n_points: int = 16,
-        planar: bool = False,
-        settle_steps: int = 30,
-        **kwargs,
-    ) -> None:
-        check_interval("base", base_low, base_high, contains=0.0)
-        self.base_speed = check_positive("base_speed", base_speed)
-        self.base_step = check_positive("base_step", base_step)
-        self.contact_weight = float(contact_weight)
-        self.base_low, self.base_high = float(base_low), float(base_high)
-        self.planar = bool(planar)
+    def __init__(self, *, action_scale: float = 5.0, **kwargs) -> None:
+        """Keywords: ``action_scale`` (mm), those of :class:`CubePush` and of
+        :class:`pliant.envs.trunk.TrunkEnv`."""
+        push = self._take_push(kwargs)
         super().__init__(
             action_scale=action_scale,
-            goal_low=goal_low,
-            goal_high=goal_high,
-            goal_tolerance=goal_tolerance,
-            n_points=n_points,
-            settle_steps=settle_steps,
+            goal_low=push.goal_low,
+            goal_high=push.goal_high,
+            goal_tolerance=push.goal_tolerance,
+            n_points=push.n_points,
+            settle_steps=push.settle_steps,
             **kwargs,
         )
         self.observation_space = scaled_box(-3.0, 3.0, (3 * self.n_points + 5,))

@@ -37,8 +37,6 @@ from pliant.envs.config import (
     EnvConfigError,
     SimulationConfig,
     check_choice,
-    check_interval,
-    check_positive,
 )
 from pliant.envs.trunk_push import CubePushTask
 from pliant.model import Model, State
@@ -53,7 +51,6 @@ CABLE_COURSES = np.array([70.0] * 4 + [40.0] * 4)
 
 class TrunkPushProxyEnv(CubePushTask, SoftRobotEnv):
     name = "TrunkPushProxy"
-    version = 1
     view = (60.0, -60.0)
 
     default_config = SimulationConfig(substeps=30, action_type="continuous")
@@ -63,37 +60,24 @@ class TrunkPushProxyEnv(CubePushTask, SoftRobotEnv):
         *,
         bend_step: float = 0.25,
         bend_limit: float = 1.0,
-        base_step: float = 5.0,
-        contact_weight: float = 0.2,
-        base_low: float = -40.0,
-        base_high: float = 40.0,
-        base_speed: float = 100.0,
-        goal_low: tuple[float, float] = (5.0, -30.0),
-        goal_high: tuple[float, float] = (40.0, 20.0),
-        goal_tolerance: float = 8.0,
-        n_points: int = 16,
-        planar: bool = False,
         actions: str = "bendings",
-        settle_steps: int = 30,
         **kwargs,
     ) -> None:
-        check_interval("base", base_low, base_high, contains=0.0)
-        self.base_speed = check_positive("base_speed", base_speed)
+        """Keywords: those above, those of :class:`pliant.envs.trunk_push.CubePush`, and the
+        proxy builder's."""
+        push = self._take_push(kwargs)
         if not 0.0 < bend_limit <= 1.0:
             raise EnvConfigError(f"bend_limit must lie in (0, 1], got {bend_limit!r}")
         check_choice("actions", actions, ("bendings", "cables"))
         self.actions = actions
         self.bend_limit = float(bend_limit)
-        self.contact_weight = float(contact_weight)
-        self.bend_step, self.base_step = float(bend_step), float(base_step)
-        self.base_low, self.base_high = float(base_low), float(base_high)
-        self.goal_low, self.goal_high = np.asarray(goal_low), np.asarray(goal_high)
-        self.goal_tolerance = float(goal_tolerance)
-        self.n_points = int(n_points)
-        self.planar = bool(planar)
-        self.settle_steps = int(settle_steps)
+        self.bend_step = float(bend_step)
+        self.goal_low, self.goal_high = np.asarray(push.goal_low), np.asarray(push.goal_high)
+        self.goal_tolerance = float(push.goal_tolerance)
+        self.n_points = int(push.n_points)
+        self.settle_steps = int(push.settle_steps)
         super().__init__(**kwargs)
-        if actions == "cables" and (self.action_type != "continuous" or planar):
+        if actions == "cables" and (self.action_type != "continuous" or self.planar):
             raise EnvConfigError("actions='cables' is continuous and drives all eight cables")
         self.sim = ProxySolver(self.proxy, self.sim)
         self.n_actuators = self.proxy.n_controls

@@ -62,7 +62,6 @@ from pliant.solvers import ImplicitEuler
 
 class TrunkSpaceDebrisEnv(TrunkEnv):
     name = "TrunkSpaceDebris"
-    version = 1
     view = (20.0, -90.0)
 
     default_config = SimulationConfig(substeps=10, action_type="continuous")
@@ -71,6 +70,7 @@ class TrunkSpaceDebrisEnv(TrunkEnv):
     # episode diverges); within 35 and 25 mm none of those pulls does (tested). A trained PPO
     # policy ran into those limits in 9 episodes of 10 with SoftRobots' 70 and 40 mm.
     robot_defaults = {"max_long_displacement": 35.0, "max_short_displacement": 25.0}
+    rewards = ("thesis",)
 
     def __init__(
         self,
@@ -120,9 +120,7 @@ class TrunkSpaceDebrisEnv(TrunkEnv):
         self.horizon = int(horizon)
         self.mesh_size = mesh_size
         self._scenes: dict[float, tuple[Model, ImplicitEuler, State]] = {}
-        super().__init__(
-            action_scale=action_scale, reward="thesis", n_points=n_points, settle_steps=0, **kwargs
-        )
+        super().__init__(action_scale=action_scale, n_points=n_points, settle_steps=0, **kwargs)
         self._scenes[self.cube_sizes[0]] = (self.model, self.sim, self._initial)
         self.cube_size = self.cube_sizes[0]
         self.observation_space = scaled_box(-3.0, 3.0, (3 * self.n_points + 10,))
