@@ -2,7 +2,10 @@
 
 ``import pliant.envs`` registers them; then ``gymnasium.make("pliant/Diamond-v0")``. Each is a
 thin layer over a robot builder (:mod:`pliant.robots`); :mod:`pliant.envs.base` holds what
-they share: ramped commands, exact save/restore (``env.unwrapped.get_state()`` /
+they share: one simulation config (:class:`pliant.envs.config.SimulationConfig`: ``dt``,
+``substeps``, ``action_type``, ``tangent``, ``render_mode``, given as ``config=`` or as
+keywords), action maps that turn actions into commands (:mod:`pliant.envs.actions`), ramped
+commands, exact save/restore (``env.unwrapped.get_state()`` /
 ``set_state()``), divergence handling (the episode is truncated, ``info["diverged"]`` says
 why) and rendering.
 
@@ -20,6 +23,7 @@ from functools import partial
 import gymnasium as gym
 
 from pliant.envs.base import EnvSnapshot, EnvStateError, SoftRobotEnv
+from pliant.envs.config import SimulationConfig
 
 
 @dataclass(frozen=True)
@@ -34,40 +38,32 @@ class EnvSpec:
 ENVS: dict[str, EnvSpec] = {}
 
 
-def _register(name: str, entry_point: str, max_episode_steps: int, **quick) -> None:
+def _register(name: str, where: str, max_episode_steps: int, **quick) -> None:
+    """Register ``pliant/<name>-v0``, the class `where` (``module:Class`` in pliant.envs)."""
+    entry_point = f"pliant.envs.{where}"
     ENVS[name] = EnvSpec(name, entry_point, max_episode_steps, quick)
     env_id = f"pliant/{name}-v0"
     if env_id not in gym.registry:
         gym.register(id=env_id, entry_point=entry_point, max_episode_steps=max_episode_steps)
 
 
-_register("Diamond", "pliant.envs.diamond:DiamondEnv", 50, mesh_size=20.0)
-_register("Trunk", "pliant.envs.trunk:TrunkEnv", 250, mesh_size=8.0, settle_steps=5)
-_register("CartStemContact", "pliant.envs.cartstem:CartStemContactEnv", 30, substeps=10, cells=6)
-_register("SimpleMaze", "pliant.envs.maze:SimpleMazeEnv", 50, substeps=4)
-_register("Maze", "pliant.envs.maze:MazeEnv", 250, substeps=2, mesh_size=8.0)
-_register("Multigait", "pliant.envs.multigait:MultigaitEnv", 6, substeps=4, mesh_size=10.0)
-_register("MultigaitProxy", "pliant.envs.multigait_proxy:MultigaitProxyEnv", 12, substeps=20)
-_register(
-    "TrunkPushProxy",
-    "pliant.envs.trunk_push_proxy:TrunkPushProxyEnv",
-    10,
-    substeps=5,
-    settle_steps=5,
-)
-_register("TrunkCup", "pliant.envs.trunk_cup:TrunkCupEnv", 250, settle_steps=5)
-_register("TrunkPush", "pliant.envs.trunk_push:TrunkPushEnv", 10, substeps=5, settle_steps=5)
-_register(
-    "RodManipulator", "pliant.envs.rod_manipulator:RodManipulatorEnv", 30, mesh_size=8.0, substeps=4
-)
-_register(
-    "CatchTheObject", "pliant.envs.catch_object:CatchTheObjectEnv", 30, mesh_size=8.0, substeps=4
-)
-_register("CartStem", "pliant.envs.cartstem_free:CartStemEnv", 80, substeps=4)
-_register("StemPendulum", "pliant.envs.stem_pendulum:StemPendulumEnv", 50, substeps=4)
+_register("Diamond", "diamond:DiamondEnv", 50, mesh_size=20.0)
+_register("Trunk", "trunk:TrunkEnv", 250, mesh_size=8.0, settle_steps=5)
+_register("CartStemContact", "cartstem:CartStemContactEnv", 30, substeps=10, cells=6)
+_register("SimpleMaze", "maze:SimpleMazeEnv", 50, substeps=4)
+_register("Maze", "maze:MazeEnv", 250, substeps=2, mesh_size=8.0)
+_register("Multigait", "multigait:MultigaitEnv", 6, substeps=4, mesh_size=10.0)
+_register("MultigaitProxy", "multigait_proxy:MultigaitProxyEnv", 12, substeps=20)
+_register("TrunkPushProxy", "trunk_push_proxy:TrunkPushProxyEnv", 10, substeps=5, settle_steps=5)
+_register("TrunkCup", "trunk_cup:TrunkCupEnv", 250, settle_steps=5)
+_register("TrunkPush", "trunk_push:TrunkPushEnv", 10, substeps=5, settle_steps=5)
+_register("RodManipulator", "rod_manipulator:RodManipulatorEnv", 30, mesh_size=8.0, substeps=4)
+_register("CatchTheObject", "catch_object:CatchTheObjectEnv", 30, mesh_size=8.0, substeps=4)
+_register("CartStem", "cartstem_free:CartStemEnv", 80, substeps=4)
+_register("StemPendulum", "stem_pendulum:StemPendulumEnv", 50, substeps=4)
 _register(
     "BubbleMotion",
-    "pliant.envs.bubble_motion:BubbleMotionEnv",
+    "bubble_motion:BubbleMotionEnv",
     20,
     substeps=3,
     mesh_size=10.0,
@@ -75,15 +71,15 @@ _register(
 )
 _register(
     "TrunkSpaceDebris",
-    "pliant.envs.trunk_space_debris:TrunkSpaceDebrisEnv",
+    "trunk_space_debris:TrunkSpaceDebrisEnv",
     50,
     substeps=3,
     cube_sizes=(20.0, 30.0),
 )
-_register("Gripper", "pliant.envs.gripper:GripperEnv", 250, substeps=2, mesh_size=12.0)
+_register("Gripper", "gripper:GripperEnv", 250, substeps=2, mesh_size=12.0)
 _register(
     "ReducedMultigait",
-    "pliant.envs.reduced_multigait:ReducedMultigaitEnv",
+    "reduced_multigait:ReducedMultigaitEnv",
     6,
     substeps=4,
     mesh_size=10.0,
@@ -150,6 +146,7 @@ __all__ = [
     "ENVS",
     "EnvSnapshot",
     "EnvStateError",
+    "SimulationConfig",
     "SoftRobotEnv",
     "env_ids",
     "get_state",

@@ -29,11 +29,19 @@ import copy
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Any, ClassVar, Literal
+from typing import Any, ClassVar
 
 import gymnasium as gym
 import numpy as np
 
+from pliant.envs.actions import ActionMap, Commands
+from pliant.envs.config import (
+    ActionType,
+    EnvConfigError,
+    SimulationConfig,
+    check_choice,
+    with_keywords,
+)
 from pliant.errors import (
     ConstraintError,
     DivergenceError,
@@ -44,8 +52,6 @@ from pliant.errors import (
 from pliant.model import Model, State
 from pliant.solvers import ImplicitEuler
 from pliant.viz.model_view import RobotCamera
-
-ActionType = Literal["discrete", "continuous"]
 
 
 class EnvStateError(PliantError, ValueError):
@@ -121,50 +127,60 @@ class EnvSnapshot:
 class SoftRobotEnv(gym.Env):
     """Base of Pliant's environments.
 
-    Subclasses set the class attributes and implement :meth:`_build`, :meth:`_observe`,
-    :meth:`_commands_from_action` and :meth:`_reward`; optionally :meth:`_reset_task`,
-    :meth:`_render_goal` and :meth:`_snapshot_task`/:meth:`_restore_task` for task data that
-    is not a plain dict of arrays and numbers.
+    Subclasses set the class attributes (``default_config``, ``robot_defaults``, ...),
+    implement :meth:`_build`, :meth:`_observe` and :meth:`_reward`, and choose their action
+    maps with :meth:`use_actions` (:mod:`pliant.envs.actions`; or override :meth:`_commands`);
+    optionally :meth:`_reset_task`, :meth:`_render_goal` and :meth:`_before_step`.
 
-    Common keyword arguments:
-        dt: simulation time step (s).
-        substeps: simulation steps per environment step.
-        action_type: "discrete" or "continuous" (where the task offers both).
-        render_mode: None, "rgb_array" (offscreen frames) or "human" (a Matplotlib window).
-        tangent: the solver's factorisation policy (:mod:`pliant.solvers.system`).
+    Keyword arguments: ``config``, a :class:`pliant.envs.config.SimulationConfig`, or its
+    fields (``dt``, ``substeps``, ``action_type``, ``tangent``, ``render_mode``) as keywords
+    over the class's ``default_config``; ``reward`` and ``observation``, one of the class's
+    ``rewards`` and ``observations``; the subclass's own; the rest go to the robot builder
+    (``self.robot_kwargs``, over ``robot_defaults``).
     """
 
     metadata: ClassVar[dict] = {"render_modes": ["rgb_array", "human"], "render_fps": 10}
-    #: registered name (``pliant/<name>-v0``) and snapshot version.
+    #: registered name (``pliant/<name>-v0``) and snapshot version (raised where a change
+    #: makes older snapshots unfit).
     name: ClassVar[str] = "Base"
-    version: ClassVar[int] = 0
+    version: ClassVar[int] = 1
     #: camera (elevation, azimuth) of renders.
     view: ClassVar[tuple[float, float]] = (20.0, -60.0)
+
+    #: the simulation config of a constructor given none (its keywords override each field).
+    default_config: ClassVar[SimulationConfig] = SimulationConfig()
+    #: the task's reward and observation variants, the default first (``reward="sofagym"``,
+    #: ``observation="sofagym"``: SofaGym's definitions beside the thesis').
+    rewards: ClassVar[tuple[str, ...]] = ("thesis",)
+    observations: ClassVar[tuple[str, ...]] = ("thesis",)
+    #: the robot builder's keywords of this environment where they are not the builder's own
+    #: defaults (the constructor's other keywords override them).
+    robot_defaults: ClassVar[dict[str, Any]] = {}
 
     def __init__(
         self,
         *,
-        dt: float = 0.01,
-        substeps: int = 5,
-        action_type: ActionType = "discrete",
-        render_mode: str | None = None,
-        tangent: str = "lagged",
+        config: SimulationConfig | None = None,
+        reward: str | None = None,
+        observation: str | None = None,
+        **kwargs,
     ) -> None:
-        if not (isinstance(substeps, int | np.integer) and substeps >= 1):
-            raise ValueError(f"substeps must be an integer >= 1, got {substeps!r}")
-        if action_type not in ("discrete", "continuous"):
-            raise ValueError(f"action_type must be 'discrete' or 'continuous', got {action_type!r}")
+        self.config = with_keywords(self.default_config if config is None else config, kwargs)
+        self.reward_variant = self.rewards[0] if reward is None else reward
+        self.observation_variant = self.observations[0] if observation is None else observation
+        check_choice("reward", self.reward_variant, self.rewards)
+        check_choice("observation", self.observation_variant, self.observations)
+        render_mode = self.config.render_mode
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
-            raise ValueError(
+            raise EnvConfigError(
                 f"render_mode must be one of {self.metadata['render_modes']}, got {render_mode!r}"
             )
-        self.dt = float(dt)
-        self.substeps = int(substeps)
-        self.action_type = action_type
-        self.render_mode = render_mode
+        #: the robot builder's keywords: the constructor's keywords that are neither the
+        #: config's nor the environment's own, over ``robot_defaults``.
+        self.robot_kwargs: dict[str, Any] = {**self.robot_defaults, **kwargs}
         self.ramps: dict[str, Ramp] = {}
         self.model: Model = self._build()
-        self.sim = ImplicitEuler(self.model, dt=self.dt, tangent=tangent)
+        self.sim = ImplicitEuler(self.model, dt=self.dt, tangent=self.config.tangent)
         self.metadata = {**self.metadata, "render_fps": max(1, round(1.0 / self.step_time))}
         self.n_actuators = len(self.model.actuators)
         self.commands = np.zeros(self.n_actuators)
@@ -176,6 +192,27 @@ class SoftRobotEnv(gym.Env):
         self._camera = None
         self._window = None
         self.sim_seconds = 0.0  # wall time spent in the simulation (for speed reports)
+
+    @property
+    def dt(self) -> float:
+        return self.config.dt
+
+    @property
+    def substeps(self) -> int:
+        return self.config.substeps
+
+    @property
+    def action_type(self) -> ActionType:
+        return self.config.action_type
+
+    @property
+    def render_mode(self) -> str | None:
+        return self.config.render_mode
+
+    def use_actions(self, actions: ActionMap) -> None:
+        """Act through `actions` (:mod:`pliant.envs.actions`); the action space is theirs."""
+        self.action_map = actions
+        self.action_space = actions.space(self.action_type)
 
     # ----------------------------------------------------------------- subclass interface
     def _build(self) -> Model:
@@ -189,9 +226,12 @@ class SoftRobotEnv(gym.Env):
     def _reset_task(self, rng: np.random.Generator, options: dict | None) -> None:
         """Draw the episode's task (goal, ...) into ``self.task``; may edit ``self.state``."""
 
-    def _commands_from_action(self, action) -> None:
-        """Set ``self.target_commands`` and retarget the ramps from a valid action."""
-        raise NotImplementedError
+    def _commands(self, action) -> Commands:
+        """The step's commands for a valid action: those of the action maps."""
+        return self.action_map(self, action)
+
+    def _before_step(self) -> None:
+        """What happens to the state as a step begins, beside the commands (a disturbance)."""
 
     def _observe(self) -> np.ndarray:
         raise NotImplementedError
@@ -207,7 +247,7 @@ class SoftRobotEnv(gym.Env):
     @property
     def step_time(self) -> float:
         """Simulated seconds per environment step."""
-        return self.dt * self.substeps
+        return self.config.step_time
 
     def ramp(self, name: str, initial) -> Ramp:
         """A kinematic input for the builder, part of the snapshot."""
@@ -242,6 +282,11 @@ class SoftRobotEnv(gym.Env):
             raise ActionError(f"{self.name}: action must be finite, got {a}")
         return np.clip(a, space.low, space.high)
 
+    def commands_for(self, action) -> Commands:
+        """The commands a (valid) action gives from the present state: what :meth:`step`
+        applies; nothing is written."""
+        return self._commands(self._check_action(action))
+
     def _clip_observation(self, obs: np.ndarray) -> np.ndarray:
         space = self.observation_space
         return np.clip(np.asarray(obs, dtype=np.float32), space.low, space.high)
@@ -254,7 +299,6 @@ class SoftRobotEnv(gym.Env):
         self.model.trajectories_changed()
         self.state = self._initial.copy()
         self.commands = np.zeros(self.n_actuators)
-        self.target_commands = self.commands.copy()
         self.task = {}
         self._elapsed = 0
         self._reset_task(self.np_random, options)
@@ -263,13 +307,15 @@ class SoftRobotEnv(gym.Env):
         return obs.copy(), {}
 
     def step(self, action):
-        action = self._check_action(action)
-        self.target_commands = self.commands.copy()
-        self._commands_from_action(action)
+        commands = self.commands_for(action)
+        for name, target in commands.ramps.items():
+            self.ramps[name].retarget(self.state.time, target, self.step_time)
+        self.task.update(commands.task)
+        self._before_step()
         if self.ramps:  # retargeted in place: the poses the solver memoised are stale
             self.model.trajectories_changed()
         start = self.commands.copy()
-        target = np.asarray(self.target_commands, dtype=float)
+        target = np.asarray(commands.actuators, dtype=float)
         # The lagged tangent is rebuilt at each environment step: the step then depends on
         # the snapshot and the action only (module docstring).
         self.sim.system.invalidate()
@@ -399,26 +445,19 @@ class SoftRobotEnv(gym.Env):
             self._window = None
 
 
-def scaled_box(low, high, shape) -> gym.spaces.Box:
-    return gym.spaces.Box(
-        np.broadcast_to(np.asarray(low, np.float32), shape).copy(),
-        np.broadcast_to(np.asarray(high, np.float32), shape).copy(),
-        dtype=np.float32,
-    )
+def floor_goal(rng: np.random.Generator, options: dict | None, start, low, high) -> np.ndarray:
+    """``options["goal"]``, or `start` (3,) plus an offset (x, 0, z) with (x, z) drawn
+    uniformly in [low, high]: a goal on the floor (the x-z plane) near an object's start."""
+    goal = (options or {}).get("goal")
+    if goal is None:
+        x, z = rng.uniform(low, high)
+        goal = start + [x, 0.0, z]
+    return np.asarray(goal, dtype=float).reshape(3)
 
 
 def progress_reward(previous: float, current: float, eps: float = 1e-6) -> float:
     """Eq. 3.2: max(0, (d_{t-1} - d_t) / (d_{t-1} + eps)), in [0, 1]."""
     return max(0.0, (previous - current) / (previous + eps))
-
-
-def discrete_increments(n: int, scale: float) -> np.ndarray:
-    """(2n, n): action 2i adds `scale` to command i, action 2i + 1 removes it."""
-    table = np.zeros((2 * n, n))
-    for i in range(n):
-        table[2 * i, i] = scale
-        table[2 * i + 1, i] = -scale
-    return table
 
 
 Builder = Callable[..., Model]

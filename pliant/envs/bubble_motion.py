@@ -18,70 +18,45 @@ mm, SofaGym's 0.6) or the ball leaves the board. 20 steps of 20 x 0.01 s.
 
 from __future__ import annotations
 
-import gymnasium as gym
 import numpy as np
 
-from pliant.envs.base import ActionType, SoftRobotEnv, discrete_increments, scaled_box
+from pliant.envs.actions import ActuatorTargets, scaled_box
+from pliant.envs.base import SoftRobotEnv
+from pliant.envs.config import SimulationConfig, check_interval
 from pliant.model import Model
 from pliant.robots.bubble_motion import bubble_motion
 
 
 class BubbleMotionEnv(SoftRobotEnv):
     name = "BubbleMotion"
-    version = 1
     view = (45.0, -60.0)
+    default_config = SimulationConfig(substeps=20, action_type="continuous")
+    robot_defaults = {"size": 60.0, "mesh_size": 5.0, "top_mesh_size": 2.0}
 
     def __init__(
         self,
         *,
-        dt: float = 0.01,
-        substeps: int = 20,
-        action_type: ActionType = "continuous",
         action_scale: float = 0.25,
         ball_range: float = 12.0,
         goal_low: float = 10.0,
         goal_high: float = 20.0,
         goal_tolerance: float = 6.0,
-        size: float = 60.0,
-        mesh_size: float = 5.0,
-        top_mesh_size: float = 2.0,
-        render_mode: str | None = None,
-        tangent: str = "lagged",
-        **robot_kwargs,
+        **kwargs,
     ) -> None:
-        if not 0 < goal_low <= goal_high:
-            raise ValueError(f"need 0 < goal_low <= goal_high, got {goal_low}, {goal_high}")
+        check_interval("goal", goal_low, goal_high, floor=0.0)
         self.action_scale = float(action_scale)
         self.ball_range = float(ball_range)
         self.goal_low, self.goal_high = float(goal_low), float(goal_high)
         self.goal_tolerance = float(goal_tolerance)
-        self.half = 0.5 * float(size)
-        self.mesh_size = mesh_size
-        self.top_mesh_size = top_mesh_size
-        self.robot_kwargs = robot_kwargs
-        super().__init__(
-            dt=dt,
-            substeps=substeps,
-            action_type=action_type,
-            render_mode=render_mode,
-            tangent=tangent,
-        )
+        super().__init__(**kwargs)
+        self.half = 0.5 * float(self.robot_kwargs["size"])
         self.max_pressure = np.array([a.max_force for a in self.model.actuators])
-        n = self.n_actuators
-        if action_type == "discrete":
-            self._table = discrete_increments(n, self.action_scale)
-            self.action_space = gym.spaces.Discrete(2 * n)
-        else:
-            self.action_space = scaled_box(-1.0, 1.0, (n,))
+        step = self.action_scale * self.max_pressure
+        self.use_actions(ActuatorTargets(self.max_pressure, step=step))
         self.observation_space = scaled_box(-3.0, 3.0, (15,))
 
     def _build(self) -> Model:
-        return bubble_motion(
-            size=2.0 * self.half,
-            mesh_size=self.mesh_size,
-            top_mesh_size=self.top_mesh_size,
-            **self.robot_kwargs,
-        )
+        return bubble_motion(**self.robot_kwargs)
 
     def ball(self) -> np.ndarray:
         return self.state.rigid_positions[0]
@@ -108,13 +83,6 @@ class BubbleMotionEnv(SoftRobotEnv):
             goal = np.clip(goal, -reach, reach)
         self.task["goal"] = np.array([*np.asarray(goal, dtype=float).reshape(2), self.ball()[2]])
         self.task["d0"] = max(self.distance(), 1e-9)
-
-    def _commands_from_action(self, action) -> None:
-        if self.action_type == "discrete":
-            target = self.commands + self._table[action] * self.max_pressure
-        else:
-            target = 0.5 * (np.asarray(action, dtype=float) + 1.0) * self.max_pressure
-        self.target_commands = np.clip(target, 0.0, self.max_pressure)
 
     def _observe(self) -> np.ndarray:
         return np.concatenate(

@@ -22,76 +22,48 @@ positions; ``options={"shift": o}`` pins the shift). Terminated when
 
 from __future__ import annotations
 
-from typing import Literal
-
-import gymnasium as gym
 import numpy as np
 
-from pliant.envs.base import ActionType, SoftRobotEnv, scaled_box
+from pliant.envs.actions import CartDrive, scaled_box
+from pliant.envs.base import SoftRobotEnv
+from pliant.envs.config import EnvConfigError, SimulationConfig, with_keywords
 from pliant.model import Model
 from pliant.robots.cartstem import cartstem_contact
 
 
 class CartStemContactEnv(SoftRobotEnv):
     name = "CartStemContact"
-    version = 1
     view = (5.0, -90.0)
+    default_config = SimulationConfig(substeps=30, action_type="continuous")
+    # Released from an obstacle, the beam whips back on its first bending mode (about 7 Hz with
+    # the default beam): its tip moves up to 9 mm in a 0.01 s step, three times the robot's
+    # default detection margin, and contacts were missed under random policies. 12 mm leaves
+    # no warning over random episodes and costs 5 % of the step.
+    robot_defaults = {"stem": "tetrahedra", "length": 100.0, "contact_margin": 12.0}
+    rewards = observations = ("thesis", "sofagym")
+    cart_drive = CartDrive(max_move=40.0, max_speed=40.0)
 
     def __init__(
         self,
         *,
-        dt: float = 0.01,
-        substeps: int = 30,
-        action_type: ActionType = "continuous",
-        observation: Literal["thesis", "sofagym"] = "thesis",
-        reward: Literal["thesis", "sofagym"] = "thesis",
-        max_move: float = 40.0,
-        max_speed: float = 40.0,
         goal_range: float = 35.0,
         goal_tolerance: float = 1.0,
         cart_range: float = 10.0,
         obstacle_shift: float = 0.0,
-        stem: Literal["tetrahedra", "rod"] = "tetrahedra",
-        length: float = 100.0,
-        render_mode: str | None = None,
-        tangent: str = "lagged",
-        **robot_kwargs,
+        **kwargs,
     ) -> None:
-        if observation not in ("thesis", "sofagym"):
-            raise ValueError(f"observation must be 'thesis' or 'sofagym', got {observation!r}")
-        if reward not in ("thesis", "sofagym"):
-            raise ValueError(f"reward must be 'thesis' or 'sofagym', got {reward!r}")
-        for key, value in (("max_move", max_move), ("max_speed", max_speed)):
-            if not (np.isfinite(value) and value > 0):
-                raise ValueError(f"{key} must be > 0, got {value!r}")
-        self.observation_variant = observation
-        self.reward_variant = reward
-        self.max_move = float(max_move)
-        self.max_speed = float(max_speed)
+        self.cart_drive = with_keywords(self.cart_drive, kwargs)
+        self.max_move, self.max_speed = self.cart_drive.max_move, self.cart_drive.max_speed
         self.goal_range = float(goal_range)
         self.goal_tolerance = float(goal_tolerance)
         self.cart_range = float(cart_range)
         self.obstacle_shift = float(obstacle_shift)
-        self.stem = stem
-        self.length = float(length)
-        # Released from an obstacle, the beam whips back on its first bending mode (about 7 Hz
-        # with the default beam): its tip moves up to 9 mm in a 0.01 s step, three times the
-        # robot's default detection margin, and contacts were missed under random policies.
-        # 12 mm leaves no warning over random episodes and costs 5 % of the step.
-        robot_kwargs.setdefault("contact_margin", 12.0)
-        self.robot_kwargs = robot_kwargs
-        super().__init__(
-            dt=dt,
-            substeps=substeps,
-            action_type=action_type,
-            render_mode=render_mode,
-            tangent=tangent,
+        super().__init__(**kwargs)
+        self.length = float(self.robot_kwargs["length"])
+        self.use_actions(self.cart_drive.actions(self.step_time))
+        self.observation_space = scaled_box(
+            -5.0, 5.0, (7 if self.observation_variant == "thesis" else 8,)
         )
-        if action_type == "discrete":
-            self.action_space = gym.spaces.Discrete(3)
-        else:
-            self.action_space = scaled_box(-1.0, 1.0, (1,))
-        self.observation_space = scaled_box(-5.0, 5.0, (7 if observation == "thesis" else 8,))
         boxes = self.model.contacts.shapes
         self.obstacles = np.array([b.position for b in boxes])
         self._obstacles_at_rest = self.obstacles.copy()
@@ -100,18 +72,16 @@ class CartStemContactEnv(SoftRobotEnv):
         clearance -= float(np.abs(self._initial.positions[:, 0]).max())
         self._clearance = clearance
         if not (np.isfinite(self.cart_range) and 0.0 <= self.cart_range < clearance):
-            raise ValueError(
+            raise EnvConfigError(
                 f"cart_range must be in [0, {clearance:.3g}) (the beam starts between the"
                 f" obstacles, clear of them), got {cart_range!r}"
             )
         if not (np.isfinite(self.obstacle_shift) and self.obstacle_shift >= 0.0):
-            raise ValueError(f"obstacle_shift must be >= 0 (mm), got {obstacle_shift!r}")
+            raise EnvConfigError(f"obstacle_shift must be >= 0 (mm), got {obstacle_shift!r}")
 
     def _build(self) -> Model:
         self.cart = self.ramp("cart", 0.0)
-        return cartstem_contact(
-            stem=self.stem, length=self.length, cart_motion=self.cart.scalar, **self.robot_kwargs
-        )
+        return cartstem_contact(cart_motion=self.cart.scalar, **self.robot_kwargs)
 
     def cart_x(self) -> float:
         return self.cart.scalar(self.state.time)
@@ -155,19 +125,6 @@ class CartStemContactEnv(SoftRobotEnv):
     def set_state(self, snapshot) -> None:
         super().set_state(snapshot)
         self.move_obstacles(self.task.get("shift", 0.0))
-
-    def _commands_from_action(self, action) -> None:
-        reach = self.max_speed * self.step_time
-        now = self.cart_x()
-        if self.action_type == "discrete":
-            target = self.task["target"] + (action - 1) * reach
-        else:
-            target = self.max_move * float(action[0])
-        target = float(np.clip(target, -self.max_move, self.max_move))
-        self.task["target"] = target
-        self.cart.retarget(
-            self.state.time, now + np.clip(target - now, -reach, reach), self.step_time
-        )
 
     def _observe(self) -> np.ndarray:
         xl, xr = self.obstacles[0, 0], self.obstacles[1, 0]

@@ -17,73 +17,66 @@ x| > ``tip_threshold`` mm or the cart leaves [-max_position, max_position]. 80 s
 
 from __future__ import annotations
 
-from typing import Literal
-
-import gymnasium as gym
 import numpy as np
 
-from pliant.envs.base import ActionType, SoftRobotEnv, scaled_box
+from pliant.envs.actions import ActionMap, scaled_box
+from pliant.envs.base import SoftRobotEnv
+from pliant.envs.config import SimulationConfig, check_positive
 from pliant.model import Model
 from pliant.robots.cartstem import cartstem
 
 
+class CartAcceleration(ActionMap):
+    """The cart's velocity (the task's ``"speed"``) changed by a x `acceleration` x step time,
+    a = -1 or +1 (discrete) or in [-1, 1]; the cart moves at that velocity over the step."""
+
+    n_discrete = 2
+    n_continuous = 1
+
+    def __init__(self, acceleration: float) -> None:
+        self.acceleration = acceleration
+
+    def discrete(self, env, action, commands):
+        return self._accelerate(env, 2.0 * action - 1.0, commands)
+
+    def continuous(self, env, action, commands):
+        return self._accelerate(env, float(action[0]), commands)
+
+    def _accelerate(self, env, a: float, commands):
+        speed = env.task["speed"] + a * self.acceleration * env.step_time
+        now = env.ramps["cart"].scalar(env.state.time)
+        return commands.with_ramp("cart", now + speed * env.step_time, speed=speed)
+
+
 class CartStemEnv(SoftRobotEnv):
     name = "CartStem"
-    version = 1
     view = (5.0, -90.0)
+    default_config = SimulationConfig(substeps=10)
+    robot_defaults = {"stem": "rod", "length": 100.0, "young_modulus": 300.0}
 
     def __init__(
         self,
         *,
-        dt: float = 0.01,
-        substeps: int = 10,
-        action_type: ActionType = "discrete",
         acceleration: float = 500.0,
         initial_speed: float = 50.0,
         tip_threshold: float = 15.0,
         max_position: float = 100.0,
         velocity_scale: float = 200.0,
-        stem: Literal["rod", "tetrahedra"] = "rod",
-        length: float = 100.0,
-        young_modulus: float = 300.0,
-        render_mode: str | None = None,
-        tangent: str = "lagged",
-        **robot_kwargs,
+        **kwargs,
     ) -> None:
-        for key, value in (("acceleration", acceleration), ("tip_threshold", tip_threshold)):
-            if not (np.isfinite(value) and value > 0):
-                raise ValueError(f"{key} must be > 0, got {value!r}")
-        self.acceleration = float(acceleration)
+        self.acceleration = check_positive("acceleration", acceleration)
+        self.tip_threshold = check_positive("tip_threshold", tip_threshold)
         self.initial_speed = float(initial_speed)
-        self.tip_threshold = float(tip_threshold)
         self.max_position = float(max_position)
         self.velocity_scale = float(velocity_scale)
-        self.stem = stem
-        self.length = float(length)
-        self.young_modulus = float(young_modulus)
-        self.robot_kwargs = robot_kwargs
-        super().__init__(
-            dt=dt,
-            substeps=substeps,
-            action_type=action_type,
-            render_mode=render_mode,
-            tangent=tangent,
-        )
-        if action_type == "discrete":
-            self.action_space = gym.spaces.Discrete(2)
-        else:
-            self.action_space = scaled_box(-1.0, 1.0, (1,))
+        super().__init__(**kwargs)
+        self.length = float(self.robot_kwargs["length"])
+        self.use_actions(CartAcceleration(self.acceleration))
         self.observation_space = scaled_box(-10.0, 10.0, (4,))
 
     def _build(self) -> Model:
         self.cart = self.ramp("cart", 0.0)
-        return cartstem(
-            stem=self.stem,
-            length=self.length,
-            young_modulus=self.young_modulus,
-            cart_motion=self.cart.scalar,
-            **self.robot_kwargs,
-        )
+        return cartstem(cart_motion=self.cart.scalar, **self.robot_kwargs)
 
     def _reset_task(self, rng, options) -> None:
         speed = (options or {}).get("speed")
@@ -100,14 +93,6 @@ class CartStemEnv(SoftRobotEnv):
         tip = self.model.effectors[0].points
         x = tip.positions(self.state.positions)[0, 0]
         return float(x), float(tip.positions(self.state.velocities)[0, 0])
-
-    def _commands_from_action(self, action) -> None:
-        a = (2.0 * action - 1.0) if self.action_type == "discrete" else float(action[0])
-        self.task["speed"] += a * self.acceleration * self.step_time
-        now = self.cart_x()
-        self.cart.retarget(
-            self.state.time, now + self.task["speed"] * self.step_time, self.step_time
-        )
 
     def _observe(self) -> np.ndarray:
         x, v = self.tip()

@@ -21,78 +21,54 @@ below the palm's top (missed). 30 steps of 10 x 0.01 s.
 
 from __future__ import annotations
 
-import gymnasium as gym
 import numpy as np
 
-from pliant.envs.base import ActionType, SoftRobotEnv, scaled_box
+from pliant.envs.actions import CartDrive, Commands, scaled_box
+from pliant.envs.base import SoftRobotEnv
+from pliant.envs.config import SimulationConfig, check_positive, with_keywords
 from pliant.model import Model
 from pliant.robots.catch_object import catch_object
 
 
 class CatchTheObjectEnv(SoftRobotEnv):
     name = "CatchTheObject"
-    version = 1
     view = (10.0, -80.0)
+    default_config = SimulationConfig(substeps=10, action_type="continuous")
+    robot_defaults = {"mesh_size": 6.0}
+    cart_drive = CartDrive(max_move=40.0, max_speed=100.0)
 
     def __init__(
         self,
         *,
-        dt: float = 0.01,
-        substeps: int = 10,
-        action_type: ActionType = "continuous",
-        max_move: float = 40.0,
-        max_speed: float = 100.0,
         ball_range: float = 30.0,
         ball_height: float = 150.0,
         throw_speed: float = 2000.0,
         grip_pressure: float = 30.0,
         grip_height: float = 60.0,
         length_scale: float = 100.0,
-        mesh_size: float = 6.0,
-        render_mode: str | None = None,
-        tangent: str = "lagged",
-        **robot_kwargs,
+        **kwargs,
     ) -> None:
-        for key, value in (
-            ("max_move", max_move),
-            ("max_speed", max_speed),
-            ("throw_speed", throw_speed),
-        ):
-            if not (np.isfinite(value) and value > 0):
-                raise ValueError(f"{key} must be > 0, got {value!r}")
-        self.max_move = float(max_move)
-        self.max_speed = float(max_speed)
+        self.cart_drive = with_keywords(self.cart_drive, kwargs)
+        self.max_move, self.max_speed = self.cart_drive.max_move, self.cart_drive.max_speed
+        self.throw_speed = check_positive("throw_speed", throw_speed)
         self.ball_range = float(ball_range)
         self.ball_height = float(ball_height)
-        self.throw_speed = float(throw_speed)
         self.grip_pressure = float(grip_pressure)
         self.grip_height = float(grip_height)
         self.length_scale = float(length_scale)
-        self.mesh_size = mesh_size
-        self.robot_kwargs = robot_kwargs
-        super().__init__(
-            dt=dt,
-            substeps=substeps,
-            action_type=action_type,
-            render_mode=render_mode,
-            tangent=tangent,
-        )
+        super().__init__(**kwargs)
         self.max_pressure = float(self.model.actuators[0].max_force)
         self.palm_top = float(self.robot_kwargs.get("palm_thickness", 8.0))
         self.radius = float(self.model.rigid_bodies[0].shape.radius)
         self.max_distance = float(
             np.hypot(self.ball_range + self.max_move, self.ball_height - self.palm_top)
         )
-        if action_type == "discrete":
-            self.action_space = gym.spaces.Discrete(3)
-        else:
-            self.action_space = scaled_box(-1.0, 1.0, (1,))
+        self.use_actions(self.cart_drive.actions(self.step_time))
         self.observation_space = scaled_box(-5.0, 5.0, (5,))
 
     def _build(self) -> Model:
         self.cart = self.ramp("cart", 0.0)
         return catch_object(
-            mesh_size=self.mesh_size,
             ball_position=(0.0, 0.0, self.ball_height),
             cart_motion=self.cart.scalar,
             **self.robot_kwargs,
@@ -116,22 +92,14 @@ class CatchTheObjectEnv(SoftRobotEnv):
         catch = np.array([self.cart_x(), 0.0, self.palm_top + self.radius])
         return float(np.linalg.norm(self.ball() - catch))
 
-    def _commands_from_action(self, action) -> None:
-        reach = self.max_speed * self.step_time
-        now = self.cart_x()
-        if self.action_type == "discrete":
-            target = self.task["target"] + (action - 1) * reach
-        else:
-            target = self.max_move * float(action[0])
-        target = float(np.clip(target, -self.max_move, self.max_move))
-        self.task["target"] = target
-        self.cart.retarget(
-            self.state.time, now + np.clip(target - now, -reach, reach), self.step_time
-        )
+    def _commands(self, action) -> Commands:
+        """The cart's, and the gripper, which closes by itself (the chambers to
+        ``grip_pressure``) once the ball, coming down, is within ``grip_height`` of the palm,
+        and stays closed."""
         coming = self.state.rigid_velocities[0, 2] <= 0.0
         near = self.ball()[2] < self.palm_top + self.grip_height
         grip = self.grip_pressure if (coming and near) or self.commands[0] > 0 else 0.0
-        self.target_commands = np.array([grip])
+        return super()._commands(action).with_actuators(np.array([grip]))
 
     def _observe(self) -> np.ndarray:
         s = self.length_scale

@@ -15,55 +15,35 @@ from __future__ import annotations
 
 import numpy as np
 
-from pliant.envs.base import ActionType, scaled_box
-from pliant.envs.reaching import CableReachingEnv, ContinuousMode, RewardVariant, check_positive
+from pliant.envs.actions import scaled_box
+from pliant.envs.config import check_positive
+from pliant.envs.reaching import CableReachingEnv
 from pliant.model import Model
 from pliant.robots.diamond import diamond
 
 
 class DiamondEnv(CableReachingEnv):
     name = "Diamond"
-    version = 1
     view = (20.0, -60.0)
+    robot_defaults = {"mesh_size": 13.0}
 
     def __init__(
         self,
         *,
-        dt: float = 0.01,
-        substeps: int = 5,
-        action_type: ActionType = "discrete",
-        continuous_mode: ContinuousMode = "absolute",
-        action_scale: float = 1.0,
-        reward: RewardVariant = "thesis",
         goal_low: tuple[float, float, float] = (-30.0, -30.0, 125.0),
         goal_high: tuple[float, float, float] = (30.0, 30.0, 145.0),
         goal_tolerance: float = 5.0,
         length_scale: float = 100.0,
-        mesh_size: float = 13.0,
-        render_mode: str | None = None,
-        tangent: str = "lagged",
-        **robot_kwargs,
+        **kwargs,
     ) -> None:
-        self.mesh_size = mesh_size
-        self.robot_kwargs = robot_kwargs
         self.length_scale = check_positive("length_scale", length_scale)
         super().__init__(
-            dt=dt,
-            substeps=substeps,
-            action_type=action_type,
-            continuous_mode=continuous_mode,
-            action_scale=action_scale,
-            reward=reward,
-            goal_low=goal_low,
-            goal_high=goal_high,
-            goal_tolerance=goal_tolerance,
-            render_mode=render_mode,
-            tangent=tangent,
+            goal_low=goal_low, goal_high=goal_high, goal_tolerance=goal_tolerance, **kwargs
         )
         self.observation_space = scaled_box(-5.0, 5.0, (18,))
 
     def _build(self) -> Model:
-        return diamond(mesh_size=self.mesh_size, **self.robot_kwargs)
+        return diamond(**self.robot_kwargs)
 
     def effector_position(self) -> np.ndarray:
         return self.model.effectors[0].position(self.state.positions)[0]

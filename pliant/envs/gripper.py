@@ -31,44 +31,49 @@ the cube's velocity at the step's start.
 
 from __future__ import annotations
 
-from typing import Literal
-
 import gymnasium as gym
 import numpy as np
 
-from pliant.envs.base import ActionType, SoftRobotEnv, scaled_box
+from pliant.envs.actions import ActuatorTargets, RampTarget, scaled_box
+from pliant.envs.base import SoftRobotEnv
+from pliant.envs.config import check_interval, check_positive
 from pliant.model import Model
 from pliant.robots.gripper import soft_gripper
 
-# Discrete actions: (base increment in units of action_scale, cable increment).
+# Discrete actions of the base, in units of action_scale: -x, +x, -y, +y, up 2, down 1 (the
+# cable's +1 and -1 follow them).
 _MOVES = np.array(
     [
-        [-1.0, 0.0, 0.0, 0.0],
-        [1.0, 0.0, 0.0, 0.0],
-        [0.0, -1.0, 0.0, 0.0],
-        [0.0, 1.0, 0.0, 0.0],
-        [0.0, 0.0, 2.0, 0.0],
-        [0.0, 0.0, -1.0, 0.0],
-        [0.0, 0.0, 0.0, 1.0],
-        [0.0, 0.0, 0.0, -1.0],
+        [-1.0, 0.0, 0.0],
+        [1.0, 0.0, 0.0],
+        [0.0, -1.0, 0.0],
+        [0.0, 1.0, 0.0],
+        [0.0, 0.0, 2.0],
+        [0.0, 0.0, -1.0],
     ]
 )
 _CORNERS = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)], float)
 
 
+class BaseIncrement(RampTarget):
+    """The gripper's base moved by increments of at most ``scale`` on each axis, twice that
+    upwards."""
+
+    def increment(self, action: np.ndarray) -> np.ndarray:
+        move = super().increment(action)
+        move[2] *= 2.0 if move[2] > 0 else 1.0
+        return move
+
+
 class GripperEnv(SoftRobotEnv):
     name = "Gripper"
-    version = 1
     view = (15.0, -70.0)
+    robot_defaults = {"mesh_size": 5.0}
+    rewards = observations = ("thesis", "sofagym")
 
     def __init__(
         self,
         *,
-        dt: float = 0.01,
-        substeps: int = 5,
-        action_type: ActionType = "discrete",
-        observation: Literal["thesis", "sofagym"] = "thesis",
-        reward: Literal["thesis", "sofagym"] = "thesis",
         action_scale: float = 1.0,
         base_low: tuple[float, float, float] = (-15.0, -15.0, -5.0),
         base_high: tuple[float, float, float] = (15.0, 15.0, 40.0),
@@ -79,22 +84,10 @@ class GripperEnv(SoftRobotEnv):
         cube_push_down: bool = False,
         push_force: float = 50.0,
         length_scale: float = 50.0,
-        mesh_size: float = 5.0,
-        render_mode: str | None = None,
-        tangent: str = "lagged",
-        **robot_kwargs,
+        **kwargs,
     ) -> None:
-        if observation not in ("thesis", "sofagym"):
-            raise ValueError(f"observation must be 'thesis' or 'sofagym', got {observation!r}")
-        if reward not in ("thesis", "sofagym"):
-            raise ValueError(f"reward must be 'thesis' or 'sofagym', got {reward!r}")
-        if not (np.isfinite(action_scale) and action_scale > 0):
-            raise ValueError(f"action_scale must be > 0, got {action_scale!r}")
-        if not 0 <= goal_low <= goal_high:
-            raise ValueError(f"need 0 <= goal_low <= goal_high, got {goal_low}, {goal_high}")
-        self.observation_variant = observation
-        self.reward_variant = reward
-        self.action_scale = float(action_scale)
+        self.action_scale = check_positive("action_scale", action_scale)
+        check_interval("goal", goal_low, goal_high, floor=0.0, strict=False)
         self.base_low = np.asarray(base_low, dtype=float)
         self.base_high = np.asarray(base_high, dtype=float)
         self.cube_range = float(cube_range)
@@ -103,15 +96,7 @@ class GripperEnv(SoftRobotEnv):
         self.cube_push_down = bool(cube_push_down)
         self.push_force = float(push_force)
         self.length_scale = float(length_scale)
-        self.mesh_size = mesh_size
-        self.robot_kwargs = robot_kwargs
-        super().__init__(
-            dt=dt,
-            substeps=substeps,
-            action_type=action_type,
-            render_mode=render_mode,
-            tangent=tangent,
-        )
+        super().__init__(**kwargs)
         self.max_cable = float(self.model.actuators[0].max_displacement)
         self.cube_half = float(self.model.rigid_bodies[0].shape.half_extents[0])
         self.cube_mass = float(self.model.rigid_bodies[0].mass)
@@ -124,18 +109,31 @@ class GripperEnv(SoftRobotEnv):
                 f"cube_range must lie in [0, {room:g}) mm (the cube between the fingers), got"
                 f" {cube_range!r}"
             )
-        if action_type == "discrete":
-            self.action_space = gym.spaces.Discrete(len(_MOVES))
-        else:
-            self.action_space = scaled_box(-1.0, 1.0, (4,))
-        n_obs = 13 if observation == "thesis" else 31
+        steps = self.action_scale * _MOVES
+        base = BaseIncrement(
+            "base",
+            self.base_low,
+            self.base_high,
+            steps=steps,
+            continuous="increment",
+            scale=self.action_scale,
+            memory="target",
+            size=3,
+        )
+        cable = ActuatorTargets(
+            [self.max_cable],
+            step=self.action_scale,
+            mode="increment",
+            scale=self.action_scale,
+            shared=True,
+        )
+        self.use_actions(base + cable)
+        n_obs = 13 if self.observation_variant == "thesis" else 31
         self.observation_space = scaled_box(-5.0, 5.0, (n_obs,))
 
     def _build(self) -> Model:
         self.base = self.ramp("base", [0.0, 0.0, 0.0])
-        return soft_gripper(
-            mesh_size=self.mesh_size, base_motion=self.base.value, **self.robot_kwargs
-        )
+        return soft_gripper(base_motion=self.base.value, **self.robot_kwargs)
 
     def _reset_task(self, rng, options) -> None:
         options = options or {}
@@ -159,17 +157,7 @@ class GripperEnv(SoftRobotEnv):
     def height_error(self) -> float:
         return abs(float(self.cube()[2] - self.task["goal"][2]))
 
-    def _commands_from_action(self, action) -> None:
-        if self.action_type == "discrete":
-            move = self.action_scale * _MOVES[action]
-        else:
-            move = self.action_scale * np.asarray(action, dtype=float)
-            move[2] *= 2.0 if move[2] > 0 else 1.0
-        base = np.clip(self.task["target"] + move[:3], self.base_low, self.base_high)
-        self.task["target"] = base
-        self.base.retarget(self.state.time, base, self.step_time)
-        cable = np.clip(self.commands[0] + move[3], 0.0, self.max_cable)
-        self.target_commands = np.full(self.n_actuators, cable)
+    def _before_step(self) -> None:
         if self.cube_push_down:
             force = self.np_random.uniform(0.0, self.push_force)
             self.state.rigid_velocities[0, 2] -= force * self.step_time / self.cube_mass

@@ -20,11 +20,14 @@ up or down (4 and 6 actions, SofaGym's); continuous, the tilts (servo angles) in
 
 from __future__ import annotations
 
-import gymnasium as gym
+from typing import ClassVar
+
 import networkx as nx
 import numpy as np
 
-from pliant.envs.base import ActionType, SoftRobotEnv, discrete_increments, scaled_box
+from pliant.envs.actions import RampTarget, discrete_increments, scaled_box
+from pliant.envs.base import SoftRobotEnv
+from pliant.envs.config import SimulationConfig, check_choice
 from pliant.model import Model, State
 from pliant.robots import simple_maze as _maze
 from pliant.robots import tripod as _tripod
@@ -78,10 +81,30 @@ class GeodesicDistance:
 
 
 class _MazeTask(SoftRobotEnv):
-    """What SimpleMaze and Maze share: the ball, the goals, the geodesic reward."""
+    """What SimpleMaze and Maze share: the ball, the goals, the geodesic reward, and the action:
+    a kinematic input (the tilt, the servo angles) moved by ``action_scale`` rad (discrete) or
+    to its target in [-cap, cap] (continuous)."""
 
-    def _setup_task(self, start: str, goal_radius: float, goals_corner: list) -> None:
-        kw = self.maze_kwargs
+    #: the kinematic input the action moves (a ramp's name) and its size
+    moved: ClassVar[tuple[str, int]] = ("", 0)
+    n_observations: ClassVar[int] = 0
+
+    def __init__(
+        self,
+        *,
+        action_scale: float,
+        cap: float,
+        start: str = "path",
+        goal_radius: float = 5.0,
+        **kwargs,
+    ) -> None:
+        check_choice("start", start, ("path", "centre"))
+        self.start = start
+        self.goal_radius = float(goal_radius)
+        self.action_scale = float(action_scale)
+        self.cap = float(cap)
+        super().__init__(**kwargs)
+        kw = self.robot_kwargs
         self.half_size = kw.get("maze_size", 60.0) / 2
         size = 2 * self.half_size
         corridors = kw.get("corridors", 3)
@@ -90,12 +113,12 @@ class _MazeTask(SoftRobotEnv):
         radius = kw.get("ball_radius", 4.0)
         self.geodesic = GeodesicDistance(boxes[1:], self.half_size, clearance=radius + 0.5)
         path = _maze.maze_path(size, corridors, wall)
-        self.corners = np.array(goals_corner if goals_corner else path[[0, 1, -2, -1]])
+        self.corners = np.array(path[[0, 1, -2, -1]])
         self._fields = [self.geodesic.field(c) for c in self.corners]
-        self.goal_radius = float(goal_radius)
-        if start not in ("path", "centre"):
-            raise ValueError(f"start must be 'path' or 'centre', got {start!r}")
-        self.start = start
+        ramp, n = self.moved
+        steps = discrete_increments(n, self.action_scale)
+        self.use_actions(RampTarget(ramp, -self.cap, self.cap, steps=steps, size=n))
+        self.observation_space = scaled_box(-3.0, 3.0, (self.n_observations,))
 
     def ball(self) -> np.ndarray:
         return _maze.ball_in_maze(self.model, self.state)
@@ -118,7 +141,7 @@ class _MazeTask(SoftRobotEnv):
         self.task["d0"] = max(d, 1e-9)
         self.task["distance"] = d
 
-    def _maze_reward(self):
+    def _reward(self):
         ball = self.ball()
         d = self.geodesic.at(self._fields[self.task["corner"]], ball)
         fallen = bool(np.any(np.abs(ball[:2]) > self.half_size) or ball[2] < -5.0)
@@ -145,52 +168,18 @@ class _MazeTask(SoftRobotEnv):
 
 class SimpleMazeEnv(_MazeTask):
     name = "SimpleMaze"
-    version = 1
     view = (45.0, -70.0)
+    default_config = SimulationConfig(substeps=10)
+    moved = ("tilt", 2)
+    n_observations = 7
 
-    def __init__(
-        self,
-        *,
-        dt: float = 0.01,
-        substeps: int = 10,
-        action_type: ActionType = "discrete",
-        action_scale: float = 0.05,
-        max_tilt: float = 0.2,
-        start: str = "path",
-        goal_radius: float = 5.0,
-        render_mode: str | None = None,
-        tangent: str = "lagged",
-        **maze_kwargs,
-    ) -> None:
-        self.maze_kwargs = maze_kwargs
+    def __init__(self, *, action_scale: float = 0.05, max_tilt: float = 0.2, **kwargs) -> None:
         self.max_tilt = float(max_tilt)
-        self.action_scale = float(action_scale)
-        super().__init__(
-            dt=dt,
-            substeps=substeps,
-            action_type=action_type,
-            render_mode=render_mode,
-            tangent=tangent,
-        )
-        self._setup_task(start, goal_radius, [])
-        if action_type == "discrete":
-            self._table = discrete_increments(2, self.action_scale)
-            self.action_space = gym.spaces.Discrete(4)
-        else:
-            self.action_space = scaled_box(-1.0, 1.0, (2,))
-        self.observation_space = scaled_box(-3.0, 3.0, (7,))
+        super().__init__(action_scale=action_scale, cap=max_tilt, **kwargs)
 
     def _build(self) -> Model:
         self.tilt = self.ramp("tilt", [0.0, 0.0])
-        return _maze.simple_maze(max_tilt=self.max_tilt, tilt=self.tilt.pair, **self.maze_kwargs)
-
-    def _commands_from_action(self, action) -> None:
-        if self.action_type == "discrete":
-            target = self.tilt.target + self._table[action]
-        else:
-            target = self.max_tilt * np.asarray(action, dtype=float)
-        target = np.clip(target, -self.max_tilt, self.max_tilt)
-        self.tilt.retarget(self.state.time, target, self.step_time)
+        return _maze.simple_maze(max_tilt=self.max_tilt, tilt=self.tilt.pair, **self.robot_kwargs)
 
     def _observe(self) -> np.ndarray:
         tilt = self.tilt.value(self.state.time) / self.max_tilt
@@ -198,71 +187,30 @@ class SimpleMazeEnv(_MazeTask):
             [tilt, self.ball() / self.half_size, self.task["goal"] / self.half_size]
         )
 
-    def _reward(self):
-        return self._maze_reward()
-
 
 class MazeEnv(_MazeTask):
     name = "Maze"
-    version = 1
     view = (35.0, -70.0)
+    moved = ("servos", 3)
+    n_observations = 10
+    robot_defaults = {"mesh_size": 5.0}
 
     def __init__(
-        self,
-        *,
-        dt: float = 0.01,
-        substeps: int = 5,
-        action_type: ActionType = "discrete",
-        action_scale: float = 0.1,
-        max_servo_angle: float = 1.5,
-        start: str = "path",
-        goal_radius: float = 5.0,
-        mesh_size: float = 5.0,
-        render_mode: str | None = None,
-        tangent: str = "lagged",
-        **maze_kwargs,
+        self, *, action_scale: float = 0.1, max_servo_angle: float = 1.5, **kwargs
     ) -> None:
-        self.maze_kwargs = maze_kwargs
         self.max_angle = float(max_servo_angle)
-        self.action_scale = float(action_scale)
-        self.mesh_size = mesh_size
-        super().__init__(
-            dt=dt,
-            substeps=substeps,
-            action_type=action_type,
-            render_mode=render_mode,
-            tangent=tangent,
-        )
-        self._setup_task(start, goal_radius, [])
-        if action_type == "discrete":
-            self._table = discrete_increments(3, self.action_scale)
-            self.action_space = gym.spaces.Discrete(6)
-        else:
-            self.action_space = scaled_box(-1.0, 1.0, (3,))
-        self.observation_space = scaled_box(-3.0, 3.0, (10,))
+        super().__init__(action_scale=action_scale, cap=max_servo_angle, **kwargs)
 
     def _build(self) -> Model:
         self.servos = self.ramp("servos", [0.0, 0.0, 0.0])
         return _tripod.tripod_maze(
-            mesh_size=self.mesh_size,
-            max_servo_angle=self.max_angle,
-            servo_angles=self.servos.value,
-            **self.maze_kwargs,
+            max_servo_angle=self.max_angle, servo_angles=self.servos.value, **self.robot_kwargs
         )
 
     def maze_tilt(self) -> np.ndarray:
         """(theta_x, theta_y) of the maze: its floor's normal read as Rot(x) Rot(y)."""
         n = self.state.rigid_rotations[_maze.MAZE][:, 2]
         return np.array([-np.arcsin(np.clip(n[1], -1, 1)), np.arctan2(n[0], n[2])])
-
-    def _commands_from_action(self, action) -> None:
-        if self.action_type == "discrete":
-            target = self.servos.target + self._table[action]
-        else:
-            target = self.max_angle * np.asarray(action, dtype=float)
-        self.servos.retarget(
-            self.state.time, np.clip(target, -self.max_angle, self.max_angle), self.step_time
-        )
 
     def _observe(self) -> np.ndarray:
         return np.concatenate(
@@ -273,6 +221,3 @@ class MazeEnv(_MazeTask):
                 self.servos.value(self.state.time) / self.max_angle,
             ]
         )
-
-    def _reward(self):
-        return self._maze_reward()

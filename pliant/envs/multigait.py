@@ -15,12 +15,11 @@ Forward is -x in the builder's frame (away from the legs inflated first in the h
 
 from __future__ import annotations
 
-from typing import Literal
-
-import gymnasium as gym
 import numpy as np
 
-from pliant.envs.base import ActionType, SoftRobotEnv, scaled_box
+from pliant.envs.actions import ActionMap, scaled_box
+from pliant.envs.base import SoftRobotEnv
+from pliant.envs.config import SimulationConfig
 from pliant.mesh.multigait import CHAMBERS
 from pliant.model import Model
 from pliant.robots.multigait import centre_of_mass, multigait
@@ -28,6 +27,34 @@ from pliant.robots.multigait import centre_of_mass, multigait
 #: action groups of the discrete and symmetric actions (SofaGym's order: centre, front, rear).
 GROUPS = (("centre",), ("front_left", "front_right"), ("rear_left", "rear_right"))
 FORWARD = np.array([-1.0, 0.0, 0.0])
+
+
+class ChamberGroups(ActionMap):
+    """The chambers' commands (in CHAMBERS order) by groups (:data:`GROUPS`): discrete, group
+    g inflated to its `amplitude` (action 2g) or deflated to 0 (2g + 1), all or nothing;
+    continuous, each group's command (``symmetric``) or each chamber's, 0.5 (a + 1) x
+    amplitude."""
+
+    def __init__(self, amplitude: np.ndarray, symmetric: bool) -> None:
+        self.amplitude = amplitude
+        self.symmetric = symmetric
+        self.groups = [np.array([CHAMBERS.index(c) for c in g]) for g in GROUPS]
+        self.n_discrete = 2 * len(GROUPS)
+        self.n_continuous = len(GROUPS) if symmetric else len(CHAMBERS)
+
+    def discrete(self, env, action, commands):
+        target = commands.actuators.copy()
+        group = self.groups[action // 2]
+        target[group] = self.amplitude[group] if action % 2 == 0 else 0.0
+        return commands.with_actuators(target)
+
+    def continuous(self, env, action, commands):
+        if not self.symmetric:
+            return commands.with_actuators(0.5 * (np.asarray(action) + 1.0) * self.amplitude)
+        target = commands.actuators.copy()
+        for g, a in zip(self.groups, action, strict=True):
+            target[g] = 0.5 * (a + 1.0) * self.amplitude[g]
+        return commands.with_actuators(target)
 
 
 def farthest_points(points: np.ndarray, k: int) -> np.ndarray:
@@ -43,50 +70,29 @@ def farthest_points(points: np.ndarray, k: int) -> np.ndarray:
 
 class MultigaitEnv(SoftRobotEnv):
     name = "Multigait"
-    version = 1
     view = (35.0, -60.0)
+    default_config = SimulationConfig(substeps=60)
+    robot_defaults = {"mesh_size": 6.0}
+    rewards = ("thesis", "sofagym")
 
     def __init__(
         self,
         *,
-        dt: float = 0.01,
-        substeps: int = 60,
-        action_type: ActionType = "discrete",
         symmetric: bool = True,
-        reward: Literal["thesis", "sofagym"] = "thesis",
         amplitude: tuple[float, float] = (4900.0, 3300.0),
         n_points: int = 20,
-        mesh_size: float = 6.0,
-        render_mode: str | None = None,
-        tangent: str = "lagged",
-        **robot_kwargs,
+        **kwargs,
     ) -> None:
-        if reward not in ("thesis", "sofagym"):
-            raise ValueError(f"reward must be 'thesis' or 'sofagym', got {reward!r}")
-        self.reward_variant = reward
         self.symmetric = bool(symmetric)
-        self.mesh_size = mesh_size
-        self.robot_kwargs = robot_kwargs
         self.n_points = int(n_points)
-        super().__init__(
-            dt=dt,
-            substeps=substeps,
-            action_type=action_type,
-            render_mode=render_mode,
-            tangent=tangent,
-        )
         centre, leg = amplitude
         self.amplitude = np.array([centre if c == "centre" else leg for c in CHAMBERS])
-        self._groups = [np.array([CHAMBERS.index(c) for c in g]) for g in GROUPS]
-        if action_type == "discrete":
-            self.action_space = gym.spaces.Discrete(2 * len(GROUPS))
-        else:
-            n = len(GROUPS) if self.symmetric else len(CHAMBERS)
-            self.action_space = scaled_box(-1.0, 1.0, (n,))
+        super().__init__(**kwargs)
+        self.use_actions(ChamberGroups(self.amplitude, self.symmetric))
         self.observation_space = scaled_box(-3.0, 3.0, (3 * self.n_points,))
 
     def _build(self) -> Model:
-        model = multigait(mesh_size=self.mesh_size, **self.robot_kwargs)
+        model = multigait(**self.robot_kwargs)
         rest = model.body.rest_positions
         surface = np.unique(model.body.mesh.boundary_triangles())
         self.points = surface[farthest_points(rest[surface], self.n_points)]
@@ -101,18 +107,6 @@ class MultigaitEnv(SoftRobotEnv):
     def _reset_task(self, rng, options) -> None:
         self.task["x"] = self.progress()
         self.task["x0"] = self.task["x"]
-
-    def _commands_from_action(self, action) -> None:
-        target = self.commands.copy()
-        if self.action_type == "discrete":
-            group = self._groups[action // 2]
-            target[group] = self.amplitude[group] if action % 2 == 0 else 0.0
-        elif self.symmetric:
-            for g, a in zip(self._groups, action, strict=True):
-                target[g] = 0.5 * (a + 1.0) * self.amplitude[g]
-        else:
-            target = 0.5 * (np.asarray(action) + 1.0) * self.amplitude
-        self.target_commands = target
 
     def _observe(self) -> np.ndarray:
         return ((self.state.positions[self.points] - self.centre0) / self.length).ravel()

@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from pliant.envs.base import scaled_box
+from pliant.envs.actions import scaled_box
 from pliant.envs.multigait import FORWARD, MultigaitEnv, farthest_points
 from pliant.model import Model
 from pliant.proxy import multigait_proxy
@@ -26,7 +26,7 @@ from pliant.proxy.actuation import ProxySolver
 
 class MultigaitProxyEnv(MultigaitEnv):
     name = "MultigaitProxy"
-    version = 1
+    robot_defaults = {}
 
     def __init__(self, *, observe_commands: bool = False, **kwargs) -> None:
         kwargs.setdefault("amplitude", (1.0, 1.0))

@@ -14,73 +14,57 @@ from __future__ import annotations
 
 from typing import Literal
 
-import gymnasium as gym
 import numpy as np
 
-from pliant.envs.base import (
-    ActionType,
-    SoftRobotEnv,
-    discrete_increments,
-    progress_reward,
-    scaled_box,
-)
+from pliant.envs.actions import ActionMap, ActuatorTargets
+from pliant.envs.base import SoftRobotEnv, progress_reward
+from pliant.envs.config import check_choice, check_positive
 
 RewardVariant = Literal["thesis", "sofagym"]
 ContinuousMode = Literal["absolute", "increment"]
 
 
-def check_choice(name: str, value, options: tuple) -> None:
-    if value not in options:
-        raise ValueError(f"{name} must be one of {options}, got {value!r}")
-
-
-def check_positive(name: str, value) -> float:
-    if not (isinstance(value, int | float | np.number) and np.isfinite(value) and value > 0):
-        raise ValueError(f"{name} must be finite and > 0, got {value!r}")
-    return float(value)
-
-
 class CableReachingEnv(SoftRobotEnv):
     """Base of the reaching tasks. Subclasses implement ``_build``, ``_observe``,
-    :meth:`effector_position` and :meth:`sofagym_progress`, and set ``observation_space``."""
+    :meth:`effector_position` and :meth:`sofagym_progress`, and set ``observation_space``;
+    :meth:`cable_actions` may add to the cables' action map."""
+
+    rewards = ("thesis", "sofagym")
 
     def __init__(
         self,
         *,
-        dt: float,
-        substeps: int,
-        action_type: ActionType,
-        continuous_mode: ContinuousMode,
-        action_scale: float,
-        reward: RewardVariant,
+        continuous_mode: ContinuousMode = "absolute",
+        action_scale: float = 1.0,
         goal_low,
         goal_high,
         goal_tolerance: float,
-        render_mode: str | None,
-        tangent: str,
+        **kwargs,
     ) -> None:
-        check_choice("reward", reward, ("thesis", "sofagym"))
         check_choice("continuous_mode", continuous_mode, ("absolute", "increment"))
         self.action_scale = check_positive("action_scale", action_scale)
         self.goal_tolerance = check_positive("goal_tolerance", goal_tolerance)
         self.continuous_mode = continuous_mode
-        self.reward_variant = reward
         self.goal_low = np.asarray(goal_low, dtype=float)
         self.goal_high = np.asarray(goal_high, dtype=float)
-        super().__init__(
-            dt=dt,
-            substeps=substeps,
-            action_type=action_type,
-            render_mode=render_mode,
-            tangent=tangent,
-        )
+        super().__init__(**kwargs)
         self.max_commands = np.array([a.max_displacement for a in self.model.actuators])
-        n = self.n_actuators
-        if action_type == "discrete":
-            self._table = discrete_increments(n, self.action_scale)
-            self.action_space = gym.spaces.Discrete(2 * n)
-        else:
-            self.action_space = scaled_box(-1.0, 1.0, (n,))
+        self.use_actions(self.cable_actions())
+
+    def cables(self, driven: np.ndarray | None = None) -> ActuatorTargets:
+        """The cables' action map: one pulled or released by ``action_scale`` mm (discrete),
+        targets in [0, max] or increments of at most ``action_scale`` (continuous)."""
+        return ActuatorTargets(
+            self.max_commands,
+            step=self.action_scale,
+            mode=self.continuous_mode,
+            scale=self.action_scale,
+            driven=driven,
+        )
+
+    def cable_actions(self) -> ActionMap:
+        """The task's action map: the cables'."""
+        return self.cables()
 
     def effector_position(self) -> np.ndarray:
         """(3,) the point that must reach the goal."""
@@ -99,15 +83,6 @@ class CableReachingEnv(SoftRobotEnv):
             goal = rng.uniform(self.goal_low, self.goal_high)
         self.task["goal"] = np.asarray(goal, dtype=float).reshape(3)
         self.task["distance"] = self.task["best"] = self.distance()
-
-    def _commands_from_action(self, action) -> None:
-        if self.action_type == "discrete":
-            target = self.commands + self._table[action]
-        elif self.continuous_mode == "absolute":
-            target = 0.5 * (action + 1.0) * self.max_commands
-        else:
-            target = self.commands + self.action_scale * action
-        self.target_commands = np.clip(target, 0.0, self.max_commands)
 
     def _reward(self):
         d = self.distance()

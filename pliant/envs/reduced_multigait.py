@@ -17,11 +17,10 @@ built on first use from the full model's training load cases
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Literal
 
 import numpy as np
 
-from pliant.envs.base import ActionType, scaled_box
+from pliant.envs.actions import scaled_box
 from pliant.envs.multigait import FORWARD, MultigaitEnv
 from pliant.model import Model
 from pliant.reduction import ReducedImplicitEuler, ReducedModel
@@ -37,41 +36,22 @@ TRAINING = {"sequences": 20, "cycles": 1, "phase": 0.6, "pod_tolerance": 1e-3, "
 
 class ReducedMultigaitEnv(MultigaitEnv):
     name = "ReducedMultigait"
-    version = 1
+    rewards = ("sofagym", "thesis")
 
     def __init__(
         self,
         *,
-        dt: float = 0.01,
-        substeps: int = 60,
-        action_type: ActionType = "discrete",
-        symmetric: bool = True,
-        reward: Literal["thesis", "sofagym"] = "sofagym",
         amplitude: tuple[float, float] = (4900.0, 3300.0),
         n_observed: int = 32,
-        mesh_size: float = 6.0,
         reduced_model: str | Path | None = None,
         training: dict | None = None,
-        render_mode: str | None = None,
-        tangent: str = "lagged",
-        **robot_kwargs,
+        **kwargs,
     ) -> None:
         self.reduced_model = reduced_model
         self.training = {**TRAINING, **(training or {})}
         self._amplitude = tuple(amplitude)
         self.n_observed = int(n_observed)
-        super().__init__(
-            dt=dt,
-            substeps=substeps,
-            action_type=action_type,
-            symmetric=symmetric,
-            reward=reward,
-            amplitude=amplitude,
-            mesh_size=mesh_size,
-            render_mode=render_mode,
-            tangent=tangent,
-            **robot_kwargs,
-        )
+        super().__init__(amplitude=amplitude, **kwargs)
         self.sim = self._reduced
         self.observation_space = scaled_box(-1.0, 1.0, (self.n_observed,))
 
@@ -87,7 +67,7 @@ class ReducedMultigaitEnv(MultigaitEnv):
                 sequences=t["sequences"],
                 cycles=t["cycles"],
             )
-            settings = {"mesh_size": self.mesh_size, "amplitude": self._amplitude}
+            settings = {"mesh_size": self.robot_kwargs["mesh_size"], "amplitude": self._amplitude}
             reduced = cached(
                 model,
                 cases,

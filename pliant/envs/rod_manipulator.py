@@ -24,29 +24,26 @@ Goal angle drawn uniformly in [goal_low, goal_high] rad (authors': (initial, 360
 
 from __future__ import annotations
 
-from typing import Literal
-
-import gymnasium as gym
 import numpy as np
 
 from pliant.constraints.base import EmbeddedPoints
-from pliant.envs.base import ActionType, SoftRobotEnv, discrete_increments, scaled_box
+from pliant.envs.actions import ActuatorTargets, RampTarget, scaled_box
+from pliant.envs.base import SoftRobotEnv
+from pliant.envs.config import SimulationConfig, check_interval
 from pliant.model import Model
 from pliant.robots.rod_manipulator import rod_angle, rod_manipulator
 
 
 class RodManipulatorEnv(SoftRobotEnv):
     name = "RodManipulator"
-    version = 1
     view = (45.0, -30.0)
+    default_config = SimulationConfig(substeps=10, action_type="continuous")
+    robot_defaults = {"mesh_size": 4.0}
+    rewards = ("thesis", "sofagym")
 
     def __init__(
         self,
         *,
-        dt: float = 0.01,
-        substeps: int = 10,
-        action_type: ActionType = "continuous",
-        reward: Literal["thesis", "sofagym"] = "thesis",
         action_scale: float = 1.0,
         base_low: float = -10.0,
         base_high: float = 5.0,
@@ -55,47 +52,29 @@ class RodManipulatorEnv(SoftRobotEnv):
         goal_high: float = 2.0 * np.pi,
         goal_tolerance: float = np.radians(5.0),
         length_scale: float = 50.0,
-        mesh_size: float = 4.0,
-        render_mode: str | None = None,
-        tangent: str = "lagged",
-        **robot_kwargs,
+        **kwargs,
     ) -> None:
-        if reward not in ("thesis", "sofagym"):
-            raise ValueError(f"reward must be 'thesis' or 'sofagym', got {reward!r}")
-        if not base_low <= 0.0 <= base_high:
-            raise ValueError(f"need base_low <= 0 <= base_high, got {base_low}, {base_high}")
-        if not 0 < goal_low <= goal_high:
-            raise ValueError(f"need 0 < goal_low <= goal_high, got {goal_low}, {goal_high}")
-        self.reward_variant = reward
+        check_interval("base", base_low, base_high, contains=0.0)
+        check_interval("goal", goal_low, goal_high, floor=0.0)
         self.action_scale = float(action_scale)
         self.base_low, self.base_high = float(base_low), float(base_high)
         self.base_step = float(base_step)
         self.goal_low, self.goal_high = float(goal_low), float(goal_high)
         self.goal_tolerance = float(goal_tolerance)
         self.length_scale = float(length_scale)
-        self.mesh_size = mesh_size
-        self.robot_kwargs = robot_kwargs
-        super().__init__(
-            dt=dt,
-            substeps=substeps,
-            action_type=action_type,
-            render_mode=render_mode,
-            tangent=tangent,
-        )
+        super().__init__(**kwargs)
         self.max_commands = np.array([a.max_displacement for a in self.model.actuators])
-        n = self.n_actuators
-        if action_type == "discrete":
-            self._table = discrete_increments(n + 1, 1.0)
-            self.action_space = gym.spaces.Discrete(2 * n + 2)
-        else:
-            self.action_space = scaled_box(-1.0, 1.0, (n + 1,))
+        cables = ActuatorTargets(self.max_commands, step=self.action_scale)
+        steps = [[self.base_step], [-self.base_step]]
+        base = RampTarget(
+            "base", self.base_low, self.base_high, steps=steps, continuous="interval", memory="base"
+        )
+        self.use_actions(cables + base)
         self.observation_space = scaled_box(-5.0, 5.0, (23,))
 
     def _build(self) -> Model:
         self.base = self.ramp("base", 0.0)
-        model = rod_manipulator(
-            mesh_size=self.mesh_size, base_motion=self.base.scalar, **self.robot_kwargs
-        )
+        model = rod_manipulator(base_motion=self.base.scalar, **self.robot_kwargs)
         # 3 points at each fingertip: its centre and 3 mm towards +x and +y, 1 mm up.
         tips = np.vstack([e.points.positions(model.body.rest_positions) for e in model.effectors])
         offsets = np.array([[0.0, 0.0, 1.0], [3.0, 0.0, 1.0], [0.0, 3.0, 1.0]])
@@ -115,19 +94,6 @@ class RodManipulatorEnv(SoftRobotEnv):
         self.task["heading"] = rod_angle(self.state.rigid_rotations[0])
         self.task["angle"] = 0.0
         self.task["base"] = 0.0
-
-    def _commands_from_action(self, action) -> None:
-        n = self.n_actuators
-        if self.action_type == "discrete":
-            step = self._table[action]
-            target = self.commands + self.action_scale * step[:n]
-            base = self.task["base"] + self.base_step * step[n]
-        else:
-            target = 0.5 * (action[:n] + 1.0) * self.max_commands
-            base = self.base_low + 0.5 * (float(action[n]) + 1.0) * (self.base_high - self.base_low)
-        self.target_commands = np.clip(target, 0.0, self.max_commands)
-        self.task["base"] = float(np.clip(base, self.base_low, self.base_high))
-        self.base.retarget(self.state.time, self.task["base"], self.step_time)
 
     def _turn(self) -> None:
         """Accumulate the rod's turn since the last step (unwrapped: a step turns it by less

@@ -16,50 +16,53 @@ Not terminated; 50 steps of 10 x 0.01 s.
 
 from __future__ import annotations
 
-import gymnasium as gym
 import numpy as np
 
-from pliant.envs.base import ActionType, SoftRobotEnv, scaled_box
+from pliant.envs.actions import ActionMap, scaled_box
+from pliant.envs.base import SoftRobotEnv
+from pliant.envs.config import SimulationConfig
 from pliant.model import Model
 from pliant.robots.stem_pendulum import stem_pendulum
 
 
+class Torque(ActionMap):
+    """The first actuator's command a x `high`: discrete, a = -1, 0 or +1; continuous, a in
+    [-1, 1] (the other actuators hold)."""
+
+    n_discrete = 3
+    n_continuous = 1
+
+    def __init__(self, high: float) -> None:
+        self.high = high
+
+    def discrete(self, env, action, commands):
+        return self._set(float(action - 1), commands)
+
+    def continuous(self, env, action, commands):
+        return self._set(float(action[0]), commands)
+
+    def _set(self, a: float, commands):
+        target = commands.actuators.copy()
+        target[0] = a * self.high
+        return commands.with_actuators(target)
+
+
 class StemPendulumEnv(SoftRobotEnv):
     name = "StemPendulum"
-    version = 1
     view = (5.0, -90.0)
+    default_config = SimulationConfig(substeps=10, action_type="continuous")
+    robot_defaults = {"length": 100.0}
 
-    def __init__(
-        self,
-        *,
-        dt: float = 0.01,
-        substeps: int = 10,
-        action_type: ActionType = "continuous",
-        velocity_scale: float = 1000.0,
-        length: float = 100.0,
-        render_mode: str | None = None,
-        tangent: str = "lagged",
-        **robot_kwargs,
-    ) -> None:
-        self.length = float(length)
+    def __init__(self, *, velocity_scale: float = 1000.0, **kwargs) -> None:
         self.velocity_scale = float(velocity_scale)
-        self.robot_kwargs = robot_kwargs
-        super().__init__(
-            dt=dt,
-            substeps=substeps,
-            action_type=action_type,
-            render_mode=render_mode,
-            tangent=tangent,
-        )
+        super().__init__(**kwargs)
+        self.length = float(self.robot_kwargs["length"])
         self.max_torque = float(self.model.actuators[0].max_force)
-        if action_type == "discrete":
-            self.action_space = gym.spaces.Discrete(3)
-        else:
-            self.action_space = scaled_box(-1.0, 1.0, (1,))
+        self.use_actions(Torque(self.max_torque))
         self.observation_space = scaled_box(-10.0, 10.0, (5,))
 
     def _build(self) -> Model:
-        return stem_pendulum(length=self.length, **self.robot_kwargs)
+        return stem_pendulum(**self.robot_kwargs)
 
     def _reset_task(self, rng, options) -> None:
         self.task["goal"] = np.array([0.0, 0.0, self.length])
@@ -69,10 +72,6 @@ class StemPendulumEnv(SoftRobotEnv):
 
     def distance(self) -> float:
         return float(np.linalg.norm(self._tip(self.state.positions) - self.task["goal"]))
-
-    def _commands_from_action(self, action) -> None:
-        a = float(action - 1) if self.action_type == "discrete" else float(action[0])
-        self.target_commands = np.array([a * self.max_torque, 0.0, 0.0])
 
     def _observe(self) -> np.ndarray:
         tip = self._tip(self.state.positions)

@@ -15,8 +15,9 @@ from __future__ import annotations
 import numpy as np
 
 from pliant.constraints.base import EmbeddedPoints
-from pliant.envs.base import ActionType, scaled_box
-from pliant.envs.reaching import CableReachingEnv, ContinuousMode, RewardVariant
+from pliant.envs.actions import scaled_box
+from pliant.envs.config import EnvConfigError
+from pliant.envs.reaching import CableReachingEnv
 from pliant.model import Model, State
 from pliant.robots.common import settled
 from pliant.robots.trunk import trunk
@@ -34,53 +35,38 @@ def neutral_fibre(model: Model, n_points: int) -> EmbeddedPoints:
 
 class TrunkEnv(CableReachingEnv):
     name = "Trunk"
-    version = 1
     view = (20.0, -60.0)
+    robot_defaults = {"mesh_size": 5.2}
+    #: the builder of the scene (the Trunk alone, or with an object: a cup, a cube)
+    builder = staticmethod(trunk)
 
     def __init__(
         self,
         *,
-        dt: float = 0.01,
-        substeps: int = 5,
-        action_type: ActionType = "discrete",
-        continuous_mode: ContinuousMode = "absolute",
-        action_scale: float = 1.0,
-        reward: RewardVariant = "thesis",
-        goal_low: tuple[float, float, float] = (-60.0, -60.0, 130.0),
-        goal_high: tuple[float, float, float] = (60.0, 60.0, 190.0),
+        goal_low: tuple[float, ...] = (-60.0, -60.0, 130.0),
+        goal_high: tuple[float, ...] = (60.0, 60.0, 190.0),
         goal_tolerance: float = 1.0,
         n_points: int = 21,
         settle_steps: int = 50,
-        mesh_size: float = 5.2,
-        render_mode: str | None = None,
-        tangent: str = "lagged",
-        **robot_kwargs,
+        **kwargs,
     ) -> None:
         if n_points < 2:
-            raise ValueError(f"n_points must be >= 2, got {n_points}")
-        self.mesh_size = mesh_size
-        self.robot_kwargs = robot_kwargs
+            raise EnvConfigError(f"n_points must be >= 2, got {n_points}")
         self.n_points = int(n_points)
         self.settle_steps = int(settle_steps)
         super().__init__(
-            dt=dt,
-            substeps=substeps,
-            action_type=action_type,
-            continuous_mode=continuous_mode,
-            action_scale=action_scale,
-            reward=reward,
-            goal_low=goal_low,
-            goal_high=goal_high,
-            goal_tolerance=goal_tolerance,
-            render_mode=render_mode,
-            tangent=tangent,
+            goal_low=goal_low, goal_high=goal_high, goal_tolerance=goal_tolerance, **kwargs
         )
         self.observation_space = scaled_box(-3.0, 3.0, (3 * (self.n_points + 1),))
 
     def _build(self) -> Model:
-        model = trunk(mesh_size=self.mesh_size, **self.robot_kwargs)
+        model = self._scene_model()
         self.fibre = neutral_fibre(model, self.n_points)
         return model
+
+    def _scene_model(self) -> Model:
+        """The model of the scene, before the environment reads its fibre."""
+        return self.builder(**self.robot_kwargs)
 
     def _initial_state(self) -> State:
         return settled(self.model, self.sim, self.settle_steps)
@@ -96,6 +82,10 @@ class TrunkEnv(CableReachingEnv):
         previous = self.task["distance"]
         return min(np.sqrt(max((previous - distance) / previous, 0.0)), 1.0) if previous else 0.0
 
+    def fibre_observation(self, *points) -> np.ndarray:
+        """The neutral fibre's points, then `points` (flattened), divided by the length."""
+        fibre = self.fibre.positions(self.state.positions).ravel()
+        return np.concatenate([fibre, *(np.ravel(p) for p in points)]) / LENGTH
+
     def _observe(self) -> np.ndarray:
-        pts = np.vstack([self.fibre.positions(self.state.positions), self.task["goal"]])
-        return (pts / LENGTH).ravel()
+        return self.fibre_observation(self.task["goal"])

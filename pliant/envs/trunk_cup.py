@@ -21,63 +21,43 @@ towards the carriage, where curling the trunk over the cup's far wall drags it. 
 
 from __future__ import annotations
 
-from typing import Literal
-
 import numpy as np
 
-from pliant.envs.base import ActionType, progress_reward, scaled_box
-from pliant.envs.trunk import LENGTH, TrunkEnv, neutral_fibre
-from pliant.model import Model
+from pliant.envs.actions import scaled_box
+from pliant.envs.base import floor_goal, progress_reward
+from pliant.envs.trunk import TrunkEnv
 from pliant.robots.trunk_cup import trunk_cup
+
+
+def _still(t: float) -> float:
+    return 0.0
 
 
 class TrunkCupEnv(TrunkEnv):
     name = "TrunkCup"
-    version = 1
     view = (25.0, -40.0)
+    robot_defaults = {"mesh_size": 8.0, "base_motion": _still}
+    builder = staticmethod(trunk_cup)
 
     def __init__(
         self,
         *,
-        dt: float = 0.01,
-        substeps: int = 5,
-        action_type: ActionType = "discrete",
-        continuous_mode: Literal["absolute", "increment"] = "absolute",
-        action_scale: float = 1.0,
-        reward: Literal["thesis", "sofagym"] = "thesis",
         goal_low: tuple[float, float] = (-15.0, -45.0),
         goal_high: tuple[float, float] = (15.0, -10.0),
         goal_tolerance: float = 3.0,
         n_points: int = 20,
         settle_steps: int = 30,
-        mesh_size: float = 8.0,
-        render_mode: str | None = None,
-        tangent: str = "lagged",
-        **robot_kwargs,
+        **kwargs,
     ) -> None:
         super().__init__(
-            dt=dt,
-            substeps=substeps,
-            action_type=action_type,
-            continuous_mode=continuous_mode,
-            action_scale=action_scale,
-            reward=reward,
             goal_low=goal_low,
             goal_high=goal_high,
             goal_tolerance=goal_tolerance,
             n_points=n_points,
             settle_steps=settle_steps,
-            mesh_size=mesh_size,
-            render_mode=render_mode,
-            tangent=tangent,
-            **robot_kwargs,
+            **kwargs,
         )
         self.observation_space = scaled_box(-3.0, 3.0, (3 * (self.n_points + 2),))
-
-    def _build(self) -> Model:
-        model = trunk_cup(mesh_size=self.mesh_size, base_motion=_still, **self.robot_kwargs)
-        self.fibre = neutral_fibre(model, self.n_points)
-        return model
 
     def cup(self) -> np.ndarray:
         return self.state.rigid_positions[0]
@@ -86,17 +66,12 @@ class TrunkCupEnv(TrunkEnv):
         return float(np.linalg.norm(self.cup() - self.task["goal"]))
 
     def _reset_task(self, rng, options) -> None:
-        goal = (options or {}).get("goal")
-        if goal is None:
-            x, z = rng.uniform(self.goal_low, self.goal_high)
-            goal = self.cup() + [x, 0.0, z]
-        self.task["goal"] = np.asarray(goal, dtype=float).reshape(3)
+        self.task["goal"] = floor_goal(rng, options, self.cup(), self.goal_low, self.goal_high)
         self.task["distance"] = self.distance()
         self.task["l1"] = float(np.abs(self.cup() - self.task["goal"]).sum())
 
     def _observe(self) -> np.ndarray:
-        pts = np.vstack([self.fibre.positions(self.state.positions), self.cup(), self.task["goal"]])
-        return (pts / LENGTH).ravel()
+        return self.fibre_observation(self.cup(), self.task["goal"])
 
     def _reward(self):
         d, previous = self.distance(), self.task["distance"]
@@ -109,7 +84,3 @@ class TrunkCupEnv(TrunkEnv):
         closer = (d0 - float(np.abs(self.cup() - self.task["goal"]).sum())) / d0
         bonus = 1.0 if success else 0.0
         return closer + bonus, success, {"closer": closer, "success": bonus}
-
-
-def _still(t: float) -> float:
-    return 0.0

@@ -27,15 +27,42 @@ the thesis' iteration). The trunk starts settled under gravity.
 
 from __future__ import annotations
 
-from typing import Literal
+from dataclasses import dataclass
 
-import gymnasium as gym
 import numpy as np
 
-from pliant.envs.base import ActionType, scaled_box
-from pliant.envs.trunk import LENGTH, TrunkEnv, neutral_fibre
+from pliant.envs.actions import ActionMap, RampTarget, scaled_box
+from pliant.envs.base import floor_goal
+from pliant.envs.config import SimulationConfig, check_interval, check_positive, taken
+from pliant.envs.trunk import LENGTH, TrunkEnv
 from pliant.model import Model
 from pliant.robots.trunk_cube import trunk_cube
+
+
+@dataclass(frozen=True)
+class CubePush:
+    """The cube-pushing task's settings, the same for the FEM Trunk and its proxy: the reward's
+    contact weight, the base's range (mm, 0 inside it), speed (mm/s) and discrete step (mm),
+    the goal's offset range (x, z) from the cube's start and tolerance (mm), the observed
+    points, whether the action drives the trunk in the floor's plane only, and the steps it
+    settles under gravity. Given as keywords of either environment."""
+
+    contact_weight: float = 0.2
+    base_low: float = -40.0
+    base_high: float = 40.0
+    base_speed: float = 100.0
+    base_step: float = 5.0
+    goal_low: tuple[float, float] = (5.0, -30.0)
+    goal_high: tuple[float, float] = (40.0, 20.0)
+    goal_tolerance: float = 8.0
+    n_points: int = 16
+    planar: bool = False
+    settle_steps: int = 30
+
+    def __post_init__(self) -> None:
+        check_interval("base", self.base_low, self.base_high, contains=0.0)
+        check_positive("base_speed", self.base_speed)
+        check_positive("base_step", self.base_step)
 
 
 class CubePushTask:
@@ -43,8 +70,16 @@ class CubePushTask:
     rigid body), a goal on the floor drawn relative to it, the distance in the x-z plane, and
     the reward: -d / length, plus (``contact=True``) -w d_contact / length, d_contact the
     distance from the cube to the nearest observed trunk point (favours contact, §4.1.2).
-    Hosts define ``contact_distance()``, ``goal_low``, ``goal_high``, ``goal_tolerance`` and
-    ``contact_weight``."""
+    Hosts define ``contact_distance()`` and take their settings with :meth:`_take_push`."""
+
+    def _take_push(self, kwargs: dict) -> CubePush:
+        """The :class:`CubePush` settings taken out of the constructor's keywords, and kept."""
+        push = self.push = CubePush(**taken(CubePush, kwargs))
+        self.contact_weight = float(push.contact_weight)
+        self.base_low, self.base_high = float(push.base_low), float(push.base_high)
+        self.base_speed, self.base_step = float(push.base_speed), float(push.base_step)
+        self.planar = bool(push.planar)
+        return push
 
     def cube(self) -> np.ndarray:
         return self.state.rigid_positions[0]
@@ -54,11 +89,7 @@ class CubePushTask:
         return float(np.hypot(gap[0], gap[2]))
 
     def _draw_goal(self, rng, options) -> None:
-        goal = (options or {}).get("goal")
-        if goal is None:
-            x, z = rng.uniform(self.goal_low, self.goal_high)
-            goal = self.cube() + [x, 0.0, z]
-        self.task["goal"] = np.asarray(goal, dtype=float).reshape(3)
+        self.task["goal"] = floor_goal(rng, options, self.cube(), self.goal_low, self.goal_high)
         self.task["distance"] = self.distance()
 
     def _push_reward(self, length: float, contact: bool):
@@ -75,79 +106,47 @@ class CubePushTask:
 
 class TrunkPushEnv(CubePushTask, TrunkEnv):
     name = "TrunkPush"
-    version = 1
     view = (60.0, -60.0)
+    default_config = SimulationConfig(substeps=30, action_type="continuous")
+    robot_defaults = {"mesh_size": 8.0}
 
-    def __init__(
-        self,
-        *,
-        dt: float = 0.01,
-        substeps: int = 30,
-        action_type: ActionType = "continuous",
-        continuous_mode: Literal["absolute", "increment"] = "absolute",
-        action_scale: float = 5.0,
-        reward: Literal["thesis", "sofagym"] = "thesis",
-        contact_weight: float = 0.2,
-        base_low: float = -40.0,
-        base_high: float = 40.0,
-        base_speed: float = 100.0,
-        base_step: float = 5.0,
-        goal_low: tuple[float, float] = (5.0, -30.0),
-        goal_high: tuple[float, float] = (40.0, 20.0),
-        goal_tolerance: float = 8.0,
-        n_points: int = 16,
-        planar: bool = False,
-        settle_steps: int = 30,
-        mesh_size: float = 8.0,
-        render_mode: str | None = None,
-        tangent: str = "lagged",
-        **robot_kwargs,
-    ) -> None:
-        if not base_low <= 0.0 <= base_high:
-            raise ValueError(f"need base_low <= 0 <= base_high, got {base_low}, {base_high}")
-        for key, value in (("base_speed", base_speed), ("base_step", base_step)):
-            if not (np.isfinite(value) and value > 0):
-                raise ValueError(f"{key} must be > 0, got {value!r}")
-        self.contact_weight = float(contact_weight)
-        self.base_low, self.base_high = float(base_low), float(base_high)
-        self.base_speed = float(base_speed)
-        self.base_step = float(base_step)
-        self.planar = bool(planar)
+    def __init__(self, *, action_scale: float = 5.0, **kwargs) -> None:
+        """Keywords: ``action_scale`` (mm), those of :class:`CubePush` and of
+        :class:`pliant.envs.trunk.TrunkEnv`."""
+        push = self._take_push(kwargs)
         super().__init__(
-            dt=dt,
-            substeps=substeps,
-            action_type=action_type,
-            continuous_mode=continuous_mode,
             action_scale=action_scale,
-            reward=reward,
-            goal_low=goal_low,
-            goal_high=goal_high,
-            goal_tolerance=goal_tolerance,
-            n_points=n_points,
-            settle_steps=settle_steps,
-            mesh_size=mesh_size,
-            render_mode=render_mode,
-            tangent=tangent,
-            **robot_kwargs,
+            goal_low=push.goal_low,
+            goal_high=push.goal_high,
+            goal_tolerance=push.goal_tolerance,
+            n_points=push.n_points,
+            settle_steps=push.settle_steps,
+            **kwargs,
         )
-        n = self.n_actuators
-        # The cables an action drives (the others stay slack): those pulling towards -x and +x
-        # (1, 3 long; 5, 7 short) when planar, else all eight.
-        self.driven = np.array([1, 3, 5, 7]) if self.planar else np.arange(n)
-        k = len(self.driven)
-        if action_type == "discrete":
-            self.action_space = gym.spaces.Discrete(2 * k + 2)
-        else:
-            self.action_space = scaled_box(-1.0, 1.0, (k + 1,))
         self.observation_space = scaled_box(-3.0, 3.0, (3 * self.n_points + 5,))
 
-    def _build(self) -> Model:
+    def _scene_model(self) -> Model:
         self.carriage = self.ramp("carriage", 0.0)
-        model = trunk_cube(
-            mesh_size=self.mesh_size, base_motion=self.carriage.scalar, **self.robot_kwargs
-        )
-        self.fibre = neutral_fibre(model, self.n_points)
+        model = trunk_cube(base_motion=self.carriage.scalar, **self.robot_kwargs)
+        # The cables an action drives (the others stay slack): those pulling towards -x and +x
+        # (1, 3 long; 5, 7 short) when planar, else all eight.
+        self.driven = np.array([1, 3, 5, 7]) if self.planar else np.arange(len(model.actuators))
         return model
+
+    def cable_actions(self) -> ActionMap:
+        """The driven cables, then the carriage: discrete, moved by -/+ ``base_step`` mm;
+        continuous, its target in [base_low, base_high], at most ``base_speed`` mm/s."""
+        steps = [[-self.base_step], [self.base_step]]
+        carriage = RampTarget(
+            "carriage",
+            self.base_low,
+            self.base_high,
+            steps=steps,
+            continuous="interval",
+            speed=self.base_speed,
+            memory="base",
+        )
+        return self.cables(self.driven) + carriage
 
     def contact_distance(self) -> float:
         points = self.fibre.positions(self.state.positions)
@@ -157,36 +156,8 @@ class TrunkPushEnv(CubePushTask, TrunkEnv):
         self._draw_goal(rng, options)
         self.task["base"] = 0.0
 
-    def _commands_from_action(self, action) -> None:
-        k = len(self.driven)
-        now = self.carriage.scalar(self.state.time)
-        if self.action_type == "discrete":
-            if action < 2 * k:  # cable driven[action // 2] pulled (even) or released (odd)
-                super()._commands_from_action(2 * int(self.driven[action // 2]) + action % 2)
-                base = self.task["base"]
-            else:
-                base = self.task["base"] + (1.0 if action == 2 * k + 1 else -1.0) * self.base_step
-        else:
-            # the cables not driven slack: a target of 0 (absolute) or no change (increment)
-            slack = -1.0 if self.continuous_mode == "absolute" else 0.0
-            cables = np.full(self.n_actuators, slack)
-            cables[self.driven] = action[:k]
-            super()._commands_from_action(cables)
-            s = 0.5 * (float(action[k]) + 1.0)
-            base = self.base_low + s * (self.base_high - self.base_low)
-        base = float(np.clip(base, self.base_low, self.base_high))
-        self.task["base"] = base
-        reach = self.base_speed * self.step_time
-        self.carriage.retarget(
-            self.state.time, now + np.clip(base - now, -reach, reach), self.step_time
-        )
-
     def _observe(self) -> np.ndarray:
-        goal = self.task["goal"][[0, 2]]
-        pts = np.concatenate(
-            [self.fibre.positions(self.state.positions).ravel(), self.cube(), goal]
-        )
-        return pts / LENGTH
+        return self.fibre_observation(self.cube(), self.task["goal"][[0, 2]])
 
     def _reward(self):
         return self._push_reward(LENGTH, contact=self.reward_variant == "thesis")

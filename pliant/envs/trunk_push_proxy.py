@@ -31,7 +31,13 @@ from __future__ import annotations
 import gymnasium as gym
 import numpy as np
 
-from pliant.envs.base import ActionType, SoftRobotEnv, scaled_box
+from pliant.envs.actions import Commands, scaled_box
+from pliant.envs.base import SoftRobotEnv
+from pliant.envs.config import (
+    EnvConfigError,
+    SimulationConfig,
+    check_choice,
+)
 from pliant.envs.trunk_push import CubePushTask
 from pliant.model import Model, State
 from pliant.proxy import trunk_proxy
@@ -45,73 +51,47 @@ CABLE_COURSES = np.array([70.0] * 4 + [40.0] * 4)
 
 class TrunkPushProxyEnv(CubePushTask, SoftRobotEnv):
     name = "TrunkPushProxy"
-    version = 1
     view = (60.0, -60.0)
+
+    default_config = SimulationConfig(substeps=30, action_type="continuous")
 
     def __init__(
         self,
         *,
-        dt: float = 0.01,
-        substeps: int = 30,
-        action_type: ActionType = "continuous",
         bend_step: float = 0.25,
         bend_limit: float = 1.0,
-        base_step: float = 5.0,
-        contact_weight: float = 0.2,
-        base_low: float = -40.0,
-        base_high: float = 40.0,
-        base_speed: float = 100.0,
-        goal_low: tuple[float, float] = (5.0, -30.0),
-        goal_high: tuple[float, float] = (40.0, 20.0),
-        goal_tolerance: float = 8.0,
-        n_points: int = 16,
-        planar: bool = False,
         actions: str = "bendings",
-        settle_steps: int = 30,
-        render_mode: str | None = None,
-        tangent: str = "lagged",
-        **proxy_kwargs,
+        **kwargs,
     ) -> None:
-        if not base_low <= 0.0 <= base_high:
-            raise ValueError(f"need base_low <= 0 <= base_high, got {base_low}, {base_high}")
-        if not (np.isfinite(base_speed) and base_speed > 0):
-            raise ValueError(f"base_speed must be > 0, got {base_speed!r}")
+        """Keywords: those above, those of :class:`pliant.envs.trunk_push.CubePush`, and the
+        proxy builder's."""
+        push = self._take_push(kwargs)
         if not 0.0 < bend_limit <= 1.0:
-            raise ValueError(f"bend_limit must lie in (0, 1], got {bend_limit!r}")
-        if actions not in ("bendings", "cables"):
-            raise ValueError(f"actions must be 'bendings' or 'cables', got {actions!r}")
-        if actions == "cables" and (action_type != "continuous" or planar):
-            raise ValueError("actions='cables' is continuous and drives all eight cables")
+            raise EnvConfigError(f"bend_limit must lie in (0, 1], got {bend_limit!r}")
+        check_choice("actions", actions, ("bendings", "cables"))
         self.actions = actions
         self.bend_limit = float(bend_limit)
-        self.contact_weight = float(contact_weight)
-        self.bend_step, self.base_step = float(bend_step), float(base_step)
-        self.base_low, self.base_high = float(base_low), float(base_high)
-        self.base_speed = float(base_speed)
-        self.goal_low, self.goal_high = np.asarray(goal_low), np.asarray(goal_high)
-        self.goal_tolerance = float(goal_tolerance)
-        self.n_points = int(n_points)
-        self.planar = bool(planar)
-        self.settle_steps = int(settle_steps)
-        self.proxy_kwargs = proxy_kwargs
-        super().__init__(
-            dt=dt,
-            substeps=substeps,
-            action_type=action_type,
-            render_mode=render_mode,
-            tangent=tangent,
-        )
+        self.bend_step = float(bend_step)
+        self.goal_low, self.goal_high = np.asarray(push.goal_low), np.asarray(push.goal_high)
+        self.goal_tolerance = float(push.goal_tolerance)
+        self.n_points = int(push.n_points)
+        self.settle_steps = int(push.settle_steps)
+        super().__init__(**kwargs)
+        if actions == "cables" and (self.action_type != "continuous" or self.planar):
+            raise EnvConfigError("actions='cables' is continuous and drives all eight cables")
         self.sim = ProxySolver(self.proxy, self.sim)
         self.n_actuators = self.proxy.n_controls
         # a proxy with axial commands (cocontraction): only the cables say how much to pull
         self.axial = any(n.endswith("_axial") for n in self.proxy.actuation.names)
         if self.axial and actions != "cables":
-            raise ValueError("a proxy with axial commands (cocontraction) takes actions='cables'")
+            raise EnvConfigError(
+                "a proxy with axial commands (cocontraction) takes actions='cables'"
+            )
         self.commands = np.zeros(self.n_actuators)
         # The commands an action drives (the rest stay 0): lower_d2, upper_d2 (towards +x) and
         # the base when planar, else all five.
         self.driven = np.array([1, 3, 4]) if self.planar else np.arange(self.n_actuators)
-        if action_type == "discrete":
+        if self.action_type == "discrete":
             self.action_space = gym.spaces.Discrete(2 * len(self.driven))
         elif actions == "cables":
             self.action_space = scaled_box(-1.0, 1.0, (len(CABLE_COURSES) + 1,))
@@ -120,7 +100,7 @@ class TrunkPushProxyEnv(CubePushTask, SoftRobotEnv):
         self.observation_space = scaled_box(-3.0, 3.0, (3 * self.n_points + 5,))
 
     def _build(self) -> Model:
-        self.proxy = trunk_proxy(base_limits=(self.base_low, self.base_high), **self.proxy_kwargs)
+        self.proxy = trunk_proxy(base_limits=(self.base_low, self.base_high), **self.robot_kwargs)
         rod = self.proxy.rod
         self.length = float(rod.lengths.sum())
         self.nodes = np.unique(np.linspace(0, rod.n_centreline - 1, self.n_points).round())
@@ -137,7 +117,9 @@ class TrunkPushProxyEnv(CubePushTask, SoftRobotEnv):
     def _reset_task(self, rng, options) -> None:
         self._draw_goal(rng, options)
 
-    def _commands_from_action(self, action) -> None:
+    def _commands(self, action) -> Commands:
+        """The bendings (or the cables mapped onto them) and the base, the last command, at
+        most ``base_speed`` mm/s."""
         if self.action_type == "discrete":
             target = self.commands.copy()
             i, sign = self.driven[action // 2], 1.0 if action % 2 == 0 else -1.0
@@ -160,7 +142,7 @@ class TrunkPushProxyEnv(CubePushTask, SoftRobotEnv):
         now = self.commands[-1]
         reach = self.base_speed * self.step_time
         target[-1] = now + np.clip(base - now, -reach, reach)
-        self.target_commands = target
+        return Commands(target)
 
     def _observe(self) -> np.ndarray:
         x = self.proxy.skeleton(self.state.positions)[self.nodes]

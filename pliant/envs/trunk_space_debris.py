@@ -49,7 +49,9 @@ from typing import Literal
 import numpy as np
 
 from pliant.constraints.base import EmbeddedPoints
-from pliant.envs.base import ActionType, EnvSnapshot, EnvStateError, scaled_box
+from pliant.envs.actions import scaled_box
+from pliant.envs.base import EnvSnapshot, EnvStateError
+from pliant.envs.config import SimulationConfig
 from pliant.envs.trunk import LENGTH, TrunkEnv, neutral_fibre
 from pliant.mesh import shapes
 from pliant.model import Model, State
@@ -60,16 +62,19 @@ from pliant.solvers import ImplicitEuler
 
 class TrunkSpaceDebrisEnv(TrunkEnv):
     name = "TrunkSpaceDebris"
-    version = 1
     view = (20.0, -90.0)
+
+    default_config = SimulationConfig(substeps=10, action_type="continuous")
+    # The cables' courses on this coarse mesh: a long cable alone at 42 mm, a short one alone
+    # at 36 mm, or the two of one side at 38 mm invert an element at the cable's end (the
+    # episode diverges); within 35 and 25 mm none of those pulls does (tested). A trained PPO
+    # policy ran into those limits in 9 episodes of 10 with SoftRobots' 70 and 40 mm.
+    robot_defaults = {"max_long_displacement": 35.0, "max_short_displacement": 25.0}
+    rewards = ("thesis",)
 
     def __init__(
         self,
         *,
-        dt: float = 0.01,
-        substeps: int = 10,
-        action_type: ActionType = "continuous",
-        continuous_mode: Literal["absolute", "increment"] = "absolute",
         action_scale: float = 2.0,
         cube_sizes: tuple[float, ...] = (20.0, 25.0, 30.0, 35.0, 40.0),
         z_low: float = 110.0,
@@ -86,9 +91,7 @@ class TrunkSpaceDebrisEnv(TrunkEnv):
         horizon: int = 50,
         n_points: int = 21,
         mesh_size: float = 8.0,
-        render_mode: str | None = None,
-        tangent: str = "lagged",
-        **robot_kwargs,
+        **kwargs,
     ) -> None:
         sizes = tuple(float(s) for s in cube_sizes)
         if not sizes or min(sizes) <= 0:
@@ -115,29 +118,9 @@ class TrunkSpaceDebrisEnv(TrunkEnv):
         if int(horizon) < 1:
             raise ValueError(f"horizon must be >= 1 steps, got {horizon!r}")
         self.horizon = int(horizon)
-        self._tangent = tangent
-        # The cables' courses on this coarse mesh: a long cable alone at 42 mm, a short one
-        # alone at 36 mm, or the two of one side at 38 mm invert an element at the cable's end
-        # (the episode diverges); within 35 and 25 mm none of those pulls does (tested). A
-        # trained PPO policy ran into those limits in 9 episodes of 10 with SoftRobots' 70
-        # and 40 mm.
-        robot_kwargs.setdefault("max_long_displacement", 35.0)
-        robot_kwargs.setdefault("max_short_displacement", 25.0)
+        self.mesh_size = mesh_size
         self._scenes: dict[float, tuple[Model, ImplicitEuler, State]] = {}
-        super().__init__(
-            dt=dt,
-            substeps=substeps,
-            action_type=action_type,
-            continuous_mode=continuous_mode,
-            action_scale=action_scale,
-            reward="thesis",
-            n_points=n_points,
-            settle_steps=0,
-            mesh_size=mesh_size,
-            render_mode=render_mode,
-            tangent=tangent,
-            **robot_kwargs,
-        )
+        super().__init__(action_scale=action_scale, n_points=n_points, settle_steps=0, **kwargs)
         self._scenes[self.cube_sizes[0]] = (self.model, self.sim, self._initial)
         self.cube_size = self.cube_sizes[0]
         self.observation_space = scaled_box(-3.0, 3.0, (3 * self.n_points + 10,))
@@ -164,7 +147,7 @@ class TrunkSpaceDebrisEnv(TrunkEnv):
             raise ValueError(f"cube size {size} is not one of {self.cube_sizes}")
         if size not in self._scenes:
             model = self._scene(size)
-            sim = ImplicitEuler(model, dt=self.dt, tangent=self._tangent)
+            sim = ImplicitEuler(model, dt=self.dt, tangent=self.config.tangent)
             self._scenes[size] = (model, sim, model.rest_state())
         self.model, self.sim, self._initial = self._scenes[size]
         self.sim.system.invalidate()
@@ -237,10 +220,7 @@ class TrunkSpaceDebrisEnv(TrunkEnv):
         )
 
     def _observe(self) -> np.ndarray:
-        pts = np.vstack(
-            [self.fibre.positions(self.state.positions), self.cube(), self.cube_faces()]
-        )
-        return np.concatenate([pts.ravel(), [self.cube_size]]) / LENGTH
+        return self.fibre_observation(self.cube(), self.cube_faces(), self.cube_size)
 
     def _reward(self):
         distances = self._distances()

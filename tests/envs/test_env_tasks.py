@@ -328,8 +328,7 @@ def test_space_debris_expert_pulls_the_facing_cables_and_catches_a_large_cube():
         env.reset(seed=0, options={"cube_position": beside_trunk(40.0, 85.0, 15.0)})
         e = env.unwrapped
         e.commands = np.array([0, 0, 0, 34.0, 0, 0, 0, 0])  # one step from the end of its course
-        e._commands_from_action(expert_action(env))
-        targets.append(e.target_commands.copy())
+        targets.append(e.commands_for(expert_action(env)).actuators)
     assert np.allclose(targets, [[0, 0, 0, 35.0, 0, 0, 0, 0]] * 3)
     # the sized expert: half the rate for cubes under 37.5 mm
     for size, rate in ((35.0, 0.5), (40.0, 1.0)):

@@ -71,10 +71,7 @@ class CartStemStaticInverse:
         self.iterations, self.probe = iterations, float(probe)
         self._cart = [0.0]  # the planning model's cart, set before each solve
         base = self.base
-        self.model = cartstem_contact(
-            stem=base.stem, length=base.length, cart_motion=lambda t: self._cart[0],
-            **base.robot_kwargs,
-        )  # fmt: skip
+        self.model = cartstem_contact(cart_motion=lambda t: self._cart[0], **base.robot_kwargs)
         self.solver = StaticSolver(self.model)
 
     def equilibrium(self, cart: float, positions: np.ndarray) -> tuple[float, np.ndarray] | None:
