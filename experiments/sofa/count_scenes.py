@@ -75,14 +75,14 @@ import json, sys, numpy as np
 from pliant.sofa import SceneError, load_scene
 path, config, gym = sys.argv[1], json.loads(sys.argv[2]), sys.argv[3] == "1"
 try:
-    scene = load_scene(path, config=config) if gym else load_scene(path)
+    scene = load_scene(path, config=config) if config is not None else load_scene(path)
     solver = scene.solver()
     state = scene.model.rest_state()
     for _ in range(3 if gym else 2):
         state = solver.step(state)
     detail = ""
     if gym and scene.root.getObject("Reward") is not None:
-        goal = config.get("goalPos")
+        goal = (config or {}).get("goalPos")
         scene.root.Reward.update(goal) if goal is not None else scene.root.Reward.update()
         for _ in range(2):
             state = solver.step(state)
@@ -99,7 +99,7 @@ except BaseException as exc:
 
 def run_one(scene: Path, config: dict | None, gym: bool, timeout: float) -> dict:
     env = dict(os.environ, PYTHONPATH=str(ROOT))
-    args = [sys.executable, "-c", WORKER, str(scene), json.dumps(config or {}), "1" if gym else "0"]
+    args = [sys.executable, "-c", WORKER, str(scene), json.dumps(config), "1" if gym else "0"]
     start = time.perf_counter()
     try:
         done = subprocess.run(args, capture_output=True, text=True, timeout=timeout, env=env)
@@ -123,8 +123,8 @@ def main() -> None:
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument(
         "--only",
-        help="measure again only the scenes whose path contains this text, keeping the stored"
-        " results of the others",
+        help="measure again only the scenes whose path contains this text (or, as"
+        " 'outcome:timeout', whose stored outcome is this), keeping the others' results",
     )
     args = parser.parse_args()
     jobs = [
@@ -141,12 +141,23 @@ def main() -> None:
             if config.get("goalList"):
                 config["goalPos"] = config["goalList"][0]
                 config["goal_node"] = 0
+            if "board_dim" in config:  # BubbleMotion draws its ball and goal on the board
+                middle = config["board_dim"] / 2.0
+                config.update(init_pos=[middle, middle, 5.0], goalPos=[middle, middle, 2.0])
+            if not re.search(r"def createScene\(\s*\w+\s*,", scene.read_text()):
+                config = None  # a scene of the folder that takes no configuration
         jobs.append((scene, scene.relative_to(args.sofagym), config, True))
     report: dict = {"softrobots": {}, "sofagym": {}}
     if args.only:
         stored = json.loads(OUT.read_text())
         report = {corpus: stored[corpus] for corpus in report}
-        jobs = [j for j in jobs if args.only in str(j[1])]
+        if args.only.startswith("outcome:"):  # the scenes whose stored outcome is this one
+            again = {
+                n for c in report.values() for n, r in c.items() if r["outcome"] == args.only[8:]
+            }
+            jobs = [j for j in jobs if str(j[1]) in again]
+        else:
+            jobs = [j for j in jobs if args.only in str(j[1])]
     with ThreadPoolExecutor(args.workers) as pool:
         results = list(pool.map(lambda j: run_one(j[0], j[2], j[3], args.timeout), jobs))
     for (_, name, _, gym), result in zip(jobs, results, strict=True):

@@ -15,8 +15,8 @@ Component semantics follow SOFA's and SoftRobots' documentation. With ``sofa_com
   DivergenceError).
 
 ``sofa_compatible=False`` keeps Pliant's choices (polar rotation, points projected onto the
-mesh, change measured from the last step, inversion refused). See docs/sofa.md for the list
-of components.
+mesh, change measured from the last step, inversion refused). See docs/sofa-reference.md for
+the list of components.
 """
 
 from __future__ import annotations
@@ -643,7 +643,7 @@ class _Builder:
             raise SceneError(
                 f"{self.path.name} uses what Pliant does not support: "
                 + "; ".join(problems)
-                + " (docs/sofa.md lists what it does)"
+                + " (docs/sofa-reference.md lists what it does)"
             )
 
     # --- collisions ----------------------------------------------------------------------------
