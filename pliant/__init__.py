@@ -77,6 +77,7 @@ _FACE = {
     "DrivenNodes": "pliant.fem",
     "Corotational": "pliant.fem",
     "NeoHookean": "pliant.fem",
+    "StVenantKirchhoff": "pliant.fem",
     "NodalForces": "pliant.fem",
     "SurfacePressure": "pliant.fem",
     "SurfaceTraction": "pliant.fem",

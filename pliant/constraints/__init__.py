@@ -9,6 +9,7 @@ from pliant.constraints.contact import Contacts
 from pliant.constraints.control import DirectControl, InverseControl
 from pliant.constraints.effector import PositionEffector, RigidEffector
 from pliant.constraints.joint import RotationActuator
+from pliant.constraints.point import PointActuator
 
 __all__ = [
     "Actuator",
@@ -21,6 +22,7 @@ __all__ = [
     "DirectControl",
     "EmbeddedPoints",
     "InverseControl",
+    "PointActuator",
     "PositionEffector",
     "RigidEffector",
     "RotationActuator",

@@ -79,6 +79,13 @@ class EmbeddedPoints:
         obj.weights[:, :2] = weights
         return obj
 
+    def subset(self, index) -> EmbeddedPoints:
+        """The points `index` (an index or indices) of these, with their embedding."""
+        obj = type(self).__new__(type(self))
+        picked = np.atleast_1d(np.asarray(index, dtype=np.int64))
+        obj.nodes, obj.weights = self.nodes[picked].copy(), self.weights[picked].copy()
+        return obj
+
     #: p is linear in the nodes' positions, with fixed weights: a point's compliance columns
     #: stay valid for a factorisation's life (:class:`pliant.solvers.compliance.PointCompliance`).
     #: A mapping that is not (a skinned surface, :class:`pliant.proxy.Skinning`) says False.

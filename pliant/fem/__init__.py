@@ -10,7 +10,7 @@ from pliant.fem.loads import (
     SurfacePressure,
     SurfaceTraction,
 )
-from pliant.fem.material import MATERIALS, Corotational, Material, NeoHookean
+from pliant.fem.material import MATERIALS, Corotational, Material, NeoHookean, StVenantKirchhoff
 from pliant.fem.membrane import Membrane
 from pliant.fem.rigid import (
     AttachedPoints,
@@ -38,6 +38,7 @@ __all__ = [
     "Material",
     "Membrane",
     "NeoHookean",
+    "StVenantKirchhoff",
     "NodalForces",
     "OnLine",
     "OnPlane",

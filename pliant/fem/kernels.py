@@ -181,7 +181,8 @@ def internal_forces(
     """Element internal forces and elastic energy, and optionally K_s v.
 
     Writes -V P g_a into `elem_forces` (m, 4, 3) (sum them per node with `gather_nodal`), the
-    linearisation frame (R for corotational, F^-1 for Neo-Hookean) into `frames` (m, 3, 3)
+    linearisation frame (R for corotational, F^-1 for Neo-Hookean, F for St Venant-Kirchhoff)
+    into `frames` (m, 3, 3)
     (tags 2 and 3: R = Q(x) Q(X)^T with Q the edge frame of the nodes `frame_nodes` (m, 3) and Q(X)
     read from `rest_frames`)
     and det F into `dets`. An element with det F <= 0 contributes no force (except under tag 3,
@@ -214,7 +215,18 @@ def internal_forces(
                 if with_v:
                     elem_kv[e] = 0.0
                 continue
-            if tag != 1:
+            if tag == 4:
+                # St Venant-Kirchhoff: P = F S, S = lam tr(E) I + 2 mu E, E = (F^T F - I)/2.
+                _svk_stress(f, mu[e], lam[e], sig, work)
+                tr = work[0, 0] + work[1, 1] + work[2, 2]
+                e2 = 0.0
+                for i in range(3):
+                    for j in range(3):
+                        e2 += work[i, j] * work[i, j]
+                        p[i, j] = f[i, 0] * sig[0, j] + f[i, 1] * sig[1, j] + f[i, 2] * sig[2, j]
+                        frames[e, i, j] = f[i, j]
+                energy += vols[e] * (0.5 * lam[e] * tr * tr + mu[e] * e2)
+            elif tag != 1:
                 if tag == 0:
                     _polar(f, r, work)
                 else:
@@ -311,6 +323,20 @@ def _gather_by_node(elem_values, incidence_ptr, incidence, out):
 
 
 @njit(cache=True, inline="always")
+def _svk_stress(f, mu, lam, s, e):
+    """St Venant-Kirchhoff: e = E = (F^T F - I) / 2 and s = S = lam tr(E) I + 2 mu E."""
+    for i in range(3):
+        for j in range(3):
+            e[i, j] = 0.5 * (
+                f[0, i] * f[0, j] + f[1, i] * f[1, j] + f[2, i] * f[2, j] - (1.0 if i == j else 0.0)
+            )
+    tr = e[0, 0] + e[1, 1] + e[2, 2]
+    for i in range(3):
+        for j in range(3):
+            s[i, j] = 2.0 * mu * e[i, j] + (lam * tr if i == j else 0.0)
+
+
+@njit(cache=True, inline="always")
 def _piola_differential(df, frame, f, det, mu, lam, tag, exact, dp, w1, w2):
     """dp = dP for a variation dF of the deformation gradient (w1, w2 are scratch).
 
@@ -318,7 +344,25 @@ def _piola_differential(df, frame, f, det, mu, lam, tag, exact, dp, w1, w2):
     when `exact` and the rotation is polar (tag 0), the variation of R:
     (lam tr(S - I) - 2 mu) dR with dR = R [w]x and (tr(S) I - S) w = axial(R^T dF - dF^T R).
     Neo-Hookean (frame = F^-1): mu dF + (mu - lam ln J) F^-T dF^T F^-T + lam tr(F^-1 dF) F^-T.
+    St Venant-Kirchhoff (tag 4, frame = F): dF S + F (lam tr(dE) I + 2 mu dE), dE = sym(F^T dF).
     """
+    if tag == 4:
+        fr = frame
+        _svk_stress(fr, mu, lam, w2, w1)  # w2 = S
+        for i in range(3):  # dp = dF S
+            for j in range(3):
+                dp[i, j] = df[i, 0] * w2[0, j] + df[i, 1] * w2[1, j] + df[i, 2] * w2[2, j]
+        for i in range(3):  # w1 = F^T dF
+            for j in range(3):
+                w1[i, j] = fr[0, i] * df[0, j] + fr[1, i] * df[1, j] + fr[2, i] * df[2, j]
+        tr = w1[0, 0] + w1[1, 1] + w1[2, 2]
+        for i in range(3):  # w2 = dS
+            for j in range(3):
+                w2[i, j] = mu * (w1[i, j] + w1[j, i]) + (lam * tr if i == j else 0.0)
+        for i in range(3):
+            for j in range(3):
+                dp[i, j] += fr[i, 0] * w2[0, j] + fr[i, 1] * w2[1, j] + fr[i, 2] * w2[2, j]
+        return
     if tag != 1:
         r = frame
         for i in range(3):  # w1 = R^T dF
@@ -494,7 +538,7 @@ def element_stiffness(x, tets, grads, vols, mu, lam, tag, frames, dets, exact, b
                 continue
             g = grads[e]
             v = vols[e]
-            if tag >= 2 or (tag == 0 and not exact):
+            if tag == 2 or tag == 3 or (tag == 0 and not exact):
                 _corotational_blocks(g, frames[e], v, mu[e], lam[e], rg, blocks[e])
                 continue
             _gradient(x, tets[e], g, f)

@@ -20,6 +20,7 @@ COROTATIONAL = 0
 NEO_HOOKEAN = 1
 COROTATIONAL_LARGE = 2
 COROTATIONAL_LARGE_INVERTIBLE = 3  # "large" frames, inverted elements keep their force
+ST_VENANT_KIRCHHOFF = 4
 
 Rotation = Literal["polar", "large"]
 Inversion = Literal["refuse", "tolerate"]
@@ -133,6 +134,19 @@ class NeoHookean(Material):
     """
 
     kernel_tag: ClassVar[int] = NEO_HOOKEAN
+
+
+@dataclass(frozen=True)
+class StVenantKirchhoff(Material):
+    """St Venant-Kirchhoff law (SOFA's ``materialName="StVenantKirchhoff"``).
+
+    psi(F) = lam/2 tr(E)^2 + mu E:E, E = (F^T F - I) / 2: the first Piola stress is
+    P = F (lam tr(E) I + 2 mu E). Linear elasticity in the Green strain: frame-independent and
+    exact under rigid motions, it softens in strong compression (its energy has no barrier at
+    J = 0; an inverted element is a divergence, as for every law but the tolerant large frame).
+    """
+
+    kernel_tag: ClassVar[int] = ST_VENANT_KIRCHHOFF
 
 
 def _is_real(value) -> bool:

@@ -15,8 +15,8 @@ Component semantics follow SOFA's and SoftRobots' documentation. With ``sofa_com
   DivergenceError).
 
 ``sofa_compatible=False`` keeps Pliant's choices (polar rotation, points projected onto the
-mesh, change measured from the last step, inversion refused). See docs/sofa.md for the list
-of components.
+mesh, change measured from the last step, inversion refused). See docs/sofa-reference.md for
+the list of components.
 """
 
 from __future__ import annotations
@@ -38,10 +38,11 @@ from pliant.constraints.cable import CableActuator
 from pliant.constraints.cavity import CavityActuator, enclosed_volume
 from pliant.constraints.contact import Contacts
 from pliant.constraints.effector import PositionEffector
+from pliant.constraints.point import PointActuator
 from pliant.errors import ModelError
 from pliant.fem.body import TetBody, fixed_components, nodes_in_box
 from pliant.fem.loads import Load, NodalForces, RestShapeSprings
-from pliant.fem.material import Corotational, Material, NeoHookean
+from pliant.fem.material import Corotational, Material, NeoHookean, StVenantKirchhoff
 from pliant.fem.rigid import RigidBody
 from pliant.fem.supports import OnLine, OnPlane, Projection
 from pliant.geometry.collision import Box, Plane, TriangleMesh
@@ -114,7 +115,10 @@ FEM = frozenset({"TetrahedronFEMForceField", FAST_COROTATIONAL, HYPERELASTIC})
 ROTATIONS = {"large": "large", "qr": "large", "polar": "polar", "svd": "polar"}
 # SOFA's hyperelastic materials that Pliant has a law for: the same strain energy, and the
 # meaning of each ParameterSet entry (SOFA's material headers).
-HYPERELASTIC_MATERIALS = {"NeoHookean": ("mu", "lambda")}
+HYPERELASTIC_MATERIALS = {
+    "NeoHookean": (NeoHookean, ("mu", "lambda")),
+    "StVenantKirchhoff": (StVenantKirchhoff, ("mu", "lambda")),
+}
 # SOFA's projective constraints onto a plane (origin, normal) and a line (origin,
 # direction), under their old and new names.
 PROJECTIONS = {
@@ -145,6 +149,7 @@ HANDLED = frozenset(
         "CableConstraint",
         "CableActuator",
         "PositionEffector",
+        "PositionConstraint",
         "SurfacePressureConstraint",
         "SurfacePressureActuator",
     }
@@ -174,7 +179,9 @@ COLLISION_MODELS = frozenset(
 )
 HANDLED = HANDLED | PIPELINE | INTERSECTIONS | COLLISION_MODELS | {"RigidMapping"}
 CAVITIES = frozenset({"SurfacePressureConstraint", "SurfacePressureActuator"})
-POINT_CONSTRAINTS = frozenset({"CableConstraint", "CableActuator", "PositionEffector", *CAVITIES})
+POINT_CONSTRAINTS = frozenset(
+    {"CableConstraint", "CableActuator", "PositionEffector", "PositionConstraint", *CAVITIES}
+)
 
 
 @dataclass
@@ -285,7 +292,11 @@ class SofaScene:
         n = len(self.model.actuators)
         force = state.actuation if len(state.actuation) == n else np.zeros(n)
         shift = state.displacement if len(state.displacement) == n else np.zeros(n)
+        done = set()  # a PositionConstraint's data hold its first row's
         for obj, f, d in zip(bindings.actuators, force, shift, strict=True):
+            if id(obj) in done:
+                continue
+            done.add(id(obj))
             if obj.type in CAVITIES:
                 obj.attrs["pressure"], obj.attrs["volumeGrowth"] = float(f), float(d)
             else:
@@ -567,6 +578,11 @@ class _Builder:
         body, mesh, solver_kind = self._body(body_node, gravity)
         actuators, effectors = [], []
         carried = [n for n in body_node.walk() if n is not body_node]
+        for obj in body_node.objects:  # on the body's own nodes
+            if obj.type == "PositionConstraint":
+                idx = self._indices(body_node, obj, "indices", mesh.points)
+                nodes = np.arange(mesh.n_nodes) if idx is None else np.asarray(idx)
+                actuators += self._position_constraint(obj, EmbeddedPoints.at_nodes(nodes), body)
         for child in carried:
             acts, effs = self._embedded(child, body, mesh)
             actuators += acts
@@ -627,7 +643,7 @@ class _Builder:
             raise SceneError(
                 f"{self.path.name} uses what Pliant does not support: "
                 + "; ".join(problems)
-                + " (docs/sofa.md lists what it does)"
+                + " (docs/sofa-reference.md lists what it does)"
             )
 
     # --- collisions ----------------------------------------------------------------------------
@@ -915,14 +931,15 @@ class _Builder:
         compressible law, psi = mu/2 (tr C - 3) - mu ln J + lambda/2 (ln J)^2, with
         ParameterSet = "mu lambda" (the Lame parameters): Pliant's NeoHookean, given the same
         mu and lambda through E = mu (3 lambda + 2 mu) / (lambda + mu), nu = lambda / (2
-        (lambda + mu))."""
+        (lambda + mu)). SOFA's StVenantKirchhoff, psi = lambda/2 tr(E)^2 + mu E:E with
+        ParameterSet = "mu lambda", is Pliant's StVenantKirchhoff with the same mu and lambda."""
         name = str(fem.attrs.get("materialName", "ArrudaBoyce"))
         if name not in HYPERELASTIC_MATERIALS:
             raise SceneError(
                 f"{fem.path}: materialName {name!r} has no Pliant law (supported:"
                 f" {', '.join(HYPERELASTIC_MATERIALS)}; SOFA's default is ArrudaBoyce)"
             )
-        wanted = HYPERELASTIC_MATERIALS[name]
+        law, wanted = HYPERELASTIC_MATERIALS[name]
         params = _floats(fem.attrs.get("ParameterSet", ""), f"{fem.path}.ParameterSet")
         if params.size != len(wanted):
             raise SceneError(
@@ -932,7 +949,7 @@ class _Builder:
         mu, lam = params
         if not (mu > 0.0 and lam >= 0.0):
             raise SceneError(f"{fem.path}.ParameterSet: mu > 0 and lambda >= 0, got {mu}, {lam}")
-        return NeoHookean(mu * (3.0 * lam + 2.0 * mu) / (lam + mu), lam / (2.0 * (lam + mu)))
+        return law(mu * (3.0 * lam + 2.0 * mu) / (lam + mu), lam / (2.0 * (lam + mu)))
 
     def _mesh_loader(self, node: SceneNode) -> SceneObject:
         """The loader the body's topology reads (``src="@loader"``), or the node's only one;
@@ -1163,7 +1180,9 @@ class _Builder:
         dofs = self._one(node, {"MechanicalObject"}, "MechanicalObjects")
         constraints = [o for o in node.objects if o.type in ("CableConstraint", "CableActuator")]
         constraints += [o for o in node.objects if o.type in CAVITIES]
-        constraints += [o for o in node.objects if o.type == "PositionEffector"]
+        constraints += [
+            o for o in node.objects if o.type in ("PositionEffector", "PositionConstraint")
+        ]
         if dofs is None or not constraints:
             return [], []
         if not any(o.type in MAPPINGS for o in node.objects):
@@ -1189,6 +1208,8 @@ class _Builder:
             if obj.type == "PositionEffector":
                 effectors.append(self._effector(node, obj, embedded, body))
                 self.bindings.effectors.append(obj)
+            elif obj.type == "PositionConstraint":
+                actuators += self._position_constraint(obj, embedded, body)
             else:
                 actuators.append(self._cable(obj, embedded, body))
                 self.bindings.actuators.append(obj)
@@ -1256,6 +1277,50 @@ class _Builder:
             max_displacement_change=None if change is None else _float(obj, "maxDispVariation", 0),
             change_reference=self.choices.change_reference,
         )
+
+    def _position_constraint(
+        self, obj: SceneObject, points: EmbeddedPoints, body: TetBody
+    ) -> list[PointActuator]:
+        """SoftRobots' PositionConstraint: one row for each point and each direction that
+        ``useDirections`` selects (``directions``: the axes unless given, normalised), the
+        point's displacement from rest along it times the direction's ``weight``; every row
+        imposes the same ``value`` (a displacement or a force), within the scene's bounds."""
+        directions = _floats(obj.attrs.get("directions", ""), f"{obj.path}.directions")
+        directions = np.eye(3) if directions.size == 0 else directions.reshape(-1, 3)
+        use = _floats(obj.attrs.get("useDirections", "1 1 1"), f"{obj.path}.useDirections")
+        weight = _floats(obj.attrs.get("weight", "1"), f"{obj.path}.weight")
+        weight = np.full(3, weight[0]) if weight.size != 3 else weight
+        if directions.shape[0] != 3 or use.size != 3:
+            raise SceneError(f"{obj.path}: directions and useDirections give three axes")
+        if not use.any():  # SoftRobots then takes every direction
+            use = np.ones(3)
+        values = _floats(obj.attrs.get("value", "0"), f"{obj.path}.value")
+        index = int(_float(obj, "valueIndex", 0.0))
+        mode = _value_type(obj, ("displacement", "force"))
+        if mode not in ("displacement", "force"):
+            raise SceneError(f"{obj.path}.valueType: 'displacement' or 'force', not {mode!r}")
+        name = obj.node.name if obj.name == obj.type else obj.node.name + "/" + obj.name
+        rows = []
+        for i in range(len(points)):
+            one = points.subset(i)
+            for axis in np.flatnonzero(use):
+                rows.append(
+                    PointActuator(
+                        one,
+                        body.rest_positions,
+                        directions[axis],
+                        weight=float(weight[axis]),
+                        name=f"{name}[{i}]{'xyz'[axis]}",
+                        mode=mode,
+                        value=float(values[index]) if values.size else 0.0,
+                        min_force=_float(obj, "minForce", -math.inf),
+                        max_force=_float(obj, "maxForce", math.inf),
+                        min_displacement=-_float(obj, "maxNegativeDisp", math.inf),
+                        max_displacement=_float(obj, "maxPositiveDisp", math.inf),
+                    )
+                )
+                self.bindings.actuators.append(obj)
+        return rows
 
     def _cavity(
         self, node: SceneNode, obj: SceneObject, points: EmbeddedPoints, body: TetBody

@@ -93,7 +93,7 @@ def _import_error(path: Path, exc: ImportError) -> SceneError:
             what = f"{missing.group(1)} from {name!r}"
         return SceneError(
             f"{_where(path, exc, message=False)}imports {what}, which Pliant does not provide"
-            " (docs/sofa.md lists the SofaPython3 modules and prefabs it has)"
+            " (docs/sofa-reference.md lists the SofaPython3 modules and prefabs it has)"
         )
     return SceneError(_where(path, exc))
 

@@ -78,7 +78,8 @@ class Data:
         value = data_value(self.owner.attrs.get(self.key, self.default))
         if not isinstance(value, (np.ndarray, float, int)) or isinstance(value, bool):
             return value
-        if self.key in POINT_FIELDS:  # a vector of points: (n, 3), or (n, 7) for rigid poses
+        scalar = isinstance(self.default, (int, float)) and not isinstance(self.default, bool)
+        if self.key in POINT_FIELDS and not scalar:  # points: (n, 3), or (n, 7) rigid poses
             width = 7 if str(self.owner.attrs.get("template", "")).startswith("Rigid3") else 3
             value = np.asarray(value, dtype=float).reshape(-1, width)
         elif self.key in INDEX_FIELDS:
