@@ -16,7 +16,8 @@ and each parameter gets pbar = -(dR/dp)^T mu: mu_e, lam_e: -mu_q.f^e(unit parame
 (the held nodes stay at their rest positions, so their share of dL/dq and of
 -grad_q mu.R joins the rest positions');
 density: -mu_q.g / rho; a force command: -H_f mu_q; a displacement target: mu_l; a nodal force:
--mu_q; rest positions: -grad_X mu_q.(f + g) + H_d(X)^T mu_l. For a law homogeneous of degree
+-mu_q; rest positions: -grad_X mu_q.(f + g) + H_d(X)^T mu_l; cable routing points P:
+-grad_P (lambda.H(q; P) mu_q + mu_l.delta_d(q; P)) (:mod:`pliant.diff.design`). For a law homogeneous of degree
 one in E (both here), q depends on f_ext / E only, so E dq/dE = -f_ext . dq/df_ext: for a
 linear response, d delta / dE = -delta / E (the tests check both).
 """
@@ -27,6 +28,7 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
+from pliant.diff.design import routing_gradient
 from pliant.diff.elements import (
     body_shape,
     complex_step_gradient,
@@ -121,6 +123,8 @@ def static_gradient(
             out[name] = 0.0
         elif name == "external_forces":
             out[name] = -mu_full
+        elif name == "cable_routing":
+            out[name] = routing_gradient(model, q, -mu_l, [(-lam, mu_full)])
         else:
             out[name] = _rest_positions(model, q, mu_e, mu_l, local)
             out[name] += _held_nodes(model, q, lam, grad_q, mu_e, mu_full, mu_l, shape, local)

@@ -46,6 +46,8 @@ vbar = dL/dv' + h dL/dq', the adjoint mu = (mu_v, mu_l) solves dF/dy^T mu = (vba
 * alpha: dF1/dalpha = h M v'; beta: dF1/dbeta = h K_s v'.
 * density rho (M and g scale with it): dF1/drho = (a_m M v' - M v - h g) / rho.
 * a constant nodal force f_ext: h mu_v.
+* cable routing points P (rest positions of the cables' points, :mod:`pliant.diff.design`):
+  h grad_P (lambda.H(q; P) mu_v) - h grad_P (mu_l.H_d(q; P) v') - grad_P (mu_l.delta_d(q; P)).
 * rest positions X (with the embedding of the constraint points, their barycentric weights,
   held): the elements' g, V and rest frames and the lumped masses read X (complex step
   again), and a row's rest value delta_d = g(x) - g(X) gives H_d(X)^T mu_l.
@@ -63,6 +65,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from pliant.constraints.base import actuator_bounds, change_reference
+from pliant.diff.design import routing_gradient
 from pliant.diff.elements import (
     body_shape,
     check_material,
@@ -91,6 +94,7 @@ PARAMETERS = (
     "rayleigh_stiffness",
     "external_forces",
     "rest_positions",
+    "cable_routing",
 )
 
 # Fourth-order central difference of the rows' Jacobian along a direction, step relative to
@@ -258,7 +262,8 @@ class StepAdjoint:
         "positions" and "velocities" (n, 3) of the state it started from, and those of the
         parameters `wrt` (:data:`PARAMETERS`): "controls" (n_a,), "young_modulus" and
         "poisson_ratio" per element (m,), "density", "rayleigh_mass", "rayleigh_stiffness"
-        (floats), "external_forces" and "rest_positions" (n, 3)."""
+        (floats), "external_forces" and "rest_positions" (n, 3), "cable_routing" (P, 3) (the layout of
+        :func:`pliant.diff.design.routing_points`)."""
         model, body, h = self.model, self.model.body, self.h
         self._lame = None  # this cotangent's (E, nu) shares, computed once for both
         d = self.rows.equality
@@ -371,6 +376,10 @@ class StepAdjoint:
             return float(-(mu_v @ term) / body.density)
         if name == "external_forces":
             return body.scatter(h * mu_v)
+        if name == "cable_routing":
+            held = np.where(self.rows.follows_state, 0.0, mu_l)
+            products = [(h * self.lam, body.scatter(mu_v)), (-h * mu_l, body.scatter(v_new))]
+            return routing_gradient(self.model, self.q, -held, products)
         return self._rest_positions(mu_v, mu_l, mu_e, v_e, local)
 
     def _rest_positions(self, mu_v, mu_l, mu_e, v_e, local):
