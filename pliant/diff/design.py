@@ -1,178 +1,189 @@
-"""Cable routing as a design parameter: where each cable passes through the body.
-
-A cable passes through points embedded in the body (:class:`pliant.constraints.base.
-EmbeddedPoints`): point j lies in element e_j with barycentric weights w_j, and moves with
-the body as p_j(x) = sum_a w_ja x_a. Its *routing point* is its rest position P_j, where it
-sits in the undeformed body; the weights are the element's shape functions there,
-w_ja = N_a(P_j), linear in P_j with gradient the element's rest shape-function gradient
-g_a. So inside an element
-
-    d p_j / d P_j = sum_a x_a (x) g_a = F_e(x),
-
-the element's deformation gradient, and the cable's rest length L0 = L(P) moves with P too.
-A routing point crossing a face into the next element keeps p_j continuous, but F changes:
-the loss is piecewise smooth in P, with kinks on the element faces (one-sided derivatives
-there).
-
-The rows of cable c (:class:`pliant.constraints.cable.CableActuator`) are
-delta_c(x; P) = L(P) - L(p(x; P)) and H_c(x; P) z = -sum_j dL/dp_j . z_j with
-z_j = sum_a w_ja z_a. :func:`routing_gradient` gives the gradient in P of
-
-    phi(P) = sum_c a_c delta_c(x; P) + sum_k sum_c b_kc H_c(x; P) z_k,
-
-the only form in which the routing enters a step's or an equilibrium's residual (the adjoints
-of :mod:`pliant.diff.step` and :mod:`pliant.diff.static` pass their own coefficients): with
-F_j = F_e(x) and G_j = F_e(z),
-
-    d phi / d P_j = a_c (dL/dV_j(P) - F_j^T dL/dp_j) - b_c (F_j^T (Hess L z~)_j + G_j^T dL/dp_j),
-
-Hess L of the polyline length (segment by segment (I - u u^T) / l on the difference of its
-end points' directions z~).
+"""Routing design: move a cable through the body so that an effector reaches further for the
+same actuation, by L-BFGS-B on the exact gradient of the equilibrium (the implicit-function
+theorem, :mod:`pliant.diff.static`) with respect to the cable's routing points
+(:mod:`pliant.diff.routing`), each point kept in a box inside the body.
 """
 
 from __future__ import annotations
 
-import copy
+from dataclasses import dataclass, field
 
 import numpy as np
+from scipy import optimize
 
-from pliant.constraints.base import EmbeddedPoints
-from pliant.constraints.cable import CableActuator
-from pliant.diff.elements import rest_shape
-from pliant.errors import ModelError
+from pliant.constraints.control import DirectControl
+from pliant.diff.routing import rerouted, routing_points, routing_slices
+from pliant.diff.static import static_gradient
+from pliant.errors import DivergenceError, ModelError
 from pliant.model import Model
+from pliant.solvers.static import StaticSolver
 
 
-def cable_indices(model: Model) -> list[int]:
-    """Indices into ``model.actuators`` of its cables, whose routing :data:`"cable_routing"`
-    differentiates (other actuators have none)."""
-    return [i for i, a in enumerate(model.actuators) if isinstance(a, CableActuator)]
+class RoutingDesign:
+    """How far an effector point moves, at static equilibrium, for a fixed actuation, as a
+    function of the routing coordinates of one cable: the objective of a routing design.
+
+    The design vector theta holds the coordinates `free` (a (k, 3) mask over the cable's
+    points) of the cable's routing points; the others stay where `model` has them. Each
+    evaluation reroutes the model (:func:`rerouted`), solves the equilibrium from rest under
+    `commands` (:class:`pliant.solvers.StaticSolver`) and reads the reach |p - p_rest| of
+    the effector's point `point`; :meth:`reach_and_gradient` adds its gradient by the
+    implicit-function theorem (:func:`pliant.diff.static.static_gradient`).
+
+    Attributes:
+        solves: equilibria solved so far; adjoints: gradients taken so far.
+    """
+
+    def __init__(
+        self,
+        model: Model,
+        cable: str,
+        commands: np.ndarray,
+        *,
+        free: np.ndarray | None = None,
+        effector: int = 0,
+        point: int = 0,
+    ) -> None:
+        slices = routing_slices(model)
+        if cable not in slices:
+            raise ModelError(f"no cable named {cable!r}; the model's cables: {sorted(slices)}")
+        self.model, self.rows = model, slices[cable]
+        self.commands = np.asarray(commands, dtype=float)
+        if self.commands.shape != (model.n_actuators,):
+            raise ModelError(f"commands must be ({model.n_actuators},), got {self.commands.shape}")
+        k = self.rows.stop - self.rows.start
+        self.free = np.ones((k, 3), bool) if free is None else np.asarray(free, dtype=bool)
+        if self.free.shape != (k, 3):
+            raise ModelError(f"free must be a ({k}, 3) mask over {cable}'s points")
+        self.points_now = routing_points(model)
+        self.effector = model.effectors[effector].points
+        self.point = point
+        self.rest_tip = self.effector.positions(model.body.rest_positions)[point]
+        self.solves = 0
+        self.adjoints = 0
+
+    @property
+    def initial(self) -> np.ndarray:
+        """theta of `model`'s own routing."""
+        return self.points_now[self.rows][self.free]
+
+    def points(self, theta: np.ndarray) -> np.ndarray:
+        """All routing points (P, 3) for the design vector `theta`."""
+        out = self.points_now.copy()
+        cable = out[self.rows]
+        cable[self.free] = np.asarray(theta, dtype=float)
+        out[self.rows] = cable
+        return out
+
+    def _solve(self, theta):
+        model = rerouted(self.model, self.points(theta))
+        solver = StaticSolver(model)
+        equilibrium = solver.step(model.rest_state(), DirectControl(self.commands.copy()))
+        self.solves += 1
+        moved = self.effector.positions(equilibrium.positions)[self.point] - self.rest_tip
+        return model, solver, equilibrium, moved
+
+    def reach(self, theta: np.ndarray) -> float:
+        """|p - p_rest| of the effector point at equilibrium (one static solve)."""
+        return float(np.linalg.norm(self._solve(theta)[3]))
+
+    def reach_and_gradient(self, theta: np.ndarray) -> tuple[float, np.ndarray]:
+        """The reach and its gradient in theta (one static solve and its adjoint)."""
+        model, solver, equilibrium, moved = self._solve(theta)
+        reach = float(np.linalg.norm(moved))
+        grad_q = np.zeros_like(equilibrium.positions)
+        weights = self.effector.weights[self.point]
+        np.add.at(grad_q, self.effector.nodes[self.point], weights[:, None] * moved / reach)
+        grads = static_gradient(
+            model, solver, equilibrium, self.commands, grad_q, wrt=("cable_routing",)
+        )
+        self.adjoints += 1
+        return reach, grads["cable_routing"][self.rows][self.free]
 
 
-def routing_points(model: Model) -> np.ndarray:
-    """(P, 3) the rest positions of every cable's points, cable after cable in actuator
-    order: the layout of the ``"cable_routing"`` gradient."""
-    rest = model.body.rest_positions
-    parts = [model.actuators[i].points.positions(rest) for i in cable_indices(model)]
-    return np.vstack(parts) if parts else np.zeros((0, 3))
+@dataclass
+class DesignResult:
+    """An optimisation of a routing design.
+
+    Attributes:
+        theta: the best design vector found; reach: its reach.
+        history: (solves so far, reach) after each evaluation, in order.
+        solves, adjoints: equilibria solved and gradients taken in all.
+        failed: evaluations whose equilibrium failed (counted as reach 0).
+    """
+
+    theta: np.ndarray
+    reach: float
+    history: list[tuple[int, float]] = field(default_factory=list)
+    solves: int = 0
+    adjoints: int = 0
+    failed: int = 0
 
 
-def routing_slices(model: Model) -> dict[str, slice]:
-    """Cable name -> its rows in :func:`routing_points`."""
-    out, start = {}, 0
-    for i in cable_indices(model):
-        k = len(model.actuators[i].points)
-        out[model.actuators[i].name] = slice(start, start + k)
-        start += k
-    return out
-
-
-def rerouted(model: Model, points: np.ndarray) -> Model:
-    """A model like `model` whose cables pass through the rest positions `points` (P, 3, as
-    :func:`routing_points`), each embedded in the element of the rest mesh that holds it; the
-    cables' rest lengths follow. The body, effectors and contacts are shared, not copied.
+def optimise_routing(
+    design: RoutingDesign,
+    lower: np.ndarray,
+    upper: np.ndarray,
+    *,
+    method: str = "L-BFGS-B",
+    max_solves: int = 50,
+    initial: np.ndarray | None = None,
+) -> DesignResult:
+    """Maximise the design's reach within the box [lower, upper] by scipy's L-BFGS-B on the
+    exact gradient (one solve and one adjoint per evaluation) or by Nelder-Mead (bounded,
+    derivative-free), stopping after `max_solves` equilibria. An equilibrium that fails to
+    converge (DivergenceError) counts as a solve of reach 0.
 
     Raises:
-        ModelError: wrong shape, a point outside the body (beyond 1e-9 of its size).
+        ModelError: unknown method, lower > upper, a start outside the box.
     """
-    body = model.body
-    points = np.asarray(points, dtype=float)
-    current = routing_points(model)
-    if points.shape != current.shape or not np.all(np.isfinite(points)):
-        raise ModelError(
-            f"routing points must be finite {current.shape}, one per cable point, got"
-            f" {points.shape}"
-        )
-    actuators = list(model.actuators)
-    for name, rows in routing_slices(model).items():
-        i = next(k for k, a in enumerate(actuators) if a.name == name)
-        embedded = EmbeddedPoints(body.mesh, points[rows], tolerance=1e-9 * body.extent)
-        cable = copy.copy(actuators[i])
-        cable.points = embedded
-        cable.rest_length = cable.length(body.rest_positions)
-        actuators[i] = cable
-    return Model(
-        body,
-        actuators=actuators,
-        effectors=model.effectors,
-        contacts=model.contacts,
-        drivers=model.drivers,
-        name=model.name,
-    )
+    lower, upper = np.asarray(lower, float), np.asarray(upper, float)
+    theta0 = design.initial if initial is None else np.asarray(initial, float)
+    if lower.shape != theta0.shape or upper.shape != theta0.shape or np.any(lower > upper):
+        raise ModelError(f"bounds must be {theta0.shape} with lower <= upper")
+    if np.any(theta0 < lower) or np.any(theta0 > upper):
+        raise ModelError("the initial design lies outside the bounds")
+    if method not in ("L-BFGS-B", "Nelder-Mead"):
+        raise ModelError(f"method must be 'L-BFGS-B' or 'Nelder-Mead', got {method!r}")
+    out = DesignResult(theta0.copy(), 0.0)
+    start = (design.solves, design.adjoints)
 
+    class Spent(Exception):
+        pass
 
-def _point_frames(points: EmbeddedPoints, rest: np.ndarray, y: np.ndarray) -> np.ndarray:
-    """(k, 3, 3) F_j(y) = sum_a y_a (x) g_a of each point's element, g its rest shape-function
-    gradients (so F_j(x) = d p_j / d P_j)."""
-    if np.any(np.ptp(points.nodes, axis=1) == 0):
-        raise ModelError(
-            "routing gradients need cable points embedded in elements (EmbeddedPoints(mesh,"
-            " points)), not at nodes (EmbeddedPoints.at_nodes): a node's weights have no"
-            " gradient"
-        )
-    grads = rest_shape(None, rest[points.nodes], None).grads
-    return np.einsum("kai,kaj->kij", y[points.nodes], grads)
+    def record(theta, value):
+        out.history.append((design.solves - start[0], value))
+        if value > out.reach:
+            out.theta, out.reach = np.array(theta, float), value
 
-
-def _polyline_terms(cable: CableActuator, verts: np.ndarray, directions: np.ndarray | None):
-    """dL/dV at the polyline `verts` (pull point first, if any) for the embedded points
-    (k, 3), and, for `directions` z~ of the embedded points (k, 3), (Hess L z~) for them."""
-    seg = np.diff(verts, axis=0)
-    length = np.linalg.norm(seg, axis=1)
-    if np.any(length == 0.0):
-        raise ModelError(f"{cable.name}: two consecutive cable points coincide")
-    unit = seg / length[:, None]
-    dl = np.zeros_like(verts)
-    dl[1:] += unit
-    dl[:-1] -= unit
-    start = 0 if cable.pull_point is None else 1
-    if directions is None:
-        return dl[start:], None
-    z = np.zeros_like(verts)
-    z[start:] = directions
-    dz = np.diff(z, axis=0)
-    r = (dz - unit * np.einsum("si,si->s", unit, dz)[:, None]) / length[:, None]
-    hz = np.zeros_like(verts)
-    hz[1:] += r
-    hz[:-1] -= r
-    return dl[start:], hz[start:]
-
-
-def _vertices(cable: CableActuator, p: np.ndarray) -> np.ndarray:
-    return p if cable.pull_point is None else np.vstack([cable.pull_point, p])
-
-
-def routing_gradient(
-    model: Model,
-    x: np.ndarray,
-    distance_coefficients: np.ndarray,
-    products: list[tuple[np.ndarray, np.ndarray]] = (),
-) -> np.ndarray:
-    """(P, 3) gradient in the routing points of phi (module docstring) at positions `x`:
-    `distance_coefficients` a (n_a,) multiply the rows' values, each (b, z) of `products`
-    (b (n_a,), z (n, 3)) the rows' products H z. Coefficients of actuators other than cables
-    are ignored."""
-    rest = model.body.rest_positions
-    out = []
-    for i in cable_indices(model):
-        cable = model.actuators[i]
-        pts = cable.points
-        p = pts.positions(x)
-        f_x = _point_frames(pts, rest, x)
-        dl_rest, _ = _polyline_terms(cable, _vertices(cable, pts.positions(rest)), None)
-        grad = distance_coefficients[i] * dl_rest
-        dl_now = None
-        for b, z in products:
-            if b[i] == 0.0:
-                continue
-            dl_now, hz = _polyline_terms(cable, _vertices(cable, p), pts.positions(z))
-            f_z = _point_frames(pts, rest, z)
-            grad -= b[i] * (
-                np.einsum("kij,ki->kj", f_x, hz) + np.einsum("kij,ki->kj", f_z, dl_now)
+    def evaluate(theta, gradient):
+        if design.solves - start[0] >= max_solves:
+            raise Spent
+        try:
+            value, grad = (
+                design.reach_and_gradient(theta) if gradient else (design.reach(theta), None)
             )
-        if distance_coefficients[i] != 0.0:
-            if dl_now is None:
-                dl_now, _ = _polyline_terms(cable, _vertices(cable, p), None)
-            grad -= distance_coefficients[i] * np.einsum("kij,ki->kj", f_x, dl_now)
-        out.append(grad)
-    return np.vstack(out) if out else np.zeros((0, 3))
+        except DivergenceError:
+            design.solves += 1
+            out.failed += 1
+            value, grad = 0.0, np.zeros_like(theta)
+        record(theta, value)
+        return (-value, -grad) if gradient else -value
+
+    bounds = list(zip(lower, upper, strict=True))
+    try:
+        if method == "L-BFGS-B":
+            optimize.minimize(
+                evaluate, theta0, args=(True,), jac=True, method=method, bounds=bounds,
+                options={"maxfun": max_solves, "ftol": 1e-12, "gtol": 1e-9},
+            )
+        else:
+            optimize.minimize(
+                evaluate, theta0, args=(False,), method=method, bounds=bounds,
+                options={"maxfev": max_solves, "xatol": 1e-6, "fatol": 1e-9},
+            )
+    except Spent:
+        pass
+    out.solves = design.solves - start[0]
+    out.adjoints = design.adjoints - start[1]
+    return out

@@ -12,6 +12,7 @@ from pliant.fem.loads import NodalForces
 from pliant.fem.material import Corotational, NeoHookean
 from pliant.mesh.shapes import box_beam
 from pliant.model import Model
+from pliant.robots.finger import soft_finger
 
 
 def cable_beam(
@@ -68,3 +69,21 @@ def cable_beam(
         )
     ]
     return Model(body, actuators=cables, name="beam")
+
+
+def routing_finger(resolution="coarse", *, pull=8.0):
+    """The Soft Finger (:func:`pliant.robots.finger.soft_finger`, displacement-mode cables, no
+    gravity) with its closing cable only, and the box each of that cable's six routing points
+    may move in, in x and z (y held at the mid-plane): the half of its phalanx (40 mm long,
+    20 mm high, phalanges every 52 mm) it starts in, less 1 mm. Returns (model, commands, free, lower, upper)
+    for :class:`pliant.diff.design.RoutingDesign` on the cable "cable_0" pulled by `pull` mm.
+    """
+    finger = soft_finger(resolution=resolution, gravity=(0.0, 0.0, 0.0))
+    model = Model(
+        finger.body, actuators=finger.actuators[:1], effectors=finger.effectors, name="finger"
+    )
+    half = np.repeat(np.arange(3), 2) * 52.0 + np.tile([0.0, 20.0], 3)
+    free = np.tile([True, False, True], (6, 1))
+    lower = np.column_stack([half + 1.0, np.ones(6)]).ravel()
+    upper = np.column_stack([half + 19.0, np.full(6, 19.0)]).ravel()
+    return model, np.array([pull]), free, lower, upper

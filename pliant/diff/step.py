@@ -46,7 +46,7 @@ vbar = dL/dv' + h dL/dq', the adjoint mu = (mu_v, mu_l) solves dF/dy^T mu = (vba
 * alpha: dF1/dalpha = h M v'; beta: dF1/dbeta = h K_s v'.
 * density rho (M and g scale with it): dF1/drho = (a_m M v' - M v - h g) / rho.
 * a constant nodal force f_ext: h mu_v.
-* cable routing points P (rest positions of the cables' points, :mod:`pliant.diff.design`):
+* cable routing points P (rest positions of the cables' points, :mod:`pliant.diff.routing`):
   h grad_P (lambda.H(q; P) mu_v) - h grad_P (mu_l.H_d(q; P) v') - grad_P (mu_l.delta_d(q; P)).
 * rest positions X (with the embedding of the constraint points, their barycentric weights,
   held): the elements' g, V and rest frames and the lumped masses read X (complex step
@@ -65,7 +65,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from pliant.constraints.base import actuator_bounds, change_reference
-from pliant.diff.design import routing_gradient
+from pliant.diff.routing import routing_gradient
 from pliant.diff.elements import (
     body_shape,
     check_material,
@@ -263,7 +263,7 @@ class StepAdjoint:
         parameters `wrt` (:data:`PARAMETERS`): "controls" (n_a,), "young_modulus" and
         "poisson_ratio" per element (m,), "density", "rayleigh_mass", "rayleigh_stiffness"
         (floats), "external_forces" and "rest_positions" (n, 3), "cable_routing" (P, 3) (the layout of
-        :func:`pliant.diff.design.routing_points`)."""
+        :func:`pliant.diff.routing.routing_points`)."""
         model, body, h = self.model, self.model.body, self.h
         self._lame = None  # this cotangent's (E, nu) shares, computed once for both
         d = self.rows.equality
