@@ -174,12 +174,21 @@ def optimise_routing(
     try:
         if method == "L-BFGS-B":
             optimize.minimize(
-                evaluate, theta0, args=(True,), jac=True, method=method, bounds=bounds,
+                evaluate,
+                theta0,
+                args=(True,),
+                jac=True,
+                method=method,
+                bounds=bounds,
                 options={"maxfun": max_solves, "ftol": 1e-12, "gtol": 1e-9},
             )
         else:
             optimize.minimize(
-                evaluate, theta0, args=(False,), method=method, bounds=bounds,
+                evaluate,
+                theta0,
+                args=(False,),
+                method=method,
+                bounds=bounds,
                 options={"maxfev": max_solves, "xatol": 1e-6, "fatol": 1e-9},
             )
     except Spent:

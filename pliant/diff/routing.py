@@ -104,7 +104,8 @@ def rerouted(model: Model, points: np.ndarray) -> Model:
 def _point_frames(points: EmbeddedPoints, rest: np.ndarray, y: np.ndarray) -> np.ndarray:
     """(k, 3, 3) F_j(y) = sum_a y_a (x) g_a of each point's element, g its rest shape-function
     gradients (so F_j(x) = d p_j / d P_j)."""
-    if np.any(np.ptp(points.nodes, axis=1) == 0):
+    ordered = np.sort(points.nodes, axis=1)
+    if np.any(ordered[:, 1:] == ordered[:, :-1]):
         raise ModelError(
             "routing gradients need cable points embedded in elements (EmbeddedPoints(mesh,"
             " points)), not at nodes (EmbeddedPoints.at_nodes): a node's weights have no"
@@ -167,13 +168,10 @@ def routing_gradient(
                 continue
             dl_now, hz = _polyline_terms(cable, _vertices(cable, p), pts.positions(z))
             f_z = _point_frames(pts, rest, z)
-            grad -= b[i] * (
-                np.einsum("kij,ki->kj", f_x, hz) + np.einsum("kij,ki->kj", f_z, dl_now)
-            )
+            grad -= b[i] * (np.einsum("kij,ki->kj", f_x, hz) + np.einsum("kij,ki->kj", f_z, dl_now))
         if distance_coefficients[i] != 0.0:
             if dl_now is None:
                 dl_now, _ = _polyline_terms(cable, _vertices(cable, p), None)
             grad -= distance_coefficients[i] * np.einsum("kij,ki->kj", f_x, dl_now)
         out.append(grad)
     return np.vstack(out) if out else np.zeros((0, 3))
-
