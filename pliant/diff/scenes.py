@@ -12,7 +12,6 @@ from pliant.fem.loads import NodalForces
 from pliant.fem.material import Corotational, NeoHookean
 from pliant.mesh.shapes import box_beam
 from pliant.model import Model
-from pliant.robots.finger import soft_finger
 
 
 def cable_beam(
@@ -71,14 +70,15 @@ def cable_beam(
     return Model(body, actuators=cables, name="beam")
 
 
-def routing_finger(resolution="coarse", *, pull=8.0):
-    """The Soft Finger (:func:`pliant.robots.finger.soft_finger`, displacement-mode cables, no
-    gravity) with its closing cable only, and the box each of that cable's six routing points
-    may move in, in x and z (y held at the mid-plane): the half of its phalanx (40 mm long,
-    20 mm high, phalanges every 52 mm) it starts in, less 1 mm. Returns (model, commands, free, lower, upper)
-    for :class:`pliant.diff.design.RoutingDesign` on the cable "cable_0" pulled by `pull` mm.
+def routing_finger(finger: Model, *, pull=8.0):
+    """The Soft Finger `finger` (:func:`pliant.robots.finger.soft_finger` at its default
+    dimensions, displacement-mode cables) with its closing cable only, and the box each of
+    that cable's six routing points may move in, in x and z (y held at the mid-plane): the
+    half of its phalanx (40 mm long, 20 mm high, phalanges every 52 mm) it starts in, less
+    1 mm. Returns (model, commands,
+    free, lower, upper) for :class:`pliant.diff.design.RoutingDesign` on the cable "cable_0"
+    pulled by `pull` mm.
     """
-    finger = soft_finger(resolution=resolution, gravity=(0.0, 0.0, 0.0))
     model = Model(
         finger.body, actuators=finger.actuators[:1], effectors=finger.effectors, name="finger"
     )

@@ -17,9 +17,10 @@ and each parameter gets pbar = -(dR/dp)^T mu: mu_e, lam_e: -mu_q.f^e(unit parame
 -grad_q mu.R joins the rest positions');
 density: -mu_q.g / rho; a force command: -H_f mu_q; a displacement target: mu_l; a nodal force:
 -mu_q; rest positions: -grad_X mu_q.(f + g) + H_d(X)^T mu_l; cable routing points P:
--grad_P (lambda.H(q; P) mu_q + mu_l.delta_d(q; P)) (:mod:`pliant.diff.routing`). For a law homogeneous of degree
-one in E (both here), q depends on f_ext / E only, so E dq/dE = -f_ext . dq/df_ext: for a
-linear response, d delta / dE = -delta / E (the tests check both).
+-grad_P (lambda.H(q; P) mu_q + mu_l.delta_d(q; P)) (:mod:`pliant.diff.routing`). For a law
+homogeneous of degree one in E (both here), q depends on f_ext / E only, so
+E dq/dE = -f_ext . dq/df_ext: for a linear response, d delta / dE = -delta / E (the tests
+check both).
 """
 
 from __future__ import annotations
@@ -28,7 +29,6 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from pliant.diff.routing import routing_gradient
 from pliant.diff.elements import (
     body_shape,
     complex_step_gradient,
@@ -39,6 +39,7 @@ from pliant.diff.elements import (
     rest_shape,
 )
 from pliant.diff.parameters import check_regions, region_sum
+from pliant.diff.routing import routing_gradient
 from pliant.diff.step import (
     ActuatorRows,
     check_model,

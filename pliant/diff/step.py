@@ -65,7 +65,6 @@ from dataclasses import dataclass
 import numpy as np
 
 from pliant.constraints.base import actuator_bounds, change_reference
-from pliant.diff.routing import routing_gradient
 from pliant.diff.elements import (
     body_shape,
     check_material,
@@ -76,6 +75,7 @@ from pliant.diff.elements import (
     rest_shape,
 )
 from pliant.diff.kernels import corotational_value_gradient
+from pliant.diff.routing import routing_gradient
 from pliant.errors import ModelError
 from pliant.fem import kernels as fem_kernels
 from pliant.fem.body import TetBody
@@ -262,8 +262,8 @@ class StepAdjoint:
         "positions" and "velocities" (n, 3) of the state it started from, and those of the
         parameters `wrt` (:data:`PARAMETERS`): "controls" (n_a,), "young_modulus" and
         "poisson_ratio" per element (m,), "density", "rayleigh_mass", "rayleigh_stiffness"
-        (floats), "external_forces" and "rest_positions" (n, 3), "cable_routing" (P, 3) (the layout of
-        :func:`pliant.diff.routing.routing_points`)."""
+        (floats), "external_forces" and "rest_positions" (n, 3), "cable_routing" (P, 3) (the
+        layout of :func:`pliant.diff.routing.routing_points`)."""
         model, body, h = self.model, self.model.body, self.h
         self._lame = None  # this cotangent's (E, nu) shares, computed once for both
         d = self.rows.equality

@@ -15,6 +15,7 @@ from pliant.diff.routing import rerouted, routing_gradient, routing_points, rout
 from pliant.diff.scenes import cable_beam, routing_finger
 from pliant.diff.static import static_gradient
 from pliant.errors import ModelError
+from pliant.robots.finger import soft_finger
 from pliant.solvers import ImplicitEuler, StaticSolver
 
 TOL = 1e-6
@@ -83,7 +84,7 @@ def test_rollout_routing_gradient_against_finite_differences():
 def test_finger_routing_gradient_against_finite_differences():
     """The coarse Finger's reach for 8 mm of cable: RoutingDesign's gradient in the closing
     cable's (x, z) coordinates against central differences of its reach."""
-    model, commands, free, lower, upper = routing_finger()
+    model, commands, free, lower, upper = routing_finger(soft_finger(gravity=(0.0, 0.0, 0.0)))
     design = RoutingDesign(model, "cable_0", commands, free=free)
     theta = design.initial + 0.5
     reach, grad = design.reach_and_gradient(theta)
@@ -145,7 +146,7 @@ def test_routing_points_round_trip_and_errors():
     # The beam's own cables pass through nodes: no gradient there.
     with pytest.raises(ModelError, match="at nodes"):
         routing_gradient(base, base.body.rest_positions, np.ones(2))
-    model, commands, free, lower, upper = routing_finger()
+    model, commands, free, lower, upper = routing_finger(soft_finger(gravity=(0.0, 0.0, 0.0)))
     with pytest.raises(ModelError, match="no cable"):
         RoutingDesign(model, "cable_9", commands)
     design = RoutingDesign(model, "cable_0", commands, free=free)
