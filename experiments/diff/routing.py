@@ -7,8 +7,8 @@ derivative-free search (Nelder-Mead, Optuna TPE), counted in equilibria solved.
 The coarse Finger (1610 tetrahedra, no gravity; pliant.diff.scenes.routing_finger) with its
 closing cable only, shortened by 8 mm (displacement mode): the design is the (x, z) of the
 cable's six routing points, each in the half of its phalanx it starts in, less 1 mm (12
-coordinates; y stays on the mid-plane), the objective the fingertip's reach |p - p_rest| at
-the static equilibrium. Every method starts from the Finger's own routing (z = 2 mm, 8 mm
+coordinates; y stays on the mid-plane), the objective the fingertip's reach: how far it comes
+down (-z) at the static equilibrium. Every method starts from the Finger's own routing (z = 2 mm, 8 mm
 below mid-height) and is charged one equilibrium (StaticSolver from rest) per evaluation;
 L-BFGS-B's evaluations also take the adjoint (pliant.diff.design.RoutingDesign), whose wall
 time the JSON reports beside the solves. An equilibrium that fails counts as reach 0.
@@ -97,7 +97,7 @@ def figure(out: dict, path: Path) -> None:
     for n in range(3):
         bx.add_patch(plt.Rectangle((52 * n, 0), 40, 20, fill=False, color="0.6"))
     ax.set_xlabel("equilibria solved")
-    ax.set_ylabel("best fingertip reach (mm)")
+    ax.set_ylabel("best reach: fingertip's drop (mm)")
     ax.set_title(f"reach for {out['pull_mm']:.0f} mm of cable")
     ax.legend()
     bx.set_xlabel("x (mm)")

@@ -20,14 +20,16 @@ from pliant.solvers.static import StaticSolver
 
 
 class RoutingDesign:
-    """How far an effector point moves, at static equilibrium, for a fixed actuation, as a
-    function of the routing coordinates of one cable: the objective of a routing design.
+    """How far an effector point travels along a direction, at static equilibrium, for a
+    fixed actuation, as a function of the routing coordinates of one cable: the objective of
+    a routing design.
 
     The design vector theta holds the coordinates `free` (a (k, 3) mask over the cable's
     points) of the cable's routing points; the others stay where `model` has them. Each
     evaluation reroutes the model (:func:`rerouted`), solves the equilibrium from rest under
-    `commands` (:class:`pliant.solvers.StaticSolver`) and reads the reach |p - p_rest| of
-    the effector's point `point`; :meth:`reach_and_gradient` adds its gradient by the
+    `commands` (:class:`pliant.solvers.StaticSolver`) and reads the reach
+    e . (p - p_rest) of the effector's point `point` along the unit vector e of `direction`
+    (default -z: how far a closing finger's tip comes down); :meth:`reach_and_gradient` adds its gradient by the
     implicit-function theorem (:func:`pliant.diff.static.static_gradient`).
 
     Attributes:
@@ -43,6 +45,7 @@ class RoutingDesign:
         free: np.ndarray | None = None,
         effector: int = 0,
         point: int = 0,
+        direction=(0.0, 0.0, -1.0),
     ) -> None:
         slices = routing_slices(model)
         if cable not in slices:
@@ -58,6 +61,10 @@ class RoutingDesign:
         self.points_now = routing_points(model)
         self.effector = model.effectors[effector].points
         self.point = point
+        direction = np.asarray(direction, dtype=float)
+        if direction.shape != (3,) or not np.linalg.norm(direction) > 0:
+            raise ModelError(f"direction must be a non-zero 3-vector, got {direction!r}")
+        self.direction = direction / np.linalg.norm(direction)
         self.rest_tip = self.effector.positions(model.body.rest_positions)[point]
         self.solves = 0
         self.adjoints = 0
@@ -84,16 +91,16 @@ class RoutingDesign:
         return model, solver, equilibrium, moved
 
     def reach(self, theta: np.ndarray) -> float:
-        """|p - p_rest| of the effector point at equilibrium (one static solve)."""
-        return float(np.linalg.norm(self._solve(theta)[3]))
+        """e . (p - p_rest) of the effector point at equilibrium (one static solve)."""
+        return float(self.direction @ self._solve(theta)[3])
 
     def reach_and_gradient(self, theta: np.ndarray) -> tuple[float, np.ndarray]:
         """The reach and its gradient in theta (one static solve and its adjoint)."""
         model, solver, equilibrium, moved = self._solve(theta)
-        reach = float(np.linalg.norm(moved))
+        reach = float(self.direction @ moved)
         grad_q = np.zeros_like(equilibrium.positions)
         weights = self.effector.weights[self.point]
-        np.add.at(grad_q, self.effector.nodes[self.point], weights[:, None] * moved / reach)
+        np.add.at(grad_q, self.effector.nodes[self.point], weights[:, None] * self.direction)
         grads = static_gradient(
             model, solver, equilibrium, self.commands, grad_q, wrt=("cable_routing",)
         )

@@ -7,9 +7,11 @@ import numpy as np
 
 from pliant.constraints.base import EmbeddedPoints
 from pliant.constraints.cable import CableActuator
+from pliant.constraints.contact import Contacts
 from pliant.fem.body import TetBody
 from pliant.fem.loads import NodalForces
 from pliant.fem.material import Corotational, NeoHookean
+from pliant.geometry.collision import Plane
 from pliant.mesh.shapes import box_beam
 from pliant.model import Model
 
@@ -87,3 +89,12 @@ def routing_finger(finger: Model, *, pull=8.0):
     lower = np.column_stack([half + 1.0, np.ones(6)]).ravel()
     upper = np.column_stack([half + 19.0, np.full(6, 19.0)]).ravel()
     return model, np.array([pull]), free, lower, upper
+
+
+def beam_on_floor(*, friction=0.3, floor=-0.6, **beam):
+    """:func:`cable_beam` over a floor (a plane `floor` mm below its underside) that its tip
+    sags onto within a step, Coulomb friction `friction`, the contact solver's tolerance
+    tight (1e-13 mm) so that finite differences of the steps resolve its forces."""
+    model = cable_beam(**beam)
+    contacts = Contacts([Plane(point=(0.0, 0.0, floor))], friction=friction, tolerance=1e-13)
+    return Model(model.body, actuators=model.actuators, contacts=contacts, name="beam on floor")

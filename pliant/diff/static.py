@@ -72,6 +72,11 @@ def static_gradient(
         ModelError: unsupported model, solver or parameter; wrong shapes.
     """
     check_model(model)
+    if model.contacts is not None:
+        raise ModelError(
+            f"{model.name}: static_gradient does not differentiate contacts yet (the dynamic"
+            " step's adjoint does, at its active set: rollout_gradient)"
+        )
     if not isinstance(solver, StaticSolver) or solver.model is not model:
         raise ModelError("static_gradient needs the model's StaticSolver")
     names = check_parameters(wrt)

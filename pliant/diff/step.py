@@ -65,6 +65,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from pliant.constraints.base import actuator_bounds, change_reference
+from pliant.diff.contact import held_contacts
 from pliant.diff.elements import (
     body_shape,
     check_material,
@@ -125,7 +126,10 @@ def check_model(model: Model) -> None:
     missing = [
         what
         for what, present in (
-            ("contacts", model.contacts is not None),
+            (
+                "contacts whose points are not linear in the nodes",
+                model.contacts is not None and not model.contacts.points.linear,
+            ),
             ("drivers", bool(model.drivers)),
             ("rigid bodies", bool(model.rigid_bodies)),
             ("attachments", bool(model.attachments)),
@@ -141,7 +145,7 @@ def check_model(model: Model) -> None:
     if missing:
         raise ModelError(
             f"{model.name}: pliant.diff does not differentiate {', '.join(missing)} yet"
-            " (see docs/diff.md: contact would enter with its forward active set held)"
+            " (see docs/diff.md)"
         )
 
 
@@ -254,6 +258,7 @@ class StepAdjoint:
         self.factor.factorize(data)
         space = model.constraint_space(self.q, roles=("actuator",))
         self.ht = space.jacobian_t[:, space.slices["actuator"]]
+        self.contacts = held_contacts(model, self.h, state, new)
 
     def vjp(
         self, dq_new: np.ndarray, dv_new: np.ndarray, wrt: tuple[str, ...] = ()
@@ -268,14 +273,20 @@ class StepAdjoint:
         self._lame = None  # this cotangent's (E, nu) shares, computed once for both
         d = self.rows.equality
         vbar = body.gather(dv_new) + h * body.gather(dq_new)
-        cols = self.factor.solve(np.column_stack([vbar, self.ht[:, d]]))
-        mu_v = cols[:, 0]
+        # Equality rows: what they hold (K^T) and how they push (G^T); the held contacts'
+        # after the actuators' (pliant.diff.contact: G = K but for sliding contacts).
+        held = self.contacts
         mu_l = np.zeros(self.lam.size)
-        if d.any():
-            a_inv_hd = cols[:, 1:]
-            w_dd = h * h * (self.ht[:, d].T @ a_inv_hd)
-            mu_l[d] = np.linalg.solve(0.5 * (w_dd + w_dd.T), h * (self.ht[:, d].T @ mu_v))
-            mu_v = mu_v - h * (a_inv_hd @ mu_l[d])
+        if held is None:
+            cols = self.factor.solve(np.column_stack([vbar, self.ht[:, d]]))
+            mu_v = cols[:, 0]
+            if d.any():
+                a_inv_hd = cols[:, 1:]
+                w_dd = h * h * (self.ht[:, d].T @ a_inv_hd)
+                mu_l[d] = np.linalg.solve(0.5 * (w_dd + w_dd.T), h * (self.ht[:, d].T @ mu_v))
+                mu_v = mu_v - h * (a_inv_hd @ mu_l[d])
+        else:
+            mu_v, mu_l[d], mu_c = self._contact_adjoint(vbar, held)
         mu_full, v_full = body.scatter(mu_v), body.scatter(self.v_new)
         out: dict[str, np.ndarray | float] = {"velocities": body.scatter(body.mass_matvec(mu_v))}
         # Positions: elements (complex step), then the rows' own dependence on q.
@@ -288,10 +299,30 @@ class StepAdjoint:
         dq += h * row_hessian_product(model, self.q, self.lam, mu_full)
         dq -= h * row_hessian_product(model, self.q, mu_l, v_full)
         dq -= full_rows_t(model, self.q, np.where(self.rows.follows_state, 0.0, mu_l))
+        if held is not None:  # a closed contact's gap at the step's start follows q
+            dq -= body.scatter(held.kinematic[:, held.gap] @ mu_c[held.gap])
         out["positions"] = dq
         for name in wrt:
             out[name] = self._parameter(name, mu_v, mu_l, mu_e, v_e, shape, local)
         return out
+
+    def _contact_adjoint(self, vbar, held):
+        """(mu_v, mu_l of the actuators' equality rows, mu of the contacts' rows) with the
+        held contacts (:mod:`pliant.diff.contact`): A mu_v + R z + h K^T mu_l = vbar,
+        R^T mu_v = C^-1 z, G mu_v = 0."""
+        h, d = self.h, self.rows.equality
+        kin = np.hstack([self.ht[:, d], held.kinematic])
+        push = np.hstack([self.ht[:, d], held.force])
+        s = held.stiffness.size
+        cols = self.factor.solve(np.column_stack([vbar, held.across, kin]))
+        a_r, a_k = cols[:, 1 : 1 + s], h * cols[:, 1 + s :]
+        across = np.column_stack([a_r, a_k])
+        system = np.vstack([held.across.T @ across, push.T @ across])
+        system[:s, :s] += np.diag(1.0 / held.stiffness)
+        rhs = np.concatenate([held.across.T @ cols[:, 0], push.T @ cols[:, 0]])
+        w = np.linalg.solve(system, rhs)
+        n_d = int(d.sum())
+        return cols[:, 0] - across @ w, w[s : s + n_d], w[s + n_d :]
 
     def _unit_law_terms(self, v_full: np.ndarray, mu_e: np.ndarray) -> list[np.ndarray]:
         """-mu_e.(a_k K_s^e v' - h f^e) per element with (mu, lam) = (1, 0) and (0, 1): f and
