@@ -29,8 +29,8 @@ class RoutingDesign:
     evaluation reroutes the model (:func:`rerouted`), solves the equilibrium from rest under
     `commands` (:class:`pliant.solvers.StaticSolver`) and reads the reach
     e . (p - p_rest) of the effector's point `point` along the unit vector e of `direction`
-    (default -z: how far a closing finger's tip comes down); :meth:`reach_and_gradient` adds its gradient by the
-    implicit-function theorem (:func:`pliant.diff.static.static_gradient`).
+    (default -z: how far a closing finger's tip comes down); :meth:`reach_and_gradient` adds
+    its gradient by the implicit-function theorem (:func:`pliant.diff.static.static_gradient`).
 
     Attributes:
         solves: equilibria solved so far; adjoints: gradients taken so far.
