@@ -52,6 +52,11 @@ vbar = dL/dv' + h dL/dq', the adjoint mu = (mu_v, mu_l) solves dF/dy^T mu = (vba
   held): the elements' g, V and rest frames and the lumped masses read X (complex step
   again), and a row's rest value delta_d = g(x) - g(X) gives H_d(X)^T mu_l.
 
+Contacts (no rigid bodies) enter at the forward solve's contact states
+(:mod:`pliant.diff.contact`): closed normals and sticking tangents as equality rows, sliding
+friction along its slip; the block solve then has kinematic rows K, force rows G and the
+sliding contacts' stiffening (:meth:`StepAdjoint._contact_adjoint`).
+
 What is held: the active set of the actuator bounds (a command crossing a bound is a kink; a
 force command exactly at its bound gets the derivative from inside the bounds, the one-sided
 derivative a bound-constrained optimiser needs);

@@ -154,3 +154,13 @@ def test_routing_points_round_trip_and_errors():
         optimise_routing(design, upper, lower)
     with pytest.raises(ModelError, match="method"):
         optimise_routing(design, lower, upper, method="TPE")
+
+
+def test_nelder_mead_spends_its_budget_and_keeps_the_best():
+    model, commands, free, lower, upper = routing_finger(soft_finger(gravity=(0.0, 0.0, 0.0)))
+    design = RoutingDesign(model, "cable_0", commands, free=free)
+    result = optimise_routing(design, lower, upper, method="Nelder-Mead", max_solves=4)
+    assert (result.solves, result.adjoints) == (4, 0)
+    assert len(result.history) == 4
+    assert result.reach == max(r for _, r in result.history)
+    assert np.all(result.theta >= lower) and np.all(result.theta <= upper)
