@@ -46,6 +46,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from pliant.errors import ModelError
 from pliant.model import Model, State
 
 #: A contact slides when its friction force is within this relative distance of the cone.
@@ -129,4 +130,54 @@ def held_contacts(model: Model, dt: float, state: State, new: State) -> HeldCont
         int(closed.sum()),
         int(sticking.sum()),
         int(sliding.sum()),
+    )
+
+
+@dataclass(frozen=True)
+class ClosedNormals:
+    """The closed contacts of a static equilibrium, frictionless: their normal rows n.P on
+    the free DoFs (n_free, c) and on every node (c, 4) nodes with (c, 4, 3) values."""
+
+    rows: np.ndarray
+    nodes: np.ndarray
+    values: np.ndarray
+
+    def full_t(self, coefficients: np.ndarray, n_nodes: int) -> np.ndarray:
+        """sum_i c_i (n.P)_i on every node (n, 3)."""
+        out = np.zeros((n_nodes, 3))
+        np.add.at(out, self.nodes, coefficients[:, None, None] * self.values)
+        return out
+
+
+def closed_normals(model: Model, equilibrium: State) -> ClosedNormals | None:
+    """The closed contacts of a static equilibrium (:class:`pliant.solvers.StaticSolver`), as
+    bilateral normal rows (their gap held at zero); None without contacts or none closed.
+
+    Raises:
+        ModelError: a closed contact with friction: at a static equilibrium a sticking
+            point stays where the Newton iterations left it (the equilibrium depends on
+            the path, not on a closed equation), and a sliding one has no slip to point
+            its friction along; use the dynamic step (rollout_gradient) for friction.
+    """
+    if model.contacts is None:
+        return None
+    contact = model.contacts.constraint(equilibrium.positions, None)
+    if contact is None:
+        return None
+    lam = equilibrium.contact_forces.warm_start(contact.contacts).reshape(-1, 3)
+    closed = np.flatnonzero(lam[:, 0] > 0.0)
+    if closed.size == 0:
+        return None
+    if np.any(contact.friction[closed] > 0.0):
+        raise ModelError(
+            f"{model.name}: static_gradient differentiates frictionless contacts only (a"
+            " sticking point of a static equilibrium stays where the iterations left it);"
+            " friction is differentiated through the dynamic step (rollout_gradient)"
+        )
+    normals = contact.take(closed)
+    normal_rows = np.arange(0, 3 * closed.size, 3)
+    ht = model.constraint_space(equilibrium.positions, [normals], with_distance=False)
+    jac = normals.jacobian(equilibrium.positions)
+    return ClosedNormals(
+        ht.jacobian_t[:, normal_rows], jac.nodes[normal_rows], jac.values[normal_rows]
     )

@@ -21,6 +21,9 @@ density: -mu_q.g / rho; a force command: -H_f mu_q; a displacement target: mu_l;
 homogeneous of degree one in E (both here), q depends on f_ext / E only, so
 E dq/dE = -f_ext . dq/df_ext: for a linear response, d delta / dE = -delta / E (the tests
 check both).
+
+Closed frictionless contacts (:func:`pliant.diff.contact.closed_normals`) join the equality
+rows d with a zero target (their gap held closed); friction is refused here.
 """
 
 from __future__ import annotations
@@ -29,6 +32,7 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
+from pliant.diff.contact import closed_normals
 from pliant.diff.elements import (
     body_shape,
     complex_step_gradient,
@@ -72,11 +76,6 @@ def static_gradient(
         ModelError: unsupported model, solver or parameter; wrong shapes.
     """
     check_model(model)
-    if model.contacts is not None:
-        raise ModelError(
-            f"{model.name}: static_gradient does not differentiate contacts yet (the dynamic"
-            " step's adjoint does, at its active set: rollout_gradient)"
-        )
     if not isinstance(solver, StaticSolver) or solver.model is not model:
         raise ModelError("static_gradient needs the model's StaticSolver")
     names = check_parameters(wrt)
@@ -102,13 +101,18 @@ def static_gradient(
     space = model.constraint_space(q, roles=("actuator",))
     ht = space.jacobian_t[:, space.slices["actuator"]]
     qbar = body.gather(grad_q)
-    cols = lu.solve(np.column_stack([qbar, ht[:, d]]))
+    # Equality rows: the actuators', then the closed contacts' normals (frictionless).
+    contacts = closed_normals(model, equilibrium)
+    rows_d = ht[:, d] if contacts is None else np.hstack([ht[:, d], contacts.rows])
+    cols = lu.solve(np.column_stack([qbar, rows_d]))
     mu_l = np.zeros(lam.size)
+    mu_c = np.zeros(0)
     mu_q = -cols[:, 0]
-    if d.any():
-        schur = ht[:, d].T @ cols[:, 1:]
-        mu_l[d] = np.linalg.solve(schur, ht[:, d].T @ cols[:, 0])
-        mu_q = cols[:, 1:] @ mu_l[d] - cols[:, 0]
+    if rows_d.shape[1]:
+        schur = rows_d.T @ cols[:, 1:]
+        mu_all = np.linalg.solve(schur, rows_d.T @ cols[:, 0])
+        mu_l[d], mu_c = mu_all[: int(d.sum())], mu_all[int(d.sum()) :]
+        mu_q = cols[:, 1:] @ mu_all - cols[:, 0]
     mu_full = body.scatter(mu_q)
     mu_e = mu_full[body.tets]
     out: dict[str, np.ndarray | float] = {}
@@ -134,6 +138,9 @@ def static_gradient(
         else:
             out[name] = _rest_positions(model, q, mu_e, mu_l, local)
             out[name] += _held_nodes(model, q, lam, grad_q, mu_e, mu_full, mu_l, shape, local)
+            if contacts is not None:  # a contact point carried by held nodes
+                held = (body.free_index < 0).reshape(-1, 3)
+                out[name] -= np.where(held, contacts.full_t(mu_c, body.n_nodes), 0.0)
     return out
 
 

@@ -1,6 +1,7 @@
-"""Contact and friction in the rollout gradient (pliant.diff.contact): a cantilever whose tip
-sags onto a floor and is dragged along it by its cables, against central differences of the
-solver itself, where no contact changes state under the perturbation."""
+"""Contact and friction in the gradients (pliant.diff.contact): a cantilever whose tip sags onto
+a floor and is dragged along it by its cables, against central differences of the solvers
+themselves, where no contact changes state under the perturbation: the rollout with and
+without friction, the static equilibrium frictionless."""
 
 from __future__ import annotations
 
@@ -8,6 +9,7 @@ import numpy as np
 import pytest
 
 from pliant.constraints.base import EmbeddedPoints
+from pliant.constraints.control import DirectControl
 from pliant.diff import PointTracking, rollout, rollout_gradient
 from pliant.diff.contact import held_contacts
 from pliant.diff.scenes import beam_on_floor
@@ -92,8 +94,44 @@ def test_rollout_gradient_with_contacts_against_finite_differences(friction):
     assert relative_error((moved[0] - moved[1]) / 2e-3, exact) < TOL
 
 
-def test_static_gradient_refuses_contacts():
-    model = beam_on_floor()
+def _static(model, commands):
     solver = StaticSolver(model)
-    with pytest.raises(ModelError, match="contacts"):
-        static_gradient(model, solver, model.rest_state(), np.zeros(2), np.zeros((24, 3)))
+    return solver, solver.step(model.rest_state(), DirectControl(np.array(commands, float)))
+
+
+def test_static_gradient_with_frictionless_contacts_against_finite_differences():
+    """The beam's equilibrium with two tip corners on the floor (their gaps held closed): the
+    commands, E and the rest shape by the implicit-function theorem."""
+    model = beam_on_floor(friction=0.0)
+    rest = model.body.rest_positions
+    commands = [0.3, 2.0]
+    solver, eq = _static(model, commands)
+    assert np.count_nonzero(eq.contact_forces.forces[:, 2] > 0.0) == 2
+    w = np.random.default_rng(1).standard_normal(rest.shape)
+
+    def loss(m, c):
+        return float(np.sum(w * (_static(m, c)[1].positions - rest)))
+
+    names = ("controls", "young_modulus", "rest_positions")
+    grads = static_gradient(model, solver, eq, np.array(commands), w, wrt=names)
+    for i in range(2):
+        moved = [loss(model, np.add(commands, np.eye(2)[i] * e)) for e in (1e-4, -1e-4)]
+        assert relative_error((moved[0] - moved[1]) / 2e-4, grads["controls"][i]) < TOL
+    moved = [
+        loss(beam_on_floor(friction=0.0, young_modulus=200.0 * (1 + e)), commands)
+        for e in (1e-5, -1e-5)
+    ]
+    assert relative_error((moved[0] - moved[1]) / 4e-3, grads["young_modulus"]) < TOL
+    d = np.random.default_rng(2).standard_normal(rest.shape)
+    moved = [
+        loss(beam_on_floor(friction=0.0, points=rest + e * d), commands) for e in (1e-5, -1e-5)
+    ]
+    exact = np.sum(grads["rest_positions"] * d)
+    assert relative_error((moved[0] - moved[1]) / 2e-5, exact) < TOL
+
+
+def test_static_gradient_refuses_friction():
+    model = beam_on_floor(friction=0.3)
+    solver, eq = _static(model, [0.3, 2.0])
+    with pytest.raises(ModelError, match="frictionless"):
+        static_gradient(model, solver, eq, np.array([0.3, 2.0]), np.zeros_like(eq.positions))
