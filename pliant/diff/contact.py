@@ -63,6 +63,9 @@ class HeldContacts:
         gap: (r,) bool, the row is a normal, whose value at the step's start follows q.
         across: R (n_free, s), each sliding contact's tangential row across its slip.
         stiffness: c (s,), h^2 mu lambda_n / |delta_t| of each sliding contact.
+        friction: d F1 / d mu_i = -h lambda_n (t.P)^T s of each closed contact that slides
+            (frictionless ones slide too) as columns (n_free, f), each with its shape
+            (f,): the cotangent of the shape's coefficient is sum h lambda_n s.(t.P) mu_v.
         closed, sticking, sliding: how many contacts were in each state.
     """
 
@@ -71,6 +74,8 @@ class HeldContacts:
     gap: np.ndarray
     across: np.ndarray
     stiffness: np.ndarray
+    friction: np.ndarray
+    friction_shape: np.ndarray
     closed: int
     sticking: int
     sliding: int
@@ -104,6 +109,7 @@ def held_contacts(model: Model, dt: float, state: State, new: State) -> HeldCont
     slip = contact.distance(state.positions).reshape(-1, 3)[:, 1:]
     slip += dt * np.einsum("fkr,f->kr", rows[:, :, 1:], v_new)
     kinematic, force, gap, across, stiffness = [], [], [], [], []
+    pushes, shapes = [], []
     for i in np.flatnonzero(closed):
         normal = rows[:, i, 0]
         kinematic.append(normal)
@@ -115,6 +121,12 @@ def held_contacts(model: Model, dt: float, state: State, new: State) -> HeldCont
             stiffness.append(dt * dt * mu[i] * lam[i, 0] / np.linalg.norm(slip[i]))
         else:
             force.append(normal)
+        if not sticking[i] and np.linalg.norm(slip[i]) > 0.0:
+            # mu's share: the friction force's size, along -slip (also at mu = 0: the
+            # derivative from mu > 0, where every closed contact of a frictionless step slides).
+            direction = -slip[i] / np.linalg.norm(slip[i])
+            pushes.append(dt * lam[i, 0] * (rows[:, i, 1:] @ direction))
+            shapes.append(contact.contacts.index_b[i])
         if sticking[i]:
             for r in (1, 2):
                 kinematic.append(rows[:, i, r])
@@ -127,6 +139,8 @@ def held_contacts(model: Model, dt: float, state: State, new: State) -> HeldCont
         np.array(gap),
         np.column_stack(across) if across else np.zeros((n_free, 0)),
         np.array(stiffness),
+        np.column_stack(pushes) if pushes else np.zeros((n_free, 0)),
+        np.array(shapes, dtype=np.int64),
         int(closed.sum()),
         int(sticking.sum()),
         int(sliding.sum()),

@@ -133,6 +133,11 @@ def static_gradient(
             out[name] = 0.0
         elif name == "external_forces":
             out[name] = -mu_full
+        elif name == "friction":
+            raise ModelError(
+                "static_gradient does not differentiate friction (see closed_normals); the"
+                " dynamic step does (rollout_gradient)"
+            )
         elif name == "cable_routing":
             out[name] = routing_gradient(model, q, -mu_l, [(-lam, mu_full)])
         else:

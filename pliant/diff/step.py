@@ -101,6 +101,7 @@ PARAMETERS = (
     "external_forces",
     "rest_positions",
     "cable_routing",
+    "friction",
 )
 
 # Fourth-order central difference of the rows' Jacobian along a direction, step relative to
@@ -273,7 +274,8 @@ class StepAdjoint:
         parameters `wrt` (:data:`PARAMETERS`): "controls" (n_a,), "young_modulus" and
         "poisson_ratio" per element (m,), "density", "rayleigh_mass", "rayleigh_stiffness"
         (floats), "external_forces" and "rest_positions" (n, 3), "cable_routing" (P, 3) (the
-        layout of :func:`pliant.diff.routing.routing_points`)."""
+        layout of :func:`pliant.diff.routing.routing_points`), "friction" (one per obstacle
+        shape of the model's contacts)."""
         model, body, h = self.model, self.model.body, self.h
         self._lame = None  # this cotangent's (E, nu) shares, computed once for both
         d = self.rows.equality
@@ -412,6 +414,12 @@ class StepAdjoint:
             return float(-(mu_v @ term) / body.density)
         if name == "external_forces":
             return body.scatter(h * mu_v)
+        if name == "friction":  # one coefficient per obstacle shape (pliant.diff.contact)
+            out = np.zeros(len(self.model.contacts.shapes) if self.model.contacts else 0)
+            held = self.contacts
+            if held is not None:
+                np.add.at(out, held.friction_shape, held.friction.T @ mu_v)
+            return out
         if name == "cable_routing":
             held = np.where(self.rows.follows_state, 0.0, mu_l)
             products = [(h * self.lam, body.scatter(mu_v)), (-h * mu_l, body.scatter(v_new))]

@@ -40,7 +40,12 @@ def _run(model, controls=CONTROLS, state=None):
     solver = ImplicitEuler(model, 0.01, tangent="fresh")
     state = model.rest_state() if state is None else state
     return rollout_gradient(
-        model, solver, state, controls, loss, wrt=("controls", "young_modulus", "rest_positions")
+        model,
+        solver,
+        state,
+        controls,
+        loss,
+        wrt=("controls", "young_modulus", "rest_positions", "friction"),
     )
 
 
@@ -56,7 +61,8 @@ def _states(model):
 @pytest.mark.parametrize("friction", [0.0, 0.3, 3.0])
 def test_rollout_gradient_with_contacts_against_finite_differences(friction):
     """Frictionless contacts; one corner sticking, the other sliding, then both sliding;
-    both sticking, then one: the commands, E, the rest shape and the initial velocities."""
+    both sticking, then one: the commands, E, the rest shape, the friction coefficient and
+    the initial velocities."""
     model = beam_on_floor(friction=friction)
     counts = np.array(_states(model))
     assert counts[:, 0].max() >= 2  # the tip's corners rest on the floor
@@ -83,6 +89,10 @@ def test_rollout_gradient_with_contacts_against_finite_differences(friction):
     ]
     exact = np.sum((grads["rest_positions"] + grads["initial_positions"]) * d)
     assert relative_error((moved[0] - moved[1]) / 2e-5, exact) < TOL
+    if friction > 0.0:  # the coefficient: the sliding contacts' share
+        moved = [_run(beam_on_floor(friction=friction * (1 + e))).value for e in (1e-5, -1e-5)]
+        exact = grads["friction"][0]
+        assert relative_error((moved[0] - moved[1]) / (2e-5 * friction), exact) < TOL
     free = (model.body.free_index >= 0).reshape(-1, 3)
     dv = rng.standard_normal(rest.shape) * free
     moved = []
@@ -135,3 +145,9 @@ def test_static_gradient_refuses_friction():
     solver, eq = _static(model, [0.3, 2.0])
     with pytest.raises(ModelError, match="frictionless"):
         static_gradient(model, solver, eq, np.array([0.3, 2.0]), np.zeros_like(eq.positions))
+    model = beam_on_floor(friction=0.0)
+    solver, eq = _static(model, [0.3, 2.0])
+    with pytest.raises(ModelError, match="friction"):
+        static_gradient(
+            model, solver, eq, np.array([0.3, 2.0]), np.zeros_like(eq.positions), wrt="friction"
+        )
