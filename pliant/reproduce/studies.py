@@ -870,7 +870,7 @@ STUDIES: tuple[Study, ...] = (
         quick=Quick(
             "python experiments/diff/routing.py --lbfgs 8 --budget 8 --out {out}/routing.json",
             {_ROUTING: "routing.json"},
-            seconds=60.0,
+            seconds=34.0,
         ),
     ),
 )
