@@ -58,5 +58,6 @@ for n in range(3):
 axes[1].plot(before[:, 0], before[:, 2], "k--o", ms=3, label="the Finger's routing")
 axes[1].plot(after[:, 0], after[:, 2], "o-", ms=3, label="L-BFGS-B")
 axes[1].set(xlabel="x (mm)", ylabel="z (mm)", aspect="equal")
-axes[1].legend(fontsize=7)
+axes[1].set_ylim(-2.0, 36.0)
+axes[1].legend(fontsize=7, loc="upper center", ncols=2)
 save_figure(fig, "diff_routing.png")
