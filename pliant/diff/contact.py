@@ -32,12 +32,15 @@ contacts' rank-one terms. With z = C R^T mu_v (R = [r], C = diag(c)), the adjoin
 solved with A's factorisation on the columns [vbar, R, K^T] and a dense system for (z, mu_l)
 (:class:`pliant.diff.step.StepAdjoint`).
 
-What is held besides the states: the contact frames (they turn with the point on a curved
-obstacle; exact for planes and the faces of boxes, whose normals do not), the detection (the
-set of contacts within the margin), and the friction coefficient. The gradient is the
-derivative of the step where no contact changes state under the perturbation; where one does
-(a contact opening, a stick turning to slip), the step is not differentiable and this is the
-derivative of one of its branches.
+The contacts are detected again from the step's start state, with the obstacles where they
+are now: an obstacle moved between steps by a script must be put back where it was for the
+adjoint of that step. What is held besides the states: the contact frames (they turn with
+the point on a curved obstacle; exact for planes and the faces of boxes, whose normals do
+not) and the detection (the set of contacts within the margin). The friction coefficient's
+cotangent is the sliding contacts' h lambda_n s.(t.P) mu_v (HeldContacts.friction). The
+gradient is the derivative of the step where no contact changes state under the
+perturbation; where one does (a contact opening, a stick turning to slip), the step is not
+differentiable and this is the derivative of one of its branches.
 """
 
 from __future__ import annotations
