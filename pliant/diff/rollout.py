@@ -97,7 +97,8 @@ def rollout_gradient(
     """The loss of the rollout from `state0` under `controls` (T, n_a) and its gradients.
 
     Args:
-        model: the robot (tetrahedral body, actuators; no contact: see docs/diff.md).
+        model: the robot (tetrahedral body, actuators, contacts at their forward states:
+            see docs/diff.md).
         solver: its ImplicitEuler, ``tangent="fresh"``.
         state0: the initial state.
         controls: one row of actuator commands per step, in the actuators' modes.

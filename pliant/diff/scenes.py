@@ -7,9 +7,11 @@ import numpy as np
 
 from pliant.constraints.base import EmbeddedPoints
 from pliant.constraints.cable import CableActuator
+from pliant.constraints.contact import Contacts
 from pliant.fem.body import TetBody
 from pliant.fem.loads import NodalForces
 from pliant.fem.material import Corotational, NeoHookean
+from pliant.geometry.collision import Plane
 from pliant.mesh.shapes import box_beam
 from pliant.model import Model
 
@@ -68,3 +70,31 @@ def cable_beam(
         )
     ]
     return Model(body, actuators=cables, name="beam")
+
+
+def routing_finger(finger: Model, *, pull=8.0):
+    """The Soft Finger `finger` (:func:`pliant.robots.finger.soft_finger` at its default
+    dimensions, displacement-mode cables) with its closing cable only, and the box each of
+    that cable's six routing points may move in, in x and z (y held at the mid-plane): the
+    half of its phalanx (40 mm long, 20 mm high, phalanges every 52 mm) it starts in, less
+    1 mm. Returns (model, commands,
+    free, lower, upper) for :class:`pliant.diff.design.RoutingDesign` on the cable "cable_0"
+    pulled by `pull` mm.
+    """
+    model = Model(
+        finger.body, actuators=finger.actuators[:1], effectors=finger.effectors, name="finger"
+    )
+    half = np.repeat(np.arange(3), 2) * 52.0 + np.tile([0.0, 20.0], 3)
+    free = np.tile([True, False, True], (6, 1))
+    lower = np.column_stack([half + 1.0, np.ones(6)]).ravel()
+    upper = np.column_stack([half + 19.0, np.full(6, 19.0)]).ravel()
+    return model, np.array([pull]), free, lower, upper
+
+
+def beam_on_floor(*, friction=0.3, floor=-0.6, **beam):
+    """:func:`cable_beam` over a floor (a plane `floor` mm below its underside) that its tip
+    sags onto within a step, Coulomb friction `friction`, the contact solver's tolerance
+    tight (1e-13 mm) so that finite differences of the steps resolve its forces."""
+    model = cable_beam(**beam)
+    contacts = Contacts([Plane(point=(0.0, 0.0, floor))], friction=friction, tolerance=1e-13)
+    return Model(model.body, actuators=model.actuators, contacts=contacts, name="beam on floor")

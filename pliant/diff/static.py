@@ -16,9 +16,14 @@ and each parameter gets pbar = -(dR/dp)^T mu: mu_e, lam_e: -mu_q.f^e(unit parame
 (the held nodes stay at their rest positions, so their share of dL/dq and of
 -grad_q mu.R joins the rest positions');
 density: -mu_q.g / rho; a force command: -H_f mu_q; a displacement target: mu_l; a nodal force:
--mu_q; rest positions: -grad_X mu_q.(f + g) + H_d(X)^T mu_l. For a law homogeneous of degree
-one in E (both here), q depends on f_ext / E only, so E dq/dE = -f_ext . dq/df_ext: for a
-linear response, d delta / dE = -delta / E (the tests check both).
+-mu_q; rest positions: -grad_X mu_q.(f + g) + H_d(X)^T mu_l; cable routing points P:
+-grad_P (lambda.H(q; P) mu_q + mu_l.delta_d(q; P)) (:mod:`pliant.diff.routing`). For a law
+homogeneous of degree one in E (both here), q depends on f_ext / E only, so
+E dq/dE = -f_ext . dq/df_ext: for a linear response, d delta / dE = -delta / E (the tests
+check both).
+
+Closed frictionless contacts (:func:`pliant.diff.contact.closed_normals`) join the equality
+rows d with a zero target (their gap held closed); friction is refused here.
 """
 
 from __future__ import annotations
@@ -27,6 +32,7 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
+from pliant.diff.contact import closed_normals
 from pliant.diff.elements import (
     body_shape,
     complex_step_gradient,
@@ -37,6 +43,7 @@ from pliant.diff.elements import (
     rest_shape,
 )
 from pliant.diff.parameters import check_regions, region_sum
+from pliant.diff.routing import routing_gradient
 from pliant.diff.step import (
     ActuatorRows,
     check_model,
@@ -94,13 +101,18 @@ def static_gradient(
     space = model.constraint_space(q, roles=("actuator",))
     ht = space.jacobian_t[:, space.slices["actuator"]]
     qbar = body.gather(grad_q)
-    cols = lu.solve(np.column_stack([qbar, ht[:, d]]))
+    # Equality rows: the actuators', then the closed contacts' normals (frictionless).
+    contacts = closed_normals(model, equilibrium)
+    rows_d = ht[:, d] if contacts is None else np.hstack([ht[:, d], contacts.rows])
+    cols = lu.solve(np.column_stack([qbar, rows_d]))
     mu_l = np.zeros(lam.size)
+    mu_c = np.zeros(0)
     mu_q = -cols[:, 0]
-    if d.any():
-        schur = ht[:, d].T @ cols[:, 1:]
-        mu_l[d] = np.linalg.solve(schur, ht[:, d].T @ cols[:, 0])
-        mu_q = cols[:, 1:] @ mu_l[d] - cols[:, 0]
+    if rows_d.shape[1]:
+        schur = rows_d.T @ cols[:, 1:]
+        mu_all = np.linalg.solve(schur, rows_d.T @ cols[:, 0])
+        mu_l[d], mu_c = mu_all[: int(d.sum())], mu_all[int(d.sum()) :]
+        mu_q = cols[:, 1:] @ mu_all - cols[:, 0]
     mu_full = body.scatter(mu_q)
     mu_e = mu_full[body.tets]
     out: dict[str, np.ndarray | float] = {}
@@ -121,9 +133,19 @@ def static_gradient(
             out[name] = 0.0
         elif name == "external_forces":
             out[name] = -mu_full
+        elif name == "friction":
+            raise ModelError(
+                "static_gradient does not differentiate friction (see closed_normals); the"
+                " dynamic step does (rollout_gradient)"
+            )
+        elif name == "cable_routing":
+            out[name] = routing_gradient(model, q, -mu_l, [(-lam, mu_full)])
         else:
             out[name] = _rest_positions(model, q, mu_e, mu_l, local)
             out[name] += _held_nodes(model, q, lam, grad_q, mu_e, mu_full, mu_l, shape, local)
+            if contacts is not None:  # a contact point carried by held nodes
+                held = (body.free_index < 0).reshape(-1, 3)
+                out[name] -= np.where(held, contacts.full_t(mu_c, body.n_nodes), 0.0)
     return out
 
 

@@ -46,9 +46,16 @@ vbar = dL/dv' + h dL/dq', the adjoint mu = (mu_v, mu_l) solves dF/dy^T mu = (vba
 * alpha: dF1/dalpha = h M v'; beta: dF1/dbeta = h K_s v'.
 * density rho (M and g scale with it): dF1/drho = (a_m M v' - M v - h g) / rho.
 * a constant nodal force f_ext: h mu_v.
+* cable routing points P (rest positions of the cables' points, :mod:`pliant.diff.routing`):
+  h grad_P (lambda.H(q; P) mu_v) - h grad_P (mu_l.H_d(q; P) v') - grad_P (mu_l.delta_d(q; P)).
 * rest positions X (with the embedding of the constraint points, their barycentric weights,
   held): the elements' g, V and rest frames and the lumped masses read X (complex step
   again), and a row's rest value delta_d = g(x) - g(X) gives H_d(X)^T mu_l.
+
+Contacts (no rigid bodies) enter at the forward solve's contact states
+(:mod:`pliant.diff.contact`): closed normals and sticking tangents as equality rows, sliding
+friction along its slip; the block solve then has kinematic rows K, force rows G and the
+sliding contacts' stiffening (:meth:`StepAdjoint._contact_adjoint`).
 
 What is held: the active set of the actuator bounds (a command crossing a bound is a kink; a
 force command exactly at its bound gets the derivative from inside the bounds, the one-sided
@@ -63,6 +70,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from pliant.constraints.base import actuator_bounds, change_reference
+from pliant.diff.contact import held_contacts
 from pliant.diff.elements import (
     body_shape,
     check_material,
@@ -73,6 +81,7 @@ from pliant.diff.elements import (
     rest_shape,
 )
 from pliant.diff.kernels import corotational_value_gradient
+from pliant.diff.routing import routing_gradient
 from pliant.errors import ModelError
 from pliant.fem import kernels as fem_kernels
 from pliant.fem.body import TetBody
@@ -91,6 +100,8 @@ PARAMETERS = (
     "rayleigh_stiffness",
     "external_forces",
     "rest_positions",
+    "cable_routing",
+    "friction",
 )
 
 # Fourth-order central difference of the rows' Jacobian along a direction, step relative to
@@ -121,7 +132,10 @@ def check_model(model: Model) -> None:
     missing = [
         what
         for what, present in (
-            ("contacts", model.contacts is not None),
+            (
+                "contacts whose points are not linear in the nodes",
+                model.contacts is not None and not model.contacts.points.linear,
+            ),
             ("drivers", bool(model.drivers)),
             ("rigid bodies", bool(model.rigid_bodies)),
             ("attachments", bool(model.attachments)),
@@ -137,7 +151,7 @@ def check_model(model: Model) -> None:
     if missing:
         raise ModelError(
             f"{model.name}: pliant.diff does not differentiate {', '.join(missing)} yet"
-            " (see docs/diff.md: contact would enter with its forward active set held)"
+            " (see docs/diff.md)"
         )
 
 
@@ -250,6 +264,7 @@ class StepAdjoint:
         self.factor.factorize(data)
         space = model.constraint_space(self.q, roles=("actuator",))
         self.ht = space.jacobian_t[:, space.slices["actuator"]]
+        self.contacts = held_contacts(model, self.h, state, new)
 
     def vjp(
         self, dq_new: np.ndarray, dv_new: np.ndarray, wrt: tuple[str, ...] = ()
@@ -258,19 +273,27 @@ class StepAdjoint:
         "positions" and "velocities" (n, 3) of the state it started from, and those of the
         parameters `wrt` (:data:`PARAMETERS`): "controls" (n_a,), "young_modulus" and
         "poisson_ratio" per element (m,), "density", "rayleigh_mass", "rayleigh_stiffness"
-        (floats), "external_forces" and "rest_positions" (n, 3)."""
+        (floats), "external_forces" and "rest_positions" (n, 3), "cable_routing" (P, 3) (the
+        layout of :func:`pliant.diff.routing.routing_points`), "friction" (one per obstacle
+        shape of the model's contacts)."""
         model, body, h = self.model, self.model.body, self.h
         self._lame = None  # this cotangent's (E, nu) shares, computed once for both
         d = self.rows.equality
         vbar = body.gather(dv_new) + h * body.gather(dq_new)
-        cols = self.factor.solve(np.column_stack([vbar, self.ht[:, d]]))
-        mu_v = cols[:, 0]
+        # Equality rows: what they hold (K^T) and how they push (G^T); the held contacts'
+        # after the actuators' (pliant.diff.contact: G = K but for sliding contacts).
+        held = self.contacts
         mu_l = np.zeros(self.lam.size)
-        if d.any():
-            a_inv_hd = cols[:, 1:]
-            w_dd = h * h * (self.ht[:, d].T @ a_inv_hd)
-            mu_l[d] = np.linalg.solve(0.5 * (w_dd + w_dd.T), h * (self.ht[:, d].T @ mu_v))
-            mu_v = mu_v - h * (a_inv_hd @ mu_l[d])
+        if held is None:
+            cols = self.factor.solve(np.column_stack([vbar, self.ht[:, d]]))
+            mu_v = cols[:, 0]
+            if d.any():
+                a_inv_hd = cols[:, 1:]
+                w_dd = h * h * (self.ht[:, d].T @ a_inv_hd)
+                mu_l[d] = np.linalg.solve(0.5 * (w_dd + w_dd.T), h * (self.ht[:, d].T @ mu_v))
+                mu_v = mu_v - h * (a_inv_hd @ mu_l[d])
+        else:
+            mu_v, mu_l[d], mu_c = self._contact_adjoint(vbar, held)
         mu_full, v_full = body.scatter(mu_v), body.scatter(self.v_new)
         out: dict[str, np.ndarray | float] = {"velocities": body.scatter(body.mass_matvec(mu_v))}
         # Positions: elements (complex step), then the rows' own dependence on q.
@@ -283,10 +306,30 @@ class StepAdjoint:
         dq += h * row_hessian_product(model, self.q, self.lam, mu_full)
         dq -= h * row_hessian_product(model, self.q, mu_l, v_full)
         dq -= full_rows_t(model, self.q, np.where(self.rows.follows_state, 0.0, mu_l))
+        if held is not None:  # a closed contact's gap at the step's start follows q
+            dq -= body.scatter(held.kinematic[:, held.gap] @ mu_c[held.gap])
         out["positions"] = dq
         for name in wrt:
             out[name] = self._parameter(name, mu_v, mu_l, mu_e, v_e, shape, local)
         return out
+
+    def _contact_adjoint(self, vbar, held):
+        """(mu_v, mu_l of the actuators' equality rows, mu of the contacts' rows) with the
+        held contacts (:mod:`pliant.diff.contact`): A mu_v + R z + h K^T mu_l = vbar,
+        R^T mu_v = C^-1 z, G mu_v = 0."""
+        h, d = self.h, self.rows.equality
+        kin = np.hstack([self.ht[:, d], held.kinematic])
+        push = np.hstack([self.ht[:, d], held.force])
+        s = held.stiffness.size
+        cols = self.factor.solve(np.column_stack([vbar, held.across, kin]))
+        a_r, a_k = cols[:, 1 : 1 + s], h * cols[:, 1 + s :]
+        across = np.column_stack([a_r, a_k])
+        system = np.vstack([held.across.T @ across, push.T @ across])
+        system[:s, :s] += np.diag(1.0 / held.stiffness)
+        rhs = np.concatenate([held.across.T @ cols[:, 0], push.T @ cols[:, 0]])
+        w = np.linalg.solve(system, rhs)
+        n_d = int(d.sum())
+        return cols[:, 0] - across @ w, w[s : s + n_d], w[s + n_d :]
 
     def _unit_law_terms(self, v_full: np.ndarray, mu_e: np.ndarray) -> list[np.ndarray]:
         """-mu_e.(a_k K_s^e v' - h f^e) per element with (mu, lam) = (1, 0) and (0, 1): f and
@@ -371,6 +414,16 @@ class StepAdjoint:
             return float(-(mu_v @ term) / body.density)
         if name == "external_forces":
             return body.scatter(h * mu_v)
+        if name == "friction":  # one coefficient per obstacle shape (pliant.diff.contact)
+            out = np.zeros(len(self.model.contacts.shapes) if self.model.contacts else 0)
+            held = self.contacts
+            if held is not None:
+                np.add.at(out, held.friction_shape, held.friction.T @ mu_v)
+            return out
+        if name == "cable_routing":
+            held = np.where(self.rows.follows_state, 0.0, mu_l)
+            products = [(h * self.lam, body.scatter(mu_v)), (-h * mu_l, body.scatter(v_new))]
+            return routing_gradient(self.model, self.q, -held, products)
         return self._rest_positions(mu_v, mu_l, mu_e, v_e, local)
 
     def _rest_positions(self, mu_v, mu_l, mu_e, v_e, local):

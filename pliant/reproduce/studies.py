@@ -34,6 +34,7 @@ _TABLE_5_7 = "experiments/results/condensed/table_5_7.json"
 _TABLE_5_8 = "experiments/results/condensed/trajectories.json"
 _CALIBRATION = "experiments/results/condensed/calibration_finger.json"
 _TRAJOPT = "experiments/results/trajopt/diamond.json"
+_ROUTING = "experiments/results/diff/routing.json"
 
 _LOADED = "timed on the shared 2-core machine under load (load average 4-11); the ratio holds"
 _OUR_MULTIGAIT = (
@@ -831,6 +832,45 @@ STUDIES: tuple[Study, ...] = (
             "python experiments/trajopt_diamond.py --max-iterations 1 --out {out}",
             {_TRAJOPT: "diamond.json"},
             seconds=144.0,
+        ),
+    ),
+    Study(
+        name="diff-routing",
+        thesis="issue 63 (beyond the thesis)",
+        title="Finger cable routing: L-BFGS-B on the exact gradient against Nelder-Mead and TPE",
+        command="python experiments/diff/routing.py",
+        docs="docs/diff.md",
+        figures=tuple(
+            Figure(
+                f"{method}, fingertip drop for 8 mm of cable",
+                _ROUTING,
+                f"methods/{method}/reach_mm",
+                thesis=None,
+                unit="mm",
+                better="higher",
+                tolerance=0.02,
+                fmt="{:.2f}",
+                docs="docs/diff.md",
+            )
+            for method in ("L-BFGS-B + adjoint", "Nelder-Mead", "Optuna TPE")
+        )
+        + (
+            Figure(
+                "the Finger's own routing, fingertip drop",
+                _ROUTING,
+                "initial_reach_mm",
+                thesis=None,
+                unit="mm",
+                better="higher",
+                tolerance=0.001,
+                fmt="{:.2f}",
+                docs="docs/diff.md",
+            ),
+        ),
+        quick=Quick(
+            "python experiments/diff/routing.py --lbfgs 8 --budget 8 --out {out}/routing.json",
+            {_ROUTING: "routing.json"},
+            seconds=34.0,
         ),
     ),
 )
