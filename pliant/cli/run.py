@@ -1,4 +1,5 @@
-"""The ``pliant`` command line: run, inverse, bench, plan."""
+"""``pliant run``, ``pliant inverse``, ``pliant view``: a robot (or a SOFA scene) under its
+scripted actuation, under inverse control, or in the browser."""
 
 from __future__ import annotations
 
@@ -15,54 +16,17 @@ from rich.progress import Progress
 from rich.table import Table
 
 from pliant import robots
-from pliant.cli_support import (
-    ErrorHandlingGroup,
+from pliant.cli.support import (
     at_least_one,
-    numbers_list,
     one_of,
-    output_file,
     output_folder,
     positive,
 )
-from pliant.condensed.cli import app as condensed_app
 from pliant.errors import UnreachableGoalWarning
 from pliant.files import write_json
-from pliant.learn import cli as learn_cli
-from pliant.learn.graph.cli import app as graph_app
-from pliant.planning.cli import plan
-from pliant.reduction.cli import reduce_command
-from pliant.reproduce.cli import reproduce_command
 from pliant.solvers import ImplicitEuler, StaticSolver
-from pliant.trajopt.cli import app as trajopt_app
-from pliant.transfer.cli import app as proxy_app
 
-app = typer.Typer(
-    cls=ErrorHandlingGroup,
-    add_completion=False,
-    no_args_is_help=True,
-    help="Simulate, control and benchmark FEM soft robots.",
-)
 console = Console()
-app.add_typer(condensed_app, name="condensed")
-app.command()(plan)
-app.add_typer(trajopt_app, name="trajopt")
-app.command("reduce")(reduce_command)
-app.command("reproduce")(reproduce_command)
-app.command("train")(learn_cli.train)
-app.command("eval")(learn_cli.eval_)
-app.command("enjoy")(learn_cli.enjoy)
-app.command("tune")(learn_cli.tune)
-app.add_typer(proxy_app, name="proxy")
-app.add_typer(graph_app, name="graph")
-
-
-@app.callback()
-def main(
-    debug: Annotated[
-        bool, typer.Option("--debug", help="on failure, show the traceback (not one line)")
-    ] = False,
-) -> None:
-    """Simulate, control and benchmark FEM soft robots."""
 
 
 def _solver(model, solver: str, dt: float):
@@ -73,7 +37,6 @@ def _solver(model, solver: str, dt: float):
     raise typer.BadParameter(f"solver must be 'dynamic' or 'static', got {solver!r}")
 
 
-@app.command()
 def run(
     robot: Annotated[
         str,
@@ -153,7 +116,6 @@ def run(
     console.print(f"saved {gif}, {png} and {vtu.pvd_path}")
 
 
-@app.command()
 def inverse(
     robot: Annotated[
         str,
@@ -270,100 +232,6 @@ def inverse(
     console.print(f"saved {plot}, {gif}, {report}")
 
 
-@app.command()
-def bench(
-    meshes: Annotated[
-        Path | None,
-        typer.Option(help="folder of the reference SOFA meshes", exists=True, file_okay=False),
-    ] = None,
-    repeats: Annotated[
-        int, typer.Option(help="timed repeats per scene (median reported)", callback=at_least_one)
-    ] = 3,
-    steps: Annotated[
-        int,
-        typer.Option(
-            help="steps per timed repeat (scaled down for big scenes)", callback=at_least_one
-        ),
-    ] = 100,
-    quick: Annotated[bool, typer.Option(help="small scenes only (a smoke run)")] = False,
-    out: Annotated[Path, typer.Option(help="JSON results file", callback=output_file)] = Path(
-        "bench-results/bench.json"
-    ),
-    envs: Annotated[
-        str,
-        typer.Option(
-            help="environments' speed (env and simulation steps/s, real-time factor at dt 0.01,"
-            " 0.02, 0.03), written to envs.json beside the JSON: 'all', 'none', 'only' (skip"
-            " the scenes) or comma-separated names"
-        ),
-    ] = "all",
-    profile: Annotated[
-        bool,
-        typer.Option(
-            help="per SPEC scene, the default step's error against the exact one over 1 s and"
-            " the time per step of each part (forces, assembly, factorisation, solves,"
-            " constraints, the rest)"
-        ),
-    ] = True,
-    batch: Annotated[
-        str,
-        typer.Option(help="batched stepping: comma-separated copy counts to time ('' skips)"),
-    ] = "1,8,32",
-    learner: Annotated[
-        bool,
-        typer.Option(
-            help="the learner's cost per training step alone (SAC CartStemContact, PPO"
-            " TrunkSpaceDebris: the thesis' networks on a stand-in task whose step is free),"
-            " with its arithmetic against this machine's matrix-product speed; learner.json"
-        ),
-    ] = False,
-    gradient: Annotated[
-        bool,
-        typer.Option(
-            help="what a rollout gradient (pliant.diff) costs beside the rollout, on the coarse"
-            " Finger and the Diamond; gradient.json"
-        ),
-    ] = False,
-) -> None:
-    """Median steps/s beside SOFA's measured figures; writes JSON and a log-log plot."""
-    from pliant.bench import run_benchmarks
-
-    if envs != "only":
-        run_benchmarks(
-            meshes=meshes,
-            repeats=repeats,
-            steps=steps,
-            quick=quick,
-            out=out,
-            console=console,
-            profile=profile,
-            batch=_copy_counts(batch),
-        )
-    if envs != "none":
-        from pliant.envs.speed import report_envs
-
-        names = None if envs in ("all", "only") else [n.strip() for n in envs.split(",")]
-        report_envs(names, quick=quick, out=out.with_name("envs.json"), console=console)
-    if learner:
-        from pliant.learn.speed import report_learner
-
-        report_learner(quick=quick, out=out.with_name("learner.json"), console=console)
-    if gradient:
-        from pliant.bench import report_gradient
-
-        report_gradient(quick=quick, out=out.with_name("gradient.json"), console=console)
-
-
-def _copy_counts(text: str) -> tuple[int, ...]:
-    """`--batch`: comma-separated copy counts (integers >= 1), or '' for none."""
-    if not text.strip():
-        return ()
-    counts = numbers_list(text, "--batch")
-    if any(c < 1 or c != int(c) for c in counts):
-        raise typer.BadParameter(f"--batch: copy counts must be integers >= 1, got {text!r}")
-    return tuple(int(c) for c in counts)
-
-
 def open_viewer(
     target: str,
     *,
@@ -423,7 +291,6 @@ def open_viewer(
     )
 
 
-@app.command()
 def view(
     target: Annotated[
         str,
@@ -458,7 +325,3 @@ def view(
             time.sleep(1.0)
     except KeyboardInterrupt:
         viewer.stop()
-
-
-if __name__ == "__main__":
-    app()

@@ -12,7 +12,7 @@ from typing import Annotated
 import typer
 from rich.console import Console
 
-from pliant.cli_support import (
+from pliant.cli.support import (
     at_least_one,
     fraction,
     non_negative,

@@ -17,7 +17,7 @@ from rich.table import Table
 from rich.text import Text
 
 from pliant import robots
-from pliant.cli_support import (
+from pliant.cli.support import (
     at_least_one,
     non_negative,
     numbers_list,

@@ -1,23 +1,16 @@
-"""``pliant trajopt SCENARIO``: DDP on condensed FEM dynamics; plots, a GIF, a JSON report."""
+"""The ``pliant trajopt`` scenarios run end to end: DDP (or MPC) on condensed FEM dynamics, a
+table, plots, GIFs and a JSON report of each."""
 
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Annotated
 
 import numpy as np
-import typer
 from rich.console import Console
 from rich.table import Table
 
-from pliant.cli_support import at_least_one, non_negative, one_of, output_folder, positive
 from pliant.files import write_json
 
-app = typer.Typer(
-    add_completion=False,
-    no_args_is_help=True,
-    help="Trajectory optimisation with condensed FEM dynamics (thesis §5.2).",
-)
 console = Console()
 BACKENDS = ("numpy", "crocoddyl")
 
@@ -36,47 +29,22 @@ def summary(name: str, result, scenario) -> dict:
     }
 
 
-# Options the scenario commands share.
-MaxIterations = Annotated[int, typer.Option(help="DDP iterations at most", callback=at_least_one)]
-Tolerance = Annotated[
-    float, typer.Option(help="relative cost decrease to stop", callback=non_negative)
-]
-Frames = Annotated[int, typer.Option(help="frames in each GIF (0: no GIF)", callback=non_negative)]
-Out = Annotated[Path, typer.Option(help="output folder", callback=output_folder)]
-# ... and the MPC commands'.
-Horizon = Annotated[int, typer.Option(help="prediction nodes", callback=at_least_one)]
-Iterations = Annotated[
-    int, typer.Option(help="DDP iterations per control step", callback=at_least_one)
-]
-ControlSteps = Annotated[
-    int, typer.Option(help="control steps (the task's nodes)", callback=at_least_one)
-]
-
-
-@app.command()
-def diamond(
-    nonlinear: Annotated[
-        bool, typer.Option(help="also solve with the non-linear part of Eq. 5.27")
-    ] = True,
-    backend: Annotated[
-        str,
-        typer.Option(help="backward pass: numpy or crocoddyl", callback=one_of(*BACKENDS)),
-    ] = "numpy",
-    mesh_size: Annotated[
-        float, typer.Option(help="Diamond mesh size (mm)", callback=positive)
-    ] = 20.0,
-    dt: Annotated[float, typer.Option(help="time step (s)", callback=positive)] = 0.02,
-    horizon: Annotated[int, typer.Option(help="nodes N", callback=at_least_one)] = 100,
-    max_iterations: MaxIterations = 100,
-    tolerance: Tolerance = 1e-4,
-    frames: Frames = 25,
-    settle: Annotated[
-        float, typer.Option(help="seconds of constant tensions per goal", callback=non_negative)
-    ] = 3.0,
-    out: Out = Path("out/trajopt"),
+def run_diamond(
+    *,
+    nonlinear: bool = True,
+    backend: str = "numpy",
+    mesh_size: float = 20.0,
+    dt: float = 0.02,
+    horizon: int = 100,
+    max_iterations: int = 100,
+    tolerance: float = 1e-4,
+    frames: int = 25,
+    settle: float = 3.0,
+    out: Path = Path("out/trajopt"),
 ) -> None:
     """The Diamond's effector to two successive goals (Fig. 5.20), linear part of the state
-    derivative and, with --nonlinear, the non-linear one (the thesis' lift)."""
+    derivative and, with `nonlinear`, the non-linear one (the thesis' lift): a table, and
+    `diamond.png`, `diamond.gif` (`frames` > 0) and `diamond.json` in `out`."""
     from pliant.trajopt.ddp import BoxDDP
     from pliant.trajopt.plots import plot_trajectory
     from pliant.trajopt.scenarios import diamond_two_goals
@@ -141,22 +109,19 @@ def diamond(
     console.print("saved " + ", ".join(str(p) for p in written))
 
 
-@app.command("diamond-mpc")
-def diamond_mpc(
-    horizon: Horizon = 20,
-    iterations: Iterations = 3,
-    mesh_size: Annotated[
-        float, typer.Option(help="Diamond mesh size (mm)", callback=positive)
-    ] = 20.0,
-    dt: Annotated[float, typer.Option(help="time step (s)", callback=positive)] = 0.02,
-    steps: ControlSteps = 100,
-    settle: Annotated[
-        float, typer.Option(help="seconds of constant tensions per goal", callback=non_negative)
-    ] = 3.0,
-    out: Out = Path("out/trajopt"),
+def run_diamond_mpc(
+    *,
+    horizon: int = 20,
+    iterations: int = 3,
+    mesh_size: float = 20.0,
+    dt: float = 0.02,
+    steps: int = 100,
+    settle: float = 3.0,
+    out: Path = Path("out/trajopt"),
 ) -> None:
     """The Diamond's two-goal task by receding-horizon MPC on the condensed dynamics frozen at
-    each FEM state, the loop closed on the FEM: loop rate and tracking error."""
+    each FEM state, the loop closed on the FEM: loop rate and tracking error, in
+    `diamond_mpc.png` and `diamond_mpc.json` in `out`."""
     from pliant.trajopt.mpc import CondensedMPC
     from pliant.trajopt.plots import plot_trajectory
     from pliant.trajopt.scenarios import diamond_two_goals
@@ -336,48 +301,6 @@ def run_scenario(
     return report
 
 
-def _command(command: str, doc: str) -> None:
-    def run(
-        quick: Annotated[bool, typer.Option(help="short horizon, 2 iterations (tests)")] = False,
-        horizon: Annotated[
-            int, typer.Option(help="nodes N (0: the scenario's)", callback=non_negative)
-        ] = 0,
-        max_iterations: MaxIterations = 100,
-        tolerance: Tolerance = 1e-4,
-        frames: Frames = 20,
-        out: Out = Path("out/trajopt"),
-    ) -> None:
-        # Errors reach the command line's handler: one line, exit 1 (pliant.cli_support).
-        run_scenario(
-            command,
-            quick=quick,
-            horizon=horizon or None,
-            max_iterations=max_iterations,
-            tolerance=tolerance,
-            frames=frames,
-            out=out,
-        )
-
-    run.__doc__ = doc
-    app.command(command)(run)
-
-
-_command(
-    "stiff-flop",
-    "The Stiff-Flop's effector at the middle and at the tip to a goal (Fig. 5.21), pressures"
-    " bounded in bar.",
-)
-_command("lianford-spiral", "The Lianford's handle along a spiral, a goal every step (Fig. 5.22).")
-_command(
-    "lianford-pick-place",
-    "The Lianford's handle back and forth between two positions (Fig. 5.22).",
-)
-_command(
-    "lianford-orientation",
-    "Two effectors on the Lianford's ring at once: the handle's orientation (Fig. 5.22).",
-)
-
-
 # Learned condensed models the learned MPC commands use, and how a missing one is made:
 # a short collection around the task's actuator distances and a small network.
 LEARNED_MODELS = Path("experiments/results/trajopt/learned")
@@ -535,46 +458,3 @@ def run_learned_mpc(
     write_json(path_json, report)
     console.print(f"saved {plot}, {path_json}")
     return report
-
-
-def _learned_command(robot: str) -> None:
-    def run(
-        model: Annotated[
-            Path | None,
-            typer.Option(
-                help="learned condensed model (default: experiments/results/trajopt/learned/"
-                "ROBOT.pt, collected and trained there first if missing)"
-            ),
-        ] = None,
-        horizon: Horizon = 20,
-        iterations: Iterations = 3,
-        steps: ControlSteps = 100,
-        samples: Annotated[
-            int, typer.Option(help="samples if a model is collected", callback=at_least_one)
-        ] = 300,
-        epochs: Annotated[
-            int, typer.Option(help="epochs if a model is trained", callback=at_least_one)
-        ] = 1000,
-        out: Out = Path("out/trajopt"),
-    ) -> None:
-        run_learned_mpc(
-            robot,
-            model=model,
-            horizon=horizon,
-            iterations=iterations,
-            steps=steps,
-            samples=samples,
-            epochs=epochs,
-            out=out,
-        )
-
-    run.__doc__ = (
-        f"The {robot.capitalize()}'s two-goal task by MPC whose prediction is the learned"
-        " condensed model (§6.2.1), closed on the full FEM, beside the full-FEM DDP and the MPC"
-        " on the frozen FEM condensed dynamics: loop rates and tracking errors."
-    )
-    app.command(f"{robot}-mpc-learned")(run)
-
-
-_learned_command("diamond")
-_learned_command("finger")
