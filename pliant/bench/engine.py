@@ -76,15 +76,7 @@ def cantilever(n: int) -> Model:
     """SPEC §5 cantilever: 100 x 20 x 20 mm, 5n x n x n cubes of 6 tets, E=1000, nu=0.45."""
     mesh = box_beam(100.0, 20.0, 20.0, nx=5 * n, ny=n, nz=n)
     fixed = np.flatnonzero(mesh.points[:, 0] <= 1e-9)
-    body = TetBody(
-        mesh,
-        Corotational(1000.0, 0.45),
-        total_mass=0.04,
-        mass="uniform",
-        fixed_nodes=fixed,
-        gravity=(0.0, 0.0, -9810.0),
-    )
-    return Model(body, name=f"cantilever-{mesh.n_tets}")
+    return _corotational(mesh, 1000.0, 0.04, fixed, f"cantilever-{mesh.n_tets}")
 
 
 def multigait(meshes: Path) -> Model:
@@ -92,15 +84,20 @@ def multigait(meshes: Path) -> Model:
     mesh = load_mesh(meshes / "MultiGaitRobot_full_quadriped_fine.vtk")
     c = mesh.points.mean(axis=0)
     fixed = nodes_in_box(mesh.points, [c - [10.0, 10.0, 50.0], c + [10.0, 10.0, 50.0]])
+    return _corotational(mesh, 70.0, 0.035, fixed, "multigait")
+
+
+def _corotational(mesh: TetMesh, young: float, mass: float, fixed, name: str) -> Model:
+    """SPEC §5's bare bodies: corotational, nu = 0.45, uniform mass, gravity along -z."""
     body = TetBody(
         mesh,
-        Corotational(70.0, 0.45),
-        total_mass=0.035,
+        Corotational(young, 0.45),
+        total_mass=mass,
         mass="uniform",
         fixed_nodes=fixed,
         gravity=(0.0, 0.0, -9810.0),
     )
-    return Model(body, name="multigait")
+    return Model(body, name=name)
 
 
 def multigait_on_floor(meshes: Path) -> Model:
@@ -176,7 +173,7 @@ def run_benchmarks(
     ) -> None:
         """Time `model` under each policy; with `profile`, also the default's error against
         the `exact` policy over 1 s from rest and the time per step of each part (lagged and
-        exact), :mod:`pliant.bench_profile`."""
+        exact), :mod:`pliant.bench.profile`."""
         step_control = control if callable(control) else (lambda s: control)
         analysis = {}
         if profile and exact is not None:

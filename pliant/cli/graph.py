@@ -10,6 +10,7 @@ from typing import Annotated
 import typer
 from rich.console import Console
 
+from pliant.cli.options import Count, Seed
 from pliant.cli.support import at_least_one, one_of, output_folder
 from pliant.learn.graph.training import METHODS, SCENES, GraphSettingsError, train_run
 
@@ -63,11 +64,11 @@ def train(
     steps: Annotated[
         int, typer.Option(help="environment steps in all", callback=at_least_one)
     ] = 20_000,
-    seed: Annotated[int, typer.Option()] = 0,
+    seed: Seed = 0,
     eval_every: Annotated[
         int, typer.Option(help="steps between evaluations", callback=at_least_one)
     ] = 600,
-    eval_episodes: Annotated[int, typer.Option(callback=at_least_one)] = 5,
+    eval_episodes: Count = 5,
     out: Annotated[
         Path,
         typer.Option(help="run folder (checkpoint.pt, history.json)", callback=output_folder),

@@ -11,6 +11,7 @@ from typing import Annotated
 import typer
 from rich.console import Console
 
+from pliant.cli.support import assignments, json_or_text
 from pliant.files import write_json
 
 console = Console()
@@ -18,22 +19,8 @@ console = Console()
 ALGO_HELP = "PPO, SAC, TD3, A2C, DQN or RecurrentPPO"
 
 
-def _value(text: str):
-    """A command-line value: JSON where it parses (numbers, lists, true/false), else text."""
-    try:
-        return json.loads(text)
-    except json.JSONDecodeError:
-        return text
-
-
 def _pairs(items: list[str] | None) -> dict:
-    out = {}
-    for item in items or []:
-        key, sep, value = item.partition("=")
-        if not sep:
-            raise typer.BadParameter(f"expected KEY=VALUE, got {item!r}")
-        out[key] = _value(value)
-    return out
+    return {k: json_or_text(v) for k, v in assignments(items or []).items()}
 
 
 def _quick_kwargs(env_id: str) -> dict:

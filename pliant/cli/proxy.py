@@ -12,13 +12,13 @@ from typing import Annotated
 import typer
 from rich.console import Console
 
+from pliant.cli.options import OutFolder
 from pliant.cli.support import (
     at_least_one,
     fraction,
     non_negative,
     numbers_list,
     one_of,
-    output_folder,
 )
 from pliant.files import write_json
 
@@ -123,9 +123,7 @@ def calibrate(
             dir_okay=False,
         ),
     ] = None,
-    out: Annotated[Path, typer.Option(help="output folder", callback=output_folder)] = Path(
-        "out/proxy"
-    ),
+    out: OutFolder = Path("out/proxy"),
 ) -> None:
     """Calibrate ROBOT's proxy on its FEM model: Optuna TPE, study resumed from
     OUT/ROBOT.db, report in OUT/ROBOT_calibration.json.
@@ -398,9 +396,7 @@ def transfer(
         typer.Option(help="trunk: the goal's offset from the cube's start, 'x,z' mm (25,-10)"),
     ] = None,
     gif: Annotated[bool, typer.Option(help="also write a GIF (FEM beside proxy)")] = False,
-    out: Annotated[Path, typer.Option(help="output folder", callback=output_folder)] = Path(
-        "out/proxy"
-    ),
+    out: OutFolder = Path("out/proxy"),
 ) -> None:
     """Transfer ROBOT's proxy strategy to its FEM model (thesis §4.1.1, Fig. 4.2): inverse QP
     on the matched points, realignment, actuation correction; OUT/ROBOT_transfer.json and .png

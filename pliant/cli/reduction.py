@@ -13,6 +13,7 @@ from rich.progress import Progress
 from rich.table import Table
 
 from pliant import robots
+from pliant.cli.options import RobotName, TimeStep
 from pliant.cli.support import at_least_one, non_negative, open_fraction, output_folder, positive
 from pliant.reduction.pipeline import compare, multigait_cases, reduce, robot_cases
 
@@ -20,14 +21,14 @@ console = Console()
 
 
 def reduce_command(
-    robot: Annotated[str, typer.Argument(help=f"one of {', '.join(sorted(robots.ROBOTS))}")],
+    robot: RobotName,
     out: Annotated[
         Path,
         typer.Option(
             help="folder of snapshots.h5, reduced.npz, report.json", callback=output_folder
         ),
     ] = Path("out/reduction"),
-    dt: Annotated[float, typer.Option(help="time step", callback=positive)] = 0.01,
+    dt: TimeStep = 0.01,
     pod_tolerance: Annotated[
         float, typer.Option(help="tail energy of the modes left out", callback=open_fraction)
     ] = 1e-3,

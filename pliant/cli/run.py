@@ -16,10 +16,17 @@ from rich.progress import Progress
 from rich.table import Table
 
 from pliant import robots
+from pliant.cli.options import (
+    ROBOT_NAMES,
+    Goals,
+    MeshDirs,
+    OutFolder,
+    SolverKind,
+    TimeStep,
+    goal_trajectory,
+)
 from pliant.cli.support import (
     at_least_one,
-    one_of,
-    output_folder,
     positive,
 )
 from pliant.errors import UnreachableGoalWarning
@@ -29,7 +36,21 @@ from pliant.solvers import ImplicitEuler, StaticSolver
 console = Console()
 
 
-def _solver(model, solver: str, dt: float):
+def _robot_or_scene(robot: str, mesh_dirs: list[Path]):
+    """(scene, robot entry, name) of a robot's name, or of a SOFA scene file (`.scn`, `.xml`,
+    `.py`, its meshes looked for in `mesh_dirs` too; the name is the file's stem)."""
+    if robot.endswith((".scn", ".xml", ".py")):
+        from pliant.sofa import load_scene
+
+        scene = load_scene(robot, mesh_dirs=mesh_dirs)
+        return scene, scene.entry(), Path(robot).stem
+    return None, robots.entry(robot), robot
+
+
+def _solver(model, solver: str, dt: float, scene=None):
+    # A scene runs SOFA's step (its time step, refactorised every step) unless told otherwise.
+    if scene is not None and solver == "dynamic":
+        return scene.solver()
     if solver == "dynamic":
         return ImplicitEuler(model, dt)
     if solver == "static":
@@ -40,18 +61,16 @@ def _solver(model, solver: str, dt: float):
 def run(
     robot: Annotated[
         str,
-        typer.Argument(help=f"one of {', '.join(sorted(robots.ROBOTS))}, or a SOFA scene file"),
+        typer.Argument(help=f"one of {ROBOT_NAMES}, or a SOFA scene file"),
     ],
     duration: Annotated[float, typer.Option(help="simulated seconds", callback=positive)] = 3.0,
-    dt: Annotated[float, typer.Option(help="time step", callback=positive)] = 0.01,
-    solver: Annotated[
-        str, typer.Option(help="dynamic or static", callback=one_of("dynamic", "static"))
-    ] = "dynamic",
+    dt: TimeStep = 0.01,
+    solver: SolverKind = "dynamic",
     frames: Annotated[
         int, typer.Option(help="frames in the GIF and VTU series", callback=at_least_one)
     ] = 30,
-    out: Annotated[Path, typer.Option(help="output folder", callback=output_folder)] = Path("out"),
-    mesh_dir: Annotated[list[Path], typer.Option(help="where a scene's meshes are")] = [],  # noqa: B006
+    out: OutFolder = Path("out"),
+    mesh_dir: MeshDirs = [],  # noqa: B006
     states: Annotated[
         bool, typer.Option(help="also save the state at each frame (states/, for pliant view)")
     ] = False,
@@ -62,17 +81,9 @@ def run(
     from pliant.viz import VtuSeriesWriter, save_gif, save_png
     from pliant.viz.model_view import RobotCamera
 
-    scene = None
-    if robot.endswith((".scn", ".xml", ".py")):
-        from pliant.sofa import load_scene
-
-        scene = load_scene(robot, mesh_dirs=mesh_dir)
-        entry, robot = scene.entry(), Path(robot).stem
-    else:
-        entry = robots.entry(robot)
+    scene, entry, robot = _robot_or_scene(robot, mesh_dir)
     model = entry.build()
-    # A scene runs SOFA's step (its time step, refactorised every step) unless told otherwise.
-    sim = scene.solver() if scene and solver == "dynamic" else _solver(model, solver, dt)
+    sim = _solver(model, solver, dt, scene)
     n_steps = max(1, round(duration / dt))
     frames = max(1, min(frames, n_steps))
     frame_steps = set(np.linspace(n_steps / frames, n_steps, frames).round().astype(int))
@@ -119,24 +130,19 @@ def run(
 def inverse(
     robot: Annotated[
         str,
-        typer.Argument(
-            help=f"one of {', '.join(sorted(robots.ROBOTS))}, or a SOFA scene file with a"
-            " PositionEffector"
-        ),
+        typer.Argument(help=f"one of {ROBOT_NAMES}, or a SOFA scene file with a PositionEffector"),
     ],
     trajectory: Annotated[
         str, typer.Option(help="goal trajectory of the robot (circle, closing, ...)")
     ] = "",
-    goals: Annotated[int, typer.Option(help="number of goals", callback=at_least_one)] = 30,
-    dt: Annotated[float, typer.Option(help="time step", callback=positive)] = 0.01,
-    solver: Annotated[
-        str, typer.Option(help="dynamic or static", callback=one_of("dynamic", "static"))
-    ] = "dynamic",
+    goals: Goals = 30,
+    dt: TimeStep = 0.01,
+    solver: SolverKind = "dynamic",
     max_steps: Annotated[
         int, typer.Option(help="steps at most per goal", callback=at_least_one)
     ] = 60,
-    out: Annotated[Path, typer.Option(help="output folder", callback=output_folder)] = Path("out"),
-    mesh_dir: Annotated[list[Path], typer.Option(help="where a scene's meshes are")] = [],  # noqa: B006
+    out: OutFolder = Path("out"),
+    mesh_dir: MeshDirs = [],  # noqa: B006
 ) -> None:
     """Inverse control (QP, Eq. 2.15) of ROBOT's effector along a goal trajectory (a scene's:
     `goal`, GOALS steps on the line from the effector to its effectorGoal)."""
@@ -144,14 +150,7 @@ def inverse(
     from pliant.viz import plot_trajectory, save_gif
     from pliant.viz.model_view import RobotCamera
 
-    scene = None
-    if robot.endswith((".scn", ".xml", ".py")):
-        from pliant.sofa import load_scene
-
-        scene = load_scene(robot, mesh_dirs=mesh_dir)
-        entry, robot = scene.entry(), Path(robot).stem
-    else:
-        entry = robots.entry(robot)
+    scene, entry, robot = _robot_or_scene(robot, mesh_dir)
     if not entry.trajectories and scene is not None:
         raise typer.BadParameter(f"{robot} has no PositionEffector to control")
     if not entry.trajectories:
@@ -160,14 +159,9 @@ def inverse(
             f"{robot} has no goal trajectory for inverse control; robots with one:"
             f" {', '.join(having)}"
         )
-    name = trajectory or next(iter(entry.trajectories))
-    if name not in entry.trajectories:
-        raise typer.BadParameter(
-            f"{robot} has trajectories {sorted(entry.trajectories)}, not {name!r}"
-        )
-    targets = entry.trajectories[name](goals)
+    name, targets = goal_trajectory(robot, entry, trajectory, goals)
     model = entry.build()
-    sim = scene.solver() if scene and solver == "dynamic" else _solver(model, solver, dt)
+    sim = _solver(model, solver, dt, scene)
     camera = RobotCamera(model, view=entry.view)
     folder = out / robot
     images = []
