@@ -13,6 +13,7 @@ from rich.console import Console
 
 from pliant.cli.support import assignments, json_or_text
 from pliant.files import write_json
+from pliant.threads import configure_threads
 
 console = Console()
 
@@ -76,12 +77,10 @@ def train(
     ] = None,
 ) -> None:
     """Train ALGO on ENV; checkpoints, evaluations, TensorBoard logs and a GIF in --out."""
-    import torch
-
     from pliant.learn.config import load_config
 
     if torch_threads is not None:
-        torch.set_num_threads(torch_threads)
+        configure_threads(torch_threads=torch_threads)
     from pliant.learn.training import train as run_training
 
     overrides = {
