@@ -30,6 +30,7 @@ from pliant.cli.options import (
 from pliant.cli.support import (
     assignments,
     at_least_one,
+    command_group,
     non_negative,
     numbers_list,
     one_of,
@@ -38,13 +39,9 @@ from pliant.cli.support import (
 )
 from pliant.files import write_json
 
-app = typer.Typer(
-    add_completion=False,
-    no_args_is_help=True,
-    help=(
-        "Learned condensed FEM model (thesis §5.1): data, training, evaluation, control,"
-        " calibration and design."
-    ),
+app = command_group(
+    "Learned condensed FEM model (thesis §5.1): data, training, evaluation, control,"
+    " calibration and design."
 )
 console = Console()
 

@@ -11,14 +11,10 @@ import typer
 from rich.console import Console
 
 from pliant.cli.options import Count, Seed
-from pliant.cli.support import at_least_one, one_of, output_folder
+from pliant.cli.support import at_least_one, command_group, one_of, output_folder
 from pliant.learn.graph.training import METHODS, SCENES, GraphSettingsError, train_run
 
-app = typer.Typer(
-    add_completion=False,
-    no_args_is_help=True,
-    help="Hierarchical RL over contact configurations (thesis §4.2).",
-)
+app = command_group("Hierarchical RL over contact configurations (thesis §4.2).")
 console = Console()
 
 

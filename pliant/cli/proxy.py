@@ -15,6 +15,7 @@ from rich.console import Console
 from pliant.cli.options import OutFolder
 from pliant.cli.support import (
     at_least_one,
+    command_group,
     fraction,
     non_negative,
     numbers_list,
@@ -22,11 +23,7 @@ from pliant.cli.support import (
 )
 from pliant.files import write_json
 
-app = typer.Typer(
-    add_completion=False,
-    no_args_is_help=True,
-    help="Beam-skeleton proxies of FEM robots (thesis §4.1).",
-)
+app = command_group("Beam-skeleton proxies of FEM robots (thesis §4.1).")
 console = Console()
 
 

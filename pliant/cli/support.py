@@ -102,6 +102,12 @@ class ErrorHandlingGroup(typer.core.TyperGroup):
         sys.exit(result if isinstance(result, int) else 0)
 
 
+def command_group(help: str) -> typer.Typer:
+    """A group of sub-commands (``pliant condensed``, ``trajopt``, ``proxy``, ``graph``): its
+    help when called alone, no shell-completion options."""
+    return typer.Typer(add_completion=False, no_args_is_help=True, help=help)
+
+
 def _check(test: Callable[[float], bool], wanted: str) -> Callable:
     def callback(value):
         if value is None:

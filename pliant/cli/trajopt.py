@@ -12,7 +12,7 @@ from rich.console import Console
 from rich.table import Table
 
 from pliant.cli.options import OutFolder
-from pliant.cli.support import at_least_one, non_negative, one_of, positive
+from pliant.cli.support import at_least_one, command_group, non_negative, one_of, positive
 from pliant.files import write_json
 from pliant.trajopt.runs import (
     BACKENDS,
@@ -21,11 +21,7 @@ from pliant.trajopt.runs import (
     summary,
 )
 
-app = typer.Typer(
-    add_completion=False,
-    no_args_is_help=True,
-    help="Trajectory optimisation with condensed FEM dynamics (thesis §5.2).",
-)
+app = command_group("Trajectory optimisation with condensed FEM dynamics (thesis §5.2).")
 console = Console()
 
 
