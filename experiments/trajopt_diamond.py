@@ -31,11 +31,11 @@ from pathlib import Path
 import numpy as np
 
 from pliant.trajopt import ActuationBounds, BoxDDP, LinearDynamics
-from pliant.trajopt.cli import summary
 from pliant.trajopt.crocoddyl_backend import backward_pass as crocoddyl_backward
 from pliant.trajopt.crocoddyl_backend import solve_frozen
 from pliant.trajopt.ddp import backward_pass, compiled_backward_pass
 from pliant.trajopt.plots import plot_trajectory
+from pliant.trajopt.runs import summary
 from pliant.trajopt.scenarios import diamond_two_goals
 
 OUT = Path(__file__).parent / "results" / "trajopt"

@@ -117,6 +117,10 @@ class WorkerError(PliantError, RuntimeError):
     and the same call resumes."""
 
 
+class ThreadSettingError(PliantError, ValueError):
+    """A thread setting given to :func:`pliant.configure_threads` is not one it knows."""
+
+
 class LearnedModelError(PliantError, ValueError):
     """A learned condensed model cannot be used: unreadable file, or a robot whose constraint
     layout (actuators, effectors, contacts and their rows) differs from the one it learned."""

@@ -31,8 +31,8 @@ import numpy as np
 import torch
 
 from pliant.learn.graph import GraphConfig
-from pliant.learn.graph.cli import build_learner
 from pliant.learn.graph.scenes import CartStemStaticInverse, make_scene
+from pliant.learn.graph.training import build_learner
 
 
 def region(env) -> str:

@@ -40,7 +40,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import torch  # noqa: E402
 
-from pliant.learn.graph.cli import train_run  # noqa: E402
+from pliant.learn.graph.training import train_run  # noqa: E402
 
 CONFIGS = {
     # D.2's settings, hidden layers 256 (the authors: 512) for the CPU.

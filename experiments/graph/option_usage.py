@@ -24,8 +24,8 @@ import numpy as np
 import torch
 
 from pliant.learn.graph import GraphConfig
-from pliant.learn.graph.cli import build_learner
 from pliant.learn.graph.scenes import make_scene
+from pliant.learn.graph.training import build_learner
 
 
 def options(buffer: dict, n_nodes: int) -> dict:

@@ -37,7 +37,7 @@ def replay(folder: Path) -> dict:
     from cartstem import CONFIGS, ENV_SETTINGS  # this folder is on sys.path
 
     from pliant.learn.graph import GraphConfig
-    from pliant.learn.graph.cli import build_learner
+    from pliant.learn.graph.training import build_learner
 
     scene = make_scene("RodManipulator", **ENV_SETTINGS["RodManipulator"])
     meta = json.loads((folder / "history.json").read_text())

@@ -40,9 +40,9 @@ from cartstem import (  # this folder is on sys.path
 )
 
 from pliant.learn.graph import GraphConfig
-from pliant.learn.graph.cli import build_learner, train_run
 from pliant.learn.graph.hierarchy import episode_means
 from pliant.learn.graph.scenes import make_scene
+from pliant.learn.graph.training import build_learner, train_run
 
 
 def greedy_episodes(agent, env, episodes: int, seed: int = 10_000) -> tuple[dict, list[dict]]:

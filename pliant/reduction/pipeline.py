@@ -9,12 +9,14 @@ import json
 import os
 import tempfile
 import time
+import warnings
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
+from pliant.errors import ContactConvergenceWarning, PliantError
 from pliant.mesh.multigait import CHAMBERS
 from pliant.model import Model
 from pliant.reduction import snapshots as snap
@@ -23,6 +25,7 @@ from pliant.reduction.ecsw import hyper_reduce
 from pliant.reduction.reduced import ReducedModel
 from pliant.reduction.snapshots import LoadCase
 from pliant.robots.multigait import demo_actuation
+from pliant.solvers import ImplicitEuler
 
 
 def build(
@@ -182,6 +185,60 @@ def multigait_cases(
             levels.append(level.copy())
         cases.append(LoadCase(f"actions_{seed}_{k}", RampedCommands(levels, phase), 6 * phase))
     return cases
+
+
+def robot_cases(entry, duration: float, phase: float) -> list[LoadCase]:
+    """A robot's load cases: its scripted actuation over `duration`, then each actuator
+    alone ramped to the largest command the script gives it, held and released (one
+    `phase` each)."""
+    probe = entry.demo_actuation(0.0)
+    if not isinstance(probe, np.ndarray | list | tuple):
+        raise PliantError(
+            "this robot's scripted actuation is a control object, not commands: give its"
+            " load cases through pliant.reduction.reduce"
+        )
+    times = np.linspace(0.0, duration, 200)
+    peak = np.max(np.abs([np.asarray(entry.demo_actuation(t), dtype=float) for t in times]), axis=0)
+    cases = [LoadCase("demo", entry.demo_actuation, duration)]
+    for i, level in enumerate(peak):
+        if level > 0:
+            target = np.zeros_like(peak)
+            target[i] = level
+            cases.append(
+                LoadCase(
+                    f"actuator_{i}", RampedCommands([target, target, 0 * target], phase), 3 * phase
+                )
+            )
+    return cases
+
+
+def compare(model, reduced, entry, dt: float, seconds: float) -> dict:
+    """Node-position error of the reduced model against the full FEM under the scripted
+    actuation over `seconds` (model units), and the speed of both (steps/s)."""
+    steps = max(1, round(seconds / dt))
+    runs = {}
+    for name, solver, state in (
+        ("full", ImplicitEuler(model, dt), model.rest_state()),
+        ("reduced", (s := reduced.solver(model, dt)), s.rest_state()),
+    ):
+        positions = []
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", ContactConvergenceWarning)
+            began = time.perf_counter()
+            for _ in range(steps):
+                state = solver.step(state, entry.demo_actuation(state.time))
+                positions.append(np.array(state.positions))
+            runs[name] = (np.array(positions), steps / (time.perf_counter() - began))
+    error = np.linalg.norm(runs["reduced"][0] - runs["full"][0], axis=2)
+    length = float(np.linalg.norm(np.ptp(model.body.rest_positions, axis=0)))
+    return {
+        "check_seconds": seconds,
+        "max_error": float(error.max()),
+        "rms_error": float(np.sqrt(np.mean(error**2))),
+        "max_error_pct_size": 100 * float(error.max()) / length,
+        "full_steps_per_s": runs["full"][1],
+        "reduced_steps_per_s": runs["reduced"][1],
+    }
 
 
 def cache_folder() -> Path:

@@ -9,7 +9,8 @@ import numpy as np
 import pytest
 
 from pliant import robots
-from pliant.bench import TRUNK_CUBE_WARMUP, _contact_counts, trunk_cables_cube
+from pliant.bench import TRUNK_CUBE_WARMUP, trunk_cables_cube
+from pliant.bench.timing import _contact_counts
 from pliant.errors import ContactMarginWarning
 from pliant.solvers import ImplicitEuler
 

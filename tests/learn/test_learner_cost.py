@@ -5,8 +5,8 @@ from __future__ import annotations
 
 import pytest
 
+from pliant.bench.learner import learner_cost
 from pliant.errors import TrainingError
-from pliant.learn.speed import learner_cost
 
 
 def _cost(width: int):

@@ -377,7 +377,7 @@ def test_several_effectors_and_selected_axes(diamond):
 def test_scenarios_quick_mode_writes_reports_within_bounds(command, tmp_path) -> None:
     """Each `pliant trajopt SCENARIO --quick` (short horizon, 2 DDP iterations) writes its plot,
     GIF and JSON report; every returned control meets its bounds, the cost did not rise."""
-    from pliant.trajopt.cli import run_scenario
+    from pliant.trajopt.runs import run_scenario
 
     report = run_scenario(
         command, quick=True, frames=2 if command == "stiff-flop" else 0, out=tmp_path

@@ -12,21 +12,18 @@ from typing import Annotated
 import typer
 from rich.console import Console
 
-from pliant.cli_support import (
+from pliant.cli.options import OutFolder
+from pliant.cli.support import (
     at_least_one,
+    command_group,
     fraction,
     non_negative,
     numbers_list,
     one_of,
-    output_folder,
 )
 from pliant.files import write_json
 
-app = typer.Typer(
-    add_completion=False,
-    no_args_is_help=True,
-    help="Beam-skeleton proxies of FEM robots (thesis §4.1).",
-)
+app = command_group("Beam-skeleton proxies of FEM robots (thesis §4.1).")
 console = Console()
 
 
@@ -123,9 +120,7 @@ def calibrate(
             dir_okay=False,
         ),
     ] = None,
-    out: Annotated[Path, typer.Option(help="output folder", callback=output_folder)] = Path(
-        "out/proxy"
-    ),
+    out: OutFolder = Path("out/proxy"),
 ) -> None:
     """Calibrate ROBOT's proxy on its FEM model: Optuna TPE, study resumed from
     OUT/ROBOT.db, report in OUT/ROBOT_calibration.json.
@@ -398,9 +393,7 @@ def transfer(
         typer.Option(help="trunk: the goal's offset from the cube's start, 'x,z' mm (25,-10)"),
     ] = None,
     gif: Annotated[bool, typer.Option(help="also write a GIF (FEM beside proxy)")] = False,
-    out: Annotated[Path, typer.Option(help="output folder", callback=output_folder)] = Path(
-        "out/proxy"
-    ),
+    out: OutFolder = Path("out/proxy"),
 ) -> None:
     """Transfer ROBOT's proxy strategy to its FEM model (thesis §4.1.1, Fig. 4.2): inverse QP
     on the matched points, realignment, actuation correction; OUT/ROBOT_transfer.json and .png

@@ -1,6 +1,6 @@
-"""``pliant graph train SCENE``: train the configuration-space graph (or the plain-SAC
-baseline) with checkpoints, resume and periodic evaluation, its evaluations logged to
-TensorBoard through Stable-Baselines3's logger (``OUT/tb``), as ``pliant train`` logs them."""
+"""Train the configuration-space graph (or the plain-SAC baseline) with checkpoints, resume and
+periodic evaluation, its evaluations logged to TensorBoard through Stable-Baselines3's logger
+(``OUT/tb``), as ``pliant train`` logs them (the command: ``pliant graph train SCENE``)."""
 
 from __future__ import annotations
 
@@ -8,39 +8,21 @@ import dataclasses
 import json
 import time
 from pathlib import Path
-from typing import Annotated
 
-import typer
 from rich.console import Console
 
-from pliant.cli_support import at_least_one, one_of, output_folder
+from pliant.errors import TrainingError
 from pliant.files import read_checked, write_json
 
-app = typer.Typer(
-    add_completion=False,
-    no_args_is_help=True,
-    help="Hierarchical RL over contact configurations (thesis §4.2).",
-)
 console = Console()
 
 METHODS = ("graph", "convex", "convex_node", "sac")
 SCENES = ("Corridor", "CartStemContact", "RodManipulator")
 
 
-def settings_file(path: Path | None) -> dict:
-    """Option callback: the JSON settings in `path` ({} without one); BadParameter if it cannot
-    be read or is not a JSON object with only 'agent' and 'env' keys."""
-    if path is None:
-        return {}
-    try:
-        settings = json.loads(Path(path).read_text())
-    except (OSError, UnicodeDecodeError, ValueError) as exc:
-        raise typer.BadParameter(f"cannot read JSON settings from {str(path)!r}: {exc}") from None
-    if not isinstance(settings, dict) or set(settings) - {"agent", "env"}:
-        raise typer.BadParameter(
-            f"{str(path)!r} must hold a JSON object with 'agent' and/or 'env' keys"
-        )
-    return settings
+class GraphSettingsError(TrainingError):
+    """A run's method or agent settings do not suit its scene: found before any training (the
+    command line reports it as a usage error)."""
 
 
 def build_controllers(method: str, scene) -> dict | None:
@@ -85,14 +67,14 @@ def train_run(
     from pliant.learn.graph.scenes import make_scene
 
     if method not in METHODS:
-        raise typer.BadParameter(f"method must be one of {METHODS}, got {method!r}")
+        raise GraphSettingsError(f"method must be one of {METHODS}, got {method!r}")
     fields = {f.name for f in dataclasses.fields(GraphConfig)}
     unknown = set(config or {}) - fields
     if unknown:
-        raise typer.BadParameter(f"unknown config keys {sorted(unknown)}; known: {sorted(fields)}")
+        raise GraphSettingsError(f"unknown config keys {sorted(unknown)}; known: {sorted(fields)}")
     scene = make_scene(scene_name, **(env_kwargs or {}))
     if method.startswith("convex") and not build_controllers(method, scene):
-        raise typer.BadParameter(
+        raise GraphSettingsError(
             f"{scene_name} has no {method} internal agents: use --method graph or sac"
         )
     learner = build_learner(method, scene, GraphConfig(**(config or {})), seed)
@@ -126,51 +108,3 @@ def train_run(
     finally:
         logger.close()
     return history
-
-
-@app.command()
-def train(
-    scene: Annotated[
-        str,
-        typer.Argument(
-            help="Corridor, CartStemContact or RodManipulator", callback=one_of(*SCENES)
-        ),
-    ],
-    config: Annotated[
-        Path | None,
-        typer.Option(
-            help="JSON: {'agent': GraphConfig fields, 'env': environment keywords}",
-            callback=settings_file,
-        ),
-    ] = None,
-    method: Annotated[
-        str,
-        typer.Option(
-            help="graph, convex (QP internal agents), convex_node (the QP kept inside its"
-            " node) or sac",
-            callback=one_of(*METHODS),
-        ),
-    ] = "graph",
-    steps: Annotated[
-        int, typer.Option(help="environment steps in all", callback=at_least_one)
-    ] = 20_000,
-    seed: Annotated[int, typer.Option()] = 0,
-    eval_every: Annotated[
-        int, typer.Option(help="steps between evaluations", callback=at_least_one)
-    ] = 600,
-    eval_episodes: Annotated[int, typer.Option(callback=at_least_one)] = 5,
-    out: Annotated[
-        Path,
-        typer.Option(help="run folder (checkpoint.pt, history.json)", callback=output_folder),
-    ] = Path("runs/graph"),
-    resume: Annotated[bool, typer.Option(help="continue the checkpoint in OUT")] = True,
-) -> None:
-    """Train SCENE's graph agents (or plain SAC) and evaluate them every EVAL_EVERY steps."""
-    settings = config  # read and checked by settings_file
-    history = train_run(
-        scene, method, out, steps=steps, seed=seed, config=settings.get("agent"),
-        env_kwargs=settings.get("env"), eval_every=eval_every, eval_episodes=eval_episodes,
-        resume=resume,
-    )  # fmt: skip
-    if history:
-        console.print(f"last evaluation: {history[-1]}")

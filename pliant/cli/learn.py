@@ -11,29 +11,17 @@ from typing import Annotated
 import typer
 from rich.console import Console
 
+from pliant.cli.support import assignments, json_or_text
 from pliant.files import write_json
+from pliant.threads import configure_threads
 
 console = Console()
 
 ALGO_HELP = "PPO, SAC, TD3, A2C, DQN or RecurrentPPO"
 
 
-def _value(text: str):
-    """A command-line value: JSON where it parses (numbers, lists, true/false), else text."""
-    try:
-        return json.loads(text)
-    except json.JSONDecodeError:
-        return text
-
-
 def _pairs(items: list[str] | None) -> dict:
-    out = {}
-    for item in items or []:
-        key, sep, value = item.partition("=")
-        if not sep:
-            raise typer.BadParameter(f"expected KEY=VALUE, got {item!r}")
-        out[key] = _value(value)
-    return out
+    return {k: json_or_text(v) for k, v in assignments(items or []).items()}
 
 
 def _quick_kwargs(env_id: str) -> dict:
@@ -89,12 +77,10 @@ def train(
     ] = None,
 ) -> None:
     """Train ALGO on ENV; checkpoints, evaluations, TensorBoard logs and a GIF in --out."""
-    import torch
-
     from pliant.learn.config import load_config
 
     if torch_threads is not None:
-        torch.set_num_threads(torch_threads)
+        configure_threads(torch_threads=torch_threads)
     from pliant.learn.training import train as run_training
 
     overrides = {

@@ -16,8 +16,6 @@ import resource
 import statistics
 import tempfile
 import time
-from collections.abc import Callable
-from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -25,7 +23,10 @@ from rich.console import Console
 from rich.table import Table
 
 from pliant import __version__, robots
-from pliant.bench_profile import PARTS, batch_throughput, default_error, step_breakdown
+from pliant.bench.host import host
+from pliant.bench.profile import PARTS, batch_throughput, default_error, step_breakdown
+from pliant.bench.sofa_scenes import SOFA_SCENES, TRUNK_CUBE_WARMUP, sofa_scene, trunk_cables_cube
+from pliant.bench.timing import POLICY_OPTIONS, Measurement, time_steps
 from pliant.constraints.control import InverseControl
 from pliant.fem.body import TetBody, nodes_in_box
 from pliant.fem.material import Corotational
@@ -50,18 +51,6 @@ SOFA_STEPS_PER_S = {
     "cantilever-51840": 0.24,
     "trunk+cables+cube": 16.2,
 }
-# Solver options of each policy measured. "sofa-algorithm" is SOFA's scheme run by Pliant: a
-# factorisation at every step, every contact within the margin in the constraint problem, and
-# every constraint column solved (SOFA's LinearSolverConstraintCorrection builds W from one
-# solve per constraint row).
-POLICY_OPTIONS = {
-    "pcg": {"tangent": "pcg"},
-    "lagged": {"tangent": "lagged"},
-    "fresh": {"tangent": "fresh"},
-    "sofa-algorithm": {"tangent": "fresh", "point_compliance": False, "contact_screening": False},
-}
-# In SOFA's Trunk-and-cube scene the trunk reaches the cube by step 40 and pushes it on.
-TRUNK_CUBE_WARMUP = 40
 # Thesis Fig. 5.5 / Table 5.2 (SOFA, the thesis' machine), frames/s of the Soft Finger.
 THESIS_FINGER_FPS = {"coarse": 32.6, "fine": 4.8, "superfine": 1.8}
 
@@ -87,15 +76,7 @@ def cantilever(n: int) -> Model:
     """SPEC §5 cantilever: 100 x 20 x 20 mm, 5n x n x n cubes of 6 tets, E=1000, nu=0.45."""
     mesh = box_beam(100.0, 20.0, 20.0, nx=5 * n, ny=n, nz=n)
     fixed = np.flatnonzero(mesh.points[:, 0] <= 1e-9)
-    body = TetBody(
-        mesh,
-        Corotational(1000.0, 0.45),
-        total_mass=0.04,
-        mass="uniform",
-        fixed_nodes=fixed,
-        gravity=(0.0, 0.0, -9810.0),
-    )
-    return Model(body, name=f"cantilever-{mesh.n_tets}")
+    return _corotational(mesh, 1000.0, 0.04, fixed, f"cantilever-{mesh.n_tets}")
 
 
 def multigait(meshes: Path) -> Model:
@@ -103,36 +84,20 @@ def multigait(meshes: Path) -> Model:
     mesh = load_mesh(meshes / "MultiGaitRobot_full_quadriped_fine.vtk")
     c = mesh.points.mean(axis=0)
     fixed = nodes_in_box(mesh.points, [c - [10.0, 10.0, 50.0], c + [10.0, 10.0, 50.0]])
+    return _corotational(mesh, 70.0, 0.035, fixed, "multigait")
+
+
+def _corotational(mesh: TetMesh, young: float, mass: float, fixed, name: str) -> Model:
+    """SPEC §5's bare bodies: corotational, nu = 0.45, uniform mass, gravity along -z."""
     body = TetBody(
         mesh,
-        Corotational(70.0, 0.45),
-        total_mass=0.035,
+        Corotational(young, 0.45),
+        total_mass=mass,
         mass="uniform",
         fixed_nodes=fixed,
         gravity=(0.0, 0.0, -9810.0),
     )
-    return Model(body, name="multigait")
-
-
-# SOFA's own scenes (sofa-reference beside the meshes) and the SPEC §5 figure each was timed as:
-# both run 100 steps from rest, the first factorisation included, as SOFA's batch runner does.
-SOFA_SCENES = {"diamond_plain.scn": "diamond", "trunk_cables.scn": "trunk+cables"}
-
-
-def sofa_scene(meshes: Path, name: str):
-    """A scene of ``sofa-reference`` beside the meshes read by the scene loader, or None where
-    the folder is absent."""
-    from pliant.sofa import load_scene
-
-    path = Path(meshes).parent / "sofa-reference" / name
-    return load_scene(path, mesh_dirs=[meshes]) if path.is_file() else None
-
-
-def trunk_cables_cube(meshes: Path):
-    """SOFA's own Trunk-and-cube scene (``sofa-reference/trunk_cables_cube.scn`` beside the
-    meshes), read by the scene loader: the scene SOFA's 16.2 steps/s were measured on. None
-    where the reference folder is absent."""
-    return sofa_scene(meshes, "trunk_cables_cube.scn")
+    return Model(body, name=name)
 
 
 def multigait_on_floor(meshes: Path) -> Model:
@@ -176,112 +141,6 @@ def multigait_on_floor(meshes: Path) -> Model:
     )
 
 
-@dataclass
-class Measurement:
-    scene: str
-    tets: int
-    policy: str
-    steps_per_s: float
-    repeats: list[float]
-    factorisations_per_step: float
-    sofa: float | None = None
-    extra: dict = field(default_factory=dict)
-
-    @property
-    def speedup(self) -> float | None:
-        return self.steps_per_s / self.sofa if self.sofa else None
-
-
-@dataclass
-class Timing:
-    """Timed runs of one scene: steps/s of each, and per step the median factorisations, the
-    mean contact-solver sweeps and Newton steps, the mean contacts, all of them, those of the
-    body's points on rigid bodies and those solved (not screened out), and the mean contact
-    solves (screening's rounds); 0 without contacts."""
-
-    rates: list[float]
-    factorisations_per_step: float
-    sweeps_per_step: float
-    newton_steps_per_step: float
-    contacts_per_step: float
-    body_contacts_per_step: float
-    solved_contacts_per_step: float = 0.0
-    contact_rounds_per_step: float = 0.0
-
-
-def _contact_counts(model: Model, state) -> tuple[int, int]:
-    """Contacts of the step that gave `state`, all and the body's points on rigid bodies."""
-    contacts, keys = model.contacts, state.contact_forces.keys
-    if contacts is None:
-        return 0, 0
-    on_bodies = (keys[:, 0] < len(contacts.points)) & (keys[:, 1] >= len(contacts.shapes))
-    return len(keys), int(np.count_nonzero(on_bodies))
-
-
-def time_steps(
-    make_solver: Callable[[], object],
-    state,
-    control: Callable[[object], object],
-    steps: int,
-    repeats: int,
-    warmup: int,
-) -> Timing:
-    """`repeats` runs of `steps` steps, each from the state after the warm-up; the contact
-    figures are counted in the timer's pauses, after each step."""
-    solver = make_solver()
-    for _ in range(warmup):
-        state = solver.step(state, control(state))
-    rates, facts, sweeps, newton, counts = [], [], [], [], []
-    for _ in range(repeats):
-        s = state.copy()
-        f0 = solver.system.factorisations
-        elapsed = 0.0
-        for _ in range(steps):
-            t0 = time.perf_counter()
-            s = solver.step(s, control(s))
-            elapsed += time.perf_counter() - t0
-            report = solver.last_report.contact
-            sweeps.append(report.iterations if report is not None else 0)
-            newton.append(report.newton_steps if report is not None else 0)
-            total, on_bodies = _contact_counts(solver.model, s)
-            screened = report.screened if report is not None else 0
-            rounds = report.rounds if report is not None else 0
-            counts.append((total, on_bodies, total - screened, rounds))
-        rates.append(steps / elapsed)
-        facts.append((solver.system.factorisations - f0) / steps)
-    total, on_bodies, solved, rounds = np.mean(counts, axis=0)
-    return Timing(
-        rates,
-        statistics.median(facts),
-        float(np.mean(sweeps)),
-        float(np.mean(newton)),
-        float(total),
-        float(on_bodies),
-        float(solved),
-        float(rounds),
-    )
-
-
-def host() -> dict:
-    """The host a timing was taken on: CPU model, cores and the load average, so that a reader
-    can tell a slower host or a busy one from a slower Pliant (ratios against SOFA's figures,
-    taken on another day, hold only on a host as fast and as quiet as theirs; SPEC §5)."""
-    model = platform.processor() or platform.machine()
-    try:
-        with open("/proc/cpuinfo") as fh:
-            names = [ln.split(":", 1)[1].strip() for ln in fh if ln.startswith("model name")]
-        model = names[0] if names else model
-    except OSError:
-        pass
-    load = os.getloadavg() if hasattr(os, "getloadavg") else (float("nan"),) * 3
-    return {
-        "machine": platform.platform(),
-        "cpu_model": model,
-        "cpus": os.cpu_count(),
-        "load_average_1_5_15_min": [round(x, 2) for x in load],
-    }
-
-
 def run_benchmarks(
     *,
     meshes: Path | None,
@@ -314,7 +173,7 @@ def run_benchmarks(
     ) -> None:
         """Time `model` under each policy; with `profile`, also the default's error against
         the `exact` policy over 1 s from rest and the time per step of each part (lagged and
-        exact), :mod:`pliant.bench_profile`."""
+        exact), :mod:`pliant.bench.profile`."""
         step_control = control if callable(control) else (lambda s: control)
         analysis = {}
         if profile and exact is not None:
@@ -590,34 +449,6 @@ def run_benchmarks(
     )
     console.print(f"peak memory {peak_mb:.0f} MB; wrote {out} and {out.with_suffix('.png')}")
     return results
-
-
-def report_gradient(*, quick: bool, out: Path, console: Console) -> dict:
-    """`pliant bench --gradient`: a rollout gradient's cost against its rollout
-    (:func:`pliant.diff.cost.gradient_cost`) on the coarse Finger and the Diamond."""
-    from pliant.diff.cost import gradient_cost
-    from pliant.files import write_json
-
-    cases = {"finger": (robots.soft_finger(), np.array([8.0, 0.0]), 20 if quick else 50)}
-    if not quick:
-        cases["diamond"] = (robots.diamond(), np.array([10.0, 0.0, 5.0, 0.0]), 30)
-    rows = {name: gradient_cost(m, c, n) for name, (m, c, n) in cases.items()}
-    table = Table(title="a rollout's gradient (controls, E, nu) against the rollout")
-    for col in ("scene", "steps", "forward s", "gradient s", "ratio", "checkpointed ratio"):
-        table.add_column(col, justify="right")
-    for name, r in rows.items():
-        table.add_row(
-            name,
-            str(r["steps"]),
-            f"{r['forward_s']:.2f}",
-            f"{r['all_states_kept']['gradient_s']:.2f}",
-            f"{r['all_states_kept']['gradient_over_forward']:.1f}x",
-            f"{r['checkpoints_sqrt_T']['gradient_over_forward']:.1f}x",
-        )
-    console.print(table)
-    write_json(out, {"gradient": rows, "quick": quick, "host": host()})
-    console.print(f"saved {out}")
-    return rows
 
 
 def _print_table(results: list[Measurement], console: Console) -> None:

@@ -1,4 +1,5 @@
-"""The ``pliant`` command line: run, inverse, bench, plan."""
+"""``pliant run``, ``pliant inverse``, ``pliant view``: a robot (or a SOFA scene) under its
+scripted actuation, under inverse control, or in the browser."""
 
 from __future__ import annotations
 
@@ -15,57 +16,41 @@ from rich.progress import Progress
 from rich.table import Table
 
 from pliant import robots
-from pliant.cli_support import (
-    ErrorHandlingGroup,
+from pliant.cli.options import (
+    ROBOT_NAMES,
+    Goals,
+    MeshDirs,
+    OutFolder,
+    SolverKind,
+    TimeStep,
+    goal_trajectory,
+)
+from pliant.cli.support import (
     at_least_one,
-    numbers_list,
-    one_of,
-    output_file,
-    output_folder,
     positive,
 )
-from pliant.condensed.cli import app as condensed_app
 from pliant.errors import UnreachableGoalWarning
 from pliant.files import write_json
-from pliant.learn import cli as learn_cli
-from pliant.learn.graph.cli import app as graph_app
-from pliant.planning.cli import plan
-from pliant.reduction.cli import reduce_command
-from pliant.reproduce.cli import reproduce_command
 from pliant.solvers import ImplicitEuler, StaticSolver
-from pliant.trajopt.cli import app as trajopt_app
-from pliant.transfer.cli import app as proxy_app
 
-app = typer.Typer(
-    cls=ErrorHandlingGroup,
-    add_completion=False,
-    no_args_is_help=True,
-    help="Simulate, control and benchmark FEM soft robots.",
-)
 console = Console()
-app.add_typer(condensed_app, name="condensed")
-app.command()(plan)
-app.add_typer(trajopt_app, name="trajopt")
-app.command("reduce")(reduce_command)
-app.command("reproduce")(reproduce_command)
-app.command("train")(learn_cli.train)
-app.command("eval")(learn_cli.eval_)
-app.command("enjoy")(learn_cli.enjoy)
-app.command("tune")(learn_cli.tune)
-app.add_typer(proxy_app, name="proxy")
-app.add_typer(graph_app, name="graph")
 
 
-@app.callback()
-def main(
-    debug: Annotated[
-        bool, typer.Option("--debug", help="on failure, show the traceback (not one line)")
-    ] = False,
-) -> None:
-    """Simulate, control and benchmark FEM soft robots."""
+def _robot_or_scene(robot: str, mesh_dirs: list[Path]):
+    """(scene, robot entry, name) of a robot's name, or of a SOFA scene file (`.scn`, `.xml`,
+    `.py`, its meshes looked for in `mesh_dirs` too; the name is the file's stem)."""
+    if robot.endswith((".scn", ".xml", ".py")):
+        from pliant.sofa import load_scene
+
+        scene = load_scene(robot, mesh_dirs=mesh_dirs)
+        return scene, scene.entry(), Path(robot).stem
+    return None, robots.entry(robot), robot
 
 
-def _solver(model, solver: str, dt: float):
+def _solver(model, solver: str, dt: float, scene=None):
+    # A scene runs SOFA's step (its time step, refactorised every step) unless told otherwise.
+    if scene is not None and solver == "dynamic":
+        return scene.solver()
     if solver == "dynamic":
         return ImplicitEuler(model, dt)
     if solver == "static":
@@ -73,22 +58,19 @@ def _solver(model, solver: str, dt: float):
     raise typer.BadParameter(f"solver must be 'dynamic' or 'static', got {solver!r}")
 
 
-@app.command()
 def run(
     robot: Annotated[
         str,
-        typer.Argument(help=f"one of {', '.join(sorted(robots.ROBOTS))}, or a SOFA scene file"),
+        typer.Argument(help=f"one of {ROBOT_NAMES}, or a SOFA scene file"),
     ],
     duration: Annotated[float, typer.Option(help="simulated seconds", callback=positive)] = 3.0,
-    dt: Annotated[float, typer.Option(help="time step", callback=positive)] = 0.01,
-    solver: Annotated[
-        str, typer.Option(help="dynamic or static", callback=one_of("dynamic", "static"))
-    ] = "dynamic",
+    dt: TimeStep = 0.01,
+    solver: SolverKind = "dynamic",
     frames: Annotated[
         int, typer.Option(help="frames in the GIF and VTU series", callback=at_least_one)
     ] = 30,
-    out: Annotated[Path, typer.Option(help="output folder", callback=output_folder)] = Path("out"),
-    mesh_dir: Annotated[list[Path], typer.Option(help="where a scene's meshes are")] = [],  # noqa: B006
+    out: OutFolder = Path("out"),
+    mesh_dir: MeshDirs = [],  # noqa: B006
     states: Annotated[
         bool, typer.Option(help="also save the state at each frame (states/, for pliant view)")
     ] = False,
@@ -99,17 +81,9 @@ def run(
     from pliant.viz import VtuSeriesWriter, save_gif, save_png
     from pliant.viz.model_view import RobotCamera
 
-    scene = None
-    if robot.endswith((".scn", ".xml", ".py")):
-        from pliant.sofa import load_scene
-
-        scene = load_scene(robot, mesh_dirs=mesh_dir)
-        entry, robot = scene.entry(), Path(robot).stem
-    else:
-        entry = robots.entry(robot)
+    scene, entry, robot = _robot_or_scene(robot, mesh_dir)
     model = entry.build()
-    # A scene runs SOFA's step (its time step, refactorised every step) unless told otherwise.
-    sim = scene.solver() if scene and solver == "dynamic" else _solver(model, solver, dt)
+    sim = _solver(model, solver, dt, scene)
     n_steps = max(1, round(duration / dt))
     frames = max(1, min(frames, n_steps))
     frame_steps = set(np.linspace(n_steps / frames, n_steps, frames).round().astype(int))
@@ -153,28 +127,22 @@ def run(
     console.print(f"saved {gif}, {png} and {vtu.pvd_path}")
 
 
-@app.command()
 def inverse(
     robot: Annotated[
         str,
-        typer.Argument(
-            help=f"one of {', '.join(sorted(robots.ROBOTS))}, or a SOFA scene file with a"
-            " PositionEffector"
-        ),
+        typer.Argument(help=f"one of {ROBOT_NAMES}, or a SOFA scene file with a PositionEffector"),
     ],
     trajectory: Annotated[
         str, typer.Option(help="goal trajectory of the robot (circle, closing, ...)")
     ] = "",
-    goals: Annotated[int, typer.Option(help="number of goals", callback=at_least_one)] = 30,
-    dt: Annotated[float, typer.Option(help="time step", callback=positive)] = 0.01,
-    solver: Annotated[
-        str, typer.Option(help="dynamic or static", callback=one_of("dynamic", "static"))
-    ] = "dynamic",
+    goals: Goals = 30,
+    dt: TimeStep = 0.01,
+    solver: SolverKind = "dynamic",
     max_steps: Annotated[
         int, typer.Option(help="steps at most per goal", callback=at_least_one)
     ] = 60,
-    out: Annotated[Path, typer.Option(help="output folder", callback=output_folder)] = Path("out"),
-    mesh_dir: Annotated[list[Path], typer.Option(help="where a scene's meshes are")] = [],  # noqa: B006
+    out: OutFolder = Path("out"),
+    mesh_dir: MeshDirs = [],  # noqa: B006
 ) -> None:
     """Inverse control (QP, Eq. 2.15) of ROBOT's effector along a goal trajectory (a scene's:
     `goal`, GOALS steps on the line from the effector to its effectorGoal)."""
@@ -182,14 +150,7 @@ def inverse(
     from pliant.viz import plot_trajectory, save_gif
     from pliant.viz.model_view import RobotCamera
 
-    scene = None
-    if robot.endswith((".scn", ".xml", ".py")):
-        from pliant.sofa import load_scene
-
-        scene = load_scene(robot, mesh_dirs=mesh_dir)
-        entry, robot = scene.entry(), Path(robot).stem
-    else:
-        entry = robots.entry(robot)
+    scene, entry, robot = _robot_or_scene(robot, mesh_dir)
     if not entry.trajectories and scene is not None:
         raise typer.BadParameter(f"{robot} has no PositionEffector to control")
     if not entry.trajectories:
@@ -198,14 +159,9 @@ def inverse(
             f"{robot} has no goal trajectory for inverse control; robots with one:"
             f" {', '.join(having)}"
         )
-    name = trajectory or next(iter(entry.trajectories))
-    if name not in entry.trajectories:
-        raise typer.BadParameter(
-            f"{robot} has trajectories {sorted(entry.trajectories)}, not {name!r}"
-        )
-    targets = entry.trajectories[name](goals)
+    name, targets = goal_trajectory(robot, entry, trajectory, goals)
     model = entry.build()
-    sim = scene.solver() if scene and solver == "dynamic" else _solver(model, solver, dt)
+    sim = _solver(model, solver, dt, scene)
     camera = RobotCamera(model, view=entry.view)
     folder = out / robot
     images = []
@@ -270,100 +226,6 @@ def inverse(
     console.print(f"saved {plot}, {gif}, {report}")
 
 
-@app.command()
-def bench(
-    meshes: Annotated[
-        Path | None,
-        typer.Option(help="folder of the reference SOFA meshes", exists=True, file_okay=False),
-    ] = None,
-    repeats: Annotated[
-        int, typer.Option(help="timed repeats per scene (median reported)", callback=at_least_one)
-    ] = 3,
-    steps: Annotated[
-        int,
-        typer.Option(
-            help="steps per timed repeat (scaled down for big scenes)", callback=at_least_one
-        ),
-    ] = 100,
-    quick: Annotated[bool, typer.Option(help="small scenes only (a smoke run)")] = False,
-    out: Annotated[Path, typer.Option(help="JSON results file", callback=output_file)] = Path(
-        "bench-results/bench.json"
-    ),
-    envs: Annotated[
-        str,
-        typer.Option(
-            help="environments' speed (env and simulation steps/s, real-time factor at dt 0.01,"
-            " 0.02, 0.03), written to envs.json beside the JSON: 'all', 'none', 'only' (skip"
-            " the scenes) or comma-separated names"
-        ),
-    ] = "all",
-    profile: Annotated[
-        bool,
-        typer.Option(
-            help="per SPEC scene, the default step's error against the exact one over 1 s and"
-            " the time per step of each part (forces, assembly, factorisation, solves,"
-            " constraints, the rest)"
-        ),
-    ] = True,
-    batch: Annotated[
-        str,
-        typer.Option(help="batched stepping: comma-separated copy counts to time ('' skips)"),
-    ] = "1,8,32",
-    learner: Annotated[
-        bool,
-        typer.Option(
-            help="the learner's cost per training step alone (SAC CartStemContact, PPO"
-            " TrunkSpaceDebris: the thesis' networks on a stand-in task whose step is free),"
-            " with its arithmetic against this machine's matrix-product speed; learner.json"
-        ),
-    ] = False,
-    gradient: Annotated[
-        bool,
-        typer.Option(
-            help="what a rollout gradient (pliant.diff) costs beside the rollout, on the coarse"
-            " Finger and the Diamond; gradient.json"
-        ),
-    ] = False,
-) -> None:
-    """Median steps/s beside SOFA's measured figures; writes JSON and a log-log plot."""
-    from pliant.bench import run_benchmarks
-
-    if envs != "only":
-        run_benchmarks(
-            meshes=meshes,
-            repeats=repeats,
-            steps=steps,
-            quick=quick,
-            out=out,
-            console=console,
-            profile=profile,
-            batch=_copy_counts(batch),
-        )
-    if envs != "none":
-        from pliant.envs.speed import report_envs
-
-        names = None if envs in ("all", "only") else [n.strip() for n in envs.split(",")]
-        report_envs(names, quick=quick, out=out.with_name("envs.json"), console=console)
-    if learner:
-        from pliant.learn.speed import report_learner
-
-        report_learner(quick=quick, out=out.with_name("learner.json"), console=console)
-    if gradient:
-        from pliant.bench import report_gradient
-
-        report_gradient(quick=quick, out=out.with_name("gradient.json"), console=console)
-
-
-def _copy_counts(text: str) -> tuple[int, ...]:
-    """`--batch`: comma-separated copy counts (integers >= 1), or '' for none."""
-    if not text.strip():
-        return ()
-    counts = numbers_list(text, "--batch")
-    if any(c < 1 or c != int(c) for c in counts):
-        raise typer.BadParameter(f"--batch: copy counts must be integers >= 1, got {text!r}")
-    return tuple(int(c) for c in counts)
-
-
 def open_viewer(
     target: str,
     *,
@@ -423,7 +285,6 @@ def open_viewer(
     )
 
 
-@app.command()
 def view(
     target: Annotated[
         str,
@@ -458,7 +319,3 @@ def view(
             time.sleep(1.0)
     except KeyboardInterrupt:
         viewer.stop()
-
-
-if __name__ == "__main__":
-    app()

@@ -9,6 +9,7 @@ through with its traceback instead.
 
 from __future__ import annotations
 
+import json
 import math
 import os
 import sys
@@ -101,6 +102,12 @@ class ErrorHandlingGroup(typer.core.TyperGroup):
         sys.exit(result if isinstance(result, int) else 0)
 
 
+def command_group(help: str) -> typer.Typer:
+    """A group of sub-commands (``pliant condensed``, ``trajopt``, ``proxy``, ``graph``): its
+    help when called alone, no shell-completion options."""
+    return typer.Typer(add_completion=False, no_args_is_help=True, help=help)
+
+
 def _check(test: Callable[[float], bool], wanted: str) -> Callable:
     def callback(value):
         if value is None:
@@ -175,3 +182,27 @@ def output_file(path: Path | None) -> Path | None:
     ):
         raise typer.BadParameter(f"{str(path)!r}: {str(existing)!r} is not a writable folder")
     return path
+
+
+def assignments(items: list[str], *, form: str = "KEY=VALUE", option: str = "") -> dict[str, str]:
+    """``KEY=VALUE`` items (repeated options) as a dict of texts; BadParameter naming `option`
+    (or saying what was expected) for an item without ``=`` or without a key."""
+    out = {}
+    for item in items:
+        key, sep, value = item.partition("=")
+        if not sep or not key:
+            raise typer.BadParameter(
+                f"{option} takes {form}, got {item!r}"
+                if option
+                else f"expected {form}, got {item!r}"
+            )
+        out[key] = value
+    return out
+
+
+def json_or_text(text: str):
+    """A command-line value: JSON where it parses (numbers, lists, true/false), else text."""
+    try:
+        return json.loads(text)
+    except json.JSONDecodeError:
+        return text

@@ -4,7 +4,6 @@ a report of rewards and costs, and a GIF of the real trajectory."""
 from __future__ import annotations
 
 import importlib
-import json
 from pathlib import Path
 from typing import Annotated, Any
 
@@ -13,6 +12,7 @@ import typer
 from rich.console import Console
 from rich.markup import escape
 
+from pliant.cli.support import assignments, json_or_text
 from pliant.errors import PlanningError, PliantError
 from pliant.files import write_json
 from pliant.planning.opd import OPD
@@ -147,16 +147,7 @@ def _planner(
 
 
 def _kwargs(items: list[str]) -> dict[str, Any]:
-    kwargs = {}
-    for item in items:
-        key, sep, text = item.partition("=")
-        if not sep or not key:
-            raise typer.BadParameter(f"--env-kwarg takes KEY=VALUE, got {item!r}")
-        try:
-            kwargs[key] = json.loads(text)
-        except json.JSONDecodeError:
-            kwargs[key] = text
-    return kwargs
+    return {k: json_or_text(v) for k, v in assignments(items, option="--env-kwarg").items()}
 
 
 def _make(env_id: str, kwargs: dict[str, Any]) -> Any:

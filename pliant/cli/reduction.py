@@ -4,61 +4,31 @@ model, with a report of its modes, selected elements, errors and speed."""
 from __future__ import annotations
 
 import json
-import time
-import warnings
 from pathlib import Path
 from typing import Annotated
 
-import numpy as np
 import typer
 from rich.console import Console
 from rich.progress import Progress
 from rich.table import Table
 
 from pliant import robots
-from pliant.cli_support import at_least_one, non_negative, open_fraction, output_folder, positive
-from pliant.errors import ContactConvergenceWarning, PliantError
-from pliant.reduction.pipeline import RampedCommands, multigait_cases, reduce
-from pliant.reduction.snapshots import LoadCase
-from pliant.solvers import ImplicitEuler
+from pliant.cli.options import RobotName, TimeStep
+from pliant.cli.support import at_least_one, non_negative, open_fraction, output_folder, positive
+from pliant.reduction.pipeline import compare, multigait_cases, reduce, robot_cases
 
 console = Console()
 
 
-def robot_cases(entry, duration: float, phase: float) -> list[LoadCase]:
-    """A robot's load cases: its scripted actuation over `duration`, then each actuator
-    alone ramped to the largest command the script gives it, held and released (one
-    `phase` each)."""
-    probe = entry.demo_actuation(0.0)
-    if not isinstance(probe, np.ndarray | list | tuple):
-        raise PliantError(
-            "this robot's scripted actuation is a control object, not commands: give its"
-            " load cases through pliant.reduction.reduce"
-        )
-    times = np.linspace(0.0, duration, 200)
-    peak = np.max(np.abs([np.asarray(entry.demo_actuation(t), dtype=float) for t in times]), axis=0)
-    cases = [LoadCase("demo", entry.demo_actuation, duration)]
-    for i, level in enumerate(peak):
-        if level > 0:
-            target = np.zeros_like(peak)
-            target[i] = level
-            cases.append(
-                LoadCase(
-                    f"actuator_{i}", RampedCommands([target, target, 0 * target], phase), 3 * phase
-                )
-            )
-    return cases
-
-
 def reduce_command(
-    robot: Annotated[str, typer.Argument(help=f"one of {', '.join(sorted(robots.ROBOTS))}")],
+    robot: RobotName,
     out: Annotated[
         Path,
         typer.Option(
             help="folder of snapshots.h5, reduced.npz, report.json", callback=output_folder
         ),
     ] = Path("out/reduction"),
-    dt: Annotated[float, typer.Option(help="time step", callback=positive)] = 0.01,
+    dt: TimeStep = 0.01,
     pod_tolerance: Annotated[
         float, typer.Option(help="tail energy of the modes left out", callback=open_fraction)
     ] = 1e-3,
@@ -147,32 +117,3 @@ def reduce_command(
         table.add_row(*row)
     console.print(table)
     console.print(f"saved {folder / 'reduced.npz'} and {folder / 'report.json'}")
-
-
-def compare(model, reduced, entry, dt: float, seconds: float) -> dict:
-    """Node-position error of the reduced model against the full FEM under the scripted
-    actuation over `seconds` (model units), and the speed of both (steps/s)."""
-    steps = max(1, round(seconds / dt))
-    runs = {}
-    for name, solver, state in (
-        ("full", ImplicitEuler(model, dt), model.rest_state()),
-        ("reduced", (s := reduced.solver(model, dt)), s.rest_state()),
-    ):
-        positions = []
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", ContactConvergenceWarning)
-            began = time.perf_counter()
-            for _ in range(steps):
-                state = solver.step(state, entry.demo_actuation(state.time))
-                positions.append(np.array(state.positions))
-            runs[name] = (np.array(positions), steps / (time.perf_counter() - began))
-    error = np.linalg.norm(runs["reduced"][0] - runs["full"][0], axis=2)
-    length = float(np.linalg.norm(np.ptp(model.body.rest_positions, axis=0)))
-    return {
-        "check_seconds": seconds,
-        "max_error": float(error.max()),
-        "rms_error": float(np.sqrt(np.mean(error**2))),
-        "max_error_pct_size": 100 * float(error.max()) / length,
-        "full_steps_per_s": runs["full"][1],
-        "reduced_steps_per_s": runs["reduced"][1],
-    }

@@ -17,24 +17,31 @@ from rich.table import Table
 from rich.text import Text
 
 from pliant import robots
-from pliant.cli_support import (
+from pliant.cli.options import (
+    Count,
+    Goals,
+    NonNegativeNumber,
+    OutFolder,
+    PositiveNumber,
+    RobotName,
+    Seed,
+    goal_trajectory,
+)
+from pliant.cli.support import (
+    assignments,
     at_least_one,
+    command_group,
     non_negative,
     numbers_list,
     one_of,
     output_file,
-    output_folder,
     positive,
 )
 from pliant.files import write_json
 
-app = typer.Typer(
-    add_completion=False,
-    no_args_is_help=True,
-    help=(
-        "Learned condensed FEM model (thesis §5.1): data, training, evaluation, control,"
-        " calibration and design."
-    ),
+app = command_group(
+    "Learned condensed FEM model (thesis §5.1): data, training, evaluation, control,"
+    " calibration and design."
 )
 console = Console()
 
@@ -60,16 +67,6 @@ def _interval(text: str) -> tuple[float, float]:
     return low, high
 
 
-def _assignments(items: list[str]) -> dict[str, str]:
-    out = {}
-    for item in items:
-        key, sep, value = item.partition("=")
-        if not sep or not key:
-            raise typer.BadParameter(f"expected NAME=VALUE, got {item!r}")
-        out[key] = value
-    return out
-
-
 def _widths(text: str) -> tuple[int, ...]:
     """Option callback: comma-separated integers >= 1 (layer widths, grid counts)."""
     try:
@@ -88,7 +85,7 @@ def _gains(text: str) -> tuple[float, ...]:
 
 @app.command()
 def collect(
-    robot: Annotated[str, typer.Argument(help=f"one of {', '.join(sorted(robots.ROBOTS))}")],
+    robot: RobotName,
     out: Annotated[Path, typer.Option(help="HDF5 dataset to write", callback=output_file)],
     bounds: Annotated[
         list[str],
@@ -181,9 +178,11 @@ def collect(
     from pliant.condensed.dataset import CollectionPlan
 
     # Every option read before the robot is built (meshing takes seconds).
-    kwargs = {k: _number_or_text(v) for k, v in _assignments(set_ or []).items()}
+    kwargs = {k: _number_or_text(v) for k, v in assignments(set_ or [], form="NAME=VALUE").items()}
     intervals = [_interval(b) for b in bounds]
-    design_bounds = {k: _interval(v) for k, v in _assignments(design or []).items()}
+    design_bounds = {
+        k: _interval(v) for k, v in assignments(design or [], form="NAME=VALUE").items()
+    }
     object_bounds = tuple(_interval(b) for b in object_ or [])
     n_act = robots.build(robot, **kwargs).n_actuators
     if len(intervals) == 1:
@@ -252,13 +251,13 @@ def train(
     out: Annotated[
         Path, typer.Option(help="learned model file to write (.pt)", callback=output_file)
     ],
-    epochs: Annotated[int, typer.Option(callback=at_least_one)] = 1000,
-    batch_size: Annotated[int, typer.Option(callback=at_least_one)] = 256,
-    learning_rate: Annotated[float, typer.Option(callback=positive)] = 1e-4,
+    epochs: Count = 1000,
+    batch_size: Count = 256,
+    learning_rate: PositiveNumber = 1e-4,
     hidden: Annotated[
         str, typer.Option(help="hidden layer widths, comma separated", callback=_widths)
     ] = "450,450,450",
-    dropout: Annotated[float, typer.Option(callback=non_negative)] = 0.0,
+    dropout: NonNegativeNumber = 0.0,
     activation: Annotated[
         str, typer.Option(help="hidden activation", callback=one_of("relu", "silu", "tanh"))
     ] = "relu",
@@ -269,8 +268,8 @@ def train(
             callback=one_of("plateau", "cosine"),
         ),
     ] = "plateau",
-    weight_decay: Annotated[float, typer.Option(callback=non_negative)] = 0.0,
-    seed: Annotated[int, typer.Option()] = 0,
+    weight_decay: NonNegativeNumber = 0.0,
+    seed: Seed = 0,
     log_dir: Annotated[Path | None, typer.Option(help="TensorBoard folder")] = None,
     checkpoint: Annotated[
         Path | None, typer.Option(help="checkpoint file, resumed from if it exists")
@@ -359,7 +358,7 @@ def evaluate(
 def control(
     model: Annotated[Path, typer.Argument(help="learned model file")],
     trajectory: Annotated[str, typer.Option(help="goal trajectory of the robot")] = "",
-    goals: Annotated[int, typer.Option(help="number of goals", callback=at_least_one)] = 30,
+    goals: Goals = 30,
     iterations: Annotated[
         int, typer.Option(help="control iterations per goal", callback=at_least_one)
     ] = 5,
@@ -381,7 +380,7 @@ def control(
             " Algorithm 2 on its own actuator displacements, no actuator sensing"
         ),
     ] = False,
-    out: Annotated[Path, typer.Option(help="output folder", callback=output_folder)] = Path("out"),
+    out: OutFolder = Path("out"),
 ) -> None:
     """Control the FEM robot with MODEL along a trajectory, beside the exact matrices.
 
@@ -404,12 +403,7 @@ def control(
     entry = robots.entry(plan.robot)
     if not entry.trajectories:
         raise typer.BadParameter(f"{plan.robot} has no goal trajectory to control along")
-    name = trajectory or next(iter(entry.trajectories))
-    if name not in entry.trajectories:
-        raise typer.BadParameter(
-            f"{plan.robot} has trajectories {sorted(entry.trajectories)}, not {name!r}"
-        )
-    targets = entry.trajectories[name](goals)
+    name, targets = goal_trajectory(plan.robot, entry, trajectory, goals)
     gains = list(pid)
 
     def controller() -> PID | None:
@@ -489,10 +483,6 @@ def control(
     console.print(f"saved {plot} and {folder / 'report.json'}")
 
 
-def _floats(text: str, what: str, *, count: int | None = None) -> list[float]:
-    return numbers_list(text, what, count=count)
-
-
 @app.command()
 def calibrate(
     model: Annotated[
@@ -507,9 +497,9 @@ def calibrate(
     commands: Annotated[
         str, typer.Option(help="displacements of the first actuator observed, comma separated")
     ] = "0,5,10",
-    learning_rate: Annotated[float, typer.Option(callback=positive)] = 0.01,
-    iterations: Annotated[int, typer.Option(callback=at_least_one)] = 300,
-    out: Annotated[Path, typer.Option(help="output folder", callback=output_folder)] = Path("out"),
+    learning_rate: PositiveNumber = 0.01,
+    iterations: Count = 300,
+    out: OutFolder = Path("out"),
 ) -> None:
     """Calibrate MODEL to the FEM robot built with TRUTH (Eq. 5.15-5.16, Fig. 5.13).
 
@@ -521,9 +511,15 @@ def calibrate(
     from pliant.condensed.parametric import ParametricCondensedModel
     from pliant.condensed.plots import plot_calibration
 
-    design = {k: _floats(v, f"--truth {k}", count=1)[0] for k, v in _assignments(truth).items()}
-    initial = {k: _floats(v, f"--start {k}", count=1)[0] for k, v in _assignments(start).items()}
-    pull = _floats(commands, "--commands")
+    design = {
+        k: numbers_list(v, f"--truth {k}", count=1)[0]
+        for k, v in assignments(truth, form="NAME=VALUE").items()
+    }
+    initial = {
+        k: numbers_list(v, f"--start {k}", count=1)[0]
+        for k, v in assignments(start, form="NAME=VALUE").items()
+    }
+    pull = numbers_list(commands, "--commands")
     parametric = ParametricCondensedModel.load(model)
     plan = parametric.plan
     pulls = np.zeros((len(pull), len(plan.actuator_bounds)))
@@ -564,10 +560,8 @@ def design(
     iterations: Annotated[
         int, typer.Option(help="gradient steps per refinement", callback=at_least_one)
     ] = 200,
-    learning_rate: Annotated[float, typer.Option(callback=positive)] = 0.01,
-    out: Annotated[Path, typer.Option(help="output folder", callback=output_folder)] = Path(
-        "out/design"
-    ),
+    learning_rate: PositiveNumber = 0.01,
+    out: OutFolder = Path("out/design"),
 ) -> None:
     """Design the parametric Soft Finger with MODEL (Eq. 5.17-5.20, Fig. 5.15-5.17).
 
@@ -578,8 +572,8 @@ def design(
     from pliant.condensed.parametric import ParametricCondensedModel
     from pliant.condensed.plots import plot_design_study
 
-    gamma = _floats(weights, "--weights (dexterity, strength)", count=2)
-    pull = tuple(_floats(command, "--command"))
+    gamma = numbers_list(weights, "--weights (dexterity, strength)", count=2)
+    pull = tuple(numbers_list(command, "--command"))
     parametric = ParametricCondensedModel.load(model)
     with Progress(console=console, transient=True) as bar:
         bar.add_task("grid search and refinements", total=None)

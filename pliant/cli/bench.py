@@ -1,0 +1,107 @@
+"""``pliant bench``: the engine's speed beside SOFA's figures, and with its options the
+environments', the learner's and a rollout gradient's (:mod:`pliant.bench`)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated
+
+import typer
+from rich.console import Console
+
+from pliant.cli.support import at_least_one, numbers_list, output_file
+
+console = Console()
+
+
+def bench(
+    meshes: Annotated[
+        Path | None,
+        typer.Option(help="folder of the reference SOFA meshes", exists=True, file_okay=False),
+    ] = None,
+    repeats: Annotated[
+        int, typer.Option(help="timed repeats per scene (median reported)", callback=at_least_one)
+    ] = 3,
+    steps: Annotated[
+        int,
+        typer.Option(
+            help="steps per timed repeat (scaled down for big scenes)", callback=at_least_one
+        ),
+    ] = 100,
+    quick: Annotated[bool, typer.Option(help="small scenes only (a smoke run)")] = False,
+    out: Annotated[Path, typer.Option(help="JSON results file", callback=output_file)] = Path(
+        "bench-results/bench.json"
+    ),
+    envs: Annotated[
+        str,
+        typer.Option(
+            help="environments' speed (env and simulation steps/s, real-time factor at dt 0.01,"
+            " 0.02, 0.03), written to envs.json beside the JSON: 'all', 'none', 'only' (skip"
+            " the scenes) or comma-separated names"
+        ),
+    ] = "all",
+    profile: Annotated[
+        bool,
+        typer.Option(
+            help="per SPEC scene, the default step's error against the exact one over 1 s and"
+            " the time per step of each part (forces, assembly, factorisation, solves,"
+            " constraints, the rest)"
+        ),
+    ] = True,
+    batch: Annotated[
+        str,
+        typer.Option(help="batched stepping: comma-separated copy counts to time ('' skips)"),
+    ] = "1,8,32",
+    learner: Annotated[
+        bool,
+        typer.Option(
+            help="the learner's cost per training step alone (SAC CartStemContact, PPO"
+            " TrunkSpaceDebris: the thesis' networks on a stand-in task whose step is free),"
+            " with its arithmetic against this machine's matrix-product speed; learner.json"
+        ),
+    ] = False,
+    gradient: Annotated[
+        bool,
+        typer.Option(
+            help="what a rollout gradient (pliant.diff) costs beside the rollout, on the coarse"
+            " Finger and the Diamond; gradient.json"
+        ),
+    ] = False,
+) -> None:
+    """Median steps/s beside SOFA's measured figures; writes JSON and a log-log plot."""
+    from pliant.bench import run_benchmarks
+
+    if envs != "only":
+        run_benchmarks(
+            meshes=meshes,
+            repeats=repeats,
+            steps=steps,
+            quick=quick,
+            out=out,
+            console=console,
+            profile=profile,
+            batch=_copy_counts(batch),
+        )
+    if envs != "none":
+        from pliant.bench.envs import report_envs
+
+        names = None if envs in ("all", "only") else [n.strip() for n in envs.split(",")]
+        report_envs(names, quick=quick, out=out.with_name("envs.json"), console=console)
+    if learner:
+        from pliant.bench.learner import report_learner
+
+        report_learner(quick=quick, out=out.with_name("learner.json"), console=console)
+    if gradient:
+        from pliant.bench import report_gradient
+
+        report_gradient(quick=quick, out=out.with_name("gradient.json"), console=console)
+
+
+def _copy_counts(text: str) -> tuple[int, ...]:
+    """`--batch`: comma-separated copy counts (integers >= 1), or '' for none."""
+    if not text.strip():
+        return ()
+    counts = numbers_list(text, "--batch")
+    if any(c < 1 or c != int(c) for c in counts):
+        raise typer.BadParameter(f"--batch: copy counts must be integers >= 1, got {text!r}")
+    return tuple(int(c) for c in counts)
