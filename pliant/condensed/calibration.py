@@ -26,7 +26,7 @@ from pliant import robots
 from pliant.condensed.dataset import CollectionPlan
 from pliant.condensed.equilibrium import load_step, rest_equilibrium
 from pliant.condensed.layout import Layout
-from pliant.condensed.parametric import DesignMechanics, effector_rows
+from pliant.condensed.parametric import DesignMechanics, descend_in_design_box, effector_rows
 from pliant.errors import LearnedModelError
 from pliant.solvers import StaticSolver
 
@@ -110,37 +110,16 @@ def calibrate(
         raise LearnedModelError(
             f"{len(delta_a)} actuator states but {len(observed)} observed effector positions"
         )
-    low = torch.as_tensor(model.design_box.low, dtype=torch.float64)
-    span = torch.as_tensor(model.design_box.high - model.design_box.low, dtype=torch.float64)
-    span = torch.where(span > 0, span, torch.ones_like(span))
-    start = torch.tensor([float(initial[k]) for k in names], dtype=torch.float64)
-    free = torch.tensor([k in fit for k in names])
-    unit = ((start - low) / span).clamp(0.0, 1.0).requires_grad_(True)
-    optimiser = torch.optim.Adam([unit], lr=learning_rate)
-    scheduler = torch.optim.lr_scheduler.ReduceLROnPlateau(
-        optimiser, factor=lr_factor, patience=lr_patience
+    history = descend_in_design_box(
+        model,
+        np.array([float(initial[k]) for k in names]),
+        lambda design: calibration_objective(model, delta_a, observed, design),
+        learning_rate=learning_rate,
+        iterations=iterations,
+        lr_factor=lr_factor,
+        lr_patience=lr_patience,
+        min_learning_rate=min_learning_rate,
+        free=torch.tensor([k in fit for k in names]),
     )
-    history: list[dict] = []
-    for iteration in range(iterations + 1):
-        design = (low + span * unit).unsqueeze(0)
-        objective = calibration_objective(model, delta_a, observed, design)
-        lr = optimiser.param_groups[0]["lr"]
-        history.append(
-            {
-                "iteration": iteration,
-                "objective": float(objective.detach()),
-                "learning_rate": lr,
-                **{k: float(v) for k, v in zip(names, design[0].detach(), strict=True)},
-            }
-        )
-        if iteration == iterations or lr < min_learning_rate:
-            break
-        optimiser.zero_grad()
-        objective.backward()
-        unit.grad[~free] = 0.0
-        optimiser.step()
-        scheduler.step(float(objective.detach()))
-        with torch.no_grad():
-            unit.clamp_(0.0, 1.0)
     best = min(history, key=lambda h: h["objective"])
     return CalibrationResult({k: best[k] for k in names}, best["objective"], history)

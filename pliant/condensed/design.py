@@ -30,7 +30,7 @@ import torch
 from torch import Tensor
 
 from pliant.condensed.mechanics import blocked_force
-from pliant.condensed.parametric import DesignMechanics, effector_rows
+from pliant.condensed.parametric import DesignMechanics, descend_in_design_box, effector_rows
 from pliant.errors import LearnedModelError
 from pliant.robots import soft_finger
 
@@ -179,37 +179,15 @@ def refine(
 ) -> Refinement:
     """Gradient descent on the objective from `start` through G and F: Adam in the unit box
     of the design space, projected back into it, the rate cut on plateaus (§5.1.2)."""
-    box = model.design_box
-    low = torch.as_tensor(box.low, dtype=torch.float64)
-    span = torch.as_tensor(box.high - box.low, dtype=torch.float64)
-    span = torch.where(span > 0, span, torch.ones_like(span))
-    start_t = torch.as_tensor(np.asarray(start, dtype=float), dtype=torch.float64)
-    unit = ((start_t - low) / span).clamp(0.0, 1.0).requires_grad_(True)
-    optimiser = torch.optim.Adam([unit], lr=learning_rate)
-    scheduler = torch.optim.lr_scheduler.ReduceLROnPlateau(
-        optimiser, factor=lr_factor, patience=lr_patience
+    history = descend_in_design_box(
+        model,
+        start,
+        lambda design: objective(model, design)[0],
+        learning_rate=learning_rate,
+        iterations=iterations,
+        lr_factor=lr_factor,
+        lr_patience=lr_patience,
     )
-    history: list[dict] = []
-    for iteration in range(iterations + 1):
-        design = (low + span * unit).unsqueeze(0)
-        value = objective(model, design)[0]
-        history.append(
-            {
-                "iteration": iteration,
-                "objective": float(value.detach()),
-                **{
-                    k: float(v) for k, v in zip(model.design_names, design[0].detach(), strict=True)
-                },
-            }
-        )
-        if iteration == iterations:
-            break
-        optimiser.zero_grad()
-        value.backward()
-        optimiser.step()
-        scheduler.step(float(value.detach()))
-        with torch.no_grad():
-            unit.clamp_(0.0, 1.0)
     best = min(history, key=lambda h: h["objective"])
     return Refinement(np.array([best[k] for k in model.design_names]), best["objective"], history)
 

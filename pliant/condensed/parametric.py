@@ -9,10 +9,12 @@ the design to the robot's mechanics, which calibration (Eq. 5.15-5.16) and desig
 from __future__ import annotations
 
 import os
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Protocol
 
+import numpy as np
 import torch
 from torch import Tensor
 
@@ -196,3 +198,58 @@ def train_parametric(
         learned.network, fit_g.network, dataset.layout, dataset.plan, learned.input_box, training
     )
     return model, ParametricFit(fit_f, fit_g)
+
+
+def descend_in_design_box(
+    model: DesignMechanics,
+    start: np.ndarray,
+    objective: Callable[[torch.Tensor], torch.Tensor],
+    *,
+    learning_rate: float,
+    iterations: int,
+    lr_factor: float,
+    lr_patience: int,
+    min_learning_rate: float = 0.0,
+    free: torch.Tensor | None = None,
+) -> list[dict]:
+    """Adam on `objective(design)` (design: (1, d)) in the unit box of the model's design space
+    from `start`, projected back into the box after each step, the rate cut on plateaus
+    (ReduceLROnPlateau, §5.1.2); the parameters where `free` is False are held. Stops after
+    `iterations` steps or when the rate falls below `min_learning_rate`. Returns the history:
+    one record per iterate (iteration, objective, learning rate and the design's values)."""
+    box = model.design_box
+    low = torch.as_tensor(box.low, dtype=torch.float64)
+    span = torch.as_tensor(box.high - box.low, dtype=torch.float64)
+    span = torch.where(span > 0, span, torch.ones_like(span))
+    start_t = torch.as_tensor(np.asarray(start, dtype=float), dtype=torch.float64)
+    unit = ((start_t - low) / span).clamp(0.0, 1.0).requires_grad_(True)
+    optimiser = torch.optim.Adam([unit], lr=learning_rate)
+    scheduler = torch.optim.lr_scheduler.ReduceLROnPlateau(
+        optimiser, factor=lr_factor, patience=lr_patience
+    )
+    history: list[dict] = []
+    for iteration in range(iterations + 1):
+        design = (low + span * unit).unsqueeze(0)
+        value = objective(design)
+        lr = optimiser.param_groups[0]["lr"]
+        history.append(
+            {
+                "iteration": iteration,
+                "objective": float(value.detach()),
+                "learning_rate": lr,
+                **{
+                    k: float(v) for k, v in zip(model.design_names, design[0].detach(), strict=True)
+                },
+            }
+        )
+        if iteration == iterations or lr < min_learning_rate:
+            break
+        optimiser.zero_grad()
+        value.backward()
+        if free is not None:
+            unit.grad[~free] = 0.0
+        optimiser.step()
+        scheduler.step(float(value.detach()))
+        with torch.no_grad():
+            unit.clamp_(0.0, 1.0)
+    return history

@@ -182,6 +182,19 @@ def _check_real(name: str, value: float) -> float:
     return v
 
 
+def _check_interval(name: str, kind: str, low: float, high: float) -> None:
+    """ConstraintError unless [low, high] admits a finite value of `kind`."""
+    if low == math.inf or high == -math.inf:
+        raise ConstraintError(
+            f"{name}: a {kind} bound of {low} to {high} admits no finite {kind}"
+            f" (min_{kind} < inf, max_{kind} > -inf)"
+        )
+    if low > high:
+        raise ConstraintError(
+            f"{name}: min_{kind} {low} > max_{kind} {high}: no {kind} is admissible"
+        )
+
+
 class Actuator(Constraint):
     """One actuation row with a control mode and bounds (SoftRobots' parameters).
 
@@ -222,26 +235,8 @@ class Actuator(Constraint):
         self.max_force = _check_real("max_force", max_force)
         self.min_displacement = _check_real("min_displacement", min_displacement)
         self.max_displacement = _check_real("max_displacement", max_displacement)
-        if self.min_force == math.inf or self.max_force == -math.inf:
-            raise ConstraintError(
-                f"{name}: a force bound of {self.min_force} to {self.max_force} admits no finite"
-                " force (min_force < inf, max_force > -inf)"
-            )
-        if self.min_displacement == math.inf or self.max_displacement == -math.inf:
-            raise ConstraintError(
-                f"{name}: a displacement bound of {self.min_displacement} to"
-                f" {self.max_displacement} admits no finite displacement"
-            )
-        if self.min_force > self.max_force:
-            raise ConstraintError(
-                f"{name}: min_force {self.min_force} > max_force {self.max_force}:"
-                " no force is admissible"
-            )
-        if self.min_displacement > self.max_displacement:
-            raise ConstraintError(
-                f"{name}: min_displacement {self.min_displacement} > max_displacement"
-                f" {self.max_displacement}: no displacement is admissible"
-            )
+        _check_interval(name, "force", self.min_force, self.max_force)
+        _check_interval(name, "displacement", self.min_displacement, self.max_displacement)
         if max_displacement_change is not None:
             max_displacement_change = _check_real(
                 "max_displacement_change", max_displacement_change

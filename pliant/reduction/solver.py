@@ -35,7 +35,7 @@ import scipy.linalg
 
 from pliant.constraints.cavity import CavityActuator
 from pliant.constraints.condensed import CondensedProblem
-from pliant.constraints.control import as_control, constraint_forces
+from pliant.constraints.control import constraint_forces
 from pliant.constraints.friction import ContactForces
 from pliant.errors import DivergenceError, ReductionError, SolverError
 from pliant.fem import kernels as fem_kernels
@@ -44,7 +44,7 @@ from pliant.reduction import kernels
 from pliant.reduction.basis import ReducedBasis
 from pliant.reduction.cavity import reduced_cavity
 from pliant.reduction.ecsw import IntegrationDomain
-from pliant.solvers.base import StepReport
+from pliant.solvers.base import StepReport, begin_control
 
 
 @dataclass
@@ -371,11 +371,7 @@ class ReducedImplicitEuler:
 
     def _step(self, state: ReducedState, control) -> ReducedState:
         model, h = self.model, self.dt
-        ctrl = as_control(control)
-        ctrl.prepare(model)
-        begin = getattr(ctrl, "begin", None)
-        if begin is not None:
-            begin(model, state)
+        ctrl = begin_control(model, state, control)
         step = state.step + 1
         alpha, u = state.coordinates, state.rates
         x, v = self._place(alpha), self._move(u)

@@ -9,6 +9,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from pliant.constraints.condensed import CondensedProblem
+from pliant.constraints.control import as_control
 from pliant.constraints.friction import ContactReport
 from pliant.errors import DivergenceError, SolverError
 from pliant.fem.body import Linearisation
@@ -112,3 +113,15 @@ def check_motion(
             step=step,
             cause="energy",
         )
+
+
+def begin_control(model, state, control):
+    """The step's control object from `control` (None, commands or a control): its commands
+    written to the model, then, for a feedback control, its goals set from the state the
+    step starts from (its optional ``begin``)."""
+    ctrl = as_control(control)
+    ctrl.prepare(model)
+    begin = getattr(ctrl, "begin", None)
+    if begin is not None:
+        begin(model, state)
+    return ctrl

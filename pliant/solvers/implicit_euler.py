@@ -50,13 +50,19 @@ import numpy as np
 from pliant.constraints.attachment import eliminate
 from pliant.constraints.base import Constraint
 from pliant.constraints.condensed import CondensedProblem
-from pliant.constraints.control import as_control, constraint_forces
+from pliant.constraints.control import constraint_forces
 from pliant.constraints.friction import ContactForces, ContactReport, ContactSolution
 from pliant.errors import ConstraintError, DivergenceError, ModelError, SolverError
 from pliant.fem.body import PARALLEL_MIN_TETS
 from pliant.fem.rigid import RigidStep, integrate_poses
 from pliant.model import ConstraintSpace, Model, State
-from pliant.solvers.base import StepReport, check_linearisation, check_motion, number_option
+from pliant.solvers.base import (
+    StepReport,
+    begin_control,
+    check_linearisation,
+    check_motion,
+    number_option,
+)
 from pliant.solvers.compliance import PointCompliance, PointRows
 from pliant.solvers.compliance_kernels import framed_block
 from pliant.solvers.system import LinearisedSystem, TangentPolicy
@@ -160,11 +166,7 @@ class ImplicitEuler:
         """
         model, body, h = self.model, self.model.body, self.dt
         state = model.check_state(state)
-        ctrl = as_control(control)
-        ctrl.prepare(model)
-        begin = getattr(ctrl, "begin", None)
-        if begin is not None:  # feedback controls: goals from the state the step starts from
-            begin(model, state)
+        ctrl = begin_control(model, state, control)
         step = state.step + 1
         at = model.drive(state.positions, state.time + h) if model.drivers else state.positions
         lin, drive = self._linearise(state)

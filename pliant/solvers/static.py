@@ -30,11 +30,17 @@ from contextlib import contextmanager
 import numpy as np
 
 from pliant.constraints.condensed import CondensedProblem
-from pliant.constraints.control import DirectControl, as_control, constraint_forces
+from pliant.constraints.control import DirectControl, constraint_forces
 from pliant.constraints.friction import ContactConstraint
 from pliant.errors import DivergenceError, InverseConvergenceWarning, ModelError, SolverError
 from pliant.model import Model, State
-from pliant.solvers.base import StepReport, check_linearisation, check_motion, number_option
+from pliant.solvers.base import (
+    StepReport,
+    begin_control,
+    check_linearisation,
+    check_motion,
+    number_option,
+)
 from pliant.solvers.system import LinearisedSystem, TangentPolicy
 
 # Newton's updates shrink quadratically; a feedback control whose last iterations have not
@@ -211,11 +217,7 @@ class StaticSolver:
         this model's (checked before any kernel runs), DivergenceError if the solve fails."""
         model = self.model
         state = model.check_state(state)
-        ctrl = as_control(control)
-        ctrl.prepare(model)
-        begin = getattr(ctrl, "begin", None)
-        if begin is not None:  # feedback controls: goals from the state the step starts from
-            begin(model, state)
+        ctrl = begin_control(model, state, control)
         step = state.step + 1
         self._time = state.time
         q = model.drive(state.positions, state.time)

@@ -108,6 +108,17 @@ def plot_trajectory(
     return _save(fig, path)
 
 
+def _finish_axes(fig, ax, path, xlabel: str, ylabel: str, title: str | None) -> Path:
+    """Legend, labels and title on one axes, then the figure written to `path`."""
+    ax.legend()
+    ax.set_xlabel(xlabel)
+    ax.set_ylabel(ylabel)
+    if title:
+        ax.set_title(title)
+    fig.tight_layout()
+    return _save(fig, path)
+
+
 def plot_loglog(
     series: Mapping[str, tuple[np.ndarray, np.ndarray]],
     path: str | os.PathLike,
@@ -127,13 +138,7 @@ def plot_loglog(
     fig = offscreen_figure(6.4, 4.8)
     ax = fig.add_subplot(1, 1, 1)
     _draw_loglog(ax, series)
-    ax.legend()
-    ax.set_xlabel(xlabel)
-    ax.set_ylabel(ylabel)
-    if title:
-        ax.set_title(title)
-    fig.tight_layout()
-    return _save(fig, path)
+    return _finish_axes(fig, ax, path, xlabel, ylabel, title)
 
 
 def plot_convergence(
@@ -174,10 +179,4 @@ def plot_convergence(
         ax.loglog(
             hs[order], ref[order], "--", color="0.3", label=f"$h^{{{expected_order:g}}}$", zorder=3
         )
-    ax.legend()
-    ax.set_xlabel(xlabel)
-    ax.set_ylabel(ylabel)
-    if title:
-        ax.set_title(title)
-    fig.tight_layout()
-    return _save(fig, path)
+    return _finish_axes(fig, ax, path, xlabel, ylabel, title)

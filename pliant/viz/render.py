@@ -321,28 +321,12 @@ def render_frame(
     triangles: np.ndarray,
     *,
     color: Color = BODY_COLOR,
-    title: str | None = None,
-    markers: Mapping[str, tuple[np.ndarray, Color]] | None = None,
-    lines: Mapping[str, tuple[np.ndarray, Color]] | None = None,
-    view: tuple[float, float] = DEFAULT_VIEW,
-    bounds: np.ndarray | None = None,
-    size: tuple[int, int] = (640, 480),
-    edgecolor: Color | None = None,
-    legend: bool = True,
+    **options,
 ) -> np.ndarray:
-    """Render one body to an RGB uint8 image (height, width, 3); see `render_scene`.
+    """Render one body to an RGB uint8 image (height, width, 3); `options` (title, markers, lines,
+    view, bounds, size, edgecolor, legend) as in `render_scene`.
 
     For a video, compute `bounds` once with `scene_bounds` over all frames so the camera does
     not jump.
     """
-    return render_scene(
-        [(points, triangles, color)],
-        title=title,
-        markers=markers,
-        lines=lines,
-        view=view,
-        bounds=bounds,
-        size=size,
-        edgecolor=edgecolor,
-        legend=legend,
-    )
+    return render_scene([(points, triangles, color)], **options)
