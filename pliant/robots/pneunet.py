@@ -6,29 +6,18 @@ import math
 
 import numpy as np
 
-from pliant.constraints.cavity import CavityActuator
-from pliant.errors import ModelError
-from pliant.fem.body import TetBody
 from pliant.mesh import shapes
-from pliant.mesh.tetmesh import TetMesh
 from pliant.model import Model
-from pliant.robots.common import MaterialName, effector, fixed_by_box, make_material
-from pliant.robots.finger import SILICONE_DENSITY
+from pliant.robots import common
+from pliant.robots.common import cavity, effector, fixed_by_box
+from pliant.robots.parameters import Damping, Density, Gravity, Meshing, Solid, builder
 
 
+@builder(Meshing(6.0), Solid(500.0, 0.3), Density(), Gravity.Z, Damping(0.0, 0.1))
 def pneunet(
+    p,
     *,
-    mesh: TetMesh | None = None,
-    mesh_size: float = 6.0,
     n_chambers: int = 6,
-    young_modulus: float = 500.0,
-    poisson_ratio: float = 0.3,
-    density: float = SILICONE_DENSITY,
-    material: MaterialName = "corotational",
-    mass: str = "lumped",
-    gravity: tuple[float, float, float] = (0.0, 0.0, -9810.0),
-    rayleigh_mass: float = 0.0,
-    rayleigh_stiffness: float = 0.1,
     cavity_mode: str = "pressure",
     max_pressure: float = 100.0,
     max_volume_growth: float = math.inf,
@@ -39,33 +28,23 @@ def pneunet(
     cavity_mode: "pressure" (lambda = pressure, kPa with mm units) or "volume" (imposed volume
     growth, mm^3). Defaults follow the SoftRobots PneuNet (E = 500 kPa, nu = 0.3).
     """
-    mesh = mesh if mesh is not None else shapes.pneunet(mesh_size=mesh_size, n_chambers=n_chambers)
-    body = TetBody(
-        mesh,
-        make_material(material, young_modulus, poisson_ratio),
-        density=density,
-        mass=mass,
-        fixed_nodes=fixed_by_box(mesh, mesh.landmarks["fixed_box"]),
-        gravity=gravity,
-        rayleigh_mass=rayleigh_mass,
-        rayleigh_stiffness=rayleigh_stiffness,
+    mesh = (
+        p.mesh
+        if p.mesh is not None
+        else shapes.pneunet(mesh_size=p.mesh_size, n_chambers=n_chambers)
     )
-    modes = {"pressure": "force", "volume": "displacement"}
-    if cavity_mode not in modes:
-        raise ModelError(f"cavity_mode must be 'pressure' or 'volume', got {cavity_mode!r}")
-    mode = modes[cavity_mode]
-    cavity = CavityActuator(
-        mesh.surfaces["cavity"],
-        body.rest_positions,
-        name="cavity",
-        mode=mode,
-        min_force=0.0,
-        max_force=max_pressure,
+    body = p.tet_body(mesh, fixed_nodes=fixed_by_box(mesh, mesh.landmarks["fixed_box"]))
+    chambers = cavity(
+        mesh,
+        body,
+        "cavity",
+        mode=common.cavity_mode(cavity_mode),
+        max_pressure=max_pressure,
         max_displacement=max_volume_growth,
         max_displacement_change=max_volume_change,
     )
     eff = effector(mesh, body, mesh.landmarks["effector"])
-    return Model(body, actuators=[cavity], effectors=[eff], name="pneunet")
+    return Model(body, actuators=[chambers], effectors=[eff], name="pneunet")
 
 
 def demo_actuation(t: float) -> np.ndarray:
