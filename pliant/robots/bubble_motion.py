@@ -21,16 +21,8 @@ from pliant.mesh.shapes import _cavity_surfaces, _finish, _require_positive
 from pliant.mesh.tetmesh import TetMesh
 from pliant.model import Model
 from pliant.robots.common import cavity, fixed_by_box
-from pliant.robots.parameters import (
-    Ball,
-    Contact,
-    Damping,
-    Density,
-    Gravity,
-    Meshing,
-    Solid,
-    builder,
-)
+from pliant.robots.parameters import Ball, Contact, Damping, Density, Gravity, Meshing, Solid
+from pliant.robots.scene import builder
 
 GRID = 3
 
@@ -143,13 +135,7 @@ def bubble_motion(
     """
     ball_radius, ball_mass = p.ball.ball_radius, p.ball.ball_mass
     _require_positive(ball_radius=ball_radius, ball_mass=ball_mass)
-    mesh = (
-        p.mesh
-        if p.mesh is not None
-        else board_mesh(
-            size=size, thickness=thickness, mesh_size=p.mesh_size, top_mesh_size=top_mesh_size
-        )
-    )
+    mesh = p.mesh_or(board_mesh, size=size, thickness=thickness, top_mesh_size=top_mesh_size)
     missing = [k for k in range(GRID * GRID) if f"cavity_{k}" not in mesh.surfaces]
     if missing:
         raise ModelError(f"the board mesh has no surface for cavities {missing}")

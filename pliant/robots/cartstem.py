@@ -29,16 +29,8 @@ from pliant.mesh import box_beam
 from pliant.mesh.tetmesh import TetMesh
 from pliant.model import Model
 from pliant.robots.common import effector, fixed_by_box, landmark, smooth_ramp
-from pliant.robots.parameters import (
-    Contact,
-    Damping,
-    Density,
-    Gravity,
-    Meshed,
-    Solid,
-    builder,
-    variant,
-)
+from pliant.robots.parameters import Contact, Damping, Density, Gravity, Meshed, Solid
+from pliant.robots.scene import builder, variant
 
 # How far the cart slides left in the scripted solution: the tetrahedral bar (2 cells across)
 # is stiffer in bending than the rod (linear tetrahedra lock), so it needs a longer slide.

@@ -25,16 +25,8 @@ from pliant.mesh.shapes import _cavity_surfaces, _finish, _require_positive
 from pliant.mesh.tetmesh import TetMesh
 from pliant.model import Model
 from pliant.robots.common import cavity, fingertips, fixed_by_box, smooth_ramp
-from pliant.robots.parameters import (
-    Ball,
-    Contact,
-    Damping,
-    Density,
-    Gravity,
-    Meshing,
-    Solid,
-    builder,
-)
+from pliant.robots.parameters import Ball, Contact, Damping, Density, Gravity, Meshing, Solid
+from pliant.robots.scene import builder
 
 
 @retry_meshing
@@ -183,16 +175,12 @@ def catch_object(
         ball_radius=ball_radius,
         ball_mass=ball_mass,
     )
-    mesh = (
-        p.mesh
-        if p.mesh is not None
-        else catcher_mesh(
-            opening=opening,
-            finger_length=finger_length,
-            palm_thickness=palm_thickness,
-            spine_thickness=spine_thickness,
-            mesh_size=p.mesh_size,
-        )
+    mesh = p.mesh_or(
+        catcher_mesh,
+        opening=opening,
+        finger_length=finger_length,
+        palm_thickness=palm_thickness,
+        spine_thickness=spine_thickness,
     )
     if "cavity" not in mesh.surfaces:
         raise ModelError("the gripper mesh has no 'cavity' surface (the chambers' walls)")

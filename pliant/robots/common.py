@@ -94,6 +94,14 @@ def fingertips(mesh: TetMesh, body: TetBody, points: list[np.ndarray]) -> list[P
     return [effector(mesh, body, p, f"fingertip_{i}") for i, p in enumerate(points)]
 
 
+def curling(n: int, tip: tuple[float, float, float], drop: float, inward: float) -> np.ndarray:
+    """n goals along the arc of a fingertip curling down from `tip` by `drop` (mm) in z,
+    drawing in along x by `inward` * drop at the end (inverse control trajectories)."""
+    a = np.linspace(0.0, 1.0, n)
+    x0, y0, z0 = tip
+    return np.column_stack([x0 - inward * drop * a**2, np.full(n, y0), z0 - drop * a])
+
+
 def smooth_ramp(t: float, start: float, duration: float) -> float:
     """0 before `start`, 1 after `start + duration`, the cubic smoothstep 3s^2 - 2s^3 between
     (zero velocity at both ends): how scripted carts and bases move."""

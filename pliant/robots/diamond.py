@@ -9,7 +9,8 @@ import numpy as np
 from pliant.mesh import shapes
 from pliant.model import Model
 from pliant.robots.common import cables, effector, fixed_by_box, landmark
-from pliant.robots.parameters import Cables, Damping, Gravity, Meshing, Solid, TotalMass, builder
+from pliant.robots.parameters import Cables, Damping, Gravity, Meshing, Solid, TotalMass
+from pliant.robots.scene import builder
 
 _ELBOWS = [(0.0, 97.0, 45.0), (-97.0, 0.0, 45.0), (0.0, -97.0, 45.0), (97.0, 0.0, 45.0)]
 _PULLS = [(0.0, 10.0, 30.0), (-10.0, 0.0, 30.0), (0.0, -10.0, 30.0), (10.0, 0.0, 30.0)]
@@ -34,7 +35,7 @@ def diamond(
     at most 20 mm in inverse mode). `mesh` replaces Pliant's gmsh geometry, e.g. by the
     reference mesh placed in the scene frame; its landmarks default to the reference scene's.
     """
-    mesh = p.mesh if p.mesh is not None else shapes.diamond(mesh_size=p.mesh_size)
+    mesh = p.mesh_or(shapes.diamond)
     box = landmark(mesh, "fixed_box", [[-15.0, -15.0, -40.0], [15.0, 15.0, 10.0]])
     body = p.tet_body(mesh, fixed_nodes=fixed_by_box(mesh, box))
     paths = [landmark(mesh, f"cable_points_{i}", _ELBOWS[i]) for i in range(4)]

@@ -9,8 +9,9 @@ import numpy as np
 from pliant.mesh import shapes
 from pliant.mesh.shapes import FingerResolution
 from pliant.model import Model
-from pliant.robots.common import cables, effector, fixed_by_box
-from pliant.robots.parameters import Cables, Damping, Density, Gravity, Meshed, Solid, builder
+from pliant.robots.common import cables, curling, effector, fixed_by_box
+from pliant.robots.parameters import Cables, Damping, Density, Gravity, Meshed, Solid
+from pliant.robots.scene import builder
 
 
 @builder(Meshed(), Solid(3000.0, 0.47), Density(), Gravity.Z, Damping(), Cables())
@@ -29,12 +30,12 @@ def soft_finger(
     geometry; `resolution` picks the thesis' three meshes (~1.5k, ~9k, ~18k tetrahedra).
     Material defaults: E = 3000 kPa, nu = 0.47 (thesis §5.1.6), silicone density.
     """
-    mesh = (
-        p.mesh
-        if p.mesh is not None
-        else shapes.soft_finger(
-            length=length, height=height, joint_height=joint_height, resolution=resolution
-        )
+    mesh = p.mesh_or(
+        shapes.soft_finger,
+        length=length,
+        height=height,
+        joint_height=joint_height,
+        resolution=resolution,
     )
     body = p.tet_body(mesh, fixed_nodes=fixed_by_box(mesh, mesh.landmarks["fixed_box"]))
     paths = [mesh.landmarks[f"cable_points_{i}"] for i in range(2)]
@@ -56,6 +57,4 @@ def closing(
     n: int = 25, *, tip: tuple[float, float, float] = (143.0, 0.0, 10.0), drop: float = 30.0
 ) -> np.ndarray:
     """The thesis' closing trajectory: n goals along an arc as the fingertip curls down."""
-    a = np.linspace(0.0, 1.0, n)
-    x0, y0, z0 = tip
-    return np.column_stack([x0 - 0.25 * drop * a**2, np.full(n, y0), z0 - drop * a])
+    return curling(n, tip, drop, 0.25)

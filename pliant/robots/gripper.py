@@ -33,8 +33,8 @@ from pliant.robots.parameters import (
     Gravity,
     Meshing,
     Solid,
-    builder,
 )
+from pliant.robots.scene import builder
 
 
 @retry_meshing
@@ -121,7 +121,7 @@ def soft_gripper(
     10 g cube on the floor 10 mm under the fingertips, centred between the fingers (10 mm
     from each); friction 0.8 for the fingers, the cube and the floor.
     """
-    mesh = p.mesh if p.mesh is not None else gripper_mesh(mesh_size=p.mesh_size)
+    mesh = p.mesh_or(gripper_mesh)
     palm = fixed_by_box(mesh, landmark(mesh, "fixed_box", [[-31, -11, 60], [31, 11, 71]]))
     body = p.tet_body(mesh, fixed_nodes=palm)
     paths = [landmark(mesh, f"cable_points_{i}", [[0.0, 0.0, 0.0]]) for i in range(2)]

@@ -25,7 +25,8 @@ from pliant.errors import ModelError
 from pliant.fem.rod import RodSection
 from pliant.mesh.shapes import _require_positive
 from pliant.model import Model
-from pliant.robots.parameters import Damping, Density, Elastic, Gravity, Meshed, builder
+from pliant.robots.parameters import Damping, Density, Elastic, Gravity, Meshed
+from pliant.robots.scene import builder
 
 
 def leg_nodes(legs: int, elements: int, base_radius: float, top_radius: float, height: float):

@@ -41,7 +41,8 @@ from pliant.mesh.tetmesh import TetMesh
 from pliant.model import Model
 from pliant.robots import common
 from pliant.robots.common import cavity
-from pliant.robots.parameters import Damping, Gravity, Meshing, Solid, TotalMass, builder
+from pliant.robots.parameters import Damping, Gravity, Meshing, Solid, TotalMass
+from pliant.robots.scene import builder
 
 # Thesis §3.4.1: inflate the rear legs, the centre, the front legs, then deflate in that order.
 GAIT = (
@@ -86,7 +87,7 @@ def multigait(
     kPa mm; SofaGym's 5000 kPa, 1 mm) and Poisson ratio `membrane_poisson_ratio`; 0 leaves it
     out. It keeps the underside's length and lets it bend, so that an inflated leg curls.
     """
-    mesh = p.mesh if p.mesh is not None else geometry.multigait(mesh_size=p.mesh_size)
+    mesh = p.mesh_or(geometry.multigait)
     missing = [c for c in geometry.CHAMBERS if f"cavity_{c}" not in mesh.surfaces]
     if missing:
         raise ModelError(f"the Multigait mesh has no walls for the chambers {missing}")

@@ -9,8 +9,9 @@ import numpy as np
 from pliant.mesh import shapes
 from pliant.model import Model
 from pliant.robots import common
-from pliant.robots.common import cavity, effector, fixed_by_box
-from pliant.robots.parameters import Damping, Density, Gravity, Meshing, Solid, builder
+from pliant.robots.common import cavity, curling, effector, fixed_by_box
+from pliant.robots.parameters import Damping, Density, Gravity, Meshing, Solid
+from pliant.robots.scene import builder
 
 
 @builder(Meshing(6.0), Solid(500.0, 0.3), Density(), Gravity.Z, Damping(0.0, 0.1))
@@ -28,11 +29,7 @@ def pneunet(
     cavity_mode: "pressure" (lambda = pressure, kPa with mm units) or "volume" (imposed volume
     growth, mm^3). Defaults follow the SoftRobots PneuNet (E = 500 kPa, nu = 0.3).
     """
-    mesh = (
-        p.mesh
-        if p.mesh is not None
-        else shapes.pneunet(mesh_size=p.mesh_size, n_chambers=n_chambers)
-    )
+    mesh = p.mesh_or(shapes.pneunet, n_chambers=n_chambers)
     body = p.tet_body(mesh, fixed_nodes=fixed_by_box(mesh, mesh.landmarks["fixed_box"]))
     chambers = cavity(
         mesh,
@@ -55,6 +52,4 @@ def demo_actuation(t: float) -> np.ndarray:
 def bending(
     n: int = 20, *, tip: tuple[float, float, float] = (114.0, 0.0, 4.0), drop: float = 25.0
 ) -> np.ndarray:
-    a = np.linspace(0.0, 1.0, n)
-    x0, y0, z0 = tip
-    return np.column_stack([x0 - 0.2 * drop * a**2, np.full(n, y0), z0 - drop * a])
+    return curling(n, tip, drop, 0.2)

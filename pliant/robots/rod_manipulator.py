@@ -26,7 +26,8 @@ from pliant.mesh.shapes import _finish, _require_positive
 from pliant.mesh.tetmesh import TetMesh
 from pliant.model import Model
 from pliant.robots.common import cables, fingertips, fixed_by_box, smooth_ramp
-from pliant.robots.parameters import Cables, Damping, Density, Gravity, Meshing, Solid, builder
+from pliant.robots.parameters import Cables, Damping, Density, Gravity, Meshing, Solid
+from pliant.robots.scene import builder
 
 # Cable directions in each finger, in the order of the actuators: pulling cable k bends the
 # finger towards DIRECTIONS[k].
@@ -136,11 +137,7 @@ def rod_manipulator(
         clearance=clearance,
         finger_friction=finger_friction,
     )
-    mesh = (
-        p.mesh
-        if p.mesh is not None
-        else fingers_mesh(spacing=spacing, finger_length=finger_length, mesh_size=p.mesh_size)
-    )
+    mesh = p.mesh_or(fingers_mesh, spacing=spacing, finger_length=finger_length)
     plate = fixed_by_box(mesh, mesh.landmarks["fixed_box"])
     body = p.tet_body(mesh, fixed_nodes=plate)
     acts = cables(

@@ -34,15 +34,8 @@ from pliant.mesh import box_beam
 from pliant.mesh.shapes import _require_positive
 from pliant.model import Model, State
 from pliant.robots.common import fixed_by_box, smooth_ramp
-from pliant.robots.parameters import (
-    ContactSolver,
-    Damping,
-    Density,
-    Gravity,
-    Meshed,
-    Solid,
-    builder,
-)
+from pliant.robots.parameters import ContactSolver, Damping, Density, Gravity, Meshed, Solid
+from pliant.robots.scene import builder
 
 # Indices of the rigid bodies in the models of this module and of pliant.robots.tripod.
 BALL, MAZE = 0, 1

@@ -24,7 +24,8 @@ from pliant.errors import ModelError
 from pliant.fem.rod import RodSection
 from pliant.mesh.shapes import _require_positive
 from pliant.model import Model
-from pliant.robots.parameters import Damping, Density, Elastic, Gravity, Meshed, builder
+from pliant.robots.parameters import Damping, Density, Elastic, Gravity, Meshed
+from pliant.robots.scene import builder
 
 
 @builder(Meshed(), Elastic(5.0e4, 0.3), Density(1.0e-6), Gravity.Z, Damping(0.0, 1e-4))

@@ -25,7 +25,8 @@ from pliant.fem.membrane import Membrane
 from pliant.mesh import shapes
 from pliant.model import Model
 from pliant.robots.common import cavity, effector, fixed_by_box, landmark
-from pliant.robots.parameters import Damping, Density, Gravity, Meshing, Solid, builder
+from pliant.robots.parameters import Damping, Density, Gravity, Meshing, Solid
+from pliant.robots.scene import builder
 
 KPA_PER_BAR = 100.0
 
@@ -60,7 +61,7 @@ def stiff_flop(
             0: no reinforcement).
         skin_stiffness: the wall membrane's isotropic stretch stiffness under the fibres.
     """
-    mesh = p.mesh if p.mesh is not None else shapes.stiff_flop(mesh_size=p.mesh_size)
+    mesh = p.mesh_or(shapes.stiff_flop)
     if not (math.isfinite(max_pressure_bar) and max_pressure_bar > 0):
         raise ModelError(f"max_pressure_bar must be > 0, got {max_pressure_bar!r}")
     if not (math.isfinite(fibre_stiffness) and fibre_stiffness >= 0):

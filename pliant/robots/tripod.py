@@ -27,7 +27,8 @@ from pliant.mesh.io import load_mesh
 from pliant.mesh.shapes import _finish, _require_positive
 from pliant.mesh.tetmesh import TetMesh
 from pliant.model import Model
-from pliant.robots.parameters import Meshing, Solid, builder
+from pliant.robots.parameters import Meshing, Solid
+from pliant.robots.scene import builder
 from pliant.robots.simple_maze import GEL, checked_commands, demo_downhill, maze_model
 
 N_SERVOS = 3
@@ -182,7 +183,7 @@ def tripod_maze(
         servo_angles: the three servo angles (rad) as a function of time (s).
     """
     _require_positive(horn_length=horn_length, max_servo_angle=max_servo_angle)
-    mesh = p.mesh if p.mesh is not None else tripod_mesh(mesh_size=p.mesh_size)
+    mesh = p.mesh_or(tripod_mesh)
     clamps = clamped_nodes(mesh)
     body = p.tet_body(mesh, fixed_nodes=np.concatenate(clamps))
     angles = checked_commands(servo_angles, N_SERVOS, max_servo_angle, "servo")

@@ -9,16 +9,8 @@ import numpy as np
 from pliant.mesh import shapes
 from pliant.model import Model
 from pliant.robots.common import cables, effector, fixed_by_box, landmark
-from pliant.robots.parameters import (
-    CableReach,
-    Cables,
-    Damping,
-    Gravity,
-    Meshing,
-    Solid,
-    TotalMass,
-    builder,
-)
+from pliant.robots.parameters import CableReach, Cables, Damping, Gravity, Meshing, Solid, TotalMass
+from pliant.robots.scene import builder
 from pliant.solvers.base import number_option
 
 _AZIMUTHS = [math.pi / 2, math.pi, 3 * math.pi / 2, 0.0]  # +y, -x, -y, +x
@@ -76,7 +68,7 @@ def trunk(
     motion), 0.91 mm at 0.01, 0.19 mm (0.45 %) at 0.005, for 837, 768 and 676 steps/s on the
     reference mesh (`pliant bench`, default against exact); 0.005 keeps it within 1 %.
     """
-    mesh = p.mesh if p.mesh is not None else shapes.trunk(mesh_size=p.mesh_size)
+    mesh = p.mesh_or(shapes.trunk)
     box = landmark(mesh, "fixed_box", [[-20.0, -20.0, 0.0], [20.0, 20.0, 20.0]])
     body = p.tet_body(mesh, fixed_nodes=fixed_by_box(mesh, box))
     body.lag_tolerance = number_option(lag_tolerance, "lag_tolerance", above=0.0)

@@ -27,7 +27,8 @@ from pliant.fem.rigid import DrivenNodes, KinematicBody, RigidBody, rail
 from pliant.geometry.collision import Box, Plane
 from pliant.model import Model
 from pliant.robots.common import cables, landmark, smooth_ramp
-from pliant.robots.parameters import Contact, Cube, Meshing, builder
+from pliant.robots.parameters import Contact, Cube, Meshing
+from pliant.robots.scene import builder
 from pliant.robots.trunk import TRUNK, reference_cable_paths, trunk
 
 

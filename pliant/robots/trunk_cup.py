@@ -23,7 +23,8 @@ from pliant.geometry.collision import TriangleMesh
 from pliant.mesh.shapes import _require_positive
 from pliant.model import Model
 from pliant.robots.common import smooth_ramp
-from pliant.robots.parameters import Contact, Meshing, Solid, builder
+from pliant.robots.parameters import Contact, Meshing, Solid
+from pliant.robots.scene import builder
 from pliant.robots.trunk import TRUNK
 from pliant.robots.trunk_cube import floor, trunk_scene
 

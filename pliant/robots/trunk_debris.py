@@ -18,7 +18,8 @@ from pliant.fem.rigid import RigidBody
 from pliant.geometry.collision import Box, Plane
 from pliant.mesh.shapes import _require_positive
 from pliant.model import Model
-from pliant.robots.parameters import Contact, Cube, Gravity, Meshing, builder
+from pliant.robots.parameters import Contact, Cube, Gravity, Meshing
+from pliant.robots.scene import builder
 from pliant.robots.trunk import TRUNK
 from pliant.robots.trunk_cube import trunk_scene
 
