@@ -493,12 +493,7 @@ class TetBody(Revised):
         energy = kernels.internal_forces(
             x,
             v,
-            self.tets,
-            self.grads,
-            self.volumes,
-            self.mu,
-            self.lam,
-            self.material.kernel_tag,
+            *self._element_args(),
             self.frame_nodes,
             self.rest_frames,
             elem_forces,
@@ -541,18 +536,11 @@ class TetBody(Revised):
 
     def _tangent_args(self, lin: Linearisation, exact: bool) -> tuple:
         """The arguments the tangent kernels share: configuration, elements, material, frames."""
-        return (
-            lin.positions,
-            self.tets,
-            self.grads,
-            self.volumes,
-            self.mu,
-            self.lam,
-            self.material.kernel_tag,
-            lin.frames,
-            lin.dets,
-            exact,
-        )
+        return (lin.positions, *self._element_args(), lin.frames, lin.dets, exact)
+
+    def _element_args(self) -> tuple:
+        """The elements and their material, as the kernels take them."""
+        return (self.tets, self.grads, self.volumes, self.mu, self.lam, self.material.kernel_tag)
 
     @_sized_threads
     def stiffness_matvec(

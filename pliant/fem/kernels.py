@@ -149,6 +149,18 @@ def rest_gradients(points, tets):
 
 
 @njit(cache=True, inline="always")
+def _chunks(m):
+    """Bounds of the (at most 64) chunks of m elements that the parallel kernels share out."""
+    return np.linspace(0, m, max(1, min(m, 64)) + 1).astype(np.int64)
+
+
+@njit(cache=True, inline="always")
+def _row_dot(p, i, g, a):
+    """P_i . g_a: the force on node a along i of an element of first Piola stress P."""
+    return p[i, 0] * g[a, 0] + p[i, 1] * g[a, 1] + p[i, 2] * g[a, 2]
+
+
+@njit(cache=True, inline="always")
 def _gradient(x, tet, g, out):
     """out = sum_a x[tet[a]] (x) g[a]."""
     for i in range(3):
@@ -193,8 +205,8 @@ def internal_forces(
     """
     m = tets.shape[0]
     with_v = v.shape[0] > 0
-    n_chunks = max(1, min(m, 64))
-    bounds = np.linspace(0, m, n_chunks + 1).astype(np.int64)
+    bounds = _chunks(m)
+    n_chunks = bounds.shape[0] - 1
     energies = np.zeros(n_chunks)
     for c in prange(n_chunks):
         f = np.empty((3, 3))
@@ -267,17 +279,13 @@ def internal_forces(
                 )
             for a in range(4):
                 for i in range(3):
-                    elem_forces[e, a, i] = -vols[e] * (
-                        p[i, 0] * g[a, 0] + p[i, 1] * g[a, 1] + p[i, 2] * g[a, 2]
-                    )
+                    elem_forces[e, a, i] = -vols[e] * _row_dot(p, i, g, a)
             if with_v:
                 _gradient(v, tets[e], g, work)
                 _piola_differential(work, frames[e], f, det, mu[e], lam[e], tag, False, p, w1, sig)
                 for a in range(4):
                     for i in range(3):
-                        elem_kv[e, a, i] = vols[e] * (
-                            p[i, 0] * g[a, 0] + p[i, 1] * g[a, 1] + p[i, 2] * g[a, 2]
-                        )
+                        elem_kv[e, a, i] = vols[e] * _row_dot(p, i, g, a)
         energies[c] = energy
     return energies.sum()
 
@@ -441,8 +449,8 @@ def stiffness_matvec(
     """
     m = tets.shape[0]
     k = u.shape[1]
-    n_chunks = max(1, min(m, 64))
-    bounds = np.linspace(0, m, n_chunks + 1).astype(np.int64)
+    bounds = _chunks(m)
+    n_chunks = bounds.shape[0] - 1
     for c in prange(n_chunks):
         df = np.empty((3, 3))
         f = np.empty((3, 3))
@@ -476,9 +484,7 @@ def stiffness_matvec(
                 )
                 for a in range(4):
                     for i in range(3):
-                        elem_out[e, a, i, col] = v * (
-                            dp[i, 0] * g[a, 0] + dp[i, 1] * g[a, 1] + dp[i, 2] * g[a, 2]
-                        )
+                        elem_out[e, a, i, col] = v * _row_dot(dp, i, g, a)
 
 
 @njit(cache=True, parallel=True, nogil=True)
@@ -523,8 +529,8 @@ def _corotational_blocks(g, r, v, mu, lam, rg, out):
 def element_stiffness(x, tets, grads, vols, mu, lam, tag, frames, dets, exact, blocks):
     """Element tangent stiffness matrices, blocks (m, 12, 12), node-major (a, i)."""
     m = tets.shape[0]
-    n_chunks = max(1, min(m, 64))
-    bounds = np.linspace(0, m, n_chunks + 1).astype(np.int64)
+    bounds = _chunks(m)
+    n_chunks = bounds.shape[0] - 1
     for c in prange(n_chunks):
         df = np.zeros((3, 3))
         f = np.empty((3, 3))
@@ -553,9 +559,7 @@ def element_stiffness(x, tets, grads, vols, mu, lam, tag, frames, dets, exact, b
                         df[j, k] = 0.0
                     for a in range(4):
                         for i in range(3):
-                            blocks[e, 3 * a + i, 3 * b + j] = v * (
-                                dp[i, 0] * g[a, 0] + dp[i, 1] * g[a, 1] + dp[i, 2] * g[a, 2]
-                            )
+                            blocks[e, 3 * a + i, 3 * b + j] = v * _row_dot(dp, i, g, a)
 
 
 @njit(cache=True, nogil=True)

@@ -15,7 +15,6 @@ from __future__ import annotations
 from collections.abc import Callable
 
 import numpy as np
-import scipy.sparse as sp
 
 from pliant.errors import ModelError
 from pliant.mesh.locate import locate_points
@@ -260,23 +259,9 @@ class LoadAssembly:
         k3 = 3 * groups.shape[1]
         dofs = (3 * groups[:, :, None] + np.arange(3)).reshape(-1, k3)
         self.free_dofs = free_index[dofs]
-        held = self.free_dofs.ravel() >= 0
-        cols = np.arange(dofs.size)
-        self.to_free = sp.csr_matrix(
-            (np.ones(held.sum()), (self.free_dofs.ravel()[held], cols[held])),
-            shape=(pattern.n_free, dofs.size),
+        self.to_free, self.valid, self.positions = pattern.place(
+            self.free_dofs, "a load couples nodes that share no tetrahedron (use mesh faces)"
         )
-        rows = np.broadcast_to(self.free_dofs[:, :, None], (len(dofs), k3, k3))
-        columns = np.broadcast_to(self.free_dofs[:, None, :], (len(dofs), k3, k3))
-        self.valid = (rows >= 0) & (columns >= 0)
-        n_free = max(pattern.n_free, 1)
-        entry_rows = np.repeat(np.arange(pattern.n_free), np.diff(pattern.indptr))
-        keys = entry_rows.astype(np.int64) * n_free + pattern.indices
-        wanted = rows[self.valid].astype(np.int64) * n_free + columns[self.valid]
-        found = np.searchsorted(keys, wanted)
-        if np.any(found >= keys.size) or np.any(keys[np.minimum(found, keys.size - 1)] != wanted):
-            raise ModelError("a load couples nodes that share no tetrahedron (use mesh faces)")
-        self.positions = found
 
     def tangents(self, x: np.ndarray, time: float) -> np.ndarray | None:
         """The symmetric part of the load's tangent blocks, or None."""

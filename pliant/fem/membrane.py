@@ -169,24 +169,11 @@ class MembraneAssembly:
             (np.ones(dofs.size), (dofs.ravel(), cols)), shape=(3 * n_nodes, dofs.size)
         )
         self.free_dofs = free_index[dofs]
-        held = self.free_dofs.ravel() >= 0
-        self.to_free = sp.csr_matrix(
-            (np.ones(held.sum()), (self.free_dofs.ravel()[held], cols[held])),
-            shape=(pattern.n_free, dofs.size),
-        )
         # Positions of the (row, column) entries in the pattern's data; every pair of a
         # triangle's nodes is an edge of the tetrahedral mesh when the triangles are faces.
-        rows = np.broadcast_to(self.free_dofs[:, :, None], (len(dofs), 9, 9))
-        columns = np.broadcast_to(self.free_dofs[:, None, :], (len(dofs), 9, 9))
-        self.valid = (rows >= 0) & (columns >= 0)
-        n_free = max(pattern.n_free, 1)
-        entry_rows = np.repeat(np.arange(pattern.n_free), np.diff(pattern.indptr))
-        keys = entry_rows.astype(np.int64) * n_free + pattern.indices
-        wanted = rows[self.valid].astype(np.int64) * n_free + columns[self.valid]
-        found = np.searchsorted(keys, wanted)
-        if np.any(found >= keys.size) or np.any(keys[np.minimum(found, keys.size - 1)] != wanted):
-            raise ModelError("a membrane triangle joins nodes that share no tetrahedron")
-        self.positions = found
+        self.to_free, self.valid, self.positions = pattern.place(
+            self.free_dofs, "a membrane triangle joins nodes that share no tetrahedron"
+        )
 
     def nodal(self, elements: np.ndarray) -> np.ndarray:
         """(n, 3) sums of element vectors (t, 3, 3) or (t, 9)."""

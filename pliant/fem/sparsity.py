@@ -7,6 +7,8 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
+from pliant.errors import ModelError
+
 
 @dataclass(frozen=True)
 class StiffnessPattern:
@@ -43,6 +45,30 @@ class StiffnessPattern:
         np.add.at(indptr, urows + 1, 1)
         np.cumsum(indptr, out=indptr)
         return cls(n_free=n_free, indptr=indptr, indices=indices, scatter=scatter)
+
+    def place(self, free_dofs: np.ndarray, what: str) -> tuple:
+        """Where the (g, k, k) blocks of groups of free DoFs `free_dofs` (g, k; -1 fixed) go:
+        (to_free, the (n_free, g k) sum of the groups' vectors into the free DoFs; valid, the
+        (g, k, k) entries of free rows and columns; positions, their places in the data
+        array). ModelError names `what` when two of a group's DoFs share no element."""
+        n_groups, k = free_dofs.shape
+        held = free_dofs.ravel() >= 0
+        cols = np.arange(free_dofs.size)
+        to_free = sp.csr_matrix(
+            (np.ones(held.sum()), (free_dofs.ravel()[held], cols[held])),
+            shape=(self.n_free, free_dofs.size),
+        )
+        rows = np.broadcast_to(free_dofs[:, :, None], (n_groups, k, k))
+        columns = np.broadcast_to(free_dofs[:, None, :], (n_groups, k, k))
+        valid = (rows >= 0) & (columns >= 0)
+        n_free = max(self.n_free, 1)
+        entry_rows = np.repeat(np.arange(self.n_free), np.diff(self.indptr))
+        keys = entry_rows.astype(np.int64) * n_free + self.indices
+        wanted = rows[valid].astype(np.int64) * n_free + columns[valid]
+        found = np.searchsorted(keys, wanted)
+        if np.any(found >= keys.size) or np.any(keys[np.minimum(found, keys.size - 1)] != wanted):
+            raise ModelError(what)
+        return to_free, valid, found
 
     @property
     def nnz(self) -> int:

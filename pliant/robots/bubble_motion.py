@@ -13,17 +13,16 @@ import gmsh
 import numpy as np
 
 from pliant.constraints.base import EmbeddedPoints
-from pliant.constraints.cavity import CavityActuator
-from pliant.constraints.contact import Contacts
 from pliant.errors import ModelError
-from pliant.fem.body import TetBody
 from pliant.fem.rigid import RigidBody
 from pliant.geometry.collision import Plane, Sphere
 from pliant.mesh.gmsh_session import gmsh_model, mesh_volumes, retry_meshing
 from pliant.mesh.shapes import _cavity_surfaces, _finish, _require_positive
 from pliant.mesh.tetmesh import TetMesh
 from pliant.model import Model
-from pliant.robots.common import MaterialName, fixed_by_box, make_material
+from pliant.robots.common import cavity, fixed_by_box
+from pliant.robots.parameters import Ball, Contact, Damping, Density, Gravity, Meshing, Solid
+from pliant.robots.scene import builder
 
 GRID = 3
 
@@ -102,26 +101,23 @@ def board_mesh(
     return _finish(points, tets, landmarks, surfaces)
 
 
+@builder(
+    Meshing(5.0),
+    Solid(200.0, 0.45),
+    Density(),
+    Gravity.Z,
+    Damping(1.0, 0.02),
+    Contact(0.3, contact_margin=2.0),
+    Ball(8.0, 0.002),
+)
 def bubble_motion(
+    p,
     *,
-    mesh: TetMesh | None = None,
     size: float = 60.0,
     thickness: float = 12.0,
-    mesh_size: float = 5.0,
     top_mesh_size: float = 2.0,
-    young_modulus: float = 200.0,
-    poisson_ratio: float = 0.45,
-    density: float = 1.07e-6,
-    material: MaterialName = "corotational",
-    gravity: tuple[float, float, float] = (0.0, 0.0, -9810.0),
-    rayleigh_mass: float = 1.0,
-    rayleigh_stiffness: float = 0.02,
     max_pressure: float = 40.0,
-    ball_radius: float = 8.0,
-    ball_mass: float = 0.002,
     ball_position: tuple[float, float] = (0.0, 0.0),
-    friction: float = 0.3,
-    contact_margin: float = 2.0,
 ) -> Model:
     """The board on the table and the ball on the board at (x, y) = `ball_position`.
 
@@ -137,43 +133,22 @@ def bubble_motion(
         friction: Coulomb coefficient of the ball on the board.
         contact_margin: detection distance (mm).
     """
+    ball_radius, ball_mass = p.ball.ball_radius, p.ball.ball_mass
     _require_positive(ball_radius=ball_radius, ball_mass=ball_mass)
-    mesh = (
-        mesh
-        if mesh is not None
-        else board_mesh(
-            size=size, thickness=thickness, mesh_size=mesh_size, top_mesh_size=top_mesh_size
-        )
-    )
+    mesh = p.mesh_or(board_mesh, size=size, thickness=thickness, top_mesh_size=top_mesh_size)
     missing = [k for k in range(GRID * GRID) if f"cavity_{k}" not in mesh.surfaces]
     if missing:
         raise ModelError(f"the board mesh has no surface for cavities {missing}")
-    body = TetBody(
-        mesh,
-        make_material(material, young_modulus, poisson_ratio),
-        density=density,
-        fixed_nodes=fixed_by_box(mesh, mesh.landmarks["fixed_box"]),
-        gravity=gravity,
-        rayleigh_mass=rayleigh_mass,
-        rayleigh_stiffness=rayleigh_stiffness,
-    )
+    body = p.tet_body(mesh, fixed_nodes=fixed_by_box(mesh, mesh.landmarks["fixed_box"]))
     cavities = [
-        CavityActuator(
-            mesh.surfaces[f"cavity_{k}"],
-            body.rest_positions,
-            name=f"cavity_{k}",
-            mode="force",
-            min_force=0.0,
-            max_force=max_pressure,
-        )
-        for k in range(GRID * GRID)
+        cavity(mesh, body, f"cavity_{k}", max_pressure=max_pressure) for k in range(GRID * GRID)
     ]
     top = float(mesh.points[:, 2].max())
     x, y = ball_position
     ball = RigidBody(
         Sphere(ball_radius, position=[x, y, top + ball_radius]),
         ball_mass,
-        friction=friction,
+        friction=p.contact.friction,
         name="ball",
     )
     # Only the top face meets the ball; the table (z = 0) catches a ball rolled off the board.
@@ -183,12 +158,7 @@ def bubble_motion(
     return Model(
         body,
         actuators=cavities,
-        contacts=Contacts(
-            [table],
-            friction=friction,
-            margin=contact_margin,
-            points=EmbeddedPoints.at_nodes(upper),
-        ),
+        contacts=p.contacts([table], points=EmbeddedPoints.at_nodes(upper)),
         rigid_bodies=[ball],
         name="bubble_motion",
     )

@@ -20,25 +20,17 @@ from typing import Literal
 import numpy as np
 
 from pliant.constraints.base import EmbeddedPoints
-from pliant.constraints.contact import Contacts
 from pliant.constraints.effector import PositionEffector
 from pliant.errors import ModelError
-from pliant.fem.body import TetBody
-from pliant.fem.material import Material
 from pliant.fem.rigid import DrivenNodes, KinematicBody, rail
-from pliant.fem.rod import ClampedEnd, RodBody, RodSection
+from pliant.fem.rod import ClampedEnd, RodSection
 from pliant.geometry.collision import Box
 from pliant.mesh import box_beam
 from pliant.mesh.tetmesh import TetMesh
 from pliant.model import Model
-from pliant.robots.common import (
-    MaterialName,
-    effector,
-    fixed_by_box,
-    landmark,
-    make_material,
-    smooth_ramp,
-)
+from pliant.robots.common import effector, fixed_by_box, landmark, smooth_ramp
+from pliant.robots.parameters import Contact, Damping, Density, Gravity, Meshed, Solid
+from pliant.robots.scene import builder, variant
 
 # How far the cart slides left in the scripted solution: the tetrahedral bar (2 cells across)
 # is stiffer in bending than the rod (linear tetrahedra lock), so it needs a longer slide.
@@ -66,25 +58,19 @@ def stem_mesh(length: float, width: float, cells: int) -> TetMesh:
     return TetMesh(points, beam.tets, landmarks=landmarks)
 
 
+@builder(
+    Meshed(), Solid(2000.0, 0.3), Density(1.0e-6), Gravity.Z, Damping(1.0, 0.01), Contact(0.0, 3.0)
+)
 def cartstem_contact(
+    p,
     *,
     stem: Literal["rod", "tetrahedra"] = "tetrahedra",
-    mesh: TetMesh | None = None,
     length: float = 100.0,
     width: float = 10.0,
     cells: int = 10,
-    young_modulus: float = 2000.0,
-    poisson_ratio: float = 0.3,
-    density: float = 1.0e-6,
-    material: MaterialName = "corotational",
-    gravity: tuple[float, float, float] = (0.0, 0.0, -9810.0),
-    rayleigh_mass: float = 1.0,
-    rayleigh_stiffness: float = 0.01,
     obstacle_spacing: float = 40.0,
     obstacle_size: tuple[float, float, float] = (10.0, 20.0, 20.0),
     obstacle_height: float = 10.0,
-    friction: float = 0.0,
-    contact_margin: float = 3.0,
     obstacles: bool = True,
     cart_motion: Callable[[float], float] | None = None,
 ) -> Model:
@@ -128,50 +114,30 @@ def cartstem_contact(
         name="cart",
     )
     if stem == "rod":
-        if mesh is not None:
+        if p.mesh is not None:
             raise ModelError("a mesh replaces the tetrahedral stem only (stem='tetrahedra')")
         n = 2 * cells
-        rod = RodBody(
+        rod = p.rod_body(
             np.column_stack([np.zeros(n + 1), np.zeros(n + 1), np.linspace(0.0, length, n + 1)]),
             RodSection.rectangle(width, width),
-            Material(young_modulus, poisson_ratio),
-            density=density,
             normal=(1.0, 0.0, 0.0),
             clamped=[0],
-            gravity=gravity,
-            rayleigh_mass=rayleigh_mass,
-            rayleigh_stiffness=rayleigh_stiffness,
         )
         return Model(
             rod,
             effectors=[PositionEffector(EmbeddedPoints.at_nodes([n]), rod.rest_positions)],
-            contacts=Contacts(
-                boxes,
-                friction=friction,
-                margin=contact_margin,
-                thickness=0.5 * width,
-            )
-            if obstacles
-            else None,
+            contacts=p.contacts(boxes, thickness=0.5 * width) if obstacles else None,
             drivers=[ClampedEnd(rod, 0, cart, name="cart")],
             name="cartstem_contact",
         )
-    mesh = mesh if mesh is not None else stem_mesh(length, width, cells)
+    mesh = p.mesh if p.mesh is not None else stem_mesh(length, width, cells)
     base = fixed_by_box(mesh, landmark(mesh, "fixed_box", [[-width, -width, -0.01], [width] * 3]))
-    body = TetBody(
-        mesh,
-        make_material(material, young_modulus, poisson_ratio),
-        density=density,
-        fixed_nodes=base,
-        gravity=gravity,
-        rayleigh_mass=rayleigh_mass,
-        rayleigh_stiffness=rayleigh_stiffness,
-    )
+    body = p.tet_body(mesh, fixed_nodes=base)
     tip = effector(mesh, body, landmark(mesh, "effector", [0.0, 0.0, length]))
     return Model(
         body,
         effectors=[tip],
-        contacts=Contacts(boxes, friction=friction, margin=contact_margin) if obstacles else None,
+        contacts=p.contacts(boxes) if obstacles else None,
         drivers=[DrivenNodes(base, cart, name="cart")],
         name="cartstem_contact",
     )
@@ -187,24 +153,20 @@ def stem_demo_cart_motion(t: float) -> float:
     return 10.0 * math.sin(4.0 * math.pi * min(t, 1.0))
 
 
-def cartstem(
-    *,
-    stem: Literal["rod", "tetrahedra"] = "rod",
-    young_modulus: float = 1000.0,
-    cart_motion: Callable[[float], float] = stem_demo_cart_motion,
-    **kwargs,
-) -> Model:
+cartstem = variant(
+    cartstem_contact,
+    "cartstem",
     """CartStem (SofaGym cartstem-v0): the stem alone on its cart, no obstacle; a Cosserat rod
-    by default, as SofaGym's (keywords of :func:`cartstem_contact`)."""
-    return cartstem_contact(
-        stem=stem,
-        young_modulus=young_modulus,
-        obstacles=False,
-        cart_motion=cart_motion,
-        **kwargs,
-    )
+    by default, as SofaGym's (keywords of :func:`cartstem_contact`).""",
+    stem="rod",
+    young_modulus=1000.0,
+    obstacles=False,
+    cart_motion=stem_demo_cart_motion,
+)
 
-
-def cartstem_rod(**kwargs) -> Model:
-    """CartStemContact with a Cosserat rod stem (keywords of :func:`cartstem_contact`)."""
-    return cartstem_contact(stem="rod", **kwargs)
+cartstem_rod = variant(
+    cartstem_contact,
+    "cartstem_rod",
+    """CartStemContact with a Cosserat rod stem (keywords of :func:`cartstem_contact`).""",
+    stem="rod",
+)

@@ -16,8 +16,6 @@ from collections.abc import Callable
 import gmsh
 import numpy as np
 
-from pliant.constraints.cavity import CavityActuator
-from pliant.constraints.contact import Contacts
 from pliant.errors import ModelError
 from pliant.fem.body import TetBody
 from pliant.fem.rigid import DrivenNodes, KinematicBody, RigidBody, rail
@@ -26,7 +24,9 @@ from pliant.mesh.gmsh_session import gmsh_model, mesh_volumes, retry_meshing
 from pliant.mesh.shapes import _cavity_surfaces, _finish, _require_positive
 from pliant.mesh.tetmesh import TetMesh
 from pliant.model import Model
-from pliant.robots.common import MaterialName, effector, fixed_by_box, make_material, smooth_ramp
+from pliant.robots.common import cavity, fingertips, fixed_by_box, smooth_ramp
+from pliant.robots.parameters import Ball, Contact, Damping, Density, Gravity, Meshing, Solid
+from pliant.robots.scene import builder
 
 
 @retry_meshing
@@ -128,28 +128,25 @@ def demo_cart_motion(t: float) -> float:
     return 20.0 * smooth_ramp(t, 0.0, 0.12)
 
 
+@builder(
+    Meshing(4.0),
+    Solid(500.0, 0.3),
+    Density(),
+    Gravity.Z,
+    Damping(1.0, 0.05),
+    Contact(0.6),
+    Ball(10.0, 0.003),
+)
 def catch_object(
+    p,
     *,
-    mesh: TetMesh | None = None,
     opening: float = 30.0,
     finger_length: float = 40.0,
     palm_thickness: float = 8.0,
-    mesh_size: float = 4.0,
-    young_modulus: float = 500.0,
-    poisson_ratio: float = 0.3,
-    density: float = 1.07e-6,
-    material: MaterialName = "corotational",
-    gravity: tuple[float, float, float] = (0.0, 0.0, -9810.0),
-    rayleigh_mass: float = 1.0,
-    rayleigh_stiffness: float = 0.05,
     spine_thickness: float = 2.0,
     layer_stiffness: float = 5.0,
     max_pressure: float = 60.0,
-    ball_radius: float = 10.0,
-    ball_mass: float = 0.003,
     ball_position: tuple[float, float, float] = (20.0, 0.0, 100.0),
-    friction: float = 0.6,
-    contact_margin: float = 3.0,
     cart_motion: Callable[[float], float] = demo_cart_motion,
 ) -> Model:
     """The gripper (`catcher_mesh`) on its cart, moved along x by `cart_motion(t)` (mm), under
@@ -171,35 +168,24 @@ def catch_object(
             to 2.6 mm per 0.01 s step with the demo's cart.
         cart_motion: the cart's displacement along x (mm) as a function of time (s).
     """
+    ball_radius, ball_mass = p.ball.ball_radius, p.ball.ball_mass
     _require_positive(
         spine_thickness=spine_thickness,
         layer_stiffness=layer_stiffness,
         ball_radius=ball_radius,
         ball_mass=ball_mass,
     )
-    mesh = (
-        mesh
-        if mesh is not None
-        else catcher_mesh(
-            opening=opening,
-            finger_length=finger_length,
-            palm_thickness=palm_thickness,
-            spine_thickness=spine_thickness,
-            mesh_size=mesh_size,
-        )
+    mesh = p.mesh_or(
+        catcher_mesh,
+        opening=opening,
+        finger_length=finger_length,
+        palm_thickness=palm_thickness,
+        spine_thickness=spine_thickness,
     )
     if "cavity" not in mesh.surfaces:
         raise ModelError("the gripper mesh has no 'cavity' surface (the chambers' walls)")
     palm = fixed_by_box(mesh, mesh.landmarks["fixed_box"])
-    body = TetBody(
-        mesh,
-        make_material(material, young_modulus, poisson_ratio),
-        density=density,
-        fixed_nodes=palm,
-        gravity=gravity,
-        rayleigh_mass=rayleigh_mass,
-        rayleigh_stiffness=rayleigh_stiffness,
-    )
+    body = p.tet_body(mesh, fixed_nodes=palm)
     _stiffen_inner_layers(
         body,
         opening=opening,
@@ -207,17 +193,8 @@ def catch_object(
         thickness=spine_thickness,
         factor=layer_stiffness,
     )
-    chambers = CavityActuator(
-        mesh.surfaces["cavity"],
-        body.rest_positions,
-        name="chambers",
-        mode="force",
-        min_force=0.0,
-        max_force=max_pressure,
-    )
-    tips = [effector(mesh, body, mesh.landmarks[f"effector_{i}"]) for i in range(2)]
-    for i, tip in enumerate(tips):
-        tip.name = f"fingertip_{i}"
+    chambers = cavity(mesh, body, "cavity", name="chambers", max_pressure=max_pressure)
+    tips = fingertips(mesh, body, [mesh.landmarks[f"effector_{i}"] for i in range(2)])
     bottom = float(mesh.points[:, 2].min())
     cart = KinematicBody(
         Box([35.0, 15.0, 2.5], position=[0.0, 0.0, bottom - 2.5]),
@@ -225,14 +202,17 @@ def catch_object(
         name="cart",
     )
     ball = RigidBody(
-        Sphere(ball_radius, position=ball_position), ball_mass, friction=friction, name="ball"
+        Sphere(ball_radius, position=ball_position),
+        ball_mass,
+        friction=p.contact.friction,
+        name="ball",
     )
     floor = Plane(point=(0.0, 0.0, bottom - 5.0))
     return Model(
         body,
         actuators=[chambers],
         effectors=tips,
-        contacts=Contacts([floor], friction=friction, margin=contact_margin),
+        contacts=p.contacts([floor]),
         drivers=[DrivenNodes(palm, cart, name="cart")],
         rigid_bodies=[ball],
         name="catch_object",

@@ -2,41 +2,18 @@
 
 from __future__ import annotations
 
-from typing import Literal
-
 import numpy as np
 
 from pliant.constraints.base import EmbeddedPoints
 from pliant.constraints.cable import CableActuator
+from pliant.constraints.cavity import CavityActuator
 from pliant.constraints.effector import PositionEffector
 from pliant.errors import ModelError
 from pliant.fem.body import TetBody, nodes_in_box
-from pliant.fem.material import MATERIALS, Corotational, Material
 from pliant.mesh.quality import validate_mesh
 from pliant.mesh.tetmesh import TetMesh
 from pliant.model import Model, State
-
-MaterialName = Literal[
-    "corotational", "corotational-large", "corotational-large-tolerant", "neo-hookean"
-]
-
-# Variants of the corotational law by name: SOFA's "large" element frames, and the same
-# frames with inverted elements kept in the step, as SOFA runs them (see `Corotational`).
-_VARIANTS = {
-    "corotational-large": {"rotation": "large"},
-    "corotational-large-tolerant": {"rotation": "large", "inversion": "tolerate"},
-}
-
-
-def make_material(name: str, young_modulus: float, poisson_ratio: float) -> Material:
-    if name in _VARIANTS:
-        return Corotational(young_modulus, poisson_ratio, **_VARIANTS[name])
-    try:
-        cls = MATERIALS[name]
-    except KeyError:
-        names = sorted([*MATERIALS, *_VARIANTS])
-        raise ModelError(f"unknown material {name!r}; choose one of {names}") from None
-    return cls(young_modulus, poisson_ratio)
+from pliant.robots.parameters import Cables
 
 
 def fixed_by_box(mesh: TetMesh, box: np.ndarray) -> np.ndarray:
@@ -59,31 +36,70 @@ def cables(
     body: TetBody,
     paths: list[np.ndarray],
     pull_points: list[np.ndarray],
-    *,
-    mode: str,
+    limits: Cables,
     max_displacement: list[float] | float,
-    max_displacement_change: float | None,
-    max_force: float,
+    *,
+    names: list[str] | None = None,
 ) -> list[CableActuator]:
+    """A cable along each path from its pull point (None: from its first point), named
+    `names` (default cable_<i>), with the `limits` and `max_displacement` (mm, one for all or
+    one per cable)."""
     maxd = np.broadcast_to(np.asarray(max_displacement, dtype=float), (len(paths),))
+    names = names if names is not None else [f"cable_{i}" for i in range(len(paths))]
     return [
         CableActuator(
             EmbeddedPoints(mesh, path),
             body.rest_positions,
             pull_point=pull,
-            name=f"cable_{i}",
-            mode=mode,
+            name=names[i],
+            mode=limits.cable_mode,
             min_force=0.0,
-            max_force=max_force,
+            max_force=limits.max_cable_force,
             max_displacement=float(maxd[i]),
-            max_displacement_change=max_displacement_change,
+            max_displacement_change=limits.max_displacement_change,
         )
         for i, (path, pull) in enumerate(zip(paths, pull_points, strict=True))
     ]
 
 
-def effector(mesh: TetMesh, body: TetBody, point: np.ndarray) -> PositionEffector:
-    return PositionEffector(EmbeddedPoints(mesh, point), body.rest_positions, name="effector")
+def cavity(
+    mesh: TetMesh, body: TetBody, surface: str, *, max_pressure: float, **bounds
+) -> CavityActuator:
+    """A cavity actuator of the mesh's `surface` (name: the surface's), bounded by
+    `max_pressure` (kPa), in force (pressure) mode unless `bounds` say otherwise."""
+    bounds = {"name": surface, "mode": "force", **bounds}
+    return CavityActuator(
+        mesh.surfaces[surface], body.rest_positions, max_force=max_pressure, **bounds
+    )
+
+
+CAVITY_MODES = {"pressure": "force", "volume": "displacement"}
+
+
+def cavity_mode(name: str) -> str:
+    """The actuator mode of a cavity commanded by "pressure" (kPa) or "volume" (mm^3)."""
+    if name not in CAVITY_MODES:
+        raise ModelError(f"cavity_mode must be 'pressure' or 'volume', got {name!r}")
+    return CAVITY_MODES[name]
+
+
+def effector(
+    mesh: TetMesh, body: TetBody, point: np.ndarray, name: str = "effector"
+) -> PositionEffector:
+    return PositionEffector(EmbeddedPoints(mesh, point), body.rest_positions, name=name)
+
+
+def fingertips(mesh: TetMesh, body: TetBody, points: list[np.ndarray]) -> list[PositionEffector]:
+    """An effector at each point, named fingertip_<i>."""
+    return [effector(mesh, body, p, f"fingertip_{i}") for i, p in enumerate(points)]
+
+
+def curling(n: int, tip: tuple[float, float, float], drop: float, inward: float) -> np.ndarray:
+    """n goals along the arc of a fingertip curling down from `tip` by `drop` (mm) in z,
+    drawing in along x by `inward` * drop at the end (inverse control trajectories)."""
+    a = np.linspace(0.0, 1.0, n)
+    x0, y0, z0 = tip
+    return np.column_stack([x0 - inward * drop * a**2, np.full(n, y0), z0 - drop * a])
 
 
 def smooth_ramp(t: float, start: float, duration: float) -> float:

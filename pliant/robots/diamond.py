@@ -6,39 +6,28 @@ import math
 
 import numpy as np
 
-from pliant.fem.body import TetBody
 from pliant.mesh import shapes
-from pliant.mesh.tetmesh import TetMesh
 from pliant.model import Model
-from pliant.robots.common import (
-    MaterialName,
-    cables,
-    effector,
-    fixed_by_box,
-    landmark,
-    make_material,
-)
+from pliant.robots.common import cables, effector, fixed_by_box, landmark
+from pliant.robots.parameters import Cables, Damping, Gravity, Meshing, Solid, TotalMass
+from pliant.robots.scene import builder
 
 _ELBOWS = [(0.0, 97.0, 45.0), (-97.0, 0.0, 45.0), (0.0, -97.0, 45.0), (97.0, 0.0, 45.0)]
 _PULLS = [(0.0, 10.0, 30.0), (-10.0, 0.0, 30.0), (0.0, -10.0, 30.0), (10.0, 0.0, 30.0)]
 
 
+@builder(
+    Meshing(13.0),
+    Solid(180.0, 0.45, mass="uniform"),
+    TotalMass(0.5),
+    Gravity.Z,
+    Damping(),
+    Cables(),
+)
 def diamond(
+    p,
     *,
-    mesh: TetMesh | None = None,
-    mesh_size: float = 13.0,
-    young_modulus: float = 180.0,
-    poisson_ratio: float = 0.45,
-    total_mass: float = 0.5,
-    material: MaterialName = "corotational",
-    mass: str = "uniform",
-    gravity: tuple[float, float, float] = (0.0, 0.0, -9810.0),
-    rayleigh_mass: float = 0.0,
-    rayleigh_stiffness: float = 0.0,
-    cable_mode: str = "displacement",
     max_cable_displacement: float = 20.0,
-    max_cable_force: float = math.inf,
-    max_displacement_change: float | None = None,
 ) -> Model:
     """The Diamond: cables from pull points under the hub to the four elbows, effector on top.
 
@@ -46,30 +35,12 @@ def diamond(
     at most 20 mm in inverse mode). `mesh` replaces Pliant's gmsh geometry, e.g. by the
     reference mesh placed in the scene frame; its landmarks default to the reference scene's.
     """
-    mesh = mesh if mesh is not None else shapes.diamond(mesh_size=mesh_size)
+    mesh = p.mesh_or(shapes.diamond)
     box = landmark(mesh, "fixed_box", [[-15.0, -15.0, -40.0], [15.0, 15.0, 10.0]])
-    body = TetBody(
-        mesh,
-        make_material(material, young_modulus, poisson_ratio),
-        total_mass=total_mass,
-        mass=mass,
-        fixed_nodes=fixed_by_box(mesh, box),
-        gravity=gravity,
-        rayleigh_mass=rayleigh_mass,
-        rayleigh_stiffness=rayleigh_stiffness,
-    )
+    body = p.tet_body(mesh, fixed_nodes=fixed_by_box(mesh, box))
     paths = [landmark(mesh, f"cable_points_{i}", _ELBOWS[i]) for i in range(4)]
     pulls = [landmark(mesh, f"pull_points_{i}", _PULLS[i])[0] for i in range(4)]
-    acts = cables(
-        mesh,
-        body,
-        paths,
-        pulls,
-        mode=cable_mode,
-        max_displacement=max_cable_displacement,
-        max_displacement_change=max_displacement_change,
-        max_force=max_cable_force,
-    )
+    acts = cables(mesh, body, paths, pulls, p.cables, max_cable_displacement)
     eff = effector(mesh, body, landmark(mesh, "effector", [0.0, 0.0, 125.0]))
     return Model(body, actuators=acts, effectors=[eff], name="diamond")
 

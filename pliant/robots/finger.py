@@ -6,35 +6,23 @@ import math
 
 import numpy as np
 
-from pliant.fem.body import TetBody
 from pliant.mesh import shapes
 from pliant.mesh.shapes import FingerResolution
-from pliant.mesh.tetmesh import TetMesh
 from pliant.model import Model
-from pliant.robots.common import MaterialName, cables, effector, fixed_by_box, make_material
+from pliant.robots.common import cables, curling, effector, fixed_by_box
+from pliant.robots.parameters import Cables, Damping, Density, Gravity, Meshed, Solid
+from pliant.robots.scene import builder
 
-SILICONE_DENSITY = 1.07e-6  # kg / mm^3
 
-
+@builder(Meshed(), Solid(3000.0, 0.47), Density(), Gravity.Z, Damping(), Cables())
 def soft_finger(
+    p,
     *,
-    mesh: TetMesh | None = None,
     length: float = 40.0,
     height: float = 20.0,
     joint_height: float = 6.0,
     resolution: FingerResolution = "coarse",
-    young_modulus: float = 3000.0,
-    poisson_ratio: float = 0.47,
-    density: float = SILICONE_DENSITY,
-    material: MaterialName = "corotational",
-    mass: str = "lumped",
-    gravity: tuple[float, float, float] = (0.0, 0.0, -9810.0),
-    rayleigh_mass: float = 0.0,
-    rayleigh_stiffness: float = 0.0,
-    cable_mode: str = "displacement",
     max_cable_displacement: float = 20.0,
-    max_cable_force: float = math.inf,
-    max_displacement_change: float | None = None,
 ) -> Model:
     """The Soft Finger: three phalanges along +x from a fixed base, cable 0 closes it (-z).
 
@@ -42,35 +30,17 @@ def soft_finger(
     geometry; `resolution` picks the thesis' three meshes (~1.5k, ~9k, ~18k tetrahedra).
     Material defaults: E = 3000 kPa, nu = 0.47 (thesis §5.1.6), silicone density.
     """
-    mesh = (
-        mesh
-        if mesh is not None
-        else shapes.soft_finger(
-            length=length, height=height, joint_height=joint_height, resolution=resolution
-        )
+    mesh = p.mesh_or(
+        shapes.soft_finger,
+        length=length,
+        height=height,
+        joint_height=joint_height,
+        resolution=resolution,
     )
-    body = TetBody(
-        mesh,
-        make_material(material, young_modulus, poisson_ratio),
-        density=density,
-        mass=mass,
-        fixed_nodes=fixed_by_box(mesh, mesh.landmarks["fixed_box"]),
-        gravity=gravity,
-        rayleigh_mass=rayleigh_mass,
-        rayleigh_stiffness=rayleigh_stiffness,
-    )
+    body = p.tet_body(mesh, fixed_nodes=fixed_by_box(mesh, mesh.landmarks["fixed_box"]))
     paths = [mesh.landmarks[f"cable_points_{i}"] for i in range(2)]
     pulls = [mesh.landmarks[f"pull_points_{i}"][0] for i in range(2)]
-    acts = cables(
-        mesh,
-        body,
-        paths,
-        pulls,
-        mode=cable_mode,
-        max_displacement=max_cable_displacement,
-        max_displacement_change=max_displacement_change,
-        max_force=max_cable_force,
-    )
+    acts = cables(mesh, body, paths, pulls, p.cables, max_cable_displacement)
     eff = effector(mesh, body, mesh.landmarks["effector"])
     return Model(body, actuators=acts, effectors=[eff], name="finger")
 
@@ -87,6 +57,4 @@ def closing(
     n: int = 25, *, tip: tuple[float, float, float] = (143.0, 0.0, 10.0), drop: float = 30.0
 ) -> np.ndarray:
     """The thesis' closing trajectory: n goals along an arc as the fingertip curls down."""
-    a = np.linspace(0.0, 1.0, n)
-    x0, y0, z0 = tip
-    return np.column_stack([x0 - 0.25 * drop * a**2, np.full(n, y0), z0 - drop * a])
+    return curling(n, tip, drop, 0.25)

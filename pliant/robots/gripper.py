@@ -17,24 +17,24 @@ from collections.abc import Callable
 import gmsh
 import numpy as np
 
-from pliant.constraints.base import EmbeddedPoints
-from pliant.constraints.cable import CableActuator
-from pliant.constraints.contact import Contacts
 from pliant.errors import ModelError
-from pliant.fem.body import TetBody
 from pliant.fem.rigid import DrivenNodes, KinematicBody, RigidBody, Trajectory
 from pliant.geometry.collision import Box, Plane
 from pliant.mesh.gmsh_session import gmsh_model, mesh_volumes, retry_meshing
 from pliant.mesh.tetmesh import TetMesh
 from pliant.model import Model
-from pliant.robots.common import (
-    MaterialName,
-    effector,
-    fixed_by_box,
-    landmark,
-    make_material,
-    smooth_ramp,
+from pliant.robots.common import cables, fingertips, fixed_by_box, landmark, smooth_ramp
+from pliant.robots.parameters import (
+    Cables,
+    Contact,
+    Cube,
+    Damping,
+    Density,
+    Gravity,
+    Meshing,
+    Solid,
 )
+from pliant.robots.scene import builder
 
 
 @retry_meshing
@@ -97,24 +97,21 @@ def demo_base_motion(t: float) -> float:
     return 20.0 * smooth_ramp(t, 1.5, 1.5)
 
 
+@builder(
+    Meshing(5.0),
+    Solid(20000.0, 0.48),
+    Density(),
+    Gravity.Z,
+    Damping(1.0, 0.01),
+    Cables(),
+    Contact(0.8, contact_margin=1.0),
+    Cube(20.0, 0.01),
+)
 def soft_gripper(
+    p,
     *,
-    mesh: TetMesh | None = None,
-    mesh_size: float = 5.0,
-    young_modulus: float = 20000.0,
-    poisson_ratio: float = 0.48,
-    density: float = 1.07e-6,
-    material: MaterialName = "corotational",
-    gravity: tuple[float, float, float] = (0.0, 0.0, -9810.0),
-    rayleigh_mass: float = 1.0,
-    rayleigh_stiffness: float = 0.01,
-    cable_mode: str = "displacement",
     max_cable_displacement: float = 10.0,
-    max_cable_force: float = math.inf,
-    cube_size: float = 20.0,
-    cube_mass: float = 0.01,
     floor_height: float = -10.0,
-    friction: float = 0.8,
     base_motion: Callable[[float], float | np.ndarray] = demo_base_motion,
 ) -> Model:
     """Two cable fingers on a base translated by `base_motion(t)` (mm), over a cube:
@@ -124,47 +121,26 @@ def soft_gripper(
     10 g cube on the floor 10 mm under the fingertips, centred between the fingers (10 mm
     from each); friction 0.8 for the fingers, the cube and the floor.
     """
-    mesh = mesh if mesh is not None else gripper_mesh(mesh_size=mesh_size)
+    mesh = p.mesh_or(gripper_mesh)
     palm = fixed_by_box(mesh, landmark(mesh, "fixed_box", [[-31, -11, 60], [31, 11, 71]]))
-    body = TetBody(
-        mesh,
-        make_material(material, young_modulus, poisson_ratio),
-        density=density,
-        fixed_nodes=palm,
-        gravity=gravity,
-        rayleigh_mass=rayleigh_mass,
-        rayleigh_stiffness=rayleigh_stiffness,
-    )
-    fingers = [
-        CableActuator(
-            EmbeddedPoints(mesh, landmark(mesh, f"cable_points_{i}", [[0.0, 0.0, 0.0]])),
-            body.rest_positions,
-            name=f"cable_{i}",
-            mode=cable_mode,
-            min_force=0.0,
-            max_force=max_cable_force,
-            max_displacement=max_cable_displacement,
-        )
-        for i in range(2)
-    ]
-    tips = [
-        effector(mesh, body, landmark(mesh, f"effector_{i}", [[0.0, 0.0, 0.0]])) for i in range(2)
-    ]
-    for i, tip in enumerate(tips):
-        tip.name = f"fingertip_{i}"
+    body = p.tet_body(mesh, fixed_nodes=palm)
+    paths = [landmark(mesh, f"cable_points_{i}", [[0.0, 0.0, 0.0]]) for i in range(2)]
+    fingers = cables(mesh, body, paths, [None, None], p.cables, max_cable_displacement)
+    ends = [landmark(mesh, f"effector_{i}", [[0.0, 0.0, 0.0]]) for i in range(2)]
+    tips = fingertips(mesh, body, ends)
     base = KinematicBody(
         Box([35.0, 12.0, 3.0], position=[0.0, 0.0, 73.0]),
         _translation([0.0, 0.0, 73.0], base_motion),
         name="base",
     )
-    half = cube_size / 2
+    half = p.cube.cube_size / 2
     cube = RigidBody(
         Box([half, half, half], position=[0.0, 0.0, floor_height + half]),
-        cube_mass,
-        friction=friction,
+        p.cube.cube_mass,
+        friction=p.contact.friction,
         name="cube",
     )
-    contacts = Contacts([Plane(point=(0.0, 0.0, floor_height))], friction=friction, margin=1.0)
+    contacts = p.contacts([Plane(point=(0.0, 0.0, floor_height))])
     return Model(
         body,
         actuators=fingers,

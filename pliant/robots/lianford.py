@@ -22,10 +22,11 @@ from pliant.constraints.base import EmbeddedPoints
 from pliant.constraints.effector import PositionEffector
 from pliant.constraints.joint import RotationActuator
 from pliant.errors import ModelError
-from pliant.fem.material import Material
-from pliant.fem.rod import RodBody, RodSection
+from pliant.fem.rod import RodSection
 from pliant.mesh.shapes import _require_positive
 from pliant.model import Model
+from pliant.robots.parameters import Damping, Density, Elastic, Gravity, Meshed
+from pliant.robots.scene import builder
 
 
 def leg_nodes(legs: int, elements: int, base_radius: float, top_radius: float, height: float):
@@ -44,21 +45,16 @@ def leg_nodes(legs: int, elements: int, base_radius: float, top_radius: float, h
     return np.array(points), np.array(pairs), bases, np.array(axes)
 
 
+@builder(Meshed(), Elastic(2.0e4, 0.4), Density(1.2e-6), Gravity.Z, Damping(2.0, 0.0))
 def lianford(
+    p,
     *,
-    mesh: None = None,
     legs: int = 6,
     elements: int = 6,
     base_radius: float = 60.0,
     top_radius: float = 15.0,
     height: float = 70.0,
     leg_radius: float = 2.0,
-    young_modulus: float = 2.0e4,
-    poisson_ratio: float = 0.4,
-    density: float = 1.2e-6,
-    gravity: tuple[float, float, float] = (0.0, 0.0, -9810.0),
-    rayleigh_mass: float = 2.0,
-    rayleigh_stiffness: float = 0.0,
     motor_mode: Literal["angle", "torque"] = "angle",
     max_angle: float = 0.6,
     max_torque: float = 5.0e4,
@@ -76,7 +72,7 @@ def lianford(
             torque is bounded by max_torque, which the trajectory optimisation uses as u.
         orientation_effectors: also put effectors on the ring at +x and -x.
     """
-    if mesh is not None:
+    if p.mesh is not None:
         raise ModelError("the Lianford is a rod lattice: it takes no mesh")
     _require_positive(
         base_radius=base_radius,
@@ -95,17 +91,7 @@ def lianford(
     points, pairs, bases, axes = leg_nodes(
         int(legs), int(elements), base_radius, top_radius, height
     )
-    body = RodBody(
-        points,
-        RodSection.circle(leg_radius),
-        Material(young_modulus, poisson_ratio),
-        density=density,
-        elements=pairs,
-        pinned=bases,
-        gravity=gravity,
-        rayleigh_mass=rayleigh_mass,
-        rayleigh_stiffness=rayleigh_stiffness,
-    )
+    body = p.rod_body(points, RodSection.circle(leg_radius), elements=pairs, pinned=bases)
     mode = "displacement" if motor_mode == "angle" else "force"
     motors = [
         RotationActuator(

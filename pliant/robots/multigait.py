@@ -32,16 +32,17 @@ import functools
 import numpy as np
 
 from pliant.constraints.base import EmbeddedPoints
-from pliant.constraints.cavity import CavityActuator
 from pliant.constraints.contact import Contacts
 from pliant.errors import ModelError
-from pliant.fem.body import TetBody
 from pliant.fem.membrane import Membrane
 from pliant.geometry.collision import Plane
 from pliant.mesh import multigait as geometry
 from pliant.mesh.tetmesh import TetMesh
 from pliant.model import Model
-from pliant.robots.common import MaterialName, make_material
+from pliant.robots import common
+from pliant.robots.common import cavity
+from pliant.robots.parameters import Damping, Gravity, Meshing, Solid, TotalMass
+from pliant.robots.scene import builder
 
 # Thesis §3.4.1: inflate the rear legs, the centre, the front legs, then deflate in that order.
 GAIT = (
@@ -51,17 +52,16 @@ GAIT = (
 )
 
 
+@builder(
+    Meshing(6.0),
+    Solid(70.0, 0.05, material="neo-hookean"),
+    TotalMass(0.035),
+    Gravity.Z,
+    Damping(0.1, 0.1),
+)
 def multigait(
+    p,
     *,
-    mesh: TetMesh | None = None,
-    mesh_size: float = 6.0,
-    young_modulus: float = 70.0,
-    poisson_ratio: float = 0.05,
-    total_mass: float = 0.035,
-    material: MaterialName = "neo-hookean",
-    gravity: tuple[float, float, float] = (0.0, 0.0, -9810.0),
-    rayleigh_mass: float = 0.1,
-    rayleigh_stiffness: float = 0.1,
     friction: float = 0.7,
     collision_points: np.ndarray | None = None,
     collision_spacing: float = 20.0,
@@ -87,13 +87,11 @@ def multigait(
     kPa mm; SofaGym's 5000 kPa, 1 mm) and Poisson ratio `membrane_poisson_ratio`; 0 leaves it
     out. It keeps the underside's length and lets it bend, so that an inflated leg curls.
     """
-    mesh = mesh if mesh is not None else geometry.multigait(mesh_size=mesh_size)
+    mesh = p.mesh_or(geometry.multigait)
     missing = [c for c in geometry.CHAMBERS if f"cavity_{c}" not in mesh.surfaces]
     if missing:
         raise ModelError(f"the Multigait mesh has no walls for the chambers {missing}")
-    modes = {"pressure": "force", "volume": "displacement"}
-    if cavity_mode not in modes:
-        raise ModelError(f"cavity_mode must be 'pressure' or 'volume', got {cavity_mode!r}")
+    mode = common.cavity_mode(cavity_mode)
     paper = (
         [
             Membrane(
@@ -106,23 +104,9 @@ def multigait(
         if membrane_stiffness != 0
         else []
     )
-    body = TetBody(
-        mesh,
-        make_material(material, young_modulus, poisson_ratio),
-        total_mass=total_mass,
-        gravity=gravity,
-        rayleigh_mass=rayleigh_mass,
-        rayleigh_stiffness=rayleigh_stiffness,
-        membranes=paper,
-    )
+    body = p.tet_body(mesh, membranes=paper)
     chambers = [
-        CavityActuator(
-            mesh.surfaces[f"cavity_{c}"],
-            body.rest_positions,
-            name=c,
-            mode=modes[cavity_mode],
-            max_force=max_pressure,
-        )
+        cavity(mesh, body, f"cavity_{c}", name=c, mode=mode, max_pressure=max_pressure)
         for c in geometry.CHAMBERS
     ]
     points = (

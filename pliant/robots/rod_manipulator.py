@@ -17,18 +17,17 @@ from collections.abc import Callable
 import gmsh
 import numpy as np
 
-from pliant.constraints.base import EmbeddedPoints
-from pliant.constraints.cable import CableActuator
 from pliant.constraints.contact import Contacts
 from pliant.errors import ModelError
-from pliant.fem.body import TetBody
 from pliant.fem.rigid import DrivenNodes, KinematicBody, RigidBody, rail
 from pliant.geometry.collision import Box, Plane
 from pliant.mesh.gmsh_session import gmsh_model, mesh_volumes, retry_meshing
 from pliant.mesh.shapes import _finish, _require_positive
 from pliant.mesh.tetmesh import TetMesh
 from pliant.model import Model
-from pliant.robots.common import MaterialName, effector, fixed_by_box, make_material, smooth_ramp
+from pliant.robots.common import cables, fingertips, fixed_by_box, smooth_ramp
+from pliant.robots.parameters import Cables, Damping, Density, Gravity, Meshing, Solid
+from pliant.robots.scene import builder
 
 # Cable directions in each finger, in the order of the actuators: pulling cable k bends the
 # finger towards DIRECTIONS[k].
@@ -99,19 +98,12 @@ def demo_base_motion(t: float) -> float:
     return -7.0 * smooth_ramp(t, 0.0, 0.15)
 
 
+@builder(Meshing(4.0), Solid(500.0, 0.45), Density(), Gravity.Z, Damping(1.0, 0.05), Cables())
 def rod_manipulator(
+    p,
     *,
-    mesh: TetMesh | None = None,
     spacing: float = 50.0,
     finger_length: float = 50.0,
-    mesh_size: float = 4.0,
-    young_modulus: float = 500.0,
-    poisson_ratio: float = 0.45,
-    density: float = 1.07e-6,
-    material: MaterialName = "corotational",
-    gravity: tuple[float, float, float] = (0.0, 0.0, -9810.0),
-    rayleigh_mass: float = 1.0,
-    rayleigh_stiffness: float = 0.05,
     max_cable_displacement: float = 15.0,
     rod_size: tuple[float, float, float] = (10.0, 80.0, 10.0),
     rod_mass: float = 0.008,
@@ -145,36 +137,19 @@ def rod_manipulator(
         clearance=clearance,
         finger_friction=finger_friction,
     )
-    mesh = (
-        mesh
-        if mesh is not None
-        else fingers_mesh(spacing=spacing, finger_length=finger_length, mesh_size=mesh_size)
-    )
+    mesh = p.mesh_or(fingers_mesh, spacing=spacing, finger_length=finger_length)
     plate = fixed_by_box(mesh, mesh.landmarks["fixed_box"])
-    body = TetBody(
+    body = p.tet_body(mesh, fixed_nodes=plate)
+    acts = cables(
         mesh,
-        make_material(material, young_modulus, poisson_ratio),
-        density=density,
-        fixed_nodes=plate,
-        gravity=gravity,
-        rayleigh_mass=rayleigh_mass,
-        rayleigh_stiffness=rayleigh_stiffness,
+        body,
+        [mesh.landmarks[f"cable_points_{f}_{k}"] for f in range(2) for k in range(4)],
+        [None] * 8,
+        p.cables,
+        max_cable_displacement,
+        names=[f"cable_{f}_{direction}" for f in range(2) for direction in DIRECTIONS],
     )
-    cables = [
-        CableActuator(
-            EmbeddedPoints(mesh, mesh.landmarks[f"cable_points_{f}_{k}"]),
-            body.rest_positions,
-            name=f"cable_{f}_{direction}",
-            mode="displacement",
-            min_force=0.0,
-            max_displacement=max_cable_displacement,
-        )
-        for f in range(2)
-        for k, direction in enumerate(DIRECTIONS)
-    ]
-    tips = [effector(mesh, body, mesh.landmarks[f"effector_{f}"]) for f in range(2)]
-    for f, tip in enumerate(tips):
-        tip.name = f"fingertip_{f}"
+    tips = fingertips(mesh, body, [mesh.landmarks[f"effector_{f}"] for f in range(2)])
     half = np.asarray(rod_size, dtype=float) / 2
     rod_bottom = float(mesh.points[:, 2].min()) - clearance - rod_size[2]
     top = float(mesh.points[:, 2].max())
@@ -195,7 +170,7 @@ def rod_manipulator(
     table_mu = table_friction**2 / finger_friction
     return Model(
         body,
-        actuators=cables,
+        actuators=acts,
         effectors=tips,
         contacts=Contacts([table], friction=table_mu, margin=contact_margin),
         drivers=[DrivenNodes(plate, base, name="base")],

@@ -18,6 +18,8 @@ conditioned (a rigid body on many stiff contacts makes Gauss-Seidel crawl).
 from __future__ import annotations
 
 from collections.abc import Callable
+from dataclasses import dataclass
+from typing import ClassVar
 
 import numpy as np
 
@@ -30,12 +32,36 @@ from pliant.geometry.collision import Box, BoxUnion, Plane, Sphere
 from pliant.geometry.rotation import axis_angle
 from pliant.mesh import box_beam
 from pliant.mesh.shapes import _require_positive
-from pliant.mesh.tetmesh import TetMesh
 from pliant.model import Model, State
-from pliant.robots.common import MaterialName, fixed_by_box, make_material, smooth_ramp
+from pliant.robots.common import fixed_by_box, smooth_ramp
+from pliant.robots.parameters import ContactSolver, Damping, Density, Gravity, Meshed, Solid
+from pliant.robots.scene import builder
 
 # Indices of the rigid bodies in the models of this module and of pliant.robots.tripod.
 BALL, MAZE = 0, 1
+
+
+@dataclass(frozen=True)
+class Maze:
+    """The maze (`maze_boxes`: its size, corridors, walls and floor), its mass (kg), the ball
+    (radius mm, mass kg) and the Coulomb coefficients of the ball on the maze and of the maze
+    on its support, which holds it."""
+
+    keyword: ClassVar[str] = "maze"
+    maze_size: float = 60.0
+    corridors: int = 3
+    wall_thickness: float = 2.0
+    wall_height: float = 8.0
+    floor_thickness: float = 2.0
+    maze_mass: float = 0.015
+    ball_radius: float = 4.0
+    ball_mass: float = 0.002
+    ball_friction: float = 0.3
+    support_friction: float = 1.0
+
+
+# The gel both scenes carry the maze on (kPa, kg/mm^3), and its damping.
+GEL = (Density(1.07e-6), Gravity.Z, Damping(1.0, 0.01), Maze(), ContactSolver())
 
 
 def corridor_width(size: float, corridors: int, wall_thickness: float) -> float:
@@ -103,60 +129,77 @@ def maze_path(size: float, corridors: int, wall_thickness: float) -> np.ndarray:
     return np.array(points)
 
 
-def maze_and_ball(
-    underside: float,
-    *,
-    maze_size: float,
-    corridors: int,
-    wall_thickness: float,
-    wall_height: float,
-    floor_thickness: float,
-    maze_mass: float,
-    ball_radius: float,
-    ball_mass: float,
-    ball_friction: float,
-    support_friction: float,
-) -> list[RigidBody]:
+def maze_and_ball(underside: float, maze: Maze) -> list[RigidBody]:
     """[ball, maze] (`BALL`, `MAZE`): the maze level, the underside of its floor centred at
     (0, 0, `underside`), the ball at rest at the start of the path. A body's point on a rigid
     body takes the rigid body's friction coefficient: the maze's is `support_friction`, what
     holds it on its support; two rigid bodies take sqrt(mu_a mu_b), so the ball's own
     coefficient is the one that gives `ball_friction` on the maze."""
+    m = maze
     _require_positive(
-        maze_mass=maze_mass,
-        ball_radius=ball_radius,
-        ball_mass=ball_mass,
-        support_friction=support_friction,
+        maze_mass=m.maze_mass,
+        ball_radius=m.ball_radius,
+        ball_mass=m.ball_mass,
+        support_friction=m.support_friction,
     )
-    width = corridor_width(maze_size, corridors, wall_thickness)
-    if not (2 * ball_radius < width and ball_radius < wall_height):
+    width = corridor_width(m.maze_size, m.corridors, m.wall_thickness)
+    if not (2 * m.ball_radius < width and m.ball_radius < m.wall_height):
         raise ModelError(
-            f"the ball (radius {ball_radius}) must fit in a corridor ({width:.3g} mm wide) and"
-            f" stay below the walls ({wall_height} mm)"
+            f"the ball (radius {m.ball_radius}) must fit in a corridor ({width:.3g} mm wide) and"
+            f" stay below the walls ({m.wall_height} mm)"
         )
     boxes = maze_boxes(
-        size=maze_size,
-        corridors=corridors,
-        wall_thickness=wall_thickness,
-        wall_height=wall_height,
-        floor_thickness=floor_thickness,
+        size=m.maze_size,
+        corridors=m.corridors,
+        wall_thickness=m.wall_thickness,
+        wall_height=m.wall_height,
+        floor_thickness=m.floor_thickness,
     )
     # The rigid body's origin is its centre of mass: the boxes are centred on their centroid.
     centroid = BoxUnion(boxes).centroid
     centred = [Box(b.half_extents, b.position - centroid, b.rotation) for b in boxes]
-    level = underside + floor_thickness
+    level = underside + m.floor_thickness
     frame = np.array([0.0, 0.0, level])
     # Triangles of 5 mm at most, for the drawings (see BoxUnion).
     shape = BoxUnion(centred, frame + centroid, cell=5.0)
-    maze = RigidBody(shape, maze_mass, friction=support_friction, name="maze")
-    x, y = maze_path(maze_size, corridors, wall_thickness)[0]
+    body = RigidBody(shape, m.maze_mass, friction=m.support_friction, name="maze")
+    x, y = maze_path(m.maze_size, m.corridors, m.wall_thickness)[0]
     ball = RigidBody(
-        Sphere(ball_radius, position=[x, y, level + ball_radius]),
-        ball_mass,
-        friction=ball_friction**2 / support_friction,
+        Sphere(m.ball_radius, position=[x, y, level + m.ball_radius]),
+        m.ball_mass,
+        friction=m.ball_friction**2 / m.support_friction,
         name="ball",
     )
-    return [ball, maze]
+    return [ball, body]
+
+
+def maze_model(
+    p,
+    body: TetBody,
+    drivers: list[DrivenNodes],
+    supports: EmbeddedPoints,
+    underside: float,
+    floor: float,
+    name: str,
+) -> Model:
+    """The model of `body` carrying the maze and the ball (`p.maze`, `maze_and_ball` at
+    `underside`) on its `supports`, driven by `drivers`, over a floor at z = `floor` that
+    catches a ball leaving the maze."""
+    solver = p.contact_solver
+    return Model(
+        body,
+        contacts=Contacts(
+            [Plane(point=(0.0, 0.0, floor))],
+            friction=p.maze.support_friction,
+            margin=solver.contact_margin,
+            points=supports,
+            tolerance=solver.contact_tolerance,
+            max_iterations=solver.contact_iterations,
+        ),
+        drivers=drivers,
+        rigid_bodies=maze_and_ball(underside, p.maze),
+        name=name,
+    )
 
 
 def in_maze_frame(model: Model, state: State, points: np.ndarray) -> np.ndarray:
@@ -239,33 +282,14 @@ def demo_tilt(t: float) -> tuple[float, float]:
     return -dy, dx
 
 
+@builder(Meshed(), Solid(50.0, 0.45), *GEL)
 def simple_maze(
+    p,
     *,
-    mesh: TetMesh | None = None,
     pad_size: float = 50.0,
     pad_thickness: float = 4.0,
-    young_modulus: float = 50.0,
-    poisson_ratio: float = 0.45,
-    density: float = 1.07e-6,
-    material: MaterialName = "corotational",
-    gravity: tuple[float, float, float] = (0.0, 0.0, -9810.0),
-    rayleigh_mass: float = 1.0,
-    rayleigh_stiffness: float = 0.01,
     support_spread: float = 20.0,
-    maze_size: float = 60.0,
-    corridors: int = 3,
-    wall_thickness: float = 2.0,
-    wall_height: float = 8.0,
-    floor_thickness: float = 2.0,
-    maze_mass: float = 0.015,
-    ball_radius: float = 4.0,
-    ball_mass: float = 0.002,
-    ball_friction: float = 0.3,
-    support_friction: float = 1.0,
     max_tilt: float = 0.2,
-    contact_margin: float = 3.0,
-    contact_tolerance: float = 2e-4,
-    contact_iterations: int = 3000,
     tilt: Callable[[float], tuple[float, float]] = demo_tilt,
 ) -> Model:
     """The maze on its pad and gimbal, the ball at the start of the path.
@@ -294,6 +318,7 @@ def simple_maze(
         support_spread=support_spread,
         max_tilt=max_tilt,
     )
+    mesh = p.mesh
     if mesh is None:
         half, cells = pad_size / 2, max(1, round(pad_size / 5.0))
         mesh = box_beam(
@@ -307,15 +332,7 @@ def simple_maze(
         )
     bottom, top = float(mesh.points[:, 2].min()), float(mesh.points[:, 2].max())
     underside = fixed_by_box(mesh, [[-np.inf, -np.inf, bottom], [np.inf, np.inf, bottom + 1e-9]])
-    body = TetBody(
-        mesh,
-        make_material(material, young_modulus, poisson_ratio),
-        density=density,
-        fixed_nodes=underside,
-        gravity=gravity,
-        rayleigh_mass=rayleigh_mass,
-        rayleigh_stiffness=rayleigh_stiffness,
-    )
+    body = p.tet_body(mesh, fixed_nodes=underside)
     s = support_spread
     supports = EmbeddedPoints(mesh, [[x, y, top] for x in (-s, s) for y in (-s, s)])
     plate = KinematicBody(
@@ -323,34 +340,9 @@ def simple_maze(
         gimbal([0.0, 0.0, top], checked_commands(tilt, 2, max_tilt, "tilt"), [0.0, 0.0, bottom]),
         name="gimbal",
     )
-    bodies = maze_and_ball(
-        top,
-        maze_size=maze_size,
-        corridors=corridors,
-        wall_thickness=wall_thickness,
-        wall_height=wall_height,
-        floor_thickness=floor_thickness,
-        maze_mass=maze_mass,
-        ball_radius=ball_radius,
-        ball_mass=ball_mass,
-        ball_friction=ball_friction,
-        support_friction=support_friction,
-    )
-    floor = Plane(point=(0.0, 0.0, bottom - 40.0))  # catches a ball that leaves the maze
-    return Model(
-        body,
-        contacts=Contacts(
-            [floor],
-            friction=support_friction,
-            margin=contact_margin,
-            points=supports,
-            tolerance=contact_tolerance,
-            max_iterations=contact_iterations,
-        ),
-        drivers=[DrivenNodes(underside, plate, name="gimbal")],
-        rigid_bodies=bodies,
-        name="simple_maze",
-    )
+    # The floor catches a ball that leaves the maze.
+    drivers = [DrivenNodes(underside, plate, name="gimbal")]
+    return maze_model(p, body, drivers, supports, top, bottom - 40.0, "simple_maze")
 
 
 def demo_actuation(t: float) -> np.ndarray:

@@ -21,24 +21,20 @@ from pliant.constraints.base import EmbeddedPoints
 from pliant.constraints.effector import PositionEffector
 from pliant.constraints.joint import RotationActuator
 from pliant.errors import ModelError
-from pliant.fem.material import Material
-from pliant.fem.rod import RodBody, RodSection
+from pliant.fem.rod import RodSection
 from pliant.mesh.shapes import _require_positive
 from pliant.model import Model
+from pliant.robots.parameters import Damping, Density, Elastic, Gravity, Meshed
+from pliant.robots.scene import builder
 
 
+@builder(Meshed(), Elastic(5.0e4, 0.3), Density(1.0e-6), Gravity.Z, Damping(0.0, 1e-4))
 def stem_pendulum(
+    p,
     *,
-    mesh: None = None,
     length: float = 100.0,
     width: float = 5.0,
     elements: int = 10,
-    young_modulus: float = 5.0e4,
-    poisson_ratio: float = 0.3,
-    density: float = 1.0e-6,
-    gravity: tuple[float, float, float] = (0.0, 0.0, -9810.0),
-    rayleigh_mass: float = 0.0,
-    rayleigh_stiffness: float = 1e-4,
     max_torque: float = 250.0,
 ) -> Model:
     """The stem hanging from its pivot at the origin, a torque motor on the pivot (actuator 0,
@@ -55,23 +51,18 @@ def stem_pendulum(
             and s). SofaGym's 500 is in its own units; the default, 250 mN mm, is a fifth of
             m g L / 2 = 1226 mN mm, the torque that holds the default stem horizontal.
     """
-    if mesh is not None:
+    if p.mesh is not None:
         raise ModelError("the stem pendulum is a rod: it takes no mesh")
     _require_positive(length=length, width=width, max_torque=max_torque)
     if int(elements) != elements or elements < 1:
         raise ModelError(f"elements must be a positive integer, got {elements!r}")
     n = int(elements)
     z = -np.linspace(0.0, length, n + 1)
-    rod = RodBody(
+    rod = p.rod_body(
         np.column_stack([np.zeros(n + 1), np.zeros(n + 1), z]),
         RodSection.rectangle(width, width),
-        Material(young_modulus, poisson_ratio),
-        density=density,
         normal=(1.0, 0.0, 0.0),
         pinned=[0],
-        gravity=gravity,
-        rayleigh_mass=rayleigh_mass,
-        rayleigh_stiffness=rayleigh_stiffness,
     )
     motor = RotationActuator(
         rod, 0, (0.0, 1.0, 0.0), name="motor", mode="force", max_force=max_torque

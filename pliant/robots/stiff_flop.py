@@ -20,15 +20,13 @@ from typing import Literal
 
 import numpy as np
 
-from pliant.constraints.cavity import CavityActuator
 from pliant.errors import ModelError
-from pliant.fem.body import TetBody
 from pliant.fem.membrane import Membrane
 from pliant.mesh import shapes
-from pliant.mesh.tetmesh import TetMesh
 from pliant.model import Model
-from pliant.robots.common import MaterialName, effector, fixed_by_box, landmark, make_material
-from pliant.robots.finger import SILICONE_DENSITY
+from pliant.robots.common import cavity, effector, fixed_by_box, landmark
+from pliant.robots.parameters import Damping, Density, Gravity, Meshing, Solid
+from pliant.robots.scene import builder
 
 KPA_PER_BAR = 100.0
 
@@ -42,18 +40,10 @@ def _hoop_fibres(points: np.ndarray, triangles: np.ndarray, axes: np.ndarray) ->
     return np.column_stack([-r[:, 1], r[:, 0], np.zeros(len(r))])
 
 
+@builder(Meshing(8.0), Solid(150.0, 0.45), Density(), Gravity.Z, Damping(1.0, 0.05))
 def stiff_flop(
+    p,
     *,
-    mesh: TetMesh | None = None,
-    mesh_size: float = 8.0,
-    young_modulus: float = 150.0,
-    poisson_ratio: float = 0.45,
-    density: float = SILICONE_DENSITY,
-    material: MaterialName = "corotational",
-    mass: str = "lumped",
-    gravity: tuple[float, float, float] = (0.0, 0.0, -9810.0),
-    rayleigh_mass: float = 1.0,
-    rayleigh_stiffness: float = 0.05,
     fibre_stiffness: float = 3000.0,
     skin_stiffness: float = 15.0,
     max_pressure_bar: float = 0.6,
@@ -71,13 +61,14 @@ def stiff_flop(
             0: no reinforcement).
         skin_stiffness: the wall membrane's isotropic stretch stiffness under the fibres.
     """
-    mesh = mesh if mesh is not None else shapes.stiff_flop(mesh_size=mesh_size)
+    mesh = p.mesh_or(shapes.stiff_flop)
     if not (math.isfinite(max_pressure_bar) and max_pressure_bar > 0):
         raise ModelError(f"max_pressure_bar must be > 0, got {max_pressure_bar!r}")
     if not (math.isfinite(fibre_stiffness) and fibre_stiffness >= 0):
         raise ModelError(f"fibre_stiffness must be >= 0, got {fibre_stiffness!r}")
     if effector_at not in ("tip", "middle"):
         raise ModelError(f"effector_at must be 'tip' or 'middle', got {effector_at!r}")
+    bound = max_pressure_bar * KPA_PER_BAR
     pairs = sorted(k[len("cavity_") :] for k in mesh.surfaces if k.startswith("cavity_"))
     membranes = []
     if fibre_stiffness > 0:
@@ -94,26 +85,11 @@ def stiff_flop(
                     fibre_stiffness=fibre_stiffness,
                 )
             )
-    body = TetBody(
-        mesh,
-        make_material(material, young_modulus, poisson_ratio),
-        density=density,
-        mass=mass,
-        fixed_nodes=fixed_by_box(mesh, mesh.landmarks["fixed_box"]),
-        gravity=gravity,
-        rayleigh_mass=rayleigh_mass,
-        rayleigh_stiffness=rayleigh_stiffness,
-        membranes=membranes,
+    body = p.tet_body(
+        mesh, fixed_nodes=fixed_by_box(mesh, mesh.landmarks["fixed_box"]), membranes=membranes
     )
     chambers = [
-        CavityActuator(
-            mesh.surfaces[f"cavity_{pair}"],
-            body.rest_positions,
-            name=f"pressure_{pair}",
-            mode="force",
-            min_force=0.0,
-            max_force=max_pressure_bar * KPA_PER_BAR,
-        )
+        cavity(mesh, body, f"cavity_{pair}", name=f"pressure_{pair}", max_pressure=bound)
         for pair in pairs
     ]
     eff = effector(mesh, body, mesh.landmarks[f"effector_{effector_at}"])

@@ -19,18 +19,17 @@ import gmsh
 import numpy as np
 
 from pliant.constraints.base import EmbeddedPoints
-from pliant.constraints.contact import Contacts
 from pliant.errors import ModelError
-from pliant.fem.body import TetBody
 from pliant.fem.rigid import DrivenNodes, KinematicBody, servo
-from pliant.geometry.collision import Box, Plane
+from pliant.geometry.collision import Box
 from pliant.mesh.gmsh_session import gmsh_model, mesh_volumes, retry_meshing
 from pliant.mesh.io import load_mesh
 from pliant.mesh.shapes import _finish, _require_positive
 from pliant.mesh.tetmesh import TetMesh
 from pliant.model import Model
-from pliant.robots.common import MaterialName, make_material
-from pliant.robots.simple_maze import checked_commands, demo_downhill, maze_and_ball
+from pliant.robots.parameters import Meshing, Solid
+from pliant.robots.scene import builder
+from pliant.robots.simple_maze import GEL, checked_commands, demo_downhill, maze_model
 
 N_SERVOS = 3
 
@@ -153,32 +152,12 @@ def demo_servo_angles(t: float) -> np.ndarray:
     return -0.4 * arm_directions() @ demo_downhill(t)
 
 
+@builder(Meshing(5.0), Solid(250.0, 0.45), *GEL)
 def tripod_maze(
+    p,
     *,
-    mesh: TetMesh | None = None,
-    mesh_size: float = 5.0,
-    young_modulus: float = 250.0,
-    poisson_ratio: float = 0.45,
-    density: float = 1.07e-6,
-    material: MaterialName = "corotational",
-    gravity: tuple[float, float, float] = (0.0, 0.0, -9810.0),
-    rayleigh_mass: float = 1.0,
-    rayleigh_stiffness: float = 0.01,
     horn_length: float = 10.0,
     max_servo_angle: float = 1.5,
-    maze_size: float = 60.0,
-    corridors: int = 3,
-    wall_thickness: float = 2.0,
-    wall_height: float = 8.0,
-    floor_thickness: float = 2.0,
-    maze_mass: float = 0.015,
-    ball_radius: float = 4.0,
-    ball_mass: float = 0.002,
-    ball_friction: float = 0.3,
-    support_friction: float = 1.0,
-    contact_margin: float = 3.0,
-    contact_tolerance: float = 2e-4,
-    contact_iterations: int = 3000,
     servo_angles: Callable[[float], np.ndarray] = demo_servo_angles,
 ) -> Model:
     """The tripod held by its three servos, the maze on its boss, the ball at the start of the
@@ -204,17 +183,9 @@ def tripod_maze(
         servo_angles: the three servo angles (rad) as a function of time (s).
     """
     _require_positive(horn_length=horn_length, max_servo_angle=max_servo_angle)
-    mesh = mesh if mesh is not None else tripod_mesh(mesh_size=mesh_size)
+    mesh = p.mesh_or(tripod_mesh)
     clamps = clamped_nodes(mesh)
-    body = TetBody(
-        mesh,
-        make_material(material, young_modulus, poisson_ratio),
-        density=density,
-        fixed_nodes=np.concatenate(clamps),
-        gravity=gravity,
-        rayleigh_mass=rayleigh_mass,
-        rayleigh_stiffness=rayleigh_stiffness,
-    )
+    body = p.tet_body(mesh, fixed_nodes=np.concatenate(clamps))
     angles = checked_commands(servo_angles, N_SERVOS, max_servo_angle, "servo")
     drivers = []
     for k, (held, (dx, dy)) in enumerate(zip(clamps, arm_directions(), strict=True)):
@@ -232,35 +203,11 @@ def tripod_maze(
         )
         drivers.append(DrivenNodes(held, horn, name=f"servo_{k}"))
     supports = np.asarray(mesh.landmarks["support_points"], dtype=float)
-    bodies = maze_and_ball(
-        float(supports[:, 2].max()),
-        maze_size=maze_size,
-        corridors=corridors,
-        wall_thickness=wall_thickness,
-        wall_height=wall_height,
-        floor_thickness=floor_thickness,
-        maze_mass=maze_mass,
-        ball_radius=ball_radius,
-        ball_mass=ball_mass,
-        ball_friction=ball_friction,
-        support_friction=support_friction,
-    )
     # The floor, below the lowest a horn can take an arm's end, catches a ball that falls out.
-    floor = Plane(point=(0.0, 0.0, float(mesh.points[:, 2].min()) - horn_length - 30.0))
-    return Model(
-        body,
-        contacts=Contacts(
-            [floor],
-            friction=support_friction,
-            margin=contact_margin,
-            points=EmbeddedPoints(mesh, supports),
-            tolerance=contact_tolerance,
-            max_iterations=contact_iterations,
-        ),
-        drivers=drivers,
-        rigid_bodies=bodies,
-        name="tripod_maze",
-    )
+    floor = float(mesh.points[:, 2].min()) - horn_length - 30.0
+    underside = float(supports[:, 2].max())
+    points = EmbeddedPoints(mesh, supports)
+    return maze_model(p, body, drivers, points, underside, floor, "tripod_maze")
 
 
 def demo_actuation(t: float) -> np.ndarray:

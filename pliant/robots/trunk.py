@@ -6,18 +6,11 @@ import math
 
 import numpy as np
 
-from pliant.fem.body import TetBody
 from pliant.mesh import shapes
-from pliant.mesh.tetmesh import TetMesh
 from pliant.model import Model
-from pliant.robots.common import (
-    MaterialName,
-    cables,
-    effector,
-    fixed_by_box,
-    landmark,
-    make_material,
-)
+from pliant.robots.common import cables, effector, fixed_by_box, landmark
+from pliant.robots.parameters import CableReach, Cables, Damping, Gravity, Meshing, Solid, TotalMass
+from pliant.robots.scene import builder
 from pliant.solvers.base import number_option
 
 _AZIMUTHS = [math.pi / 2, math.pi, 3 * math.pi / 2, 0.0]  # +y, -x, -y, +x
@@ -45,23 +38,22 @@ def reference_cable_paths() -> tuple[list[np.ndarray], list[np.ndarray]]:
     return paths, pulls
 
 
+# The SoftRobots/SofaGym Trunk's silicone, mass, gravity (it lies along +z, under -y), damping
+# and cables, shared by the scenes built on it (pliant.robots.trunk_cube).
+TRUNK = (
+    Solid(450.0, 0.45, mass="uniform"),
+    TotalMass(0.042),
+    Gravity((0.0, -9810.0, 0.0)),
+    Damping(0.1, 0.1),
+    Cables(max_displacement_change=1.0),
+    CableReach(),
+)
+
+
+@builder(Meshing(5.2), *TRUNK)
 def trunk(
+    p,
     *,
-    mesh: TetMesh | None = None,
-    mesh_size: float = 5.2,
-    young_modulus: float = 450.0,
-    poisson_ratio: float = 0.45,
-    total_mass: float = 0.042,
-    material: MaterialName = "corotational",
-    mass: str = "uniform",
-    gravity: tuple[float, float, float] = (0.0, -9810.0, 0.0),
-    rayleigh_mass: float = 0.1,
-    rayleigh_stiffness: float = 0.1,
-    cable_mode: str = "displacement",
-    max_long_displacement: float = 70.0,
-    max_short_displacement: float = 40.0,
-    max_cable_force: float = math.inf,
-    max_displacement_change: float | None = 1.0,
     lag_tolerance: float = 0.005,
 ) -> Model:
     """The Trunk: a tapered cylinder along +z, base fixed, lying horizontally under gravity -y.
@@ -76,32 +68,14 @@ def trunk(
     motion), 0.91 mm at 0.01, 0.19 mm (0.45 %) at 0.005, for 837, 768 and 676 steps/s on the
     reference mesh (`pliant bench`, default against exact); 0.005 keeps it within 1 %.
     """
-    mesh = mesh if mesh is not None else shapes.trunk(mesh_size=mesh_size)
+    mesh = p.mesh_or(shapes.trunk)
     box = landmark(mesh, "fixed_box", [[-20.0, -20.0, 0.0], [20.0, 20.0, 20.0]])
-    body = TetBody(
-        mesh,
-        make_material(material, young_modulus, poisson_ratio),
-        total_mass=total_mass,
-        mass=mass,
-        fixed_nodes=fixed_by_box(mesh, box),
-        gravity=gravity,
-        rayleigh_mass=rayleigh_mass,
-        rayleigh_stiffness=rayleigh_stiffness,
-    )
+    body = p.tet_body(mesh, fixed_nodes=fixed_by_box(mesh, box))
     body.lag_tolerance = number_option(lag_tolerance, "lag_tolerance", above=0.0)
     ref_paths, ref_pulls = reference_cable_paths()
     paths = [landmark(mesh, f"cable_points_{i}", ref_paths[i]) for i in range(8)]
     pulls = [landmark(mesh, f"pull_points_{i}", ref_pulls[i])[0] for i in range(8)]
-    acts = cables(
-        mesh,
-        body,
-        paths,
-        pulls,
-        mode=cable_mode,
-        max_displacement=[max_long_displacement] * 4 + [max_short_displacement] * 4,
-        max_displacement_change=max_displacement_change,
-        max_force=max_cable_force,
-    )
+    acts = cables(mesh, body, paths, pulls, p.cables, p.reach.limits())
     eff = effector(mesh, body, landmark(mesh, "effector", [0.0, 0.0, 195.0]))
     return Model(body, actuators=acts, effectors=[eff], name="trunk")
 

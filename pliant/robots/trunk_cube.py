@@ -19,17 +19,17 @@ from functools import cache
 import numpy as np
 
 from pliant.constraints.base import EmbeddedPoints
-from pliant.constraints.cable import CableActuator
-from pliant.constraints.contact import Contacts
 from pliant.constraints.control import InverseControl
 from pliant.constraints.effector import PositionEffector, RigidEffector
 from pliant.errors import ModelError
+from pliant.fem.body import TetBody
 from pliant.fem.rigid import DrivenNodes, KinematicBody, RigidBody, rail
 from pliant.geometry.collision import Box, Plane
-from pliant.mesh.tetmesh import TetMesh
 from pliant.model import Model
-from pliant.robots.common import MaterialName, landmark, smooth_ramp
-from pliant.robots.trunk import reference_cable_paths, trunk
+from pliant.robots.common import cables, landmark, smooth_ramp
+from pliant.robots.parameters import Contact, Cube, Meshing
+from pliant.robots.scene import builder
+from pliant.robots.trunk import TRUNK, reference_cable_paths, trunk
 
 
 def demo_base_motion(t: float) -> float:
@@ -37,86 +37,84 @@ def demo_base_motion(t: float) -> float:
     return 20.0 * smooth_ramp(t, 1.0, 1.0)
 
 
-def trunk_cube(
+def trunk_scene(
+    p,
     *,
-    mesh: TetMesh | None = None,
-    mesh_size: float = 8.0,
-    young_modulus: float = 450.0,
-    poisson_ratio: float = 0.45,
-    total_mass: float = 0.042,
-    material: MaterialName = "corotational",
-    rayleigh_mass: float = 0.1,
-    rayleigh_stiffness: float = 0.1,
-    cable_mode: str = "displacement",
-    max_long_displacement: float = 70.0,
-    max_short_displacement: float = 40.0,
-    max_displacement_change: float | None = 1.0,
-    cube_size: float = 30.0,
-    cube_mass: float = 0.01,
+    base_motion: Callable[[float], float] | None,
+    obstacle: Plane,
+    objects: Callable[[TetBody], tuple[list[RigidBody], list | None]],
+    name: str,
+) -> Model:
+    """The Trunk of `p`'s groups with the rigid bodies that `objects(body)` makes (and its
+    effectors, None: the Trunk's), touching them and the plane `obstacle` (`p.contact`).
+
+    With `base_motion`, the base is held by a carriage that translates along the trunk's axis
+    by `base_motion(t)` (mm), and each cable starts from its pull point on the base plane,
+    embedded in the held base (carried with it, as the motors are); without, the base is
+    fixed, and so are the pull points."""
+    shared = ("meshing", "solid", "inertia", "gravity", "damping", "cables", "reach")
+    arm = trunk(**{k: p.groups[k] for k in shared})
+    body = arm.body
+    actuators, drivers = arm.actuators, []
+    if base_motion is not None:
+        mesh = body.mesh
+        paths, pulls = reference_cable_paths()
+        carried = [
+            np.vstack(
+                [
+                    landmark(mesh, f"pull_points_{i}", pulls[i]),
+                    landmark(mesh, f"cable_points_{i}", paths[i]),
+                ]
+            )
+            for i in range(8)
+        ]
+        actuators = cables(mesh, body, carried, [None] * 8, p.cables, p.reach.limits())
+        carriage = KinematicBody(
+            Box([20.0, 20.0, 5.0], position=[0.0, 0.0, -5.0]),
+            rail([0.0, 0.0, -5.0], [0.0, 0.0, 1.0], base_motion),
+            name="carriage",
+        )
+        drivers = [DrivenNodes(body.fixed_nodes, carriage, name="carriage")]
+    rigid, effectors = objects(body)
+    return Model(
+        body,
+        actuators=actuators,
+        effectors=arm.effectors if effectors is None else effectors,
+        contacts=p.contacts([obstacle]),
+        drivers=drivers,
+        rigid_bodies=rigid,
+        name=name,
+    )
+
+
+def floor(height: float) -> Plane:
+    """The floor y = `height` under the Trunk."""
+    return Plane(normal=(0.0, 1.0, 0.0), point=(0.0, height, 0.0))
+
+
+@builder(Meshing(8.0), *TRUNK, Contact(0.3, 5.0), Cube(30.0, 0.01))
+def trunk_cube(
+    p,
+    *,
     cube_position: tuple[float, float] = (30.0, 150.0),
     floor_height: float = -30.0,
-    friction: float = 0.3,
     base_motion: Callable[[float], float] = demo_base_motion,
 ) -> Model:
     """The Trunk (SoftRobots parameters, coarser mesh by default) over a floor y = floor_height,
     a rigid cube of `cube_size` mm and `cube_mass` kg on it at (x, z) = `cube_position`, the
     base moving along z by `base_motion(t)` (mm)."""
-    arm = trunk(
-        mesh=mesh,
-        mesh_size=mesh_size,
-        young_modulus=young_modulus,
-        poisson_ratio=poisson_ratio,
-        total_mass=total_mass,
-        material=material,
-        rayleigh_mass=rayleigh_mass,
-        rayleigh_stiffness=rayleigh_stiffness,
-    )
-    body = arm.body
-    mesh = body.mesh
-    paths, pulls = reference_cable_paths()
-    limits = [max_long_displacement] * 4 + [max_short_displacement] * 4
-    cables = [
-        CableActuator(
-            EmbeddedPoints(
-                mesh,
-                np.vstack(
-                    [
-                        landmark(mesh, f"pull_points_{i}", pulls[i]),
-                        landmark(mesh, f"cable_points_{i}", paths[i]),
-                    ]
-                ),
-            ),
-            body.rest_positions,
-            name=f"cable_{i}",
-            mode=cable_mode,
-            min_force=0.0,
-            max_force=math.inf,
-            max_displacement=limits[i],
-            max_displacement_change=max_displacement_change,
-        )
-        for i in range(8)
-    ]
-    carriage = KinematicBody(
-        Box([20.0, 20.0, 5.0], position=[0.0, 0.0, -5.0]),
-        rail([0.0, 0.0, -5.0], [0.0, 0.0, 1.0], base_motion),
-        name="carriage",
-    )
-    half = cube_size / 2
-    x, z = cube_position
-    cube = RigidBody(
-        Box([half, half, half], position=[x, floor_height + half, z]),
-        cube_mass,
-        friction=friction,
-        name="cube",
-    )
-    floor = Plane(normal=(0.0, 1.0, 0.0), point=(0.0, floor_height, 0.0))
-    return Model(
-        body,
-        actuators=cables,
-        effectors=arm.effectors,
-        contacts=Contacts([floor], friction=friction, margin=5.0),
-        drivers=[DrivenNodes(body.fixed_nodes, carriage, name="carriage")],
-        rigid_bodies=[cube],
+
+    def cube(body: TetBody) -> tuple[list[RigidBody], None]:
+        half = p.cube.cube_size / 2
+        x, z = cube_position
+        box = Box([half, half, half], position=[x, floor_height + half, z])
+        return [RigidBody(box, p.cube.cube_mass, friction=p.contact.friction, name="cube")], None
+
+    return trunk_scene(
+        p,
+        base_motion=base_motion,
+        obstacle=floor(floor_height),
+        objects=cube,
         name="trunk_cube",
     )
 
@@ -142,18 +140,10 @@ def demo_actuation(t: float) -> np.ndarray:
 # --- Pushing a cube to a goal with inverse control and contacts (QPCC) -----------------------
 
 
+@builder(Meshing(8.0), *TRUNK, Contact(0.0, 3.0), Cube(50.0, 0.01))
 def trunk_push(
+    p,
     *,
-    mesh: TetMesh | None = None,
-    mesh_size: float = 8.0,
-    young_modulus: float = 450.0,
-    poisson_ratio: float = 0.45,
-    total_mass: float = 0.042,
-    material: MaterialName = "corotational",
-    rayleigh_mass: float = 0.1,
-    rayleigh_stiffness: float = 0.1,
-    cube_size: float = 50.0,
-    cube_mass: float = 0.01,
     cube_gap: float = 0.3,
     cube_z: float = 150.0,
     cube_friction: float = 0.0,
@@ -173,48 +163,37 @@ def trunk_push(
     cube on x (weight `pusher_weight`), whose goal :class:`PushControl` keeps on the cube's
     face to hold the contact, as the thesis' Trunk-and-cube reward favours contact (§4.1.2).
     """
-    arm = trunk_cube(
-        mesh=mesh,
-        mesh_size=mesh_size,
-        young_modulus=young_modulus,
-        poisson_ratio=poisson_ratio,
-        total_mass=total_mass,
-        material=material,
-        rayleigh_mass=rayleigh_mass,
-        rayleigh_stiffness=rayleigh_stiffness,
+
+    def cube_and_pusher(body: TetBody) -> tuple[list[RigidBody], list]:
+        rest = body.rest_positions.reshape(-1, 3)
+        near = rest[np.abs(rest[:, 2] - cube_z) <= 0.5 * p.mesh_size]
+        if near.size == 0:
+            raise ModelError(f"trunk_push: the trunk has no node near z = {cube_z}")
+        side = near[np.argmax(near[:, 0])]
+        half = 0.5 * p.cube.cube_size
+        centre = [side[0] + cube_gap + half, floor_height + half, cube_z]
+        cube = RigidBody(
+            Box([half, half, half], position=centre),
+            p.cube.cube_mass,
+            friction=cube_friction,
+            linear_damping=drag,
+            angular_damping=drag,
+            name="cube",
+        )
+        pusher = PositionEffector(
+            EmbeddedPoints(body.mesh, [[side[0], 0.0, cube_z]]),
+            body.rest_positions,
+            axes=(True, False, False),
+            weight=pusher_weight,
+            name="pusher",
+        )
+        return [cube], [RigidEffector(cube, axes=cube_axes, name="cube"), pusher]
+
+    return trunk_scene(
+        p,
         base_motion=lambda t: 0.0,
-        floor_height=floor_height,
-    )
-    body = arm.body
-    rest = body.rest_positions.reshape(-1, 3)
-    near = rest[np.abs(rest[:, 2] - cube_z) <= 0.5 * mesh_size]
-    if near.size == 0:
-        raise ModelError(f"trunk_push: the trunk has no node near z = {cube_z}")
-    side = near[np.argmax(near[:, 0])]
-    half = 0.5 * cube_size
-    cube = RigidBody(
-        Box([half, half, half], position=[side[0] + cube_gap + half, floor_height + half, cube_z]),
-        cube_mass,
-        friction=cube_friction,
-        linear_damping=drag,
-        angular_damping=drag,
-        name="cube",
-    )
-    pusher = PositionEffector(
-        EmbeddedPoints(body.mesh, [[side[0], 0.0, cube_z]]),
-        body.rest_positions,
-        axes=(True, False, False),
-        weight=pusher_weight,
-        name="pusher",
-    )
-    floor = Plane(normal=(0.0, 1.0, 0.0), point=(0.0, floor_height, 0.0))
-    return Model(
-        body,
-        actuators=arm.actuators,
-        effectors=[RigidEffector(cube, axes=cube_axes, name="cube"), pusher],
-        contacts=Contacts([floor], friction=0.0, margin=3.0),
-        drivers=arm.drivers,
-        rigid_bodies=[cube],
+        obstacle=floor(floor_height),
+        objects=cube_and_pusher,
         name="trunk_push",
     )
 

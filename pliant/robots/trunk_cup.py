@@ -16,15 +16,17 @@ from collections.abc import Callable
 
 import numpy as np
 
-from pliant.constraints.contact import Contacts
 from pliant.errors import ModelError
+from pliant.fem.body import TetBody
 from pliant.fem.rigid import RigidBody
-from pliant.geometry.collision import Plane, TriangleMesh
+from pliant.geometry.collision import TriangleMesh
 from pliant.mesh.shapes import _require_positive
-from pliant.mesh.tetmesh import TetMesh
 from pliant.model import Model
-from pliant.robots.common import MaterialName, smooth_ramp
-from pliant.robots.trunk_cube import trunk_cube
+from pliant.robots.common import smooth_ramp
+from pliant.robots.parameters import Contact, Meshing, Solid
+from pliant.robots.scene import builder
+from pliant.robots.trunk import TRUNK
+from pliant.robots.trunk_cube import floor, trunk_scene
 
 # The Trunk's cables pull towards +y, -x, -y, +x (long cables 0-3, short ones 4-7).
 CURL_DOWN_CABLE = 2
@@ -100,24 +102,16 @@ def demo_base_motion(t: float) -> float:
     return -25.0 * smooth_ramp(t, 0.5, 1.0)
 
 
+@builder(Meshing(8.0), Solid(600.0, 0.3, mass="uniform"), *TRUNK[1:], Contact(0.3, 5.0))
 def trunk_cup(
+    p,
     *,
-    mesh: TetMesh | None = None,
-    mesh_size: float = 8.0,
-    young_modulus: float = 600.0,
-    poisson_ratio: float = 0.3,
-    total_mass: float = 0.042,
-    material: MaterialName = "corotational",
-    rayleigh_mass: float = 0.1,
-    rayleigh_stiffness: float = 0.1,
     cup_radius: float = 20.0,
     cup_height: float = 28.0,
     cup_wall: float = 3.0,
     cup_mass: float = 0.01,
     cup_position: tuple[float, float] = (0.0, 165.0),
     floor_height: float = -50.0,
-    friction: float = 0.3,
-    contact_margin: float = 5.0,
     base_motion: Callable[[float], float] = demo_base_motion,
 ) -> Model:
     """The Trunk (SofaGym trunkcup-v0 material: E = 600 kPa, nu = 0.3; coarse mesh) over a floor
@@ -129,38 +123,20 @@ def trunk_cup(
     the trunk's points fall by up to 4.2 mm per 0.01 s step as it sags from straight.
     """
     _require_positive(cup_mass=cup_mass)
-    arm = trunk_cube(
-        mesh=mesh,
-        mesh_size=mesh_size,
-        young_modulus=young_modulus,
-        poisson_ratio=poisson_ratio,
-        total_mass=total_mass,
-        material=material,
-        rayleigh_mass=rayleigh_mass,
-        rayleigh_stiffness=rayleigh_stiffness,
-        floor_height=floor_height,
-        friction=friction,
+
+    def cup(body: TetBody) -> tuple[list[RigidBody], None]:
+        vertices, faces = cup_surface(radius=cup_radius, height=cup_height, wall=cup_wall)
+        centre, inertia = solid_mass_properties(vertices, faces, cup_mass)
+        x, z = cup_position
+        shape = TriangleMesh(vertices - centre, faces, position=centre + [x, floor_height, z])
+        return [RigidBody(shape, cup_mass, inertia, friction=p.contact.friction, name="cup")], None
+
+    # The Trunk, its cables and its carriage are trunk_cube's, with a cup for the cube.
+    return trunk_scene(
+        p,
         base_motion=base_motion,
-    )
-    vertices, faces = cup_surface(radius=cup_radius, height=cup_height, wall=cup_wall)
-    centre, inertia = solid_mass_properties(vertices, faces, cup_mass)
-    x, z = cup_position
-    cup = RigidBody(
-        TriangleMesh(vertices - centre, faces, position=centre + [x, floor_height, z]),
-        cup_mass,
-        inertia,
-        friction=friction,
-        name="cup",
-    )
-    floor = Plane(normal=(0.0, 1.0, 0.0), point=(0.0, floor_height, 0.0))
-    # The Trunk, its cables and its carriage are trunk_cube's; its cube is left out.
-    return Model(
-        arm.body,
-        actuators=arm.actuators,
-        effectors=arm.effectors,
-        contacts=Contacts([floor], friction=friction, margin=contact_margin),
-        drivers=arm.drivers,
-        rigid_bodies=[cup],
+        obstacle=floor(floor_height),
+        objects=cup,
         name="trunk_cup",
     )
 

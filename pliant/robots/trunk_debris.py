@@ -13,14 +13,15 @@ import math
 
 import numpy as np
 
-from pliant.constraints.contact import Contacts
+from pliant.fem.body import TetBody
 from pliant.fem.rigid import RigidBody
 from pliant.geometry.collision import Box, Plane
 from pliant.mesh.shapes import _require_positive
-from pliant.mesh.tetmesh import TetMesh
 from pliant.model import Model
-from pliant.robots.common import MaterialName
-from pliant.robots.trunk import trunk
+from pliant.robots.parameters import Contact, Cube, Gravity, Meshing
+from pliant.robots.scene import builder
+from pliant.robots.trunk import TRUNK
+from pliant.robots.trunk_cube import trunk_scene
 
 LENGTH = 195.0
 BASE_RADIUS, TIP_RADIUS = 13.0, 5.0
@@ -39,27 +40,13 @@ def beside_trunk(size: float, z: float, gap: float, azimuth: float = 0.0) -> np.
     return np.array([distance * math.cos(azimuth), distance * math.sin(azimuth), z])
 
 
+@builder(Meshing(8.0), *TRUNK[:2], Gravity.NONE, *TRUNK[3:], Contact(0.5, 5.0), Cube(30.0, 0.01))
 def trunk_space_debris(
+    p,
     *,
-    mesh: TetMesh | None = None,
-    mesh_size: float = 8.0,
-    young_modulus: float = 450.0,
-    poisson_ratio: float = 0.45,
-    total_mass: float = 0.042,
-    material: MaterialName = "corotational",
-    rayleigh_mass: float = 0.1,
-    rayleigh_stiffness: float = 0.1,
-    cable_mode: str = "displacement",
-    max_long_displacement: float = 70.0,
-    max_short_displacement: float = 40.0,
-    max_displacement_change: float | None = 1.0,
-    cube_size: float = 30.0,
-    cube_mass: float = 0.01,
     cube_damping: float = 0.0,
     cube_position: tuple[float, float, float] | None = None,
     cube_rotation: np.ndarray | None = None,
-    friction: float = 0.5,
-    contact_margin: float = 5.0,
 ) -> Model:
     """The Trunk (SoftRobots parameters, coarse mesh by default, no gravity) and a rigid cube
     of `cube_size` mm and `cube_mass` kg floating at rest at `cube_position` (default: 10 mm
@@ -71,39 +58,28 @@ def trunk_space_debris(
     Give `mesh` (a :func:`pliant.mesh.shapes.trunk` mesh) to build several scenes on one
     Trunk mesh, e.g. one per cube size.
     """
+    cube_size, cube_mass = p.cube.cube_size, p.cube.cube_mass
     _require_positive(cube_size=cube_size, cube_mass=cube_mass)
-    arm = trunk(
-        mesh=mesh,
-        mesh_size=mesh_size,
-        young_modulus=young_modulus,
-        poisson_ratio=poisson_ratio,
-        total_mass=total_mass,
-        material=material,
-        gravity=(0.0, 0.0, 0.0),
-        rayleigh_mass=rayleigh_mass,
-        rayleigh_stiffness=rayleigh_stiffness,
-        cable_mode=cable_mode,
-        max_long_displacement=max_long_displacement,
-        max_short_displacement=max_short_displacement,
-        max_displacement_change=max_displacement_change,
-    )
-    half = cube_size / 2
-    position = beside_trunk(cube_size, 150.0, 10.0) if cube_position is None else cube_position
-    cube = RigidBody(
-        Box([half, half, half], position=position, rotation=cube_rotation),
-        cube_mass,
-        friction=friction,
-        linear_damping=cube_damping,
-        angular_damping=cube_damping,
-        name="cube",
-    )
-    hull = Plane(normal=(0.0, 0.0, 1.0), point=(0.0, 0.0, 0.0))
-    return Model(
-        arm.body,
-        actuators=arm.actuators,
-        effectors=arm.effectors,
-        contacts=Contacts([hull], friction=friction, margin=contact_margin),
-        rigid_bodies=[cube],
+
+    def cube(body: TetBody) -> tuple[list[RigidBody], None]:
+        half = cube_size / 2
+        position = beside_trunk(cube_size, 150.0, 10.0) if cube_position is None else cube_position
+        box = Box([half, half, half], position=position, rotation=cube_rotation)
+        rigid = RigidBody(
+            box,
+            cube_mass,
+            friction=p.contact.friction,
+            linear_damping=cube_damping,
+            angular_damping=cube_damping,
+            name="cube",
+        )
+        return [rigid], None
+
+    return trunk_scene(
+        p,
+        base_motion=None,
+        obstacle=Plane(normal=(0.0, 0.0, 1.0), point=(0.0, 0.0, 0.0)),  # the hull
+        objects=cube,
         name="trunk_space_debris",
     )
 
