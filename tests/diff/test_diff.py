@@ -446,8 +446,10 @@ def test_a_rate_limited_cable_follows_the_state():
 
 @pytest.mark.parametrize("law", ["polar", "large"])
 def test_compiled_element_gradient_matches_the_numpy_reference(law):
+    """The reverse-mode kernel's gradient against complex step on the NumPy reference, and
+    its unit-law terms (phi's parts linear in mu and lam) against the reference's value."""
     from pliant.diff.elements import complex_step_gradient
-    from pliant.diff.kernels import corotational_value_gradient
+    from pliant.diff.kernels import corotational_adjoint_terms
 
     body = beam(law=law).body
     rng = np.random.default_rng(7)
@@ -455,31 +457,27 @@ def test_compiled_element_gradient_matches_the_numpy_reference(law):
     w, c = rng.standard_normal(x.shape), rng.standard_normal(x.shape)
     local = frame_local_nodes(body)
     a_k, h = 0.02, 0.01
+    m = body.n_elements
 
-    def value(xe):
-        f, kw = element_terms(body, xe, w[body.tets], body_shape(body), local, body.mu, body.lam)
+    def value(xe, mu=body.mu, lam=body.lam):
+        f, kw = element_terms(body, xe, w[body.tets], body_shape(body), local, mu, lam)
         return np.einsum("...mai,mai->...m", a_k * kw - h * f, c[body.tets])
 
     reference = complex_step_gradient(value, x[body.tets])
-    out = np.empty_like(reference)
-    frames = np.empty((0, 3), np.int64) if local is None else local.astype(np.int64)
-    corotational_value_gradient(
-        x,
-        w,
-        c,
-        body.tets,
-        body.grads,
-        body.volumes,
-        body.mu,
-        body.lam,
-        body.material.kernel_tag,
-        frames,
-        body.rest_frames,
-        a_k,
-        h,
-        out,
-    )
-    assert np.abs(out - reference).max() < 1e-11 * np.abs(reference).max()
+    lin = body.linearise(x)
+    out, unit = np.empty_like(reference), np.empty((m, 2))
+    frames = np.zeros((m, 3), np.int64) if local is None else local.astype(np.int64)
+    corotational_adjoint_terms(
+        x, w, c, body.tets, body.grads, body.volumes, body.mu, body.lam,
+        body.material.kernel_tag, frames, body.rest_frames, lin.frames, lin.dets, a_k, h,
+        out, unit,
+    )  # fmt: skip
+    assert np.abs(out - reference).max() < 1e-10 * np.abs(reference).max()
+    active = lin.dets > 0.0
+    ones, zeros = np.ones(m), np.zeros(m)
+    for k, (mu, lam) in enumerate(((ones, zeros), (zeros, ones))):
+        expected = np.where(active, -value(x[body.tets], mu, lam), 0.0)
+        assert np.allclose(unit[:, k], expected, rtol=1e-10, atol=1e-12 * np.abs(expected).max())
 
 
 def test_young_modulus_per_region_against_finite_differences():
