@@ -155,20 +155,32 @@ def rollout_gradient(
             a.value = v
 
 
+def take_factorisation(solver: ImplicitEuler) -> SparseCholesky:
+    """The factorisation of the solver's last step, handed over (its system factorises the
+    next step into a recycled object): for that step's :class:`StepAdjoint`. Give it back
+    with :func:`recycle_factorisation` once the adjoint is done with it."""
+    pool = _POOLS.setdefault(solver.system, [])
+    return solver.system.hand_over(pool.pop() if pool else None)
+
+
+def recycle_factorisation(solver: ImplicitEuler, factor: SparseCholesky) -> None:
+    """A factorisation taken by :func:`take_factorisation`, free for the solver's next steps."""
+    _POOLS.setdefault(solver.system, []).append(factor)
+
+
 class _Tape:
     """The linearisations and factorisations of the steps of the segment to be swept (module
     docstring), by step index; `keep` False records nothing (the adjoints refactorise)."""
 
     def __init__(self, solver: ImplicitEuler, keep: bool) -> None:
-        self.system, self.keep = solver.system, keep
+        self.solver, self.system, self.keep = solver, solver.system, keep
         self.pool: list[SparseCholesky] = _POOLS.setdefault(self.system, [])
         self.steps: dict[int, tuple] = {}
 
     def record(self, n: int) -> None:
         """Take step n's linearisation and factorisation (call right after the step)."""
         if self.keep:
-            replacement = self.pool.pop() if self.pool else None
-            self.steps[n] = (self.system.lin, self.system.hand_over(replacement))
+            self.steps[n] = (self.system.lin, take_factorisation(self.solver))
 
     def take(self, n: int) -> dict:
         """StepAdjoint's keywords for step n: its records, or a workspace to factorise into."""
