@@ -15,9 +15,10 @@ A = a_m M + a_k K_s(q) at every step, the adjoint's own matrix): the solver hand
 factorisation over (:meth:`pliant.solvers.system.LinearisedSystem.hand_over`) while the
 segment to be swept is stepped, forward or recomputed, and the adjoint then costs solves
 rather than a factorisation. The factorisation objects are recycled across segments and calls
-(per solver), so that no symbolic analysis is repeated. Where a segment's factorisations
-would not fit in KEEP_FACTORS_BYTES (rated at 4 doubles per entry of A's pattern each), the
-adjoint refactorises instead, into one reused object.
+(per solver), so that no symbolic analysis is repeated. At most KEEP_FACTORS_BYTES of them are
+held (rated at 4 doubles per entry of A's pattern each): where a segment's would not fit, the
+latest steps' are kept (the sweep meets them first) and the earlier steps' adjoints
+refactorise, into one reused object.
 """
 
 from __future__ import annotations
@@ -146,7 +147,7 @@ def rollout_gradient(
     saved = [a.value for a in model.actuators]
     k = int(k)
     factor_bytes = 4 * 8 * model.body.pattern.indices.size
-    tape = _Tape(solver, keep=min(k, n_steps) * factor_bytes <= KEEP_FACTORS_BYTES)
+    tape = _Tape(solver, capacity=KEEP_FACTORS_BYTES // factor_bytes)
     try:
         return _sweep(model, solver, tape, state0, controls, loss, names, k, regions)
     finally:
@@ -169,18 +170,21 @@ def recycle_factorisation(solver: ImplicitEuler, factor: SparseCholesky) -> None
 
 
 class _Tape:
-    """The linearisations and factorisations of the steps of the segment to be swept (module
-    docstring), by step index; `keep` False records nothing (the adjoints refactorise)."""
+    """The linearisations and factorisations of the latest steps of the segment to be swept
+    (module docstring), by step index, `capacity` of them at most."""
 
-    def __init__(self, solver: ImplicitEuler, keep: bool) -> None:
-        self.solver, self.system, self.keep = solver, solver.system, keep
+    def __init__(self, solver: ImplicitEuler, capacity: int) -> None:
+        self.solver, self.system, self.capacity = solver, solver.system, capacity
         self.pool: list[SparseCholesky] = _POOLS.setdefault(self.system, [])
         self.steps: dict[int, tuple] = {}
 
     def record(self, n: int) -> None:
         """Take step n's linearisation and factorisation (call right after the step)."""
-        if self.keep:
-            self.steps[n] = (self.system.lin, take_factorisation(self.solver))
+        if self.capacity < 1:
+            return
+        if len(self.steps) >= self.capacity:  # the earliest kept step's adjoint refactorises
+            self.pool.append(self.steps.pop(min(self.steps))[1])
+        self.steps[n] = (self.system.lin, take_factorisation(self.solver))
 
     def take(self, n: int) -> dict:
         """StepAdjoint's keywords for step n: its records, or a workspace to factorise into."""

@@ -9,6 +9,8 @@ of displacements (not positions) to keep that round-off small.
 
 from __future__ import annotations
 
+import importlib
+
 import numpy as np
 import pytest
 
@@ -566,3 +568,24 @@ def test_finger_static_gradient_against_finite_differences():
         moved.append(solve(commands)[2])
     set_parameters(model, young_modulus=3000.0)
     assert relative_error((moved[0] - moved[1]) / 0.6, grads["young_modulus"]) < TOL
+
+
+@pytest.mark.parametrize("kept", [0, 2])
+def test_gradient_with_few_or_no_factorisations_kept_is_the_same(monkeypatch, kept):
+    """Where the forward steps' factorisations do not all fit (KEEP_FACTORS_BYTES), the
+    adjoints of the earlier steps refactorise: the same gradient to round-off."""
+    # the module (pliant.diff's own name "rollout" is the function)
+    rollout_module = importlib.import_module("pliant.diff.rollout")
+
+    n_steps = 5
+    model = beam()
+    loss = _tip_loss(model, n_steps)
+    controls = np.column_stack([np.linspace(0.2, 1.0, n_steps), np.full(n_steps, 5.0)])
+    solver = ImplicitEuler(model, DT, tangent="fresh")
+    wrt = ("controls", "young_modulus")
+    every = rollout_gradient(model, solver, model.rest_state(), controls, loss, wrt=wrt)
+    factor_bytes = 4 * 8 * model.body.pattern.indices.size
+    monkeypatch.setattr(rollout_module, "KEEP_FACTORS_BYTES", kept * factor_bytes)
+    few = rollout_gradient(model, solver, model.rest_state(), controls, loss, wrt=wrt)
+    for name in ("controls", "young_modulus", "initial_positions"):
+        assert np.allclose(few.gradients[name], every.gradients[name], rtol=1e-10, atol=1e-14)
