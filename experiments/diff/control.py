@@ -182,7 +182,8 @@ def main() -> None:
     rollout_gradient(model, solver, scenario.start, warm, loss, wrt=("controls",))
 
     ddp_runs = {
-        "box-DDP, change bound (pliant trajopt diamond)": bounds,
+        "box-DDP, change bound"
+        + (" (pliant trajopt diamond)" if args.task == "diamond" else ""): bounds,
         "box-DDP, no change bound": ActuationBounds(bounds.lower, bounds.upper),
     }
     for name, run_bounds in ddp_runs.items():

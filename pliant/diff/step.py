@@ -216,7 +216,9 @@ def row_hessian_product(
     cables, bundle, pairs = _cables(model)
     if cables.size and np.any(coefficients[cables]):
         blocks = bundle.geometric_stiffness(x, coefficients[cables])
-        np.add.at(out, pairs[0], -np.einsum("eij,ej->ei", blocks, direction[pairs[1]]))
+        product = np.einsum("eij,ej->ei", blocks, direction[pairs[1]])
+        for i in range(3):  # bincount: the pairs repeat nodes, np.add.at is slow at it
+            out[:, i] -= np.bincount(pairs[0], weights=product[:, i], minlength=out.shape[0])
     others = np.where(np.isin(np.arange(coefficients.size), cables), 0.0, coefficients)
     if np.any(others):
         eps = _ROW_STEP * model.body.extent / size
@@ -377,7 +379,7 @@ class StepAdjoint:
         if tag != NEO_HOOKEAN:
             m = body.n_elements
             out, self._unit = np.empty((m, 4, 3)), np.empty((m, 2))
-            frames = np.empty((m, 3), np.int64) if local is None else local.astype(np.int64)
+            frames = np.zeros((m, 3), np.int64) if local is None else local.astype(np.int64)
             # One thread below the size where the body's own kernels wake the others.
             saved = numba.get_num_threads()
             if m < PARALLEL_MIN_TETS:
