@@ -88,7 +88,7 @@ for _ in range(3 if QUICK else 40):
     optimiser.zero_grad()
     mean_distance.backward()  # through 10 solver steps: their adjoints
     optimiser.step()
-    episode_losses.append(float(mean_distance))
+    episode_losses.append(float(mean_distance.detach()))
 print(f"policy: mean tip distance {episode_losses[0]:.1f} mm -> {episode_losses[-1]:.1f} mm")
 
 fig, axes = plt.subplots(1, 2, figsize=(9, 3.2))
