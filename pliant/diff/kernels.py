@@ -30,20 +30,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
-
-@njit(cache=True, inline="always")
-def _inv3(a, out):
-    c00 = a[1, 1] * a[2, 2] - a[1, 2] * a[2, 1]
-    c01 = a[1, 2] * a[2, 0] - a[1, 0] * a[2, 2]
-    c02 = a[1, 0] * a[2, 1] - a[1, 1] * a[2, 0]
-    det = a[0, 0] * c00 + a[0, 1] * c01 + a[0, 2] * c02
-    out[0, 0], out[1, 0], out[2, 0] = c00 / det, c01 / det, c02 / det
-    out[0, 1] = (a[2, 1] * a[0, 2] - a[2, 2] * a[0, 1]) / det
-    out[1, 1] = (a[2, 2] * a[0, 0] - a[2, 0] * a[0, 2]) / det
-    out[2, 1] = (a[2, 0] * a[0, 1] - a[2, 1] * a[0, 0]) / det
-    out[0, 2] = (a[0, 1] * a[1, 2] - a[0, 2] * a[1, 1]) / det
-    out[1, 2] = (a[0, 2] * a[1, 0] - a[0, 0] * a[1, 2]) / det
-    out[2, 2] = (a[0, 0] * a[1, 1] - a[0, 1] * a[1, 0]) / det
+from pliant.fem.kernels import _inv3  # the solvers' 3x3 inverse (returns det)
 
 
 @njit(cache=True, inline="always")
