@@ -1,6 +1,7 @@
-"""Control by gradient against box-DDP: the Diamond's two-goal task, same problem, same run.
+"""Control by gradient against box-DDP: the Diamond's two-goal task and the Trunk reaching a
+goal, same problem, same run.
 
-    python experiments/diff/control.py [--quick] [--fresh]
+    python experiments/diff/control.py [--task diamond|trunk] [--quick] [--fresh]
 
 The problem is `pliant trajopt diamond`'s (pliant.trajopt.scenarios.diamond_two_goals):
 Diamond mesh size 20 mm, dt = 0.02 s, N = 100 steps, the effector to the first goal for the
@@ -23,8 +24,15 @@ L-BFGS-B from zero controls (pliant.diff.optimise_controls, at most 100 iteratio
 Both are warmed up first (numba compilation, untimed). Every final cost is evaluated again
 on the same full-FEM rollout (pliant.diff's loss).
 
-Writes experiments/results/diff/control.json after each run (atomically); a run already in
-the file is kept unless --fresh. --quick: N = 10, 5 iterations each, to out/diff/.
+The Trunk (`--task trunk`, pliant.trajopt.scenarios.trunk_reach): the default mesh (2056
+tetrahedra, 1557 free DoFs), dt = 0.02 s, N = 50 steps, its tip to one goal (where tensions
+(1000, 0, 0, 600, 0, 0, 0, 0) mN hold it after 2 s, about 30 mm from where it hangs), the same
+cost weights, tensions 0 <= u <= 1500 mN, the DDP's change bound 100 mN per step; the same
+three runs; the coarse Trunk (mesh size 8 mm, 712 tetrahedra) with --quick.
+
+Writes experiments/results/diff/control.json (the Diamond) or control_trunk.json after each run
+(atomically); a run already in the file is kept unless --fresh. --quick: N = 10, 5 iterations
+each, to out/diff/.
 """
 
 from __future__ import annotations
@@ -48,18 +56,40 @@ from pliant.diff import (
 from pliant.files import write_json
 from pliant.solvers import ImplicitEuler
 from pliant.trajopt import ActuationBounds, BoxDDP
-from pliant.trajopt.scenarios import diamond_two_goals
+from pliant.trajopt.scenarios import diamond_two_goals, trunk_reach
 
 ROOT = Path(__file__).resolve().parents[2]
-OUT = ROOT / "experiments" / "results" / "diff" / "control.json"
-QUICK_OUT = ROOT / "out" / "diff" / "control_quick.json"
+RESULTS = ROOT / "experiments" / "results" / "diff"
+OUT = {"diamond": RESULTS / "control.json", "trunk": RESULTS / "control_trunk.json"}
 
 
-def diff_problem(scenario, horizon: int):
-    """The scenario's model with force-mode cables, its exact solver and the trajopt cost as
-    pliant.diff stage losses."""
+def task(name: str, quick: bool):
+    """The scenario (for the DDP), the same robot with force-mode cables (for pliant.diff)
+    and a description of the problem."""
+    horizon = 10 if quick else {"diamond": 100, "trunk": 50}[name]
+    if name == "diamond":
+        scenario = diamond_two_goals(horizon=horizon)
+        model = robots.diamond(mesh_size=20.0, cable_mode="force")
+        described = {
+            "scenario": "pliant.trajopt.scenarios.diamond_two_goals (pliant trajopt diamond)",
+            "mesh_size_mm": 20.0,
+        }
+    else:
+        mesh_size = 8.0 if quick else 5.2
+        scenario = trunk_reach(horizon=horizon, mesh_size=mesh_size)
+        model = robots.trunk(mesh_size=mesh_size, cable_mode="force")
+        described = {
+            "scenario": "pliant.trajopt.scenarios.trunk_reach (one goal)",
+            "mesh_size_mm": mesh_size,
+            "elements": int(model.body.n_elements),
+        }
+    return scenario, model, described
+
+
+def diff_problem(scenario, horizon: int, model):
+    """`model` (the scenario's robot with force-mode cables), its exact solver and the trajopt
+    cost as pliant.diff stage losses."""
     cost = scenario.cost
-    model = robots.diamond(mesh_size=20.0, cable_mode="force")
     (effector,) = model.effectors
     if len(effector.points) != 1 or effector.axes.tolist() != [0, 1, 2]:
         raise SystemExit("the translation assumes one effector point on x, y, z")
@@ -107,26 +137,29 @@ def max_change(controls: np.ndarray) -> float:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--task", choices=("diamond", "trunk"), default="diamond")
     parser.add_argument("--quick", action="store_true", help="N = 10, 5 iterations each")
     parser.add_argument("--fresh", action="store_true", help="rerun runs already in the file")
     parser.add_argument("--ddp-iterations", type=int, default=100)
     parser.add_argument("--lbfgs-iterations", type=int, default=100)
     parser.add_argument("--out", type=Path, default=None)
     args = parser.parse_args()
-    horizon = 10 if args.quick else 100
     ddp_iterations = 5 if args.quick else args.ddp_iterations
     lbfgs_iterations = 5 if args.quick else args.lbfgs_iterations
-    out = args.out or (QUICK_OUT if args.quick else OUT)
+    quick_out = ROOT / "out" / "diff" / f"{OUT[args.task].stem}_quick.json"
+    out = args.out or (quick_out if args.quick else OUT[args.task])
     data = json.loads(out.read_text()) if out.exists() and not args.fresh else {}
     runs = data.setdefault("runs", {})
 
-    scenario = diamond_two_goals(horizon=horizon)
-    model, solver, loss, weights = diff_problem(scenario, horizon)
+    scenario, model, described = task(args.task, args.quick)
+    horizon = scenario.goals.shape[0] - 1
+    model, solver, loss, weights = diff_problem(scenario, horizon, model)
     bounds = scenario.bounds
-    data["command"] = "python experiments/diff/control.py" + (" --quick" if args.quick else "")
+    data["command"] = f"python experiments/diff/control.py --task {args.task}" + (
+        " --quick" if args.quick else ""
+    )
     data["problem"] = {
-        "scenario": "pliant.trajopt.scenarios.diamond_two_goals (pliant trajopt diamond)",
-        "mesh_size_mm": 20.0,
+        **described,
         "free_dofs": int(model.body.n_free),
         "dt_s": scenario.dynamics.dt,
         "horizon": horizon,
@@ -149,7 +182,8 @@ def main() -> None:
     rollout_gradient(model, solver, scenario.start, warm, loss, wrt=("controls",))
 
     ddp_runs = {
-        "box-DDP, change bound (pliant trajopt diamond)": bounds,
+        "box-DDP, change bound"
+        + (" (pliant trajopt diamond)" if args.task == "diamond" else ""): bounds,
         "box-DDP, no change bound": ActuationBounds(bounds.lower, bounds.upper),
     }
     for name, run_bounds in ddp_runs.items():

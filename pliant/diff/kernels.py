@@ -1,172 +1,200 @@
-"""Compiled complex-step gradient of the step adjoint's element term (corotational laws).
+"""Compiled element terms of the step adjoint for the corotational laws, in reverse mode.
 
-Per element e, phi_e(x_e) = sum_a c_a . (a_k (K_s w)_a - h f_a)(x_e), and its gradient in the
-element's 12 coordinates, one complex step x_e + i s e_j per coordinate: the same formulas as
-:func:`pliant.diff.elements.element_terms` (the plain reference the tests compare with),
-written out per element on scratch arrays as the solvers' kernels are (STYLE item 4). The
-polar rotation's complex step is R + i s dR with its exact variation (see
-:func:`pliant.diff.elements.polar_rotations`); the large frames' is the edge frame of the
-perturbed corners.
+Per element e, with F = sum_a x_a (x) g_a, dFw = sum_b w_b (x) g_b, R the element's rotation
+(the forward linearisation's frame), S = R^T F, W = R^T dFw, C = sum_b c_b (x) g_b:
+
+    phi_e(x_e) = sum_b c_b . (a_k (K_s w)_b - h f_b) = V <R Sigma, C>,
+    Sigma = a_k (mu (W + W^T) + lam tr(W) I) + h (mu (S + S^T) + (lam tr(S - I) - 2 mu) I).
+
+Its gradient in the element's 12 coordinates: with D = R^T C, D_s = D + D^T,
+
+    d phi / V = <dR, G> + <dF, Hm>,
+    G  = C Sigma^T + a_k mu dFw D_s + h mu F D_s + tr(D) (a_k lam dFw + h lam F),
+    Hm = h mu R D_s + h lam tr(D) R,
+
+and dF = e_i (x) g_a for coordinate i of corner a. The rotation's share <dR, G>:
+
+* polar (tag 0): dR = R [v]x, (tr(S) I - S) v = g_a x r_i (r_i the i-th row of R), so
+  <dR, G> = (g_a x r_i) . y with (tr(S) I - S)^T y = axial(R^T G);
+* SOFA's large frames (tags 2, 3): R = Q(x) Q_0^T with Q the edge frame of three corners,
+  <dR, G> = <dQ, G Q_0>, back-propagated through Q's normalisations and cross product.
+
+That is one reverse sweep per element instead of twelve complex-step evaluations. The same
+pass returns phi's two parts linear in the Lamé parameters (phi = mu phi_mu + lam phi_lam), the
+cotangents of mu and lam. The plain reference, by complex step on
+:func:`pliant.diff.elements.element_terms`, is what the tests compare with.
 """
 
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
+from numba import njit, prange
 
-STEP = 1e-30
-
-
-@njit(cache=True, inline="always")
-def _polar_real(f, r, work):
-    """r = R of F = R S by scaled Newton iterations to round-off (real)."""
-    for i in range(3):
-        for j in range(3):
-            r[i, j] = f[i, j]
-    settled = 0
-    for _ in range(60):
-        c00 = r[1, 1] * r[2, 2] - r[1, 2] * r[2, 1]
-        c01 = r[1, 2] * r[2, 0] - r[1, 0] * r[2, 2]
-        c02 = r[1, 0] * r[2, 1] - r[1, 1] * r[2, 0]
-        det = r[0, 0] * c00 + r[0, 1] * c01 + r[0, 2] * c02
-        # work = r^-T (cofactors over det)
-        work[0, 0], work[0, 1], work[0, 2] = c00 / det, c01 / det, c02 / det
-        work[1, 0] = (r[2, 1] * r[0, 2] - r[2, 2] * r[0, 1]) / det
-        work[1, 1] = (r[2, 2] * r[0, 0] - r[2, 0] * r[0, 2]) / det
-        work[1, 2] = (r[2, 0] * r[0, 1] - r[2, 1] * r[0, 0]) / det
-        work[2, 0] = (r[0, 1] * r[1, 2] - r[0, 2] * r[1, 1]) / det
-        work[2, 1] = (r[0, 2] * r[1, 0] - r[0, 0] * r[1, 2]) / det
-        work[2, 2] = (r[0, 0] * r[1, 1] - r[0, 1] * r[1, 0]) / det
-        z = np.cbrt(det) ** -1.0 if abs(det - 1.0) > 0.05 else 1.0
-        change = 0.0
-        for i in range(3):
-            for j in range(3):
-                nxt = 0.5 * (z * r[i, j] + work[i, j] / z)
-                change = max(change, abs(nxt - r[i, j]))
-                r[i, j] = nxt
-        settled = settled + 1 if change < 1e-14 else 0
-        if settled == 2:
-            break
+from pliant.fem.kernels import _inv3  # the solvers' 3x3 inverse (returns det)
 
 
 @njit(cache=True, inline="always")
-def _edge_frame(xc, local, q):
-    """Complex edge frame of corners xc (4, 3) with frame nodes `local` (3,)."""
-    a, b, c = local[0], local[1], local[2]
-    u = np.empty(3, np.complex128)
-    w = np.empty(3, np.complex128)
+def _normalised_back(y, gy, norm, out):
+    """out = the cotangent of x for y = x / |x| and a cotangent gy of y."""
+    d = gy[0] * y[0] + gy[1] * y[1] + gy[2] * y[2]
     for i in range(3):
-        u[i] = xc[b, i] - xc[a, i]
-        w[i] = xc[c, i] - xc[a, i]
-    n0 = u[1] * w[2] - u[2] * w[1]
-    n1 = u[2] * w[0] - u[0] * w[2]
-    n2 = u[0] * w[1] - u[1] * w[0]
+        out[i] = (gy[i] - d * y[i]) / norm
+
+
+@njit(cache=True, inline="always")
+def _edge_frame_back(x, tet, local, m, grad):
+    """grad[corner] += d <Q, m> / d x_corner for the edge frame Q of corners `local` (3,)
+    (columns u/|u|, n x u, n = (u x w)/|u x w|; see pliant.fem.kernels._edge_frame)."""
+    a, b, c = tet[local[0]], tet[local[1]], tet[local[2]]
+    u = np.empty(3)
+    w = np.empty(3)
+    for i in range(3):
+        u[i] = x[b, i] - x[a, i]
+        w[i] = x[c, i] - x[a, i]
+    n = np.empty(3)
+    n[0], n[1], n[2] = (
+        u[1] * w[2] - u[2] * w[1],
+        u[2] * w[0] - u[0] * w[2],
+        u[0] * w[1] - u[1] * w[0],
+    )
     lu = np.sqrt(u[0] * u[0] + u[1] * u[1] + u[2] * u[2])
-    ln = np.sqrt(n0 * n0 + n1 * n1 + n2 * n2)
-    u0, u1, u2 = u[0] / lu, u[1] / lu, u[2] / lu
-    n0, n1, n2 = n0 / ln, n1 / ln, n2 / ln
-    q[0, 0], q[1, 0], q[2, 0] = u0, u1, u2
-    q[0, 1], q[1, 1], q[2, 1] = n1 * u2 - n2 * u1, n2 * u0 - n0 * u2, n0 * u1 - n1 * u0
-    q[0, 2], q[1, 2], q[2, 2] = n0, n1, n2
+    ln = np.sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2])
+    uh = u / lu
+    nh = n / ln
+    # <Q, m> = uh.m0 + (nh x uh).m1 + nh.m2; (nh x uh).m1 = uh.(m1 x nh) = nh.(uh x m1).
+    m0, m1, m2 = m[:, 0], m[:, 1], m[:, 2]
+    g_uh = np.empty(3)
+    g_nh = np.empty(3)
+    g_uh[0] = m0[0] + m1[1] * nh[2] - m1[2] * nh[1]
+    g_uh[1] = m0[1] + m1[2] * nh[0] - m1[0] * nh[2]
+    g_uh[2] = m0[2] + m1[0] * nh[1] - m1[1] * nh[0]
+    g_nh[0] = m2[0] + uh[1] * m1[2] - uh[2] * m1[1]
+    g_nh[1] = m2[1] + uh[2] * m1[0] - uh[0] * m1[2]
+    g_nh[2] = m2[2] + uh[0] * m1[1] - uh[1] * m1[0]
+    g_u = np.empty(3)
+    g_n = np.empty(3)
+    _normalised_back(uh, g_uh, lu, g_u)
+    _normalised_back(nh, g_nh, ln, g_n)
+    # n = u x w: g_u += w x g_n, g_w = g_n x u.
+    g_u[0] += w[1] * g_n[2] - w[2] * g_n[1]
+    g_u[1] += w[2] * g_n[0] - w[0] * g_n[2]
+    g_u[2] += w[0] * g_n[1] - w[1] * g_n[0]
+    g_w0 = g_n[1] * u[2] - g_n[2] * u[1]
+    g_w1 = g_n[2] * u[0] - g_n[0] * u[2]
+    g_w2 = g_n[0] * u[1] - g_n[1] * u[0]
+    grad[local[1], 0] += g_u[0]
+    grad[local[1], 1] += g_u[1]
+    grad[local[1], 2] += g_u[2]
+    grad[local[2], 0] += g_w0
+    grad[local[2], 1] += g_w1
+    grad[local[2], 2] += g_w2
+    grad[local[0], 0] -= g_u[0] + g_w0
+    grad[local[0], 1] -= g_u[1] + g_w1
+    grad[local[0], 2] -= g_u[2] + g_w2
 
 
-@njit(cache=True)
-def corotational_value_gradient(
-    x, w, c, tets, grads, vols, mu, lam, tag, local, rest_frames, a_k, h, out
+@njit(cache=True, parallel=True, nogil=True)
+def corotational_adjoint_terms(
+    x, w, c, tets, grads, vols, mu, lam, tag, local, rest_frames, frames, dets, a_k, h, out, unit
 ):
-    """out[e] (4, 3) = grad of phi_e at the corners x[tets[e]] (see the module docstring);
-    `w`, `c` (n, 3): the tangent's argument and the cotangent; tags 0, 2, 3."""
+    """out[e] (4, 3) = grad phi_e at the corners x[tets[e]]; unit[e] = (-phi_mu, -phi_lam)
+    (see the module docstring). `w`, `c` (n, 3): the tangent's argument and the cotangent;
+    `frames`, `dets`: the linearisation's rotations and det F at x; tags 0, 2, 3. An element
+    that contributes no force (det F <= 0, except under tag 3) gets zeros."""
     m = tets.shape[0]
-    for e in range(m):
-        g = grads[e]
-        xc = np.empty((4, 3), np.complex128)
-        f = np.zeros((3, 3))
-        for a in range(4):
-            for i in range(3):
-                xc[a, i] = x[tets[e, a], i]
-        for i in range(3):
-            for j in range(3):
-                for a in range(4):
-                    f[i, j] += x[tets[e, a], i] * g[a, j]
-        det = (
-            f[0, 0] * (f[1, 1] * f[2, 2] - f[1, 2] * f[2, 1])
-            - f[0, 1] * (f[1, 0] * f[2, 2] - f[1, 2] * f[2, 0])
-            + f[0, 2] * (f[1, 0] * f[2, 1] - f[1, 1] * f[2, 0])
-        )
-        if not (det > 0.0 or (tag == 3 and det == det)):
-            out[e] = 0.0
-            continue
-        dfw = np.zeros((3, 3))  # sum_b w_b (x) g_b
-        for i in range(3):
-            for j in range(3):
-                for b in range(4):
-                    dfw[i, j] += w[tets[e, b], i] * g[b, j]
-        r0 = np.empty((3, 3))
+    n_chunks = max(1, min(m, 64))
+    bounds = np.linspace(0, m, n_chunks + 1).astype(np.int64)
+    for chunk in prange(n_chunks):
+        f = np.empty((3, 3))
+        dfw = np.empty((3, 3))
+        cg = np.empty((3, 3))
+        s = np.empty((3, 3))
+        wr = np.empty((3, 3))
+        d = np.empty((3, 3))
+        ds = np.empty((3, 3))
+        sig = np.empty((3, 3))
+        gm = np.empty((3, 3))
+        hm = np.empty((3, 3))
+        z = np.empty((3, 3))
+        mm = np.empty((3, 3))
         minv = np.empty((3, 3))
-        if tag == 0:
-            work = np.empty((3, 3))
-            _polar_real(f, r0, work)
-            s = r0.T @ f
-            tr = s[0, 0] + s[1, 1] + s[2, 2]
-            mm = -s.copy()
+        qm = np.empty((3, 3))
+        for e in range(bounds[chunk], bounds[chunk + 1]):
+            det = dets[e]
+            if not (det > 0.0 or (tag == 3 and det == det)):
+                out[e] = 0.0
+                unit[e] = 0.0
+                continue
+            g, r, ve = grads[e], frames[e], vols[e]
             for i in range(3):
-                mm[i, i] += tr
-            minv = np.linalg.inv(mm)
-        rc = np.empty((3, 3), np.complex128)
-        q = np.empty((3, 3), np.complex128)
-        fc = np.empty((3, 3), np.complex128)
-        sc = np.empty((3, 3), np.complex128)
-        w1 = np.empty((3, 3), np.complex128)
-        sig = np.empty((3, 3), np.complex128)
-        comb = np.empty((3, 3), np.complex128)
-        for j in range(12):
-            a, i = j // 3, j % 3
-            for p in range(3):
-                for k in range(3):
-                    fc[p, k] = f[p, k] + (1j * STEP * g[a, k] if p == i else 0.0)
-            if tag == 0:
-                # w1 = R^T dF with dF = e_i (x) g_a: w1[p, k] = r0[i, p] g[a, k].
-                b0 = r0[i, 2] * g[a, 1] - r0[i, 1] * g[a, 2]
-                b1 = r0[i, 0] * g[a, 2] - r0[i, 2] * g[a, 0]
-                b2 = r0[i, 1] * g[a, 0] - r0[i, 0] * g[a, 1]
-                v0 = minv[0, 0] * b0 + minv[0, 1] * b1 + minv[0, 2] * b2
-                v1 = minv[1, 0] * b0 + minv[1, 1] * b1 + minv[1, 2] * b2
-                v2 = minv[2, 0] * b0 + minv[2, 1] * b1 + minv[2, 2] * b2
-                for p in range(3):
-                    rc[p, 0] = r0[p, 0] + 1j * STEP * (r0[p, 1] * v2 - r0[p, 2] * v1)
-                    rc[p, 1] = r0[p, 1] + 1j * STEP * (r0[p, 2] * v0 - r0[p, 0] * v2)
-                    rc[p, 2] = r0[p, 2] + 1j * STEP * (r0[p, 0] * v1 - r0[p, 1] * v0)
-            else:
-                xc[a, i] += 1j * STEP
-                _edge_frame(xc, local[e], q)
-                xc[a, i] = x[tets[e, a], i]
-                q0 = rest_frames[e]
-                for p in range(3):
+                for j in range(3):
+                    acc_f, acc_w, acc_c = 0.0, 0.0, 0.0
+                    for b in range(4):
+                        node = tets[e, b]
+                        acc_f += x[node, i] * g[b, j]
+                        acc_w += w[node, i] * g[b, j]
+                        acc_c += c[node, i] * g[b, j]
+                    f[i, j], dfw[i, j], cg[i, j] = acc_f, acc_w, acc_c
+            for i in range(3):  # S = R^T F, W = R^T dFw, D = R^T C
+                for j in range(3):
+                    s[i, j] = r[0, i] * f[0, j] + r[1, i] * f[1, j] + r[2, i] * f[2, j]
+                    wr[i, j] = r[0, i] * dfw[0, j] + r[1, i] * dfw[1, j] + r[2, i] * dfw[2, j]
+                    d[i, j] = r[0, i] * cg[0, j] + r[1, i] * cg[1, j] + r[2, i] * cg[2, j]
+            tr_s = s[0, 0] + s[1, 1] + s[2, 2]
+            tr_w = wr[0, 0] + wr[1, 1] + wr[2, 2]
+            tr_d = d[0, 0] + d[1, 1] + d[2, 2]
+            phi_mu = 0.0
+            for i in range(3):
+                for j in range(3):
+                    ds[i, j] = d[i, j] + d[j, i]
+                    sym = a_k * (wr[i, j] + wr[j, i]) + h * (s[i, j] + s[j, i])
+                    if i == j:
+                        sym -= 2.0 * h
+                    # <R S_mu, C> = <S_mu, D>
+                    phi_mu += sym * d[i, j]
+                    sig[i, j] = mu[e] * sym
+                sig[i, i] += lam[e] * (a_k * tr_w + h * (tr_s - 3.0))
+            unit[e, 0] = -ve * phi_mu
+            unit[e, 1] = -ve * (a_k * tr_w + h * (tr_s - 3.0)) * tr_d
+            for i in range(3):
+                for j in range(3):
+                    acc_g = cg[i, 0] * sig[j, 0] + cg[i, 1] * sig[j, 1] + cg[i, 2] * sig[j, 2]
+                    acc_fw, acc_ff, acc_rr = 0.0, 0.0, 0.0
                     for k in range(3):
-                        rc[p, k] = q[p, 0] * q0[k, 0] + q[p, 1] * q0[k, 1] + q[p, 2] * q0[k, 2]
-            # sc = R^T F, w1 = R^T dFw
-            for p in range(3):
-                for k in range(3):
-                    sc[p, k] = rc[0, p] * fc[0, k] + rc[1, p] * fc[1, k] + rc[2, p] * fc[2, k]
-                    w1[p, k] = rc[0, p] * dfw[0, k] + rc[1, p] * dfw[1, k] + rc[2, p] * dfw[2, k]
-            treps = sc[0, 0] + sc[1, 1] + sc[2, 2] - 3.0
-            trw = w1[0, 0] + w1[1, 1] + w1[2, 2]
-            # a_k dP(dFw) + h P = R (a_k (mu (w1 + w1^T) + lam tr(w1) I)
-            #                       + h (2 mu eps + lam tr(eps) I)), eps = sym(sc) - I
-            for p in range(3):
-                for k in range(3):
-                    sig[p, k] = a_k * mu[e] * (w1[p, k] + w1[k, p]) + h * mu[e] * (
-                        sc[p, k] + sc[k, p]
+                        acc_fw += dfw[i, k] * ds[k, j]
+                        acc_ff += f[i, k] * ds[k, j]
+                        acc_rr += r[i, k] * ds[k, j]
+                    gm[i, j] = (
+                        acc_g
+                        + mu[e] * (a_k * acc_fw + h * acc_ff)
+                        + tr_d * lam[e] * (a_k * dfw[i, j] + h * f[i, j])
                     )
-                sig[p, p] += a_k * lam[e] * trw + h * (lam[e] * treps - 2.0 * mu[e])
-            for p in range(3):
-                for k in range(3):
-                    comb[p, k] = rc[p, 0] * sig[0, k] + rc[p, 1] * sig[1, k] + rc[p, 2] * sig[2, k]
-            # phi = sum_b c_b . (a_k V dP g_b + h V P g_b)
-            phi = 0.0j
-            for b in range(4):
-                node = tets[e, b]
-                for p in range(3):
-                    acc = comb[p, 0] * g[b, 0] + comb[p, 1] * g[b, 1] + comb[p, 2] * g[b, 2]
-                    phi += c[node, p] * acc
-            out[e, a, i] = vols[e] * phi.imag / STEP
+                    hm[i, j] = h * (mu[e] * acc_rr + lam[e] * tr_d * r[i, j])
+            for a in range(4):  # the F share: <e_i (x) g_a, Hm> = (Hm g_a)_i
+                for i in range(3):
+                    out[e, a, i] = hm[i, 0] * g[a, 0] + hm[i, 1] * g[a, 1] + hm[i, 2] * g[a, 2]
+            if tag == 0:
+                for i in range(3):  # Z = R^T G
+                    for j in range(3):
+                        z[i, j] = r[0, i] * gm[0, j] + r[1, i] * gm[1, j] + r[2, i] * gm[2, j]
+                        mm[i, j] = (tr_s if i == j else 0.0) - s[i, j]
+                _inv3(mm, minv)
+                z0, z1, z2 = z[2, 1] - z[1, 2], z[0, 2] - z[2, 0], z[1, 0] - z[0, 1]
+                y0 = minv[0, 0] * z0 + minv[1, 0] * z1 + minv[2, 0] * z2
+                y1 = minv[0, 1] * z0 + minv[1, 1] * z1 + minv[2, 1] * z2
+                y2 = minv[0, 2] * z0 + minv[1, 2] * z1 + minv[2, 2] * z2
+                for a in range(4):
+                    for i in range(3):
+                        b0 = r[i, 2] * g[a, 1] - r[i, 1] * g[a, 2]
+                        b1 = r[i, 0] * g[a, 2] - r[i, 2] * g[a, 0]
+                        b2 = r[i, 1] * g[a, 0] - r[i, 0] * g[a, 1]
+                        out[e, a, i] += b0 * y0 + b1 * y1 + b2 * y2
+            else:
+                q0 = rest_frames[e]  # R = Q Q0^T: <dR, G> = <dQ, G Q0>
+                for i in range(3):
+                    for j in range(3):
+                        qm[i, j] = gm[i, 0] * q0[0, j] + gm[i, 1] * q0[1, j] + gm[i, 2] * q0[2, j]
+                _edge_frame_back(x, tets[e], local[e], qm, out[e])
+            for a in range(4):
+                for i in range(3):
+                    out[e, a, i] *= ve

@@ -9,11 +9,22 @@ factorisation, one block solve, the complex-step element terms) carries the cota
 s_{n+1} back to s_n and adds its parameters' share. With k ~ sqrt(T), 2 sqrt(T) states are
 held at a time for 2 T forward steps in all; with k = T (the default for trajectories that
 fit in memory), T states and T forward steps.
+
+Each adjoint reuses its forward step's linearisation and factorisation ("fresh" factorises
+A = a_m M + a_k K_s(q) at every step, the adjoint's own matrix): the solver hands each step's
+factorisation over (:meth:`pliant.solvers.system.LinearisedSystem.hand_over`) while the
+segment to be swept is stepped, forward or recomputed, and the adjoint then costs solves
+rather than a factorisation. The factorisation objects are recycled across segments and calls
+(per solver), so that no symbolic analysis is repeated. At most KEEP_FACTORS_BYTES of them are
+held (rated at 4 doubles per entry of A's pattern each): where a segment's would not fit, the
+latest steps' are kept (the sweep meets them first) and the earlier steps' adjoints
+refactorise, into one reused object.
 """
 
 from __future__ import annotations
 
 import math
+import weakref
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -25,9 +36,14 @@ from pliant.diff.step import StepAdjoint, check_model, check_parameters
 from pliant.errors import ModelError
 from pliant.model import Model, State
 from pliant.solvers.implicit_euler import ImplicitEuler
+from pliant.solvers.linear import SparseCholesky, sparse_cholesky
 
 #: A trajectory whose states take at most this is kept whole by default (no recomputation).
 KEEP_ALL_BYTES = 256 * 2**20
+#: The forward steps' factorisations of a segment are kept for its adjoints within this.
+KEEP_FACTORS_BYTES = 256 * 2**20
+# Factorisation objects handed over by each solver's system, for reuse (see _Tape).
+_POOLS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
 
 @dataclass
@@ -130,14 +146,64 @@ def rollout_gradient(
     if int(k) != k or k < 1:
         raise ModelError(f"checkpoint_every must be a positive integer, got {k!r}")
     saved = [a.value for a in model.actuators]
+    k = int(k)
+    factor_bytes = 4 * 8 * model.body.pattern.indices.size
+    tape = _Tape(solver, capacity=KEEP_FACTORS_BYTES // factor_bytes)
     try:
-        return _sweep(model, solver, state0, controls, loss, names, int(k), regions)
+        return _sweep(model, solver, tape, state0, controls, loss, names, k, regions)
     finally:
+        tape.clear()
         for a, v in zip(model.actuators, saved, strict=True):
             a.value = v
 
 
-def _sweep(model, solver, state0, controls, loss, names, k, regions) -> RolloutGradient:
+def take_factorisation(solver: ImplicitEuler) -> SparseCholesky:
+    """The factorisation of the solver's last step, handed over (its system factorises the
+    next step into a recycled object): for that step's :class:`StepAdjoint`. Give it back
+    with :func:`recycle_factorisation` once the adjoint is done with it."""
+    pool = _POOLS.setdefault(solver.system, [])
+    return solver.system.hand_over(pool.pop() if pool else None)
+
+
+def recycle_factorisation(solver: ImplicitEuler, factor: SparseCholesky) -> None:
+    """A factorisation taken by :func:`take_factorisation`, free for the solver's next steps."""
+    _POOLS.setdefault(solver.system, []).append(factor)
+
+
+class _Tape:
+    """The linearisations and factorisations of the latest steps of the segment to be swept
+    (module docstring), by step index, `capacity` of them at most."""
+
+    def __init__(self, solver: ImplicitEuler, capacity: int) -> None:
+        self.solver, self.system, self.capacity = solver, solver.system, capacity
+        self.pool: list[SparseCholesky] = _POOLS.setdefault(self.system, [])
+        self.steps: dict[int, tuple] = {}
+
+    def record(self, n: int) -> None:
+        """Take step n's linearisation and factorisation (call right after the step)."""
+        if self.capacity < 1:
+            return
+        if len(self.steps) >= self.capacity:  # the earliest kept step's adjoint refactorises
+            self.pool.append(self.steps.pop(min(self.steps))[1])
+        self.steps[n] = (self.system.lin, take_factorisation(self.solver))
+
+    def take(self, n: int) -> dict:
+        """StepAdjoint's keywords for step n: its records, or a workspace to factorise into."""
+        if n in self.steps:
+            lin, factor = self.steps.pop(n)
+            self.pool.append(factor)  # free again once this step's adjoint is done
+            return {"linearisation": lin, "factor": factor}
+        if not self.pool:
+            body = self.system.body
+            self.pool.append(sparse_cholesky(body.pattern.indptr, body.pattern.indices))
+        return {"workspace": self.pool[-1]}
+
+    def clear(self) -> None:
+        self.pool.extend(factor for _, factor in self.steps.values())
+        self.steps.clear()
+
+
+def _sweep(model, solver, tape, state0, controls, loss, names, k, regions) -> RolloutGradient:
     n_steps = controls.shape[0]
     checkpoints = {0: state0.copy()}
     stage_values = [loss.stage(0, state0, None).value]
@@ -145,11 +211,13 @@ def _sweep(model, solver, state0, controls, loss, names, k, regions) -> RolloutG
     tail = [state0]  # the states since the last checkpoint: the last segment, not recomputed
     for n in range(n_steps):
         state = solver.step(state, DirectControl(controls[n].copy()))
+        tape.record(n)
         stage_values.append(loss.stage(n + 1, state, controls[n]).value)
         tail.append(state)
         if (n + 1) % k == 0 and n + 1 < n_steps:
             checkpoints[n + 1] = state.copy()
             tail = [checkpoints[n + 1]]
+            tape.clear()
     final = state
     steps = n_steps
     n_nodes = model.body.n_nodes
@@ -163,12 +231,15 @@ def _sweep(model, solver, state0, controls, loss, names, k, regions) -> RolloutG
         segment, tail = (tail, None) if tail is not None else ([checkpoints[start]], None)
         for n in range(start + len(segment) - 1, stop):
             segment.append(solver.step(segment[-1], DirectControl(controls[n].copy())))
+            tape.record(n)
             steps += 1
         held = max(held, len(checkpoints) + len(segment))
         for n in range(stop - 1, start - 1, -1):
             new = segment[n + 1 - start]
             _add_stage(loss.stage(n + 1, new, controls[n]), dq, dv, control_grad, n)
-            adjoint = StepAdjoint(model, solver.dt, segment[n - start], controls[n], new)
+            adjoint = StepAdjoint(
+                model, solver.dt, segment[n - start], controls[n], new, **tape.take(n)
+            )
             out = adjoint.vjp(dq, dv, tuple(names))
             dq, dv = out.pop("positions"), out.pop("velocities")
             for name, value in out.items():

@@ -30,19 +30,21 @@ vbar = dL/dv' + h dL/dq', the adjoint mu = (mu_v, mu_l) solves dF/dy^T mu = (vba
 
 * v:  dF1/dv = -A + a_k K_s + (a_m - 1) M = -M, so vbar_in = M mu_v.
 * q:  qbar_in = dL/dq' - grad_q [a_k mu_v.K_s(q) v' - h mu_v.f(q) - h lambda.H(q) mu_v
-  + h mu_l.H_d(q) v' + mu_l.delta_d(q)]. The element part is differentiated by complex
-  step on each element's 12 coordinates (:mod:`pliant.diff.elements`, exact to round-off);
+  + h mu_l.H_d(q) v' + mu_l.delta_d(q)]. The element part is differentiated in reverse
+  mode per element for the corotational laws (:mod:`pliant.diff.kernels`), by complex step
+  on each element's 12 coordinates for the others (:mod:`pliant.diff.elements`), exact to
+  round-off either way;
   grad_q (c.H(q) w) = (sum_r c_r Hess delta_r) w, one directional derivative of H^T c along
-  w (the rows are gradients: delta_r's Hessian is symmetric), by a fourth-order central
-  difference; grad_q mu_l.delta_d = H_d^T mu_l.
+  w (the rows are gradients: delta_r's Hessian is symmetric): in closed form for cables,
+  by a fourth-order central difference for other rows; grad_q mu_l.delta_d = H_d^T mu_l.
 * commands: a force row's command enters as lambda_f: h H_f mu_v; an equality row's
   displacement command as t_d: mu_l (zero where the command was clipped to its course).
   A target clipped to the rate bound t_d = delta_d(q) + c (``max_displacement_change``
   measured from the step's start) follows q: delta_d cancels from F2, and so does its
   H_d^T mu_l.
 * mu_e, lam_e (Lamé parameters, per element): f and K_s are linear in them, so
-  -mu_v.(a_k K_s^e v' - h f^e) evaluated with unit parameters (the compiled kernels); E and
-  nu by the chain rule.
+  -mu_v.(a_k K_s^e v' - h f^e) evaluated with unit parameters (the corotational laws' two
+  parts come out of the same reverse pass); E and nu by the chain rule.
 * alpha: dF1/dalpha = h M v'; beta: dF1/dbeta = h K_s v'.
 * density rho (M and g scale with it): dF1/drho = (a_m M v' - M v - h g) / rho.
 * a constant nodal force f_ext: h mu_v.
@@ -65,11 +67,14 @@ the "lagged" policy is refused (its A is an earlier step's, not a function of th
 
 from __future__ import annotations
 
+import weakref
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 
 from pliant.constraints.base import actuator_bounds, change_reference
+from pliant.constraints.cable import CableActuator, CableBundle
 from pliant.diff.contact import held_contacts
 from pliant.diff.elements import (
     body_shape,
@@ -80,15 +85,15 @@ from pliant.diff.elements import (
     nodal_sum,
     rest_shape,
 )
-from pliant.diff.kernels import corotational_value_gradient
+from pliant.diff.kernels import corotational_adjoint_terms
 from pliant.diff.routing import routing_gradient
 from pliant.errors import ModelError
 from pliant.fem import kernels as fem_kernels
-from pliant.fem.body import TetBody
+from pliant.fem.body import PARALLEL_MIN_TETS, Linearisation, TetBody
 from pliant.fem.loads import NodalForces
 from pliant.fem.material import NEO_HOOKEAN
 from pliant.model import Model, State
-from pliant.solvers.linear import sparse_cholesky
+from pliant.solvers.linear import SparseCholesky, sparse_cholesky
 
 #: What a step's adjoint can differentiate besides the state it starts from.
 PARAMETERS = (
@@ -214,13 +219,45 @@ def full_rows_t(model: Model, x: np.ndarray, coefficients: np.ndarray) -> np.nda
 def row_hessian_product(
     model: Model, x: np.ndarray, coefficients: np.ndarray, direction: np.ndarray
 ) -> np.ndarray:
-    """(sum_r c_r Hess delta_r(x)) d (n, 3): the derivative of H(x)^T c along d."""
+    """(sum_r c_r Hess delta_r(x)) d (n, 3): the derivative of H(x)^T c along d. Cables in
+    closed form (their bundle's geometric stiffness: Hess delta = -Hess L, whose segment
+    blocks are (I - u u^T) / l), other rows by a fourth-order central difference."""
+    out = np.zeros_like(x)
+    coefficients = np.asarray(coefficients, dtype=float)
     size = float(np.max(np.abs(direction)))
     if size == 0.0 or not np.any(coefficients):
-        return np.zeros_like(x)
-    eps = _ROW_STEP * model.body.extent / size
-    at = [full_rows_t(model, x + k * eps * direction, coefficients) for k in (-2, -1, 1, 2)]
-    return (at[0] - 8.0 * at[1] + 8.0 * at[2] - at[3]) / (12.0 * eps)
+        return out
+    cables, bundle, pairs = _cables(model)
+    if cables.size and np.any(coefficients[cables]):
+        blocks = bundle.geometric_stiffness(x, coefficients[cables])
+        product = np.einsum("eij,ej->ei", blocks, direction[pairs[1]])
+        for i in range(3):  # bincount: the pairs repeat nodes, np.add.at is slow at it
+            out[:, i] -= np.bincount(pairs[0], weights=product[:, i], minlength=out.shape[0])
+    others = np.where(np.isin(np.arange(coefficients.size), cables), 0.0, coefficients)
+    if np.any(others):
+        eps = _ROW_STEP * model.body.extent / size
+        at = [full_rows_t(model, x + k * eps * direction, others) for k in (-2, -1, 1, 2)]
+        out += (at[0] - 8.0 * at[1] + 8.0 * at[2] - at[3]) / (12.0 * eps)
+    return out
+
+
+_CABLES: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
+def _cables(model: Model) -> tuple[np.ndarray, CableBundle | None, tuple | None]:
+    """The model's cable actuators (indices), their bundle and its node pairs; cached while
+    the cables and their points are the same objects (a design step may replace them)."""
+    index = [i for i, a in enumerate(model.actuators) if isinstance(a, CableActuator)]
+    key = tuple(
+        (id(a), id(a.points), id(a.points.weights), id(a.pull_point))
+        for a in (model.actuators[i] for i in index)
+    )
+    cached = _CABLES.get(model)
+    if cached is None or cached[0] != key:
+        bundle = CableBundle([model.actuators[i] for i in index]) if index else None
+        pairs = bundle.geometric_pairs() if bundle is not None else None
+        cached = _CABLES[model] = (key, np.array(index, dtype=np.int64), bundle, pairs)
+    return cached[1:]
 
 
 def lame_to_young_poisson(mu: np.ndarray, lam: np.ndarray, mu_bar, lam_bar):
@@ -244,10 +281,25 @@ class StepAdjoint:
         state: the state the step started from.
         commands: the actuator commands of the step (in the actuators' modes).
         new: the state the step returned.
+        linearisation: the body linearised at `state` with its velocities, when the forward
+            step's is at hand (``solver.system.lin`` after the step); else computed.
+        factor: A factorised, when the forward step's is at hand
+            (``solver.system.hand_over()`` after a "fresh" step); else A is factorised, into
+            `workspace` when given (a factorisation object of the body's pattern, reused
+            across steps) or a new one.
     """
 
     def __init__(
-        self, model: Model, dt: float, state: State, commands: np.ndarray, new: State
+        self,
+        model: Model,
+        dt: float,
+        state: State,
+        commands: np.ndarray,
+        new: State,
+        *,
+        linearisation: Linearisation | None = None,
+        factor: SparseCholesky | None = None,
+        workspace: SparseCholesky | None = None,
     ) -> None:
         body = model.body
         self.model, self.h = model, float(dt)
@@ -258,10 +310,12 @@ class StepAdjoint:
         h = self.h
         self.a_m = 1.0 + h * body.rayleigh_mass
         self.a_k = h * body.rayleigh_stiffness + h * h
-        self.lin = body.linearise(self.q, self.v, time=state.time)
-        data = self.a_k * body.stiffness_data(self.lin) + self.a_m * body.mass_data
-        self.factor = sparse_cholesky(body.pattern.indptr, body.pattern.indices)
-        self.factor.factorize(data)
+        self.lin = linearisation or body.linearise(self.q, self.v, time=state.time)
+        if factor is None:
+            data = self.a_k * body.stiffness_data(self.lin) + self.a_m * body.mass_data
+            factor = workspace or sparse_cholesky(body.pattern.indptr, body.pattern.indices)
+            factor.factorize(data)
+        self.factor = factor
         space = model.constraint_space(self.q, roles=("actuator",))
         self.ht = space.jacobian_t[:, space.slices["actuator"]]
         self.contacts = held_contacts(model, self.h, state, new)
@@ -278,6 +332,7 @@ class StepAdjoint:
         shape of the model's contacts)."""
         model, body, h = self.model, self.model.body, self.h
         self._lame = None  # this cotangent's (E, nu) shares, computed once for both
+        self._unit = None  # the corotational kernel's unit-law terms (m, 2), when it ran
         d = self.rows.equality
         vbar = body.gather(dv_new) + h * body.gather(dq_new)
         # Equality rows: what they hold (K^T) and how they push (G^T); the held contacts'
@@ -359,29 +414,41 @@ class StepAdjoint:
         return out
 
     def _element_gradient(self, mu_full, v_full, shape, local) -> np.ndarray:
-        """grad_q of sum_e mu_e.(a_k K_s(q) v' - h f(q)) per element corner (m, 4, 3), by
-        complex step: compiled for the corotational laws, the NumPy reference otherwise."""
+        """grad_q of sum_e mu_e.(a_k K_s(q) v' - h f(q)) per element corner (m, 4, 3): in
+        reverse mode, compiled, for the corotational laws (with the unit-law terms, kept for
+        E and nu), by complex step on the NumPy reference otherwise."""
         body, h = self.model.body, self.h
         tag = body.material.kernel_tag
         if tag != NEO_HOOKEAN:
-            out = np.empty((body.n_elements, 4, 3))
-            frames = np.empty((0, 3), np.int64) if local is None else local.astype(np.int64)
-            corotational_value_gradient(
-                self.q,
-                v_full,
-                mu_full,
-                body.tets,
-                body.grads,
-                body.volumes,
-                body.mu,
-                body.lam,
-                tag,
-                frames,
-                body.rest_frames,
-                self.a_k,
-                h,
-                out,
-            )
+            m = body.n_elements
+            out, self._unit = np.empty((m, 4, 3)), np.empty((m, 2))
+            frames = np.zeros((m, 3), np.int64) if local is None else local.astype(np.int64)
+            # One thread below the size where the body's own kernels wake the others.
+            saved = numba.get_num_threads()
+            if m < PARALLEL_MIN_TETS:
+                numba.set_num_threads(1)
+            try:
+                corotational_adjoint_terms(
+                    self.q,
+                    v_full,
+                    mu_full,
+                    body.tets,
+                    body.grads,
+                    body.volumes,
+                    body.mu,
+                    body.lam,
+                    tag,
+                    frames,
+                    body.rest_frames,
+                    self.lin.frames,
+                    self.lin.dets,
+                    self.a_k,
+                    h,
+                    out,
+                    self._unit,
+                )
+            finally:
+                numba.set_num_threads(saved)
             return out
         mu_e, v_e = mu_full[body.tets], v_full[body.tets]
 
@@ -400,9 +467,12 @@ class StepAdjoint:
             return np.where(self.rows.command_enters, ctrl, 0.0)
         if name in ("young_modulus", "poisson_ratio"):
             if self._lame is None:
-                self._lame = lame_to_young_poisson(
-                    body.mu, body.lam, *self._unit_law_terms(body.scatter(v_new), mu_e)
+                unit = (
+                    self._unit.T
+                    if self._unit is not None
+                    else self._unit_law_terms(body.scatter(v_new), mu_e)
                 )
+                self._lame = lame_to_young_poisson(body.mu, body.lam, *unit)
             return self._lame[0] if name == "young_modulus" else self._lame[1]
         if name == "rayleigh_mass":
             return float(-h * mu_v @ body.mass_matvec(v_new))

@@ -11,6 +11,8 @@ module needs it.
 
 from __future__ import annotations
 
+import weakref
+
 import numpy as np
 import torch
 
@@ -18,7 +20,13 @@ from pliant.constraints.base import EmbeddedPoints
 from pliant.constraints.control import DirectControl
 from pliant.diff.losses import StateCotangents
 from pliant.diff.parameters import set_parameters
-from pliant.diff.rollout import check_controls, rollout_gradient
+from pliant.diff.rollout import (
+    check_controls,
+    check_solver,
+    recycle_factorisation,
+    rollout_gradient,
+    take_factorisation,
+)
 from pliant.diff.step import StepAdjoint, check_model
 from pliant.errors import ModelError
 from pliant.model import Model, State
@@ -34,13 +42,20 @@ def _numpy(t: torch.Tensor) -> np.ndarray:
 
 class _Step(torch.autograd.Function):
     @staticmethod
-    def forward(ctx, positions, velocities, commands, model, solver, state):
+    def forward(ctx, positions, velocities, commands, model, solver, state, states):
         start = state.copy()
         start.positions, start.velocities = _numpy(positions), _numpy(velocities)
         c = _numpy(commands)
         new = solver.step(start, DirectControl(c.copy()))
-        ctx.adjoint = StepAdjoint(model, solver.dt, start, c, new)
-        ctx.new = new
+        # The step's own linearisation and factorisation serve its adjoint; the factorisation
+        # goes back to the solver when the graph lets the adjoint go.
+        factor = take_factorisation(solver)
+        ctx.adjoint = StepAdjoint(
+            model, solver.dt, start, c, new, linearisation=solver.system.lin, factor=factor
+        )
+        weakref.finalize(ctx.adjoint, recycle_factorisation, solver, factor)
+        if states is not None:
+            states.append(new)
         like = dict(dtype=torch.float64, device=positions.device)
         return torch.as_tensor(new.positions, **like), torch.as_tensor(new.velocities, **like)
 
@@ -55,6 +70,7 @@ class _Step(torch.autograd.Function):
             None,
             None,
             None,
+            None,
         )
 
 
@@ -65,16 +81,20 @@ def step(
     commands: torch.Tensor,
     positions: torch.Tensor | None = None,
     velocities: torch.Tensor | None = None,
+    *,
+    states: list[State] | None = None,
 ) -> tuple[torch.Tensor, torch.Tensor]:
     """One step from `state` (its positions and velocities replaced by the tensors, when
     given) under `commands` (n_a,): the new positions and velocities (n, 3), differentiable
     with respect to the three tensors. The solver is the model's ImplicitEuler with
-    ``tangent="fresh"``."""
+    ``tangent="fresh"``. With `states`, the State the step returned is appended to it (the
+    next step's start: its time, actuator forces and displacements)."""
     check_model(model)
+    check_solver(model, solver)
     like = dict(dtype=torch.float64)
     q = torch.as_tensor(state.positions, **like) if positions is None else positions
     v = torch.as_tensor(state.velocities, **like) if velocities is None else velocities
-    return _Step.apply(q, v, commands, model, solver, state)
+    return _Step.apply(q, v, commands, model, solver, state, states)
 
 
 class _Rollout(torch.autograd.Function):

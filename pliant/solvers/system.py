@@ -140,6 +140,16 @@ class LinearisedSystem:
         if needs:
             self.refactorise(background=background)
 
+    def hand_over(self, replacement: SparseCholesky | None = None) -> SparseCholesky | None:
+        """The current factorisation, detached from the system so that it stays valid for
+        solves (an adjoint reuses a step's: :mod:`pliant.diff.rollout`); the next one is
+        factorised into `replacement` (an earlier one handed over, of the same pattern: no
+        new symbolic analysis) or a new one."""
+        self._wait()
+        factor, self._cholesky = self._cholesky, replacement
+        self._factor_valid = False
+        return factor
+
     def refactorise(self, *, background: bool = False) -> None:
         self._wait()
         self._factor_valid = False

@@ -9,6 +9,8 @@ of displacements (not positions) to keep that round-off small.
 
 from __future__ import annotations
 
+import importlib
+
 import numpy as np
 import pytest
 
@@ -446,8 +448,10 @@ def test_a_rate_limited_cable_follows_the_state():
 
 @pytest.mark.parametrize("law", ["polar", "large"])
 def test_compiled_element_gradient_matches_the_numpy_reference(law):
+    """The reverse-mode kernel's gradient against complex step on the NumPy reference, and
+    its unit-law terms (phi's parts linear in mu and lam) against the reference's value."""
     from pliant.diff.elements import complex_step_gradient
-    from pliant.diff.kernels import corotational_value_gradient
+    from pliant.diff.kernels import corotational_adjoint_terms
 
     body = beam(law=law).body
     rng = np.random.default_rng(7)
@@ -455,31 +459,27 @@ def test_compiled_element_gradient_matches_the_numpy_reference(law):
     w, c = rng.standard_normal(x.shape), rng.standard_normal(x.shape)
     local = frame_local_nodes(body)
     a_k, h = 0.02, 0.01
+    m = body.n_elements
 
-    def value(xe):
-        f, kw = element_terms(body, xe, w[body.tets], body_shape(body), local, body.mu, body.lam)
+    def value(xe, mu=body.mu, lam=body.lam):
+        f, kw = element_terms(body, xe, w[body.tets], body_shape(body), local, mu, lam)
         return np.einsum("...mai,mai->...m", a_k * kw - h * f, c[body.tets])
 
     reference = complex_step_gradient(value, x[body.tets])
-    out = np.empty_like(reference)
-    frames = np.empty((0, 3), np.int64) if local is None else local.astype(np.int64)
-    corotational_value_gradient(
-        x,
-        w,
-        c,
-        body.tets,
-        body.grads,
-        body.volumes,
-        body.mu,
-        body.lam,
-        body.material.kernel_tag,
-        frames,
-        body.rest_frames,
-        a_k,
-        h,
-        out,
-    )
-    assert np.abs(out - reference).max() < 1e-11 * np.abs(reference).max()
+    lin = body.linearise(x)
+    out, unit = np.empty_like(reference), np.empty((m, 2))
+    frames = np.zeros((m, 3), np.int64) if local is None else local.astype(np.int64)
+    corotational_adjoint_terms(
+        x, w, c, body.tets, body.grads, body.volumes, body.mu, body.lam,
+        body.material.kernel_tag, frames, body.rest_frames, lin.frames, lin.dets, a_k, h,
+        out, unit,
+    )  # fmt: skip
+    assert np.abs(out - reference).max() < 1e-10 * np.abs(reference).max()
+    active = lin.dets > 0.0
+    ones, zeros = np.ones(m), np.zeros(m)
+    for k, (mu, lam) in enumerate(((ones, zeros), (zeros, ones))):
+        expected = np.where(active, -value(x[body.tets], mu, lam), 0.0)
+        assert np.allclose(unit[:, k], expected, rtol=1e-10, atol=1e-12 * np.abs(expected).max())
 
 
 def test_young_modulus_per_region_against_finite_differences():
@@ -568,3 +568,24 @@ def test_finger_static_gradient_against_finite_differences():
         moved.append(solve(commands)[2])
     set_parameters(model, young_modulus=3000.0)
     assert relative_error((moved[0] - moved[1]) / 0.6, grads["young_modulus"]) < TOL
+
+
+@pytest.mark.parametrize("kept", [0, 2])
+def test_gradient_with_few_or_no_factorisations_kept_is_the_same(monkeypatch, kept):
+    """Where the forward steps' factorisations do not all fit (KEEP_FACTORS_BYTES), the
+    adjoints of the earlier steps refactorise: the same gradient to round-off."""
+    # the module (pliant.diff's own name "rollout" is the function)
+    rollout_module = importlib.import_module("pliant.diff.rollout")
+
+    n_steps = 5
+    model = beam()
+    loss = _tip_loss(model, n_steps)
+    controls = np.column_stack([np.linspace(0.2, 1.0, n_steps), np.full(n_steps, 5.0)])
+    solver = ImplicitEuler(model, DT, tangent="fresh")
+    wrt = ("controls", "young_modulus")
+    every = rollout_gradient(model, solver, model.rest_state(), controls, loss, wrt=wrt)
+    factor_bytes = 4 * 8 * model.body.pattern.indices.size
+    monkeypatch.setattr(rollout_module, "KEEP_FACTORS_BYTES", kept * factor_bytes)
+    few = rollout_gradient(model, solver, model.rest_state(), controls, loss, wrt=wrt)
+    for name in ("controls", "young_modulus", "initial_positions"):
+        assert np.allclose(few.gradients[name], every.gradients[name], rtol=1e-10, atol=1e-14)
