@@ -6,7 +6,7 @@ are ours, chosen so that the goals are reachable within the bounds.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -31,103 +31,68 @@ class Scenario:
     controls: np.ndarray  # (n_goals, n_a) forces that hold each goal (how it was made)
 
 
+@dataclass(frozen=True)
+class Tracking:
+    """What a goal-tracking scenario is made of, beside its robot: the time step and the
+    horizon (steps), the force bounds 0 <= u <= max_force (mN) and |u_k - u_{k-1}| <=
+    max_change (mN per step), the tracking cost's weights, and how long (s) each hold is
+    applied to make its goal."""
+
+    dt: float = 0.02
+    horizon: int = 100
+    max_force: float = 1500.0
+    max_change: float = 40.0
+    position_weight: float = 1.0
+    velocity_weight: float = 1e-3
+    control_weight: float = 1e-6
+    settle: float = 3.0
+
+
 def diamond_two_goals(
-    *,
-    mesh_size: float = 20.0,
-    dt: float = 0.02,
-    horizon: int = 100,
-    nonlinear: bool = False,
-    lift: str = "pseudo-inverse",
-    max_force: float = 1500.0,
-    max_change: float = 40.0,
-    position_weight: float = 1.0,
-    velocity_weight: float = 1e-3,
-    control_weight: float = 1e-6,
-    settle: float = 3.0,
+    *, mesh_size: float = 20.0, nonlinear: bool = False, lift: str = "pseudo-inverse", **task
 ) -> Scenario:
     """The Diamond's effector to two successive goals (Fig. 5.20), one per half horizon.
 
     The robot starts at its static equilibrium under gravity with slack cables; each goal is
     where the effector is after `settle` seconds under constant cable tensions (600, 0, 0, 200) and
-    (0, 500, 400, 0) mN, so both are reachable within the bounds 0 <= u <= max_force (mN),
-    |u_k - u_{k-1}| <= max_change (mN per step)."""
+    (0, 500, 400, 0) mN, so both are reachable within the bounds. `task`: the fields of
+    :class:`Tracking` (defaults: its own)."""
     return _two_goals(
         "diamond",
         robots.diamond(mesh_size=mesh_size),
         np.array([[600.0, 0.0, 0.0, 200.0], [0.0, 500.0, 400.0, 0.0]]),
-        dt=dt,
-        horizon=horizon,
+        replace(Tracking(), **task),
         nonlinear=nonlinear,
         lift=lift,
-        max_force=max_force,
-        max_change=max_change,
-        position_weight=position_weight,
-        velocity_weight=velocity_weight,
-        control_weight=control_weight,
-        settle=settle,
     )
 
 
-def finger_two_goals(
-    *,
-    resolution: str = "coarse",
-    dt: float = 0.02,
-    horizon: int = 100,
-    max_force: float = 3000.0,
-    max_change: float = 100.0,
-    position_weight: float = 1.0,
-    velocity_weight: float = 1e-3,
-    control_weight: float = 1e-6,
-    settle: float = 3.0,
-) -> Scenario:
+def finger_two_goals(*, resolution: str = "coarse", **task) -> Scenario:
     """The Finger's tip to two successive goals, one per half horizon: where it is after
     `settle` seconds under cable tensions (1200, 0) mN (closing, cable 0) and (0, 1000) mN
-    (opening up, cable 1), from its equilibrium under gravity with slack cables. Tensions
-    0 <= u <= max_force (mN), |u_k - u_{k-1}| <= max_change (mN per step)."""
+    (opening up, cable 1), from its equilibrium under gravity with slack cables. `task`: the
+    fields of :class:`Tracking` (defaults: its own, but max_force 3000 mN and max_change
+    100 mN per step)."""
     return _two_goals(
         "finger",
         robots.build("finger", resolution=resolution),
         np.array([[1200.0, 0.0], [0.0, 1000.0]]),
-        dt=dt,
-        horizon=horizon,
-        max_force=max_force,
-        max_change=max_change,
-        position_weight=position_weight,
-        velocity_weight=velocity_weight,
-        control_weight=control_weight,
-        settle=settle,
+        replace(Tracking(max_force=3000.0, max_change=100.0), **task),
     )
 
 
-def trunk_reach(
-    *,
-    mesh_size: float = 5.2,
-    dt: float = 0.02,
-    horizon: int = 50,
-    max_force: float = 1500.0,
-    max_change: float = 100.0,
-    position_weight: float = 1.0,
-    velocity_weight: float = 1e-3,
-    control_weight: float = 1e-6,
-    settle: float = 2.0,
-) -> Scenario:
+def trunk_reach(*, mesh_size: float = 5.2, **task) -> Scenario:
     """The Trunk's tip to one goal (reaching) over the horizon: where it is after `settle`
     seconds under cable tensions (1000, 0, 0, 600, 0, 0, 0, 0) mN (two long cables: up and
     sideways, about 30 mm from where it hangs), from its equilibrium under gravity with slack
-    cables. Tensions 0 <= u <= max_force (mN), |u_k - u_{k-1}| <= max_change (mN per step).
-    `mesh_size` 8 gives a coarse Trunk (712 tetrahedra) for quick runs."""
+    cables. `task`: the fields of :class:`Tracking` (defaults: its own, but horizon 50,
+    max_change 100 mN per step and settle 2 s). `mesh_size` 8 gives a coarse Trunk (712
+    tetrahedra) for quick runs."""
     return _two_goals(
         "trunk",
         robots.trunk(mesh_size=mesh_size, cable_mode="force"),
         np.array([[1000.0, 0.0, 0.0, 600.0, 0.0, 0.0, 0.0, 0.0]]),
-        dt=dt,
-        horizon=horizon,
-        max_force=max_force,
-        max_change=max_change,
-        position_weight=position_weight,
-        velocity_weight=velocity_weight,
-        control_weight=control_weight,
-        settle=settle,
+        replace(Tracking(horizon=50, max_change=100.0, settle=2.0), **task),
     )
 
 
@@ -135,25 +100,19 @@ def _two_goals(
     name: str,
     model: Model,
     holds: np.ndarray,
+    task: Tracking,
     *,
-    dt: float,
-    horizon: int,
-    max_force: float,
-    max_change: float,
-    position_weight: float,
-    velocity_weight: float,
-    control_weight: float,
-    settle: float,
     nonlinear: bool = False,
     lift: str = "pseudo-inverse",
 ) -> Scenario:
-    """Two goals, each where the effector is after `settle` seconds under a row of `holds`
-    from the static equilibrium with no actuation (reachable by construction); one row of
-    `holds` makes one goal for the whole horizon."""
+    """Two goals, each where the effector is after `task.settle` seconds under a row of
+    `holds` from the static equilibrium with no actuation (reachable by construction); one row
+    of `holds` makes one goal for the whole horizon."""
+    dt, horizon = task.dt, task.horizon
     n_a = model.n_actuators
     start = StaticSolver(model).step(model.rest_state(), ForceControl(np.zeros(n_a)))
     dyn = CondensedDynamics(model, dt, nonlinear=nonlinear, lift=lift)
-    steps = max(1, round(settle / dt))
+    steps = max(1, round(task.settle / dt))
     m = dyn.n_positions
     targets = [dyn.rollout(start, np.tile(u, (steps, 1))).xs[-1, :m] for u in holds]
     goals = np.empty((horizon + 1, m))
@@ -163,14 +122,14 @@ def _two_goals(
     cost = tracking_cost(
         goals,
         n_controls=n_a,
-        position_weight=position_weight,
-        velocity_weight=velocity_weight,
-        control_weight=control_weight,
+        position_weight=task.position_weight,
+        velocity_weight=task.velocity_weight,
+        control_weight=task.control_weight,
     )
     bounds = ActuationBounds(
         np.zeros(n_a),
-        np.full(n_a, max_force),
-        max_change=np.full(n_a, max_change),
+        np.full(n_a, task.max_force),
+        max_change=np.full(n_a, task.max_change),
         previous=np.zeros(n_a),
     )
     return Scenario(name, model, dyn, start, cost, bounds, goals, holds)
