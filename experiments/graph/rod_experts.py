@@ -34,10 +34,9 @@ from pliant.learn.graph.scenes import make_scene  # noqa: E402
 def replay(folder: Path) -> dict:
     """One greedy episode of a trained run (graph or plain SAC) on its scene (the 280° goal):
     the Evaluator's choices, the rod's angle after every step."""
-    from cartstem import CONFIGS, ENV_SETTINGS  # this folder is on sys.path
-
     from pliant.learn.graph import GraphConfig
     from pliant.learn.graph.cli import build_learner
+    from pliant.learn.graph.settings import CONFIGS, ENV_SETTINGS
 
     scene = make_scene("RodManipulator", **ENV_SETTINGS["RodManipulator"])
     meta = json.loads((folder / "history.json").read_text())

@@ -32,17 +32,17 @@ import json
 from pathlib import Path
 
 import torch
-from cartstem import (  # this folder is on sys.path
-    ENV_SETTINGS,
-    add_evaluator_options,
-    agent_config,
-    run_label,
-)
 
 from pliant.learn.graph import GraphConfig
 from pliant.learn.graph.cli import build_learner, train_run
 from pliant.learn.graph.hierarchy import episode_means
 from pliant.learn.graph.scenes import make_scene
+from pliant.learn.graph.settings import (
+    ENV_SETTINGS,
+    add_evaluator_options,
+    agent_config,
+    run_label,
+)
 
 
 def greedy_episodes(agent, env, episodes: int, seed: int = 10_000) -> tuple[dict, list[dict]]:

@@ -99,7 +99,7 @@ STUDIES: tuple[Study, ...] = (
         command=(
             "pliant train pliant/ReducedMultigait-v0 --algo PPO --config"
             " pliant/learn/configs/Multigait.yaml --out runs/table_3_2_ppo --seed 0"
-            " && python experiments/reduction_table_3_2.py --run runs/table_3_2_ppo"
+            " && python experiments/reduction/table_3_2.py --run runs/table_3_2_ppo"
         ),
         docs="docs/reduction.md",
         figures=(
@@ -173,7 +173,7 @@ STUDIES: tuple[Study, ...] = (
             " --bc-epochs 1000 --learning-rate 3e-5 --target-kl 0.02 --tag 1e5"
             " && python experiments/rl/trunk_debris_ppo.py"
         ),
-        docs="docs/learning.md",
+        docs="docs/studies/learning.md",
         figures=(
             Figure(
                 "behaviour cloning then PPO (1e5 steps), catchable placements, success",
@@ -188,7 +188,7 @@ STUDIES: tuple[Study, ...] = (
                 " and 40 mm cubes), the tests drawn like the training's; behaviour cloning of a"
                 " planner's program first; one training seed",
                 fmt="{:.2f}",
-                docs="docs/learning.md",
+                docs="docs/studies/learning.md",
             ),
             Figure(
                 "PPO (1e5 steps), the environment's own draw, success",
@@ -202,7 +202,7 @@ STUDIES: tuple[Study, ...] = (
                 departure="the environment's default draw (z 110-160 mm, 20-40 mm cubes) holds"
                 " no placement any program found catches",
                 fmt="{:.2f}",
-                docs="docs/learning.md",
+                docs="docs/studies/learning.md",
             ),
         ),
         no_quick="its figure is 400 tests of a policy cloned from 40 planner episodes then"
@@ -214,7 +214,7 @@ STUDIES: tuple[Study, ...] = (
         thesis="§3.3.2",
         title="CartStemContact solved by SAC (MLP 3 x 512)",
         command="python experiments/rl/cartstem_sac.py --steps 200000 --stop-at 0.9",
-        docs="docs/learning.md",
+        docs="docs/studies/learning.md",
         figures=(
             Figure(
                 "steps to the policy that solves the task",
@@ -228,7 +228,7 @@ STUDIES: tuple[Study, ...] = (
                 " SofaGym's 30 cm); the checkpoint is chosen by the evaluation it is reported"
                 " on; the run is partial (SAC collapsed after 68k steps)",
                 fmt="{:,.0f}",
-                docs="docs/learning.md",
+                docs="docs/studies/learning.md",
             ),
             Figure(
                 "that policy on 100 goals, sampled actions, success",
@@ -240,7 +240,7 @@ STUDIES: tuple[Study, ...] = (
                 tolerance=0.1,
                 scale=100.0,
                 fmt="{:.0f}",
-                docs="docs/learning.md",
+                docs="docs/studies/learning.md",
             ),
             Figure(
                 "that policy on 100 goals, mean actions, success",
@@ -252,7 +252,7 @@ STUDIES: tuple[Study, ...] = (
                 tolerance=0.1,
                 scale=100.0,
                 fmt="{:.0f}",
-                docs="docs/learning.md",
+                docs="docs/studies/learning.md",
             ),
         ),
         no_quick="its figures are the best policy's 100-goal evaluations (400 episodes of up to"
@@ -264,11 +264,11 @@ STUDIES: tuple[Study, ...] = (
         thesis="Table 4.1",
         title="Real-time factor at dt = 0.01 s: FEM, reduced model and beam-skeleton proxy",
         command=(
-            "python experiments/proxy_speed.py --out experiments/results/proxy_speed_nolag.json"
-            " && python experiments/proxy_speed.py --reference"
+            "python experiments/proxy/speed.py --out experiments/results/proxy_speed_nolag.json"
+            " && python experiments/proxy/speed.py --reference"
             " --out experiments/results/proxy_speed_reference.json"
         ),
-        docs="docs/proxy.md",
+        docs="docs/studies/proxy-calibration.md",
         figures=(
             Figure(
                 "Trunk FEM (and cube)",
@@ -280,7 +280,7 @@ STUDIES: tuple[Study, ...] = (
                 tolerance=0.5,
                 departure="Pliant's Trunk mesh (8 mm); " + _LOADED,
                 fmt="{:.1f}",
-                docs="docs/proxy.md",
+                docs="docs/studies/proxy-calibration.md",
             ),
             Figure(
                 "Trunk proxy",
@@ -291,7 +291,7 @@ STUDIES: tuple[Study, ...] = (
                 better="higher",
                 tolerance=0.5,
                 fmt="{:.1f}",
-                docs="docs/proxy.md",
+                docs="docs/studies/proxy-calibration.md",
             ),
             Figure(
                 "Multigait FEM (SoftRobots' mesh, 15787 nodes)",
@@ -302,7 +302,7 @@ STUDIES: tuple[Study, ...] = (
                 better="higher",
                 tolerance=0.5,
                 fmt="{:.3f}",
-                docs="docs/proxy.md",
+                docs="docs/studies/proxy-calibration.md",
             ),
             Figure(
                 "Multigait reduced model (31 modes)",
@@ -313,7 +313,7 @@ STUDIES: tuple[Study, ...] = (
                 better="higher",
                 tolerance=0.5,
                 fmt="{:.1f}",
-                docs="docs/proxy.md",
+                docs="docs/studies/proxy-calibration.md",
             ),
             Figure(
                 "Multigait proxy",
@@ -324,11 +324,11 @@ STUDIES: tuple[Study, ...] = (
                 better="higher",
                 tolerance=0.5,
                 fmt="{:.1f}",
-                docs="docs/proxy.md",
+                docs="docs/studies/proxy-calibration.md",
             ),
         ),
         quick=Quick(
-            "python experiments/proxy_speed.py --steps 3 --cases trunk_fem trunk_proxy"
+            "python experiments/proxy/speed.py --steps 3 --cases trunk_fem trunk_proxy"
             " --out {out}/proxy_speed.json",
             {_SPEED: "proxy_speed.json"},
             seconds=22.0,
@@ -342,7 +342,7 @@ STUDIES: tuple[Study, ...] = (
             "pliant proxy calibrate multigait --out experiments/proxy/round1"
             " && pliant proxy calibrate trunk --out experiments/proxy"
         ),
-        docs="docs/proxy.md",
+        docs="docs/studies/proxy-calibration.md",
         figures=(
             Figure(
                 "Multigait, optimisation positions",
@@ -355,7 +355,7 @@ STUDIES: tuple[Study, ...] = (
                 departure="fitted on Pliant's FEM Multigait walking its hand gait (the thesis:"
                 " SOFA, 16 patterns it does not list)",
                 fmt="{:.2f}",
-                docs="docs/proxy.md",
+                docs="docs/studies/proxy-calibration.md",
             ),
             Figure(
                 "Multigait, validation positions",
@@ -366,7 +366,7 @@ STUDIES: tuple[Study, ...] = (
                 better="lower",
                 tolerance=0.05,
                 fmt="{:.2f}",
-                docs="docs/proxy.md",
+                docs="docs/studies/proxy-calibration.md",
             ),
             Figure(
                 "Trunk, optimisation positions",
@@ -379,7 +379,7 @@ STUDIES: tuple[Study, ...] = (
                 departure="four cable phases of our choosing; the cables mapped linearly to"
                 " the beams' bendings",
                 fmt="{:.2f}",
-                docs="docs/proxy.md",
+                docs="docs/studies/proxy-calibration.md",
             ),
             Figure(
                 "Trunk, validation positions",
@@ -390,7 +390,7 @@ STUDIES: tuple[Study, ...] = (
                 better="lower",
                 tolerance=0.05,
                 fmt="{:.2f}",
-                docs="docs/proxy.md",
+                docs="docs/studies/proxy-calibration.md",
             ),
             Figure(
                 "Trunk, actions it was not fitted on",
@@ -402,7 +402,7 @@ STUDIES: tuple[Study, ...] = (
                 tolerance=0.05,
                 departure="the thesis validates on its own trajectory's intermediate positions",
                 fmt="{:.2f}",
-                docs="docs/proxy.md",
+                docs="docs/studies/proxy-calibration.md",
             ),
         ),
         quick=Quick(
@@ -421,7 +421,7 @@ STUDIES: tuple[Study, ...] = (
             " --angle-gain 0.5 --prior-weight 10 --out experiments/results/proxy/"
             "rl_multigait_surface/twin_underside_corrector_prior10"
         ),
-        docs="docs/proxy.md",
+        docs="docs/studies/proxy-multigait.md",
         figures=(
             Figure(
                 "relative difference of the walk, proxy against FEM",
@@ -435,7 +435,7 @@ STUDIES: tuple[Study, ...] = (
                 departure="the prior's weight (10) is the best of five decided beforehand, but"
                 " chosen on this very policy's transfer",
                 fmt="{:.1f}",
-                docs="docs/proxy.md",
+                docs="docs/studies/proxy-multigait.md",
             ),
             Figure(
                 "distance walked by the FEM",
@@ -447,7 +447,7 @@ STUDIES: tuple[Study, ...] = (
                 tolerance=0.05,
                 departure="Pliant's Multigait and proxy",
                 fmt="{:.2f}",
-                docs="docs/proxy.md",
+                docs="docs/studies/proxy-multigait.md",
             ),
         ),
         quick=Quick(
@@ -466,7 +466,7 @@ STUDIES: tuple[Study, ...] = (
             "python experiments/graph/selector.py --train 100000 --epochs 60 --batch-size 128"
             " --schedule cosine"
         ),
-        docs="docs/graph.md",
+        docs="docs/studies/graph.md",
         figures=(
             Figure(
                 "Selector accuracy, CartStemContact partition",
@@ -478,7 +478,7 @@ STUDIES: tuple[Study, ...] = (
                 tolerance=0.005,
                 scale=100.0,
                 fmt="{:.2f}",
-                docs="docs/graph.md",
+                docs="docs/studies/graph.md",
             ),
         ),
         quick=Quick(
@@ -496,7 +496,7 @@ STUDIES: tuple[Study, ...] = (
             " 20000 --eval-episodes 10 && python experiments/graph/cartstem.py --methods convex"
             " --seeds 0 1 2 --steps 8000 --eval-episodes 10"
         ),
-        docs="docs/graph.md",
+        docs="docs/studies/graph.md",
         figures=(
             Figure(
                 "plain SAC, mean of 3 seeds",
@@ -509,7 +509,7 @@ STUDIES: tuple[Study, ...] = (
                 departure="Pliant's CartStemContact (100 mm beam, 1 mm success), 10 goals an"
                 " evaluation, 3 seeds",
                 fmt="{:,.0f}",
-                docs="docs/graph.md",
+                docs="docs/studies/graph.md",
             ),
             Figure(
                 "graph, learned internal agents, mean of 3 seeds",
@@ -521,7 +521,7 @@ STUDIES: tuple[Study, ...] = (
                 tolerance=0.3,
                 departure="slower than plain SAC here (+88 %), where the thesis' is 42 % faster",
                 fmt="{:,.0f}",
-                docs="docs/graph.md",
+                docs="docs/studies/graph.md",
             ),
             Figure(
                 "graph, the FEM inverse as internal agents, mean of 3 seeds",
@@ -533,7 +533,7 @@ STUDIES: tuple[Study, ...] = (
                 tolerance=0.3,
                 departure="the static FEM inverse as the convex internal agent",
                 fmt="{:,.0f}",
-                docs="docs/graph.md",
+                docs="docs/studies/graph.md",
             ),
         ),
         no_quick="one seed of the graph method needs about 600 steps (0.08 s each) before its"
@@ -799,7 +799,7 @@ STUDIES: tuple[Study, ...] = (
         name="trajopt-diamond",
         thesis="§5.2.3",
         title="Diamond DDP on the condensed dynamics: iterations to converge",
-        command="python experiments/trajopt_diamond.py",
+        command="python experiments/trajopt/diamond.py",
         docs="docs/trajopt.md",
         figures=(
             Figure(
@@ -828,7 +828,7 @@ STUDIES: tuple[Study, ...] = (
             ),
         ),
         quick=Quick(
-            "python experiments/trajopt_diamond.py --max-iterations 1 --out {out}",
+            "python experiments/trajopt/diamond.py --max-iterations 1 --out {out}",
             {_TRAJOPT: "diamond.json"},
             seconds=144.0,
         ),

@@ -34,12 +34,13 @@ needs_reference = pytest.mark.skipif(
 
 
 DOCS = Path(__file__).parents[2] / "docs" / "sofa.md"
+COMPONENTS = DOCS.with_name("sofa-components.md")  # the loads and supports' example
 
 
 @needs_reference
 @pytest.mark.parametrize(
     "code",
-    re.findall(r"```python\n(.*?)```", DOCS.read_text(), flags=re.S),
+    re.findall(r"```python\n(.*?)```", DOCS.read_text() + COMPONENTS.read_text(), flags=re.S),
     ids=["port", "choice", "stlib", "sofagym", "sofagym-env", "supports"],
 )
 def test_docs_examples_run(code: str) -> None:
