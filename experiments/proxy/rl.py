@@ -22,7 +22,8 @@ deflated in that order) and random actions'. Trunk (pliant/TrunkPushProxy-v0, 10
 share solved (< 8 mm) beside doing nothing and random actions.
 
 The run folder (checkpoints, ``--resume``) is runs/proxy_rl_ROBOT; the final policy, the
-report (JSON) and the learning curve (PNG) go to experiments/results/proxy/rl_ROBOT/.
+report (JSON) and the learning curve (PNG) go to experiments/results/proxy/rl_ROBOT/. The
+settings and the run are :mod:`pliant.transfer.rl`'s, which the other proxy studies share.
 """
 
 from __future__ import annotations
