@@ -551,6 +551,8 @@ STUDIES: tuple[Study, ...] = (
                 docs="docs/studies/graph.md",
             ),
         ),
+        not_kept="the Selector network is not tracked; re-made by the study's command (94 s on a"
+        " shared core), its states drawn, not simulated",
         quick=Quick(
             "python experiments/graph/selector.py --train 2000 --test 1000 --epochs 2 --out {out}",
             {_SELECTOR: "selector.json"},
@@ -606,6 +608,8 @@ STUDIES: tuple[Study, ...] = (
                 docs="docs/studies/graph.md",
             ),
         ),
+        not_kept="the SAC and graph agents' checkpoints are not tracked (run folders are "
+        "ignored); re-made by the study's command (3 seeds of 20 000 steps a method)",
         no_quick="one seed of the graph method needs about 600 steps (0.08 s each) before its"
         " first evaluation and writes into experiments/results/graph/ by scene name; over 2 min",
     ),
@@ -726,6 +730,8 @@ STUDIES: tuple[Study, ...] = (
                 )
             ),
         ),
+        not_kept="the networks and datasets are not tracked (out/ is ignored); re-made by the "
+        "study's command",
         quick=Quick(
             "python experiments/condensed/table_5_2.py --samples 8 --epochs 2"
             " --iterations 50 --work {out}/work --out {out}",
@@ -756,6 +762,8 @@ STUDIES: tuple[Study, ...] = (
                 docs="docs/condensed.md",
             ),
         ),
+        not_kept="the network and dataset are not tracked (out/ is ignored); re-made by the "
+        "study's command",
         no_quick="the Stiff-Flop's collection alone takes tens of minutes",
     ),
     Study(
@@ -817,6 +825,8 @@ STUDIES: tuple[Study, ...] = (
                 docs="docs/condensed.md",
             ),
         ),
+        not_kept="the networks and datasets are not tracked (out/ is ignored); re-made by the "
+        "study's command",
         no_quick="10 000 and 50 000 samples, each its own design and mesh: hours",
     ),
     Study(
@@ -867,6 +877,8 @@ STUDIES: tuple[Study, ...] = (
                 docs="docs/condensed.md",
             ),
         ),
+        not_kept="the Finger's network (out/condensed_t52/finger_coarse_1000.pt) is not tracked;"
+        " re-made by table-5.2's command",
         quick=Quick(
             "python experiments/condensed/table_5_1.py --finger-samples 16 --diamond-samples 16"
             " --epochs 2 --work {out}/work --out {out} && python experiments/condensed/"
