@@ -12,9 +12,10 @@ data aligned (every allocation is), and it gives one answer, bit for bit, in eve
 
 So Pliant loads the baseline build, unless proxsuite was imported before Pliant (it then keeps
 the build loaded; :data:`BUILD` says which) or the environment sets PLIANT_PROXSUITE_SIMD=1.
-The price is small where Pliant's QPs are, tens of unknowns (experiments/qp_builds.py, random
-dense QPs with box constraints: 0.28 against AVX-512's 0.37 ms for 20 unknowns, 3.2 against
-2.7 ms for 60, 20 against 14 ms for 150, 286 against 150 ms for 400). proxsuite picks its build from
+The price is small where Pliant's QPs are, tens of unknowns
+(experiments/constraints/qp_builds.py, random dense QPs with box constraints: 0.28 against
+AVX-512's 0.37 ms for 20 unknowns, 3.2 against 2.7 ms for 60, 20 against 14 ms for 150, 286
+against 150 ms for 400). proxsuite picks its build from
 ``proxsuite.instructionset``; a stand-in that reports no AVX is placed where its loader looks
 for that module, for the time of the import only. If a later proxsuite loads its builds
 otherwise, the stand-in is ignored and its choice stands; if it has no baseline build, it is

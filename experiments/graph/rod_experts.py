@@ -34,9 +34,8 @@ from pliant.learn.graph.scenes import make_scene  # noqa: E402
 def replay(folder: Path) -> dict:
     """One greedy episode of a trained run (graph or plain SAC) on its scene (the 280° goal):
     the Evaluator's choices, the rod's angle after every step."""
-    from cartstem import CONFIGS, ENV_SETTINGS  # this folder is on sys.path
-
     from pliant.learn.graph import GraphConfig
+    from pliant.learn.graph.settings import CONFIGS, ENV_SETTINGS
     from pliant.learn.graph.training import build_learner
 
     scene = make_scene("RodManipulator", **ENV_SETTINGS["RodManipulator"])

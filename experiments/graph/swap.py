@@ -32,16 +32,16 @@ import json
 from pathlib import Path
 
 import torch
-from cartstem import (  # this folder is on sys.path
+
+from pliant.learn.graph import GraphConfig
+from pliant.learn.graph.hierarchy import episode_means
+from pliant.learn.graph.scenes import make_scene
+from pliant.learn.graph.settings import (
     ENV_SETTINGS,
     add_evaluator_options,
     agent_config,
     run_label,
 )
-
-from pliant.learn.graph import GraphConfig
-from pliant.learn.graph.hierarchy import episode_means
-from pliant.learn.graph.scenes import make_scene
 from pliant.learn.graph.training import build_learner, train_run
 
 

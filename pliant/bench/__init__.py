@@ -20,6 +20,7 @@ from pliant.bench.engine import (
     cantilever,
     multigait,
     multigait_on_floor,
+    multigait_reference,
     reference_diamond,
     run_benchmarks,
 )
@@ -40,6 +41,7 @@ __all__ = [
     "host",
     "multigait",
     "multigait_on_floor",
+    "multigait_reference",
     "reference_diamond",
     "report_gradient",
     "run_benchmarks",

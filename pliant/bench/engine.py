@@ -141,6 +141,18 @@ def multigait_on_floor(meshes: Path) -> Model:
     )
 
 
+def multigait_reference(meshes: Path) -> Model:
+    """The SOFA reference mesh, its chambers' walls and collision points as
+    :func:`multigait_on_floor` reads them, with the Multigait builder's defaults (SofaGym's
+    scene: Neo-Hookean E 70 kPa, nu 0.05, volume-controlled chambers, paper membrane): the
+    reduction and proxy studies' full model (experiments/reduction/, experiments/proxy/speed.py)."""
+    from pliant.robots.multigait import multigait as multigait_robot
+
+    bench = multigait_on_floor(meshes)
+    points = bench.contacts.points.positions(bench.body.rest_positions)
+    return multigait_robot(mesh=bench.body.mesh, collision_points=points)
+
+
 def run_benchmarks(
     *,
     meshes: Path | None,

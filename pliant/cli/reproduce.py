@@ -70,6 +70,9 @@ def reproduce_command(
     check: Annotated[
         bool, typer.Option("--check", help="the committed figures against the thesis' values")
     ] = False,
+    evaluate: Annotated[
+        bool, typer.Option("--evaluate", help="re-evaluate the kept policy or model behind it")
+    ] = False,
     write_index: Annotated[
         bool, typer.Option("--write-index", help="write experiments/README.md from the registry")
     ] = False,
@@ -111,6 +114,13 @@ def reproduce_command(
             console.print(f"{entry.name}: quick variant took {seconds:.0f} s")
             rows += found
         console.print(_rows_table("quick variants: figures produced", rows, "committed"))
+    elif evaluate:
+        try:
+            rows, seconds = runner.evaluate(chosen[0])
+        except ValueError as error:
+            raise typer.BadParameter(str(error)) from error
+        console.print(f"{chosen[0].name}: re-evaluated in {seconds:.0f} s")
+        console.print(_rows_table("re-evaluation against the committed figures", rows, "committed"))
     else:
         rows, seconds = runner.rerun(chosen[0])
         console.print(f"{chosen[0].name}: {seconds:.0f} s")

@@ -22,6 +22,8 @@ differs from what the registry generates. Ours is read from the result file, nev
 - `pliant reproduce NAME`: re-run a study and compare its figures with the committed ones
   (the tolerance is per figure); `--quick`: its quick variant, which checks the pipeline
   still produces its figures; `--check`: the committed figures against the thesis.
+- `pliant reproduce NAME --evaluate`: re-evaluate the kept policy or model behind a study's
+  figures from the repository alone (where it is kept; the studies table says why not).
 - `pliant reproduce --all --quick`: every quick variant (`.ci/reproduce-quick` in CI); the
   times beside them were measured on the shared 2-core machine at load 6-10.
 """
@@ -36,8 +38,8 @@ def figures_table(studies: tuple[Study, ...] = STUDIES, root: Path = ROOT) -> st
     read), whether it meets the thesis' value, the departure from the thesis."""
     lines = [
         "| thesis | study | figure | thesis value | ours | read from | meets the thesis |"
-        " departure from the thesis |",
-        "|---|---|---|---|---|---|---|---|",
+        " departure from the thesis | selection protocol |",
+        "|---|---|---|---|---|---|---|---|---|",
     ]
     verdicts = {True: "yes", False: "no", None: "-"}
     for study in studies:
@@ -50,24 +52,31 @@ def figures_table(studies: tuple[Study, ...] = STUDIES, root: Path = ROOT) -> st
             lines.append(
                 f"| {study.thesis} | `{study.name}` | {_cell(figure.name)} | "
                 f"{figure.thesis_text()} | {ours} | `{figure.file}`: `{figure.path}` | {verdict} |"
-                f" {_cell(figure.departure)} |"
+                f" {_cell(figure.departure)} | {_cell(figure.protocol)} |"
             )
     return "\n".join(lines) + "\n"
 
 
 def studies_table(studies: tuple[Study, ...] = STUDIES) -> str:
-    """One row a study: its command, result files, quick variant and report."""
-    lines = ["| study | thesis | command | result files | quick variant | report |"]
-    lines.append("|---|---|---|---|---|---|")
+    """One row a study: its command, result files, quick variant, re-evaluation and report."""
+    lines = [
+        "| study | thesis | command | result files | quick variant | re-evaluation of the kept"
+        " policy or model | report |"
+    ]
+    lines.append("|---|---|---|---|---|---|---|")
     for study in studies:
         files = "<br>".join(f"`{f}`" for f in dict.fromkeys(g.file for g in study.figures))
         if study.quick is not None:
             quick = f"`{_cell(study.quick.command)}` ({study.quick.seconds:.0f} s)"
         else:
             quick = "none: " + _cell(study.no_quick)
+        if study.evaluate is not None:
+            kept = f"`{_cell(study.evaluate.command)}` ({study.evaluate.seconds:.0f} s)"
+        else:
+            kept = "none: " + _cell(study.not_kept) if study.not_kept else "-"
         lines.append(
             f"| `{study.name}` | {study.thesis}: {_cell(study.title)} | "
-            f"`{_cell(study.command)}` | {files} | {quick} | {study.docs} |"
+            f"`{_cell(study.command)}` | {files} | {quick} | {kept} | {study.docs} |"
         )
     return "\n".join(lines) + "\n"
 

@@ -47,6 +47,10 @@ class Figure:
         fmt: how a value is written (tables and the docs' quotes), see ``format``.
         docs: a docs page that quotes this figure: the test checks ``fmt`` of the file's value
             appears in it.
+        protocol: where the number was selected (a checkpoint, a weight, a sampling box) on
+            the evaluation it is reported on, or tested on data not drawn as the thesis' were:
+            what departs from selecting on validation data and reporting on held-out data, the
+            old and new values where it was re-run, or what re-running it would need.
     """
 
     name: str
@@ -61,6 +65,7 @@ class Figure:
     scale: float = 1.0
     fmt: str = "{:.3g}"
     docs: str | None = None
+    protocol: str = ""
 
     def read(self, root: Path = ROOT, file: Path | None = None) -> float:
         """Our value: the number at ``path`` in ``file`` (default: the committed one), scaled."""
@@ -155,6 +160,11 @@ class Study:
         quick: the quick variant, or ``None`` with ``no_quick`` saying why.
         no_quick: why there is no quick variant.
         docs: the docs page that reports the study.
+        evaluate: re-evaluates the kept policy or model behind the figures from the repository
+            alone (``pliant reproduce NAME --evaluate``), written into ``{out}``; its files'
+            figures are compared with the committed ones within their tolerance.
+        not_kept: why the figures cannot be re-evaluated from the repository (the policy or
+            model is not tracked, and what re-making it costs).
     """
 
     name: str
@@ -165,10 +175,14 @@ class Study:
     quick: Quick | None = None
     no_quick: str = ""
     docs: str = ""
+    evaluate: Quick | None = None
+    not_kept: str = ""
 
     def __post_init__(self) -> None:
         if (self.quick is None) == (not self.no_quick):
             raise ValueError(f"study {self.name}: give a quick variant or the reason for none")
+        if self.evaluate is not None and self.not_kept:
+            raise ValueError(f"study {self.name}: a re-evaluation and no kept model")
         for figure in self.figures:
             if figure.thesis_unit not in (None, figure.unit) and not figure.departure:
                 raise ValueError(f"{self.name}: {figure.name} in other units says no departure")

@@ -5,6 +5,8 @@
 - ``quick``: the quick variant in a fresh folder; each figure of the files it maps must be
   read from what it wrote (a number where the committed file has one): the pipeline still
   produces its figures. Its values are not compared, the run being smaller.
+- ``evaluate``: the kept policy or model re-evaluated in a fresh folder; each figure of the
+  files it maps is compared with the committed one within the figure's tolerance.
 - ``check``: the committed files against the thesis: every figure read, and any that does not
   meet the thesis' value (or is in other units) states its departure.
 """
@@ -51,21 +53,24 @@ def _shell(command: str, root: Path) -> float:
     return time.perf_counter() - start
 
 
+def _compared(
+    study: Study, figure: Figure, before: float, root: Path, file: Path | None = None
+) -> Row:
+    """The figure read again (from `file`, default its committed file) against `before`."""
+    try:
+        after = figure.read(root, file)
+    except FigureError as error:
+        return Row(study.name, figure, None, before, False, str(error))
+    ok = math.isclose(after, before, rel_tol=figure.tolerance, abs_tol=1e-12)
+    why = "" if ok else f"differs by more than {figure.tolerance:.0%} from the committed"
+    return Row(study.name, figure, after, before, ok, why)
+
+
 def rerun(study: Study, root: Path = ROOT) -> tuple[list[Row], float]:
     """Run the study's command; compare each figure with the committed value."""
     committed = {figure: figure.read(root) for figure in study.figures}
     seconds = _shell(study.command, root)
-    rows = []
-    for figure, before in committed.items():
-        try:
-            after = figure.read(root)
-        except FigureError as error:
-            rows.append(Row(study.name, figure, None, before, False, str(error)))
-            continue
-        ok = math.isclose(after, before, rel_tol=figure.tolerance, abs_tol=1e-12)
-        why = "" if ok else f"differs by more than {figure.tolerance:.0%} from the committed"
-        rows.append(Row(study.name, figure, after, before, ok, why))
-    return rows, seconds
+    return [_compared(study, f, before, root) for f, before in committed.items()], seconds
 
 
 def quick(study: Study, root: Path = ROOT) -> tuple[list[Row], float]:
@@ -83,6 +88,21 @@ def quick(study: Study, root: Path = ROOT) -> tuple[list[Row], float]:
                 rows.append(Row(study.name, figure, figure.read(root, produced), None, True))
             except FigureError as error:
                 rows.append(Row(study.name, figure, None, None, False, str(error)))
+    return rows, seconds
+
+
+def evaluate(study: Study, root: Path = ROOT) -> tuple[list[Row], float]:
+    """Re-evaluate the kept policy or model in a fresh folder; compare with the committed."""
+    if study.evaluate is None:
+        why = study.not_kept or "it declares no re-evaluation"
+        raise ValueError(f"study {study.name} cannot be re-evaluated: {why}")
+    with tempfile.TemporaryDirectory(prefix=f"pliant-{study.name}-") as out:
+        seconds = _shell(study.evaluate.command.replace("{out}", out), root)
+        rows = [
+            _compared(study, f, f.read(root), root, Path(out) / study.evaluate.files[f.file])
+            for f in study.figures
+            if f.file in study.evaluate.files
+        ]
     return rows, seconds
 
 

@@ -24,6 +24,7 @@ _TRANSFER = (
     "experiments/results/proxy/rl_multigait_surface/twin_underside_corrector_prior10/"
     "multigait_transfer.json"
 )
+_PRIOR_SELECTION = "experiments/results/proxy/prior_selection.json"
 _SELECTOR = "experiments/results/graph/selector.json"
 _GRAPH = "experiments/results/graph/CartStemContact/summary.json"
 _TABLE_5_1 = "experiments/results/condensed/table_5_1.json"
@@ -107,7 +108,7 @@ STUDIES: tuple[Study, ...] = (
         command=(
             "pliant train pliant/ReducedMultigait-v0 --algo PPO --config"
             " pliant/learn/configs/Multigait.yaml --out runs/table_3_2_ppo --seed 0"
-            " && python experiments/reduction_table_3_2.py --run runs/table_3_2_ppo"
+            " && python experiments/reduction/table_3_2.py --run runs/table_3_2_ppo"
         ),
         docs="docs/reduction.md",
         figures=(
@@ -136,6 +137,25 @@ STUDIES: tuple[Study, ...] = (
                 departure=_OUR_MULTIGAIT + "; the learned gait is the best evaluated policy's",
                 fmt="{:.2f}",
                 docs="docs/reduction.md",
+                protocol="the checkpoint is the best of the training's evaluations, which are"
+                " this figure's own (one deterministic episode on the reduced model); the final"
+                " policy, chosen by nothing, is the next figure",
+            ),
+            Figure(
+                "learned gait, the final policy (no selection), cumulative reward on the reduced"
+                " model",
+                _TABLE_3_2,
+                "learning_curve/mean_return/-1",
+                thesis=6.33,
+                unit="mm",
+                thesis_unit="cm",
+                better="higher",
+                tolerance=0.1,
+                departure=_OUR_MULTIGAIT,
+                fmt="{:.2f}",
+                protocol="the last evaluation of the training run (10 080 steps), no checkpoint"
+                " chosen: still above the hand gait's on the reduced model; its full-FEM value"
+                " needs the policy, which is not kept",
             ),
             Figure(
                 "hand gait, final x on the full FEM",
@@ -162,8 +182,13 @@ STUDIES: tuple[Study, ...] = (
                 departure=_OUR_MULTIGAIT,
                 fmt="{:.2f}",
                 docs="docs/reduction.md",
+                protocol="the best evaluated checkpoint's gait replayed on the full FEM (chosen"
+                " on the reduced model's evaluation, reported on the full FEM: a different"
+                " model, but the same single episode)",
             ),
         ),
+        not_kept="the PPO policy (runs/table_3_2_ppo_seq20) is not tracked; re-making it is"
+        " the study's command (10 080 steps, 16 min on the shared machine)",
         no_quick="a 64-step PPO run on the reduced Multigait and both gaits replayed on both"
         " models was still building the reduced model (20 training sequences; about 2 min on a"
         " quiet machine, cached in $PLIANT_CACHE) after 8 min at load 8: not minutes; the"
@@ -181,7 +206,7 @@ STUDIES: tuple[Study, ...] = (
             " --bc-epochs 1000 --learning-rate 3e-5 --target-kl 0.02 --tag 1e5"
             " && python experiments/rl/trunk_debris_ppo.py"
         ),
-        docs="docs/learning.md",
+        docs="docs/studies/learning.md",
         figures=(
             Figure(
                 "behaviour cloning then PPO (1e5 steps), catchable placements, success",
@@ -196,7 +221,13 @@ STUDIES: tuple[Study, ...] = (
                 " and 40 mm cubes), the tests drawn like the training's; behaviour cloning of a"
                 " planner's program first; one training seed",
                 fmt="{:.2f}",
-                docs="docs/learning.md",
+                docs="docs/studies/learning.md",
+                protocol="the final policy, no checkpoint chosen; tested on placements from the"
+                " planner's catch map, drawn like the training's. This policy on the"
+                " environment's own draw is not measured: it is not kept, and re-making it is"
+                " behaviour cloning plus 102 400 PPO steps (50 min) and 400 tests (17 min) on"
+                " a quiet machine, over this session's budget; the next figure is another"
+                " policy's (PPO trained on the own draw)",
             ),
             Figure(
                 "PPO (1e5 steps), the environment's own draw, success",
@@ -210,9 +241,14 @@ STUDIES: tuple[Study, ...] = (
                 departure="the environment's default draw (z 110-160 mm, 20-40 mm cubes) holds"
                 " no placement any program found catches",
                 fmt="{:.2f}",
-                docs="docs/learning.md",
+                docs="docs/studies/learning.md",
+                protocol="a PPO policy trained and tested on the environment's own draw, not"
+                " the catchable policy above",
             ),
         ),
+        not_kept="neither policy is tracked (runs/ is ignored); re-making the catchable one:"
+        " behaviour cloning on 40 planner episodes, then 102 400 PPO steps (2 984 s at 34"
+        " steps/s) and 400 tests (1 010 s)",
         no_quick="its figure is 400 tests of a policy cloned from 40 planner episodes then"
         " trained by PPO: the tests alone take 17 min; the script writes into"
         " experiments/results/rl/ (no output option)",
@@ -222,7 +258,7 @@ STUDIES: tuple[Study, ...] = (
         thesis="§3.3.2",
         title="CartStemContact solved by SAC (MLP 3 x 512)",
         command="python experiments/rl/cartstem_sac.py --steps 200000 --stop-at 0.9",
-        docs="docs/learning.md",
+        docs="docs/studies/learning.md",
         figures=(
             Figure(
                 "steps to the policy that solves the task",
@@ -236,7 +272,11 @@ STUDIES: tuple[Study, ...] = (
                 " SofaGym's 30 cm); the checkpoint is chosen by the evaluation it is reported"
                 " on; the run is partial (SAC collapsed after 68k steps)",
                 fmt="{:,.0f}",
-                docs="docs/learning.md",
+                docs="docs/studies/learning.md",
+                protocol="the checkpoint is the best of the 100-goal evaluations, the figures'"
+                " own goals; choosing it on validation goals and reporting on goals drawn"
+                " afterwards needs the checkpoints, which are not kept: SAC again to 85 000"
+                " steps (5 237 s on the shared machine), over this session's budget",
             ),
             Figure(
                 "that policy on 100 goals, sampled actions, success",
@@ -248,7 +288,7 @@ STUDIES: tuple[Study, ...] = (
                 tolerance=0.1,
                 scale=100.0,
                 fmt="{:.0f}",
-                docs="docs/learning.md",
+                docs="docs/studies/learning.md",
             ),
             Figure(
                 "that policy on 100 goals, mean actions, success",
@@ -260,9 +300,11 @@ STUDIES: tuple[Study, ...] = (
                 tolerance=0.1,
                 scale=100.0,
                 fmt="{:.0f}",
-                docs="docs/learning.md",
+                docs="docs/studies/learning.md",
             ),
         ),
+        not_kept="the SAC checkpoints are not tracked (runs/ is ignored); re-making them is"
+        " the study's command (85 000 steps took 87 min)",
         no_quick="its figures are the best policy's 100-goal evaluations (400 episodes of up to"
         " 30 steps of 0.3 s) after SAC's 1000 warm-up steps: over 10 min; the script writes into"
         " experiments/results/rl/ (no output option)",
@@ -272,11 +314,11 @@ STUDIES: tuple[Study, ...] = (
         thesis="Table 4.1",
         title="Real-time factor at dt = 0.01 s: FEM, reduced model and beam-skeleton proxy",
         command=(
-            "python experiments/proxy_speed.py --out experiments/results/proxy_speed_nolag.json"
-            " && python experiments/proxy_speed.py --reference"
+            "python experiments/proxy/speed.py --out experiments/results/proxy_speed_nolag.json"
+            " && python experiments/proxy/speed.py --reference"
             " --out experiments/results/proxy_speed_reference.json"
         ),
-        docs="docs/proxy.md",
+        docs="docs/studies/proxy-calibration.md",
         figures=(
             Figure(
                 "Trunk FEM (and cube)",
@@ -288,7 +330,7 @@ STUDIES: tuple[Study, ...] = (
                 tolerance=0.5,
                 departure="Pliant's Trunk mesh (8 mm); " + _LOADED,
                 fmt="{:.1f}",
-                docs="docs/proxy.md",
+                docs="docs/studies/proxy-calibration.md",
             ),
             Figure(
                 "Trunk proxy",
@@ -299,7 +341,7 @@ STUDIES: tuple[Study, ...] = (
                 better="higher",
                 tolerance=0.5,
                 fmt="{:.1f}",
-                docs="docs/proxy.md",
+                docs="docs/studies/proxy-calibration.md",
             ),
             Figure(
                 "Multigait FEM (SoftRobots' mesh, 15787 nodes)",
@@ -310,7 +352,7 @@ STUDIES: tuple[Study, ...] = (
                 better="higher",
                 tolerance=0.5,
                 fmt="{:.3f}",
-                docs="docs/proxy.md",
+                docs="docs/studies/proxy-calibration.md",
             ),
             Figure(
                 "Multigait reduced model (31 modes)",
@@ -321,7 +363,7 @@ STUDIES: tuple[Study, ...] = (
                 better="higher",
                 tolerance=0.5,
                 fmt="{:.1f}",
-                docs="docs/proxy.md",
+                docs="docs/studies/proxy-calibration.md",
             ),
             Figure(
                 "Multigait proxy",
@@ -332,11 +374,11 @@ STUDIES: tuple[Study, ...] = (
                 better="higher",
                 tolerance=0.5,
                 fmt="{:.1f}",
-                docs="docs/proxy.md",
+                docs="docs/studies/proxy-calibration.md",
             ),
         ),
         quick=Quick(
-            "python experiments/proxy_speed.py --steps 3 --cases trunk_fem trunk_proxy"
+            "python experiments/proxy/speed.py --steps 3 --cases trunk_fem trunk_proxy"
             " --out {out}/proxy_speed.json",
             {_SPEED: "proxy_speed.json"},
             seconds=22.0,
@@ -350,7 +392,7 @@ STUDIES: tuple[Study, ...] = (
             "pliant proxy calibrate multigait --out experiments/proxy/round1"
             " && pliant proxy calibrate trunk --out experiments/proxy"
         ),
-        docs="docs/proxy.md",
+        docs="docs/studies/proxy-calibration.md",
         figures=(
             Figure(
                 "Multigait, optimisation positions",
@@ -363,7 +405,7 @@ STUDIES: tuple[Study, ...] = (
                 departure="fitted on Pliant's FEM Multigait walking its hand gait (the thesis:"
                 " SOFA, 16 patterns it does not list)",
                 fmt="{:.2f}",
-                docs="docs/proxy.md",
+                docs="docs/studies/proxy-calibration.md",
             ),
             Figure(
                 "Multigait, validation positions",
@@ -374,7 +416,7 @@ STUDIES: tuple[Study, ...] = (
                 better="lower",
                 tolerance=0.05,
                 fmt="{:.2f}",
-                docs="docs/proxy.md",
+                docs="docs/studies/proxy-calibration.md",
             ),
             Figure(
                 "Trunk, optimisation positions",
@@ -387,7 +429,7 @@ STUDIES: tuple[Study, ...] = (
                 departure="four cable phases of our choosing; the cables mapped linearly to"
                 " the beams' bendings",
                 fmt="{:.2f}",
-                docs="docs/proxy.md",
+                docs="docs/studies/proxy-calibration.md",
             ),
             Figure(
                 "Trunk, validation positions",
@@ -398,7 +440,7 @@ STUDIES: tuple[Study, ...] = (
                 better="lower",
                 tolerance=0.05,
                 fmt="{:.2f}",
-                docs="docs/proxy.md",
+                docs="docs/studies/proxy-calibration.md",
             ),
             Figure(
                 "Trunk, actions it was not fitted on",
@@ -410,7 +452,7 @@ STUDIES: tuple[Study, ...] = (
                 tolerance=0.05,
                 departure="the thesis validates on its own trajectory's intermediate positions",
                 fmt="{:.2f}",
-                docs="docs/proxy.md",
+                docs="docs/studies/proxy-calibration.md",
             ),
         ),
         quick=Quick(
@@ -428,8 +470,9 @@ STUDIES: tuple[Study, ...] = (
             "rl_multigait_surface --steps 8 --inverse-model twin --matched underside"
             " --angle-gain 0.5 --prior-weight 10 --out experiments/results/proxy/"
             "rl_multigait_surface/twin_underside_corrector_prior10"
+            " && python experiments/proxy/prior_selection.py"
         ),
-        docs="docs/proxy.md",
+        docs="docs/studies/proxy-multigait.md",
         figures=(
             Figure(
                 "relative difference of the walk, proxy against FEM",
@@ -443,7 +486,27 @@ STUDIES: tuple[Study, ...] = (
                 departure="the prior's weight (10) is the best of five decided beforehand, but"
                 " chosen on this very policy's transfer",
                 fmt="{:.1f}",
-                docs="docs/proxy.md",
+                docs="docs/studies/proxy-multigait.md",
+                protocol="weight 10 is the best of 0, 0.1, 1, 3, 10 and 30 on this policy's"
+                " own transfer; chosen on the thesis' test sequence instead (validation) it is"
+                " 3, and the policy held out transfers within the next figure's",
+            ),
+            Figure(
+                "relative difference of the walk, the prior's weight chosen on the test"
+                " sequence, the policy held out",
+                _PRIOR_SELECTION,
+                "held_out/relative_difference",
+                thesis=5.0,
+                unit="%",
+                better="lower",
+                tolerance=0.1,
+                scale=100.0,
+                departure="just over the thesis' 5 %: weight 3, the best on the test sequence"
+                " (8.1 %), read from the committed transfers of prior.py",
+                fmt="{:.1f}",
+                docs="docs/studies/proxy-multigait.md",
+                protocol="the weight chosen on the validation case (the thesis' test sequence),"
+                " the learned policy's transfer reported: old 1.8 % (chosen on the policy)",
             ),
             Figure(
                 "distance walked by the FEM",
@@ -455,7 +518,7 @@ STUDIES: tuple[Study, ...] = (
                 tolerance=0.05,
                 departure="Pliant's Multigait and proxy",
                 fmt="{:.2f}",
-                docs="docs/proxy.md",
+                docs="docs/studies/proxy-multigait.md",
             ),
         ),
         quick=Quick(
@@ -464,6 +527,15 @@ STUDIES: tuple[Study, ...] = (
             " --angle-gain 0.5 --prior-weight 10 --out {out}",
             {_TRANSFER: "multigait_transfer.json"},
             seconds=177.0,
+        ),
+        # Measured 2026-12-07 at load 15-19 (the committed run took 135 s on a quieter one):
+        # the re-evaluation gave the committed transfer to the last digit (FEM 10.1264 mm, 1.8 %).
+        evaluate=Quick(
+            "pliant proxy transfer multigait --policy experiments/results/proxy/"
+            "rl_multigait_surface --steps 8 --inverse-model twin --matched underside"
+            " --angle-gain 0.5 --prior-weight 10 --out {out}",
+            {_TRANSFER: "multigait_transfer.json"},
+            seconds=2090.0,
         ),
     ),
     Study(
@@ -474,7 +546,7 @@ STUDIES: tuple[Study, ...] = (
             "python experiments/graph/selector.py --train 100000 --epochs 60 --batch-size 128"
             " --schedule cosine"
         ),
-        docs="docs/graph.md",
+        docs="docs/studies/graph.md",
         figures=(
             Figure(
                 "Selector accuracy, CartStemContact partition",
@@ -486,9 +558,11 @@ STUDIES: tuple[Study, ...] = (
                 tolerance=0.005,
                 scale=100.0,
                 fmt="{:.2f}",
-                docs="docs/graph.md",
+                docs="docs/studies/graph.md",
             ),
         ),
+        not_kept="the Selector network is not tracked; re-made by the study's command (94 s on a"
+        " shared core), its states drawn, not simulated",
         quick=Quick(
             "python experiments/graph/selector.py --train 2000 --test 1000 --epochs 2 --out {out}",
             {_SELECTOR: "selector.json"},
@@ -504,7 +578,7 @@ STUDIES: tuple[Study, ...] = (
             " 20000 --eval-episodes 10 && python experiments/graph/cartstem.py --methods convex"
             " --seeds 0 1 2 --steps 8000 --eval-episodes 10"
         ),
-        docs="docs/graph.md",
+        docs="docs/studies/graph.md",
         figures=(
             Figure(
                 "plain SAC, mean of 3 seeds",
@@ -517,7 +591,7 @@ STUDIES: tuple[Study, ...] = (
                 departure="Pliant's CartStemContact (100 mm beam, 1 mm success), 10 goals an"
                 " evaluation, 3 seeds",
                 fmt="{:,.0f}",
-                docs="docs/graph.md",
+                docs="docs/studies/graph.md",
             ),
             Figure(
                 "graph, learned internal agents, mean of 3 seeds",
@@ -529,7 +603,7 @@ STUDIES: tuple[Study, ...] = (
                 tolerance=0.3,
                 departure="slower than plain SAC here (+88 %), where the thesis' is 42 % faster",
                 fmt="{:,.0f}",
-                docs="docs/graph.md",
+                docs="docs/studies/graph.md",
             ),
             Figure(
                 "graph, the FEM inverse as internal agents, mean of 3 seeds",
@@ -541,9 +615,11 @@ STUDIES: tuple[Study, ...] = (
                 tolerance=0.3,
                 departure="the static FEM inverse as the convex internal agent",
                 fmt="{:,.0f}",
-                docs="docs/graph.md",
+                docs="docs/studies/graph.md",
             ),
         ),
+        not_kept="the SAC and graph agents' checkpoints are not tracked (run folders are "
+        "ignored); re-made by the study's command (3 seeds of 20 000 steps a method)",
         no_quick="one seed of the graph method needs about 600 steps (0.08 s each) before its"
         " first evaluation and writes into experiments/results/graph/ by scene name; over 2 min",
     ),
@@ -569,6 +645,8 @@ STUDIES: tuple[Study, ...] = (
                 departure=_CONDENSED_SAMPLES,
                 fmt="{:.2e}",
                 docs="docs/condensed.md",
+                protocol="the epoch of least test loss is reported (the training keeps the"
+                " network at its best test epoch); a validation split would choose it",
             ),
             Figure(
                 "Diamond, the corner where all cables pull 24-30 mm sampled",
@@ -582,6 +660,12 @@ STUDIES: tuple[Study, ...] = (
                 " 6495 samples, 1500 epochs",
                 fmt="{:.2e}",
                 docs="docs/condensed.md",
+                protocol="the box (all cables 24-30 mm) was declared after the uniform model's"
+                " worst test sample, and the epoch is the one of least test loss; declaring the"
+                " box from the validation split's worst samples and choosing the epoch on"
+                " validation needs the uniform dataset collected again (16 min on two quiet"
+                " cores; not kept: out/ is ignored) and two trainings (6 min each, one thread):"
+                " not re-run in this session (the shared machine at load 15-20)",
             ),
             Figure(
                 "Diamond, uniform samples",
@@ -595,6 +679,8 @@ STUDIES: tuple[Study, ...] = (
                 " 3000 epochs",
                 fmt="{:.2e}",
                 docs="docs/condensed.md",
+                protocol="the epoch of least test loss is reported (the training keeps the"
+                " network at its best test epoch); a validation split would choose it",
             ),
         ),
         quick=Quick(
@@ -603,6 +689,8 @@ STUDIES: tuple[Study, ...] = (
             {_TABLE_5_1: "table_5_1.json"},
             seconds=60.0,
         ),
+        not_kept="the networks and datasets are not tracked (out/ is ignored); re-making them is"
+        " the study's command (Diamond collection 16 min on two cores, trainings 6-12 min)",
     ),
     Study(
         name="table-5.2",
@@ -652,6 +740,8 @@ STUDIES: tuple[Study, ...] = (
                 )
             ),
         ),
+        not_kept="the networks and datasets are not tracked (out/ is ignored); re-made by the "
+        "study's command",
         quick=Quick(
             "python experiments/condensed/table_5_2.py --samples 8 --epochs 2"
             " --iterations 50 --work {out}/work --out {out}",
@@ -682,6 +772,8 @@ STUDIES: tuple[Study, ...] = (
                 docs="docs/condensed.md",
             ),
         ),
+        not_kept="the network and dataset are not tracked (out/ is ignored); re-made by the "
+        "study's command",
         no_quick="the Stiff-Flop's collection alone takes tens of minutes",
     ),
     Study(
@@ -743,6 +835,8 @@ STUDIES: tuple[Study, ...] = (
                 docs="docs/condensed.md",
             ),
         ),
+        not_kept="the networks and datasets are not tracked (out/ is ignored); re-made by the "
+        "study's command",
         no_quick="10 000 and 50 000 samples, each its own design and mesh: hours",
     ),
     Study(
@@ -793,6 +887,8 @@ STUDIES: tuple[Study, ...] = (
                 docs="docs/condensed.md",
             ),
         ),
+        not_kept="the Finger's network (out/condensed_t52/finger_coarse_1000.pt) is not tracked;"
+        " re-made by table-5.2's command",
         quick=Quick(
             "python experiments/condensed/table_5_1.py --finger-samples 16 --diamond-samples 16"
             " --epochs 2 --work {out}/work --out {out} && python experiments/condensed/"
@@ -807,7 +903,7 @@ STUDIES: tuple[Study, ...] = (
         name="trajopt-diamond",
         thesis="§5.2.3",
         title="Diamond DDP on the condensed dynamics: iterations to converge",
-        command="python experiments/trajopt_diamond.py",
+        command="python experiments/trajopt/diamond.py",
         docs="docs/trajopt.md",
         figures=(
             Figure(
@@ -836,7 +932,7 @@ STUDIES: tuple[Study, ...] = (
             ),
         ),
         quick=Quick(
-            "python experiments/trajopt_diamond.py --max-iterations 1 --out {out}",
+            "python experiments/trajopt/diamond.py --max-iterations 1 --out {out}",
             {_TRAJOPT: "diamond.json"},
             seconds=144.0,
         ),

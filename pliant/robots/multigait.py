@@ -1,8 +1,8 @@
 """The Multigait pneumatic quadruped on the ground (thesis §3.1.2, §3.4.1).
 
 How the hand-defined gait walks it (measured on the default mesh, dt = 0.01 s, 0.6 s phases,
-experiments/multigait_gait.py): the paper under the real robot, a membrane here as in SofaGym
-(a triangle layer of E = 5000 kPa, 1 mm, on the underside), keeps the underside's length, so
+experiments/reduction/multigait_gait.py): the paper under the real robot, a membrane here as in
+SofaGym (a triangle layer of E = 5000 kPa, 1 mm, on the underside), keeps the underside's length, so
 an inflated leg curls and draws its tip in towards the body. Which end slides is the one that
 carries less of the weight. While the rear legs curl, the robot rests on its flat front half
 (all of its weight), so the rear tips draw in, by 8 mm, and the front stays. Once the rear legs

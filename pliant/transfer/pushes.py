@@ -21,6 +21,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
@@ -28,6 +29,9 @@ from pliant.envs.trunk_push import TrunkPushEnv
 from pliant.envs.trunk_push_proxy import CABLE_COURSES, TrunkPushProxyEnv
 from pliant.errors import ModelError
 from pliant.files import load_npz, save_npz
+from pliant.learn.evaluate import load_policy
+from pliant.transfer.fem_rl import FEM_KWARGS
+from pliant.transfer.fem_rl import OUT as FEM_VS_PROXY
 
 #: What chooses an action on the FEM: (observation, episode's rng) -> action (Box(9)).
 Policy = Callable[[np.ndarray, np.random.Generator], np.ndarray]
@@ -148,3 +152,40 @@ def cube_travel(cubes: np.ndarray) -> np.ndarray:
     """(E,) how far each episode's cube (E, T + 1, 3) ended from where it started, in the
     floor's plane (mm)."""
     return np.hypot(*(cubes[:, -1, [0, 2]] - cubes[:, 0, [0, 2]]).T)
+
+
+#: The FEM policies whose greedy episodes the push calibration fits the proxy's cube on (PPO on
+#: the FEM, seeds 0-4, experiments/proxy/vs_fem_rl.py's runs in fem_vs_proxy/).
+PUSH_POLICIES = ["std1"] + [f"std1_seed{s}" for s in range(1, 5)]
+
+
+def reference_pushes(
+    per_policy: int, random_episodes: int, moved: float, policies: Path = FEM_VS_PROXY
+) -> Pushes:
+    """The FEM's pushes: each of :data:`PUSH_POLICIES`' (in `policies`) `per_policy` greedy
+    episodes, then `random_episodes` of random actions at each of two spreads, kept where they
+    moved the cube at least `moved` mm."""
+    pushes = []
+    for k, name in enumerate(PUSH_POLICIES):
+        saved = load_policy(Path(policies) / name)
+
+        def greedy(obs, rng, saved=saved):
+            return saved.model.predict(saved.normalize_obs(obs), deterministic=True)[0]
+
+        pushes.append(
+            fem_pushes(greedy, per_policy, kind=name, seed=3000 + 100 * k, env_kwargs=FEM_KWARGS)
+        )
+    for std, seed in ((1.0, 5000), (0.37, 6000)):
+        drawn = fem_pushes(
+            random_policy(std),
+            random_episodes,
+            kind=f"random{std:g}",
+            seed=seed,
+            env_kwargs=FEM_KWARGS,
+        )
+        keep = cube_travel(drawn.cubes) >= moved
+        pushes.append(Pushes(drawn.actions[keep], drawn.cubes[keep], drawn.kinds[keep]))
+    out = pushes[0]
+    for p in pushes[1:]:
+        out = out + p
+    return out

@@ -219,3 +219,36 @@ def test_docs_results_page_is_filled_from_the_registry():
         assert f"`{entry.name}`" in rendered
         for figure in entry.figures:
             assert figure.ours_text(figure.read()) in rendered
+
+
+def test_evaluation_of_the_kept_model_compares_with_the_committed(tmp_path):
+    (tmp_path / "result.json").write_text(json.dumps({"runs": {"a": {"mm": 1.0}}}))
+    kept = Quick(_writer(1.02, "{out}/again.json"), {"result.json": "again.json"}, 1.0)
+    entry = Study("s", "T", "t", "true", (_figure(),), no_quick="none", evaluate=kept)
+    rows, _ = runner.evaluate(entry, tmp_path)
+    assert [(row.ok, row.reference, row.ours) for row in rows] == [(True, 1.0, 1.02)]
+    drifted = Quick(_writer(3.0, "{out}/again.json"), {"result.json": "again.json"}, 1.0)
+    entry = Study("s", "T", "t", "true", (_figure(),), no_quick="none", evaluate=drifted)
+    assert not runner.evaluate(entry, tmp_path)[0][0].ok
+    lost = Study("s", "T", "t", "true", (_figure(),), no_quick="none", not_kept="runs/ ignored")
+    with pytest.raises(ValueError, match="runs/ ignored"):
+        runner.evaluate(lost, tmp_path)
+    with pytest.raises(ValueError, match="no kept model"):
+        Study("s", "T", "t", "true", (_figure(),), no_quick="none", evaluate=kept, not_kept="x")
+
+
+def test_the_kept_models_are_tracked_and_small():
+    """A study that re-evaluates its kept policy or model reads it from tracked files only."""
+    tracked = _tracked()
+    for entry in STUDIES:
+        if entry.evaluate is None:
+            continue
+        assert "{out}" in entry.evaluate.command, entry.name
+        assert set(entry.evaluate.files) <= {f.file for f in entry.figures}, entry.name
+        for path in re.findall(r"experiments/\S+", entry.evaluate.command.replace('"', " ")):
+            folder = ROOT / path
+            assert folder.exists(), f"{entry.name}: no {path}"
+            files = [folder] if folder.is_file() else [p for p in folder.iterdir() if p.is_file()]
+            if tracked is not None:
+                assert any(str(p.relative_to(ROOT)) in tracked for p in files), path
+            assert sum(p.stat().st_size for p in files) < 5e6, f"{path} is not small"

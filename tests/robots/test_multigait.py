@@ -116,9 +116,9 @@ def _gait_cycle(model, amplitude: tuple[float, float], phases: int = 6) -> dict[
 def test_a_gait_cycle_walks_the_robot_away_from_the_legs_inflated_first(robot) -> None:
     """Thesis §3.4.1's gait with SofaGym's volume growths (scaled to these chambers): one
     cycle from rest moves the centre of mass 6.4 mm towards the front legs (-x), and both ends
-    of the underside follow (experiments/multigait_gait.py: 6.2 mm per cycle after the first);
-    the chambers stay below the 50 kPa limit. Without the paper membrane the robot went 0.4 mm
-    the wrong way. Without actuation it stays put."""
+    of the underside follow (experiments/reduction/multigait_gait.py: 6.2 mm per cycle after the
+    first); the chambers stay below the 50 kPa limit. Without the paper membrane the robot went
+    0.4 mm the wrong way. Without actuation it stays put."""
     walk = _gait_cycle(robot, (4900.0, 3300.0))
     assert walk["com"] < -4.0
     assert walk["front"] < -4.0 and walk["rear"] < -4.0
