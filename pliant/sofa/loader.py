@@ -476,6 +476,17 @@ def _value_type(obj: SceneObject, options: tuple[str, ...]) -> str:
     return raw.lower()
 
 
+def _command(obj: SceneObject, options: tuple[str, str]) -> tuple[np.ndarray, int, str]:
+    """A SoftRobots actuator's command: its ``value`` list, ``valueIndex`` and ``valueType``
+    (one of `options`, lower-cased)."""
+    values = _floats(obj.attrs.get("value", "0"), f"{obj.path}.value")
+    index = int(_float(obj, "valueIndex", 0.0))
+    kind = _value_type(obj, options)
+    if kind not in tuple(o.lower() for o in options):
+        raise SceneError(f"{obj.path}.valueType: {options[0]!r} or {options[1]!r}, not {kind!r}")
+    return values, index, kind
+
+
 def _float(obj: SceneObject, key: str, default: float) -> float:
     if key not in obj.attrs:
         return default
@@ -1256,11 +1267,7 @@ class _Builder:
         # SoftRobots: a pull point unless hasPullPoint is false, at the origin unless given.
         has_pull = _flag(obj, "hasPullPoint", True)
         pull_point = _floats(obj.attrs.get("pullPoint", "0 0 0"), f"{obj.path}.pullPoint")
-        values = _floats(obj.attrs.get("value", "0"), f"{obj.path}.value")
-        index = int(_float(obj, "valueIndex", 0.0))
-        mode = _value_type(obj, ("displacement", "force"))
-        if mode not in ("displacement", "force"):
-            raise SceneError(f"{obj.path}.valueType: 'displacement' or 'force', not {mode!r}")
+        values, index, mode = _command(obj, ("displacement", "force"))
         change = obj.attrs.get("maxDispVariation")
         return CableActuator(
             points,
@@ -1294,11 +1301,7 @@ class _Builder:
             raise SceneError(f"{obj.path}: directions and useDirections give three axes")
         if not use.any():  # SoftRobots then takes every direction
             use = np.ones(3)
-        values = _floats(obj.attrs.get("value", "0"), f"{obj.path}.value")
-        index = int(_float(obj, "valueIndex", 0.0))
-        mode = _value_type(obj, ("displacement", "force"))
-        if mode not in ("displacement", "force"):
-            raise SceneError(f"{obj.path}.valueType: 'displacement' or 'force', not {mode!r}")
+        values, index, mode = _command(obj, ("displacement", "force"))
         name = obj.node.name if obj.name == obj.type else obj.node.name + "/" + obj.name
         rows = []
         for i in range(len(points)):
@@ -1344,11 +1347,7 @@ class _Builder:
         else:
             triangles = _floats(value, f"{obj.path}.triangles").astype(np.int64).reshape(-1, 3)
         rest = points.positions(body.rest_positions)
-        values = _floats(obj.attrs.get("value", "0"), f"{obj.path}.value")
-        index = int(_float(obj, "valueIndex", 0.0))
-        kind = _value_type(obj, ("pressure", "volumeGrowth"))
-        if kind not in ("pressure", "volumegrowth"):
-            raise SceneError(f"{obj.path}.valueType: 'pressure' or 'volumeGrowth', not {kind!r}")
+        values, index, kind = _command(obj, ("pressure", "volumeGrowth"))
         change = obj.attrs.get("maxVolumeGrowthVariation")
         return CavityActuator(
             triangles,
