@@ -20,6 +20,7 @@ weighted sum of the normalised objectives (Eq. 5.20) trades them along the Paret
 
 from __future__ import annotations
 
+import inspect
 import itertools
 import math
 from collections.abc import Callable, Sequence
@@ -37,7 +38,7 @@ from pliant.robots import soft_finger
 Objective = Callable[[DesignMechanics, Tensor], Tensor]
 """(model, designs (n, P)) -> objective per design (n,), differentiable."""
 
-_FINGER_HEIGHT = soft_finger.__kwdefaults__["height"]
+_FINGER_HEIGHT = inspect.signature(soft_finger).parameters["height"].default
 
 
 def _tip_rows(model: DesignMechanics) -> slice:
