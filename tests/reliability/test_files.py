@@ -222,9 +222,9 @@ def _pushes():
 @pytest.mark.parametrize("kind", ["reduced model", "proxy reference", "proxy pushes"])
 def test_damaged_model_and_study_files_name_the_file(tmp_path, kind, how):
     from pliant.errors import ReductionError
-    from pliant.transfer.pushes import Pushes
     from pliant.proxy.references import Reference
     from pliant.reduction.reduced import ReducedModel
+    from pliant.transfer.pushes import Pushes
 
     made, cls, error = {
         "reduced model": (_reduced_model, ReducedModel, ReductionError),
