@@ -36,8 +36,9 @@ from dataclasses import dataclass
 
 import numpy as np
 import optuna
+from sqlalchemy.exc import SQLAlchemyError
 
-from pliant.errors import ModelError, PliantError
+from pliant.errors import CorruptFileError, ModelError, PliantError
 from pliant.model import State
 from pliant.proxy.builders import Proxy
 from pliant.solvers import ImplicitEuler
@@ -269,13 +270,21 @@ def calibrate(
         return error + travel_weight * trial.user_attrs["travel_error"]
 
     optuna.logging.set_verbosity(optuna.logging.WARNING)
-    study = optuna.create_study(
-        study_name=study_name,
-        storage=storage,
-        load_if_exists=True,
-        direction="minimize",
-        sampler=ResumableTPE(seed=seed, n_startup_trials=startup_trials),
-    )
+    try:
+        study = optuna.create_study(
+            study_name=study_name,
+            storage=storage,
+            load_if_exists=True,
+            direction="minimize",
+            sampler=ResumableTPE(seed=seed, n_startup_trials=startup_trials),
+        )
+    except SQLAlchemyError as exc:  # a damaged SQLite file: "file is not a database", ...
+        where = storage.removeprefix("sqlite:///") if storage else storage
+        raise CorruptFileError(
+            f"{where}: not a readable Optuna study ({type(exc).__name__}: {exc.args[0]});"
+            " delete it to start the calibration again",
+            where,
+        ) from exc
     # Trials left running by a process that was killed: failed, and run again (their number
     # is skipped; TPE draws from the finished trials only).
     for trial in study.get_trials(deepcopy=False, states=(optuna.trial.TrialState.RUNNING,)):
