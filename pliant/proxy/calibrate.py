@@ -10,9 +10,9 @@ distance. The study lives in a SQLite file when given one, and a run resumes it:
 trials until the study holds the number asked for. A resumed study draws what an uninterrupted
 one would have, bit for bit, even after a SIGKILL: the sampler's generators are seeded before
 each trial from the seed and the number of finished trials (:class:`ResumableTPE`), and a
-trial left running by a killed process is marked failed and run again. The proxy then uses its calibrated max
-curvatures times a safety factor < 1, under-using the actuation range it was fitted on
-(thesis L694).
+trial left running by a killed process is marked failed and run again. The proxy then uses
+its calibrated max curvatures times a safety factor < 1, under-using the actuation range it
+was fitted on (thesis L694).
 
 Positions identify the mass poorly (a heavier proxy sags a little more, and the loss barely
 sees it), so a search may also hold the proxy's mass within a tolerance of the FEM robot's: a
