@@ -26,7 +26,10 @@ COMMANDS = {
     "view saved states": (".npz", ["view", "{bad}", "--robot", "finger"]),
     "eval a model": (".zip", ["eval", "{bad}", "--algo", "PPO", "--episodes", "1"]),
     "enjoy a model": (".zip", ["enjoy", "{bad}", "--algo", "PPO"]),
-    "train --config": (".yaml", ["train", "--config", "{bad}", "--out", "{out}"]),
+    "train --config": (
+        ".yaml",
+        ["train", "pliant-test/PointReach-v0", "--config", "{bad}", "--out", "{out}"],
+    ),
     "condensed train": (".h5", ["condensed", "train", "{bad}", "--out", "{out}/m.pt"]),
     "condensed verify": (".h5", ["condensed", "verify", "{bad}"]),
     "condensed evaluate": (".pt", ["condensed", "evaluate", "{bad}", "{bad}"]),

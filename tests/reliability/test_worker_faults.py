@@ -7,6 +7,7 @@ actors are tested in test_faults.py and tests/learn/test_learn.py.)"""
 
 from __future__ import annotations
 
+import os
 import subprocess
 import sys
 import textwrap
@@ -20,6 +21,8 @@ pytest.importorskip("h5py")
 import fault_injection  # noqa: E402  (tests/reliability is on the path, as for test_faults)
 
 ROOT = Path(__file__).resolve().parent
+#: this tree's Pliant (not another checkout's installed one) and fault_injection
+PATH = os.pathsep.join([str(ROOT.parents[1]), str(ROOT), os.environ.get("PYTHONPATH", "")])
 
 SCRIPT = """
 import sys
@@ -49,6 +52,7 @@ def _collect(path: Path, mode: str) -> subprocess.CompletedProcess:
     return subprocess.run(
         [sys.executable, "-c", textwrap.dedent(SCRIPT), str(path), mode],
         cwd=ROOT,
+        env={**os.environ, "PYTHONPATH": PATH},
         capture_output=True,
         text=True,
         timeout=300,  # a hung pool fails here
