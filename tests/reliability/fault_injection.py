@@ -42,3 +42,18 @@ class DyingCommands:
         if t >= self.time:
             os.kill(os.getpid(), signal.SIGKILL)
         return np.array([self.level, 0.5 * self.level]) * min(t / 0.05, 1.0)
+
+
+#: The damages tests/reliability gives a file Pliant reads back.
+DAMAGE = ("truncated", "empty", "random bytes")
+
+
+def damage(path, how: str) -> None:
+    """Truncate `path` to half, empty it, or overwrite it with random bytes (`how`)."""
+    data = path.read_bytes()
+    if how == "truncated":
+        path.write_bytes(data[: len(data) // 2])
+    elif how == "empty":
+        path.write_bytes(b"")
+    else:
+        path.write_bytes(np.random.default_rng(0).bytes(max(len(data), 64)))

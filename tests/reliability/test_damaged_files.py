@@ -22,22 +22,13 @@ import pytest
 pytest.importorskip("torch")
 pytest.importorskip("h5py")
 
+from fault_injection import DAMAGE, damage  # noqa: E402
+
 from pliant import errors  # noqa: E402
 from pliant.errors import PliantError  # noqa: E402
 from pliant.files import sha256  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[2]
-DAMAGE = ("truncated", "empty", "random bytes")
-
-
-def damage(path: Path, how: str) -> None:
-    data = path.read_bytes()
-    if how == "truncated":
-        path.write_bytes(data[: len(data) // 2])
-    elif how == "empty":
-        path.write_bytes(b"")
-    else:
-        path.write_bytes(np.random.default_rng(0).bytes(max(len(data), 64)))
 
 
 def _beam():

@@ -20,6 +20,7 @@ import pytest
 
 pytest.importorskip("torch")
 
+from fault_injection import DAMAGE, damage  # noqa: E402
 from typer.testing import CliRunner  # noqa: E402
 
 from pliant.cli import app  # noqa: E402
@@ -30,17 +31,6 @@ from pliant.learn.callbacks import check_checkpoint, intact_checkpoint  # noqa: 
 from pliant.learn.evaluate import load_policy  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[2]
-DAMAGE = ("truncated", "empty", "random bytes")
-
-
-def damage(path: Path, how: str) -> None:
-    data = path.read_bytes()
-    if how == "truncated":
-        path.write_bytes(data[: len(data) // 2])
-    elif how == "empty":
-        path.write_bytes(b"")
-    else:
-        path.write_bytes(np.random.default_rng(0).bytes(max(len(data), 64)))
 
 
 @pytest.fixture(scope="module")
