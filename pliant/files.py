@@ -1,6 +1,7 @@
-"""Files written atomically: under a temporary name in their own folder, then moved over the
-target with `os.replace`, so that a reader (or a crash) finds the old file or the whole new
-one, never a part."""
+"""Files written atomically: under a temporary name in their own folder, flushed to the disk
+(``fsync``), then moved over the target with `os.replace` and the folder's entry flushed too,
+so that a reader, a crash or a power cut finds the old file or the whole new one, never a
+part."""
 
 from __future__ import annotations
 
@@ -20,6 +21,34 @@ import numpy as np
 T = TypeVar("T")
 
 
+def fsync_path(path: str | os.PathLike) -> None:
+    """Flush a file's (or a folder's entries') data to the disk; a file system that cannot
+    (some network or virtual ones refuse a folder) is left to its own guarantees."""
+    try:
+        fd = os.open(path, os.O_RDONLY)
+    except OSError:
+        return
+    try:
+        os.fsync(fd)
+    except OSError:
+        pass
+    finally:
+        os.close(fd)
+
+
+def replace(tmp: str | os.PathLike, path: str | os.PathLike) -> None:
+    """Move the finished temporary file (or folder) `tmp` onto `path` durably: `tmp`'s data
+    reaches the disk before the rename (a folder's files and entries), and the rename before
+    this returns."""
+    tmp = Path(tmp)
+    if tmp.is_dir():
+        for inner in sorted(tmp.rglob("*"), reverse=True):
+            fsync_path(inner)
+    fsync_path(tmp)
+    os.replace(tmp, path)
+    fsync_path(Path(path).parent)
+
+
 @contextmanager
 def atomic_path(path: str | os.PathLike) -> Iterator[Path]:
     """Yield a temporary path next to `path`; on success move it onto `path`, else delete it.
@@ -32,7 +61,7 @@ def atomic_path(path: str | os.PathLike) -> Iterator[Path]:
     tmp = path.with_name(f".{path.stem}.{uuid.uuid4().hex[:12]}.tmp{path.suffix}")
     try:
         yield tmp
-        os.replace(tmp, path)
+        replace(tmp, path)
     finally:
         tmp.unlink(missing_ok=True)
 

@@ -30,6 +30,7 @@ from pliant.errors import ModelError, StateError
 from pliant.fem.body import TetBody
 from pliant.fem.rigid import DrivenNodes, RigidBody
 from pliant.fem.rod import RodBody
+from pliant.files import replace
 
 
 @dataclass(frozen=True)
@@ -186,7 +187,7 @@ class State:
                     **{name: getattr(self, name) for name in self._RIGID},
                     **({} if self.layout is None else {"layout": self.layout.to_json()}),
                 )
-            os.replace(tmp, path)
+            replace(tmp, path)
         except OSError as exc:
             raise StateError(f"cannot save the state to {str(path)!r}: {exc}") from exc
         finally:

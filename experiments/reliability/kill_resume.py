@@ -1,7 +1,7 @@
 """Kill-and-resume counts (issue 64): long runs killed with SIGKILL at a random time, resumed,
 and compared bit for bit with an uninterrupted run.
 
-Two run types (``--kind``):
+Five run types (``--kind``):
 
 - ``sb3``, SB3 training: PPO on the toy ``pliant-test/PointReach-v0`` (VecNormalize on, one
   environment in the learner's process, a checkpoint every ``--checkpoint`` steps, one PyTorch
@@ -16,6 +16,24 @@ Two run types (``--kind``):
   reference command's solving time (from the moment its chunk folder appears, after imports
   and meshing), then the same command again (what resumes a collection). Compared: every
   field of both splits.
+- ``reduce``, reduction snapshots: :func:`pliant.reduction.snapshots.collect` of the Finger
+  (``--cases`` load cases, each pulling both cables for 0.4 s, a record every 2 steps, in
+  this process, as ``pliant reduce`` collects them), started in a fresh process and killed
+  over the first 90 % of the reference's collection time (from the moment the model is
+  built), then the same call again. Compared: every dataset and attribute of the HDF5 file.
+- ``calibrate``, proxy calibration: ``pliant proxy calibrate multigait --trials N`` on a
+  reference trajectory made once by the Multigait's proxy itself (20 steps; its study in
+  SQLite), killed over the first 90 % of the reference command's optimisation time (from the
+  moment its study file appears), then the same command again. Compared: every finished
+  trial (number among the finished, parameters, value) and the report's parameters and
+  errors.
+- ``graph``, graph training: ``pliant graph train Corridor`` (the toy corridor of three
+  contact configurations, small networks, an evaluation and checkpoint every
+  ``--eval-every`` steps), killed over the first 90 % of the reference run's training time
+  (from the moment its TensorBoard folder appears), then the same command again (it resumes
+  by default). Compared: every array and number of the final checkpoint (networks,
+  optimisers, replay buffers, generators, counters) and the evaluations (their wall times
+  left out).
 
 Kill times are seeded (``--seed`` and the run's index). The study resumes itself: the results
 are written (atomically) after each run, and the same command goes on from the first missing
@@ -23,6 +41,9 @@ run. From the repository root::
 
     python experiments/reliability/kill_resume.py --kind sb3 --runs 25
     python experiments/reliability/kill_resume.py --kind collect --runs 25 --samples 80
+    python experiments/reliability/kill_resume.py --kind reduce --runs 25
+    python experiments/reliability/kill_resume.py --kind calibrate --runs 25
+    python experiments/reliability/kill_resume.py --kind graph --runs 25
 
 (``--runs`` larger than the results hold adds runs to them; other settings start afresh.)
 
@@ -63,7 +84,7 @@ def _same_arrays(x: dict, y: dict) -> dict:
     for key, u in x.items():
         v = y[key]
         same &= u.dtype == v.dtype and u.shape == v.shape and u.tobytes() == v.tobytes()
-        if u.shape == v.shape and u.size:
+        if u.shape == v.shape and u.size and u.dtype.kind in "biuf" and v.dtype.kind in "biuf":
             worst = max(worst, float(np.max(np.abs(u.astype(float) - v.astype(float)))))
     return {"identical": bool(same), "max_abs_difference": worst}
 
@@ -253,9 +274,317 @@ class Collection:
         return _same_arrays(arrays(work / "reference.h5"), arrays(work / f"{label}.h5"))
 
 
+# ------------------------------------------------------------------ commands, generically
+class Forked:
+    """A child process made by the study's fork server, which imported Pliant once: it starts
+    in milliseconds rather than the seconds an interpreter takes to import Pliant, numba and
+    PyTorch (on a loaded machine, a minute), yet is a process of its own, killed by SIGKILL
+    as any, its memory and files nothing of its parent's or siblings'. The interface of
+    ``subprocess.Popen`` that the study uses."""
+
+    def __init__(self, argv: list[str], log: Path) -> None:
+        self.process = _context().Process(target=_forked_main, args=(argv, str(log)))
+        self.process.start()
+        self.pid = self.process.pid
+
+    @property
+    def returncode(self) -> int | None:
+        return self.process.exitcode
+
+    def poll(self) -> int | None:
+        return None if self.process.is_alive() else self.process.exitcode
+
+    def wait(self, timeout: float | None = None) -> int:
+        self.process.join(timeout)
+        if self.process.is_alive():
+            raise subprocess.TimeoutExpired("forked child", timeout)
+        return self.process.exitcode
+
+    def communicate(self, timeout: float | None = None) -> tuple[str, None]:
+        self.wait(timeout)
+        return "", None
+
+
+_CONTEXT = None
+
+
+def _context():
+    """The fork server, started once with Pliant's modules imported (and the children's
+    environment: one thread)."""
+    global _CONTEXT
+    if _CONTEXT is None:
+        import multiprocessing
+
+        os.environ.update(CHILD_ENV)
+        _CONTEXT = multiprocessing.get_context("forkserver")
+        _CONTEXT.set_forkserver_preload(["__main__", "pliant.cli", "torch", "optuna", "h5py"])
+    return _CONTEXT
+
+
+def _forked_main(argv: list[str], log: str) -> None:
+    """A forked child: its output to `log`, then ``pliant ARGV`` (argv[0] "cli") or one of
+    this file's children."""
+    fd = os.open(log, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o644)
+    os.dup2(fd, 1)
+    os.dup2(fd, 2)
+    if argv[0] == "cli":
+        from pliant.cli import app
+
+        app(argv[1:], prog_name="pliant")  # ends with SystemExit(status)
+    elif argv[0] == "_reduce":
+        reduce_child(*argv[1:])
+
+
+class Command:
+    """A run that is one command (a CLI call or this file's child, in a :class:`Forked`
+    process), started again to resume; `marker(work, label)` is the path whose appearance
+    says that the work has started."""
+
+    kind = ""
+    result = ""
+
+    def command(self, work: Path, label: str) -> list[str]:
+        raise NotImplementedError
+
+    def marker(self, work: Path, label: str) -> Path:
+        raise NotImplementedError
+
+    def clear(self, work: Path, label: str) -> None:
+        raise NotImplementedError
+
+    def start(self, work: Path, label: str) -> Forked:
+        self.clear(work, label)
+        process = self._spawn(work, label, "run")
+        marker = self.marker(work, label)
+        while not marker.exists() and process.poll() is None:
+            time.sleep(0.02)
+        return process
+
+    def _spawn(self, work: Path, label: str, action: str) -> Forked:
+        return Forked(self.command(work, label), work / f"{label}.{action}.log")
+
+    def finish(self, process: Forked, work: Path, label: str) -> None:
+        _finish(process, f"{self.kind} {label}", work / f"{label}.run.log")
+
+    def resume(self, work: Path, label: str) -> dict:
+        process = self._spawn(work, label, "resume")
+        _finish(process, f"resume of {label}", work / f"{label}.resume.log")
+        return {"resumed": True}
+
+
+def h5_contents(path: Path) -> dict:
+    """Every dataset's values and every attribute of an HDF5 file, by name."""
+    import h5py
+
+    out = {}
+    with h5py.File(path, "r") as f:
+
+        def visit(name, item):
+            out.update({f"{name}@{k}": np.asarray(v) for k, v in item.attrs.items()})
+            if isinstance(item, h5py.Dataset):
+                out[name] = np.asarray(item[()])
+
+        f.visititems(visit)
+        out.update({f"@{k}": np.asarray(v) for k, v in f.attrs.items()})
+    return out
+
+
+# ----------------------------------------------------------------- reduction snapshots
+class Reduction(Command):
+    kind = "reduce"
+    result = ".h5"
+
+    def __init__(self, args: argparse.Namespace) -> None:
+        self.cases = args.cases
+
+    def setup(self) -> dict:
+        return {"call": "pliant.reduction.snapshots.collect", "robot": "finger",
+                "cases": self.cases, "duration_s": 0.4, "dt": 0.01, "every": 2}  # fmt: skip
+
+    def command(self, work: Path, label: str) -> list[str]:
+        return ["_reduce", str(work / f"{label}.h5"), str(self.cases)]
+
+    def marker(self, work: Path, label: str) -> Path:
+        return work / f"{label}.built"
+
+    def clear(self, work: Path, label: str) -> None:
+        for suffix in (".h5", ".built"):
+            (work / f"{label}{suffix}").unlink(missing_ok=True)
+        shutil.rmtree(work / f"{label}.h5.parts", ignore_errors=True)
+
+    def progress(self, work: Path, label: str) -> dict:
+        parts = work / f"{label}.h5.parts"
+        records = len(list(parts.rglob("*.npz"))) if parts.is_dir() else 0
+        finished = 0
+        if (work / f"{label}.h5").exists():
+            names = {k.split("/")[1].split("@")[0] for k in h5_contents(work / f"{label}.h5")
+                     if k.startswith("cases/")}  # fmt: skip
+            finished = len(names)
+        return {"records_at_kill": records, "cases_finished_at_kill": finished}
+
+    def compare(self, work: Path, label: str) -> dict:
+        return _same_arrays(h5_contents(work / "reference.h5"), h5_contents(work / f"{label}.h5"))
+
+
+def reduce_child(path: str, cases: str) -> None:
+    """The Finger's snapshots: `cases` load cases pulling both cables to other levels."""
+    from pliant import robots
+    from pliant.reduction.pipeline import RampedCommands
+    from pliant.reduction.snapshots import LoadCase, collect
+
+    model = robots.entry("finger").build()
+    levels = np.linspace(1.0, 5.0, int(cases))
+    loads = [
+        LoadCase(f"pull_{k}", RampedCommands([np.array([a, 0.5 * a])] * 2, 0.2), 0.4)
+        for k, a in enumerate(levels)
+    ]
+    Path(f"{Path(path).with_suffix('')}.built").touch()
+    collect(model, loads, path, dt=0.01, every=2)
+
+
+# --------------------------------------------------------------------- proxy calibration
+class Calibration(Command):
+    kind = "calibrate"
+    result = "/multigait_calibration.json"
+
+    def __init__(self, args: argparse.Namespace) -> None:
+        self.trials = args.trials
+
+    def setup(self) -> dict:
+        return {"command": ["pliant", "proxy", "calibrate", "multigait", "--trials",
+                            str(self.trials), "--reference", "proxy_reference.npz"]}  # fmt: skip
+
+    def reference_file(self, work: Path) -> Path:
+        """The Multigait proxy's own 20 steps (its default parameters): what it is fitted to."""
+        path = work / "proxy_reference.npz"
+        if not path.exists():
+            subprocess.run([sys.executable, __file__, "_proxy_reference", str(path)],
+                           cwd=ROOT, env=CHILD_ENV, check=True)  # fmt: skip
+        return path
+
+    def command(self, work: Path, label: str) -> list[str]:
+        return ["cli", "proxy", "calibrate", "multigait",
+                "--trials", str(self.trials), "--reference", str(self.reference_file(work)),
+                "--out", str(work / label)]  # fmt: skip
+
+    def marker(self, work: Path, label: str) -> Path:
+        return work / label / "multigait.db"
+
+    def clear(self, work: Path, label: str) -> None:
+        shutil.rmtree(work / label, ignore_errors=True)
+
+    def progress(self, work: Path, label: str) -> dict:
+        return {"trials_at_kill": len(self._trials(work / label)) if
+                self.marker(work, label).exists() else 0}  # fmt: skip
+
+    @staticmethod
+    def _trials(folder: Path) -> list:
+        import optuna
+
+        optuna.logging.set_verbosity(optuna.logging.WARNING)
+        try:
+            study = optuna.load_study(study_name="multigait",
+                                      storage=f"sqlite:///{folder / 'multigait.db'}")  # fmt: skip
+        except KeyError:  # killed before the study was made
+            return []
+        return study.get_trials(states=(optuna.trial.TrialState.COMPLETE,))
+
+    def _arrays(self, folder: Path) -> dict:
+        out = {}
+        for k, trial in enumerate(self._trials(folder)):
+            out[f"trial_{k}/value"] = np.asarray(trial.value)
+            out.update({f"trial_{k}/{n}": np.asarray(v) for n, v in trial.params.items()})
+        report = json.loads((folder / "multigait_calibration.json").read_text())
+        for key in ("optimisation_error_mm", "validation_error_mm", "trials"):
+            out[f"report/{key}"] = np.asarray(report[key])
+        out.update({f"report/{n}": np.asarray(v) for n, v in report["parameters"].items()})
+        return out
+
+    def compare(self, work: Path, label: str) -> dict:
+        return _same_arrays(self._arrays(work / "reference"), self._arrays(work / label))
+
+
+def proxy_reference_child(path: str) -> None:
+    from pliant.proxy.builders import multigait_proxy
+    from pliant.proxy.references import Reference, setup
+
+    surface = np.array([[0.0, 29.0, 0.0], [136.0, -29.0, 0.0], [68.0, 0.0, 0.0]])
+    commands = np.repeat([[0.0, 0.0, 0.0, 1.0, 1.0], [0.0, 1.0, 1.0, 1.0, 1.0]], 10, axis=0)
+    draft = Reference(commands, np.zeros((20, 3, 3)), surface, 0.01)
+    points = setup("multigait").simulate(draft)(dict(multigait_proxy().parameters))
+    Reference(commands, points, surface, 0.01).save(path)
+
+
+# ------------------------------------------------------------------------ graph training
+class Graph(Command):
+    kind = "graph"
+    result = "/checkpoint.pt"
+
+    def __init__(self, args: argparse.Namespace) -> None:
+        self.steps, self.eval_every = args.graph_steps, args.eval_every
+        self.agent = {"hidden": 32, "d": 8, "lr": 1e-3, "batch_size": 32,
+                      "learning_starts": 100, "option_limit": 20,
+                      "updates_per_step": 0.25}  # fmt: skip
+
+    def setup(self) -> dict:
+        return {"command": ["pliant", "graph", "train", "Corridor", "--steps", str(self.steps),
+                            "--eval-every", str(self.eval_every), "--eval-episodes", "2"],
+                "agent": self.agent}  # fmt: skip
+
+    def command(self, work: Path, label: str) -> list[str]:
+        config = work / "graph_config.json"
+        if not config.exists():
+            config.write_text(json.dumps({"agent": self.agent}))
+        options = ["--steps", str(self.steps), "--eval-every", str(self.eval_every)]
+        options += ["--eval-episodes", "2", "--config", str(config), "--out", str(work / label)]
+        return ["cli", "graph", "train", "Corridor", *options]
+
+    def marker(self, work: Path, label: str) -> Path:
+        return work / label / "tb"
+
+    def clear(self, work: Path, label: str) -> None:
+        shutil.rmtree(work / label, ignore_errors=True)
+
+    def progress(self, work: Path, label: str) -> dict:
+        history = work / label / "history.json"
+        evaluations = json.loads(history.read_text())["evaluations"] if history.exists() else []
+        return {"evaluations_at_kill": len(evaluations),
+                "checkpoint_at_kill": (work / label / "checkpoint.pt").exists()}  # fmt: skip
+
+    @staticmethod
+    def _arrays(folder: Path) -> dict:
+        import torch
+
+        out = {}
+
+        def flatten(prefix: str, value) -> None:
+            if isinstance(value, dict):
+                for k, v in value.items():
+                    flatten(f"{prefix}/{k}", v)
+            elif isinstance(value, list | tuple):
+                for k, v in enumerate(value):
+                    flatten(f"{prefix}/{k}", v)
+            elif isinstance(value, torch.Tensor):
+                out[prefix] = value.detach().cpu().numpy()
+            elif value is None or isinstance(value, str | int):  # ints: NumPy's 128-bit states
+                out[prefix] = np.asarray(str(value))
+            else:
+                out[prefix] = np.asarray(value)
+
+        flatten("checkpoint", torch.load(folder / "checkpoint.pt", weights_only=False))
+        evaluations = json.loads((folder / "history.json").read_text())["evaluations"]
+        flatten("history", [{k: v for k, v in e.items() if k != "wall_s"} for e in evaluations])
+        return out
+
+    def compare(self, work: Path, label: str) -> dict:
+        return _same_arrays(self._arrays(work / "reference"), self._arrays(work / label))
+
+
 # ---------------------------------------------------------------------------------- study
 def reference(kind, work: Path) -> float:
-    """The uninterrupted run; returns its time from `kind.start`'s return to its end."""
+    """The uninterrupted run; returns its time from `kind.start`'s return to its end. A first
+    run, not timed, compiles and caches numba's kernels (and makes the files runs share)."""
+    kind.finish(kind.start(work, "reference"), work, "reference")
     process = kind.start(work, "reference")
     clock = time.perf_counter()
     kind.finish(process, work, "reference")
@@ -288,8 +617,11 @@ def kill_and_resume(kind, work: Path, index: int, seed: int, window: float) -> d
 
 def summarise(runs: list[dict]) -> dict:
     killed = [r for r in runs if r["killed"]]
-    # Killed with saved progress to resume from: a checkpoint, or chunks of the collection.
-    saved = [r for r in killed if r.get("resumed_from") is not None or r.get("chunks_at_kill")]
+    # Killed with saved progress to resume from: a checkpoint, chunks of the collection,
+    # records or cases of the snapshots, finished trials, a graph checkpoint.
+    keys = ("chunks_at_kill", "records_at_kill", "cases_finished_at_kill", "trials_at_kill",
+            "checkpoint_at_kill")  # fmt: skip
+    saved = [r for r in killed if r.get("resumed_from") is not None or any(r.get(k) for k in keys)]
     return {
         "runs": len(runs),
         "killed": len(killed),
@@ -302,22 +634,35 @@ def summarise(runs: list[dict]) -> dict:
     }
 
 
+KINDS = {
+    "sb3": Training,
+    "collect": Collection,
+    "reduce": Reduction,
+    "calibrate": Calibration,
+    "graph": Graph,
+}
+
+
 def main() -> None:
     from pliant.files import write_json
 
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--kind", choices=("sb3", "collect"), default="sb3")
+    parser.add_argument("--kind", choices=tuple(KINDS), default="sb3")
     parser.add_argument("--runs", type=int, default=25)
     parser.add_argument("--seed", type=int, default=0, help="seed of the kill times")
     parser.add_argument("--steps", type=int, default=6000, help="sb3: training steps of a run")
     parser.add_argument("--checkpoint", type=int, default=640, help="sb3: steps a checkpoint")
     parser.add_argument("--samples", type=int, default=80, help="collect: training samples")
     parser.add_argument("--chunk", type=int, default=2, help="collect: samples a chunk")
+    parser.add_argument("--cases", type=int, default=4, help="reduce: load cases")
+    parser.add_argument("--trials", type=int, default=12, help="calibrate: trials")
+    parser.add_argument("--graph-steps", type=int, default=240, help="graph: steps")
+    parser.add_argument("--eval-every", type=int, default=30, help="graph: checkpoint period")
     parser.add_argument("--work", type=Path, help="default: runs/kill_resume_<kind>")
     parser.add_argument("--out", type=Path, help="default: experiments/results/reliability/")
     args = parser.parse_args()
 
-    kind = {"sb3": Training, "collect": Collection}[args.kind](args)
+    kind = KINDS[args.kind](args)
     work = args.work or ROOT / "runs" / f"kill_resume_{args.kind}"
     out = (
         args.out
@@ -344,5 +689,9 @@ def main() -> None:
 if __name__ == "__main__":
     if len(sys.argv) > 1 and sys.argv[1] == "_child":
         child(*sys.argv[2:5])
+    elif len(sys.argv) > 1 and sys.argv[1] == "_reduce":
+        reduce_child(*sys.argv[2:4])
+    elif len(sys.argv) > 1 and sys.argv[1] == "_proxy_reference":
+        proxy_reference_child(sys.argv[2])
     else:
         main()

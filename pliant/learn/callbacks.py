@@ -12,8 +12,6 @@ import shutil
 import signal
 import threading
 import time
-import warnings
-import zipfile
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
@@ -23,10 +21,16 @@ import torch
 from stable_baselines3.common.callbacks import BaseCallback
 from stable_baselines3.common.vec_env import VecEnvWrapper, VecNormalize
 
-from pliant.errors import CheckpointWarning, CorruptFileError, TrainingError
-from pliant.files import check_manifest, read_checked, write_json, write_manifest
+from pliant.errors import TrainingError
+from pliant.files import read_checked, replace, write_json, write_manifest
 from pliant.learn.config import OFF_POLICY
-from pliant.learn.evaluate import run_episodes, save_policy
+from pliant.learn.evaluate import (  # noqa: F401 (the checkpoint finders' earlier home)
+    check_checkpoint,
+    intact_checkpoint,
+    latest_checkpoint,
+    run_episodes,
+    save_policy,
+)
 
 
 def rng_state(model) -> dict:
@@ -259,7 +263,7 @@ class CheckpointCallback(BaseCallback):
                 " checkpoints are intact: free space and go on with --resume"
             ) from exc
         shutil.rmtree(final, ignore_errors=True)
-        tmp.rename(final)
+        replace(tmp, final)  # durably: its files on the disk first
         self.last_saved = step
         for old in sorted(self.folder.glob("step_*"), key=lambda p: int(p.name[5:]))[: -self.keep]:
             shutil.rmtree(old, ignore_errors=True)
@@ -341,65 +345,3 @@ def restore_checkpoint(model, folder: Path, counters: TrainingState) -> dict:
     for k, v in state["counters"].items():
         setattr(counters, k, v)
     return state
-
-
-def latest_checkpoint(run_dir: Path) -> Path | None:
-    found = _checkpoints(run_dir)
-    return found[-1] if found else None
-
-
-def _checkpoints(run_dir: Path) -> list[Path]:
-    found = [p for p in (run_dir / "checkpoints").glob("step_*") if p.name[5:].isdigit()]
-    return sorted(found, key=lambda p: int(p.name[5:]))
-
-
-def check_checkpoint(folder: Path) -> None:
-    """Raise a CorruptFileError naming the damaged file of a checkpoint: against its
-    manifest, or, for a checkpoint written before manifests, by opening its files."""
-    if check_manifest(folder):
-        return
-
-    def zip_archive(path: Path) -> None:
-        with zipfile.ZipFile(path) as z:
-            bad = z.testzip()
-        if bad is not None:
-            raise ValueError(f"its member {bad} is corrupt")
-
-    def unpickle(path: Path) -> None:
-        with open(path, "rb") as f:
-            pickle.load(f)
-
-    read_checked(folder / "model.zip", zip_archive, "a saved model (a zip archive)")
-    read_checked(folder / "state.pkl", unpickle, "a checkpoint's state (a pickle)")
-    if (folder / "vecnormalize.pkl").exists():
-        read_checked(folder / "vecnormalize.pkl", unpickle, "VecNormalize statistics")
-
-
-def intact_checkpoint(run_dir: Path) -> Path | None:
-    """The newest checkpoint of a run whose files are intact (None when it has none), with a
-    CheckpointWarning naming each newer one skipped and the one used.
-
-    Raises:
-        CorruptFileError: the run has checkpoints, none of them intact (each one's damage
-            named).
-    """
-    damaged = []
-    for folder in reversed(_checkpoints(run_dir)):
-        try:
-            check_checkpoint(folder)
-        except (CorruptFileError, FileNotFoundError) as exc:
-            damaged.append(f"{folder.name}: {exc}")
-            continue
-        if damaged:
-            warnings.warn(
-                f"skipped damaged checkpoints ({'; '.join(damaged)}); resuming from {folder}",
-                CheckpointWarning,
-                stacklevel=2,
-            )
-        return folder
-    if damaged:
-        raise CorruptFileError(
-            f"no intact checkpoint in {run_dir / 'checkpoints'}: {'; '.join(damaged)}",
-            run_dir / "checkpoints",
-        )
-    return None

@@ -4,14 +4,15 @@ from __future__ import annotations
 
 import json
 import pickle
+import warnings
 import zipfile
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
 import numpy as np
 
-from pliant.errors import CorruptFileError, TrainingError
-from pliant.files import atomic_path, read_checked, write_json
+from pliant.errors import CheckpointWarning, CorruptFileError, TrainingError
+from pliant.files import atomic_path, check_manifest, read_checked, write_json
 from pliant.learn.config import ALGOS
 from pliant.learn.vec import make_env
 
@@ -130,18 +131,20 @@ def save_policy(model, folder: Path, algo: str, env_id: str, env_kwargs: dict, v
 
 def load_policy(path: str | Path, algo: str | None = None, device: str = "cpu") -> SavedPolicy:
     """A model saved by training: a ``model.zip``, the folder holding it, or a run folder
-    (its ``final/``, else its latest checkpoint).
+    (its ``final/``, else its newest intact checkpoint: damaged newer ones are skipped with a
+    CheckpointWarning naming them).
 
     Raises:
-        CorruptFileError: the model, its meta.json or its statistics are not readable.
+        CorruptFileError: the model, its meta.json or its statistics are not readable; or a
+            run folder without ``final/`` whose checkpoints are all damaged.
     """
     path = Path(path)
     if path.is_dir():
         candidates = [path / "model.zip", path / "final" / "model.zip"]
-        checkpoints = sorted((path / "checkpoints").glob("step_*"), key=_step_of)
-        if checkpoints:
-            candidates.append(checkpoints[-1] / "model.zip")
-        path = next((c for c in candidates if c.exists()), candidates[0])
+        path = next((c for c in candidates if c.exists()), None)
+        if path is None:
+            checkpoint = intact_checkpoint(Path(candidates[0].parent), using="loading")
+            path = candidates[0] if checkpoint is None else checkpoint / "model.zip"
     if not path.exists():
         raise FileNotFoundError(f"no saved model at {path}")
     if not zipfile.is_zipfile(path):
@@ -165,10 +168,6 @@ def load_policy(path: str | Path, algo: str | None = None, device: str = "cpu") 
 def _unpickle(path: Path):
     with open(path, "rb") as f:
         return pickle.load(f)
-
-
-def _step_of(path: Path) -> int:
-    return int(path.name.split("_")[-1])
 
 
 def evaluate_saved(
@@ -215,3 +214,65 @@ def save_frames(frames: list, path: Path, fps: int = 10) -> None:
 
     path.parent.mkdir(parents=True, exist_ok=True)
     imageio.mimsave(path, [np.asarray(f) for f in frames], duration=1000.0 / max(fps, 1), loop=0)
+
+
+def latest_checkpoint(run_dir: Path) -> Path | None:
+    found = _checkpoints(run_dir)
+    return found[-1] if found else None
+
+
+def _checkpoints(run_dir: Path) -> list[Path]:
+    found = [p for p in (run_dir / "checkpoints").glob("step_*") if p.name[5:].isdigit()]
+    return sorted(found, key=lambda p: int(p.name[5:]))
+
+
+def check_checkpoint(folder: Path) -> None:
+    """Raise a CorruptFileError naming the damaged file of a checkpoint: against its
+    manifest, or, for a checkpoint written before manifests, by opening its files."""
+    if check_manifest(folder):
+        return
+
+    def zip_archive(path: Path) -> None:
+        with zipfile.ZipFile(path) as z:
+            bad = z.testzip()
+        if bad is not None:
+            raise ValueError(f"its member {bad} is corrupt")
+
+    def unpickle(path: Path) -> None:
+        with open(path, "rb") as f:
+            pickle.load(f)
+
+    read_checked(folder / "model.zip", zip_archive, "a saved model (a zip archive)")
+    read_checked(folder / "state.pkl", unpickle, "a checkpoint's state (a pickle)")
+    if (folder / "vecnormalize.pkl").exists():
+        read_checked(folder / "vecnormalize.pkl", unpickle, "VecNormalize statistics")
+
+
+def intact_checkpoint(run_dir: Path, using: str = "resuming from") -> Path | None:
+    """The newest checkpoint of a run whose files are intact (None when it has none), with a
+    CheckpointWarning naming each newer one skipped and the one used.
+
+    Raises:
+        CorruptFileError: the run has checkpoints, none of them intact (each one's damage
+            named).
+    """
+    damaged = []
+    for folder in reversed(_checkpoints(run_dir)):
+        try:
+            check_checkpoint(folder)
+        except (CorruptFileError, FileNotFoundError) as exc:
+            damaged.append(f"{folder.name}: {exc}")
+            continue
+        if damaged:
+            warnings.warn(
+                f"skipped damaged checkpoints ({'; '.join(damaged)}); {using} {folder}",
+                CheckpointWarning,
+                stacklevel=2,
+            )
+        return folder
+    if damaged:
+        raise CorruptFileError(
+            f"no intact checkpoint in {run_dir / 'checkpoints'}: {'; '.join(damaged)}",
+            run_dir / "checkpoints",
+        )
+    return None

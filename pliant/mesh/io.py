@@ -12,6 +12,7 @@ import meshio
 import numpy as np
 
 from pliant.errors import MeshFileError
+from pliant.files import replace
 from pliant.mesh.quality import fix_orientation, remove_unused_nodes, validate_mesh
 from pliant.mesh.tetmesh import TetMesh
 
@@ -86,7 +87,7 @@ def save_mesh(mesh: TetMesh, path: str | os.PathLike[str]) -> None:
     os.close(fd)
     try:
         meshio.write(tmp_name, out)
-        os.replace(tmp_name, path)
+        replace(tmp_name, path)
     except Exception as exc:  # unknown extension (ValueError), I/O failures (OSError), ...
         Path(tmp_name).unlink(missing_ok=True)
         raise MeshFileError(f"cannot write mesh file {str(path)!r}: {exc}") from exc

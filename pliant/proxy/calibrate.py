@@ -7,9 +7,12 @@ The trajectory's recorded positions are split: every 5th is an optimisation posi
 others validation positions, which check that the proxy interpolates between them (the
 authors' code). The loss is the mean over positions and matched points of the Euclidean
 distance. The study lives in a SQLite file when given one, and a run resumes it: it adds
-trials until the study holds the number asked for. The proxy then uses its calibrated max
-curvatures times a safety factor < 1, under-using the actuation range it was fitted on
-(thesis L694).
+trials until the study holds the number asked for. A resumed study draws what an uninterrupted
+one would have, bit for bit, even after a SIGKILL: the sampler's generators are seeded before
+each trial from the seed and the number of finished trials (:class:`ResumableTPE`), and a
+trial left running by a killed process is marked failed and run again. The proxy then uses
+its calibrated max curvatures times a safety factor < 1, under-using the actuation range it
+was fitted on (thesis L694).
 
 Positions identify the mass poorly (a heavier proxy sags a little more, and the loss barely
 sees it), so a search may also hold the proxy's mass within a tolerance of the FEM robot's: a
@@ -33,14 +36,36 @@ from dataclasses import dataclass
 
 import numpy as np
 import optuna
+from sqlalchemy.exc import SQLAlchemyError
 
-from pliant.errors import ModelError, PliantError
+from pliant.errors import CorruptFileError, ModelError, PliantError
 from pliant.model import State
 from pliant.proxy.builders import Proxy
 from pliant.solvers import ImplicitEuler
 
 # What a trial whose proxy diverged scores: worse than any finite distance it could reach.
 _FAILED = 1e9
+
+
+class ResumableTPE(optuna.samplers.TPESampler):
+    """Optuna's TPE whose draws for a trial depend on `seed` and the study's finished trials
+    only, not on what this process drew before: its generators are seeded before each trial
+    from (`seed`, number of finished trials). A study resumed in a fresh process (after a
+    kill) then goes on as the uninterrupted one did."""
+
+    def __init__(self, *, seed: int = 0, **options) -> None:
+        super().__init__(seed=seed, **options)
+        self._base_seed = seed
+
+    def before_trial(self, study: optuna.Study, trial: optuna.trial.FrozenTrial) -> None:
+        finished = study.get_trials(deepcopy=False, states=_FINISHED)
+        words = np.random.SeedSequence([self._base_seed, len(finished)]).generate_state(2)
+        self._rng.rng.seed(int(words[0]))
+        self._random_sampler._rng.rng.seed(int(words[1]))
+        super().before_trial(study, trial)
+
+
+_FINISHED = (optuna.trial.TrialState.COMPLETE, optuna.trial.TrialState.PRUNED)
 
 
 def split(n_positions: int, *, every: int = 5) -> tuple[np.ndarray, np.ndarray]:
@@ -127,7 +152,7 @@ def rollout(
 @dataclass(frozen=True)
 class CalibrationResult:
     """The best trial's parameters, its errors (mm) on the optimisation and validation
-    positions, how many trials the study holds, and the parameters the proxy is to use (max
+    positions, how many finished trials the study holds, and the parameters the proxy is to use (max
     curvatures times the safety factor)."""
 
     parameters: dict[str, float]
@@ -245,14 +270,27 @@ def calibrate(
         return error + travel_weight * trial.user_attrs["travel_error"]
 
     optuna.logging.set_verbosity(optuna.logging.WARNING)
-    study = optuna.create_study(
-        study_name=study_name,
-        storage=storage,
-        load_if_exists=True,
-        direction="minimize",
-        sampler=optuna.samplers.TPESampler(seed=seed, n_startup_trials=startup_trials),
-    )
-    if start is not None and not study.trials:
+    try:
+        study = optuna.create_study(
+            study_name=study_name,
+            storage=storage,
+            load_if_exists=True,
+            direction="minimize",
+            sampler=ResumableTPE(seed=seed, n_startup_trials=startup_trials),
+        )
+    except SQLAlchemyError as exc:  # a damaged SQLite file: "file is not a database", ...
+        where = storage.removeprefix("sqlite:///") if storage else storage
+        raise CorruptFileError(
+            f"{where}: not a readable Optuna study ({type(exc).__name__}: {exc.args[0]});"
+            " delete it to start the calibration again",
+            where,
+        ) from exc
+    # Trials left running by a process that was killed: failed, and run again (their number
+    # is skipped; TPE draws from the finished trials only).
+    for trial in study.get_trials(deepcopy=False, states=(optuna.trial.TrialState.RUNNING,)):
+        study.tell(trial.number, state=optuna.trial.TrialState.FAIL)
+    begun = (optuna.trial.TrialState.COMPLETE, optuna.trial.TrialState.WAITING)
+    if start is not None and not study.get_trials(deepcopy=False, states=begun):
         first = {k: float(v) for k, v in start.items() if k in space}
         outside = [k for k, v in first.items() if not space[k][0] <= v <= space[k][1]]
         if outside:
@@ -275,7 +313,7 @@ def calibrate(
         found,
         float(best.user_attrs.get("optimisation_error", best.value)),
         float(best.user_attrs.get("validation_error", math.nan)),
-        len(study.trials),
+        len(complete),
         safety,
         None if mass is None else float(mass(found)),  # the best trial's only
         len(feasible),

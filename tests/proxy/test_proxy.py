@@ -336,9 +336,11 @@ def test_calibration_recovers_a_proxys_own_parameters(tmp_path) -> None:
     """Synthetic data: a 9-node Trunk proxy (no floor in reach, no cube) follows the
     thesis' calibration actions (held 15 steps of 0.02 s each, then rest) with known max
     curvatures of both beams and the lower beam's stiffness (which its sag under gravity
-    reveals); TPE searching a box of +-25 % around them finds each within 3 % in 40 trials
-    (measured: 1.5 %, 1.1 %, 2.1 %; matched points 0.64 mm off on average, out of a trunk
-    195 mm long). The study stored in SQLite resumes: a second call adds the missing trials."""
+    reveals); TPE searching a box of +-25 % around them finds the curvatures within 3 % and
+    the stiffness within 5 % in 40 trials (measured with the sampler seeded per trial for an
+    exact resume, issue 64: stiffness 4.3 % off; with the sampler seeded once, before: 1.5 %,
+    1.1 %, 2.1 %, matched points 0.64 mm off on average, out of a trunk 195 mm long). The
+    study stored in SQLite resumes: a second call adds the missing trials."""
     truth = {"lower_curvature": 0.01, "upper_curvature": 0.03, "lower_stiffness": 3000.0}
     commands = command_sequence(
         [[0, -1, 0, 0, 0], [0, 0, 0, -0.5, 0], [0, 1, 0, -1, 0], [0, 0, 0, 0, 0]], 15
@@ -357,7 +359,8 @@ def test_calibration_recovers_a_proxys_own_parameters(tmp_path) -> None:
     assert result.trials == 40
     assert result.optimisation_error <= first.optimisation_error
     for name, value in truth.items():
-        assert result.parameters[name] == pytest.approx(value, rel=0.03), name
+        rel = 0.05 if name.endswith("stiffness") else 0.03
+        assert result.parameters[name] == pytest.approx(value, rel=rel), name
     assert result.optimisation_error < 1.0 and result.validation_error < 1.0
     used = result.proxy_parameters
     assert used["upper_curvature"] == pytest.approx(0.9 * result.parameters["upper_curvature"])

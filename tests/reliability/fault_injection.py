@@ -29,3 +29,31 @@ def slow_solve_chunk(plan, points: np.ndarray):
     """solve_chunk taking at least SLOW_ENV seconds: a long job to kill the parent of."""
     time.sleep(float(os.environ.get(SLOW_ENV, "1")))
     return solve_chunk(plan, points)
+
+
+class DyingCommands:
+    """Load-case commands (pliant.reduction.snapshots) that kill the process running them
+    (SIGKILL) at `time` seconds: a reduction worker that dies mid-case."""
+
+    def __init__(self, level: float, time: float) -> None:
+        self.level, self.time = level, time
+
+    def __call__(self, t: float) -> np.ndarray:
+        if t >= self.time:
+            os.kill(os.getpid(), signal.SIGKILL)
+        return np.array([self.level, 0.5 * self.level]) * min(t / 0.05, 1.0)
+
+
+#: The damages tests/reliability gives a file Pliant reads back.
+DAMAGE = ("truncated", "empty", "random bytes")
+
+
+def damage(path, how: str) -> None:
+    """Truncate `path` to half, empty it, or overwrite it with random bytes (`how`)."""
+    data = path.read_bytes()
+    if how == "truncated":
+        path.write_bytes(data[: len(data) // 2])
+    elif how == "empty":
+        path.write_bytes(b"")
+    else:
+        path.write_bytes(np.random.default_rng(0).bytes(max(len(data), 64)))

@@ -20,27 +20,17 @@ import pytest
 
 pytest.importorskip("torch")
 
+from fault_injection import DAMAGE, damage  # noqa: E402
 from typer.testing import CliRunner  # noqa: E402
 
 from pliant.cli import app  # noqa: E402
 from pliant.errors import CheckpointWarning, CorruptFileError  # noqa: E402
-from pliant.files import check_manifest, read_checked, sha256  # noqa: E402
+from pliant.files import check_manifest, read_checked  # noqa: E402
 from pliant.learn import TrainConfig, train  # noqa: E402
 from pliant.learn.callbacks import check_checkpoint, intact_checkpoint  # noqa: E402
 from pliant.learn.evaluate import load_policy  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[2]
-DAMAGE = ("truncated", "empty", "random bytes")
-
-
-def damage(path: Path, how: str) -> None:
-    data = path.read_bytes()
-    if how == "truncated":
-        path.write_bytes(data[: len(data) // 2])
-    elif how == "empty":
-        path.write_bytes(b"")
-    else:
-        path.write_bytes(np.random.default_rng(0).bytes(max(len(data), 64)))
 
 
 @pytest.fixture(scope="module")
@@ -104,6 +94,20 @@ def test_resume_falls_back_to_the_newest_intact_checkpoint(run, tmp_path):
     assert resumed.summary["resumed_from"] == 200 and resumed.summary["steps"] == 350
 
 
+def test_load_policy_takes_the_newest_intact_checkpoint(run, tmp_path):
+    """A run folder without final/: its newest intact checkpoint, not the latest by name; the
+    damaged newer one is named in a warning."""
+    import shutil
+
+    copy = _copy(run, tmp_path)
+    shutil.rmtree(copy / "final")
+    damage(copy / "checkpoints" / "step_300" / "model.zip", "truncated")
+    with pytest.warns(CheckpointWarning, match="step_300") as caught:
+        policy = load_policy(copy)
+    assert "loading" in str(caught[0].message) and "step_200" in str(caught[0].message)
+    assert policy.algo == "PPO" and policy.vecnormalize is not None
+
+
 def test_resume_with_no_intact_checkpoint_is_refused_in_one_line(run, tmp_path):
     copy = _copy(run, tmp_path)
     for folder, how in zip(sorted((copy / "checkpoints").iterdir()), DAMAGE, strict=True):
@@ -146,41 +150,6 @@ def test_read_checked_names_the_file_and_what_it_should_be(tmp_path):
         read_checked(tmp_path / "missing.json", lambda p: json.loads(p.read_text()), "JSON")
 
 
-WRITER = """
-import sys, time
-from pliant.files import atomic_path
-with atomic_path(sys.argv[1]) as tmp:
-    with open(tmp, "wb") as f:
-        f.write(b"new" * 1000)
-        f.flush()
-        print("writing", flush=True)
-        time.sleep(60)
-"""
-
-
-def test_a_write_killed_half_way_leaves_the_previous_file_whole(tmp_path):
-    target = tmp_path / "model.zip"
-    target.write_bytes(b"old" * 1000)
-    before = sha256(target)
-    child = subprocess.Popen(
-        [sys.executable, "-c", textwrap.dedent(WRITER), str(target)],
-        cwd=ROOT,
-        stdout=subprocess.PIPE,
-        text=True,
-    )
-    try:
-        assert child.stdout.readline().strip() == "writing"
-        os.kill(child.pid, signal.SIGKILL)
-        child.wait(timeout=30)
-    finally:
-        if child.poll() is None:
-            child.kill()
-    assert child.returncode == -signal.SIGKILL
-    assert sha256(target) == before
-    # The temporary file is left behind (no process to remove it), hidden and never read.
-    assert [p.name for p in tmp_path.iterdir() if not p.name.startswith(".")] == ["model.zip"]
-
-
 def test_a_checkpoint_killed_half_way_is_not_resumed_from(run, tmp_path):
     """A checkpoint is written in a hidden folder renamed when complete: a kill leaves the
     hidden folder, which resume ignores."""
@@ -191,66 +160,6 @@ def test_a_checkpoint_killed_half_way_is_not_resumed_from(run, tmp_path):
     with warnings.catch_warnings():
         warnings.simplefilter("error", CheckpointWarning)
         assert intact_checkpoint(copy).name == "step_300"
-
-
-def _reduced_model():
-    from pliant.reduction.basis import ReducedBasis
-    from pliant.reduction.ecsw import IntegrationDomain, Selection
-    from pliant.reduction.reduced import ReducedModel
-
-    rng = np.random.default_rng(0)
-    basis = ReducedBasis(rng.random((20, 3)), rng.random((20, 3, 4)), 0, rng.random(6), "mesh")
-    domain = IntegrationDomain(Selection(np.arange(5), np.ones(5), 0.01))
-    return ReducedModel(basis, domain, {"robot": "beam"})
-
-
-def _reference():
-    from pliant.proxy.references import Reference
-
-    rng = np.random.default_rng(1)
-    return Reference(rng.random((30, 4)), rng.random((30, 8, 3)), rng.random((30, 20, 3)), 0.01)
-
-
-def _pushes():
-    from pliant.transfer.pushes import Pushes
-
-    rng = np.random.default_rng(2)
-    return Pushes(rng.random((3, 5, 9)), rng.random((3, 6, 3)), np.array(["a", "b", "c"]))
-
-
-@pytest.mark.parametrize("how", DAMAGE)
-@pytest.mark.parametrize("kind", ["reduced model", "proxy reference", "proxy pushes"])
-def test_damaged_model_and_study_files_name_the_file(tmp_path, kind, how):
-    from pliant.errors import ReductionError
-    from pliant.proxy.references import Reference
-    from pliant.reduction.reduced import ReducedModel
-    from pliant.transfer.pushes import Pushes
-
-    made, cls, error = {
-        "reduced model": (_reduced_model, ReducedModel, ReductionError),
-        "proxy reference": (_reference, Reference, CorruptFileError),
-        "proxy pushes": (_pushes, Pushes, CorruptFileError),
-    }[kind]
-    path = tmp_path / "saved.npz"
-    made().save(path)
-    again = cls.load(path)  # the intact file reads back
-    assert again is not None
-    damage(path, how)
-    with pytest.raises(error, match="saved.npz"):
-        cls.load(path)
-
-
-def test_a_damaged_graph_agent_checkpoint_names_the_file(tmp_path):
-    from pliant.learn.graph.hierarchy import GraphAgent
-
-    path = tmp_path / "agent.pt"
-    path.write_bytes(b"")
-    learner = GraphAgent.__new__(GraphAgent)
-    with pytest.raises(CorruptFileError, match=r"agent.pt: an empty file"):
-        learner.load(path)
-    path.write_bytes(np.random.default_rng(3).bytes(512))
-    with pytest.raises(CorruptFileError, match=r"agent.pt: not a graph agent checkpoint"):
-        learner.load(path)
 
 
 def test_resume_with_a_damaged_configuration_is_one_line(run, tmp_path):

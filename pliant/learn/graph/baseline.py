@@ -37,6 +37,7 @@ class FlatSAC:
             done=(),
         )  # fmt: skip
         self.steps = 0
+        self.next_eval: int | None = None  # as GraphAgent.next_eval
 
     def run_episode(self, env: gym.Env, *, train: bool, seed: int | None = None) -> dict:
         c = self.config
@@ -74,11 +75,13 @@ class FlatSAC:
 
     def learn(self, env, total_steps, *, eval_env=None, eval_every=0, eval_episodes=5,
               callback=None) -> list[dict]:  # fmt: skip
-        history, next_eval = [], self.steps + eval_every
+        history = []
+        next_eval = self.next_eval if self.next_eval is not None else self.steps + eval_every
         while self.steps < total_steps:
             self.run_episode(env, train=True, seed=int(self.rng.integers(2**31)))
             if eval_every and self.steps >= next_eval:
                 next_eval += eval_every
+                self.next_eval = next_eval
                 history.append(
                     {"steps": self.steps, **self.evaluate(eval_env or env, eval_episodes)}
                 )
@@ -88,7 +91,7 @@ class FlatSAC:
 
     def save(self, path: str | Path) -> None:
         state = {"steps": self.steps, "rng": self.rng.bit_generator.state}
-        state |= {"update_debt": self._update_debt}
+        state |= {"update_debt": self._update_debt, "next_eval": self.next_eval}
         state |= {"sac": self.sac.checkpoint(), "buffer": self.buffer.state_dict()}
         with atomic_path(path) as tmp:
             torch.save(state | {"torch_rng": torch.get_rng_state()}, tmp)
@@ -99,6 +102,7 @@ class FlatSAC:
         )
         self.steps, self.rng.bit_generator.state = state["steps"], state["rng"]
         self._update_debt = state.get("update_debt", 0.0)  # older checkpoints: whole rates
+        self.next_eval = state.get("next_eval")
         self.sac.restore(state["sac"])
         self.buffer.load_state_dict(state["buffer"])
         torch.set_rng_state(state["torch_rng"])

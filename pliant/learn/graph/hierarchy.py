@@ -220,6 +220,8 @@ class GraphAgent:
         )  # fmt: skip
         self.steps = 0
         self._update_debt = 0.0
+        #: the step count of the next evaluation of :meth:`learn` (kept by a checkpoint)
+        self.next_eval: int | None = None
 
     def swap_internal(self, controllers: dict[int, Callable[[np.ndarray], np.ndarray]]) -> None:
         """Replace the internal agents of the nodes in ``controllers`` by those controllers
@@ -399,11 +401,13 @@ class GraphAgent:
     ) -> list[dict]:
         """Train until ``total_steps`` environment steps; evaluate every ``eval_every`` steps.
         Returns the evaluations [{steps, return, success}]."""
-        history, next_eval = [], self.steps + eval_every
+        history = []
+        next_eval = self.next_eval if self.next_eval is not None else self.steps + eval_every
         while self.steps < total_steps:
             self.run_episode(env, train=True, seed=int(self.rng.integers(2**31)))
             if eval_every and self.steps >= next_eval:
                 next_eval += eval_every
+                self.next_eval = next_eval  # a checkpoint the callback saves resumes on time
                 result = {"steps": self.steps, **self.evaluate(eval_env or env, eval_episodes)}
                 history.append(result)
                 if callback is not None:
@@ -422,6 +426,7 @@ class GraphAgent:
         return {
             "steps": self.steps,
             "update_debt": self._update_debt,
+            "next_eval": self.next_eval,
             "rng": self.rng.bit_generator.state,
             "torch_rng": torch.get_rng_state(),
             "internal": [
@@ -450,6 +455,7 @@ class GraphAgent:
 
     def load_state_dict(self, state: dict) -> None:
         self.steps, self._update_debt = state["steps"], state["update_debt"]
+        self.next_eval = state.get("next_eval")  # older checkpoints: from their step
         self.rng.bit_generator.state = state["rng"]
         torch.set_rng_state(state["torch_rng"])
         for agent, saved in [

@@ -86,6 +86,9 @@ def train_run(
         history = read_checked(
             history_file, lambda p: json.loads(p.read_text())["evaluations"], "a graph history"
         )
+        # The history is written before the checkpoint: a run killed between the two has an
+        # evaluation more than its checkpoint, made again from it.
+        history = [entry for entry in history if entry["steps"] <= learner.steps]
     start = time.perf_counter() - (history[-1]["wall_s"] if history else 0.0)
     logger = configure(str(out / "tb"), ["tensorboard"])
 
@@ -95,10 +98,10 @@ def train_run(
         logger.record("eval/success_rate", result["success"])
         logger.record("time/wall_s", history[-1]["wall_s"])
         logger.dump(result["steps"])
-        learner.save(checkpoint)
         meta = {"scene": scene_name, "method": method, "seed": seed, "config": config or {},
                 "env": env_kwargs or {}}  # fmt: skip
         write_json(history_file, {**meta, "evaluations": history})
+        learner.save(checkpoint)  # after the history (see the resume above)
         console.print(f"{method} seed {seed}: {result}")
 
     try:
