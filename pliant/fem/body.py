@@ -139,7 +139,7 @@ def _sized_threads(method):
     @functools.wraps(method)
     def wrapper(self, *args, **kwargs):
         saved = numba.get_num_threads()
-        if self.tets.shape[0] >= PARALLEL_MIN_TETS or saved == 1:
+        if self.n_elements >= PARALLEL_MIN_TETS or saved == 1:
             return method(self, *args, **kwargs)
         numba.set_num_threads(1)
         try:
@@ -241,6 +241,16 @@ class TetBody(Revised):
             gravity=gravity,
         )
 
+        self._layout(self.tets, fixed_nodes, fixed_dofs, membranes, loads, projections)
+        self.mass_type: MassType = mass
+        self.node_masses = self._node_masses(mass)
+        self.mass_data = self._mass_data(mass)
+        self._mass_diagonal = np.repeat(self.node_masses, 3)[self.free_dofs]
+        self._element_blocks = np.empty((n_elem, 12, 12))
+
+    def _layout(self, elements, fixed_nodes, fixed_dofs, membranes, loads, projections) -> None:
+        """Held and free DoFs, the stiffness pattern of `elements` (m, k nodes), the membranes,
+        loads and projections on it, and the node -> element incidence."""
         n = self.n_nodes
         fixed = np.unique(np.asarray([] if fixed_nodes is None else fixed_nodes, dtype=np.int64))
         if fixed.size and (fixed.min() < 0 or fixed.max() >= n):
@@ -259,24 +269,19 @@ class TetBody(Revised):
         self.free_dofs = np.flatnonzero(~fixed_mask)
         self.free_index = np.full(3 * n, -1, dtype=np.int64)
         self.free_index[self.free_dofs] = np.arange(self.free_dofs.size)
-        self.pattern = StiffnessPattern.build(self.tets, self.free_index)
+        self.pattern = StiffnessPattern.build(elements, self.free_index)
         self.membranes = [MembraneAssembly(m, n, self.free_index, self.pattern) for m in membranes]
         self.loads = [LoadAssembly(load, n, self.free_index, self.pattern) for load in loads]
         self.projections = list(projections)
         self.projection = self._projection_matrix()
-
-        self.mass_type: MassType = mass
-        self.node_masses = self._node_masses(mass)
-        self.mass_data = self._mass_data(mass)
-        self._mass_diagonal = np.repeat(self.node_masses, 3)[self.free_dofs]
-        self._element_blocks = np.empty((n_elem, 12, 12))
         # Node -> (element, local vertex) incidence, to gather element contributions in parallel.
-        order = np.argsort(self.tets.ravel(), kind="stable")
+        order = np.argsort(elements.ravel(), kind="stable")
         self._incidence = order.astype(np.int64)
         self._incidence_ptr = np.zeros(n + 1, dtype=np.int64)
-        np.cumsum(np.bincount(self.tets.ravel(), minlength=n), out=self._incidence_ptr[1:])
+        np.cumsum(np.bincount(elements.ravel(), minlength=n), out=self._incidence_ptr[1:])
+        size = 3 * elements.shape[1]
         self._elem_dofs = self.free_index[
-            (3 * self.tets[:, :, None] + np.arange(3)).reshape(-1, 12)
+            (3 * elements[:, :, None] + np.arange(3)).reshape(-1, size)
         ].copy()
 
     # --- layout -----------------------------------------------------------------------------

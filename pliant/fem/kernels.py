@@ -100,8 +100,21 @@ def _edge_frame(x, tet, q):
     SOFA's "large" method), columns e_0, e_1, e_2: e_0 along x_1 - x_0, e_2 along
     (x_1 - x_0) x (x_2 - x_0), e_1 = e_2 x e_0."""
     a, b, c = tet[0], tet[1], tet[2]
-    u0, u1, u2 = x[b, 0] - x[a, 0], x[b, 1] - x[a, 1], x[b, 2] - x[a, 2]
-    w0, w1, w2 = x[c, 0] - x[a, 0], x[c, 1] - x[a, 1], x[c, 2] - x[a, 2]
+    _frame_of(
+        x[b, 0] - x[a, 0],
+        x[b, 1] - x[a, 1],
+        x[b, 2] - x[a, 2],
+        x[c, 0] - x[a, 0],
+        x[c, 1] - x[a, 1],
+        x[c, 2] - x[a, 2],
+        q,
+    )
+
+
+@njit(cache=True, inline="always")
+def _frame_of(u0, u1, u2, w0, w1, w2, q):
+    """q = the orthonormal frame of two vectors u, w, columns e_0, e_1, e_2: e_0 along u, e_2
+    along u x w, e_1 = e_2 x e_0 (Gram-Schmidt, SOFA's "large" rotation)."""
     n0, n1, n2 = u1 * w2 - u2 * w1, u2 * w0 - u0 * w2, u0 * w1 - u1 * w0
     lu = np.sqrt(u0 * u0 + u1 * u1 + u2 * u2)
     ln = np.sqrt(n0 * n0 + n1 * n1 + n2 * n2)
@@ -293,10 +306,11 @@ def internal_forces(
 def gather_nodal(elem_values, tets, incidence_ptr, incidence, out):
     """out[n] = sum of elem_values[e, a] over the (e, a) with tets[e, a] == n.
 
-    elem_values (m, 4, ...) and out (n, ...) are contiguous; `incidence` lists e * 4 + a per
-    node (sorted by node, `incidence_ptr` its CSR offsets). On several threads node-parallel,
-    with no write conflicts; on one thread a scatter in element order, which streams through
-    elem_values instead of reading it at random (3x faster on the Diamond's 4147 elements).
+    elem_values (m, k, ...) (k nodes per element: 4 for tetrahedra, 8 for hexahedra) and out
+    (n, ...) are contiguous; `incidence` lists e * k + a per node (sorted by node,
+    `incidence_ptr` its CSR offsets). On several threads node-parallel, with no write conflicts;
+    on one thread a scatter in element order, which streams through elem_values instead of
+    reading it at random (3x faster on the Diamond's 4147 elements).
     """
     if numba.get_num_threads() > 1:
         _gather_by_node(elem_values, incidence_ptr, incidence, out)
@@ -307,11 +321,12 @@ def gather_nodal(elem_values, tets, incidence_ptr, incidence, out):
 @njit(cache=True, nogil=True)
 def _scatter_by_element(elem_values, tets, out):
     width = out.size // out.shape[0]
-    flat = elem_values.reshape((elem_values.shape[0], 4, width))
+    k = elem_values.shape[1]
+    flat = elem_values.reshape((elem_values.shape[0], k, width))
     res = out.reshape((out.shape[0], width))
     res[:] = 0.0
     for e in range(flat.shape[0]):
-        for a in range(4):
+        for a in range(k):
             n = tets[e, a]
             for j in range(width):
                 res[n, j] += flat[e, a, j]
@@ -320,7 +335,7 @@ def _scatter_by_element(elem_values, tets, out):
 @njit(cache=True, parallel=True, nogil=True)
 def _gather_by_node(elem_values, incidence_ptr, incidence, out):
     width = out.size // out.shape[0]
-    flat = elem_values.reshape((elem_values.shape[0] * 4, width))
+    flat = elem_values.reshape((elem_values.shape[0] * elem_values.shape[1], width))
     res = out.reshape((out.shape[0], width))
     for n in prange(res.shape[0]):
         for j in range(width):
@@ -491,7 +506,7 @@ def stiffness_matvec(
 def gather_free(elem_values, incidence_ptr, incidence, free_index, out):
     """out[free_index[3 n + i], :] = sum of elem_values[e, a, i, :] over the elements of node n."""
     k = out.shape[1]
-    flat = elem_values.reshape((elem_values.shape[0] * 4, 3, k))
+    flat = elem_values.reshape((elem_values.shape[0] * elem_values.shape[1], 3, k))
     for n in prange(incidence_ptr.shape[0] - 1):
         for i in range(3):
             d = free_index[3 * n + i]
@@ -583,9 +598,10 @@ def corotational_assembly(grads, vols, mu, lam, tag, frames, dets, scatter, data
 @njit(cache=True)
 def scatter_add(blocks, scale, scatter, data):
     """data[scatter[e, r, c]] += scale * blocks[e, r, c] for every entry with scatter >= 0."""
+    size = blocks.shape[1]
     for e in range(blocks.shape[0]):
-        for r in range(12):
-            for c in range(12):
+        for r in range(size):
+            for c in range(size):
                 k = scatter[e, r, c]
                 if k >= 0:
                     data[k] += scale * blocks[e, r, c]

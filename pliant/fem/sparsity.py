@@ -1,4 +1,5 @@
-"""Sparse pattern of the tetrahedral stiffness matrix restricted to free degrees of freedom."""
+"""Sparse pattern of the stiffness matrix (tetrahedra or hexahedra) restricted to free degrees
+of freedom."""
 
 from __future__ import annotations
 
@@ -16,8 +17,8 @@ class StiffnessPattern:
 
     Attributes:
         indptr, indices: CSR structure (sorted column indices), size n_free.
-        scatter: (m, 12, 12) int64, position in `data` of element entry (r, c), -1 when the
-            row or column is a fixed DoF.
+        scatter: (m, 3 k, 3 k) int64 (k nodes per element), position in `data` of element
+            entry (r, c), -1 when the row or column is a fixed DoF.
     """
 
     n_free: int
@@ -27,17 +28,18 @@ class StiffnessPattern:
 
     @classmethod
     def build(cls, tets: np.ndarray, free_index: np.ndarray) -> StiffnessPattern:
-        """`free_index[d]` is the free-DoF number of full DoF d, or -1 if d is fixed."""
-        m = tets.shape[0]
-        dofs = (3 * tets[:, :, None] + np.arange(3)[None, None, :]).reshape(m, 12)
+        """`free_index[d]` is the free-DoF number of full DoF d, or -1 if d is fixed; `tets`
+        are the elements' nodes (m, k)."""
+        m, size = tets.shape[0], 3 * tets.shape[1]
+        dofs = (3 * tets[:, :, None] + np.arange(3)[None, None, :]).reshape(m, size)
         fdofs = free_index[dofs]
-        rows = np.broadcast_to(fdofs[:, :, None], (m, 12, 12))
-        cols = np.broadcast_to(fdofs[:, None, :], (m, 12, 12))
+        rows = np.broadcast_to(fdofs[:, :, None], (m, size, size))
+        cols = np.broadcast_to(fdofs[:, None, :], (m, size, size))
         valid = (rows >= 0) & (cols >= 0)
         n_free = int(free_index.max()) + 1 if free_index.size and free_index.max() >= 0 else 0
         key = rows.astype(np.int64) * max(n_free, 1) + cols
         uniq, inverse = np.unique(key[valid], return_inverse=True)
-        scatter = np.full((m, 12, 12), -1, dtype=np.int64)
+        scatter = np.full((m, size, size), -1, dtype=np.int64)
         scatter[valid] = inverse.ravel()
         urows = uniq // max(n_free, 1)
         indices = (uniq % max(n_free, 1)).astype(np.int32)
