@@ -16,6 +16,7 @@ import numpy as np
 
 from pliant.errors import ConstraintError, ModelError
 from pliant.mesh import locate_points
+from pliant.mesh.hexmesh import HexMesh
 from pliant.mesh.tetmesh import TetMesh
 
 
@@ -35,12 +36,13 @@ class EmbeddedPoints:
     ``outside="project"`` (Pliant's default), moved onto its nearest element (coordinates
     clamped to [0, 1]); with ``outside="keep"`` (SOFA's behaviour, the default of scenes read by
     :mod:`pliant.sofa`), kept where it is, with its barycentric coordinates (some negative) in
-    the element whose centre is nearest.
+    the element whose centre is nearest. In a hexahedral mesh the weights are the trilinear
+    shape functions of the containing hexahedron (eight per point).
     """
 
     def __init__(
         self,
-        mesh: TetMesh,
+        mesh: TetMesh | HexMesh,
         points: np.ndarray,
         *,
         tolerance: float | None = None,
@@ -55,6 +57,9 @@ class EmbeddedPoints:
             raise ModelError("points must be finite")
         if tolerance is None:
             tolerance = 0.01 * float(np.linalg.norm(np.ptp(mesh.points, axis=0)))
+        if isinstance(mesh, HexMesh):
+            self.nodes, self.weights = mesh.embed(pts, tolerance=tolerance, outside=outside)
+            return
         tet_index, bary = locate_points(mesh, pts, tolerance=tolerance, outside=outside)
         self.nodes = np.ascontiguousarray(mesh.tets[tet_index], dtype=np.int64)
         self.weights = np.ascontiguousarray(bary, dtype=float)

@@ -127,13 +127,14 @@ class CableBundle:
         self._ends = np.array(ends, dtype=np.int64)
         self._owner = np.array(owner, dtype=np.int64)
         self._rest = np.array([c.rest_length for c in cables])
-        width = max(4 * len(c.points) for c in cables)
+        per = self._nodes.shape[1]  # nodes per point: 4 in tetrahedra, 8 in hexahedra
+        width = max(per * len(c.points) for c in cables)
         self._cols = np.zeros((self.n_rows, width), dtype=np.int64)
         self._valid = np.zeros((self.n_rows, width), dtype=bool)
         offset = 0
         for i, c in enumerate(cables):
-            k = 4 * len(c.points)
-            self._cols[i, :k] = np.arange(4 * offset, 4 * offset + k)
+            k = per * len(c.points)
+            self._cols[i, :k] = np.arange(per * offset, per * offset + k)
             self._valid[i, :k] = True
             offset += len(c.points)
         self._row_nodes = np.where(self._valid, self._nodes.reshape(-1)[self._cols], 0)

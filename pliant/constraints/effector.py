@@ -74,11 +74,12 @@ class PositionEffector(Constraint):
 
     def jacobian(self, x: np.ndarray) -> JacobianRows:
         k, na = len(self.points), self.axes.size
-        values = np.zeros((k, na, 4, 3))
+        per = self.points.nodes.shape[1]
+        values = np.zeros((k, na, per, 3))
         for j, ax in enumerate(self.axes):
             values[:, j, :, ax] = self.weight * self.points.weights
         nodes = np.repeat(self.points.nodes[:, None, :], na, axis=1)
-        return JacobianRows(nodes.reshape(k * na, 4), values.reshape(k * na, 4, 3))
+        return JacobianRows(nodes.reshape(k * na, per), values.reshape(k * na, per, 3))
 
 
 class RigidEffector(Constraint):

@@ -9,11 +9,12 @@ clockwise seen from above, (0, 0, 0), (1, 0, 0), (1, 1, 0), (0, 1, 0), then the 
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 from numba import njit
 from scipy import ndimage
+from scipy.spatial import cKDTree
 
 from pliant.errors import MeshError, ModelError
 from pliant.mesh.locate import locate_points
@@ -64,14 +65,10 @@ class HexMesh:
     Attributes:
         points: (n, 3) node coordinates.
         hexes: (m, 8) node indices, VTK order (see the module).
-        boundary_cells: (m,) True for the cells of a sparse grid that the surface crosses
-            (SOFA's BOUNDARY cells, half as stiff and heavy with ``fillWeighted``); all False
-            for a regular grid.
     """
 
     points: np.ndarray
     hexes: np.ndarray
-    boundary_cells: np.ndarray = field(default=None)  # type: ignore[assignment]
 
     def __post_init__(self) -> None:
         points = np.ascontiguousarray(self.points, dtype=np.float64)
@@ -85,13 +82,8 @@ class HexMesh:
         unused = points.shape[0] - np.unique(hexes).size
         if unused:
             raise MeshError(f"{unused} nodes belong to no hexahedron")
-        cells = self.boundary_cells
-        cells = np.zeros(hexes.shape[0], bool) if cells is None else np.asarray(cells, bool)
-        if cells.shape != (hexes.shape[0],):
-            raise MeshError("boundary_cells must hold one flag per hexahedron")
         object.__setattr__(self, "points", points)
         object.__setattr__(self, "hexes", hexes)
-        object.__setattr__(self, "boundary_cells", cells)
         # Natural-coordinate Jacobians at the centres: an inverted or flat cell is refused.
         centre = np.einsum("mai,aj->mij", points[hexes], shape_derivatives(np.zeros((1, 3)))[0])
         bad = np.flatnonzero(~(np.linalg.det(centre) > 0.0))
@@ -147,12 +139,28 @@ class HexMesh:
         BarycentricMapping on a grid): in the cell containing each; a point outside (up to
         `tolerance`) in its nearest cell, its coordinates clamped onto the cell ("project") or
         extrapolated ("keep", SOFA's)."""
+        # The six tetrahedra of each cell check the distance and give one candidate; the cells
+        # with the nearest centres give the others (a cell's curved faces may leave a point in
+        # a neighbour's tetrahedra).
         tet, _ = locate_points(self.tetrahedra(), points, tolerance=tolerance, outside=outside)
-        cells = tet // _SPLIT.shape[0]
-        xi = self.natural_coordinates(cells, points)
+        centres = self.points[self.hexes].mean(axis=1)
+        k = min(8, self.n_hexes)
+        _, near = cKDTree(centres).query(points, k=k)
+        candidates = np.column_stack([tet // _SPLIT.shape[0], near.reshape(len(points), k)])
+        xi = self.natural_coordinates(
+            candidates.ravel(), np.repeat(points, candidates.shape[1], axis=0)
+        ).reshape(*candidates.shape, 3)
+        spread = np.abs(xi).max(axis=2)
+        best = np.argmin(spread, axis=1)
+        rows = np.arange(len(points))
+        cells, coords = candidates[rows, best], xi[rows, best]
+        out = spread[rows, best] > 1.0 + 1e-9
         if outside == "project":
-            xi = np.clip(xi, -1.0, 1.0)
-        return self.hexes[cells], shape_functions(xi)
+            coords = np.clip(coords, -1.0, 1.0)
+        elif out.any():  # SOFA: the cell whose centre is nearest, coordinates extrapolated
+            cells[out] = candidates[out, 1]
+            coords[out] = xi[out, 1]
+        return self.hexes[cells], shape_functions(coords)
 
 
 def regular_grid(n, lower, upper) -> HexMesh:
@@ -189,30 +197,40 @@ def sparse_grid(
     *,
     cell_width: float = 0.0,
     only_inside: bool = False,
-) -> HexMesh:
-    """SOFA's SparseGridTopology built from a closed surface: the cells of the regular grid
-    (n nodes per axis between `lower` and `upper`; by default the surface's bounding box
-    grown by 1 % of its size on each side; `cell_width` > 0 sets n from it) that the surface
-    crosses (BOUNDARY cells, dropped when `only_inside`) or that lie inside it (INSIDE: not
-    reached from the grid's border without crossing the surface). Boundary cells come first,
-    then inside ones, each in grid order; nodes are sorted by x, then y, then z (SOFA's
-    order)."""
+    fill_weighted: bool = True,
+    finer_levels: int = 0,
+) -> tuple[HexMesh, np.ndarray]:
+    """SOFA's SparseGridTopology built from a closed surface, and its cells' stiffness
+    coefficients.
+
+    The cells kept are those of the regular grid (n nodes per axis between `lower` and
+    `upper`; by default the surface's bounding box grown by 1 % of its size on each side;
+    `cell_width` > 0 sets n from it) that the surface crosses (BOUNDARY cells, dropped when
+    `only_inside`) or that lie inside it (INSIDE: not reached from the grid's border through
+    faces of uncrossed cells). Boundary cells come first, then inside ones, each in grid order
+    (x fastest); nodes are sorted by x, then y, then z (SOFA's order). A cell's coefficient is
+    0.5 on the boundary with `fill_weighted` (SOFA's default), else 1.
+
+    With `finer_levels` L > 0 (SOFA's ``nbVirtualFinerLevels``) the surface is voxelised on
+    the grid 2^L times finer, and each coarse cell, made of 8 finer ones, is kept when one of
+    them is, INSIDE when all are, with the mean of their coefficients (0 for dropped ones).
+    """
     vertices = np.asarray(vertices, dtype=float)
     triangles = np.asarray(triangles, dtype=np.int64)
     if vertices.ndim != 2 or vertices.shape[1] != 3 or triangles.ndim != 2 or not triangles.size:
         raise ModelError("a sparse grid needs a surface: (n, 3) vertices and (k, 3) triangles")
-    if lower is None or upper is None or (np.all(lower == 0) and np.all(upper == 0)):
+    if lower is None or upper is None or (not np.any(lower) and not np.any(upper)):
         lo, hi = vertices.min(axis=0), vertices.max(axis=0)
         lower, upper = lo - (hi - lo) / 100.0, hi + (hi - lo) / 100.0
-    lower, upper = np.asarray(lower, float), np.asarray(upper, float)
+    lower, upper = np.asarray(lower, float).reshape(-1), np.asarray(upper, float).reshape(-1)
     n = np.asarray(n, dtype=np.int64).reshape(-1)
+    if n.size != 3 or lower.size != 3 or upper.size != 3 or not np.all(upper > lower):
+        raise ModelError(f"a sparse grid needs n (3 values) and min < max, got {n}, {lower}")
     if cell_width > 0.0:
         n = np.ceil((upper - lower) / cell_width).astype(np.int64) + 1
     n = np.maximum(n, 2)  # SOFA raises n below 2 to 2
-    if n.size != 3 or not np.all(upper > lower):
-        raise ModelError(f"a sparse grid needs n (3 values) and min < max, got {n}, {lower}")
-    step = (upper - lower) / (n - 1)
-    crossed = _crossed_cells(vertices, triangles, lower, step, n - 1)
+    fine = (n - 1) * 2**finer_levels
+    crossed = _crossed_cells(vertices, triangles, lower, (upper - lower) / fine, fine)
     # Cells not crossed and connected (by faces) to the grid's border are outside.
     labels, _ = ndimage.label(~crossed)
     border = np.zeros(crossed.shape, dtype=bool)
@@ -222,16 +240,31 @@ def sparse_grid(
     if only_inside:
         crossed = np.zeros_like(crossed)
     full = regular_grid(n, lower, upper)
-    cells = np.concatenate([_grid_cells(n, crossed), _grid_cells(n, inside)])
+    if finer_levels == 0:
+        cells = np.concatenate([_grid_cells(n, crossed), _grid_cells(n, inside)])
+        coefs = np.where(
+            np.arange(cells.shape[0]) < crossed.sum(), 0.5 if fill_weighted else 1.0, 1.0
+        )
+    else:
+        coef = np.where(crossed, 0.5 if fill_weighted else 1.0, np.where(inside, 1.0, 0.0))
+        kept = crossed | inside
+        for _ in range(finer_levels):
+            shape = tuple(s // 2 for s in coef.shape)
+            blocks = (shape[0], 2, shape[1], 2, shape[2], 2)
+            coef = coef.reshape(blocks).sum(axis=(1, 3, 5)) / 8.0
+            kept = kept.reshape(blocks).any(axis=(1, 3, 5))
+        # SOFA's coarse cells come x slowest, z fastest.
+        i, j, k = np.nonzero(kept)
+        base = i + n[0] * (j + n[1] * k)
+        cells = base[:, None] + _grid_cells(n, np.ones((1, 1, 1), dtype=bool))[0][None, :]
+        coefs = coef[i, j, k]
     if cells.shape[0] == 0:
         raise ModelError("the sparse grid holds no cell: is the surface closed and inside it?")
     used = np.unique(cells)
     order = np.lexsort(full.points[used].T[::-1])  # x, then y, then z
     renumber = np.empty(full.n_nodes, dtype=np.int64)
     renumber[used[order]] = np.arange(used.size)
-    flags = np.zeros(cells.shape[0], dtype=bool)
-    flags[: int(crossed.sum())] = True
-    return HexMesh(full.points[used[order]], renumber[cells], flags)
+    return HexMesh(full.points[used[order]], renumber[cells]), coefs
 
 
 def _crossed_cells(vertices, triangles, lower, step, cells) -> np.ndarray:

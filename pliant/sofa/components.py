@@ -56,6 +56,33 @@ _TOPOLOGY = {
     "drawEdges": False,
     "drawTriangles": False,
 }
+_GRID = {
+    **_TOPOLOGY,
+    "n": [2, 2, 2],
+    "min": [0.0, 0.0, 0.0],
+    "max": [0.0, 0.0, 0.0],
+    **dict.fromkeys(["nx", "ny", "nz"], 2),
+    **dict.fromkeys(["xmin", "ymin", "zmin", "xmax", "ymax", "zmax"], 0.0),
+    "p0": [0.0, 0.0, 0.0],
+    "cellWidth": 0.0,
+    "computeHexaList": True,
+    "computeQuadList": True,
+    "computeTriangleList": True,
+    "computeEdgeList": True,
+    "computePointList": True,
+    "createTexCoords": False,
+    # SparseGridTopology
+    "fileTopology": "",
+    "filename": "",
+    "fillWeighted": True,
+    "onlyInsideCells": False,
+    "nbVirtualFinerLevels": 0,
+    "dataResolution": [0, 0, 0],
+    "voxelSize": [1.0, 1.0, 1.0],
+    "marchingCubeStep": 1,
+    "convolutionSize": 0,
+    "facets": _EMPTY,
+}
 _CABLE = {
     "indices": _EMPTY,
     "pullPoint": [0.0, 0.0, 0.0],
@@ -181,6 +208,19 @@ FIELDS: dict[str, dict] = {
         "AnisotropyDirections": _EMPTY,
         "template": "Vec3",
     },
+    "HexahedronFEMForceField": {
+        "youngModulus": 5000.0,
+        "poissonRatio": 0.45,
+        "method": "large",
+        "template": "Vec3",
+        "updateStiffnessMatrix": False,
+        "gatherPt": "",
+        "gatherBsize": "",
+        "drawing": True,
+        "drawPercentageOffset": 0.15,
+        "rayleighStiffness": 0.0,
+    },
+    **dict.fromkeys(["RegularGridTopology", "SparseGridTopology"], _GRID),
     **dict.fromkeys(
         [
             "MeshTopology",

@@ -50,6 +50,7 @@ from pliant.mesh.quality import signed_volumes
 from pliant.mesh.tetmesh import TetMesh
 from pliant.model import Model, State
 from pliant.sofa.components import FIELDS, is_visual
+from pliant.sofa.grids import GRIDS, HEXAHEDRA, hex_body
 from pliant.sofa.tree import SceneError, SceneNode, SceneObject, close_match, read_scene
 
 # SOFA's BarycentricMapping carries a point wherever it lies; Pliant still refuses one farther
@@ -106,7 +107,7 @@ MESH_LOADERS = frozenset(
 )
 HYPERELASTIC = "TetrahedronHyperelasticityFEMForceField"
 FAST_COROTATIONAL = "FastTetrahedralCorotationalForceField"
-FEM = frozenset({"TetrahedronFEMForceField", FAST_COROTATIONAL, HYPERELASTIC})
+FEM = frozenset({"TetrahedronFEMForceField", FAST_COROTATIONAL, HYPERELASTIC, HEXAHEDRA})
 # The element rotation of each FEM method: TetrahedronFEMForceField's "large" and
 # FastTetrahedralCorotationalForceField's "qr" (also called "large" there) both take the frame
 # of the element's first edge and first face (Gram-Schmidt on its first two edges), "polar"
@@ -178,6 +179,7 @@ COLLISION_MODELS = frozenset(
     {"PointCollisionModel", "TriangleCollisionModel", "LineCollisionModel"}
 )
 HANDLED = HANDLED | PIPELINE | INTERSECTIONS | COLLISION_MODELS | {"RigidMapping"}
+HANDLED = HANDLED | GRIDS  # hexahedral bodies: pliant.sofa.grids
 CAVITIES = frozenset({"SurfacePressureConstraint", "SurfacePressureActuator"})
 POINT_CONSTRAINTS = frozenset(
     {"CableConstraint", "CableActuator", "PositionEffector", "PositionConstraint", *CAVITIES}
@@ -890,6 +892,8 @@ class _Builder:
     # --- the deformable body ----------------------------------------------------------------
     def _body(self, node: SceneNode, gravity: np.ndarray) -> tuple[TetBody, TetMesh, str]:
         fem = self._one(node, FEM, "FEM force fields")
+        if fem.type == HEXAHEDRA:
+            return hex_body(self, node, fem, gravity)
         loader = self._mesh_loader(node)
         points, tets = self._read_mesh(loader)
         if fem.type == HYPERELASTIC:

@@ -204,6 +204,8 @@ ALIASES = {
     "TPointModel": "PointCollisionModel",
     "PointModel": "PointCollisionModel",
     "SphereModel": "SphereCollisionModel",
+    "SparseGrid": "SparseGridTopology",
+    "RegularGrid": "RegularGridTopology",
 }
 
 # Data fields every component and node answers with SOFA's defaults, set or not.
