@@ -186,14 +186,14 @@ def test_unsupported_components_are_listed_in_one_error(tmp_path) -> None:
         """<Node name="root"><Node name="Body">
         <MeshVTKLoader name="loader" filename="x.vtk"/>
         <TetrahedronFEMForceField/>
-        <HexahedronFEMForceField/>
+        <BeamFEMForceField/>
         <Node name="cavity"><SurfacePressureForceField/></Node>
         </Node></Node>"""
     )
     with pytest.raises(SceneError) as err:
         load_scene(scene)
     message = str(err.value)
-    assert "HexahedronFEMForceField (at root/Body)" in message
+    assert "BeamFEMForceField (at root/Body)" in message
     assert "SurfacePressureForceField (at root/Body/cavity)" in message
 
 

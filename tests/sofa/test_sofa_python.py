@@ -177,9 +177,9 @@ FEM = "body.addObject('TetrahedronFEMForceField', youngModulus=100, poissonRatio
     ("body", "extra", "message"),
     [
         (
-            FEM + "body.addObject('HexahedronFEMForceField')\nbody.addObject('Foo')\n",
+            FEM + "body.addObject('BeamFEMForceField')\nbody.addObject('Foo')\n",
             "",
-            r"HexahedronFEMForceField \(at root/Body\); Foo \(at root/Body\)",
+            r"BeamFEMForceField \(at root/Body\); Foo \(at root/Body\)",
         ),
         (
             "body.addObject('TetrahedronFEMForceField', youngModulos=100)\n",
