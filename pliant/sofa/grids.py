@@ -13,10 +13,11 @@ SparseGridTopology.
   default) or "polar" (:class:`pliant.fem.hexbody.HexBody`). SOFA's "small" (linear, no
   rotation) has no Pliant element.
 
-The mass (UniformMass or MeshMatrixMass), held nodes, loads and the solver are read as for a
-tetrahedral body; points under the body (cables, effectors, cavities, collision points) are
-carried by the trilinear shape functions of the cell they lie in (SOFA's BarycentricMapping
-on a grid).
+A TetrahedronFEMForceField on a grid cuts each cell into six tetrahedra, as SOFA does
+(:func:`grid_tetrahedra`). The mass (UniformMass or MeshMatrixMass), held nodes, loads and the
+solver are read as for a tetrahedral body; points under the body (cables, effectors, cavities,
+collision points) are carried by the trilinear shape functions of the cell they lie in (SOFA's
+BarycentricMapping on a grid).
 """
 
 from __future__ import annotations
@@ -125,6 +126,38 @@ def _surface(builder: _Builder, grid: SceneObject) -> tuple[np.ndarray, np.ndarr
         raise SceneError(f"{grid.path}: {source.attrs['filename']} holds no triangles")
     triangles = [f if f.shape[1] == 3 else f[:, [0, 1, 2, 0, 2, 3]].reshape(-1, 3) for f in faces]
     return points, np.concatenate(triangles)
+
+
+# SOFA's TetrahedronFEMForceField on hexahedra: six tetrahedra per cell, the cell's corners
+# first mirrored along x (even cells), y (odd rows) and z (odd layers) so that neighbours share
+# their faces' diagonals.
+_SIX = np.array(
+    [[0, 5, 1, 6], [0, 1, 3, 6], [1, 3, 6, 2], [6, 3, 0, 7], [6, 7, 0, 5], [7, 5, 4, 0]]
+)
+_MIRRORS = np.array([[1, 0, 3, 2, 5, 4, 7, 6], [3, 2, 1, 0, 7, 6, 5, 4], [4, 5, 6, 7, 0, 1, 2, 3]])
+
+
+def grid_tetrahedra(builder: _Builder, node: SceneNode) -> tuple[np.ndarray, np.ndarray] | None:
+    """The points and tetrahedra of a grid on the body's node (None without one), in SOFA's
+    order: each cell i in turn, its corners mirrored along x when (i mod nx) is even, along y
+    when (i // nx mod ny) is odd, along z when (i // (nx ny)) is odd (nx, ny the cells per
+    row and column of a regular grid; 2 and 1 for a sparse grid, as SOFA takes them)."""
+    grid = builder._one(node, GRIDS, "grid topologies")
+    if grid is None:
+        return None
+    mesh, _ = grid_mesh(builder, grid)
+    nx, ny = 2, 1
+    if grid.type == "RegularGridTopology":
+        nx, ny = (_triple(grid, "n", ("nx", "ny", "nz"), (2, 2, 2)).astype(np.int64) - 1)[:2]
+    cells = mesh.hexes.copy()
+    index = np.arange(len(cells))
+    for flip, axis in zip(
+        [index % nx % 2 == 0, (index // nx) % ny % 2 == 1, (index // (nx * ny)) % 2 == 1],
+        _MIRRORS,
+        strict=True,
+    ):
+        cells[flip] = cells[flip][:, axis]
+    return mesh.points, cells[:, _SIX].reshape(-1, 4)
 
 
 def hex_body(

@@ -50,7 +50,7 @@ from pliant.mesh.quality import signed_volumes
 from pliant.mesh.tetmesh import TetMesh
 from pliant.model import Model, State
 from pliant.sofa.components import FIELDS, is_visual
-from pliant.sofa.grids import GRIDS, HEXAHEDRA, hex_body
+from pliant.sofa.grids import GRIDS, HEXAHEDRA, grid_tetrahedra, hex_body
 from pliant.sofa.tree import SceneError, SceneNode, SceneObject, close_match, read_scene
 
 # SOFA's BarycentricMapping carries a point wherever it lies; Pliant still refuses one farther
@@ -894,8 +894,8 @@ class _Builder:
         fem = self._one(node, FEM, "FEM force fields")
         if fem.type == HEXAHEDRA:
             return hex_body(self, node, fem, gravity)
-        loader = self._mesh_loader(node)
-        points, tets = self._read_mesh(loader)
+        split = grid_tetrahedra(self, node)  # a grid's cells cut in tetrahedra
+        points, tets = split if split is not None else self._read_mesh(self._mesh_loader(node))
         if fem.type == HYPERELASTIC:
             material: Material = self._hyperelastic(fem)
             rotation = "none"

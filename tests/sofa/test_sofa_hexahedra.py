@@ -126,3 +126,15 @@ def test_a_regular_grid_numbers_its_nodes_as_sofa(tmp_path) -> None:
 def test_what_a_hexahedral_scene_lacks_is_a_scene_error(tmp_path, fem, grid, message) -> None:
     with pytest.raises(SceneError, match=message):
         load_scene(_grid_scene(tmp_path, fem, grid))
+
+
+def test_tetrahedra_on_a_grid_are_cut_as_sofa_cuts_them(tmp_path) -> None:
+    """A TetrahedronFEMForceField on a RegularGridTopology (SoftRobots' PositionConstraint
+    example): six tetrahedra per cell, filling the box, the cuts of neighbouring cells
+    meeting on their shared faces (the boundary is the grid's, two triangles per quad)."""
+    fem = "'TetrahedronFEMForceField', youngModulus=4000, poissonRatio=0.3"
+    body = load_scene(_grid_scene(tmp_path, fem, GRID)).model.body
+    grid = regular_grid((4, 4, 6), (-9.0, 0.0, 0.0), (-6.0, 3.0, 5.0))
+    assert body.n_elements == 6 * grid.n_hexes
+    assert body.volumes.sum() == pytest.approx(3.0 * 3.0 * 5.0, rel=1e-12)
+    assert len(body.boundary_triangles) == 2 * len(grid.boundary_quads())
