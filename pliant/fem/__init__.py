@@ -2,6 +2,7 @@
 kernels of their forces and tangents."""
 
 from pliant.fem.body import TetBody, nodes_in_box
+from pliant.fem.hexbody import HexBody
 from pliant.fem.loads import (
     FollowerForce,
     Load,
@@ -33,6 +34,7 @@ __all__ = [
     "Corotational",
     "DrivenNodes",
     "FollowerForce",
+    "HexBody",
     "KinematicBody",
     "Load",
     "Material",
