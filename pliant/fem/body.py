@@ -520,13 +520,6 @@ class TetBody(Revised):
             if kv is not None:
                 local = v.reshape(-1)[assembly.membrane.dofs]
                 kv += assembly.nodal(np.einsum("trc,tc->tr", tangent, local))
-        load_tangents = []
-        for assembly in self.loads:
-            forces += assembly.load.forces(x, time)
-            tangent = assembly.tangents(x, time)
-            load_tangents.append(tangent)
-            if kv is not None and tangent is not None:
-                kv += self.scatter(assembly.matvec(tangent, self.gather(v)[:, None])[:, 0])
         return Linearisation(
             x,
             forces,
@@ -535,9 +528,37 @@ class TetBody(Revised):
             dets,
             kv,
             tuple(tangents),
-            tuple(load_tangents),
+            self._add_loads(x, v, forces, kv, time),
             self.material.tolerates_inversion,
         )
+
+    def _add_loads(self, x, v, forces, kv, time: float) -> tuple:
+        """Add the loads' forces at `time` to `forces` (and, when `kv` is given, their K v);
+        return their tangents."""
+        tangents = []
+        for assembly in self.loads:
+            forces += assembly.load.forces(x, time)
+            tangent = assembly.tangents(x, time)
+            tangents.append(tangent)
+            if kv is not None and tangent is not None:
+                kv += self.scatter(assembly.matvec(tangent, self.gather(v)[:, None])[:, 0])
+        return tuple(tangents)
+
+    def _add_surface_matvec(self, lin: Linearisation, cols: np.ndarray, out: np.ndarray) -> None:
+        """out += the membranes' and loads' tangents times `cols`."""
+        for assembly, tangent in zip(self.membranes, lin.membrane_tangents, strict=True):
+            out += assembly.matvec(tangent, cols)
+        for assembly, tangent in zip(self.loads, lin.load_tangents, strict=True):
+            if tangent is not None:
+                out += assembly.matvec(tangent, cols)
+
+    def _add_surface_data(self, lin: Linearisation, data: np.ndarray) -> None:
+        """data += the membranes' and loads' tangents, on the stiffness pattern."""
+        for assembly, tangent in zip(self.membranes, lin.membrane_tangents, strict=True):
+            assembly.add_to_data(tangent, data)
+        for assembly, tangent in zip(self.loads, lin.load_tangents, strict=True):
+            if tangent is not None:
+                assembly.add_to_data(tangent, data)
 
     def _tangent_args(self, lin: Linearisation, exact: bool) -> tuple:
         """The arguments the tangent kernels share: configuration, elements, material, frames."""
@@ -557,11 +578,7 @@ class TetBody(Revised):
         kernels.stiffness_matvec(cols, self._elem_dofs, *self._tangent_args(lin, exact), elem_out)
         out = np.empty_like(cols)
         kernels.gather_free(elem_out, self._incidence_ptr, self._incidence, self.free_index, out)
-        for assembly, tangent in zip(self.membranes, lin.membrane_tangents, strict=True):
-            out += assembly.matvec(tangent, cols)
-        for assembly, tangent in zip(self.loads, lin.load_tangents, strict=True):
-            if tangent is not None:
-                out += assembly.matvec(tangent, cols)
+        self._add_surface_matvec(lin, cols, out)
         return out[:, 0] if u.ndim == 1 else out
 
     @_sized_threads
@@ -591,11 +608,7 @@ class TetBody(Revised):
         else:
             kernels.element_stiffness(*self._tangent_args(lin, exact), self._element_blocks)
             kernels.scatter_add(self._element_blocks, 1.0, self.pattern.scatter, data)
-        for assembly, tangent in zip(self.membranes, lin.membrane_tangents, strict=True):
-            assembly.add_to_data(tangent, data)
-        for assembly, tangent in zip(self.loads, lin.load_tangents, strict=True):
-            if tangent is not None:
-                assembly.add_to_data(tangent, data)
+        self._add_surface_data(lin, data)
         return data
 
     def stiffness_matrix(self, lin: Linearisation, *, exact: bool = False) -> sp.csr_matrix:

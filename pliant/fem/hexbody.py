@@ -197,13 +197,6 @@ class HexBody(TetBody):
         kernels.gather_nodal(elem, self.hexes, self._incidence_ptr, self._incidence, nodal)
         forces = np.ascontiguousarray(nodal[:, :3])
         kv = np.ascontiguousarray(nodal[:, 3:]) if with_v else None
-        load_tangents = []
-        for assembly in self.loads:
-            forces += assembly.load.forces(x, time)
-            tangent = assembly.tangents(x, time)
-            load_tangents.append(tangent)
-            if kv is not None and tangent is not None:
-                kv += self.scatter(assembly.matvec(tangent, self.gather(v)[:, None])[:, 0])
         return Linearisation(
             x,
             forces,
@@ -212,7 +205,7 @@ class HexBody(TetBody):
             dets,
             kv,
             (),
-            tuple(load_tangents),
+            self._add_loads(x, v, forces, kv, time),
             self.material.tolerates_inversion,
         )
 
@@ -228,9 +221,7 @@ class HexBody(TetBody):
         )
         out = np.empty_like(cols)
         kernels.gather_free(elem_out, self._incidence_ptr, self._incidence, self.free_index, out)
-        for assembly, tangent in zip(self.loads, lin.load_tangents, strict=True):
-            if tangent is not None:
-                out += assembly.matvec(tangent, cols)
+        self._add_surface_matvec(lin, cols, out)
         return out[:, 0] if u.ndim == 1 else out
 
     def stiffness_data(self, lin: Linearisation, *, exact: bool = False) -> np.ndarray:
@@ -239,7 +230,5 @@ class HexBody(TetBody):
         hex_kernels.assembly(
             self.k0, lin.frames, lin.dets, self.material.kernel_tag, self.pattern.scatter, data
         )
-        for assembly, tangent in zip(self.loads, lin.load_tangents, strict=True):
-            if tangent is not None:
-                assembly.add_to_data(tangent, data)
+        self._add_surface_data(lin, data)
         return data
