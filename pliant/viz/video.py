@@ -78,7 +78,7 @@ class VtuSeriesWriter:
                 series.write(t, x, {"velocity": v})
     """
 
-    _CELL_SIZES = {"tetra": 4, "line": 2, "triangle": 3}
+    _CELL_SIZES = {"tetra": 4, "line": 2, "triangle": 3, "hexahedron": 8}
 
     def __init__(
         self, directory: str | os.PathLike, stem: str, tets: np.ndarray, cell_type: str = "tetra"

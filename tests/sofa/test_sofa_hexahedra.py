@@ -7,6 +7,7 @@ from __future__ import annotations
 import textwrap
 from pathlib import Path
 
+import meshio
 import numpy as np
 import pytest
 import trimesh
@@ -20,6 +21,7 @@ from pliant.mesh.hexmesh import regular_grid, sparse_grid
 from pliant.model import Model
 from pliant.sofa import SceneError, load_scene
 from pliant.solvers import ImplicitEuler
+from pliant.viz.video import VtuSeriesWriter
 
 SCENES = Path(__file__).parent / "sofa_scenes"
 
@@ -138,3 +140,12 @@ def test_tetrahedra_on_a_grid_are_cut_as_sofa_cuts_them(tmp_path) -> None:
     assert body.n_elements == 6 * grid.n_hexes
     assert body.volumes.sum() == pytest.approx(3.0 * 3.0 * 5.0, rel=1e-12)
     assert len(body.boundary_triangles) == 2 * len(grid.boundary_quads())
+
+
+def test_a_hexahedral_body_is_written_for_paraview(tmp_path) -> None:
+    """`pliant run` writes a body's cells as VTU frames: hexahedra as VTK hexahedra."""
+    body = HexBody(regular_grid((3, 2, 2), (0, 0, 0), (2, 1, 1)), Corotational(1.0, 0.3), density=1)
+    kind, cells, rows = body.vtk_cells()
+    with VtuSeriesWriter(tmp_path, "bar", cells, kind) as series:
+        frame = series.write(0.0, body.rest_positions[rows])
+    np.testing.assert_array_equal(meshio.read(frame).cells_dict["hexahedron"], body.hexes)
