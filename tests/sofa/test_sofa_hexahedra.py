@@ -149,3 +149,40 @@ def test_a_hexahedral_body_is_written_for_paraview(tmp_path) -> None:
     with VtuSeriesWriter(tmp_path, "bar", cells, kind) as series:
         frame = series.write(0.0, body.rest_positions[rows])
     np.testing.assert_array_equal(meshio.read(frame).cells_dict["hexahedron"], body.hexes)
+
+
+def test_a_hexahedral_block_falls_onto_the_floor(tmp_path) -> None:
+    """The grid's own nodes collide (a PointCollisionModel on the body's node): the block
+    falls under gravity and rests on the floor at the contact distance."""
+    corners = [[-50.0, -50.0, -0.5], [50.0, -50.0, -0.5], [50.0, 50.0, -0.5], [-50.0, 50.0, -0.5]]
+    trimesh.Trimesh(corners, [[0, 1, 2], [0, 2, 3]]).export(tmp_path / "floor.stl")
+    script = tmp_path / "contact.py"
+    script.write_text(
+        textwrap.dedent(
+            """
+            def createScene(root):
+                root.gravity = [0.0, 0.0, -9810.0]
+                root.dt = 0.01
+                root.addObject("FreeMotionAnimationLoop")
+                root.addObject("GenericConstraintSolver")
+                root.addObject("CollisionPipeline")
+                root.addObject("LocalMinDistance", alarmDistance=1.0, contactDistance=0.2)
+                root.addObject("CollisionResponse", responseParams="mu=0.3")
+                body = root.addChild("Block")
+                body.addObject("EulerImplicitSolver")
+                body.addObject("RegularGridTopology", n=[3, 3, 2], min=[-5, -5, 0], max=[5, 5, 5])
+                body.addObject("MechanicalObject", name="dofs")
+                body.addObject("UniformMass", totalMass=0.01)
+                body.addObject("HexahedronFEMForceField", youngModulus=100, poissonRatio=0.3)
+                body.addObject("PointCollisionModel")
+                floor = root.addChild("Floor")
+                floor.addObject("MeshSTLLoader", name="loader", filename="floor.stl")
+                floor.addObject("MechanicalObject", src="@loader")
+                floor.addObject("TriangleCollisionModel", moving=0, simulated=0)
+            """
+        )
+    )
+    scene = load_scene(script)
+    assert scene.model.contacts is not None
+    state = scene.simulate(15)
+    assert state.positions[:, 2].min() == pytest.approx(-0.3, abs=1e-3)
