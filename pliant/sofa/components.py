@@ -309,6 +309,14 @@ FIELDS: dict[str, dict] = {
     **dict.fromkeys(
         ["PointCollisionModel", "LineCollisionModel", "TriangleCollisionModel"], _COLLISION
     ),
+    "UnilateralPlaneConstraint": {
+        "indices": _EMPTY,
+        "flipNormal": False,
+        "endTime": -1.0,
+        "group": 0,
+        "constraintIndex": 0,
+        "template": "Vec3",
+    },
     **dict.fromkeys(["BarycentricMapping", "IdentityMapping", "RigidMapping"], _MAPPING),
     **dict.fromkeys(
         ["LocalMinDistance", "MinProximityIntersection", "NewProximityIntersection"],

@@ -36,10 +36,10 @@ from scipy.spatial.transform import Rotation
 from pliant.constraints.base import EmbeddedPoints
 from pliant.constraints.cable import CableActuator
 from pliant.constraints.cavity import CavityActuator, enclosed_volume
-from pliant.constraints.contact import Contacts
+from pliant.constraints.contact import Contacts, PointPlanes
 from pliant.constraints.effector import PositionEffector
 from pliant.constraints.point import PointActuator
-from pliant.errors import ModelError
+from pliant.errors import ContactError, ModelError
 from pliant.fem.body import TetBody, fixed_components, nodes_in_box
 from pliant.fem.loads import Load, NodalForces, RestShapeSprings
 from pliant.fem.material import Corotational, Material, NeoHookean, StVenantKirchhoff
@@ -178,6 +178,9 @@ COLLISION_MODELS = frozenset(
     {"PointCollisionModel", "TriangleCollisionModel", "LineCollisionModel"}
 )
 HANDLED = HANDLED | PIPELINE | INTERSECTIONS | COLLISION_MODELS | {"RigidMapping"}
+# SoftRobots' self-contact of the body: a point kept on one side of the plane of three others.
+PLANE_CONSTRAINT = "UnilateralPlaneConstraint"
+HANDLED = HANDLED | {PLANE_CONSTRAINT}
 CAVITIES = frozenset({"SurfacePressureConstraint", "SurfacePressureActuator"})
 POINT_CONSTRAINTS = frozenset(
     {"CableConstraint", "CableActuator", "PositionEffector", "PositionConstraint", *CAVITIES}
@@ -611,6 +614,10 @@ class _Builder:
                 f" (a node under {body_node.path} with a BarycentricMapping): " + "; ".join(stray)
             )
         contacts, rigid = self._collisions(body_node, body, mesh)
+        planes = self._planes(body_node, carried, body, mesh)
+        if planes is not None:  # solved with the contacts, whether the scene detects any
+            contacts = Contacts([], planes=planes) if contacts is None else contacts
+            contacts.planes = planes
         model = Model(
             body,
             actuators=actuators,
@@ -1185,6 +1192,71 @@ class _Builder:
                 force = _floats(obj.attrs.get("force", "0 0 0"), f"{obj.path}.force")
                 loads.append(NodalForces(idx, force))
         return loads
+
+    # --- self-contact planes -------------------------------------------------------------------
+    def _planes(
+        self, body_node: SceneNode, carried: list[SceneNode], body: TetBody, mesh: TetMesh
+    ) -> PointPlanes | None:
+        """SoftRobots' UnilateralPlaneConstraints: on the body's nodes, or on points a child
+        node carries (BarycentricMapping); the first of their four ``indices`` is kept on the
+        side of the plane of the three others that its normal (reversed by ``flipNormal``)
+        points to (:class:`pliant.constraints.contact.PointPlanes`)."""
+        parts, flips, names, stray = [], [], [], []
+        inside = {id(body_node), *(id(n) for n in carried)}
+        for node in self.root.walk():
+            found = [o for o in node.objects if o.type == PLANE_CONSTRAINT]
+            if not found:
+                continue
+            if id(node) not in inside:
+                stray += [f"{o.path}" for o in found]
+                continue
+            if node is body_node:
+                points = body.rest_positions
+                embedded = None
+            else:
+                if not any(o.type in MAPPINGS for o in node.objects):
+                    raise SceneError(
+                        f"{node.path}: points without a BarycentricMapping to the body"
+                    )
+                dofs = self._one(node, {"MechanicalObject"}, "MechanicalObjects")
+                if dofs is None:
+                    raise SceneError(f"{found[0].path}: no MechanicalObject in its node")
+                points = self._positions(node, dofs)
+                embedded = self._embed(mesh, points, body)
+            for obj in found:
+                idx = _floats(obj.attrs.get("indices", ""), f"{obj.path}.indices")
+                if idx.size != 4 or np.any(idx != np.round(idx)):
+                    raise SceneError(
+                        f"{obj.path}.indices: four point indices expected (the held point, then"
+                        f" the plane's three), got {obj.attrs.get('indices', '')!r}"
+                    )
+                idx = idx.astype(np.int64)
+                if idx.min() < 0 or idx.max() >= len(points):
+                    raise SceneError(
+                        f"{obj.path}.indices: {idx.tolist()} outside the {len(points)} points of"
+                        f" {node.path}"
+                    )
+                if _float(obj, "endTime", -1.0) >= 0.0:
+                    raise SceneError(f"{obj.path}.endTime: a plane that stops is not supported")
+                parts.append(
+                    EmbeddedPoints.at_nodes(idx) if embedded is None else embedded.subset(idx)
+                )
+                flips.append(_flag(obj, "flipNormal", False))
+                names.append(obj.path)
+        if stray:
+            raise SceneError(
+                f"{self.path.name}: UnilateralPlaneConstraint holds points of the body (on its"
+                f" node or a node under {body_node.path} with a BarycentricMapping): "
+                + "; ".join(stray)
+            )
+        if not parts:
+            return None
+        try:
+            planes = PointPlanes(EmbeddedPoints.stack(parts), flips, names)
+            planes.normals(body.rest_positions)
+        except ContactError as exc:
+            raise SceneError(f"{self.path.name}: {exc}") from exc
+        return planes
 
     # --- points carried by the body: cables, effectors ---------------------------------------
     def _embedded(self, node: SceneNode, body: TetBody, mesh: TetMesh):
