@@ -317,7 +317,10 @@ FIELDS: dict[str, dict] = {
         "constraintIndex": 0,
         "template": "Vec3",
     },
-    **dict.fromkeys(["BarycentricMapping", "IdentityMapping", "RigidMapping"], _MAPPING),
+    **dict.fromkeys(["BarycentricMapping", "IdentityMapping"], _MAPPING),
+    "RigidMapping": {**_MAPPING, "rigidIndexPerPoint": _EMPTY, "fileRigidMapping": ""},
+    # ``rigidified``: Pliant's Rigidify prefab's record of the groups' nodes, in order.
+    "SubsetMultiMapping": {**_MAPPING, "indexPairs": _EMPTY, "rigidified": _EMPTY},
     **dict.fromkeys(
         ["LocalMinDistance", "MinProximityIntersection", "NewProximityIntersection"],
         {"alarmDistance": 1.0, "contactDistance": 0.5, "angleCone": 0.0, "useLMDFilters": False},
