@@ -309,6 +309,21 @@ FIELDS: dict[str, dict] = {
     **dict.fromkeys(
         ["PointCollisionModel", "LineCollisionModel", "TriangleCollisionModel"], _COLLISION
     ),
+    "JointConstraint": {
+        "index": 0,
+        "value": 0.0,
+        "valueType": "displacement",
+        "minForce": 0.0,
+        "maxForce": 0.0,
+        "minDisplacement": 0.0,
+        "maxDisplacement": 0.0,
+        "force": 0.0,
+        "displacement": 0.0,
+        "endTime": -1.0,
+        "group": 0,
+        "constraintIndex": 0,
+        "template": "Vec1",
+    },
     "UnilateralPlaneConstraint": {
         "indices": _EMPTY,
         "flipNormal": False,

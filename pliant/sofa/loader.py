@@ -185,6 +185,14 @@ HANDLED = HANDLED | {PLANE_CONSTRAINT}
 # STLIB's Rigidify: the body's node gathered from its free nodes and from nodes carried by
 # rigid frames (a RigidMapping with rigidIndexPerPoint).
 HANDLED = HANDLED | {"SubsetMultiMapping"}
+# Components Pliant knows but cannot map, and why (their data are still checked).
+UNSUPPORTED = {
+    # SoftRobots registers it on Vec1 only: an articulation's angle or course, which an
+    # ArticulatedSystemMapping turns into rigid frames. Pliant's joints are a rod node's turn
+    # (RotationActuator) and kinematic servos; it reads no articulated system from a scene.
+    "JointConstraint": "an articulation's degree of freedom (Vec1 of an"
+    " ArticulatedSystemMapping); Pliant reads no articulated system",
+}
 # A rigidified group's frame is a Pliant rigid body with this share of its nodes' mass (SOFA's
 # frames have none of their own: the nodes carry it; Pliant's rigid bodies need a mass).
 FRAME_MASS_SHARE = 1e-6
@@ -680,7 +688,8 @@ class _Builder:
                 if not detects and obj.type.endswith("CollisionModel"):
                     continue
                 if obj.type not in HANDLED and obj.type not in IGNORED and not is_visual(obj.type):
-                    problems.append(f"{obj.type} (at {node.path})")
+                    why = UNSUPPORTED.get(obj.type, "")
+                    problems.append(f"{obj.type} (at {node.path}{': ' + why if why else ''})")
                     continue
                 fields = FIELDS.get(obj.type)
                 if fields is None:
