@@ -690,7 +690,8 @@ class _Builder:
                 if obj.type not in HANDLED and obj.type not in IGNORED and not is_visual(obj.type):
                     why = UNSUPPORTED.get(obj.type, "")
                     problems.append(f"{obj.type} (at {node.path}{': ' + why if why else ''})")
-                    continue
+                    if not why:  # a component Pliant knows has its data checked too
+                        continue
                 fields = FIELDS.get(obj.type)
                 if fields is None:
                     continue

@@ -260,3 +260,27 @@ def test_rigidify_data_are_checked(rigid_beam, call, message) -> None:
     _, folder, _, _ = rigid_beam
     with pytest.raises(SceneError, match=message):
         _rigidify_scene(folder, "bad", f'rigid = Rigidify(modelling, beam, {call}, name="M")')
+
+
+# ---------------------------------------------------------------------------------------------
+# JointConstraint
+
+
+def test_a_joint_constraint_is_named_with_why_and_its_data_checked(plane_beam) -> None:
+    """SoftRobots' JointConstraint drives an articulation's Vec1 degree of freedom: the one
+    SceneError names it, why, and its misspelt data."""
+    _, folder, _ = plane_beam
+    joint = (
+        '<Node name="Arm"><MechanicalObject template="Vec1" position="0"/>'
+        '<JointConstraint template="Vec1" index="0" value="0.5" valueTyp="force"/></Node>'
+    )
+    (folder / "joint.scn").write_text(
+        PLANE_SCENE.format(plane='indices="0 1 2 3"').replace(
+            "</Node></Node>", "</Node>" + joint + "</Node>"
+        )
+    )
+    with pytest.raises(SceneError) as error:
+        load_scene(folder / "joint.scn")
+    message = str(error.value)
+    assert "JointConstraint (at root/Arm: an articulation's degree of freedom" in message
+    assert "JointConstraint.valueTyp (at root/Arm): no such data" in message

@@ -42,7 +42,11 @@ def Rigidify(  # noqa: N802 (STLIB's name)
     frames = [[float(v) for v in frame] for frame in frames]
     where = f"Rigidify (on {sourceObject.path})"
     if not groups or any(not group for group in groups):
-        raise SceneError(f"{where}.groupIndices: one non-empty group of node indices per frame")
+        raise SceneError(
+            f"{where}.groupIndices: one non-empty group of node indices per frame (Pliant"
+            " computes no ROI's indices while the script runs: a group read from a BoxROI's"
+            " indices there is empty)"
+        )
     if len(frames) != len(groups):
         raise SceneError(
             f"{where}.frames: {len(frames)} frames for {len(groups)} groups (one each)"
