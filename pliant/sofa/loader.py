@@ -651,6 +651,12 @@ class _Builder:
             )
         contacts, rigid = self._collisions(body_node, body, mesh)
         frames, attachments = self._free_frames(body_node, body, mesh)
+        if frames and solver_kind == "static":
+            raise SceneError(
+                f"{self.path.name}: Rigidify's free frame {frames[0].name} is a rigid body in"
+                " Pliant, which the static solver cannot balance: use an EulerImplicitSolver"
+                " (or hold the frame with a FixedConstraint)"
+            )
         planes = self._planes(body_node, carried, body, mesh)
         if planes is not None:  # solved with the contacts, whether the scene detects any
             contacts = Contacts([], planes=planes) if contacts is None else contacts

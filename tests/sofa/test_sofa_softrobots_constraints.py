@@ -284,3 +284,15 @@ def test_a_joint_constraint_is_named_with_why_and_its_data_checked(plane_beam) -
     message = str(error.value)
     assert "JointConstraint (at root/Arm: an articulation's degree of freedom" in message
     assert "JointConstraint.valueTyp (at root/Arm): no such data" in message
+
+
+def test_a_free_rigidify_frame_under_a_static_solver_is_named(rigid_beam) -> None:
+    mesh, folder, clamp, tip = rigid_beam
+    (folder / "static.py").write_text(
+        RIGIDIFY_SCENE.replace('"EulerImplicitSolver"', '"StaticSolver"').format(
+            body=f"rigid = Rigidify(modelling, beam, groupIndices=[{clamp}, {tip}], name='M')",
+            top="rigid",
+        )
+    )
+    with pytest.raises(SceneError, match=r"free frame RigidParts\[0\] .* EulerImplicitSolver"):
+        load_scene(folder / "static.py")
