@@ -84,6 +84,20 @@ class EmbeddedPoints:
         obj.weights[:, :2] = weights
         return obj
 
+    @classmethod
+    def stack(cls, parts: list[EmbeddedPoints]) -> EmbeddedPoints:
+        """The points of `parts`, in order, as one set; a point read through fewer nodes than
+        the widest gets node 0 with weight 0 in the spare slots."""
+        width = max(p.nodes.shape[1] for p in parts)
+        obj = cls.__new__(cls)
+        obj.nodes = np.vstack(
+            [np.pad(p.nodes, ((0, 0), (0, width - p.nodes.shape[1]))) for p in parts]
+        )
+        obj.weights = np.vstack(
+            [np.pad(p.weights, ((0, 0), (0, width - p.weights.shape[1]))) for p in parts]
+        )
+        return obj
+
     def subset(self, index) -> EmbeddedPoints:
         """The points `index` (an index or indices) of these, with their embedding."""
         obj = type(self).__new__(type(self))

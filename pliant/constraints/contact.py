@@ -22,6 +22,13 @@ the velocity of the contact point of side a relative to side b due to them,
 
 so that the step's compliance gains h^2 G M^-1 G^T and its free distance h G u_free
 (pliant.solvers.implicit_euler), and lambda acts on both sides of each contact.
+
+Self-contact planes (:class:`PointPlanes`, SoftRobots' UnilateralPlaneConstraint) keep a
+point of the body on one side of the plane through three others. The point's offset from the
+three's centroid, d = p_a - (p_b + p_c + p_d) / 3, is linear in the nodes: it is one more
+embedded point of the contacts, against the plane through the origin with the triangle's normal
+(taken at the step's start), never out of reach, without friction. The step solves its rows
+with the other contacts', through the same columns.
 """
 
 from __future__ import annotations
@@ -39,6 +46,82 @@ from pliant.errors import ContactError, ContactMarginWarning
 from pliant.fem.material import check_friction
 from pliant.fem.rigid import RigidBody, RigidStep, contact_twist_jacobian
 from pliant.geometry.collision import ContactSet, Shape, collide, detect, shape_velocities
+
+
+class PointPlanes:
+    """Points of the body held on one side of the plane through three other points of it
+    (SoftRobots' UnilateralPlaneConstraint), each a unilateral frictionless contact.
+
+    With p_a the held point and p_b, p_c, p_d the plane's, the normal n = (p_c - p_b) x
+    (p_d - p_b) (reversed by `flip`) and d = p_a - (p_b + p_c + p_d) / 3, the row is
+
+        delta = n/|n| . d >= 0,   lambda >= 0,   delta lambda = 0,
+
+    its gradient n/|n| on p_a and -n/(3|n|) on each of p_b, p_c, p_d (SoftRobots' row, up to
+    the normal's length, which scales lambda only): the plane's reaction is shared equally by
+    its three points, and the normal is held over a step. The gap n/|n| . (p_a - p_b) equals
+    n/|n| . d since the centroid lies in the plane.
+
+    Args:
+        points: 4 k embedded points: p_a, p_b, p_c, p_d of each of the k planes in turn.
+        flip: (k,) or one bool: reverse the normal of each plane.
+        names: what to call each plane in errors.
+    """
+
+    def __init__(self, points: EmbeddedPoints, flip=False, names=None) -> None:
+        if len(points) == 0 or len(points) % 4:
+            raise ContactError(f"point planes need four points each, got {len(points)} points")
+        if not points.linear:
+            raise ContactError("point planes need points linear in the nodes (EmbeddedPoints)")
+        k = len(points) // 4
+        self.flip = np.broadcast_to(np.asarray(flip, dtype=bool), (k,)).copy()
+        self.names = [f"plane {j}" for j in range(k)] if names is None else list(names)
+        if len(self.names) != k:
+            raise ContactError(f"{k} point planes but {len(self.names)} names")
+        self.points = points
+        # d = p_a - (p_b + p_c + p_d) / 3: the nodes of the four points side by side.
+        m = points.nodes.shape[1]
+        nodes = points.nodes.reshape(k, 4 * m)
+        weights = (
+            points.weights.reshape(k, 4, m) * np.array([1.0, -1 / 3, -1 / 3, -1 / 3])[None, :, None]
+        )
+        self.offsets = EmbeddedPoints.at_nodes(np.zeros(k, dtype=np.int64))
+        self.offsets.nodes, self.offsets.weights = nodes, weights.reshape(k, 4 * m)
+
+    def __len__(self) -> int:
+        return len(self.flip)
+
+    def normals(self, x: np.ndarray) -> np.ndarray:
+        """(k, 3) unit normals of the planes at positions `x`; ContactError for a plane whose
+        three points are aligned."""
+        p = self.points.positions(x).reshape(-1, 4, 3)
+        n = np.cross(p[:, 2] - p[:, 1], p[:, 3] - p[:, 1])
+        n[self.flip] *= -1.0
+        size = np.linalg.norm(n, axis=1)
+        scale = np.ptp(p.reshape(-1, 3), axis=0).max() if p.size else 1.0
+        flat = np.flatnonzero(~(size > 1e-12 * max(scale, 1e-300) ** 2))
+        if flat.size:
+            raise ContactError(
+                f"{self.names[flat[0]]}: its three plane points are aligned (no normal)"
+            )
+        return n / size[:, None]
+
+    def contacts(self, x: np.ndarray, first: int, index_b: int, thickness: float) -> ContactSet:
+        """The planes' contacts at `x`, every one (open or closed): side a the offset d of
+        plane j, numbered ``first + j`` among the contacts' points, side b the plane."""
+        normal = self.normals(x)
+        d = self.offsets.positions(x)
+        gap = np.einsum("ki,ki->k", normal, d)
+        k = len(self)
+        return ContactSet(
+            first + np.arange(k, dtype=np.int64),
+            np.full(k, index_b, dtype=np.int64),
+            np.zeros(k, dtype=np.int64),
+            gap,
+            normal,
+            d - thickness * normal,  # the rows' origin (point_a + thickness n) is d itself
+            d - gap[:, None] * normal,
+        )
 
 
 class Contacts:
@@ -60,6 +143,9 @@ class Contacts:
         thickness: radius of the colliding points, balls rather than points (a rod's
             centreline nodes): a point touches a shape or a rigid body when its signed
             distance equals the thickness; a contact's gap is the distance less the thickness.
+        planes: self-contact planes of the body (:class:`PointPlanes`), solved with the
+            contacts; `shapes` may then be empty. After the model attaches the contacts,
+            `points` holds the colliding points, then the planes' offsets.
     """
 
     def __init__(
@@ -72,10 +158,12 @@ class Contacts:
         tolerance: float = 1e-5,
         max_iterations: int = 1000,
         thickness: float = 0.0,
+        planes: PointPlanes | None = None,
     ) -> None:
         self.shapes = list(shapes)
-        if not self.shapes:
-            raise ContactError("Contacts needs at least one shape")
+        self.planes = planes
+        if not self.shapes and planes is None:
+            raise ContactError("Contacts needs at least one shape (or point planes)")
         for shape in self.shapes:
             if not isinstance(shape, Shape):
                 raise ContactError(f"not a collision shape: {shape!r}")
@@ -105,6 +193,12 @@ class Contacts:
             raise ContactError("each obstacle and rigid body needs its own shape object")
         if self.points is None:
             self.points = EmbeddedPoints.at_nodes(body.colliding_nodes())
+        self.n_colliding = len(self.points)
+        if self.planes is not None:
+            if not self.points.linear:
+                raise ContactError("point planes need colliding points linear in the nodes")
+            self.points = EmbeddedPoints.stack([self.points, self.planes.offsets])
+            self.planes.normals(body.rest_positions)  # aligned plane points: refused now
         if self.margin is None:
             self.margin = 0.02 * body.extent
         self.check_overlap(body.rest_positions)
@@ -130,9 +224,9 @@ class Contacts:
 
     def check_overlap(self, positions: np.ndarray) -> None:
         """ContactError if a colliding point starts inside a shape deeper than the margin."""
-        found = detect(
-            self.points.positions(positions), self.shapes, self.margin, radius=self.thickness
-        )
+        if not self.shapes:
+            return
+        found = detect(self._colliding(positions), self.shapes, self.margin, radius=self.thickness)
         if len(found) and found.gap.min() < -self.margin:
             i = int(np.argmin(found.gap))
             raise ContactError(
@@ -146,11 +240,12 @@ class Contacts:
         within the margin of an obstacle or rigid body (as posed at the step's start): it may
         have crossed a surface no row was given for. A point swinging fast far from every
         obstacle is no concern."""
-        travel = np.linalg.norm(self.points.displacement(positions, displacement), axis=1)
+        moved = self.points.displacement(positions, displacement)[: self.n_colliding]
+        travel = np.linalg.norm(moved, axis=1)
         fast = np.flatnonzero(travel > self.margin)
-        if fast.size == 0:
+        if fast.size == 0 or not self._colliders:
             return
-        ends = self.points.positions(positions)[fast]
+        ends = self._colliding(positions)[fast]
         near = detect(ends, self._colliders, self.margin, radius=self.thickness)
         if len(near):
             moved = float(travel[fast[near.index_a]].max())
@@ -171,24 +266,52 @@ class Contacts:
         `rigid`: the rigid bodies' step (required when the model has rigid bodies); then the
         rows are a :class:`CoupledContact`.
         """
-        points = self.points.positions(positions)
+        points = self._colliding(positions)
         if self.bodies:
             if rigid is None or dt is None:
                 raise ContactError("contacts with rigid bodies need a dynamic step (ImplicitEuler)")
-            return self._coupled(points, dt, rigid)
-        found = detect(points, self.shapes, self.margin, radius=self.thickness)
+            return self._coupled(points, positions, dt, rigid)
+        found = (
+            detect(points, self.shapes, self.margin, radius=self.thickness)
+            if self.shapes
+            else ContactSet.empty()
+        )
+        motion = np.zeros((len(found), 3))
+        if dt is not None and len(found):
+            motion = dt * shape_velocities(found, self.shapes)
+        found, friction, motion = self._with_planes(
+            positions, found, self.friction[found.index_b], motion
+        )
         if len(found) == 0:
             return None
-        motion = None if dt is None else dt * shape_velocities(found, self.shapes)
         return ContactConstraint(
             found,
             self.points,
-            friction=self.friction[found.index_b],
+            friction=friction,
             obstacle_displacement=motion,
             thickness=self.thickness,
         )
 
-    def _coupled(self, points: np.ndarray, dt: float, rigid: RigidStep) -> CoupledContact | None:
+    def _colliding(self, positions: np.ndarray) -> np.ndarray:
+        """The colliding points' positions (without the planes' offsets)."""
+        return self.points.positions(positions)[: self.n_colliding]
+
+    def _with_planes(self, positions, found: ContactSet, friction, motion):
+        """The detected contacts followed by every plane's (frictionless, still)."""
+        if self.planes is None:
+            return found, friction, motion
+        index_b = len(self.shapes) + len(self.bodies)
+        planes = self.planes.contacts(positions, self.n_colliding, index_b, self.thickness)
+        k = len(planes)
+        return (
+            ContactSet.concatenate([found, planes]),
+            np.concatenate([friction, np.zeros(k)]),
+            np.vstack([motion, np.zeros((k, 3))]),
+        )
+
+    def _coupled(
+        self, points: np.ndarray, positions: np.ndarray, dt: float, rigid: RigidStep
+    ) -> CoupledContact | None:
         """Rows of the body's points against obstacles and rigid bodies, then of rigid bodies
         against obstacles and each other (see the module docstring)."""
         bodies, shapes, n = self.bodies, self.shapes, len(self.bodies)
@@ -208,13 +331,6 @@ class Contacts:
         on_body = deformable.index_b >= len(shapes)
         motion = dt * shape_velocities(deformable, self._colliders)
         motion[on_body] = 0.0  # a rigid body's motion enters through G u
-        rows = ContactConstraint(
-            deformable,
-            self.points,
-            friction=mu[deformable.index_b],
-            obstacle_displacement=motion,
-            thickness=self.thickness,
-        )
         # Side b of the body's contacts: minus the velocity of the rigid body's point.
         jacobian = -contact_twist_jacobian(
             deformable.frames,
@@ -222,6 +338,19 @@ class Contacts:
             deformable.index_b - len(shapes),
             rigid.positions,
             n,
+        )
+        k = len(deformable)
+        deformable, friction, motion = self._with_planes(
+            positions, deformable, mu[deformable.index_b], motion
+        )
+        # The planes' rows read no rigid body.
+        jacobian = np.vstack([jacobian, np.zeros((3 * (len(deformable) - k), 6 * n))])
+        rows = ContactConstraint(
+            deformable,
+            self.points,
+            friction=friction,
+            obstacle_displacement=motion,
+            thickness=self.thickness,
         )
         pairs = self._rigid_pairs(reach)
         if len(deformable) + len(pairs) == 0:

@@ -349,7 +349,33 @@ FIELDS: dict[str, dict] = {
     **dict.fromkeys(
         ["PointCollisionModel", "LineCollisionModel", "TriangleCollisionModel"], _COLLISION
     ),
-    **dict.fromkeys(["BarycentricMapping", "IdentityMapping", "RigidMapping"], _MAPPING),
+    "JointConstraint": {
+        "index": 0,
+        "value": 0.0,
+        "valueType": "displacement",
+        "minForce": 0.0,
+        "maxForce": 0.0,
+        "minDisplacement": 0.0,
+        "maxDisplacement": 0.0,
+        "force": 0.0,
+        "displacement": 0.0,
+        "endTime": -1.0,
+        "group": 0,
+        "constraintIndex": 0,
+        "template": "Vec1",
+    },
+    "UnilateralPlaneConstraint": {
+        "indices": _EMPTY,
+        "flipNormal": False,
+        "endTime": -1.0,
+        "group": 0,
+        "constraintIndex": 0,
+        "template": "Vec3",
+    },
+    **dict.fromkeys(["BarycentricMapping", "IdentityMapping"], _MAPPING),
+    "RigidMapping": {**_MAPPING, "rigidIndexPerPoint": _EMPTY, "fileRigidMapping": ""},
+    # ``rigidified``: Pliant's Rigidify prefab's record of the groups' nodes, in order.
+    "SubsetMultiMapping": {**_MAPPING, "indexPairs": _EMPTY, "rigidified": _EMPTY},
     **dict.fromkeys(
         ["LocalMinDistance", "MinProximityIntersection", "NewProximityIntersection"],
         {"alarmDistance": 1.0, "contactDistance": 0.5, "angleCone": 0.0, "useLMDFilters": False},

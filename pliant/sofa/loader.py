@@ -33,13 +33,14 @@ import meshio
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from pliant.constraints.attachment import Attachment
 from pliant.constraints.base import EmbeddedPoints
 from pliant.constraints.cable import CableActuator
 from pliant.constraints.cavity import CavityActuator, enclosed_volume
-from pliant.constraints.contact import Contacts
+from pliant.constraints.contact import Contacts, PointPlanes
 from pliant.constraints.effector import PositionEffector
 from pliant.constraints.point import PointActuator
-from pliant.errors import ModelError
+from pliant.errors import ContactError, ModelError
 from pliant.fem.body import TetBody, fixed_components, nodes_in_box
 from pliant.fem.loads import Load, NodalForces, RestShapeSprings
 from pliant.fem.material import Corotational, Material, NeoHookean, StVenantKirchhoff
@@ -180,6 +181,23 @@ COLLISION_MODELS = frozenset(
 )
 HANDLED = HANDLED | PIPELINE | INTERSECTIONS | COLLISION_MODELS | {"RigidMapping"}
 HANDLED = HANDLED | GRIDS  # hexahedral bodies: pliant.sofa.grids
+# SoftRobots' self-contact of the body: a point kept on one side of the plane of three others.
+PLANE_CONSTRAINT = "UnilateralPlaneConstraint"
+HANDLED = HANDLED | {PLANE_CONSTRAINT}
+# STLIB's Rigidify: the body's node gathered from its free nodes and from nodes carried by
+# rigid frames (a RigidMapping with rigidIndexPerPoint).
+HANDLED = HANDLED | {"SubsetMultiMapping"}
+# Components Pliant knows but cannot map, and why (their data are still checked).
+UNSUPPORTED = {
+    # SoftRobots registers it on Vec1 only: an articulation's angle or course, which an
+    # ArticulatedSystemMapping turns into rigid frames. Pliant's joints are a rod node's turn
+    # (RotationActuator) and kinematic servos; it reads no articulated system from a scene.
+    "JointConstraint": "an articulation's degree of freedom (Vec1 of an"
+    " ArticulatedSystemMapping); Pliant reads no articulated system",
+}
+# A rigidified group's frame is a Pliant rigid body with this share of its nodes' mass (SOFA's
+# frames have none of their own: the nodes carry it; Pliant's rigid bodies need a mass).
+FRAME_MASS_SHARE = 1e-6
 CAVITIES = frozenset({"SurfacePressureConstraint", "SurfacePressureActuator"})
 POINT_CONSTRAINTS = frozenset(
     {"CableConstraint", "CableActuator", "PositionEffector", "PositionConstraint", *CAVITIES}
@@ -307,6 +325,13 @@ class SofaScene:
             bindings.rigid, state.rigid_positions, state.rigid_rotations, strict=False
         ):
             dofs.attrs["position"] = _frozen(np.concatenate([x, Rotation.from_matrix(r).as_quat()]))
+        for dofs, frames in bindings.frames:  # Rigidify's frames: a rigid body's, or held
+            poses = []
+            for index, x, r in frames:
+                if index is not None:
+                    x, r = state.rigid_positions[index], state.rigid_rotations[index]
+                poses.append(np.concatenate([x, Rotation.from_matrix(r).as_quat()]))
+            dofs.attrs["position"] = _frozen(poses)
         if self.root is not None:
             self.root.attrs["time"] = float(state.time)
 
@@ -362,6 +387,9 @@ class Bindings:
     mapped: list[tuple[SceneObject, EmbeddedPoints]] = dataclasses.field(default_factory=list)
     rigid: list[SceneObject] = dataclasses.field(default_factory=list)
     written: np.ndarray | None = None  # the body's positions as last written
+    # Rigidify's frames: their MechanicalObject, and for each frame (rigid body index or None
+    # where it is held, its initial position and rotation).
+    frames: list[tuple[SceneObject, list]] = dataclasses.field(default_factory=list)
 
 
 class ControlledSolver:
@@ -385,6 +413,17 @@ def _frozen(values: np.ndarray) -> np.ndarray:
     array = np.array(values, dtype=float)
     array.flags.writeable = False
     return array
+
+
+@dataclass
+class _Frames:
+    """Rigidify's frames: their MechanicalObject, the body's nodes of each group, (index,
+    (position, rotation)) of each frame, and which frames are held."""
+
+    dofs: SceneObject
+    groups: list[np.ndarray]
+    poses: list
+    fixed: np.ndarray
 
 
 @dataclass(frozen=True)
@@ -613,16 +652,35 @@ class _Builder:
                 f" (a node under {body_node.path} with a BarycentricMapping): " + "; ".join(stray)
             )
         contacts, rigid = self._collisions(body_node, body, mesh)
+        frames, attachments = self._free_frames(body_node, body, mesh)
+        if frames and solver_kind == "static":
+            raise SceneError(
+                f"{self.path.name}: Rigidify's free frame {frames[0].name} is a rigid body in"
+                " Pliant, which the static solver cannot balance: use an EulerImplicitSolver"
+                " (or hold the frame with a FixedConstraint)"
+            )
+        planes = self._planes(body_node, carried, body, mesh)
+        if planes is not None:  # solved with the contacts, whether the scene detects any
+            contacts = Contacts([], planes=planes) if contacts is None else contacts
+            contacts.planes = planes
         model = Model(
             body,
             actuators=actuators,
             effectors=effectors,
             contacts=contacts,
-            rigid_bodies=rigid,
+            rigid_bodies=rigid + frames,
+            attachments=attachments,
             name=self.path.stem,
         )
         self.bindings.body = self._one(body_node, {"MechanicalObject"}, "MechanicalObjects")
         self.bindings.rigid = [self._rigid_dofs(n) for n in self.root.walk() if self._is_rigid(n)]
+        self.bindings.frames, k = [], len(rigid)
+        for g in self._rigidified:  # the rigid bodies of the free frames follow the others
+            entries = []
+            for j, (x, r) in g.poses:
+                entries.append((None if g.fixed[j] else k, x, r))
+                k += not g.fixed[j]
+            self.bindings.frames.append((g.dofs, entries))
         scene = SofaScene(model, dt, solver_kind, self.path, self.root, self.bindings)
         scene.write_outputs(model.rest_state())
         return scene
@@ -638,8 +696,10 @@ class _Builder:
                 if not detects and obj.type.endswith("CollisionModel"):
                     continue
                 if obj.type not in HANDLED and obj.type not in IGNORED and not is_visual(obj.type):
-                    problems.append(f"{obj.type} (at {node.path})")
-                    continue
+                    why = UNSUPPORTED.get(obj.type, "")
+                    problems.append(f"{obj.type} (at {node.path}{': ' + why if why else ''})")
+                    if not why:  # a component Pliant knows has its data checked too
+                        continue
                 fields = FIELDS.get(obj.type)
                 if fields is None:
                     continue
@@ -743,7 +803,7 @@ class _Builder:
     def _is_rigid(node: SceneNode) -> bool:
         """A moving rigid body: a Rigid3 MechanicalObject whose collision models move (STLIB
         marks a static one, a floor, moving=False and simulated=False)."""
-        if not _Builder._rigid_dofs(node):
+        if not _Builder._rigid_dofs(node) or _Builder._is_frames(node):
             return False
         models = [o for n in node.walk() for o in n.objects if o.type in COLLISION_MODELS]
         return not models or any(
@@ -924,7 +984,7 @@ class _Builder:
         mesh = TetMesh(points, tets)
         mass_kwargs = self._mass(node, points.shape[0])
         solver_kind, rayleigh = self._ode_solver(node)
-        fixed = self._fixed_nodes(node, points)
+        fixed = np.union1d(self._fixed_nodes(node, points), self._held_groups(node, points))
         body = TetBody(
             mesh,
             material,
@@ -1189,6 +1249,198 @@ class _Builder:
                 force = _floats(obj.attrs.get("force", "0 0 0"), f"{obj.path}.force")
                 loads.append(NodalForces(idx, force))
         return loads
+
+    # --- STLIB's Rigidify ------------------------------------------------------------------------
+    @staticmethod
+    def _is_frames(node: SceneNode) -> bool:
+        """Rigidify's ``RigidParts``: Rigid3 frames carrying a child's points by a RigidMapping
+        with ``rigidIndexPerPoint``."""
+        return any(
+            o.type == "RigidMapping" and "rigidIndexPerPoint" in o.attrs
+            for child in node.children
+            for o in child.objects
+        )
+
+    def _groups(self, body_node: SceneNode, points: np.ndarray) -> list[_Frames]:
+        """The rigidified groups of the body's nodes (STLIB's Rigidify), read once: its
+        SubsetMultiMapping's second input is the groups' points, carried by the frames of
+        their parent node. A frame's position is the group's barycentre unless given, its
+        orientation Euler angles in degrees (x, y, z about fixed axes, as STLIB's
+        ``Quat.createFromEuler``) or a quaternion x y z w; a frame with a FixedConstraint is
+        held, with its nodes."""
+        if hasattr(self, "_rigidified"):
+            return self._rigidified
+        self._rigidified: list[_Frames] = []
+        for mapping in [o for o in body_node.objects if o.type == "SubsetMultiMapping"]:
+            links = mapping.attrs.get("input", "")
+            links = links.split() if isinstance(links, str) else [str(v) for v in links]
+            carried = self.link(body_node, links[1]) if len(links) == 2 else None
+            frames_node = None if carried is None else carried.node.parent
+            rigid_map = (
+                None
+                if carried is None
+                else self._one(carried.node, {"RigidMapping"}, "RigidMappings")
+            )
+            frames = self._rigid_dofs(frames_node)
+            if rigid_map is None or frames is None:
+                raise SceneError(
+                    f"{mapping.path}.input: the free nodes, then nodes carried by Rigid3 frames"
+                    f" (STLIB's Rigidify), got {links!r}"
+                )
+            owner = f"Rigidify (at {frames_node.parent.path})"
+            per_point = _floats(
+                rigid_map.attrs["rigidIndexPerPoint"], f"{rigid_map.path}.rigidIndexPerPoint"
+            ).astype(np.int64)
+            if "rigidified" in mapping.attrs:
+                chosen = _floats(mapping.attrs["rigidified"], f"{owner}.groupIndices")
+            else:  # SOFA's pairs (input, index) for each of the body's nodes
+                pairs = _floats(mapping.attrs.get("indexPairs", ""), f"{mapping.path}.indexPairs")
+                pairs = pairs.astype(np.int64).reshape(-1, 2)
+                chosen = np.empty(int((pairs[:, 0] == 1).sum()))
+                chosen[pairs[pairs[:, 0] == 1, 1]] = np.flatnonzero(pairs[:, 0] == 1)
+            chosen = chosen.astype(np.int64)
+            if chosen.size != per_point.size:
+                raise SceneError(
+                    f"{rigid_map.path}.rigidIndexPerPoint: {per_point.size} frames for"
+                    f" {chosen.size} rigidified nodes"
+                )
+            if chosen.size and (chosen.min() < 0 or chosen.max() >= len(points)):
+                bad = chosen[(chosen < 0) | (chosen >= len(points))][0]
+                raise SceneError(
+                    f"{owner}.groupIndices: node {bad} outside the body's {len(points)} nodes"
+                )
+            poses = self._frame_poses(frames, owner, chosen, per_point, points)
+            held = np.zeros(len(poses), dtype=bool)
+            for obj in frames_node.objects:
+                if obj.type in ("FixedConstraint", "FixedProjectiveConstraint"):
+                    idx = _floats(obj.attrs.get("indices", ""), f"{obj.path}.indices")
+                    held[idx.astype(np.int64)] = True
+                    held |= _flag(obj, "fixAll", False)
+                elif obj.type != "MechanicalObject" and not is_visual(obj.type):
+                    raise SceneError(
+                        f"{obj.path}: Rigidify's frames hold a FixedConstraint only in Pliant,"
+                        f" not a {obj.type}"
+                    )
+            groups = [chosen[per_point == j] for j in range(len(poses))]
+            self._rigidified.append(_Frames(frames, groups, list(enumerate(poses)), held))
+        return self._rigidified
+
+    def _frame_poses(self, frames, owner, chosen, per_point, points) -> list:
+        """(index, position, rotation) of each frame (see :meth:`_groups`)."""
+        if "position" in frames.attrs:
+            pose = _floats(frames.attrs["position"], f"{frames.path}.position").reshape(-1, 7)
+            given = [list(p[:3]) + list(p[3:]) for p in pose]
+        else:
+            given = frames.attrs.get("frames", [])
+        poses = []
+        for j, frame in enumerate(given):
+            frame = np.asarray(frame, dtype=float).reshape(-1)
+            members = chosen[per_point == j]
+            if members.size == 0:
+                raise SceneError(f"{owner}.groupIndices: frame {j} has no nodes")
+            centre = points[members].mean(axis=0) if frame.size in (3, 4) else frame[:3]
+            turn = frame[-4:] if frame.size in (4, 7) else None
+            rotation = (
+                Rotation.from_quat(turn)
+                if turn is not None
+                else Rotation.from_euler("xyz", frame[-3:], degrees=True)
+            )
+            poses.append((j, centre, rotation.as_matrix()))
+        if per_point.size and per_point.max() >= len(poses):
+            raise SceneError(f"{owner}.frames: {len(poses)} frames for group {per_point.max()}")
+        return [(x, r) for _, x, r in poses]
+
+    def _held_groups(self, body_node: SceneNode, points: np.ndarray) -> np.ndarray:
+        """The nodes of the rigidified groups whose frames are held."""
+        groups = self._groups(body_node, points)
+        held = [g.groups[j] for g in groups for j in np.flatnonzero(g.fixed)]
+        return np.unique(np.concatenate([np.zeros(0, dtype=np.int64), *held]))
+
+    def _free_frames(self, body_node: SceneNode, body: TetBody, mesh: TetMesh):
+        """A rigid body for each free frame (FRAME_MASS_SHARE of its nodes' mass, a box a
+        thousandth of the body's extent, which nothing touches), its nodes attached to it."""
+        bodies, attachments = [], []
+        for g in self._groups(body_node, body.rest_positions):
+            for j, (x, r) in g.poses:
+                if g.fixed[j]:
+                    continue
+                mass = FRAME_MASS_SHARE * float(body.node_masses[g.groups[j]].sum())
+                size = 1e-3 * body.extent
+                frame = RigidBody(
+                    Box(np.full(3, size), position=x, rotation=r),
+                    mass,
+                    name=f"{g.dofs.node.name}[{j}]",
+                )
+                bodies.append(frame)
+                attachments.append(
+                    Attachment(EmbeddedPoints.at_nodes(g.groups[j]), frame, name=frame.name)
+                )
+        return bodies, attachments
+
+    # --- self-contact planes -------------------------------------------------------------------
+    def _planes(
+        self, body_node: SceneNode, carried: list[SceneNode], body: TetBody, mesh: TetMesh
+    ) -> PointPlanes | None:
+        """SoftRobots' UnilateralPlaneConstraints: on the body's nodes, or on points a child
+        node carries (BarycentricMapping); the first of their four ``indices`` is kept on the
+        side of the plane of the three others that its normal (reversed by ``flipNormal``)
+        points to (:class:`pliant.constraints.contact.PointPlanes`)."""
+        parts, flips, names, stray = [], [], [], []
+        inside = {id(body_node), *(id(n) for n in carried)}
+        for node in self.root.walk():
+            found = [o for o in node.objects if o.type == PLANE_CONSTRAINT]
+            if not found:
+                continue
+            if id(node) not in inside:
+                stray += [f"{o.path}" for o in found]
+                continue
+            if node is body_node:
+                points = body.rest_positions
+                embedded = None
+            else:
+                if not any(o.type in MAPPINGS for o in node.objects):
+                    raise SceneError(
+                        f"{node.path}: points without a BarycentricMapping to the body"
+                    )
+                dofs = self._one(node, {"MechanicalObject"}, "MechanicalObjects")
+                if dofs is None:
+                    raise SceneError(f"{found[0].path}: no MechanicalObject in its node")
+                points = self._positions(node, dofs)
+                embedded = self._embed(mesh, points, body)
+            for obj in found:
+                idx = _floats(obj.attrs.get("indices", ""), f"{obj.path}.indices")
+                if idx.size != 4 or np.any(idx != np.round(idx)):
+                    raise SceneError(
+                        f"{obj.path}.indices: four point indices expected (the held point, then"
+                        f" the plane's three), got {obj.attrs.get('indices', '')!r}"
+                    )
+                idx = idx.astype(np.int64)
+                if idx.min() < 0 or idx.max() >= len(points):
+                    raise SceneError(
+                        f"{obj.path}.indices: {idx.tolist()} outside the {len(points)} points of"
+                        f" {node.path}"
+                    )
+                if _float(obj, "endTime", -1.0) >= 0.0:
+                    raise SceneError(f"{obj.path}.endTime: a plane that stops is not supported")
+                parts.append(
+                    EmbeddedPoints.at_nodes(idx) if embedded is None else embedded.subset(idx)
+                )
+                flips.append(_flag(obj, "flipNormal", False))
+                names.append(obj.path)
+        if stray:
+            raise SceneError(
+                f"{self.path.name}: UnilateralPlaneConstraint holds points of the body (on its"
+                f" node or a node under {body_node.path} with a BarycentricMapping): "
+                + "; ".join(stray)
+            )
+        if not parts:
+            return None
+        try:
+            planes = PointPlanes(EmbeddedPoints.stack(parts), flips, names)
+            planes.normals(body.rest_positions)
+        except ContactError as exc:
+            raise SceneError(f"{self.path.name}: {exc}") from exc
+        return planes
 
     # --- points carried by the body: cables, effectors ---------------------------------------
     def _embedded(self, node: SceneNode, body: TetBody, mesh: TetMesh):

@@ -227,6 +227,12 @@ def run_learned_mpc(
     from pliant.trajopt.plots import plot_trajectory
     from pliant.trajopt.scenarios import SCENARIOS
 
+    # A model given by name is read (and checked) before the minutes of the DDP below.
+    given = None
+    if model is not None and model.is_file():
+        from pliant.condensed.learned import LearnedCondensedModel
+
+        given = LearnedCondensedModel.load(model)
     scenario = SCENARIOS[robot](horizon=steps)
     goals, m = scenario.goals, scenario.goals.shape[1]
     runs, reports = {}, {}
@@ -242,7 +248,10 @@ def run_learned_mpc(
     }
     path = model or LEARNED_MODELS / f"{robot}.pt"
     box = distance_box(scenario.model, ddp.rollout.states)
-    learned, trained = learned_model(robot, path, box, samples=samples, epochs=epochs)
+    if given is not None:
+        learned, trained = given, False
+    else:
+        learned, trained = learned_model(robot, path, box, samples=samples, epochs=epochs)
     controllers = {
         f"MPC, frozen FEM condensed (H = {horizon})": CondensedMPC,
         f"MPC, learned prediction (H = {horizon})": lambda dyn, *a, **k: LearnedMPC(

@@ -67,14 +67,29 @@ def test_inverse_prints_errors_and_writes_reports(tmp_path) -> None:
 def test_bench_quick_writes_results(tmp_path, monkeypatch) -> None:
     """A smoke run (5 s measured); the lead's bench tests check the figures themselves. Run
     where the reference SOFA meshes are not found, so that it does not depend on the checkout
-    next to this one (bench then uses Pliant's own meshes)."""
+    next to this one (bench then uses Pliant's own meshes). One environment is timed (all
+    eighteen, at three time steps each, is the bench's job, not the test's)."""
     monkeypatch.chdir(tmp_path)
     monkeypatch.delenv("PLIANT_REFERENCE_MESHES", raising=False)
     out = tmp_path / "bench.json"
     result, output = _invoke(
-        "bench", "--quick", "--repeats", "1", "--steps", "3", "--batch", "1,2", "--out", str(out)
+        "bench",
+        "--quick",
+        "--repeats",
+        "1",
+        "--steps",
+        "3",
+        "--batch",
+        "1,2",
+        "--envs",
+        "Diamond",
+        "--out",
+        str(out),
     )
     assert result.exit_code == 0, output
+    envs = json.loads((tmp_path / "envs.json").read_text())["environments"]
+    assert [(r["env"], r["dt"]) for r in envs] == [("Diamond", dt) for dt in (0.01, 0.02, 0.03)]
+    assert all(r["stable"] and r["real_time_factor"] > 0.0 for r in envs), envs
     report = json.loads(out.read_text())
     assert report["scenes"]
     for scene in report["scenes"]:

@@ -198,8 +198,8 @@ FEM = "body.addObject('TetrahedronFEMForceField', youngModulus=100, poissonRatio
         (FEM + "rootNode.Bodyy\n", "", r"line 9 .*no child.*'Bodyy' \(did you mean 'Body'\?\)"),
         (
             FEM,
-            "from stlib3.physics.mixedmaterial import Rigidify\n",
-            r"imports 'stlib3.physics.mixedmaterial', which Pliant does not provide",
+            "from softrobots.parts.finger import Finger\n",
+            r"imports 'softrobots.parts', which Pliant does not provide",
         ),
     ],
     ids=["unknown", "misspelt", "python-error", "exit", "misspelt-read", "missing-child", "import"],

@@ -8,7 +8,7 @@ from __future__ import annotations
 import math
 import types
 
-from pliant.sofa.prefabs import sofagym, softrobots, splib, stlib
+from pliant.sofa.prefabs import mixedmaterial, sofagym, softrobots, splib, stlib
 from pliant.sofa.sofapython3 import Key, module
 
 
@@ -47,6 +47,7 @@ def prefab_modules() -> dict[str, types.ModuleType]:
         "stlib3.physics.deformable": {"ElasticMaterialObject": stlib.ElasticMaterialObject},
         "stlib3.physics.rigid": rigid,
         "stlib3.physics.constraints": {"FixedBox": stlib.FixedBox},
+        "stlib3.physics.mixedmaterial": {"Rigidify": mixedmaterial.Rigidify},
         "stlib3.physics.collision": {"CollisionMesh": stlib.CollisionMesh},
         "stlib3.visuals": {"VisualModel": stlib.VisualModel},
         "stlib3.solver": {"DefaultSolver": stlib.DefaultSolver},

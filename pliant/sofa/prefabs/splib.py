@@ -193,12 +193,14 @@ class Vec3(np.ndarray):
         return Vec3(np.cross(v1, v2))
 
 
-def vadd(a, b):
-    return Vec3(np.add(a, b))
+def vadd(a, b) -> list:
+    """a + b as a list, as SPLIB's (scenes concatenate it with a quaternion's list)."""
+    return [float(v) for v in np.add(a, b)]
 
 
-def vsub(a, b):
-    return Vec3(np.subtract(a, b))
+def vsub(a, b) -> list:
+    """a - b as a list, as SPLIB's."""
+    return [float(v) for v in np.subtract(a, b)]
 
 
 class Quat(np.ndarray):
