@@ -559,6 +559,21 @@ class TetBody(Revised):
                 out += assembly.matvec(tangent, cols)
         return out[:, 0] if u.ndim == 1 else out
 
+    def node_rotations(self, frames: np.ndarray, reference: np.ndarray) -> np.ndarray:
+        """(n, 3, 3): each node's best-fit turn from the corotational element frames
+        `reference` to `frames` (the polar rotation of the sum of its elements' R R0^T)."""
+        out = np.empty((self.n_nodes, 3, 3))
+        kernels.node_rotations(frames, reference, self._incidence_ptr, self._incidence, out)
+        return out
+
+    def warp_drift(
+        self, frames: np.ndarray, reference: np.ndarray, turns: np.ndarray, nodes: np.ndarray
+    ) -> float:
+        """max |R R0^T - Q_n| over the elements and their nodes n with `nodes[n]` (boolean):
+        how far the nodes' turns `turns` (n, 3, 3) are from each element's turn since the
+        frames `reference`."""
+        return kernels.warp_drift(frames, reference, turns, self.tets, nodes)
+
     @_sized_threads
     def stiffness_data(self, lin: Linearisation, *, exact: bool = False) -> np.ndarray:
         """Tangent stiffness on the free DoFs, as data aligned with `self.pattern`."""

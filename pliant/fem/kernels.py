@@ -592,6 +592,57 @@ def scatter_add(blocks, scale, scatter, data):
 
 
 @njit(cache=True, nogil=True)
+def node_rotations(frames, reference, incidence_ptr, incidence, out):
+    """out[n] = the rotation of the polar decomposition of sum R_e R0_e^T over the elements e
+    of node n: how far the frames `frames` (m, 3, 3) turned the node since `reference`
+    (a best fit of the incident elements' turns; identity for a node in no element)."""
+    acc = np.empty((3, 3))
+    work = np.empty((3, 3))
+    for n in range(incidence_ptr.shape[0] - 1):
+        acc[:] = 0.0
+        for k in range(incidence_ptr[n], incidence_ptr[n + 1]):
+            e = incidence[k] // 4
+            for i in range(3):
+                for j in range(3):
+                    acc[i, j] += (
+                        frames[e, i, 0] * reference[e, j, 0]
+                        + frames[e, i, 1] * reference[e, j, 1]
+                        + frames[e, i, 2] * reference[e, j, 2]
+                    )
+        if incidence_ptr[n + 1] == incidence_ptr[n] or not _det3(acc) > 0.0:
+            for i in range(3):
+                for j in range(3):
+                    out[n, i, j] = 1.0 if i == j else 0.0
+            continue
+        _polar(acc, out[n], work)
+
+
+@njit(cache=True, nogil=True)
+def warp_drift(frames, reference, turns, tets, relevant):
+    """max |R_e R0_e^T - Q_n| over the elements e and their nodes n with `relevant[n]`: how
+    far the nodes' turns `turns` (n, 3, 3) are from explaining each element's turn since its
+    frame `reference` (NaN when a frame holds one)."""
+    out = 0.0
+    for e in range(tets.shape[0]):
+        for i in range(3):
+            for j in range(3):
+                t = (
+                    frames[e, i, 0] * reference[e, j, 0]
+                    + frames[e, i, 1] * reference[e, j, 1]
+                    + frames[e, i, 2] * reference[e, j, 2]
+                )
+                for a in range(4):
+                    n = tets[e, a]
+                    if relevant[n]:
+                        d = abs(t - turns[n, i, j])
+                        if d != d:
+                            return d
+                        if d > out:
+                            out = d
+    return out
+
+
+@njit(cache=True, nogil=True)
 def max_abs_difference(a, b):
     """max |a - b| over two arrays of one shape, without the temporaries of numpy's version
     (the lagged tangent's drift test, at every step: 0.1 ms on the Diamond's frames in numpy).
