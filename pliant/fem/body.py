@@ -559,20 +559,18 @@ class TetBody(Revised):
                 out += assembly.matvec(tangent, cols)
         return out[:, 0] if u.ndim == 1 else out
 
-    def node_rotations(self, frames: np.ndarray, reference: np.ndarray) -> np.ndarray:
-        """(n, 3, 3): each node's best-fit turn from the corotational element frames
-        `reference` to `frames` (the polar rotation of the sum of its elements' R R0^T)."""
+    def node_rotations(
+        self, frames: np.ndarray, reference: np.ndarray, nodes: np.ndarray
+    ) -> tuple[np.ndarray, float]:
+        """Each node's best-fit turn (n, 3, 3) from the corotational element frames
+        `reference` to `frames` (the polar rotation of the sum of its elements' R R0^T), and
+        how far those explain the elements' turns: max |R R0^T - Q_n| over the elements and
+        their nodes n with `nodes[n]` (boolean; NaN where a frame holds one)."""
+        turns = np.empty_like(frames)
+        kernels.element_turns(frames, reference, turns)
         out = np.empty((self.n_nodes, 3, 3))
-        kernels.node_rotations(frames, reference, self._incidence_ptr, self._incidence, out)
-        return out
-
-    def warp_drift(
-        self, frames: np.ndarray, reference: np.ndarray, turns: np.ndarray, nodes: np.ndarray
-    ) -> float:
-        """max |R R0^T - Q_n| over the elements and their nodes n with `nodes[n]` (boolean):
-        how far the nodes' turns `turns` (n, 3, 3) are from each element's turn since the
-        frames `reference`."""
-        return kernels.warp_drift(frames, reference, turns, self.tets, nodes)
+        kernels.node_rotations(turns, self._incidence_ptr, self._incidence, out)
+        return out, float(kernels.warp_drift(turns, out, self.tets, nodes))
 
     @_sized_threads
     def stiffness_data(self, lin: Linearisation, *, exact: bool = False) -> np.ndarray:
