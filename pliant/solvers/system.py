@@ -112,12 +112,13 @@ class LinearisedSystem:
         self._projection = getattr(body, "projection", None)
         self._shift = 1.0  # s of P A P + s (I - P)
         self.warps = 0  # steps solved with the kept factorisation turned
-        # Corotational bodies without projections, whose nodes are free or held in all three
-        # directions, can turn their kept factorisation: the free nodes (`_warp_nodes`, their
-        # DoFs `_warp_dofs`) by their best-fit rotations.
+        # Corotational tetrahedral bodies without projections, whose nodes are free or held in
+        # all three directions, can turn their kept factorisation: the free nodes
+        # (`_warp_nodes`, their DoFs `_warp_dofs`) by their best-fit rotations. (The kernels
+        # read four nodes an element: a subclass with other elements keeps the plain policy.)
         self._warp_nodes = self._warp_dofs = self._turns = None
         if (
-            isinstance(body, TetBody)
+            type(body) is TetBody
             and body.material.kernel_tag in ROTATION_TAGS
             and self._projection is None
             and body.mass_type != "consistent"
