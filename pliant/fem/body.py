@@ -581,6 +581,19 @@ class TetBody(Revised):
         self._add_surface_matvec(lin, cols, out)
         return out[:, 0] if u.ndim == 1 else out
 
+    def node_rotations(
+        self, frames: np.ndarray, reference: np.ndarray, nodes: np.ndarray
+    ) -> tuple[np.ndarray, float]:
+        """Each node's best-fit turn (n, 3, 3) from the corotational element frames
+        `reference` to `frames` (the polar rotation of the sum of its elements' R R0^T), and
+        how far those explain the elements' turns: max |R R0^T - Q_n| over the elements and
+        their nodes n with `nodes[n]` (boolean; NaN where a frame holds one)."""
+        turns = np.empty_like(frames)
+        kernels.element_turns(frames, reference, turns)
+        out = np.empty((self.n_nodes, 3, 3))
+        kernels.node_rotations(turns, self._incidence_ptr, self._incidence, out)
+        return out, float(kernels.warp_drift(turns, out, self.tets, nodes))
+
     @_sized_threads
     def stiffness_data(self, lin: Linearisation, *, exact: bool = False) -> np.ndarray:
         """Tangent stiffness on the free DoFs, as data aligned with `self.pattern`."""

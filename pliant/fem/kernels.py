@@ -608,6 +608,62 @@ def scatter_add(blocks, scale, scatter, data):
 
 
 @njit(cache=True, nogil=True)
+def element_turns(frames, reference, out):
+    """out[e] = R_e R0_e^T: how far each element frame turned since `reference` (m, 3, 3)."""
+    for e in range(frames.shape[0]):
+        for i in range(3):
+            for j in range(3):
+                out[e, i, j] = (
+                    frames[e, i, 0] * reference[e, j, 0]
+                    + frames[e, i, 1] * reference[e, j, 1]
+                    + frames[e, i, 2] * reference[e, j, 2]
+                )
+
+
+@njit(cache=True, nogil=True)
+def node_rotations(turns, incidence_ptr, incidence, out):
+    """out[n] = the rotation of the polar decomposition of the sum of the element turns
+    `turns` (m, 3, 3) over the elements of node n: its best fit (identity for a node in no
+    element or whose sum is not a positive-determinant matrix)."""
+    acc = np.empty((3, 3))
+    work = np.empty((3, 3))
+    for n in range(incidence_ptr.shape[0] - 1):
+        acc[:] = 0.0
+        for k in range(incidence_ptr[n], incidence_ptr[n + 1]):
+            e = incidence[k] // 4
+            for i in range(3):
+                for j in range(3):
+                    acc[i, j] += turns[e, i, j]
+        if not _det3(acc) > 0.0:
+            for i in range(3):
+                for j in range(3):
+                    out[n, i, j] = 1.0 if i == j else 0.0
+            continue
+        _polar(acc, out[n], work)
+
+
+@njit(cache=True, nogil=True)
+def warp_drift(turns, node_turns, tets, relevant):
+    """max |T_e - Q_n| over the elements e and their nodes n with `relevant[n]`: how far the
+    nodes' rotations `node_turns` (n, 3, 3) are from each element's turn `turns` (m, 3, 3)
+    (NaN when one holds one)."""
+    out = 0.0
+    for e in range(tets.shape[0]):
+        for a in range(4):
+            n = tets[e, a]
+            if not relevant[n]:
+                continue
+            for i in range(3):
+                for j in range(3):
+                    d = abs(turns[e, i, j] - node_turns[n, i, j])
+                    if d != d:
+                        return d
+                    if d > out:
+                        out = d
+    return out
+
+
+@njit(cache=True, nogil=True)
 def max_abs_difference(a, b):
     """max |a - b| over two arrays of one shape, without the temporaries of numpy's version
     (the lagged tangent's drift test, at every step: 0.1 ms on the Diamond's frames in numpy).

@@ -146,6 +146,11 @@ class ImplicitEuler:
             body.n_elements < PARALLEL_MIN_TETS and body.n_free >= BACKGROUND_MIN_DOFS
         )
         self._size = body.extent
+        # The kept factorisation may be turned (LinearisedSystem.prepare) where the step solves
+        # no constraint columns: compliance columns kept for its life would not be.
+        self._warp = not (
+            model.actuators or model.effectors or model.attachments or model.contacts is not None
+        )
         self._gravity = body.gravity_forces()
         self.last_report = StepReport()
         # The linearisation of the last state returned, checked before it was (see `step`);
@@ -173,7 +178,7 @@ class ImplicitEuler:
         check_linearisation(lin, step, h)
         a_m, a_k = self._coefficients()
         try:  # on a small body, a refactorisation runs on while the step detects its contacts
-            self.system.prepare(lin, a_m, a_k, background=self._background)
+            self.system.prepare(lin, a_m, a_k, background=self._background, warp=self._warp)
         except SolverError as exc:
             raise DivergenceError(f"step {step}: {exc}", step=step, cause="solver") from exc
         rigid = self._rigid_step(state)
