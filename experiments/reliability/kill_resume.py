@@ -591,11 +591,20 @@ def reference(kind, work: Path) -> float:
     return time.perf_counter() - clock
 
 
-def kill_and_resume(kind, work: Path, index: int, seed: int, window: float) -> dict:
+def kill_time(seed: int, index: int, duration: float) -> float:
+    """Run `index`'s kill time: uniform over the uninterrupted run's `duration` (seeded)."""
+    return float(np.random.default_rng([seed, index]).uniform(0.0, duration))
+
+
+def kill_and_resume(kind, work: Path, index: int, seed: int, duration: float) -> dict:
+    """Run `index`, killed at a time drawn uniformly over `duration`, the uninterrupted run's
+    time measured in this batch. A run that ends before its kill time (the machine's load
+    changed) is reported as not killed, with its real time."""
     label = f"run_{index:03d}"
-    kill_after = float(np.random.default_rng([seed, index]).uniform(0.0, window))
+    kill_after = kill_time(seed, index, duration)
     clock = time.perf_counter()
     process = kind.start(work, label)
+    started = time.perf_counter()
     try:
         process.wait(timeout=kill_after)
         killed = False  # it finished first (a loaded machine runs at another speed)
@@ -603,11 +612,13 @@ def kill_and_resume(kind, work: Path, index: int, seed: int, window: float) -> d
         os.kill(process.pid, signal.SIGKILL)
         killed = True
     process.communicate()
+    ran = time.perf_counter() - started
     progress = kind.progress(work, label)
     return {
         "run": index,
         "kill_after_s": round(kill_after, 3),
         "killed": killed,
+        **({} if killed else {"ended_after_s": round(ran, 3)}),
         **progress,
         **kind.resume(work, label),
         **kind.compare(work, label),
@@ -625,6 +636,7 @@ def summarise(runs: list[dict]) -> dict:
     return {
         "runs": len(runs),
         "killed": len(killed),
+        "ended_before_kill_time": len(runs) - len(killed),
         "killed_with_saved_progress": len(saved),
         "identical": sum(r["identical"] for r in runs),
         "identical_among_killed": sum(r["identical"] for r in killed),
@@ -633,6 +645,9 @@ def summarise(runs: list[dict]) -> dict:
         "seconds_per_run": round(float(np.mean([r["seconds"] for r in runs])), 1) if runs else 0,
     }
 
+
+#: How kill times are drawn; part of the settings (results under another protocol start afresh).
+PROTOCOL = "uniform over the uninterrupted run's time, measured at the start of each batch"
 
 KINDS = {
     "sb3": Training,
@@ -648,7 +663,13 @@ def main() -> None:
 
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--kind", choices=tuple(KINDS), default="sb3")
-    parser.add_argument("--runs", type=int, default=25)
+    parser.add_argument("--runs", type=int, default=25, help="runs at most")
+    parser.add_argument(
+        "--killed",
+        type=int,
+        default=10**9,
+        help="stop once this many runs were killed (default: do all --runs)",
+    )
     parser.add_argument("--seed", type=int, default=0, help="seed of the kill times")
     parser.add_argument("--steps", type=int, default=6000, help="sb3: training steps of a run")
     parser.add_argument("--checkpoint", type=int, default=640, help="sb3: steps a checkpoint")
@@ -668,18 +689,29 @@ def main() -> None:
         args.out
         or ROOT / "experiments" / "results" / "reliability" / f"kill_resume_{args.kind}.json"
     )
-    setup = {**kind.setup(), "seed": args.seed}
+    setup = {**kind.setup(), "seed": args.seed, "kill_time": PROTOCOL}
     report = json.loads(out.read_text()) if out.exists() else {}
     if report.get("setup") != setup or not (work / f"reference{kind.result}").exists():
-        work.mkdir(parents=True, exist_ok=True)
-        seconds = reference(kind, work)
-        report = {"setup": setup, "reference_s": round(seconds, 2), "results": []}
-        write_json(out, report)
-        print(f"reference run: {seconds:.1f} s", flush=True)
-    window = 0.9 * report["reference_s"]  # a run may go faster than the reference
+        report = {"setup": setup, "batches": [], "results": []}
+    work.mkdir(parents=True, exist_ok=True)
     runs = report["results"]
+    if sum(r["killed"] for r in runs) >= args.killed or len(runs) >= args.runs:
+        print(json.dumps(report.get("summary"), indent=1))
+        return
+    # A batch: this command. Its uninterrupted run, timed now on this machine, sets the
+    # window of its kill times (the load of a shared machine changes from hour to hour).
+    load = os.getloadavg()[0]
+    seconds = reference(kind, work)
+    batch = {"batch": len(report["batches"]), "first_run": len(runs),
+             "reference_s": round(seconds, 2), "load_average": round(load, 2)}  # fmt: skip
+    report["batches"].append(batch)
+    write_json(out, report)
+    print(f"batch {batch['batch']}: reference run {seconds:.1f} s", flush=True)
     for index in range(len(runs), args.runs):
-        runs.append(kill_and_resume(kind, work, index, args.seed, window))
+        if sum(r["killed"] for r in runs) >= args.killed:
+            break
+        runs.append({"batch": batch["batch"],
+                     **kill_and_resume(kind, work, index, args.seed, seconds)})  # fmt: skip
         report["summary"] = summarise(runs)
         write_json(out, report)
         print(json.dumps(runs[-1]), flush=True)
