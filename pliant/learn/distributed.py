@@ -24,6 +24,8 @@ import numpy as np
 from stable_baselines3.common.vec_env import VecEnv
 from stable_baselines3.common.vec_env.subproc_vec_env import _stack_obs
 
+from pliant.errors import MissingDependencyError
+from pliant.learn.config import _read_yaml
 from pliant.processes import ProcessIdentity, driver_identity, exit_with_process
 
 
@@ -31,7 +33,7 @@ def require_ray():
     try:
         import ray
     except ImportError as exc:  # pragma: no cover - depends on the installation
-        raise ImportError(
+        raise MissingDependencyError(
             "Ray is not installed: pip install 'pliant[ray]' (or 'ray[tune]')"
         ) from exc
     return ray
@@ -215,12 +217,10 @@ def tune_sweep(
           seed: {grid: [0, 1, 2]}
           hyperparams.learning_rate: {loguniform: [1.0e-4, 1.0e-3]}
     """
-    import yaml
-
+    sweep = _read_yaml(Path(sweep_file), what="a sweep (YAML)")
     ray = require_ray()
     from ray import tune
 
-    sweep = yaml.safe_load(Path(sweep_file).read_text())
     algo = algo or sweep.get("algo", "PPO")
     base = sweep.get("base") or {}
     metric = sweep.get("metric", "success_rate")
