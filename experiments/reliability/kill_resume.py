@@ -5,47 +5,51 @@ Five run types (``--kind``):
 
 - ``sb3``, SB3 training: PPO on the toy ``pliant-test/PointReach-v0`` (VecNormalize on, one
   environment in the learner's process, a checkpoint every ``--checkpoint`` steps, one PyTorch
-  thread). Each run is a fresh process (``train(config, run)``), killed at a time drawn
-  uniformly over the first 90 % of the reference run's training time (from the first step);
-  then a fresh process resumes it (``train(run_dir=run, resume=True)``, what ``pliant train
-  --resume`` calls). A run killed before its first checkpoint has nothing to resume from and
-  is started again, as a user would (counted apart). Compared: the final policy parameters and
-  VecNormalize statistics.
+  thread). Each run is a fresh process (``train(config, run)``), killed at a kill time
+  counted from its first step; then a fresh process resumes it (``train(run_dir=run,
+  resume=True)``, what ``pliant train --resume`` calls). A run killed before its first
+  checkpoint has nothing to resume from and is started again, as a user would (counted
+  apart). Compared: the final policy parameters and VecNormalize statistics.
 - ``collect``, condensed data collection: ``pliant condensed collect finger`` (one process,
-  ``--chunk`` samples a chunk), killed at a time drawn uniformly over the first 90 % of the
-  reference command's solving time (from the moment its chunk folder appears, after imports
-  and meshing), then the same command again (what resumes a collection). Compared: every
-  field of both splits.
+  ``--chunk`` samples a chunk), killed at a kill time counted from the moment its chunk
+  folder appears (after imports and meshing), then the same command again (what resumes a
+  collection). Compared: every field of both splits.
 - ``reduce``, reduction snapshots: :func:`pliant.reduction.snapshots.collect` of the Finger
   (``--cases`` load cases, each pulling both cables for 0.4 s, a record every 2 steps, in
   this process, as ``pliant reduce`` collects them), started in a fresh process and killed
-  over the first 90 % of the reference's collection time (from the moment the model is
-  built), then the same call again. Compared: every dataset and attribute of the HDF5 file.
+  at a kill time counted from the moment the model is built, then the same call again.
+  Compared: every dataset and attribute of the HDF5 file.
 - ``calibrate``, proxy calibration: ``pliant proxy calibrate multigait --trials N`` on a
   reference trajectory made once by the Multigait's proxy itself (20 steps; its study in
-  SQLite), killed over the first 90 % of the reference command's optimisation time (from the
-  moment its study file appears), then the same command again. Compared: every finished
-  trial (number among the finished, parameters, value) and the report's parameters and
-  errors.
+  SQLite), killed at a kill time counted from the moment its study file appears, then the
+  same command again. Compared: every finished trial (number among the finished,
+  parameters, value) and the report's parameters and errors.
 - ``graph``, graph training: ``pliant graph train Corridor`` (the toy corridor of three
   contact configurations, small networks, an evaluation and checkpoint every
-  ``--eval-every`` steps), killed over the first 90 % of the reference run's training time
-  (from the moment its TensorBoard folder appears), then the same command again (it resumes
-  by default). Compared: every array and number of the final checkpoint (networks,
+  ``--eval-every`` steps), killed at a kill time counted from the moment its TensorBoard
+  folder appears, then the same command again (it resumes by default). Compared: every
+  array and number of the final checkpoint (networks,
   optimisers, replay buffers, generators, counters) and the evaluations (their wall times
   left out).
 
-Kill times are seeded (``--seed`` and the run's index). The study resumes itself: the results
-are written (atomically) after each run, and the same command goes on from the first missing
-run. From the repository root::
+Kill times: each command is a batch; it first runs the work uninterrupted twice (a warm-up
+that compiles numba's kernels, then a timed run: the reference, from the same moment a run's
+kill time counts from to its end), on this machine under its load of the moment, and draws
+each run's kill time uniformly over that measured time (seeded by ``--seed`` and the run's
+index). A run that ends before its kill time (the load changed) is not killed: it is
+reported (``killed: false``, with ``ended_after_s``) and counted apart; ``--killed N`` stops
+the batch once N runs were killed. The study resumes itself: the results are written
+(atomically) after each run, and the same command goes on from the first missing run. From
+the repository root::
 
     python experiments/reliability/kill_resume.py --kind sb3 --runs 25
     python experiments/reliability/kill_resume.py --kind collect --runs 25 --samples 80
-    python experiments/reliability/kill_resume.py --kind reduce --runs 25
-    python experiments/reliability/kill_resume.py --kind calibrate --runs 25
-    python experiments/reliability/kill_resume.py --kind graph --runs 25
+    python experiments/reliability/kill_resume.py --kind reduce --runs 30 --killed 20
+    python experiments/reliability/kill_resume.py --kind calibrate --runs 30 --killed 20
+    python experiments/reliability/kill_resume.py --kind graph --runs 30 --killed 20
 
-(``--runs`` larger than the results hold adds runs to them; other settings start afresh.)
+(``--runs`` larger than the results hold adds runs to them, in a new batch with its own
+reference; other settings start afresh.)
 
 write ``experiments/results/reliability/kill_resume_<kind>.json``.
 """
