@@ -38,9 +38,10 @@ kill time counts from to its end), on this machine under its load of the moment,
 each run's kill time uniformly over that measured time (seeded by ``--seed`` and the run's
 index). A run that ends before its kill time (the load changed) is not killed: it is
 reported (``killed: false``, with ``ended_after_s``) and counted apart; ``--killed N`` stops
-the batch once N runs were killed. The study resumes itself: the results are written
-(atomically) after each run, and the same command goes on from the first missing run. From
-the repository root::
+once N runs were killed; ``--batch-runs N`` starts a new batch (its reference timed again,
+without the warm-up) every N runs, so that the window follows the machine's load. The study
+resumes itself: the results are written (atomically) after each run, and the same command
+goes on from the first missing run. From the repository root::
 
     python experiments/reliability/kill_resume.py --kind sb3 --runs 25
     python experiments/reliability/kill_resume.py --kind collect --runs 25 --samples 80
@@ -585,10 +586,12 @@ class Graph(Command):
 
 
 # ---------------------------------------------------------------------------------- study
-def reference(kind, work: Path) -> float:
+def reference(kind, work: Path, warm_up: bool = True) -> float:
     """The uninterrupted run; returns its time from `kind.start`'s return to its end. A first
-    run, not timed, compiles and caches numba's kernels (and makes the files runs share)."""
-    kind.finish(kind.start(work, "reference"), work, "reference")
+    run, not timed (`warm_up`), compiles and caches numba's kernels (and makes the files runs
+    share)."""
+    if warm_up:
+        kind.finish(kind.start(work, "reference"), work, "reference")
     process = kind.start(work, "reference")
     clock = time.perf_counter()
     kind.finish(process, work, "reference")
@@ -699,27 +702,27 @@ def main() -> None:
         report = {"setup": setup, "batches": [], "results": []}
     work.mkdir(parents=True, exist_ok=True)
     runs = report["results"]
-    if sum(r["killed"] for r in runs) >= args.killed or len(runs) >= args.runs:
-        print(json.dumps(report.get("summary"), indent=1))
-        return
-    # A batch: this command. Its uninterrupted run, timed now on this machine, sets the
-    # window of its kill times (the load of a shared machine changes from hour to hour).
-    load = os.getloadavg()[0]
-    seconds = reference(kind, work)
-    batch = {"batch": len(report["batches"]), "first_run": len(runs),
-             "reference_s": round(seconds, 2), "load_average": round(load, 2)}  # fmt: skip
-    report["batches"].append(batch)
-    write_json(out, report)
-    print(f"batch {batch['batch']}: reference run {seconds:.1f} s", flush=True)
+    # A batch: this command, or --batch-runs runs of it. Its uninterrupted run, timed at its
+    # start on this machine, sets the window of its kill times (the load of a shared machine
+    # changes from hour to hour).
+    batch = None
     for index in range(len(runs), args.runs):
         if sum(r["killed"] for r in runs) >= args.killed:
             break
+        if batch is None or 0 < args.batch_runs <= index - batch["first_run"]:
+            load = os.getloadavg()[0]
+            seconds = reference(kind, work, warm_up=batch is None)
+            batch = {"batch": len(report["batches"]), "first_run": index,
+                     "reference_s": round(seconds, 2), "load_average": round(load, 2)}  # fmt: skip
+            report["batches"].append(batch)
+            write_json(out, report)
+            print(f"batch {batch['batch']}: reference run {seconds:.1f} s", flush=True)
         runs.append({"batch": batch["batch"],
                      **kill_and_resume(kind, work, index, args.seed, seconds)})  # fmt: skip
         report["summary"] = summarise(runs)
         write_json(out, report)
         print(json.dumps(runs[-1]), flush=True)
-    print(json.dumps(report["summary"], indent=1))
+    print(json.dumps(report.get("summary"), indent=1))
 
 
 if __name__ == "__main__":
