@@ -677,6 +677,12 @@ def main() -> None:
         default=10**9,
         help="stop once this many runs were killed (default: do all --runs)",
     )
+    parser.add_argument(
+        "--batch-runs",
+        type=int,
+        default=0,
+        help="time the reference again every this many runs (0: once a command)",
+    )
     parser.add_argument("--seed", type=int, default=0, help="seed of the kill times")
     parser.add_argument("--steps", type=int, default=6000, help="sb3: training steps of a run")
     parser.add_argument("--checkpoint", type=int, default=640, help="sb3: steps a checkpoint")
