@@ -46,8 +46,9 @@ goes on from the first missing run. From the repository root::
     python experiments/reliability/kill_resume.py --kind sb3 --runs 25
     python experiments/reliability/kill_resume.py --kind collect --runs 25 --samples 80
     python experiments/reliability/kill_resume.py --kind reduce --runs 30 --killed 20
-    python experiments/reliability/kill_resume.py --kind calibrate --runs 30 --killed 20
-    python experiments/reliability/kill_resume.py --kind graph --runs 30 --killed 20
+    python experiments/reliability/kill_resume.py --kind calibrate --runs 50 --killed 44 \
+        --batch-runs 5
+    python experiments/reliability/kill_resume.py --kind graph --runs 45 --killed 20 --batch-runs 5
 
 (``--runs`` larger than the results hold adds runs to them, in a new batch with its own
 reference; other settings start afresh.)
