@@ -150,5 +150,10 @@ class CorruptFileError(PliantError, ValueError):
         self.path = path
 
 
+class MissingDependencyError(PliantError, ImportError):
+    """An optional dependency a feature needs is not installed (Ray for its workers and Tune
+    sweeps); the message names the package and how to install it."""
+
+
 class CheckpointWarning(UserWarning):
     """A damaged checkpoint was skipped: the run resumes from an older intact one (named)."""

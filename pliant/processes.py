@@ -33,7 +33,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from pliant.errors import WorkerError
+from pliant.errors import MissingDependencyError, WorkerError
 
 ORPHAN_EXIT = 70  # exit status of a worker whose parent died (EX_SOFTWARE)
 _watched: set[ProcessIdentity] = set()  # one watchdog per process watched (reused Tune actors)
@@ -180,7 +180,7 @@ def _ray_jobs(
     try:
         import ray
     except ImportError as exc:
-        raise ImportError(
+        raise MissingDependencyError(
             "running on Ray needs the 'ray' package: pip install 'pliant[ray]'"
         ) from exc
     ray.init(

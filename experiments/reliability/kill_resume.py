@@ -5,47 +5,53 @@ Five run types (``--kind``):
 
 - ``sb3``, SB3 training: PPO on the toy ``pliant-test/PointReach-v0`` (VecNormalize on, one
   environment in the learner's process, a checkpoint every ``--checkpoint`` steps, one PyTorch
-  thread). Each run is a fresh process (``train(config, run)``), killed at a time drawn
-  uniformly over the first 90 % of the reference run's training time (from the first step);
-  then a fresh process resumes it (``train(run_dir=run, resume=True)``, what ``pliant train
-  --resume`` calls). A run killed before its first checkpoint has nothing to resume from and
-  is started again, as a user would (counted apart). Compared: the final policy parameters and
-  VecNormalize statistics.
+  thread). Each run is a fresh process (``train(config, run)``), killed at a kill time
+  counted from its first step; then a fresh process resumes it (``train(run_dir=run,
+  resume=True)``, what ``pliant train --resume`` calls). A run killed before its first
+  checkpoint has nothing to resume from and is started again, as a user would (counted
+  apart). Compared: the final policy parameters and VecNormalize statistics.
 - ``collect``, condensed data collection: ``pliant condensed collect finger`` (one process,
-  ``--chunk`` samples a chunk), killed at a time drawn uniformly over the first 90 % of the
-  reference command's solving time (from the moment its chunk folder appears, after imports
-  and meshing), then the same command again (what resumes a collection). Compared: every
-  field of both splits.
+  ``--chunk`` samples a chunk), killed at a kill time counted from the moment its chunk
+  folder appears (after imports and meshing), then the same command again (what resumes a
+  collection). Compared: every field of both splits.
 - ``reduce``, reduction snapshots: :func:`pliant.reduction.snapshots.collect` of the Finger
   (``--cases`` load cases, each pulling both cables for 0.4 s, a record every 2 steps, in
   this process, as ``pliant reduce`` collects them), started in a fresh process and killed
-  over the first 90 % of the reference's collection time (from the moment the model is
-  built), then the same call again. Compared: every dataset and attribute of the HDF5 file.
+  at a kill time counted from the moment the model is built, then the same call again.
+  Compared: every dataset and attribute of the HDF5 file.
 - ``calibrate``, proxy calibration: ``pliant proxy calibrate multigait --trials N`` on a
   reference trajectory made once by the Multigait's proxy itself (20 steps; its study in
-  SQLite), killed over the first 90 % of the reference command's optimisation time (from the
-  moment its study file appears), then the same command again. Compared: every finished
-  trial (number among the finished, parameters, value) and the report's parameters and
-  errors.
+  SQLite), killed at a kill time counted from the moment its study file appears, then the
+  same command again. Compared: every finished trial (number among the finished,
+  parameters, value) and the report's parameters and errors.
 - ``graph``, graph training: ``pliant graph train Corridor`` (the toy corridor of three
   contact configurations, small networks, an evaluation and checkpoint every
-  ``--eval-every`` steps), killed over the first 90 % of the reference run's training time
-  (from the moment its TensorBoard folder appears), then the same command again (it resumes
-  by default). Compared: every array and number of the final checkpoint (networks,
+  ``--eval-every`` steps), killed at a kill time counted from the moment its TensorBoard
+  folder appears, then the same command again (it resumes by default). Compared: every
+  array and number of the final checkpoint (networks,
   optimisers, replay buffers, generators, counters) and the evaluations (their wall times
   left out).
 
-Kill times are seeded (``--seed`` and the run's index). The study resumes itself: the results
-are written (atomically) after each run, and the same command goes on from the first missing
-run. From the repository root::
+Kill times: each command is a batch; it first runs the work uninterrupted twice (a warm-up
+that compiles numba's kernels, then a timed run: the reference, from the same moment a run's
+kill time counts from to its end), on this machine under its load of the moment, and draws
+each run's kill time uniformly over that measured time (seeded by ``--seed`` and the run's
+index). A run that ends before its kill time (the load changed) is not killed: it is
+reported (``killed: false``, with ``ended_after_s``) and counted apart; ``--killed N`` stops
+once N runs were killed; ``--batch-runs N`` starts a new batch (its reference timed again,
+without the warm-up) every N runs, so that the window follows the machine's load. The study
+resumes itself: the results are written (atomically) after each run, and the same command
+goes on from the first missing run. From the repository root::
 
     python experiments/reliability/kill_resume.py --kind sb3 --runs 25
     python experiments/reliability/kill_resume.py --kind collect --runs 25 --samples 80
-    python experiments/reliability/kill_resume.py --kind reduce --runs 25
-    python experiments/reliability/kill_resume.py --kind calibrate --runs 25
-    python experiments/reliability/kill_resume.py --kind graph --runs 25
+    python experiments/reliability/kill_resume.py --kind reduce --runs 30 --killed 20
+    python experiments/reliability/kill_resume.py --kind calibrate --runs 50 --killed 44 \
+        --batch-runs 5
+    python experiments/reliability/kill_resume.py --kind graph --runs 45 --killed 20 --batch-runs 5
 
-(``--runs`` larger than the results hold adds runs to them; other settings start afresh.)
+(``--runs`` larger than the results hold adds runs to them, in a new batch with its own
+reference; other settings start afresh.)
 
 write ``experiments/results/reliability/kill_resume_<kind>.json``.
 """
@@ -581,21 +587,32 @@ class Graph(Command):
 
 
 # ---------------------------------------------------------------------------------- study
-def reference(kind, work: Path) -> float:
+def reference(kind, work: Path, warm_up: bool = True) -> float:
     """The uninterrupted run; returns its time from `kind.start`'s return to its end. A first
-    run, not timed, compiles and caches numba's kernels (and makes the files runs share)."""
-    kind.finish(kind.start(work, "reference"), work, "reference")
+    run, not timed (`warm_up`), compiles and caches numba's kernels (and makes the files runs
+    share)."""
+    if warm_up:
+        kind.finish(kind.start(work, "reference"), work, "reference")
     process = kind.start(work, "reference")
     clock = time.perf_counter()
     kind.finish(process, work, "reference")
     return time.perf_counter() - clock
 
 
-def kill_and_resume(kind, work: Path, index: int, seed: int, window: float) -> dict:
+def kill_time(seed: int, index: int, duration: float) -> float:
+    """Run `index`'s kill time: uniform over the uninterrupted run's `duration` (seeded)."""
+    return float(np.random.default_rng([seed, index]).uniform(0.0, duration))
+
+
+def kill_and_resume(kind, work: Path, index: int, seed: int, duration: float) -> dict:
+    """Run `index`, killed at a time drawn uniformly over `duration`, the uninterrupted run's
+    time measured in this batch. A run that ends before its kill time (the machine's load
+    changed) is reported as not killed, with its real time."""
     label = f"run_{index:03d}"
-    kill_after = float(np.random.default_rng([seed, index]).uniform(0.0, window))
+    kill_after = kill_time(seed, index, duration)
     clock = time.perf_counter()
     process = kind.start(work, label)
+    started = time.perf_counter()
     try:
         process.wait(timeout=kill_after)
         killed = False  # it finished first (a loaded machine runs at another speed)
@@ -603,11 +620,13 @@ def kill_and_resume(kind, work: Path, index: int, seed: int, window: float) -> d
         os.kill(process.pid, signal.SIGKILL)
         killed = True
     process.communicate()
+    ran = time.perf_counter() - started
     progress = kind.progress(work, label)
     return {
         "run": index,
         "kill_after_s": round(kill_after, 3),
         "killed": killed,
+        **({} if killed else {"ended_after_s": round(ran, 3)}),
         **progress,
         **kind.resume(work, label),
         **kind.compare(work, label),
@@ -625,6 +644,7 @@ def summarise(runs: list[dict]) -> dict:
     return {
         "runs": len(runs),
         "killed": len(killed),
+        "ended_before_kill_time": len(runs) - len(killed),
         "killed_with_saved_progress": len(saved),
         "identical": sum(r["identical"] for r in runs),
         "identical_among_killed": sum(r["identical"] for r in killed),
@@ -633,6 +653,9 @@ def summarise(runs: list[dict]) -> dict:
         "seconds_per_run": round(float(np.mean([r["seconds"] for r in runs])), 1) if runs else 0,
     }
 
+
+#: How kill times are drawn; part of the settings (results under another protocol start afresh).
+PROTOCOL = "uniform over the uninterrupted run's time, measured at the start of each batch"
 
 KINDS = {
     "sb3": Training,
@@ -648,7 +671,19 @@ def main() -> None:
 
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--kind", choices=tuple(KINDS), default="sb3")
-    parser.add_argument("--runs", type=int, default=25)
+    parser.add_argument("--runs", type=int, default=25, help="runs at most")
+    parser.add_argument(
+        "--killed",
+        type=int,
+        default=10**9,
+        help="stop once this many runs were killed (default: do all --runs)",
+    )
+    parser.add_argument(
+        "--batch-runs",
+        type=int,
+        default=0,
+        help="time the reference again every this many runs (0: once a command)",
+    )
     parser.add_argument("--seed", type=int, default=0, help="seed of the kill times")
     parser.add_argument("--steps", type=int, default=6000, help="sb3: training steps of a run")
     parser.add_argument("--checkpoint", type=int, default=640, help="sb3: steps a checkpoint")
@@ -668,22 +703,33 @@ def main() -> None:
         args.out
         or ROOT / "experiments" / "results" / "reliability" / f"kill_resume_{args.kind}.json"
     )
-    setup = {**kind.setup(), "seed": args.seed}
+    setup = {**kind.setup(), "seed": args.seed, "kill_time": PROTOCOL}
     report = json.loads(out.read_text()) if out.exists() else {}
     if report.get("setup") != setup or not (work / f"reference{kind.result}").exists():
-        work.mkdir(parents=True, exist_ok=True)
-        seconds = reference(kind, work)
-        report = {"setup": setup, "reference_s": round(seconds, 2), "results": []}
-        write_json(out, report)
-        print(f"reference run: {seconds:.1f} s", flush=True)
-    window = 0.9 * report["reference_s"]  # a run may go faster than the reference
+        report = {"setup": setup, "batches": [], "results": []}
+    work.mkdir(parents=True, exist_ok=True)
     runs = report["results"]
+    # A batch: this command, or --batch-runs runs of it. Its uninterrupted run, timed at its
+    # start on this machine, sets the window of its kill times (the load of a shared machine
+    # changes from hour to hour).
+    batch = None
     for index in range(len(runs), args.runs):
-        runs.append(kill_and_resume(kind, work, index, args.seed, window))
+        if sum(r["killed"] for r in runs) >= args.killed:
+            break
+        if batch is None or 0 < args.batch_runs <= index - batch["first_run"]:
+            load = os.getloadavg()[0]
+            seconds = reference(kind, work, warm_up=batch is None)
+            batch = {"batch": len(report["batches"]), "first_run": index,
+                     "reference_s": round(seconds, 2), "load_average": round(load, 2)}  # fmt: skip
+            report["batches"].append(batch)
+            write_json(out, report)
+            print(f"batch {batch['batch']}: reference run {seconds:.1f} s", flush=True)
+        runs.append({"batch": batch["batch"],
+                     **kill_and_resume(kind, work, index, args.seed, seconds)})  # fmt: skip
         report["summary"] = summarise(runs)
         write_json(out, report)
         print(json.dumps(runs[-1]), flush=True)
-    print(json.dumps(report["summary"], indent=1))
+    print(json.dumps(report.get("summary"), indent=1))
 
 
 if __name__ == "__main__":

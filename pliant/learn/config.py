@@ -170,9 +170,11 @@ def _section(data: dict | None, algo: str) -> dict:
     return data
 
 
-def _read_yaml(path: Path, error: type | None = None) -> dict:
-    """The mapping of a YAML file; a file that is not one raises `error` (default
-    TrainingError) naming it."""
+def _read_yaml(
+    path: Path, error: type | None = None, what: str = "a training configuration (YAML)"
+) -> dict:
+    """The mapping of a YAML file (`what` it should be); a file that is not one raises
+    `error` (default TrainingError) naming it."""
 
     def read(p: Path) -> dict:
         try:
@@ -185,7 +187,7 @@ def _read_yaml(path: Path, error: type | None = None) -> dict:
             raise ValueError(f"a YAML mapping was expected, got {type(data).__name__}")
         return data
 
-    return read_checked(path, read, "a training configuration (YAML)", error or TrainingError)
+    return read_checked(path, read, what, error or TrainingError)
 
 
 def load_config(

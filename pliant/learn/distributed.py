@@ -24,6 +24,8 @@ import numpy as np
 from stable_baselines3.common.vec_env import VecEnv
 from stable_baselines3.common.vec_env.subproc_vec_env import _stack_obs
 
+from pliant.errors import MissingDependencyError, WorkerError
+from pliant.learn.config import _read_yaml
 from pliant.processes import ProcessIdentity, driver_identity, exit_with_process
 
 
@@ -31,7 +33,7 @@ def require_ray():
     try:
         import ray
     except ImportError as exc:  # pragma: no cover - depends on the installation
-        raise ImportError(
+        raise MissingDependencyError(
             "Ray is not installed: pip install 'pliant[ray]' (or 'ray[tune]')"
         ) from exc
     return ray
@@ -113,9 +115,18 @@ class RayVecEnv(VecEnv):
         actor = ray.remote(num_cpus=num_cpus_per_env)(EnvWorker)
         driver = driver_identity()
         self.workers = [actor.remote(fn, driver) for fn in env_fns]
-        observation_space, action_space = ray.get(self.workers[0].spaces.remote())
+        observation_space, action_space = self._get(self.workers[0].spaces.remote())
         super().__init__(len(env_fns), observation_space, action_space)
         self._pending = None
+
+    def _get(self, refs):
+        """``ray.get(refs)``; an actor that died (killed, out of memory, its node lost) stops
+        the run with a WorkerError giving Ray's cause, never a hang."""
+        try:
+            return self._ray.get(refs)
+        except self._ray.exceptions.RayActorError as exc:
+            cause = next((line for line in str(exc).splitlines() if line.strip()), "")
+            raise WorkerError(f"an environment worker (a Ray actor) died: {cause.strip()}") from exc
 
     def _indices(self, indices) -> list[int]:
         if indices is None:
@@ -126,13 +137,13 @@ class RayVecEnv(VecEnv):
         self._pending = [w.step.remote(a) for w, a in zip(self.workers, actions, strict=True)]
 
     def step_wait(self):
-        results = self._ray.get(self._pending)
+        results = self._get(self._pending)
         self._pending = None
         obs, rewards, dones, infos, self.reset_infos = zip(*results, strict=True)
         return _stack_obs(obs, self.observation_space), np.stack(rewards), np.stack(dones), infos
 
     def reset(self):
-        results = self._ray.get(
+        results = self._get(
             [w.reset.remote(self._seeds[i], self._options[i]) for i, w in enumerate(self.workers)]
         )
         obs, self.reset_infos = zip(*results, strict=True)
@@ -146,25 +157,25 @@ class RayVecEnv(VecEnv):
         self.workers = []
 
     def get_images(self):
-        return self._ray.get([w.render.remote() for w in self.workers])
+        return self._get([w.render.remote() for w in self.workers])
 
     def get_attr(self, attr_name: str, indices=None) -> list[Any]:
-        return self._ray.get(
+        return self._get(
             [self.workers[i].get_attr.remote(attr_name) for i in self._indices(indices)]
         )
 
     def set_attr(self, attr_name: str, value, indices=None) -> None:
-        self._ray.get(
+        self._get(
             [self.workers[i].set_attr.remote(attr_name, value) for i in self._indices(indices)]
         )
 
     def env_method(self, method_name: str, *args, indices=None, **kwargs) -> list[Any]:
-        return self._ray.get(
+        return self._get(
             [self.workers[i].call.remote(method_name, args, kwargs) for i in self._indices(indices)]
         )
 
     def env_is_wrapped(self, wrapper_class, indices=None) -> list[bool]:
-        return self._ray.get(
+        return self._get(
             [self.workers[i].is_wrapped.remote(wrapper_class) for i in self._indices(indices)]
         )
 
@@ -215,12 +226,10 @@ def tune_sweep(
           seed: {grid: [0, 1, 2]}
           hyperparams.learning_rate: {loguniform: [1.0e-4, 1.0e-3]}
     """
-    import yaml
-
+    sweep = _read_yaml(Path(sweep_file), what="a sweep (YAML)")
     ray = require_ray()
     from ray import tune
 
-    sweep = yaml.safe_load(Path(sweep_file).read_text())
     algo = algo or sweep.get("algo", "PPO")
     base = sweep.get("base") or {}
     metric = sweep.get("metric", "success_rate")

@@ -246,6 +246,8 @@ def check_checkpoint(folder: Path) -> None:
     read_checked(folder / "state.pkl", unpickle, "a checkpoint's state (a pickle)")
     if (folder / "vecnormalize.pkl").exists():
         read_checked(folder / "vecnormalize.pkl", unpickle, "VecNormalize statistics")
+    if (folder / "replay_buffer.pkl").exists():  # off-policy algorithms
+        read_checked(folder / "replay_buffer.pkl", unpickle, "a replay buffer (a pickle)")
 
 
 def intact_checkpoint(run_dir: Path, using: str = "resuming from") -> Path | None:

@@ -5,6 +5,7 @@ file, with exit status 1 or 2."""
 
 from __future__ import annotations
 
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -45,6 +46,10 @@ COMMANDS = {
         ["proxy", "calibrate", "multigait", "--start", "{bad}", "--out", "{out}"],
     ),
     "graph train --config": (".json", ["graph", "train", "Corridor", "--config", "{bad}"]),
+    "tune --config": (
+        ".yaml",
+        ["tune", "pliant-test/PointReach-v0", "--config", "{bad}", "--out", "{out}"],
+    ),
 }
 
 # Files Pliant keeps in an output folder and reads back when the command is run again.
@@ -137,3 +142,21 @@ def test_a_scene_script_that_fails_is_its_error_not_a_bug(scene, tmp_path):
     bad.write_text(SCENES[scene])
     result = runner.invoke(app, ["run", str(bad), "--out", str(tmp_path / "out")])
     _one_line(result, bad)
+
+
+def test_a_missing_optional_dependency_is_one_line_not_a_bug(tmp_path, monkeypatch):
+    """`pliant tune` (and Ray workers) without Ray installed: MissingDependencyError, one line
+    saying how to install it."""
+    from pliant.errors import MissingDependencyError
+    from pliant.processes import run_jobs
+
+    monkeypatch.setitem(sys.modules, "ray", None)  # `import ray` raises ImportError
+    sweep = tmp_path / "sweep.yaml"
+    sweep.write_text("algo: PPO\nsearch:\n  seed: {grid: [1]}\n")
+    args = ["tune", "pliant-test/PointReach-v0", "--config", str(sweep), "--out", str(tmp_path)]
+    result = runner.invoke(app, args)
+    assert result.exit_code == 1, result.output
+    assert result.output.startswith("error: Ray is not installed: pip install 'pliant[ray]'")
+    assert "a bug in Pliant" not in result.output and len(result.output.splitlines()) == 1
+    with pytest.raises(MissingDependencyError, match=r"pip install 'pliant\[ray\]'"):
+        list(run_jobs(abs, [(0, (-1,))], ray_address="local"))

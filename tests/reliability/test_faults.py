@@ -230,6 +230,26 @@ def test_ray_actors_exit_when_their_driver_is_killed() -> None:
         cluster.wait(timeout=60)
 
 
+def test_a_dead_ray_environment_worker_stops_the_run_with_a_worker_error() -> None:
+    """An environment's Ray actor that dies (here killed) makes the next step a WorkerError
+    giving Ray's cause in one line, not a hang nor Ray's own exception."""
+    ray = pytest.importorskip("ray", reason="Ray is not installed (optional extra pliant[ray])")
+    import gymnasium as gym
+
+    from pliant.errors import WorkerError
+    from pliant.learn.distributed import RayVecEnv
+
+    try:
+        venv = RayVecEnv([lambda: gym.make("Pendulum-v1")] * 2, address="local")
+        venv.reset()
+        ray.kill(venv.workers[1])
+        with pytest.raises(WorkerError, match="a Ray actor") as caught:
+            venv.step(np.zeros((2, 1), np.float32))
+        assert "\n" not in str(caught.value)
+    finally:
+        ray.shutdown()
+
+
 # A learner whose two environment workers are in a long step (a FEM step under load can take
 # seconds): they notice a dead learner only at their next message, unless they watch it.
 SLOW_LEARNER = """

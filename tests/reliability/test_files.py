@@ -25,7 +25,7 @@ from typer.testing import CliRunner  # noqa: E402
 
 from pliant.cli import app  # noqa: E402
 from pliant.errors import CheckpointWarning, CorruptFileError  # noqa: E402
-from pliant.files import check_manifest, read_checked  # noqa: E402
+from pliant.files import check_manifest, read_checked, write_manifest  # noqa: E402
 from pliant.learn import TrainConfig, train  # noqa: E402
 from pliant.learn.callbacks import check_checkpoint, intact_checkpoint  # noqa: E402
 from pliant.learn.evaluate import load_policy  # noqa: E402
@@ -83,6 +83,23 @@ def test_a_checkpoint_without_manifest_is_checked_by_opening_its_files(run, tmp_
     check_checkpoint(folder)
     damage(folder / "state.pkl", "truncated")
     with pytest.raises(CorruptFileError, match="state.pkl"):
+        check_checkpoint(folder)
+
+
+@pytest.mark.parametrize("manifest", [True, False], ids=["manifest", "no manifest"])
+def test_a_damaged_replay_buffer_is_named(run, tmp_path, manifest):
+    """An off-policy checkpoint's replay buffer (here a stand-in pickle added to a PPO one):
+    checked by the manifest, or opened when the checkpoint predates manifests."""
+    import pickle
+
+    folder = _copy(run, tmp_path) / "checkpoints" / "step_300"
+    (folder / "replay_buffer.pkl").write_bytes(pickle.dumps({"observations": np.zeros(64)}))
+    write_manifest(folder)
+    if not manifest:
+        (folder / "manifest.json").unlink()
+    check_checkpoint(folder)
+    damage(folder / "replay_buffer.pkl", "truncated")
+    with pytest.raises(CorruptFileError, match="replay_buffer.pkl"):
         check_checkpoint(folder)
 
 
