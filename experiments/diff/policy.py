@@ -51,7 +51,7 @@ import torch  # noqa: E402
 
 import pliant.envs  # noqa: E402, F401  (registers the environments)
 from pliant.diff.policy import closed_loop, embedded_positions  # noqa: E402
-from pliant.files import write_json  # noqa: E402
+from pliant.files import atomic_path, write_json  # noqa: E402
 from pliant.solvers import ImplicitEuler  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -118,10 +118,11 @@ def goal_set(folder: Path, env, name: str, n: int, settle: int) -> np.ndarray:
     path = folder / f"goals_{name}.npy"
     if path.exists():
         goals = np.load(path)
-        if len(goals) == n:
-            return goals
+        if len(goals) >= n:  # the same draw's first n
+            return goals[:n]
     goals = reachable_goals(env, n, SEEDS[name], settle)
-    np.save(path, goals)
+    with atomic_path(path) as tmp, open(tmp, "wb") as stream:
+        np.save(stream, goals)
     return goals
 
 
@@ -265,7 +266,14 @@ def steps_to(curve: list[dict], level: float) -> int | None:
     return None
 
 
+def select(curve: list[dict]) -> dict:
+    """The evaluation with the best validation success (then the smallest distance)."""
+    return max(curve, key=lambda p: (p["success_rate"], -p["final_distance_mm"]))
+
+
 def run_learner(name: str, args, folder: Path, goals: dict) -> dict:
+    """Train (or resume) one learner, then test its policy selected on validation on the
+    held-out goals, drawn now that it has trained."""
     path = folder / f"{name}.json"
     blank = {"curve": [], "steps": 0, "seconds": 0.0}
     if name == "apg":
@@ -273,21 +281,27 @@ def run_learner(name: str, args, folder: Path, goals: dict) -> dict:
     record = json.loads(path.read_text()) if path.exists() and not args.fresh else blank
     learner = train_apg if name == "apg" else train_ppo
     for _ in learner(args, folder, record, goals):
+        record.pop("test", None)
         write_json(path, record)
+    best = select(record["curve"])
+    if record.get("test", {}).get("checkpoint") != best["checkpoint"]:
+        env = make_env()
+        # Held-out goals: drawn after training, from their own seed.
+        test = goal_set(folder, env, "test", args.test_goals, args.settle)
+        record["test"] = evaluate(env, load_actor(name, folder, best["checkpoint"]), test)
+        record["test"]["checkpoint"] = best["checkpoint"]
+        print(name.upper(), "test", record["test"], flush=True)
     write_json(path, record)
     return record
 
 
 def report(args, folder: Path, out: Path, settings: dict) -> None:
-    env = make_env()
     records = {name: json.loads((folder / f"{name}.json").read_text()) for name in LEARNERS}
-    # Held-out goals: drawn now, after both learners have trained, from their own seed.
-    test = goal_set(folder, env, "test", args.test_goals, args.settle)
     result = {"setting": settings}
     for name, record in records.items():
         curve = record["curve"]
-        best = max(curve, key=lambda p: (p["success_rate"], -p["final_distance_mm"]))
-        held = evaluate(env, load_actor(name, folder, best["checkpoint"]), test)
+        best = select(curve)
+        held = record["test"]
         summary = {key: record[key] for key in ("steps", "seconds") if key in record}
         summary["episodes"] = record.get("episodes")
         summary["env_steps_per_s"] = record["steps"] / max(record["seconds"], 1e-9)
@@ -341,15 +355,15 @@ def main() -> None:
     parser.add_argument("--fresh", action="store_true", help="start the learners again")
     parser.add_argument("--learner", choices=LEARNERS, help="train this one only")
     parser.add_argument("--report", action="store_true", help="only select, test and write")
-    parser.add_argument("--apg-steps", type=int, default=6000, help="APG's environment steps")
-    parser.add_argument("--ppo-steps", type=int, default=10240, help="PPO's environment steps")
-    parser.add_argument("--evals", type=int, default=8, help="validations along each budget")
+    parser.add_argument("--apg-steps", type=int, default=2400, help="APG's environment steps")
+    parser.add_argument("--ppo-steps", type=int, default=4608, help="PPO's environment steps")
+    parser.add_argument("--evals", type=int, default=6, help="validations along each budget")
     parser.add_argument("--train-goals", type=int, default=64)
-    parser.add_argument("--validation-goals", type=int, default=10)
-    parser.add_argument("--test-goals", type=int, default=20)
+    parser.add_argument("--validation-goals", type=int, default=5)
+    parser.add_argument("--test-goals", type=int, default=10)
     parser.add_argument("--settle", type=int, default=8, help="steps held to make a goal")
     parser.add_argument("--horizon", type=int, default=10, help="APG episode, control steps")
-    parser.add_argument("--apg-lr", type=float, default=3e-3)
+    parser.add_argument("--apg-lr", type=float, default=5e-3)
     parser.add_argument("--out", type=Path, default=None)
     args = parser.parse_args()
     if args.quick:
