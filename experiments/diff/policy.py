@@ -391,9 +391,10 @@ def main() -> None:
         "apg_horizon": args.horizon,
         "apg_lr": args.apg_lr,
         "ppo": "stable-baselines3 PPO, MlpPolicy, n_steps min(128, budget), batch 64, seed 0",
-        "machine": "shared 2-core machine (other sessions' jobs beside it); the two learners"
-        " trained side by side, one torch thread each",
+        "machine": "shared 2-core machine (other sessions' jobs beside it), one torch thread",
         "command": "python experiments/diff/policy.py" + (" --quick" if args.quick else ""),
+        "run_as": "--learner apg and --learner ppo side by side under nice, then --report"
+        " (the plain command runs them one after the other)",
     }
     goals = {
         name: goal_set(folder, env, name, getattr(args, f"{name}_goals"), args.settle)
