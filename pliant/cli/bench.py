@@ -67,11 +67,15 @@ def bench(
             " Finger and the Diamond; gradient.json"
         ),
     ] = False,
+    scenes: Annotated[
+        bool,
+        typer.Option(help="the SPEC scenes' speed (--no-scenes: only what the other flags ask)"),
+    ] = True,
 ) -> None:
     """Median steps/s beside SOFA's measured figures; writes JSON and a log-log plot."""
     from pliant.bench import run_benchmarks
 
-    if envs != "only":
+    if scenes and envs != "only":
         run_benchmarks(
             meshes=meshes,
             repeats=repeats,
@@ -94,7 +98,9 @@ def bench(
     if gradient:
         from pliant.bench import report_gradient
 
-        report_gradient(quick=quick, out=out.with_name("gradient.json"), console=console)
+        report_gradient(
+            quick=quick, out=out.with_name("gradient.json"), console=console, repeats=repeats
+        )
 
 
 def _copy_counts(text: str) -> tuple[int, ...]:

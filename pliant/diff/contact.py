@@ -151,30 +151,46 @@ def held_contacts(model: Model, dt: float, state: State, new: State) -> HeldCont
 
 
 @dataclass(frozen=True)
-class ClosedNormals:
-    """The closed contacts of a static equilibrium, frictionless: their normal rows n.P on
-    the free DoFs (n_free, c) and on every node (c, 4) nodes with (c, 4, 3) values."""
+class ClosedContacts:
+    """The closed contacts of a static equilibrium at their held states (:func:`closed_contacts`).
+
+    Attributes:
+        rows: K^T on the free DoFs (n_free, r): each closed contact's normal n.P and a
+            sticking one's tangents t.P, rows held at their value (gap closed, point stuck).
+        nodes, values: the same rows on every node, (r, 4) nodes with (r, 4, 3) values.
+        closed, sticking: how many contacts were closed, and of those how many stick.
+    """
 
     rows: np.ndarray
     nodes: np.ndarray
     values: np.ndarray
+    closed: int
+    sticking: int
 
     def full_t(self, coefficients: np.ndarray, n_nodes: int) -> np.ndarray:
-        """sum_i c_i (n.P)_i on every node (n, 3)."""
+        """sum_r c_r K_r on every node (n, 3)."""
         out = np.zeros((n_nodes, 3))
         np.add.at(out, self.nodes, coefficients[:, None, None] * self.values)
         return out
 
 
-def closed_normals(model: Model, equilibrium: State) -> ClosedNormals | None:
-    """The closed contacts of a static equilibrium (:class:`pliant.solvers.StaticSolver`), as
-    bilateral normal rows (their gap held at zero); None without contacts or none closed.
+def closed_contacts(model: Model, equilibrium: State) -> ClosedContacts | None:
+    """The closed contacts of a static equilibrium (:class:`pliant.solvers.StaticSolver`) with
+    their states held, as bilateral rows; None without contacts or none closed.
+
+    A static equilibrium with friction depends on its path: a sticking point stays where the
+    iterations that led to it left it. Held here: the set of closed contacts (each gap stays
+    closed) and each sticking contact's point (its two tangential rows held at their value).
+    This is the derivative of the equilibrium continued from itself (the static solve
+    restarted from it), exact while every sticking contact's force stays inside its cone.
 
     Raises:
-        ModelError: a closed contact with friction: at a static equilibrium a sticking
-            point stays where the Newton iterations left it (the equilibrium depends on
-            the path, not on a closed equation), and a sliding one has no slip to point
-            its friction along; use the dynamic step (rollout_gradient) for friction.
+        ModelError: a sliding contact (its friction force on the cone, within
+            SLIP_TOLERANCE, as a quasi-static slide ends): its derivative is one-sided (a
+            perturbation that pulls it back makes it stick) and its friction's direction
+            follows the slip the perturbation causes, so that neither the restarted solve nor
+            the solve from rest is differentiated by holding the direction; the dynamic step
+            (rollout_gradient), whose slip is finite, differentiates it.
     """
     if model.contacts is None:
         return None
@@ -185,16 +201,25 @@ def closed_normals(model: Model, equilibrium: State) -> ClosedNormals | None:
     closed = np.flatnonzero(lam[:, 0] > 0.0)
     if closed.size == 0:
         return None
-    if np.any(contact.friction[closed] > 0.0):
+    mu = contact.friction[closed]
+    tangential = np.linalg.norm(lam[closed, 1:], axis=1)
+    friction = mu > 0.0
+    sliding = friction & (tangential >= mu * lam[closed, 0] * (1.0 - SLIP_TOLERANCE))
+    if sliding.any():
         raise ModelError(
-            f"{model.name}: static_gradient differentiates frictionless contacts only (a"
-            " sticking point of a static equilibrium stays where the iterations left it);"
-            " friction is differentiated through the dynamic step (rollout_gradient)"
+            f"{model.name}: static_gradient differentiates closed contacts that stick or are"
+            f" frictionless; {int(sliding.sum())} of {closed.size} slide (friction on the cone),"
+            " whose static derivative is one-sided and follows the slip's direction; the"
+            " dynamic step differentiates sliding (rollout_gradient)"
         )
-    normals = contact.take(closed)
-    normal_rows = np.arange(0, 3 * closed.size, 3)
-    ht = model.constraint_space(equilibrium.positions, [normals], with_distance=False)
-    jac = normals.jacobian(equilibrium.positions)
-    return ClosedNormals(
-        ht.jacobian_t[:, normal_rows], jac.nodes[normal_rows], jac.values[normal_rows]
+    keep = [3 * k + r for k in range(closed.size) for r in ((0, 1, 2) if friction[k] else (0,))]
+    held = contact.take(closed)
+    ht = model.constraint_space(equilibrium.positions, [held], with_distance=False)
+    jac = held.jacobian(equilibrium.positions)
+    return ClosedContacts(
+        ht.jacobian_t[:, keep],
+        jac.nodes[keep],
+        jac.values[keep],
+        int(closed.size),
+        int(friction.sum()),
     )

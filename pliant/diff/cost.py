@@ -6,7 +6,8 @@ adjoint needs), then :func:`pliant.diff.rollout_gradient` of a point-tracking lo
 to the actuation, Young's modulus and Poisson's ratio, keeping every state and with checkpoints
 every ceil(sqrt(T)) steps. The ratio of the two wall times is the figure issue 63 bounds by 3;
 measured in one process one after the other, it holds on a shared machine better than either
-time alone.
+time alone. With `repeats` > 1 the three are timed in turn, interleaved, that many times, and
+each figure is the median (the ratios are medians of each repeat's own ratio).
 """
 
 from __future__ import annotations
@@ -26,12 +27,19 @@ WRT = ("controls", "young_modulus", "poisson_ratio")
 
 
 def gradient_cost(
-    model: Model, commands: np.ndarray, n_steps: int, *, dt: float = 0.01, memory: bool = False
+    model: Model,
+    commands: np.ndarray,
+    n_steps: int,
+    *,
+    dt: float = 0.01,
+    memory: bool = False,
+    repeats: int = 1,
 ) -> dict:
-    """Time the forward rollout and its gradient (module docstring). The actuation ramps to
-    `commands` over the first 30 % of the steps; the loss tracks the first effector's points
-    towards their rest positions + 1 mm. With `memory`, each gradient runs again under
-    tracemalloc for the peak of Python-allocated memory (not timed)."""
+    """Time the forward rollout and its gradient (module docstring), `repeats` times
+    interleaved, medians. The actuation ramps to `commands` over the first 30 % of the steps;
+    the loss tracks the first effector's points towards their rest positions + 1 mm. With
+    `memory`, each gradient runs again under tracemalloc for the peak of Python-allocated
+    memory (not timed)."""
     commands = np.asarray(commands, dtype=float)
     if n_steps < 2 or commands.shape != (len(model.actuators),) or not model.effectors:
         raise ModelError(
@@ -39,6 +47,8 @@ def gradient_cost(
             f" {n_steps} steps, commands of shape {commands.shape} for"
             f" {len(model.actuators)} actuators, {len(model.effectors)} effectors"
         )
+    if int(repeats) != repeats or repeats < 1:
+        raise ModelError(f"gradient_cost needs repeats >= 1, got {repeats}")
     ramp = np.minimum(np.arange(1, n_steps + 1) / (0.3 * n_steps), 1.0)[:, None]
     controls = ramp * commands[None, :]
     points = model.effectors[0].points
@@ -46,29 +56,40 @@ def gradient_cost(
     loss = PointTracking(points, goal, n_steps=n_steps)
     solver = ImplicitEuler(model, dt, tangent="fresh")
     rollout_gradient(model, solver, model.rest_state(), controls[:2], loss, wrt=WRT)  # compile
-    t0 = time.perf_counter()
-    rollout(model, solver, model.rest_state(), controls)
-    forward = time.perf_counter() - t0
+    every_sqrt = int(np.ceil(np.sqrt(n_steps)))
+    cases = (("all_states_kept", None), ("checkpoints_sqrt_T", every_sqrt))
+    forwards, walls, results = [], {label: [] for label, _ in cases}, {}
+    for _ in range(int(repeats)):
+        t0 = time.perf_counter()
+        rollout(model, solver, model.rest_state(), controls)
+        forwards.append(time.perf_counter() - t0)
+        for label, every in cases:
+            t0 = time.perf_counter()
+            results[label] = rollout_gradient(
+                model, solver, model.rest_state(), controls, loss, wrt=WRT, checkpoint_every=every
+            )
+            walls[label].append(time.perf_counter() - t0)
     row = {
         "nodes": model.body.n_nodes,
         "elements": model.body.n_elements,
         "steps": n_steps,
-        "forward_s": forward,
+        "repeats": int(repeats),
+        "forward_s": float(np.median(forwards)),
         "state_MB": 2 * model.rest_state().positions.nbytes / 2**20,
     }
-    every_sqrt = int(np.ceil(np.sqrt(n_steps)))
-    for label, every in (("all_states_kept", None), ("checkpoints_sqrt_T", every_sqrt)):
-        t0 = time.perf_counter()
-        result = rollout_gradient(
-            model, solver, model.rest_state(), controls, loss, wrt=WRT, checkpoint_every=every
-        )
-        wall = time.perf_counter() - t0
+    if repeats > 1:
+        row["forward_s_each"] = forwards
+    for label, every in cases:
+        ratios = np.asarray(walls[label]) / np.asarray(forwards)
         row[label] = {
-            "gradient_s": wall,
-            "gradient_over_forward": wall / forward,
-            "solver_steps": result.forward_steps,
-            "states_held": result.states_held,
+            "gradient_s": float(np.median(walls[label])),
+            "gradient_over_forward": float(np.median(ratios)),
+            "solver_steps": results[label].forward_steps,
+            "states_held": results[label].states_held,
         }
+        if repeats > 1:
+            row[label]["gradient_s_each"] = walls[label]
+            row[label]["ratio_each"] = ratios.tolist()
         if memory:
             tracemalloc.start()
             rollout_gradient(

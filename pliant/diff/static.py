@@ -22,8 +22,10 @@ homogeneous of degree one in E (both here), q depends on f_ext / E only, so
 E dq/dE = -f_ext . dq/df_ext: for a linear response, d delta / dE = -delta / E (the tests
 check both).
 
-Closed frictionless contacts (:func:`pliant.diff.contact.closed_normals`) join the equality
-rows d with a zero target (their gap held closed); friction is refused here.
+Closed contacts (:func:`pliant.diff.contact.closed_contacts`) join the equality rows d with
+their states held, at zero target: each gap held closed, each sticking point held where it is
+(its two tangential rows); the friction coefficient then does not enter (its cotangent is
+zero), and sliding contacts are refused (their static derivative is one-sided).
 """
 
 from __future__ import annotations
@@ -32,7 +34,7 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from pliant.diff.contact import closed_normals
+from pliant.diff.contact import closed_contacts
 from pliant.diff.elements import (
     body_shape,
     complex_step_gradient,
@@ -101,8 +103,8 @@ def static_gradient(
     space = model.constraint_space(q, roles=("actuator",))
     ht = space.jacobian_t[:, space.slices["actuator"]]
     qbar = body.gather(grad_q)
-    # Equality rows: the actuators', then the closed contacts' normals (frictionless).
-    contacts = closed_normals(model, equilibrium)
+    # Equality rows: the actuators', then the closed contacts' at their held states.
+    contacts = closed_contacts(model, equilibrium)
     rows_d = ht[:, d] if contacts is None else np.hstack([ht[:, d], contacts.rows])
     cols = lu.solve(np.column_stack([qbar, rows_d]))
     mu_l = np.zeros(lam.size)
@@ -133,11 +135,14 @@ def static_gradient(
             out[name] = 0.0
         elif name == "external_forces":
             out[name] = -mu_full
-        elif name == "friction":
-            raise ModelError(
-                "static_gradient does not differentiate friction (see closed_normals); the"
-                " dynamic step does (rollout_gradient)"
-            )
+        elif name == "friction":  # one per obstacle shape: sticking contacts hold their point
+            if contacts is not None and contacts.sticking < contacts.closed:
+                raise ModelError(
+                    "static_gradient: the friction coefficient at a frictionless closed contact"
+                    " (friction would start along a slip the solve from rest decides); the"
+                    " dynamic step differentiates it (rollout_gradient)"
+                )
+            out[name] = np.zeros(len(model.contacts.shapes) if model.contacts else 0)
         elif name == "cable_routing":
             out[name] = routing_gradient(model, q, -mu_l, [(-lam, mu_full)])
         else:

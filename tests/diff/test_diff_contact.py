@@ -1,7 +1,7 @@
 """Contact and friction in the gradients (pliant.diff.contact): a cantilever whose tip sags onto
 a floor and is dragged along it by its cables, against central differences of the solvers
 themselves, where no contact changes state under the perturbation: the rollout with and
-without friction, the static equilibrium frictionless."""
+without friction, the static equilibrium frictionless and with its contacts sticking."""
 
 from __future__ import annotations
 
@@ -11,7 +11,7 @@ import pytest
 from pliant.constraints.base import EmbeddedPoints
 from pliant.constraints.control import DirectControl
 from pliant.diff import PointTracking, rollout, rollout_gradient
-from pliant.diff.contact import held_contacts
+from pliant.diff.contact import closed_contacts, held_contacts
 from pliant.diff.scenes import beam_on_floor
 from pliant.diff.static import static_gradient
 from pliant.errors import ModelError
@@ -140,14 +140,49 @@ def test_static_gradient_with_frictionless_contacts_against_finite_differences()
     assert relative_error((moved[0] - moved[1]) / 2e-5, exact) < TOL
 
 
-def test_static_gradient_refuses_friction():
+def test_static_gradient_with_sticking_contacts_against_finite_differences():
+    """The beam dragged along the floor (its tip corners sliding to the friction cone), then
+    its drag eased from there: both corners stick, their points held. The derivative of that
+    second equilibrium, solved from the first, against central differences of the same
+    restarted solve: the commands and E (the friction coefficient, away from the cone, 0)."""
+    model = beam_on_floor(friction=3.0)
+    rest = model.body.rest_positions
+    _, dragged = _static(model, [0.3, 2.0])
+    commands = np.array([0.3, 1.7])
+
+    def settle(m, c):
+        return StaticSolver(m).step(dragged, DirectControl(np.asarray(c, float)))
+
+    eq = settle(model, commands)
+    held = closed_contacts(model, eq)
+    assert (held.closed, held.sticking) == (2, 2)
+    w = np.random.default_rng(1).standard_normal(rest.shape)
+
+    def loss(m, c):
+        return float(np.sum(w * (settle(m, c).positions - rest)))
+
+    grads = static_gradient(
+        model, StaticSolver(model), eq, commands, w, wrt=("controls", "young_modulus", "friction")
+    )
+    for i, h in ((0, 1e-6), (1, 1e-4)):  # a larger step in the first eases a corner off stick
+        moved = [loss(model, commands + np.eye(2)[i] * e) for e in (h, -h)]
+        assert relative_error((moved[0] - moved[1]) / (2 * h), grads["controls"][i]) < TOL
+    moved = [
+        loss(beam_on_floor(friction=3.0, young_modulus=200.0 * (1 + e)), commands)
+        for e in (1e-5, -1e-5)
+    ]
+    assert relative_error((moved[0] - moved[1]) / 4e-3, grads["young_modulus"]) < TOL
+    np.testing.assert_array_equal(grads["friction"], [0.0])
+
+
+def test_static_gradient_refuses_sliding_contacts_and_friction_at_frictionless_ones():
     model = beam_on_floor(friction=0.3)
-    solver, eq = _static(model, [0.3, 2.0])
-    with pytest.raises(ModelError, match="frictionless"):
+    solver, eq = _static(model, [0.3, 2.0])  # dragged: both corners slide, on the cone
+    with pytest.raises(ModelError, match="2 of 2 slide"):
         static_gradient(model, solver, eq, np.array([0.3, 2.0]), np.zeros_like(eq.positions))
     model = beam_on_floor(friction=0.0)
     solver, eq = _static(model, [0.3, 2.0])
-    with pytest.raises(ModelError, match="friction"):
+    with pytest.raises(ModelError, match="frictionless closed contact"):
         static_gradient(
             model, solver, eq, np.array([0.3, 2.0]), np.zeros_like(eq.positions), wrt="friction"
         )
