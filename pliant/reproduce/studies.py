@@ -887,8 +887,12 @@ STUDIES: tuple[Study, ...] = (
                 docs="docs/condensed.md",
             ),
         ),
-        not_kept="the Finger's network (out/condensed_t52/finger_coarse_1000.pt) is not tracked;"
-        " re-made by table-5.2's command",
+        not_kept="the Finger's and the Diamond's networks (out/condensed_t52/finger_coarse_1000"
+        ".pt, out/condensed_full/diamond_6500.pt) are not tracked (out/ is ignored), made by"
+        " table-5.2's and table-5.1's studies",
+        retrain="python experiments/condensed/table_5_2.py --samples 1000 --epochs 1000 --work"
+        " out/condensed_t52 && python experiments/condensed/table_5_1.py --workers 2 --work"
+        " out/condensed_full",
         quick=Quick(
             "python experiments/condensed/table_5_1.py --finger-samples 16 --diamond-samples 16"
             " --epochs 2 --work {out}/work --out {out} && python experiments/condensed/"
