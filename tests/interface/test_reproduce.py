@@ -270,3 +270,10 @@ def test_evaluate_without_a_kept_model_says_so_in_one_line(monkeypatch):
         assert f"`{' '.join(command.split())}`" in lines[0]
     with pytest.raises(ValueError, match="nothing not kept"):
         Study("s", "T", "t", "true", (_figure(),), no_quick="none", retrain="python train.py")
+
+
+@pytest.mark.slow
+def test_the_kept_selector_gives_its_committed_accuracy():
+    """The Selector network kept in the repository, re-tested (about 30 s): its figure again."""
+    rows, _ = runner.evaluate(study("graph-selector"))
+    assert rows and all(row.ok for row in rows), [(row.ours, row.why) for row in rows]
