@@ -170,6 +170,26 @@ STUDIES: tuple[Study, ...] = (
                 " chosen: still above the hand gait's on the reduced model; its full-FEM value"
                 " needs the policy, which is not kept",
             ),
+            *(
+                Figure(
+                    f"{gait} gait, final x on the reduced model",
+                    _TABLE_3_2,
+                    f"{gait}/reduced/final_travel_mm",
+                    thesis=thesis,
+                    unit="mm",
+                    thesis_unit="cm",
+                    better="higher",
+                    tolerance=tolerance,
+                    departure=_OUR_MULTIGAIT,
+                    fmt="{:.2f}",
+                    docs="docs/reduction.md",
+                    protocol=protocol,
+                )
+                for gait, thesis, tolerance, protocol in (
+                    ("hand", 3.24, 0.02, ""),
+                    ("learned", 4.51, 0.1, "the best evaluated checkpoint's gait (see above)"),
+                )
+            ),
             Figure(
                 "hand gait, final x on the full FEM",
                 _TABLE_3_2,
@@ -393,6 +413,41 @@ STUDIES: tuple[Study, ...] = (
                 departure=_ENGINE,
                 fmt="{:.1f}",
                 docs="docs/studies/proxy-calibration.md",
+            ),
+            # the thesis' larger time steps, the same runs
+            *(
+                Figure(
+                    f"{name}, dt = {dt} s",
+                    file,
+                    f"real_time_factor/{key}@{dt}",
+                    thesis=thesis,
+                    unit="x real time",
+                    better="higher",
+                    tolerance=0.5,
+                    departure=_ENGINE,
+                    fmt=fmt,
+                    docs="docs/studies/proxy-calibration.md",
+                )
+                for dt, values in (
+                    ("0.02", (0.49, 1.33, 0.004, 0.12, 1.06)),
+                    ("0.03", (0.72, 1.96, 0.006, 0.17, 1.51)),
+                )
+                for (name, file, key, fmt), thesis in zip(
+                    (
+                        ("Trunk FEM (and cube)", _SPEED, "trunk_fem", "{:.1f}"),
+                        ("Trunk proxy", _SPEED, "trunk_proxy", "{:.1f}"),
+                        ("Multigait FEM", _SPEED_REFERENCE, "multigait_reference_fem", "{:.3f}"),
+                        (
+                            "Multigait reduced",
+                            _SPEED_REFERENCE,
+                            "multigait_reference_reduced",
+                            "{:.1f}",
+                        ),
+                        ("Multigait proxy", _SPEED_REFERENCE, "multigait_proxy", "{:.1f}"),
+                    ),
+                    values,
+                    strict=True,
+                )
             ),
         ),
         quick=Quick(
