@@ -8,7 +8,14 @@ The states are drawn, not simulated: x_cart uniform on the cart's range (±0.45 
 obstacles at random positions and sizes around the scene's (x_left ∈ [−0.35, −0.15],
 x_right ∈ [0.15, 0.35], l_x ∈ [0.05, 0.15], l_z ∈ [0.1, 0.3]; the thesis randomises the contact
 positions too), x_tip = x_cart + N(0, 0.1), x_goal uniform on ±0.35. The authors label 500000
-random environment steps instead (D.2). Writes experiments/results/graph/selector.json.
+random environment steps instead (D.2). Writes experiments/results/graph/selector.json and the
+trained network, selector.pt (kept: 0.6 MB), beside it.
+
+    python experiments/graph/selector.py --evaluate experiments/results/graph/selector.pt \
+        --out OUT
+
+re-evaluates a kept network on the test states it was tested on (the same draw: the file
+records how many training states came first), without training, into OUT/selector.json.
 """
 
 from __future__ import annotations
@@ -46,12 +53,17 @@ def main() -> None:
     parser.add_argument("--batch-size", type=int, default=64)
     parser.add_argument("--schedule", choices=["constant", "cosine"], default="constant")
     parser.add_argument("--out", type=Path, default=Path("experiments/results/graph"))
+    parser.add_argument("--evaluate", type=Path, help="a kept network: test it, no training")
     args = parser.parse_args()
     torch.set_num_threads(1)
     torch.manual_seed(0)
+    label = lambda s: np.array([cartstem_partition(x) for x in s])  # noqa: E731
+    args.out.mkdir(parents=True, exist_ok=True)
+    if args.evaluate is not None:
+        evaluate(args.evaluate, args.test, args.out, label)
+        return
     rng = np.random.default_rng(0)
     data, test = states(args.train, rng), states(args.test, rng)
-    label = lambda s: np.array([cartstem_partition(x) for x in s])  # noqa: E731
     selector = Selector(7, 3, d=64, hidden=args.hidden)
     start = time.perf_counter()
     history = selector.fit(
@@ -73,8 +85,29 @@ def main() -> None:
         "train_seconds": time.perf_counter() - start,
         "thesis": "> 99.7 % on 50000 test samples",
     }
-    args.out.mkdir(parents=True, exist_ok=True)
+    kept = {"network": selector.state_dict(), "hidden": args.hidden, "train_states": args.train}
+    torch.save(kept, args.out / "selector.pt")
     (args.out / "selector.json").write_text(json.dumps(result, indent=1))
+    print(json.dumps(result, indent=1))
+
+
+def evaluate(path: Path, n_test: int, out: Path, label) -> None:
+    """The kept network of `path` on the test states of its training run (drawn after its
+    training states, from the same seed), written into out/selector.json."""
+    kept = torch.load(path, weights_only=True)
+    selector = Selector(7, 3, d=64, hidden=kept["hidden"])
+    selector.load_state_dict(kept["network"])
+    rng = np.random.default_rng(0)
+    states(kept["train_states"], rng)  # the training states, drawn first
+    test = states(n_test, rng)
+    result = {
+        "evaluated": str(path),
+        "train_states": kept["train_states"],
+        "test_states": n_test,
+        "test_accuracy": selector.accuracy(test, label(test)),
+        "class_counts_test": np.bincount(label(test), minlength=3).tolist(),
+    }
+    (out / "selector.json").write_text(json.dumps(result, indent=1))
     print(json.dumps(result, indent=1))
 
 

@@ -183,6 +183,8 @@ def main() -> None:
         " transfer ran under another ProxQP build than this process's; resumes",
     )
     args = parser.parse_args()
+    # each report records the command that writes it, the policies' reports as well
+    command = " ".join(["python experiments/proxy/robustness.py", *sys.argv[1:]])
     trunk = args.robot == "trunk"
     if trunk:
         args.parameters = args.parameters or TRUNK_PARAMETERS
@@ -213,6 +215,7 @@ def main() -> None:
                 noise=level,
                 seed=draw or 0,
                 tag=tag,
+                command=command,
                 parameters=args.parameters,
                 **(
                     {"cables": True, "dt": args.dt, "hyperparams": TRUNK_HYPERPARAMS}
@@ -252,7 +255,7 @@ def main() -> None:
             rows.append(row)
             print(f"noise {level:g} draw {draw}: {message}", flush=True)
             report = {
-                "command": "python experiments/proxy/robustness.py " + " ".join(sys.argv[1:]),
+                "command": command,
                 "robot": args.robot,
                 "env_steps": args.env_steps,
                 "dt": args.dt,

@@ -9,6 +9,7 @@ import typer
 from rich.console import Console
 from rich.table import Table
 
+from pliant.cli.support import RUNTIME_EXIT, report
 from pliant.reproduce import index, runner
 from pliant.reproduce.registry import FigureError
 from pliant.reproduce.studies import STUDIES, study
@@ -117,8 +118,9 @@ def reproduce_command(
     elif evaluate:
         try:
             rows, seconds = runner.evaluate(chosen[0])
-        except ValueError as error:
-            raise typer.BadParameter(str(error)) from error
+        except runner.NotKept as error:  # not a usage error: the model is not in the repository
+            report(str(error))
+            raise typer.Exit(RUNTIME_EXIT) from error
         console.print(f"{chosen[0].name}: re-evaluated in {seconds:.0f} s")
         console.print(_rows_table("re-evaluation against the committed figures", rows, "committed"))
     else:

@@ -74,6 +74,8 @@ def studies_table(studies: tuple[Study, ...] = STUDIES) -> str:
             kept = f"`{_cell(study.evaluate.command)}` ({study.evaluate.seconds:.0f} s)"
         else:
             kept = "none: " + _cell(study.not_kept) if study.not_kept else "-"
+            if study.retrain:
+                kept += f"; re-trained by `{_cell(study.retrain)}`"
         lines.append(
             f"| `{study.name}` | {study.thesis}: {_cell(study.title)} | "
             f"`{_cell(study.command)}` | {files} | {quick} | {kept} | {study.docs} |"

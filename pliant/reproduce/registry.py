@@ -165,6 +165,8 @@ class Study:
             figures are compared with the committed ones within their tolerance.
         not_kept: why the figures cannot be re-evaluated from the repository (the policy or
             model is not tracked, and what re-making it costs).
+        retrain: the command that re-makes the policy or model not kept, where it is not the
+            study's own ``command``.
     """
 
     name: str
@@ -177,12 +179,19 @@ class Study:
     docs: str = ""
     evaluate: Quick | None = None
     not_kept: str = ""
+    retrain: str = ""
+
+    def retraining(self) -> str:
+        """The command that re-makes the policy or model behind the figures (not kept)."""
+        return self.retrain or self.command
 
     def __post_init__(self) -> None:
         if (self.quick is None) == (not self.no_quick):
             raise ValueError(f"study {self.name}: give a quick variant or the reason for none")
         if self.evaluate is not None and self.not_kept:
             raise ValueError(f"study {self.name}: a re-evaluation and no kept model")
+        if self.retrain and not self.not_kept:
+            raise ValueError(f"study {self.name}: a re-training command and nothing not kept")
         for figure in self.figures:
             if figure.thesis_unit not in (None, figure.unit) and not figure.departure:
                 raise ValueError(f"{self.name}: {figure.name} in other units says no departure")

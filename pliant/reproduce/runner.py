@@ -28,6 +28,23 @@ class StudyFailed(RuntimeError):
     """A study's command exited with an error."""
 
 
+class NotKept(ValueError):
+    """A study's figures cannot be re-evaluated from the repository: in one line, why and the
+    command that re-makes what it would need."""
+
+
+def _not_kept(study: Study) -> str:
+    if study.not_kept:
+        return (
+            f"{study.name} cannot be re-evaluated from the repository: {study.not_kept};"
+            f" re-train with `{study.retraining()}`"
+        )
+    return (
+        f"{study.name} keeps no policy or model to re-evaluate: its figures are re-made by"
+        f" `pliant reproduce {study.name}` (`{study.command}`)"
+    )
+
+
 @dataclass(frozen=True)
 class Row:
     """One figure's outcome: its value(s) and whether it passes, with why not."""
@@ -94,8 +111,7 @@ def quick(study: Study, root: Path = ROOT) -> tuple[list[Row], float]:
 def evaluate(study: Study, root: Path = ROOT) -> tuple[list[Row], float]:
     """Re-evaluate the kept policy or model in a fresh folder; compare with the committed."""
     if study.evaluate is None:
-        why = study.not_kept or "it declares no re-evaluation"
-        raise ValueError(f"study {study.name} cannot be re-evaluated: {why}")
+        raise NotKept(_not_kept(study))
     with tempfile.TemporaryDirectory(prefix=f"pliant-{study.name}-") as out:
         seconds = _shell(study.evaluate.command.replace("{out}", out), root)
         rows = [

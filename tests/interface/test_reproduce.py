@@ -252,3 +252,28 @@ def test_the_kept_models_are_tracked_and_small():
             if tracked is not None:
                 assert any(str(p.relative_to(ROOT)) in tracked for p in files), path
             assert sum(p.stat().st_size for p in files) < 5e6, f"{path} is not small"
+
+
+def test_evaluate_without_a_kept_model_says_so_in_one_line(monkeypatch):
+    """A study whose model is not kept answers --evaluate with one line naming the command that
+    re-trains it (exit 1: nothing to re-evaluate, no usage error); every study not keeping its
+    model says why."""
+    monkeypatch.setenv("COLUMNS", "300")
+    for entry in STUDIES:
+        if entry.evaluate is not None:
+            continue
+        result = CliRunner().invoke(app, ["reproduce", entry.name, "--evaluate"])
+        lines = [line for line in result.output.splitlines() if line.strip()]
+        assert result.exit_code == 1 and len(lines) == 1, result.output
+        assert lines[0].startswith(f"error: {entry.name} ")
+        command = entry.retraining() if entry.not_kept else entry.command
+        assert f"`{' '.join(command.split())}`" in lines[0]
+    with pytest.raises(ValueError, match="nothing not kept"):
+        Study("s", "T", "t", "true", (_figure(),), no_quick="none", retrain="python train.py")
+
+
+@pytest.mark.slow
+def test_the_kept_selector_gives_its_committed_accuracy():
+    """The Selector network kept in the repository, re-tested (about 30 s): its figure again."""
+    rows, _ = runner.evaluate(study("graph-selector"))
+    assert rows and all(row.ok for row in rows), [(row.ours, row.why) for row in rows]

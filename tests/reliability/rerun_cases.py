@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import json
 import os
+import select
 import signal
 import subprocess
 import sys
@@ -702,16 +703,39 @@ def _children(pid: int) -> list[int]:
     return found
 
 
-def _orphans(cls: int, name: str, code: str, workers: int, bound: float = 10.0) -> None:
+def _ready(parent: subprocess.Popen, timeout: float) -> bool:
+    """Whether `parent` printed its ``ready`` line within `timeout` seconds."""
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        if select.select([parent.stdout], [], [], max(0.0, deadline - time.monotonic()))[0]:
+            line = parent.stdout.readline()
+            if line.strip() == "ready":
+                return True
+            if not line:  # the parent ended
+                return False
+    return False
+
+
+def _orphans(
+    cls: int, name: str, code: str, workers: int, bound: float = 10.0, ready: bool = False
+) -> None:
+    """Kill the parent running `code` once its `workers` started (with `ready`: once it prints
+    ``ready``, its workers running: a worker still importing its modules has not started to
+    watch its parent yet, which takes tens of seconds on a loaded machine); every worker must
+    end within `bound` seconds."""
     parent = subprocess.Popen(
         [sys.executable, "-c", textwrap.dedent(code)],
         cwd=TMP,
         env=ENV,
-        stdout=subprocess.DEVNULL,
+        stdout=subprocess.PIPE if ready else subprocess.DEVNULL,
         stderr=subprocess.DEVNULL,
+        text=True,
     )
     kids: list[int] = []
     try:
+        if ready and not _ready(parent, 300):
+            record(cls, name, False, "the parent never said its workers run")
+            return
         deadline = time.monotonic() + 120
         while len(kids) < workers and time.monotonic() < deadline:
             time.sleep(0.3)
@@ -737,6 +761,9 @@ def _orphans(cls: int, name: str, code: str, workers: int, bound: float = 10.0) 
         for p in kids:
             if _alive(p):
                 os.kill(p, signal.SIGKILL)
+        if parent.poll() is None:
+            parent.kill()
+        parent.wait()
 
 
 def class9() -> None:
@@ -760,10 +787,15 @@ def class9() -> None:
         from pliant.learn.vec import make_vec_env
         venv = make_vec_env("pliant/Diamond-v0", 2, backend="subproc")
         venv.reset()
+        print("ready", flush=True)
         while True:
             venv.step(np.array([venv.action_space.sample() for _ in range(2)]))
     """,
         2,
+        # Measured at load 20 under nice 10: both workers and the resource tracker ended
+        # 10.0-10.3 s after the kill (processes starved of CPU take that long to exit).
+        bound=30.0,
+        ready=True,
     )
 
 
