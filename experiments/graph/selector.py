@@ -21,6 +21,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from pliant import configure_threads
 from pliant.learn.graph import Selector, cartstem_partition
 
 
@@ -47,7 +48,7 @@ def main() -> None:
     parser.add_argument("--schedule", choices=["constant", "cosine"], default="constant")
     parser.add_argument("--out", type=Path, default=Path("experiments/results/graph"))
     args = parser.parse_args()
-    torch.set_num_threads(1)
+    configure_threads(torch_threads=1)
     torch.manual_seed(0)
     rng = np.random.default_rng(0)
     data, test = states(args.train, rng), states(args.test, rng)
