@@ -41,10 +41,9 @@ from pathlib import Path
 from typing import Annotated
 
 import numpy as np
-import torch
 import typer
 
-from pliant import robots
+from pliant import configure_threads, robots
 from pliant.condensed.collect import load_or_collect
 from pliant.condensed.contact import ContactRobot
 from pliant.condensed.dataset import SPLITS, CollectionPlan, atomic_write
@@ -100,7 +99,8 @@ def main(
     ),
 ) -> None:
     out.mkdir(parents=True, exist_ok=True)
-    torch.set_num_threads(1)  # small networks: a second thread only contends on a shared machine
+    # Small networks: a second thread only contends on a shared machine.
+    configure_threads(torch_threads=1)
     widths = tuple(int(h) for h in hidden.split(","))
     report: dict = {"seconds": {}}
     models = {}

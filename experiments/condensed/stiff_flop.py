@@ -37,10 +37,9 @@ from pathlib import Path
 from typing import Annotated
 
 import numpy as np
-import torch
 import typer
 
-from pliant import robots
+from pliant import configure_threads, robots
 from pliant.condensed.collect import load_or_collect
 from pliant.condensed.control import (
     PID,
@@ -126,7 +125,7 @@ def main(
     ),
     out: Annotated[Path, typer.Option(help="results")] = Path("experiments/results/condensed"),
 ) -> None:
-    torch.set_num_threads(1)
+    configure_threads(torch_threads=1)
     out.mkdir(parents=True, exist_ok=True)
     work.mkdir(parents=True, exist_ok=True)
     the_plan = plan(samples)

@@ -30,6 +30,7 @@ import numpy as np
 import torch
 import typer
 
+from pliant import configure_threads
 from pliant.condensed.collect import load_or_collect
 from pliant.condensed.dataset import CollectionPlan, Dataset, Split
 from pliant.condensed.networks import StandardisedMLP
@@ -51,7 +52,7 @@ def main(
     work: Annotated[Path, typer.Option(help="datasets")] = Path("out/condensed_full"),
     out: Annotated[Path, typer.Option(help="results")] = Path("experiments/results/condensed"),
 ) -> None:
-    torch.set_num_threads(1)
+    configure_threads(torch_threads=1)
     uniform = Dataset.load(work / "diamond_6500.h5")
     plan = CollectionPlan(
         "diamond",

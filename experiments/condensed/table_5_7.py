@@ -33,9 +33,9 @@ from dataclasses import replace
 from pathlib import Path
 from typing import Annotated
 
-import torch
 import typer
 
+from pliant import configure_threads
 from pliant.condensed.collect import load_or_collect
 from pliant.condensed.dataset import CollectionPlan
 from pliant.condensed.parametric import train_parametric
@@ -92,7 +92,7 @@ def main(
         list[str], typer.Option("--dataset", help="datasets to run (default: both)")
     ] = ("mechanical", "geometric"),
 ) -> None:
-    torch.set_num_threads(threads)
+    configure_threads(torch_threads=threads)
     out.mkdir(parents=True, exist_ok=True)
     work.mkdir(parents=True, exist_ok=True)
     path = out / "table_5_7.json"

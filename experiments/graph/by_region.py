@@ -28,8 +28,8 @@ from collections import defaultdict
 from pathlib import Path
 
 import numpy as np
-import torch
 
+from pliant import configure_threads
 from pliant.learn.graph import GraphConfig
 from pliant.learn.graph.scenes import CartStemStaticInverse, make_scene
 from pliant.learn.graph.training import build_learner
@@ -101,7 +101,7 @@ def main() -> None:
     parser.add_argument("--reachable", action="store_true", help="add each goal's static reach")
     parser.add_argument("--avoid-cycles", action="store_true", help="GraphConfig.avoid_cycles")
     args = parser.parse_args()
-    torch.set_num_threads(1)
+    configure_threads(torch_threads=1)
     runs, by_label = {}, defaultdict(list)
     for run in args.runs:
         report = play(run, args.episodes, args.reachable, args.avoid_cycles)

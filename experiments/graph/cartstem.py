@@ -38,8 +38,8 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
-import torch  # noqa: E402
 
+from pliant import configure_threads  # noqa: E402
 from pliant.learn.graph.settings import (  # noqa: E402
     ENV_SETTINGS,
     add_evaluator_options,
@@ -157,7 +157,7 @@ def main() -> None:
     )  # fmt: skip
     add_evaluator_options(parser)
     args = parser.parse_args()
-    torch.set_num_threads(1)
+    configure_threads(torch_threads=1)
     root = args.out / args.scene
     env_kwargs = dict(ENV_SETTINGS.get(args.scene, {}))
     if args.obstacle_shift:

@@ -21,8 +21,8 @@ import json
 from pathlib import Path
 
 import numpy as np
-import torch
 
+from pliant import configure_threads
 from pliant.learn.graph import GraphConfig
 from pliant.learn.graph.scenes import make_scene
 from pliant.learn.graph.training import build_learner
@@ -83,7 +83,7 @@ def main() -> None:
     parser.add_argument("--episodes", type=int, default=10)
     parser.add_argument("--out", type=Path, default=None)
     args = parser.parse_args()
-    torch.set_num_threads(1)
+    configure_threads(torch_threads=1)
     report = {}
     for run in args.runs:
         meta = json.loads((run / "history.json").read_text())

@@ -28,6 +28,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from pliant import configure_threads
 from pliant.learn.graph import Selector, cartstem_partition
 
 
@@ -55,7 +56,7 @@ def main() -> None:
     parser.add_argument("--out", type=Path, default=Path("experiments/results/graph"))
     parser.add_argument("--evaluate", type=Path, help="a kept network: test it, no training")
     args = parser.parse_args()
-    torch.set_num_threads(1)
+    configure_threads(torch_threads=1)
     torch.manual_seed(0)
     label = lambda s: np.array([cartstem_partition(x) for x in s])  # noqa: E731
     args.out.mkdir(parents=True, exist_ok=True)

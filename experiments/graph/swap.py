@@ -31,8 +31,7 @@ import dataclasses
 import json
 from pathlib import Path
 
-import torch
-
+from pliant import configure_threads
 from pliant.learn.graph import GraphConfig
 from pliant.learn.graph.hierarchy import episode_means
 from pliant.learn.graph.scenes import make_scene
@@ -78,7 +77,7 @@ def main() -> None:
     parser.add_argument("--finetune", type=int, default=0, help="steps trained after the swap")
     add_evaluator_options(parser)
     args = parser.parse_args()
-    torch.set_num_threads(1)
+    configure_threads(torch_threads=1)
     config = agent_config(args)
     env_kwargs = ENV_SETTINGS.get(args.scene, {})
     root = args.out / args.scene

@@ -38,8 +38,8 @@ import warnings
 from pathlib import Path
 
 import numpy as np
-import torch
 
+from pliant import configure_threads
 from pliant.learn.evaluate import load_policy
 from pliant.learn.training import train
 from pliant.learn.vec import make_env
@@ -182,7 +182,7 @@ def main() -> None:
     parser.add_argument("--summary", action="store_true", help="gather the finished runs")
     args = parser.parse_args()
     warnings.simplefilter("ignore")
-    torch.set_num_threads(1)
+    configure_threads(torch_threads=1)
     if args.summary:
         summary = gather()
         OUT.mkdir(parents=True, exist_ok=True)

@@ -52,8 +52,7 @@ import sys
 import warnings
 from pathlib import Path
 
-import torch
-
+from pliant import configure_threads
 from pliant._proxsuite import BUILD
 from pliant.transfer.fem_rl import (
     FEM_ENV,
@@ -132,7 +131,7 @@ def main() -> None:
     if args.transfer_only is not None and (args.planar or args.hyperparams or args.tag):
         parser.error("--planar, --hyperparams and --tag are for RL on the FEM, not --transfer-only")
     warnings.simplefilter("ignore")
-    torch.set_num_threads(1)
+    configure_threads(torch_threads=1)
     OUT.mkdir(parents=True, exist_ok=True)
     if args.transfer_only is not None:
         rows = transfer_proxy_policy(args.transfer_only, args.time_register, args.rest_offset)

@@ -178,15 +178,15 @@ def child(action: str, run_dir: str, config_json: str) -> None:
     ``<run_dir>.npz``."""
     import warnings
 
-    import torch
     from stable_baselines3.common.callbacks import BaseCallback
     from stable_baselines3.common.vec_env import VecNormalize
 
+    from pliant import configure_threads
     from pliant.files import save_npz
     from pliant.learn import TrainConfig, parameters, train
 
     warnings.simplefilter("ignore")
-    torch.set_num_threads(1)
+    configure_threads(torch_threads=1)
 
     class Started(BaseCallback):
         def _on_training_start(self) -> None:

@@ -19,9 +19,9 @@ import shutil
 import time
 from pathlib import Path
 
-import torch
 from stable_baselines3.common.callbacks import BaseCallback
 
+from pliant import configure_threads
 from pliant.learn import load_config, train
 from pliant.learn.evaluate import evaluate_saved, run_episodes
 from pliant.learn.plots import plot_learning_curve
@@ -152,7 +152,7 @@ def main() -> None:
     )
     args = parser.parse_args()
     RUN = args.run
-    torch.set_num_threads(args.threads)
+    configure_threads(torch_threads=args.threads)
     command = f"PYTHONPATH=. python experiments/rl/cartstem_sac.py --steps {args.steps}"
     if args.stop_at is not None:
         command += f" --stop-at {args.stop_at}"

@@ -23,10 +23,10 @@ import json
 import time
 from pathlib import Path
 
-import torch
 from stable_baselines3 import SAC
 from stable_baselines3.common.callbacks import BaseCallback
 
+from pliant import configure_threads
 from pliant.learn.evaluate import run_episodes
 from pliant.learn.vec import make_env
 
@@ -75,7 +75,7 @@ def main() -> None:
     parser.add_argument("--episodes", type=int, default=100)
     parser.add_argument("--run", type=Path, default=Path("runs/cartstem_sac_finetune"))
     args = parser.parse_args()
-    torch.set_num_threads(1)
+    configure_threads(torch_threads=1)
     env = make_env(ENV, {})
     lr = args.lr
     custom = {"learning_rate": lr, "lr_schedule": lambda _: lr}

@@ -24,8 +24,8 @@ import time
 from pathlib import Path
 
 import numpy as np
-import torch
 
+from pliant import configure_threads
 from pliant.envs import make
 from pliant.learn import load_config, train
 from pliant.learn.plots import plot_learning_curve
@@ -71,7 +71,7 @@ def main() -> None:
     parser.add_argument("--steps", type=int, default=100_000)
     parser.add_argument("--run", type=Path, default=Path("runs/diamond_ppo"))
     args = parser.parse_args()
-    torch.set_num_threads(1)
+    configure_threads(torch_threads=1)
     resume = (args.run / "checkpoints").exists() and any((args.run / "checkpoints").glob("step_*"))
     config = load_config(
         "pliant/Diamond-v0",

@@ -33,9 +33,9 @@ import shutil
 from pathlib import Path
 
 import numpy as np
-import torch
 from stable_baselines3.common.callbacks import BaseCallback
 
+from pliant import configure_threads
 from pliant.learn import load_config, train
 from pliant.learn.evaluate import evaluate_saved, run_episodes
 from pliant.learn.vec import make_env
@@ -187,7 +187,7 @@ def main() -> None:
     parser.add_argument("--push-down", action="store_true", help="random downward force")
     parser.add_argument("--sofagym-reward", action="store_true", help="SofaGym's reward")
     args = parser.parse_args()
-    torch.set_num_threads(args.threads)
+    configure_threads(torch_threads=args.threads)
     results = results_of(args)
     results.mkdir(parents=True, exist_ok=True)
     summary_path = results / "summary.json"

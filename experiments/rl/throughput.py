@@ -19,9 +19,9 @@ import tempfile
 import time
 from pathlib import Path
 
-import torch
 from stable_baselines3.common.callbacks import BaseCallback
 
+from pliant import configure_threads
 from pliant.learn import load_config, train
 from pliant.learn.vec import make_env
 
@@ -81,7 +81,7 @@ def main() -> None:
     parser.add_argument("--steps", type=int, default=600)
     parser.add_argument("--no-ray", action="store_true")
     args = parser.parse_args()
-    torch.set_num_threads(1)
+    configure_threads(torch_threads=1)
     rows = {"environment alone (1 process)": environment_alone(args.steps)}
     for n_envs, vec_env in [(1, "subproc"), (2, "subproc")] + ([] if args.no_ray else [(2, "ray")]):
         label = f"SAC training, {n_envs} {'Ray actor' if vec_env == 'ray' else 'worker'}(s)"

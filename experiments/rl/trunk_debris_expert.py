@@ -61,6 +61,7 @@ from pathlib import Path
 
 import numpy as np
 
+from pliant import configure_threads
 from pliant.files import write_json
 
 RESULTS = Path("experiments/results/rl/trunk_debris_expert")
@@ -412,11 +413,10 @@ def main() -> None:
     args = parser.parse_args()
 
     import gymnasium as gym
-    import torch
 
     import pliant.envs  # noqa: F401  (registers the environments)
 
-    torch.set_num_threads(1)
+    configure_threads(torch_threads=1)
     env_kwargs = {**ENV_KWARGS, **args.env_kwargs}
     env = gym.make(ENV_ID, **env_kwargs).unwrapped
     unknown = set(args.sizes) - set(env.cube_sizes)

@@ -42,8 +42,8 @@ from pathlib import Path
 
 import imageio.v2 as imageio
 import numpy as np
-import torch
 
+from pliant import configure_threads
 from pliant.envs import make
 from pliant.files import write_json
 from pliant.learn import load_config, train
@@ -170,7 +170,7 @@ def main() -> None:
     suffix += f"_{args.tag}" if args.tag else ""
     args.run = args.run or Path(f"runs/trunk_debris_ppo{suffix}")
     results = RESULTS.with_name(RESULTS.name + suffix)
-    torch.set_num_threads(args.threads)
+    configure_threads(torch_threads=args.threads)
     resume = (args.run / "checkpoints").exists() and any((args.run / "checkpoints").glob("step_*"))
     config = load_config(
         "pliant/TrunkSpaceDebris-v0",

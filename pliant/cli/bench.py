@@ -9,6 +9,7 @@ from typing import Annotated
 import typer
 from rich.console import Console
 
+from pliant.cli.options import option
 from pliant.cli.support import at_least_one, numbers_list, output_file
 
 console = Console()
@@ -19,17 +20,12 @@ def bench(
         Path | None,
         typer.Option(help="folder of the reference SOFA meshes", exists=True, file_okay=False),
     ] = None,
-    repeats: Annotated[
-        int, typer.Option(help="timed repeats per scene (median reported)", callback=at_least_one)
-    ] = 3,
+    repeats: Annotated[int, option("timed repeats per scene (median reported)", at_least_one)] = 3,
     steps: Annotated[
-        int,
-        typer.Option(
-            help="steps per timed repeat (scaled down for big scenes)", callback=at_least_one
-        ),
+        int, option("steps per timed repeat (scaled down for big scenes)", at_least_one)
     ] = 100,
     quick: Annotated[bool, typer.Option(help="small scenes only (a smoke run)")] = False,
-    out: Annotated[Path, typer.Option(help="JSON results file", callback=output_file)] = Path(
+    out: Annotated[Path, option("JSON results file", output_file)] = Path(
         "bench-results/bench.json"
     ),
     envs: Annotated[

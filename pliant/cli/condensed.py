@@ -26,6 +26,7 @@ from pliant.cli.options import (
     RobotName,
     Seed,
     goal_trajectory,
+    option,
 )
 from pliant.cli.support import (
     assignments,
@@ -86,17 +87,13 @@ def _gains(text: str) -> tuple[float, ...]:
 @app.command()
 def collect(
     robot: RobotName,
-    out: Annotated[Path, typer.Option(help="HDF5 dataset to write", callback=output_file)],
+    out: Annotated[Path, option("HDF5 dataset to write", output_file)],
     bounds: Annotated[
         list[str],
         typer.Option(help="LOW:HIGH of the actuator displacements, once for all or per actuator"),
     ],
-    samples: Annotated[
-        int, typer.Option(help="training samples (test: 25 %)", callback=at_least_one)
-    ] = 6500,
-    test_fraction: Annotated[
-        float, typer.Option(help="test samples / training samples", callback=non_negative)
-    ] = 0.25,
+    samples: Annotated[int, option("training samples (test: 25 %)", at_least_one)] = 6500,
+    test_fraction: Annotated[float, option("test samples / training samples", non_negative)] = 0.25,
     seed: Annotated[int, typer.Option(help="seed of the sampling")] = 0,
     set_: Annotated[
         list[str] | None,
@@ -106,20 +103,12 @@ def collect(
         list[str] | None, typer.Option(help="design parameter NAME=LOW:HIGH sampled with the rest")
     ] = None,
     samples_per_design: Annotated[
-        int,
-        typer.Option(
-            help="consecutive samples sharing one design (meshed once)", callback=at_least_one
-        ),
+        int, option("consecutive samples sharing one design (meshed once)", at_least_one)
     ] = 1,
     max_increment: Annotated[
-        float,
-        typer.Option(
-            help="largest command change per static step (halved on failure)", callback=positive
-        ),
+        float, option("largest command change per static step (halved on failure)", positive)
     ] = 8.0,
-    chunk_size: Annotated[
-        int, typer.Option(help="samples per saved chunk", callback=at_least_one)
-    ] = 16,
+    chunk_size: Annotated[int, option("samples per saved chunk", at_least_one)] = 16,
     contacts: Annotated[
         str, typer.Option(help="mesh landmark of fixed contact points (§5.1.4), held and recorded")
     ] = "",
@@ -132,9 +121,8 @@ def collect(
     ] = None,
     sampling: Annotated[
         str,
-        typer.Option(
-            help="box (Halton over the bounds) or gripper (inverse control)",
-            callback=one_of("box", "gripper"),
+        option(
+            "box (Halton over the bounds) or gripper (inverse control)", one_of("box", "gripper")
         ),
     ] = "box",
     consistent_tangent: Annotated[
@@ -146,16 +134,15 @@ def collect(
     ] = True,
     start: Annotated[
         str,
-        typer.Option(
-            help="where each sample's load stepping starts: previous (the previous sample's"
+        option(
+            "where each sample's load stepping starts: previous (the previous sample's"
             " equilibrium) or rest (its design's rest equilibrium: one equilibrium per command"
             " where the robot has several)",
-            callback=one_of("previous", "rest"),
+            one_of("previous", "rest"),
         ),
     ] = "previous",
     workers: Annotated[
-        int | None,
-        typer.Option(help="local processes (default: one per CPU)", callback=at_least_one),
+        int | None, option("local processes (default: one per CPU)", at_least_one)
     ] = None,
     ray: Annotated[str | None, typer.Option(help="Ray cluster address (auto, ray://...)")] = None,
     overwrite: Annotated[
@@ -248,24 +235,20 @@ def verify(
 @app.command()
 def train(
     dataset: Annotated[Path, typer.Argument(help="HDF5 dataset")],
-    out: Annotated[
-        Path, typer.Option(help="learned model file to write (.pt)", callback=output_file)
-    ],
+    out: Annotated[Path, option("learned model file to write (.pt)", output_file)],
     epochs: Count = 1000,
     batch_size: Count = 256,
     learning_rate: PositiveNumber = 1e-4,
-    hidden: Annotated[
-        str, typer.Option(help="hidden layer widths, comma separated", callback=_widths)
-    ] = "450,450,450",
+    hidden: Annotated[str, option("hidden layer widths, comma separated", _widths)] = "450,450,450",
     dropout: NonNegativeNumber = 0.0,
     activation: Annotated[
-        str, typer.Option(help="hidden activation", callback=one_of("relu", "silu", "tanh"))
+        str, option("hidden activation", one_of("relu", "silu", "tanh"))
     ] = "relu",
     schedule: Annotated[
         str,
-        typer.Option(
-            help="plateau (rate halved when the training loss stalls) or cosine (one cycle)",
-            callback=one_of("plateau", "cosine"),
+        option(
+            "plateau (rate halved when the training loss stalls) or cosine (one cycle)",
+            one_of("plateau", "cosine"),
         ),
     ] = "plateau",
     weight_decay: NonNegativeNumber = 0.0,
@@ -359,12 +342,8 @@ def control(
     model: Annotated[Path, typer.Argument(help="learned model file")],
     trajectory: Annotated[str, typer.Option(help="goal trajectory of the robot")] = "",
     goals: Goals = 30,
-    iterations: Annotated[
-        int, typer.Option(help="control iterations per goal", callback=at_least_one)
-    ] = 5,
-    pid: Annotated[
-        str, typer.Option(help="K,I,D of the goal correction (Eq. 5.14)", callback=_gains)
-    ] = "",
+    iterations: Annotated[int, option("control iterations per goal", at_least_one)] = 5,
+    pid: Annotated[str, option("K,I,D of the goal correction (Eq. 5.14)", _gains)] = "",
     exact: Annotated[bool, typer.Option(help="also control with the exact FEM matrices")] = True,
     embedded: Annotated[
         int,
@@ -409,6 +388,19 @@ def control(
     def controller() -> PID | None:
         return PID(*gains) if gains else None
 
+    def follow(condensed, **options):
+        """The robot controlled along the goals with `condensed` (a PID of its own each time)."""
+        return follow_trajectory(
+            robot,
+            targets,
+            condensed,
+            iterations=iterations,
+            pid=controller(),
+            course=learned.input_box,
+            max_increment=step,
+            **options,
+        )
+
     robot = robots.build(plan.robot, **plan.robot_kwargs)
     # the plant's load steps: the collection's in displacement, the whole force range in force
     spans = [a.max_force - a.min_force for a in learned.layout.actuators]
@@ -427,29 +419,12 @@ def control(
                 max_increment=step,
             )
         else:
-            result = follow_trajectory(
-                robot,
-                targets,
-                learned,
-                iterations=iterations,
-                pid=controller(),
-                course=learned.input_box,
-                max_increment=step,
-            )
+            result = follow(learned)
     reached["learned"] = result
     if exact:
         # The reference is the W the network learned (the plan's tangent).
         reference = ExactCondensed(robot, StaticSolver(robot, consistent=plan.consistent_tangent))
-        reached["exact"] = follow_trajectory(
-            robot,
-            targets,
-            reference,
-            iterations=iterations,
-            pid=controller(),
-            course=learned.input_box,
-            max_increment=step,
-            drive=drive,
-        )
+        reached["exact"] = follow(reference, drive=drive)
     rate = None
     if embedded:
         with warnings.catch_warnings():
@@ -552,14 +527,10 @@ def design(
     model: Annotated[
         Path, typer.Argument(help="parametric Finger model (length, height, joint_height)")
     ],
-    grid: Annotated[
-        str, typer.Option(help="grid values per design parameter", callback=_widths)
-    ] = "10,6,10",
+    grid: Annotated[str, option("grid values per design parameter", _widths)] = "10,6,10",
     command: Annotated[str, typer.Option(help="actuator displacements of the pull")] = "10,0",
     weights: Annotated[str, typer.Option(help="gamma_1,gamma_2 of Eq. 5.20")] = "0.5,0.5",
-    iterations: Annotated[
-        int, typer.Option(help="gradient steps per refinement", callback=at_least_one)
-    ] = 200,
+    iterations: Annotated[int, option("gradient steps per refinement", at_least_one)] = 200,
     learning_rate: PositiveNumber = 0.01,
     out: OutFolder = Path("out/design"),
 ) -> None:

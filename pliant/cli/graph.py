@@ -10,7 +10,7 @@ from typing import Annotated
 import typer
 from rich.console import Console
 
-from pliant.cli.options import Count, Seed
+from pliant.cli.options import Count, Seed, option
 from pliant.cli.support import at_least_one, command_group, one_of, output_folder
 from pliant.learn.graph.training import METHODS, SCENES, GraphSettingsError, train_run
 
@@ -44,31 +44,22 @@ def train(
     ],
     config: Annotated[
         Path | None,
-        typer.Option(
-            help="JSON: {'agent': GraphConfig fields, 'env': environment keywords}",
-            callback=settings_file,
-        ),
+        option("JSON: {'agent': GraphConfig fields, 'env': environment keywords}", settings_file),
     ] = None,
     method: Annotated[
         str,
-        typer.Option(
-            help="graph, convex (QP internal agents), convex_node (the QP kept inside its"
-            " node) or sac",
-            callback=one_of(*METHODS),
+        option(
+            "graph, convex (QP internal agents), convex_node (the QP kept inside its node) or sac",
+            one_of(*METHODS),
         ),
     ] = "graph",
-    steps: Annotated[
-        int, typer.Option(help="environment steps in all", callback=at_least_one)
-    ] = 20_000,
+    steps: Annotated[int, option("environment steps in all", at_least_one)] = 20_000,
     seed: Seed = 0,
-    eval_every: Annotated[
-        int, typer.Option(help="steps between evaluations", callback=at_least_one)
-    ] = 600,
+    eval_every: Annotated[int, option("steps between evaluations", at_least_one)] = 600,
     eval_episodes: Count = 5,
-    out: Annotated[
-        Path,
-        typer.Option(help="run folder (checkpoint.pt, history.json)", callback=output_folder),
-    ] = Path("runs/graph"),
+    out: Annotated[Path, option("run folder (checkpoint.pt, history.json)", output_folder)] = Path(
+        "runs/graph"
+    ),
     resume: Annotated[bool, typer.Option(help="continue the checkpoint in OUT")] = True,
 ) -> None:
     """Train SCENE's graph agents (or plain SAC) and evaluate them every EVAL_EVERY steps."""

@@ -119,6 +119,15 @@ def train(
     console.print_json(json.dumps(result.summary))
 
 
+def _evaluate(model, env, episodes, env_kwarg, algo, seed, **options):
+    """:func:`pliant.learn.evaluate.evaluate_saved` of a command's arguments."""
+    from pliant.learn.evaluate import evaluate_saved
+
+    return evaluate_saved(
+        model, env, episodes=episodes, env_kwargs=_pairs(env_kwarg), algo=algo, seed=seed, **options
+    )
+
+
 def eval_(
     model: Annotated[Path, typer.Argument(help="model.zip, its folder, or a run folder")],
     env: Annotated[str | None, typer.Argument(help="default: the one it was trained on")] = None,
@@ -130,17 +139,7 @@ def eval_(
     json_out: Annotated[Path | None, typer.Option("--json", help="write the result")] = None,
 ) -> None:
     """Evaluate a trained policy: success rate, mean return (JSON)."""
-    from pliant.learn.evaluate import evaluate_saved
-
-    result = evaluate_saved(
-        model,
-        env,
-        episodes=episodes,
-        env_kwargs=_pairs(env_kwarg),
-        algo=algo,
-        seed=seed,
-        deterministic=not stochastic,
-    )
+    result = _evaluate(model, env, episodes, env_kwarg, algo, seed, deterministic=not stochastic)
     text = json.dumps(result.to_dict(per_episode=True), indent=1)
     if json_out:
         json_out.write_text(text)
@@ -157,18 +156,7 @@ def enjoy(
     gif: Annotated[Path, typer.Option(help="output GIF")] = Path("enjoy.gif"),
 ) -> None:
     """Run a trained policy and save its episodes as a GIF."""
-    from pliant.learn.evaluate import evaluate_saved
-
-    result = evaluate_saved(
-        model,
-        env,
-        episodes=episodes,
-        env_kwargs=_pairs(env_kwarg),
-        algo=algo,
-        seed=seed,
-        gif=gif,
-        gif_episodes=episodes,
-    )
+    result = _evaluate(model, env, episodes, env_kwarg, algo, seed, gif=gif, gif_episodes=episodes)
     console.print(f"{gif}: {episodes} episode(s), mean return {result.mean_return:.4g}")
 
 

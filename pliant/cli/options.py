@@ -7,8 +7,9 @@ says something particular to its command stays declared in that command.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
-from typing import Annotated
+from typing import Annotated, Any
 
 import typer
 
@@ -30,6 +31,13 @@ Seed = Annotated[int, typer.Option()]
 Count = Annotated[int, typer.Option(callback=at_least_one)]
 PositiveNumber = Annotated[float, typer.Option(callback=positive)]
 NonNegativeNumber = Annotated[float, typer.Option(callback=non_negative)]
+
+
+def option(help: str, check: Callable | None = None) -> Any:
+    """A typer option with its help and the check of its value (:mod:`pliant.cli.support`),
+    for an option particular to one command: ``Annotated[float, option("time step",
+    positive)]``."""
+    return typer.Option(help=help, callback=check)
 
 
 def goal_trajectory(robot: str, entry, trajectory: str, goals: int):

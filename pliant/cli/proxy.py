@@ -12,7 +12,7 @@ from typing import Annotated
 import typer
 from rich.console import Console
 
-from pliant.cli.options import OutFolder
+from pliant.cli.options import OutFolder, option
 from pliant.cli.support import (
     at_least_one,
     command_group,
@@ -40,12 +40,9 @@ def calibrate(
             ),
         ),
     ],
-    trials: Annotated[
-        int, typer.Option(help="trials the study is to hold", callback=at_least_one)
-    ] = 40,
+    trials: Annotated[int, option("trials the study is to hold", at_least_one)] = 40,
     safety: Annotated[
-        float,
-        typer.Option(help="factor in (0, 1] on the calibrated max curvatures", callback=fraction),
+        float, option("factor in (0, 1] on the calibrated max curvatures", fraction)
     ] = 0.9,
     seed: Annotated[int, typer.Option(help="TPE sampler seed")] = 0,
     reference: Annotated[
@@ -53,18 +50,18 @@ def calibrate(
     ] = None,
     mass_tolerance: Annotated[
         float | None,
-        typer.Option(
-            help="keep the proxy's mass within this fraction of the FEM robot's (a constraint"
+        option(
+            "keep the proxy's mass within this fraction of the FEM robot's (a constraint"
             " of the search; a study of its own, ROBOT-mass)",
-            callback=fraction,
+            fraction,
         ),
     ] = None,
     travel_weight: Annotated[
         float,
-        typer.Option(
-            help="add this weight times the travel error (mm: the matched points' centroid"
+        option(
+            "add this weight times the travel error (mm: the matched points' centroid"
             " moved over each action, FEM vs proxy) to the loss (Multigait)",
-            callback=non_negative,
+            non_negative,
         ),
     ] = 0.0,
     travel_actions: Annotated[
@@ -97,19 +94,19 @@ def calibrate(
     ] = None,
     neutral: Annotated[
         str,
-        typer.Option(
-            help="the layer the Multigait proxy's chambers bend its beams about: axis (the"
+        option(
+            "the layer the Multigait proxy's chambers bend its beams about: axis (the"
             " thesis' inextensible beams) or underside (the strain-limiting layer, which keeps"
             " its length: the beams stretch as they curl; a study of its own, -underside)",
-            callback=one_of("axis", "underside"),
+            one_of("axis", "underside"),
         ),
     ] = "axis",
     contact: Annotated[
         str,
-        typer.Option(
-            help="how the proxy touches the floor and the cube: nodes (balls at its nodes) or"
+        option(
+            "how the proxy touches the floor and the cube: nodes (balls at its nodes) or"
             " surface (the FEM's colliding points skinned onto it)",
-            callback=one_of("nodes", "surface"),
+            one_of("nodes", "surface"),
         ),
     ] = "nodes",
     start: Annotated[
@@ -317,7 +314,7 @@ def transfer(
             " with meta.json and vecnormalize.pkl beside it) or a bare SB3 PPO .zip"
         ),
     ] = None,
-    steps: Annotated[int, typer.Option(help="steps of --policy", callback=at_least_one)] = 8,
+    steps: Annotated[int, option("steps of --policy", at_least_one)] = 8,
     proxy: Annotated[
         Path | None,
         typer.Option(
@@ -331,7 +328,7 @@ def transfer(
         int | None, typer.Option(help="proxy steps between realignments (0: never)")
     ] = None,
     inverse_steps: Annotated[
-        int | None, typer.Option(help="steps of the inverse look-ahead", callback=at_least_one)
+        int | None, option("steps of the inverse look-ahead", at_least_one)
     ] = None,
     gain: Annotated[
         float | None,
@@ -382,10 +379,10 @@ def transfer(
     ] = None,
     matched: Annotated[
         str | None,
-        typer.Option(
-            help="multigait: the matched points, the skeleton's nodes at mid-thickness ('axis',"
+        option(
+            "multigait: the matched points, the skeleton's nodes at mid-thickness ('axis',"
             " the default) or under them on the underside ('underside', the authors' effectors)",
-            callback=one_of("axis", "underside"),
+            one_of("axis", "underside"),
         ),
     ] = None,
     goal: Annotated[

@@ -13,7 +13,7 @@ from rich.progress import Progress
 from rich.table import Table
 
 from pliant import robots
-from pliant.cli.options import RobotName, TimeStep
+from pliant.cli.options import RobotName, TimeStep, option
 from pliant.cli.support import at_least_one, non_negative, open_fraction, output_folder, positive
 from pliant.reduction.pipeline import compare, multigait_cases, reduce, robot_cases
 
@@ -23,36 +23,19 @@ console = Console()
 def reduce_command(
     robot: RobotName,
     out: Annotated[
-        Path,
-        typer.Option(
-            help="folder of snapshots.h5, reduced.npz, report.json", callback=output_folder
-        ),
+        Path, option("folder of snapshots.h5, reduced.npz, report.json", output_folder)
     ] = Path("out/reduction"),
     dt: TimeStep = 0.01,
     pod_tolerance: Annotated[
-        float, typer.Option(help="tail energy of the modes left out", callback=open_fraction)
+        float, option("tail energy of the modes left out", open_fraction)
     ] = 1e-3,
-    tau: Annotated[
-        float, typer.Option(help="ECSW tolerance of the tetrahedra", callback=open_fraction)
-    ] = 3e-3,
-    tau_membrane: Annotated[
-        float, typer.Option(help="ECSW tolerance of the membranes", callback=open_fraction)
-    ] = 3e-3,
-    duration: Annotated[
-        float, typer.Option(help="seconds of scripted actuation", callback=positive)
-    ] = 3.6,
-    phase: Annotated[
-        float, typer.Option(help="seconds of a ramp of the load cases", callback=non_negative)
-    ] = 0.6,
-    sequences: Annotated[
-        int, typer.Option(help="multigait: random action sequences", callback=at_least_one)
-    ] = 3,
-    check: Annotated[
-        float, typer.Option(help="seconds of scripted actuation to compare", callback=positive)
-    ] = 1.2,
-    workers: Annotated[
-        int, typer.Option(help="local processes running the load cases", callback=at_least_one)
-    ] = 1,
+    tau: Annotated[float, option("ECSW tolerance of the tetrahedra", open_fraction)] = 3e-3,
+    tau_membrane: Annotated[float, option("ECSW tolerance of the membranes", open_fraction)] = 3e-3,
+    duration: Annotated[float, option("seconds of scripted actuation", positive)] = 3.6,
+    phase: Annotated[float, option("seconds of a ramp of the load cases", non_negative)] = 0.6,
+    sequences: Annotated[int, option("multigait: random action sequences", at_least_one)] = 3,
+    check: Annotated[float, option("seconds of scripted actuation to compare", positive)] = 1.2,
+    workers: Annotated[int, option("local processes running the load cases", at_least_one)] = 1,
     ray: Annotated[
         str | None, typer.Option(help="run the load cases on this Ray cluster (auto, ray://...)")
     ] = None,

@@ -24,6 +24,7 @@ from pliant.cli.options import (
     SolverKind,
     TimeStep,
     goal_trajectory,
+    option,
 )
 from pliant.cli.support import (
     at_least_one,
@@ -63,12 +64,10 @@ def run(
         str,
         typer.Argument(help=f"one of {ROBOT_NAMES}, or a SOFA scene file"),
     ],
-    duration: Annotated[float, typer.Option(help="simulated seconds", callback=positive)] = 3.0,
+    duration: Annotated[float, option("simulated seconds", positive)] = 3.0,
     dt: TimeStep = 0.01,
     solver: SolverKind = "dynamic",
-    frames: Annotated[
-        int, typer.Option(help="frames in the GIF and VTU series", callback=at_least_one)
-    ] = 30,
+    frames: Annotated[int, option("frames in the GIF and VTU series", at_least_one)] = 30,
     out: OutFolder = Path("out"),
     mesh_dir: MeshDirs = [],  # noqa: B006
     states: Annotated[
@@ -138,9 +137,7 @@ def inverse(
     goals: Goals = 30,
     dt: TimeStep = 0.01,
     solver: SolverKind = "dynamic",
-    max_steps: Annotated[
-        int, typer.Option(help="steps at most per goal", callback=at_least_one)
-    ] = 60,
+    max_steps: Annotated[int, option("steps at most per goal", at_least_one)] = 60,
     out: OutFolder = Path("out"),
     mesh_dir: MeshDirs = [],  # noqa: B006
 ) -> None:

@@ -11,7 +11,7 @@ import typer
 from rich.console import Console
 from rich.table import Table
 
-from pliant.cli.options import OutFolder
+from pliant.cli.options import OutFolder, option
 from pliant.cli.support import at_least_one, command_group, non_negative, one_of, positive
 from pliant.files import write_json
 from pliant.trajopt.runs import (
@@ -53,12 +53,11 @@ def diamond(
         bool, typer.Option(help="also solve with the non-linear part of Eq. 5.27")
     ] = True,
     backend: Annotated[
-        str,
-        typer.Option(help="backward pass: numpy or crocoddyl", callback=one_of(*BACKENDS)),
+        str, option("backward pass: numpy or crocoddyl", one_of(*BACKENDS))
     ] = "numpy",
     mesh_size: MeshSize = 20.0,
     dt: Seconds = 0.02,
-    horizon: Annotated[int, typer.Option(help="nodes N", callback=at_least_one)] = 100,
+    horizon: Annotated[int, option("nodes N", at_least_one)] = 100,
     max_iterations: MaxIterations = 100,
     tolerance: Tolerance = 1e-4,
     frames: Frames = 25,
@@ -191,9 +190,7 @@ def diamond_mpc(
 def _command(command: str, doc: str) -> None:
     def run(
         quick: Annotated[bool, typer.Option(help="short horizon, 2 iterations (tests)")] = False,
-        horizon: Annotated[
-            int, typer.Option(help="nodes N (0: the scenario's)", callback=non_negative)
-        ] = 0,
+        horizon: Annotated[int, option("nodes N (0: the scenario's)", non_negative)] = 0,
         max_iterations: MaxIterations = 100,
         tolerance: Tolerance = 1e-4,
         frames: Frames = 20,
@@ -242,12 +239,8 @@ def _learned_command(robot: str) -> None:
         horizon: Horizon = 20,
         iterations: Iterations = 3,
         steps: ControlSteps = 100,
-        samples: Annotated[
-            int, typer.Option(help="samples if a model is collected", callback=at_least_one)
-        ] = 300,
-        epochs: Annotated[
-            int, typer.Option(help="epochs if a model is trained", callback=at_least_one)
-        ] = 1000,
+        samples: Annotated[int, option("samples if a model is collected", at_least_one)] = 300,
+        epochs: Annotated[int, option("epochs if a model is trained", at_least_one)] = 1000,
         out: OutFolder = Path("out/trajopt"),
     ) -> None:
         run_learned_mpc(**{**locals(), "robot": robot})  # the options, by name

@@ -166,39 +166,28 @@ class LearnedCondensedModel:
 
     def save(self, path: str | os.PathLike) -> Path:
         """Write the model atomically (LearnedModelError, nothing left behind, on failure)."""
+        networks = {"network": self.network.config(), "state": self.network.state_dict()}
+        rest = [r.tolist() for r in self.rest]
         return write_model_file(
-            path,
-            {
-                "format": FORMAT,
-                "format_version": FORMAT_VERSION,
-                "software_version": pliant.__version__,
-                "network": self.network.config(),
-                "state": self.network.state_dict(),
-                "layout": self.layout.to_dict(),
-                "plan": self.plan.to_dict(),
-                "input_box": [self.input_box.low.tolist(), self.input_box.high.tolist()],
-                "rest": [r.tolist() for r in self.rest],
-                "training": self.training,
-            },
+            path, model_record(FORMAT, FORMAT_VERSION, self, networks, rest=rest)
         )
 
     @classmethod
     def load(cls, path: str | os.PathLike) -> LearnedCondensedModel:
-        path = Path(path)
-        data = read_model_file(path, FORMAT, FORMAT_VERSION, "learned condensed model")
-        try:
-            network = StandardisedMLP.from_config(data["network"])
-            network.load_state_dict(data["state"])
-            return cls(
-                network,
-                Layout.from_dict(data["layout"]),
-                CollectionPlan.from_dict(data["plan"]),
-                Box(*data["input_box"]),
-                tuple(np.array(r) for r in data["rest"]),
-                data["training"],
-            )
-        except (KeyError, TypeError, ValueError, RuntimeError) as exc:
-            raise LearnedModelError(f"{path} is incomplete or inconsistent: {exc}") from exc
+        return load_model_file(path, FORMAT, FORMAT_VERSION, "learned condensed model", cls._of)
+
+    @classmethod
+    def _of(cls, data: dict) -> LearnedCondensedModel:
+        network = StandardisedMLP.from_config(data["network"])
+        network.load_state_dict(data["state"])
+        return cls(
+            network,
+            Layout.from_dict(data["layout"]),
+            CollectionPlan.from_dict(data["plan"]),
+            Box(*data["input_box"]),
+            tuple(np.array(r) for r in data["rest"]),
+            data["training"],
+        )
 
 
 def check_finite(network: torch.nn.Module, name: str) -> None:
@@ -221,6 +210,33 @@ def write_model_file(path: str | os.PathLike, data: dict) -> Path:
     except (OSError, RuntimeError) as exc:  # torch reports a full disk as RuntimeError
         raise LearnedModelError(f"cannot write the model file {path}: {exc}") from exc
     return path
+
+
+def model_record(fmt: str, version: int, model, networks: dict, **extra) -> dict:
+    """What the file of a condensed `model` holds: its format and versions, `networks`, the
+    model's layout, plan and input box, `extra`, and its training."""
+    return {
+        "format": fmt,
+        "format_version": version,
+        "software_version": pliant.__version__,
+        **networks,
+        "layout": model.layout.to_dict(),
+        "plan": model.plan.to_dict(),
+        "input_box": [model.input_box.low.tolist(), model.input_box.high.tolist()],
+        **extra,
+        "training": model.training,
+    }
+
+
+def load_model_file(path: str | os.PathLike, fmt: str, version: int, kind: str, build):
+    """`build(data)` of the dictionary that :func:`read_model_file` reads; LearnedModelError
+    where it lacks an entry or holds an inconsistent one."""
+    path = Path(path)
+    data = read_model_file(path, fmt, version, kind)
+    try:
+        return build(data)
+    except (KeyError, TypeError, ValueError, RuntimeError) as exc:
+        raise LearnedModelError(f"{path} is incomplete or inconsistent: {exc}") from exc
 
 
 def read_model_file(path: Path, fmt: str, version: int, kind: str) -> dict:

@@ -18,10 +18,14 @@ import numpy as np
 import torch
 from torch import Tensor
 
-import pliant
 from pliant.condensed.dataset import CollectionPlan, Dataset
 from pliant.condensed.layout import Layout
-from pliant.condensed.learned import check_finite, read_model_file, write_model_file
+from pliant.condensed.learned import (
+    check_finite,
+    load_model_file,
+    model_record,
+    write_model_file,
+)
 from pliant.condensed.mechanics import effector_displacement, symmetric
 from pliant.condensed.networks import ComposedNetwork, StandardisedMLP
 from pliant.condensed.sampling import Box
@@ -138,45 +142,34 @@ class ParametricCondensedModel:
 
     def save(self, path: str | os.PathLike) -> Path:
         """Write the model atomically (LearnedModelError, nothing left behind, on failure)."""
-        return write_model_file(
-            path,
-            {
-                "format": FORMAT,
-                "format_version": FORMAT_VERSION,
-                "software_version": pliant.__version__,
-                "networks": {
-                    name: {"config": net.config(), "state": net.state_dict()}
-                    for name, net in (
-                        ("condensed", self.network.condensed),
-                        ("design", self.network.design),
-                    )
-                },
-                "layout": self.layout.to_dict(),
-                "plan": self.plan.to_dict(),
-                "input_box": [self.input_box.low.tolist(), self.input_box.high.tolist()],
-                "training": self.training,
-            },
-        )
+        networks = {
+            name: {"config": net.config(), "state": net.state_dict()}
+            for name, net in (
+                ("condensed", self.network.condensed),
+                ("design", self.network.design),
+            )
+        }
+        record = model_record(FORMAT, FORMAT_VERSION, self, {"networks": networks})
+        return write_model_file(path, record)
 
     @classmethod
     def load(cls, path: str | os.PathLike) -> ParametricCondensedModel:
-        path = Path(path)
-        data = read_model_file(path, FORMAT, FORMAT_VERSION, "parametric condensed model")
-        try:
-            networks = {}
-            for name, saved in data["networks"].items():
-                networks[name] = StandardisedMLP.from_config(saved["config"])
-                networks[name].load_state_dict(saved["state"])
-            return cls(
-                networks["condensed"],
-                networks["design"],
-                Layout.from_dict(data["layout"]),
-                CollectionPlan.from_dict(data["plan"]),
-                Box(*data["input_box"]),
-                data["training"],
-            )
-        except (KeyError, TypeError, ValueError, RuntimeError) as exc:
-            raise LearnedModelError(f"{path} is incomplete or inconsistent: {exc}") from exc
+        return load_model_file(path, FORMAT, FORMAT_VERSION, "parametric condensed model", cls._of)
+
+    @classmethod
+    def _of(cls, data: dict) -> ParametricCondensedModel:
+        networks = {}
+        for name, saved in data["networks"].items():
+            networks[name] = StandardisedMLP.from_config(saved["config"])
+            networks[name].load_state_dict(saved["state"])
+        return cls(
+            networks["condensed"],
+            networks["design"],
+            Layout.from_dict(data["layout"]),
+            CollectionPlan.from_dict(data["plan"]),
+            Box(*data["input_box"]),
+            data["training"],
+        )
 
 
 def train_parametric(

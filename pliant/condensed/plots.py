@@ -11,6 +11,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from pliant.viz.plots import goal_distance_axes
 from pliant.viz.render import offscreen_figure
 from pliant.viz.video import atomic_path
 
@@ -51,14 +52,8 @@ def plot_reached(
     ax.set_ylabel(f"{_AXES[j]} [{unit}]")
     ax.set_aspect("equal", adjustable="datalim")
     ax.legend()
-    ax_err.set_xlabel("goal index")
-    ax_err.set_ylabel(f"distance to goal [{unit}]")
-    ax_err.set_ylim(bottom=0.0)
-    ax_err.grid(True, alpha=0.3)
-    ax_err.legend()
-    if title:
-        fig.suptitle(title)
-    return _save(fig, path)
+    goal_distance_axes(ax_err, unit)
+    return _save(fig, path, title=title)
 
 
 def plot_forces(
@@ -89,9 +84,7 @@ def plot_forces(
     ax_err.set_ylabel("|reached - requested| / requested")
     ax_err.grid(True, alpha=0.3)
     ax_err.legend()
-    if title:
-        fig.suptitle(title)
-    return _save(fig, path)
+    return _save(fig, path, title=title)
 
 
 def plot_history(history: list[dict], path: str | os.PathLike, *, title: str | None = None) -> Path:
@@ -107,9 +100,7 @@ def plot_history(history: list[dict], path: str | os.PathLike, *, title: str | N
     ax.set_ylabel("standardised loss")
     ax.grid(True, alpha=0.3)
     ax.legend()
-    if title:
-        ax.set_title(title)
-    return _save(fig, path)
+    return _save(fig, path, title=title, ax=ax)
 
 
 def plot_calibration(
@@ -137,9 +128,7 @@ def plot_calibration(
     for ax in (ax_obj, ax_par):
         ax.grid(True, alpha=0.3)
         ax.legend()
-    if title:
-        fig.suptitle(title)
-    return _save(fig, path)
+    return _save(fig, path, title=title)
 
 
 def plot_design_study(study: DesignStudy, folder: str | os.PathLike) -> list[Path]:
@@ -196,8 +185,12 @@ def plot_design_study(study: DesignStudy, folder: str | os.PathLike) -> list[Pat
     return paths
 
 
-def _save(fig, path: str | os.PathLike, *, dpi: int = 150) -> Path:
-    """Lay the figure out and write it as a PNG, atomically."""
+def _save(
+    fig, path: str | os.PathLike, *, dpi: int = 150, title: str | None = None, ax=None
+) -> Path:
+    """Title the figure (or `ax`) if `title`, lay it out and write it as a PNG, atomically."""
+    if title:
+        (fig.suptitle if ax is None else ax.set_title)(title)
     fig.tight_layout()
     with atomic_path(path) as tmp:
         fig.savefig(tmp, format="png", dpi=dpi)

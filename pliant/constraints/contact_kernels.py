@@ -89,6 +89,16 @@ def _add_column(delta, w, row, change):
             delta[j] += w[row, j] * change
 
 
+@njit(cache=True, inline="always")
+def _within(held, lo, hi, target):
+    """(held, target) where the force `held` lies in [lo, hi], else (the bound it passes, NaN)."""
+    if held < lo:
+        return lo, math.nan
+    if held > hi:
+        return hi, math.nan
+    return held, target
+
+
 @njit(cache=True)
 def _actuator_law(rest, wii, displacement_mode, command, force_lo, force_hi, course_lo, course_hi):
     """An actuator row's force given rest = delta_i - W_ii lambda_i (its displacement without
@@ -101,29 +111,37 @@ def _actuator_law(rest, wii, displacement_mode, command, force_lo, force_hi, cou
     """
     if displacement_mode:
         target = min(max(command, course_lo), course_hi)
-        held = (target - rest) / wii
-        if held < force_lo:
-            return force_lo, math.nan
-        if held > force_hi:
-            return force_hi, math.nan
-        return held, target
+        return _within((target - rest) / wii, force_lo, force_hi, target)
     force = min(max(command, force_lo), force_hi)
     reached = wii * force + rest
     if reached > course_hi:  # the upper course bound lowers the force, down to force_lo
-        held = (course_hi - rest) / wii
-        if held < force_lo:
-            return force_lo, math.nan
-        if held > force:
-            return force, math.nan
-        return held, course_hi
+        return _within((course_hi - rest) / wii, force_lo, force, course_hi)
     if reached < course_lo:
-        held = (course_lo - rest) / wii
-        if held > force_hi:
-            return force_hi, math.nan
-        if held < force:
-            return force, math.nan
-        return held, course_lo
+        return _within((course_lo - rest) / wii, force, force_hi, course_lo)
     return force, math.nan
+
+
+@njit(cache=True, inline="always")
+def _actuator_row(blocks, j, w, delta, lam, tiny):
+    """Actuator j of `blocks`: its row i, W_ii, and (force, displacement held or NaN) by
+    :func:`_actuator_law` at delta and lambda; NaN forces where W_ii <= tiny (no force moves
+    the row)."""
+    rows, displacement_mode, command, force_lo, force_hi, course_lo, course_hi = blocks[:7]
+    i = rows[j]
+    wii = w[i, i]
+    if wii <= tiny:
+        return i, wii, math.nan, math.nan
+    force, target = _actuator_law(
+        delta[i] - wii * lam[i],
+        wii,
+        displacement_mode[j],
+        command[j],
+        force_lo[j],
+        force_hi[j],
+        course_lo[j],
+        course_hi[j],
+    )
+    return i, wii, force, target
 
 
 @njit(cache=True)
@@ -137,50 +155,26 @@ def _negligible(w):
 
 
 @njit(cache=True)
-def gauss_seidel(
-    w,
-    delta_free,
-    lam,
-    actuator_rows,
-    displacement_mode,
-    command,
-    force_lo,
-    force_hi,
-    course_lo,
-    course_hi,
-    contact_start,
-    friction,
-    tolerance,
-    max_iterations,
-):
+def gauss_seidel(w, delta_free, lam, blocks, tolerance, max_iterations):
     """Projected block Gauss-Seidel on delta = W lambda + delta_free; `lam` is updated in place.
 
+    `blocks`: the problem's arrays (:meth:`pliant.constraints.friction.ContactBlocks.arrays`).
     One sweep visits each actuator row, then each contact block (normal, t1, t2), and replaces
     its lambda by the exact solution of its own law with the other lambdas fixed. Returns the
     number of sweeps and the residual of the last one: the largest displacement correction
     |W_bb (lambda_b_new - lambda_b_old)|_inf that a block received.
     """
+    contact_start, friction = blocks[7], blocks[8]
     delta = w @ lam + delta_free
     n_contacts = friction.shape[0]
     tiny = _negligible(w)
     residual = np.inf
     for sweep in range(max_iterations):
         residual = 0.0
-        for j in range(actuator_rows.shape[0]):
-            i = actuator_rows[j]
-            wii = w[i, i]
+        for j in range(blocks[0].shape[0]):
+            i, wii, new, _ = _actuator_row(blocks, j, w, delta, lam, tiny)
             if wii <= tiny:
                 continue
-            new, _ = _actuator_law(
-                delta[i] - wii * lam[i],
-                wii,
-                displacement_mode[j],
-                command[j],
-                force_lo[j],
-                force_hi[j],
-                course_lo[j],
-                course_hi[j],
-            )
             change = new - lam[i]
             lam[i] = new
             _add_column(delta, w, i, change)
@@ -226,22 +220,7 @@ def _add_row(jacobian, proximal, row, w, source, scale):
 
 
 @njit(cache=True)
-def alart_curnier(
-    w,
-    delta,
-    lam,
-    actuator_rows,
-    displacement_mode,
-    command,
-    force_lo,
-    force_hi,
-    course_lo,
-    course_hi,
-    contact_start,
-    friction,
-    jacobian,
-    proximal,
-):
+def alart_curnier(w, delta, lam, blocks, jacobian, proximal):
     """F(lambda), zero exactly at the solutions of the contact problem, and the rows of lambda
     that a Newton step moves freely. When `jacobian` and `proximal` are (r, r), they receive an
     element J of F's Newton derivative and P, the term that replacing W by W + eps diag(W) in
@@ -268,22 +247,12 @@ def alart_curnier(
         proximal[:, :] = 0.0
         for i in range(r):
             jacobian[i, i] = 1.0
+    contact_start, friction = blocks[7], blocks[8]
     tiny = _negligible(w)
-    for j in range(actuator_rows.shape[0]):
-        i = actuator_rows[j]
-        wii = w[i, i]
+    for j in range(blocks[0].shape[0]):
+        i, wii, force, target = _actuator_row(blocks, j, w, delta, lam, tiny)
         if wii <= tiny:
             continue
-        force, target = _actuator_law(
-            delta[i] - wii * lam[i],
-            wii,
-            displacement_mode[j],
-            command[j],
-            force_lo[j],
-            force_hi[j],
-            course_lo[j],
-            course_hi[j],
-        )
         if math.isnan(target):
             f[i] = lam[i] - force
             continue
@@ -397,7 +366,7 @@ def _newton_step(w, delta_free, lam, blocks, eps, jacobian, proximal):
     weight when none does. Returns (whether lam moved, the proximal weight for the next step).
     """
     delta = w @ lam + delta_free
-    f, free = alart_curnier(w, delta, lam, *blocks, jacobian, proximal)
+    f, free = alart_curnier(w, delta, lam, blocks, jacobian, proximal)
     merit = f @ f
     no_jacobian = np.empty((0, 0))
     for _ in range(3):
@@ -408,7 +377,7 @@ def _newton_step(w, delta_free, lam, blocks, eps, jacobian, proximal):
             while step >= SHORTEST_STEP:
                 trial = lam + step * direction
                 f_trial, _ = alart_curnier(
-                    w, delta + step * change, trial, *blocks, no_jacobian, no_jacobian
+                    w, delta + step * change, trial, blocks, no_jacobian, no_jacobian
                 )
                 if f_trial @ f_trial <= (1.0 - ARMIJO * step) * merit:
                     lam[:] = trial
@@ -441,7 +410,7 @@ def newton_gauss_seidel(w, delta_free, lam, blocks, tolerance, max_iterations):
     sweeps, residual = 0, np.inf
     while sweeps < max_iterations:
         swept[:] = lam
-        _, residual = gauss_seidel(w, delta_free, swept, *blocks, tolerance, 1)
+        _, residual = gauss_seidel(w, delta_free, swept, blocks, tolerance, 1)
         sweeps += 1
         if residual <= tolerance or sweeps == max_iterations:
             break

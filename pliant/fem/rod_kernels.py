@@ -52,6 +52,17 @@ def _skew(v, out):
     out[2, 2] = 0.0
 
 
+@njit(cache=True, inline="always")
+def _skew_series(phi, b, c, out):
+    """out = I + b [phi]x + c [phi]x^2, the form of exp and of the SO(3) Jacobians."""
+    k = np.empty((3, 3))
+    _skew(phi, k)
+    for i in range(3):
+        for j in range(3):
+            kk = k[i, 0] * k[0, j] + k[i, 1] * k[1, j] + k[i, 2] * k[2, j]
+            out[i, j] = (1.0 if i == j else 0.0) + b * k[i, j] + c * kk
+
+
 @njit(cache=True)
 def so3_exp(phi, out):
     """out = exp([phi]x) (Rodrigues; Taylor series of the coefficients at small angles)."""
@@ -63,12 +74,7 @@ def so3_exp(phi, out):
     else:
         s = math.sin(a) / a
         c = (1.0 - math.cos(a)) / a2
-    k = np.empty((3, 3))
-    _skew(phi, k)
-    for i in range(3):
-        for j in range(3):
-            kk = k[i, 0] * k[0, j] + k[i, 1] * k[1, j] + k[i, 2] * k[2, j]
-            out[i, j] = (1.0 if i == j else 0.0) + s * k[i, j] + c * kk
+    _skew_series(phi, s, c, out)
 
 
 @njit(cache=True)
@@ -116,12 +122,7 @@ def left_jacobian_inverse(phi, out):
         c = 1.0 / 12.0 + a2 / 720.0 + a2 * a2 / 30240.0
     else:
         c = 1.0 / a2 - (1.0 + math.cos(a)) / (2.0 * a * math.sin(a))
-    k = np.empty((3, 3))
-    _skew(phi, k)
-    for i in range(3):
-        for j in range(3):
-            kk = k[i, 0] * k[0, j] + k[i, 1] * k[1, j] + k[i, 2] * k[2, j]
-            out[i, j] = (1.0 if i == j else 0.0) - 0.5 * k[i, j] + c * kk
+    _skew_series(phi, -0.5, c, out)
 
 
 @njit(cache=True)
@@ -135,12 +136,7 @@ def _right_jacobian(phi, out):
     else:
         b = (1.0 - math.cos(a)) / a2
         c = (a - math.sin(a)) / (a2 * a)
-    k = np.empty((3, 3))
-    _skew(phi, k)
-    for i in range(3):
-        for j in range(3):
-            kk = k[i, 0] * k[0, j] + k[i, 1] * k[1, j] + k[i, 2] * k[2, j]
-            out[i, j] = (1.0 if i == j else 0.0) - b * k[i, j] + c * kk
+    _skew_series(phi, -b, c, out)
 
 
 @njit(cache=True)
@@ -216,11 +212,9 @@ def _rows(xi, xj, ri, length, phi, rm, j_gamma, j_kappa):
             j_gamma[r, 9 + c] = s_j / length
 
 
-@njit(cache=True)
-def _element_forces(xi, xj, ri, rj, length, gamma0, kappa0, cs, bs, out, ve=None, kv=None):
-    """Forces and moments (12,) of one element into out, and the Gauss-Newton tangent times
-    the element's velocities `ve` (12,) into `kv` when given; returns its energy, gamma_3 and
-    middle frame."""
+@njit(cache=True, inline="always")
+def _strains_and_rows(xi, xj, ri, rj, length):
+    """gamma, kappa, the middle frame and the rows J_gamma, J_kappa (3 x 12) of one element."""
     gamma = np.empty(3)
     kappa = np.empty(3)
     rm = np.empty((3, 3))
@@ -228,6 +222,28 @@ def _element_forces(xi, xj, ri, rj, length, gamma0, kappa0, cs, bs, out, ve=None
     j_gamma = np.empty((3, 12))
     j_kappa = np.empty((3, 12))
     _rows(xi, xj, ri, length, phi, rm, j_gamma, j_kappa)
+    return gamma, kappa, rm, j_gamma, j_kappa
+
+
+@njit(cache=True, inline="always")
+def _column_dot(j_gamma, j_kappa, n, mo, c):
+    """Entry c of J_gamma^T n + J_kappa^T mo."""
+    return (
+        j_gamma[0, c] * n[0]
+        + j_gamma[1, c] * n[1]
+        + j_gamma[2, c] * n[2]
+        + j_kappa[0, c] * mo[0]
+        + j_kappa[1, c] * mo[1]
+        + j_kappa[2, c] * mo[2]
+    )
+
+
+@njit(cache=True)
+def _element_forces(xi, xj, ri, rj, length, gamma0, kappa0, cs, bs, out, ve, kv):
+    """Forces and moments (12,) of one element into out, and the Gauss-Newton tangent times
+    the element's velocities `ve` (12,) into `kv` unless `ve` is empty; returns its energy,
+    gamma_3 and middle frame."""
+    gamma, kappa, rm, j_gamma, j_kappa = _strains_and_rows(xi, xj, ri, rj, length)
     energy = 0.0
     n = np.empty(3)
     mo = np.empty(3)
@@ -238,15 +254,8 @@ def _element_forces(xi, xj, ri, rj, length, gamma0, kappa0, cs, bs, out, ve=None
         mo[a] = bs[a] * dk
         energy += 0.5 * length * (cs[a] * dg * dg + bs[a] * dk * dk)
     for c in range(12):
-        out[c] = -length * (
-            j_gamma[0, c] * n[0]
-            + j_gamma[1, c] * n[1]
-            + j_gamma[2, c] * n[2]
-            + j_kappa[0, c] * mo[0]
-            + j_kappa[1, c] * mo[1]
-            + j_kappa[2, c] * mo[2]
-        )
-    if ve is not None:
+        out[c] = -length * _column_dot(j_gamma, j_kappa, n, mo, c)
+    if ve.shape[0] > 0:
         for a in range(3):
             sg = 0.0
             sk = 0.0
@@ -256,14 +265,7 @@ def _element_forces(xi, xj, ri, rj, length, gamma0, kappa0, cs, bs, out, ve=None
             n[a] = length * cs[a] * sg
             mo[a] = length * bs[a] * sk
         for c in range(12):
-            kv[c] = (
-                j_gamma[0, c] * n[0]
-                + j_gamma[1, c] * n[1]
-                + j_gamma[2, c] * n[2]
-                + j_kappa[0, c] * mo[0]
-                + j_kappa[1, c] * mo[1]
-                + j_kappa[2, c] * mo[2]
-            )
+            kv[c] = _column_dot(j_gamma, j_kappa, n, mo, c)
     return energy, gamma[2], rm
 
 
@@ -324,7 +326,7 @@ def rod_forces(
     energy = 0.0
     fe = np.empty(12)
     ke = np.empty(12)
-    ve = np.empty(12)
+    ve = np.empty(12 if with_v else 0)
     rows = np.empty(4, dtype=np.int64)
     ri = np.empty((3, 3))
     rj = np.empty((3, 3))
@@ -336,24 +338,9 @@ def rod_forces(
             for b in range(4):
                 for a in range(3):
                     ve[3 * b + a] = v[rows[b], a]
-            en, g3, rm = _element_forces(
-                x[i],
-                x[j],
-                ri,
-                rj,
-                lengths[e],
-                gamma0[e],
-                kappa0[e],
-                cs[e],
-                bs[e],
-                fe,
-                ve,
-                ke,
-            )
-        else:
-            en, g3, rm = _element_forces(
-                x[i], x[j], ri, rj, lengths[e], gamma0[e], kappa0[e], cs[e], bs[e], fe
-            )
+        en, g3, rm = _element_forces(
+            x[i], x[j], ri, rj, lengths[e], gamma0[e], kappa0[e], cs[e], bs[e], fe, ve, ke
+        )
         energy += en
         stretch[e] = g3
         frames[e] = rm
@@ -368,13 +355,7 @@ def rod_forces(
 @njit(cache=True)
 def _gauss_newton_block(xi, xj, ri, rj, length, cs, bs, out):
     """l (J_gamma^T C J_gamma + J_kappa^T B J_kappa) (12 x 12) into out."""
-    gamma = np.empty(3)
-    kappa = np.empty(3)
-    rm = np.empty((3, 3))
-    phi = _strains(xi, xj, ri, rj, length, gamma, kappa, rm)
-    j_gamma = np.empty((3, 12))
-    j_kappa = np.empty((3, 12))
-    _rows(xi, xj, ri, length, phi, rm, j_gamma, j_kappa)
+    _, _, _, j_gamma, j_kappa = _strains_and_rows(xi, xj, ri, rj, length)
     for r in range(12):
         for c in range(12):
             s = 0.0
@@ -390,6 +371,7 @@ def _consistent_block(xi, xj, ri, rj, length, gamma0, kappa0, cs, bs, out):
     fm = np.empty(12)
     turn = np.empty((3, 3))
     step = np.zeros(3)
+    no_velocities = np.empty(0)
     for c in range(12):
         node, axis = c // 3, c % 3
         h = _FD_STEP * (length if node < 2 else 1.0)
@@ -411,7 +393,10 @@ def _consistent_block(xi, xj, ri, rj, length, gamma0, kappa0, cs, bs, out):
                     qi = turn @ ri
                 else:
                     qj = turn @ rj
-            _element_forces(pi, pj, qi, qj, length, gamma0, kappa0, cs, bs, fp if sign == 0 else fm)
+            f = fp if sign == 0 else fm
+            _element_forces(
+                pi, pj, qi, qj, length, gamma0, kappa0, cs, bs, f, no_velocities, no_velocities
+            )
         for r in range(12):
             out[r, c] = -(fp[r] - fm[r]) / (2.0 * h)
     for r in range(12):
@@ -432,38 +417,30 @@ def rod_stiffness(x, rot, elements, offsets, lengths, gamma0, kappa0, cs, bs, ex
         _ends(rot, i, j, offsets, e, ri, rj)
         if exact:
             _consistent_block(
-                x[i],
-                x[j],
-                ri,
-                rj,
-                lengths[e],
-                gamma0[e],
-                kappa0[e],
-                cs[e],
-                bs[e],
-                blocks[e],
+                x[i], x[j], ri, rj, lengths[e], gamma0[e], kappa0[e], cs[e], bs[e], blocks[e]
             )
         else:
             _gauss_newton_block(x[i], x[j], ri, rj, lengths[e], cs[e], bs[e], blocks[e])
 
 
+@njit(cache=True, inline="always")
+def _compose(first, second, inverse, out):
+    """out[i] = log(exp(first[i]) exp(second[i])), with exp(second[i])^T when `inverse`."""
+    a = np.empty((3, 3))
+    b = np.empty((3, 3))
+    for i in range(first.shape[0]):
+        so3_exp(first[i], a)
+        so3_exp(second[i], b)
+        so3_log(a @ b.T if inverse else a @ b, out[i])
+
+
 @njit(cache=True)
 def advance_rotations(vectors, spins, out):
     """out[i] = log(exp(spins[i]) exp(vectors[i])): rotation vectors turned by spatial spins."""
-    a = np.empty((3, 3))
-    b = np.empty((3, 3))
-    for i in range(vectors.shape[0]):
-        so3_exp(spins[i], a)
-        so3_exp(vectors[i], b)
-        so3_log(a @ b, out[i])
+    _compose(spins, vectors, False, out)
 
 
 @njit(cache=True)
 def rotation_differences(to, frm, out):
     """out[i] = log(exp(to[i]) exp(frm[i])^T): the spatial spin that turns frm into to."""
-    a = np.empty((3, 3))
-    b = np.empty((3, 3))
-    for i in range(to.shape[0]):
-        so3_exp(to[i], a)
-        so3_exp(frm[i], b)
-        so3_log(a @ b.T, out[i])
+    _compose(to, frm, True, out)

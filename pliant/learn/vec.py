@@ -144,7 +144,9 @@ class RestartingSubprocVecEnv(SubprocVecEnv):
                 self._dead.add(i)
         self.waiting = True
 
-    def step_wait(self):
+    def _receive(self, restarted: Callable[[int], tuple]) -> list[tuple]:
+        """Every worker's answer; `restarted(i)` stands for that of worker i, found dead (and
+        restarted by it)."""
         results = []
         for i, remote in enumerate(self.remotes):
             try:
@@ -152,15 +154,19 @@ class RestartingSubprocVecEnv(SubprocVecEnv):
                     raise EOFError
                 results.append(remote.recv())
             except WORKER_ERRORS:
-                obs, reset_info = self._restart(i)
-                last = self._last_obs[i] if self._last_obs[i] is not None else obs
-                info = {
-                    "terminal_observation": last,
-                    "TimeLimit.truncated": True,
-                    "worker_restarted": True,
-                }
-                results.append((obs, 0.0, True, info, reset_info))
+                results.append(restarted(i))
         self._dead.clear()
+        return results
+
+    def _truncated(self, i: int) -> tuple:
+        """The step of dead worker i: its episode ends, truncated, and a new one starts."""
+        obs, reset_info = self._restart(i)
+        last = self._last_obs[i] if self._last_obs[i] is not None else obs
+        info = {"terminal_observation": last, "TimeLimit.truncated": True, "worker_restarted": True}
+        return obs, 0.0, True, info, reset_info
+
+    def step_wait(self):
+        results = self._receive(self._truncated)
         self.waiting = False
         obs, rews, dones, infos, self.reset_infos = zip(*results, strict=True)
         self._last_obs = list(obs)
@@ -172,15 +178,7 @@ class RestartingSubprocVecEnv(SubprocVecEnv):
                 self.remotes[i].send(("reset", (self._seeds[i], self._options[i])))
             except WORKER_ERRORS:
                 self._dead.add(i)
-        results = []
-        for i, remote in enumerate(self.remotes):
-            try:
-                if i in self._dead:
-                    raise EOFError
-                results.append(remote.recv())
-            except WORKER_ERRORS:
-                results.append(self._restart(i))
-        self._dead.clear()
+        results = self._receive(self._restart)
         obs, self.reset_infos = zip(*results, strict=True)
         self._last_obs = list(obs)
         self._reset_seeds()

@@ -3,10 +3,11 @@
 from pliant.mesh.io import load_mesh, save_mesh
 from pliant.mesh.locate import locate_points
 from pliant.mesh.quality import fix_orientation, remove_unused_nodes, validate_mesh
-from pliant.mesh.shapes import box_beam, diamond, pneunet, soft_finger, trunk
+from pliant.mesh.shapes import PneuNetLayout, box_beam, diamond, pneunet, soft_finger, trunk
 from pliant.mesh.tetmesh import TetMesh
 
 __all__ = [
+    "PneuNetLayout",
     "TetMesh",
     "box_beam",
     "diamond",

@@ -18,6 +18,8 @@ the scene's cavity surfaces.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import gmsh
 import numpy as np
 
@@ -33,123 +35,107 @@ CHAMBERS = ("centre", "front_left", "front_right", "rear_left", "rear_right")
 Slot = tuple[np.ndarray, np.ndarray]
 
 
-def multigait_chambers(
-    *,
-    length: float = 136.0,
-    width: float = 58.0,
-    thickness: float = 6.3,
-    leg_width: float = 16.0,
-    centre_length: float = 46.0,
-    wall: float = 2.0,
-    floor: float = 1.0,
-    roof: float = 1.5,
-    slot: float = 3.0,
-    leg_slots: int = 5,
-    centre_slots: int = 5,
-    foot: float = 5.0,
-) -> dict[str, list[Slot]]:
-    """The slots of each chamber, as (lower, upper) corners (front legs at x = 0, left is +y).
+@dataclass(frozen=True)
+class MultigaitLayout:
+    """The Multigait's dimensions (mm): a `length` x `width` x `thickness` body of a centre
+    block `centre_length` long between four legs `leg_width` wide, and its chambers' slots.
 
     A leg's `leg_slots` slots, `slot` mm long along the leg, are spread evenly from `foot` mm
     behind its tip to `wall` mm before the centre block, between side walls `wall` mm thick.
     The centre's `centre_slots` run across the body between the legs' inner sides, `wall` mm
-    from them, spread evenly over the centre block less a `wall` at each end.
+    from them, spread evenly over the centre block less a `wall` at each end. Slots run from
+    a `floor` above the underside to a `roof` below the top.
     """
-    x0 = (length - centre_length) / 2
-    z = (floor, thickness - roof)
-    y_in, y_out = width / 2 - leg_width + wall, width / 2 - wall
-    centre_y = width / 2 - leg_width - wall
-    leg_span, centre_span = x0 - foot - wall, centre_length - 2 * wall
-    if not (
-        y_in < y_out
-        and centre_y > 0
-        and z[0] < z[1]
-        and leg_slots >= 1
-        and centre_slots >= 1
-        and leg_slots * slot < leg_span
-        and centre_slots * slot < centre_span
-    ):
-        raise MeshError("walls, floor, roof and slots leave no room for the Multigait's chambers")
 
-    def row(start: float, span: float, n: int, ya: float, yb: float) -> list[Slot]:
-        pitch = (span - slot) / max(n - 1, 1)
-        return [
-            (np.array([x, ya, z[0]]), np.array([x + slot, yb, z[1]]))
-            for x in start + pitch * np.arange(n)
-        ]
+    length: float = 136.0
+    width: float = 58.0
+    thickness: float = 6.3
+    leg_width: float = 16.0
+    centre_length: float = 46.0
+    wall: float = 2.0
+    floor: float = 1.0
+    roof: float = 1.5
+    slot: float = 3.0
+    leg_slots: int = 5
+    centre_slots: int = 5
+    foot: float = 5.0
 
-    def mirrored(slots: list[Slot], axis: int, plane: float) -> list[Slot]:
-        """The same slots reflected through the plane {axis} = `plane`."""
-        out = []
-        for lower, upper in slots:
-            lo, hi = lower.copy(), upper.copy()
-            lo[axis], hi[axis] = 2 * plane - upper[axis], 2 * plane - lower[axis]
-            out.append((lo, hi))
-        return out
+    def __post_init__(self) -> None:
+        counts = ("leg_slots", "centre_slots")
+        _require_positive(**{k: v for k, v in vars(self).items() if k not in counts})
 
-    front_left = row(foot, leg_span, leg_slots, y_in, y_out)
-    rear_left = mirrored(front_left, 0, length / 2)
-    return {
-        "centre": row(x0 + wall, centre_span, centre_slots, -centre_y, centre_y),
-        "front_left": front_left,
-        "front_right": mirrored(front_left, 1, 0.0),
-        "rear_left": rear_left,
-        "rear_right": mirrored(rear_left, 1, 0.0),
-    }
+    def chambers(self) -> dict[str, list[Slot]]:
+        """The slots of each chamber, as (lower, upper) corners (front legs at x = 0, left is
+        +y)."""
+        length, width, wall, slot = self.length, self.width, self.wall, self.slot
+        leg_width = self.leg_width
+        x0 = (length - self.centre_length) / 2
+        z = (self.floor, self.thickness - self.roof)
+        y_in, y_out = width / 2 - leg_width + wall, width / 2 - wall
+        centre_y = width / 2 - leg_width - wall
+        leg_span, centre_span = x0 - self.foot - wall, self.centre_length - 2 * wall
+        leg_slots, centre_slots = self.leg_slots, self.centre_slots
+        if not (
+            y_in < y_out
+            and centre_y > 0
+            and z[0] < z[1]
+            and leg_slots >= 1
+            and centre_slots >= 1
+            and leg_slots * slot < leg_span
+            and centre_slots * slot < centre_span
+        ):
+            raise MeshError(
+                "walls, floor, roof and slots leave no room for the Multigait's chambers"
+            )
+
+        def row(start: float, span: float, n: int, ya: float, yb: float) -> list[Slot]:
+            pitch = (span - slot) / max(n - 1, 1)
+            return [
+                (np.array([x, ya, z[0]]), np.array([x + slot, yb, z[1]]))
+                for x in start + pitch * np.arange(n)
+            ]
+
+        def mirrored(slots: list[Slot], axis: int, plane: float) -> list[Slot]:
+            """The same slots reflected through the plane {axis} = `plane`."""
+            out = []
+            for lower, upper in slots:
+                lo, hi = lower.copy(), upper.copy()
+                lo[axis], hi[axis] = 2 * plane - upper[axis], 2 * plane - lower[axis]
+                out.append((lo, hi))
+            return out
+
+        front_left = row(self.foot, leg_span, leg_slots, y_in, y_out)
+        rear_left = mirrored(front_left, 0, length / 2)
+        return {
+            "centre": row(x0 + wall, centre_span, centre_slots, -centre_y, centre_y),
+            "front_left": front_left,
+            "front_right": mirrored(front_left, 1, 0.0),
+            "rear_left": rear_left,
+            "rear_right": mirrored(rear_left, 1, 0.0),
+        }
+
+
+def multigait_chambers(**dimensions) -> dict[str, list[Slot]]:
+    """The slots of each chamber of the Multigait of `dimensions` (:class:`MultigaitLayout`'s
+    fields), as (lower, upper) corners."""
+    return MultigaitLayout(**dimensions).chambers()
 
 
 @retry_meshing
-def multigait(
-    *,
-    length: float = 136.0,
-    width: float = 58.0,
-    thickness: float = 6.3,
-    leg_width: float = 16.0,
-    centre_length: float = 46.0,
-    wall: float = 2.0,
-    floor: float = 1.0,
-    roof: float = 1.5,
-    slot: float = 3.0,
-    leg_slots: int = 5,
-    centre_slots: int = 5,
-    foot: float = 5.0,
-    mesh_size: float = 6.0,
-) -> TetMesh:
+def multigait(*, mesh_size: float = 6.0, **dimensions) -> TetMesh:
     """The Multigait body along +x (front legs at x = 0), width along y (centred), underside
-    z = 0; about 8k tetrahedra at the default `mesh_size`. Chamber layout: see
-    :func:`multigait_chambers`.
+    z = 0; about 8k tetrahedra at the default `mesh_size`. `dimensions`: the fields of
+    :class:`MultigaitLayout` (chamber layout: :meth:`MultigaitLayout.chambers`).
 
     Surfaces: 'cavity_<chamber>' for the chambers of :data:`CHAMBERS` (the walls of all its
     slots), oriented out of the air (positive enclosed volume). The bottom `floor` mm are a
     layer of whole elements. Landmarks: 'centre' (1, 3), the middle of the underside.
     """
-    _require_positive(
-        length=length,
-        width=width,
-        thickness=thickness,
-        leg_width=leg_width,
-        centre_length=centre_length,
-        wall=wall,
-        floor=floor,
-        roof=roof,
-        slot=slot,
-        foot=foot,
-        mesh_size=mesh_size,
-    )
-    chambers = multigait_chambers(
-        length=length,
-        width=width,
-        thickness=thickness,
-        leg_width=leg_width,
-        centre_length=centre_length,
-        wall=wall,
-        floor=floor,
-        roof=roof,
-        slot=slot,
-        leg_slots=leg_slots,
-        centre_slots=centre_slots,
-        foot=foot,
-    )
+    layout = MultigaitLayout(**dimensions)
+    _require_positive(mesh_size=mesh_size)
+    chambers = layout.chambers()
+    length, width, thickness = layout.length, layout.width, layout.thickness
+    leg_width, centre_length, floor = layout.leg_width, layout.centre_length, layout.floor
     x0 = (length - centre_length) / 2
     with gmsh_model("multigait"):
         occ = gmsh.model.occ

@@ -13,6 +13,8 @@ from __future__ import annotations
 
 import itertools
 import math
+from collections.abc import Mapping
+from dataclasses import dataclass
 from typing import Literal
 
 import gmsh
@@ -38,6 +40,22 @@ def _require_positive(**values: float) -> None:
     for name, value in values.items():
         if not (math.isfinite(value) and value > 0):
             raise ModelError(f"{name} must be a positive finite number, got {value!r}")
+
+
+def _require_whole(name: str, value: float, minimum: int = 1) -> None:
+    if int(value) != value or value < minimum:
+        kind = "a positive integer" if minimum == 1 else f"an integer >= {minimum}"
+        raise ModelError(f"{name} must be {kind}, got {value!r}")
+
+
+def require_arguments(arguments: Mapping[str, float], positive: str = "", **whole: int) -> None:
+    """ModelError unless the `arguments` named in `positive` (separated by spaces) are positive
+    finite numbers and each one named in `whole` a whole number of at least its value.
+    A builder's first statement ``require_arguments(locals(), "length width", n=1)`` checks
+    its own arguments."""
+    _require_positive(**{name: arguments[name] for name in positive.split()})
+    for name, minimum in whole.items():
+        _require_whole(name, arguments[name], minimum)
 
 
 def _box(lower: np.ndarray | list[float], upper: np.ndarray | list[float]) -> np.ndarray:
@@ -91,10 +109,7 @@ def box_beam(
 
     Landmarks: 'fixed_box' around the x = origin face, 'tip' at the centre of the far face.
     """
-    _require_positive(length=length, width=width, height=height)
-    for name, count in (("nx", nx), ("ny", ny), ("nz", nz)):
-        if int(count) != count or count < 1:
-            raise ModelError(f"{name} must be a positive integer, got {count!r}")
+    require_arguments(locals(), "length width height", nx=1, ny=1, nz=1)
     nx, ny, nz = int(nx), int(ny), int(nz)
     x0 = np.asarray(origin, dtype=np.float64)
     axes = [np.linspace(0.0, size, n + 1) for size, n in ((length, nx), (width, ny), (height, nz))]
@@ -197,13 +212,8 @@ def diamond(
     -x, -y, +x; 'pull_points_0..3' (1, 3) under the hub at z = 30, 10 mm off the axis, in the
     same order; 'fixed_box' (2, 3).
     """
-    _require_positive(
-        elbow_radius=elbow_radius,
-        leg_width=leg_width,
-        leg_thickness=leg_thickness,
-        base_radius=base_radius,
-        base_width=base_width,
-        mesh_size=mesh_size,
+    require_arguments(
+        locals(), "elbow_radius leg_width leg_thickness base_radius base_width mesh_size"
     )
     if not base_bottom < base_top < elbow_height < effector_height:
         raise ModelError(
@@ -313,6 +323,7 @@ def soft_finger(
     'effector' (1, 3) 1 mm inside the fingertip face; 'contact_points' (3, 3) on the underside
     of the last phalanx; 'fixed_box' (2, 3) around the base face.
     """
+    require_arguments(locals(), "length height joint_height width joint_length fold_thickness")
     if mesh_size is None:
         if resolution not in FINGER_MESH_SIZES:
             raise ModelError(
@@ -321,16 +332,7 @@ def soft_finger(
         mesh_size = FINGER_MESH_SIZES[resolution]
     if cable_offset is None:
         cable_offset = 0.4 * height
-    _require_positive(
-        length=length,
-        height=height,
-        joint_height=joint_height,
-        width=width,
-        joint_length=joint_length,
-        fold_thickness=fold_thickness,
-        cable_offset=cable_offset,
-        mesh_size=mesh_size,
-    )
+    _require_positive(cable_offset=cable_offset, mesh_size=mesh_size)
     if not joint_height < 0.8 * height:
         raise ModelError(f"joint_height {joint_height} must be below 80 % of height {height}")
     if not cable_offset < height / 2 - 1.0:
@@ -407,15 +409,10 @@ def trunk(
     radius 10 mm, like the reference (0, +-10, 0), (+-10, 0, 0); 'fixed_box' (2, 3);
     'effector' (1, 3) at the tip centre; 'neutral_fibre' (21, 3) along the axis.
     """
-    _require_positive(
-        length=length,
-        base_radius=base_radius,
-        tip_radius=tip_radius,
-        cable_inset=cable_inset,
-        cable_spacing=cable_spacing,
-        first_cable_point=first_cable_point,
-        fixed_length=fixed_length,
-        mesh_size=mesh_size,
+    require_arguments(
+        locals(),
+        "length base_radius tip_radius cable_inset cable_spacing first_cable_point fixed_length"
+        " mesh_size",
     )
     if not cable_inset < min(base_radius, tip_radius):
         raise ModelError(f"cable_inset {cable_inset} must be less than both radii")
@@ -445,20 +442,64 @@ def trunk(
     return _finish(points, tets, landmarks)
 
 
+@dataclass(frozen=True)
+class PneuNetLayout:
+    """A PneuNet's dimensions (mm): a `length` x `width` base layer `base_height` thick under
+    `n_chambers` blocks `chamber_height` tall, separated by slits `gap` wide, each holding a
+    closed box-shaped cavity with walls `wall` thick and its floor `floor` above the
+    underside. ModelError unless they are positive and leave room for the chambers."""
+
+    length: float = 115.0
+    width: float = 20.0
+    base_height: float = 8.0
+    chamber_height: float = 20.0
+    n_chambers: int = 6
+    gap: float = 4.0
+    wall: float = 2.5
+    floor: float = 4.0
+
+    @property
+    def block(self) -> float:
+        """Length of a chamber's block along the finger."""
+        return (self.length - (self.n_chambers - 1) * self.gap) / self.n_chambers
+
+    @property
+    def height(self) -> float:
+        return self.base_height + self.chamber_height
+
+    def __post_init__(self) -> None:
+        _require_positive(**{k: v for k, v in vars(self).items() if k != "n_chambers"})
+        _require_whole("n_chambers", self.n_chambers)
+        block, width, wall, floor = self.block, self.width, self.wall, self.floor
+        if not (
+            block > 2 * wall
+            and width > 2 * wall
+            and floor < self.base_height
+            and floor < self.height - wall
+        ):
+            raise ModelError(
+                f"walls of {wall} mm and a floor at {floor} mm leave no room for"
+                f" {self.n_chambers} chambers in a {self.length} x {width} x {self.height} mm"
+                " finger"
+            )
+
+    def cavity_boxes(self) -> list[tuple[np.ndarray, np.ndarray]]:
+        """Lower and upper corners of each chamber; the total cavity volume is the sum over
+        chambers of prod(upper - lower)."""
+        half, wall, pitch = self.width / 2, self.wall, self.block + self.gap
+        return [
+            (
+                np.array([n * pitch + wall, -half + wall, self.floor]),
+                np.array([n * pitch + self.block - wall, half - wall, self.height - wall]),
+            )
+            for n in range(self.n_chambers)
+        ]
+
+
 @retry_meshing
-def pneunet(
-    *,
-    length: float = 115.0,
-    width: float = 20.0,
-    base_height: float = 8.0,
-    chamber_height: float = 20.0,
-    n_chambers: int = 6,
-    gap: float = 4.0,
-    wall: float = 2.5,
-    floor: float = 4.0,
-    mesh_size: float = 6.0,
-) -> TetMesh:
-    """A PneuNet bending actuator: a strain-limiting base under a row of sealed chambers.
+def pneunet(*, mesh_size: float = 6.0, **dimensions) -> TetMesh:
+    """A PneuNet bending actuator: a strain-limiting base under a row of sealed chambers;
+    `dimensions`: the fields of :class:`PneuNetLayout`.
 
     The finger lies along +x from its fixed end at x = 0, width along y (centred), height along
     z from the underside z = 0. On top of a solid base layer of `base_height` stand
@@ -474,47 +515,27 @@ def pneunet(
     Landmarks: 'effector' (1, 3) 1 mm inside the tip, in the base layer; 'fixed_box' (2, 3)
     around the x = 0 face.
     """
-    _require_positive(
-        length=length,
-        width=width,
-        base_height=base_height,
-        chamber_height=chamber_height,
-        gap=gap,
-        wall=wall,
-        floor=floor,
-        mesh_size=mesh_size,
-    )
-    if int(n_chambers) != n_chambers or n_chambers < 1:
-        raise ModelError(f"n_chambers must be a positive integer, got {n_chambers!r}")
-    cavities = pneunet_cavity_boxes(
-        length=length,
-        width=width,
-        base_height=base_height,
-        chamber_height=chamber_height,
-        n_chambers=n_chambers,
-        gap=gap,
-        wall=wall,
-        floor=floor,
-    )
-    block = (length - (n_chambers - 1) * gap) / n_chambers
-    height = base_height + chamber_height
+    layout = PneuNetLayout(**dimensions)
+    _require_positive(mesh_size=mesh_size)
+    cavities = layout.cavity_boxes()
+    length, width, base_height = layout.length, layout.width, layout.base_height
+    block, gap, height = layout.block, layout.gap, layout.height
 
     with gmsh_model("pneunet"):
         occ = gmsh.model.occ
         body = [occ.addBox(0, -width / 2, 0, length, width, base_height)]
         body += [
             occ.addBox(
-                n * (block + gap), -width / 2, base_height - 1.0, block, width, chamber_height + 1.0
+                n * (block + gap),
+                -width / 2,
+                base_height - 1.0,
+                block,
+                width,
+                layout.chamber_height + 1.0,
             )
-            for n in range(n_chambers)
+            for n in range(layout.n_chambers)
         ]
-        fused, _ = occ.fuse([(3, body[0])], [(3, v) for v in body[1:]])
-        holes = [(3, occ.addBox(*lo, *(hi - lo))) for lo, hi in cavities]
-        occ.cut(fused, holes)
-        occ.removeAllDuplicates()
-        points, tets = mesh_volumes(mesh_size)
-
-    surfaces = _cavity_surfaces(points, tets, cavities, tolerance=1e-6 * length)
+        points, tets, surfaces = _hollowed(body, cavities, mesh_size, 1e-6 * length)
     landmarks = {
         "effector": [length - 1.0, 0.0, base_height / 2],
         "fixed_box": _box([-1.0, -width / 2 - 1.0, -1.0], [1.0, width / 2 + 1.0, height + 1.0]),
@@ -522,37 +543,24 @@ def pneunet(
     return _finish(points, tets, landmarks, surfaces)
 
 
-def pneunet_cavity_boxes(
-    *,
-    length: float = 115.0,
-    width: float = 20.0,
-    base_height: float = 8.0,
-    chamber_height: float = 20.0,
-    n_chambers: int = 6,
-    gap: float = 4.0,
-    wall: float = 2.5,
-    floor: float = 4.0,
-) -> list[tuple[np.ndarray, np.ndarray]]:
-    """Lower and upper corners of each chamber of `pneunet` with the same parameters.
+def pneunet_cavity_boxes(**dimensions) -> list[tuple[np.ndarray, np.ndarray]]:
+    """Lower and upper corners of each chamber of `pneunet` with the same `dimensions`
+    (:meth:`PneuNetLayout.cavity_boxes`)."""
+    return PneuNetLayout(**dimensions).cavity_boxes()
 
-    The total cavity volume is sum over chambers of prod(upper - lower).
-    """
-    block = (length - (n_chambers - 1) * gap) / n_chambers
-    height = base_height + chamber_height
-    if not (
-        block > 2 * wall and width > 2 * wall and floor < base_height and floor < height - wall
-    ):
-        raise ModelError(
-            f"walls of {wall} mm and a floor at {floor} mm leave no room for {n_chambers} "
-            f"chambers in a {length} x {width} x {height} mm finger"
-        )
-    return [
-        (
-            np.array([n * (block + gap) + wall, -width / 2 + wall, floor]),
-            np.array([n * (block + gap) + block - wall, width / 2 - wall, height - wall]),
-        )
-        for n in range(n_chambers)
-    ]
+
+def _hollowed(
+    parts: list[int], cavities: list[tuple[np.ndarray, np.ndarray]], mesh_size: float, tolerance
+) -> tuple[np.ndarray, np.ndarray, dict[str, np.ndarray]]:
+    """The union of the volumes `parts` of the open gmsh model, less the boxes `cavities`,
+    meshed: points, tetrahedra and the cavities' walls (:func:`_cavity_surfaces`)."""
+    occ = gmsh.model.occ
+    fused, _ = occ.fuse([(3, parts[0])], [(3, v) for v in parts[1:]])
+    holes = [(3, occ.addBox(*lo, *(hi - lo))) for lo, hi in cavities]
+    occ.cut(fused, holes)
+    occ.removeAllDuplicates()
+    points, tets = mesh_volumes(mesh_size)
+    return points, tets, _cavity_surfaces(points, tets, cavities, tolerance=tolerance)
 
 
 def _cavity_surfaces(
@@ -604,17 +612,11 @@ def stiff_flop(
     'effector_tip' and 'effector_middle' (1, 3) on the axis at the tip and between the
     modules; 'fixed_box' (2, 3) around the base face z = 0.
     """
-    _require_positive(
-        module_length=module_length,
-        radius=radius,
-        chamber_radius=chamber_radius,
-        chamber_offset=chamber_offset,
-        pair_spacing=pair_spacing,
-        cap=cap,
-        mesh_size=mesh_size,
+    require_arguments(
+        locals(),
+        "module_length radius chamber_radius chamber_offset pair_spacing cap mesh_size",
+        n_modules=1,
     )
-    if int(n_modules) != n_modules or n_modules < 1:
-        raise ModelError(f"n_modules must be a positive integer, got {n_modules!r}")
     reach = math.hypot(chamber_offset, pair_spacing / 2) + chamber_radius
     if not (reach < radius - 1.0 and pair_spacing > 2 * chamber_radius + 1.0):
         raise ModelError(

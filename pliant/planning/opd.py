@@ -118,12 +118,11 @@ class OPD(Planner):
                     f"OPD needs rewards in [0, 1] (its bounds assume them), action {action} gave"
                     f" {transition.reward}: clip or rescale the environment's reward"
                 )
-            child = OPDNode(
-                parent=leaf,
-                action=action,
-                reward=transition.reward,
-                done=transition.done,
-                state=sim.save(),
+            child = OPDNode.reached(
+                leaf,
+                action,
+                transition,
+                sim.save(),
                 depth=leaf.depth + 1,
                 path_value=leaf.path_value + self.gamma**leaf.depth * transition.reward,
             )

@@ -36,6 +36,13 @@ class Node:
     state: object | None
     children: dict[int, Node] = field(default_factory=dict)
 
+    @classmethod
+    def reached(cls, parent: Node, action: int, transition, state: object, **extra) -> Node:
+        """The node that `transition` (its reward and done) from `parent` by `action` reached,
+        with the snapshot `state` after it; `extra`: a planner's own fields."""
+        reward, done = transition.reward, transition.done
+        return cls(parent=parent, action=action, reward=reward, done=done, state=state, **extra)
+
     def subtree(self) -> Iterator[Node]:
         """This node and its descendants, parents before children (breadth first); iterative,
         since a search in a narrow tree can go deeper than Python's recursion limit."""

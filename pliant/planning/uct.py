@@ -131,13 +131,7 @@ class UCT(Planner):
     def _add_child(self, sim: Simulator, node: UCTNode, action: int) -> UCTNode:
         sim.restore(node.state)
         transition = sim.step(action)
-        child = UCTNode(
-            parent=node,
-            action=action,
-            reward=transition.reward,
-            done=transition.done,
-            state=sim.save(),
-        )
+        child = UCTNode.reached(node, action, transition, sim.save())
         node.children[action] = child
         if not node.untried:
             node.state = None  # every action tried: no search starts from this node again

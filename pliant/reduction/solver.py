@@ -66,17 +66,15 @@ class ReducedState:
     contact_forces: ContactForces = field(default_factory=ContactForces.empty)
     basis: ReducedBasis | None = field(default=None, repr=False, compare=False)
 
+    @classmethod
+    def of(cls, coordinates, rates, state, basis: ReducedBasis | None) -> ReducedState:
+        """Coordinates and rates at the time and step of `state` (full or reduced), with copies
+        of its actuation, displacement and contact forces."""
+        copies = (state.actuation.copy(), state.displacement.copy(), state.contact_forces.copy())
+        return cls(coordinates, rates, state.time, state.step, *copies, basis)
+
     def copy(self) -> ReducedState:
-        return ReducedState(
-            self.coordinates.copy(),
-            self.rates.copy(),
-            self.time,
-            self.step,
-            self.actuation.copy(),
-            self.displacement.copy(),
-            self.contact_forces.copy(),
-            self.basis,
-        )
+        return ReducedState.of(self.coordinates.copy(), self.rates.copy(), self, self.basis)
 
     def __getstate__(self) -> dict:
         # The basis is the solver's (megabytes): a snapshot carries the coordinates only.
@@ -248,6 +246,15 @@ class ReducedImplicitEuler:
         self._grads = np.ascontiguousarray(body.grads[e])
         self._volumes = np.ascontiguousarray(body.volumes[e])
         self._mu, self._lam = np.ascontiguousarray(body.mu[e]), np.ascontiguousarray(body.lam[e])
+        # What the element kernels read of the selected elements, material tag included.
+        self._domain = (
+            self._tets,
+            self._grads,
+            self._volumes,
+            self._mu,
+            self._lam,
+            body.material.kernel_tag,
+        )
         # SOFA's "large" frames (empty for the polar rotation) of the selected elements.
         large = body.frame_nodes.shape[0] > 0
         self._frame_nodes = np.ascontiguousarray(body.frame_nodes[e] if large else body.frame_nodes)
@@ -305,16 +312,8 @@ class ReducedImplicitEuler:
     def reduce(self, state: State) -> ReducedState:
         """The projection of a full state on the basis (orthogonal: alpha = Phi^T (q - q0))."""
         flat = self.basis.modes.reshape(-1, self.basis.n_modes)
-        return ReducedState(
-            self.basis.coordinates(state.positions),
-            flat.T @ state.velocities.reshape(-1),
-            state.time,
-            state.step,
-            state.actuation.copy(),
-            state.displacement.copy(),
-            state.contact_forces.copy(),
-            self.basis,
-        )
+        rates = flat.T @ state.velocities.reshape(-1)
+        return ReducedState.of(self.basis.coordinates(state.positions), rates, state, self.basis)
 
     def attach(self, state: ReducedState) -> ReducedState:
         """The state with this solver's basis (after unpickling)."""
@@ -438,17 +437,11 @@ class ReducedImplicitEuler:
 
     def _element_forces(self, x: np.ndarray, v: np.ndarray, step: int):
         """f_r and (K v)_r over the reduced integration domain, and the membranes' tangents."""
-        body = self.model.body
         m = self._tets.shape[0]
         fem_kernels.internal_forces(
             x,
             v,
-            self._tets,
-            self._grads,
-            self._volumes,
-            self._mu,
-            self._lam,
-            body.material.kernel_tag,
+            *self._domain,
             self._frame_nodes,
             self._rest_frames,
             self._elem[:, :, :3],
@@ -484,22 +477,11 @@ class ReducedImplicitEuler:
 
     def _tangent(self, x: np.ndarray, membrane_tangents: list[np.ndarray]) -> np.ndarray:
         """K_r = sum_RID xi_e Phi_e^T K_e Phi_e."""
-        body = self.model.body
         m, r = self._tets.shape[0], self.basis.n_modes
         out = np.zeros((r, r))
         if m:
             fem_kernels.element_stiffness(
-                x,
-                self._tets,
-                self._grads,
-                self._volumes,
-                self._mu,
-                self._lam,
-                body.material.kernel_tag,
-                self._frames,
-                self._dets,
-                False,
-                self._blocks,
+                x, *self._domain, self._frames, self._dets, False, self._blocks
             )
             out += self._weighted.T @ np.matmul(self._blocks, self._phi).reshape(12 * m, r)
         for part, tangent in zip(self._membranes, membrane_tangents, strict=True):

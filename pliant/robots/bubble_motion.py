@@ -17,7 +17,7 @@ from pliant.errors import ModelError
 from pliant.fem.rigid import RigidBody
 from pliant.geometry.collision import Plane, Sphere
 from pliant.mesh.gmsh_session import gmsh_model, mesh_volumes, retry_meshing
-from pliant.mesh.shapes import _cavity_surfaces, _finish, _require_positive
+from pliant.mesh.shapes import _cavity_surfaces, _finish, _require_positive, require_arguments
 from pliant.mesh.tetmesh import TetMesh
 from pliant.model import Model
 from pliant.robots.common import cavity, fixed_by_box
@@ -70,15 +70,7 @@ def board_mesh(
     Surfaces: 'cavity_0..8' (row by row from (-x, -y), oriented out of the air) and 'cavity'
     (all). Landmarks: 'fixed_box' (the underside), 'top_<k>' (the top face over cavity k).
     """
-    _require_positive(
-        size=size,
-        thickness=thickness,
-        cavity=cavity,
-        depth=depth,
-        skin=skin,
-        mesh_size=mesh_size,
-        top_mesh_size=top_mesh_size,
-    )
+    require_arguments(locals(), "size thickness cavity depth skin mesh_size top_mesh_size")
     boxes = cavity_boxes(size=size, thickness=thickness, cavity=cavity, depth=depth, skin=skin)
     half = size / 2
     with gmsh_model("bubble_board"):

@@ -20,8 +20,8 @@ from pliant.errors import ModelError
 from pliant.fem.body import TetBody
 from pliant.fem.rigid import DrivenNodes, KinematicBody, RigidBody, rail
 from pliant.geometry.collision import Box, Plane, Sphere
-from pliant.mesh.gmsh_session import gmsh_model, mesh_volumes, retry_meshing
-from pliant.mesh.shapes import _cavity_surfaces, _finish, _require_positive
+from pliant.mesh.gmsh_session import gmsh_model, retry_meshing
+from pliant.mesh.shapes import _finish, _hollowed, _require_positive, require_arguments
 from pliant.mesh.tetmesh import TetMesh
 from pliant.model import Model
 from pliant.robots.common import cavity, fingertips, fixed_by_box, smooth_ramp
@@ -56,19 +56,12 @@ def catcher_mesh(
     'cavity' (all of them). Landmarks: 'fixed_box' (the palm's central third), 'effector_0/1'
     (the fingertips' inner edges).
     """
-    _require_positive(
-        opening=opening,
-        finger_length=finger_length,
-        finger_thickness=finger_thickness,
-        width=width,
-        palm_thickness=palm_thickness,
-        spine_thickness=spine_thickness,
-        gap=gap,
-        wall=wall,
-        mesh_size=mesh_size,
+    require_arguments(
+        locals(),
+        "opening finger_length finger_thickness width palm_thickness spine_thickness gap wall"
+        " mesh_size",
+        n_chambers=1,
     )
-    if int(n_chambers) != n_chambers or n_chambers < 1:
-        raise ModelError(f"n_chambers must be a positive integer, got {n_chambers!r}")
     block = (finger_length - (n_chambers - 1) * gap) / n_chambers
     depth = finger_thickness - spine_thickness - wall
     if not (block > 2 * wall and depth > 0 and width > 2 * wall):
@@ -109,12 +102,7 @@ def catcher_mesh(
             parts += [
                 occ.addBox(block_x, -width / 2, z, depth + wall + 1.0, width, block) for z in floors
             ]
-        fused, _ = occ.fuse([(3, parts[0])], [(3, p) for p in parts[1:]])
-        holes = [(3, occ.addBox(*lo, *(hi - lo))) for lo, hi in chambers]
-        occ.cut(fused, holes)
-        occ.removeAllDuplicates()
-        points, tets = mesh_volumes(mesh_size)
-    surfaces = _cavity_surfaces(points, tets, chambers, tolerance=1e-6 * outer)
+        points, tets, surfaces = _hollowed(parts, chambers, mesh_size, 1e-6 * outer)
     landmarks = {
         "fixed_box": np.array([[-outer / 3, -width, -1.0], [outer / 3, width, palm_thickness / 2]]),
         "effector_0": [-opening / 2, 0.0, top],

@@ -2,12 +2,15 @@
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 
 from pliant.constraints.base import EmbeddedPoints
 from pliant.constraints.cable import CableActuator
 from pliant.constraints.cavity import CavityActuator
 from pliant.constraints.effector import PositionEffector
+from pliant.constraints.friction import ContactForces
 from pliant.errors import ModelError
 from pliant.fem.body import TetBody, nodes_in_box
 from pliant.mesh.quality import validate_mesh
@@ -115,13 +118,5 @@ def settled(model: Model, sim, steps: int) -> State:
     state = model.rest_state()
     for _ in range(steps):
         state = sim.step(state, np.zeros(len(model.actuators)))
-    return State(
-        state.positions,
-        state.velocities,
-        displacement=state.displacement,
-        actuation=state.actuation,
-        rigid_positions=state.rigid_positions,
-        rigid_rotations=state.rigid_rotations,
-        rigid_velocities=state.rigid_velocities,
-        rigid_angular_velocities=state.rigid_angular_velocities,
-    )
+    cleared = {"contact_forces": ContactForces.empty(), "displacement_before": np.zeros(0)}
+    return dataclasses.replace(state, time=0.0, step=0, layout=None, **cleared)

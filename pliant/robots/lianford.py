@@ -23,7 +23,7 @@ from pliant.constraints.effector import PositionEffector
 from pliant.constraints.joint import RotationActuator
 from pliant.errors import ModelError
 from pliant.fem.rod import RodSection
-from pliant.mesh.shapes import _require_positive
+from pliant.mesh.shapes import require_arguments
 from pliant.model import Model
 from pliant.robots.parameters import Damping, Density, Elastic, Gravity, Meshed
 from pliant.robots.scene import builder
@@ -74,18 +74,12 @@ def lianford(
     """
     if p.mesh is not None:
         raise ModelError("the Lianford is a rod lattice: it takes no mesh")
-    _require_positive(
-        base_radius=base_radius,
-        top_radius=top_radius,
-        height=height,
-        leg_radius=leg_radius,
-        max_angle=max_angle,
-        max_torque=max_torque,
+    require_arguments(
+        locals(),
+        "base_radius top_radius height leg_radius max_angle max_torque",
+        legs=3,
+        elements=1,
     )
-    if int(legs) != legs or legs < 3:
-        raise ModelError(f"legs must be an integer >= 3, got {legs!r}")
-    if int(elements) != elements or elements < 1:
-        raise ModelError(f"elements must be a positive integer, got {elements!r}")
     if motor_mode not in ("angle", "torque"):
         raise ModelError(f"motor_mode must be 'angle' or 'torque', got {motor_mode!r}")
     points, pairs, bases, axes = leg_nodes(

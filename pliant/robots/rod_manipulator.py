@@ -22,7 +22,7 @@ from pliant.errors import ModelError
 from pliant.fem.rigid import DrivenNodes, KinematicBody, RigidBody, rail
 from pliant.geometry.collision import Box, Plane
 from pliant.mesh.gmsh_session import gmsh_model, mesh_volumes, retry_meshing
-from pliant.mesh.shapes import _finish, _require_positive
+from pliant.mesh.shapes import _finish, _require_positive, require_arguments
 from pliant.mesh.tetmesh import TetMesh
 from pliant.model import Model
 from pliant.robots.common import cables, fingertips, fixed_by_box, smooth_ramp
@@ -52,13 +52,8 @@ def fingers_mesh(
     y > 0; cable k pulls towards DIRECTIONS[k], `cable_inset` mm inside the surface, from the
     plate down to the tip), 'effector_<f>' (the centres of the fingertips).
     """
-    _require_positive(
-        spacing=spacing,
-        finger_length=finger_length,
-        finger_radius=finger_radius,
-        plate_thickness=plate_thickness,
-        cable_inset=cable_inset,
-        mesh_size=mesh_size,
+    require_arguments(
+        locals(), "spacing finger_length finger_radius plate_thickness cable_inset mesh_size"
     )
     if not (spacing > 2 * finger_radius and cable_inset < finger_radius):
         raise ModelError(

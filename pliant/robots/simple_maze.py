@@ -31,7 +31,7 @@ from pliant.fem.rigid import DrivenNodes, KinematicBody, RigidBody, Trajectory
 from pliant.geometry.collision import Box, BoxUnion, Plane, Sphere
 from pliant.geometry.rotation import axis_angle
 from pliant.mesh import box_beam
-from pliant.mesh.shapes import _require_positive
+from pliant.mesh.shapes import _require_positive, _require_whole
 from pliant.model import Model, State
 from pliant.robots.common import fixed_by_box, smooth_ramp
 from pliant.robots.parameters import ContactSolver, Damping, Density, Gravity, Meshed, Solid
@@ -66,8 +66,7 @@ GEL = (Density(1.07e-6), Gravity.Z, Damping(1.0, 0.01), Maze(), ContactSolver())
 
 def corridor_width(size: float, corridors: int, wall_thickness: float) -> float:
     """Free width of each corridor: the inside of the borders less the inner walls."""
-    if int(corridors) != corridors or corridors < 1:
-        raise ModelError(f"corridors must be a positive integer, got {corridors!r}")
+    _require_whole("corridors", corridors)
     width = (size - (corridors + 1) * wall_thickness) / corridors
     if not width > 0.0:
         raise ModelError(

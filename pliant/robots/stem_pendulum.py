@@ -22,7 +22,7 @@ from pliant.constraints.effector import PositionEffector
 from pliant.constraints.joint import RotationActuator
 from pliant.errors import ModelError
 from pliant.fem.rod import RodSection
-from pliant.mesh.shapes import _require_positive
+from pliant.mesh.shapes import _require_positive, _require_whole
 from pliant.model import Model
 from pliant.robots.parameters import Damping, Density, Elastic, Gravity, Meshed
 from pliant.robots.scene import builder
@@ -54,8 +54,7 @@ def stem_pendulum(
     if p.mesh is not None:
         raise ModelError("the stem pendulum is a rod: it takes no mesh")
     _require_positive(length=length, width=width, max_torque=max_torque)
-    if int(elements) != elements or elements < 1:
-        raise ModelError(f"elements must be a positive integer, got {elements!r}")
+    _require_whole("elements", elements)
     n = int(elements)
     z = -np.linspace(0.0, length, n + 1)
     rod = p.rod_body(

@@ -24,7 +24,7 @@ from pliant.fem.rigid import DrivenNodes, KinematicBody, servo
 from pliant.geometry.collision import Box
 from pliant.mesh.gmsh_session import gmsh_model, mesh_volumes, retry_meshing
 from pliant.mesh.io import load_mesh
-from pliant.mesh.shapes import _finish, _require_positive
+from pliant.mesh.shapes import _finish, _require_positive, require_arguments
 from pliant.mesh.tetmesh import TetMesh
 from pliant.model import Model
 from pliant.robots.parameters import Meshing, Solid
@@ -63,16 +63,10 @@ def tripod_mesh(
     'support_points' four points of the boss' top face at (+-support_spread, +-support_spread),
     where the maze rests.
     """
-    _require_positive(
-        radius=radius,
-        arm_width=arm_width,
-        centre_radius=centre_radius,
-        thickness=thickness,
-        boss_radius=boss_radius,
-        boss_height=boss_height,
-        clamp_length=clamp_length,
-        support_spread=support_spread,
-        mesh_size=mesh_size,
+    require_arguments(
+        locals(),
+        "radius arm_width centre_radius thickness boss_radius boss_height clamp_length"
+        " support_spread mesh_size",
     )
     if not (boss_radius <= centre_radius < radius - clamp_length and arm_width < 2 * centre_radius):
         raise ModelError(

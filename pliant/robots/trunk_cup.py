@@ -20,7 +20,7 @@ from pliant.errors import ModelError
 from pliant.fem.body import TetBody
 from pliant.fem.rigid import RigidBody
 from pliant.geometry.collision import TriangleMesh
-from pliant.mesh.shapes import _require_positive
+from pliant.mesh.shapes import _require_positive, _require_whole
 from pliant.model import Model
 from pliant.robots.common import smooth_ramp
 from pliant.robots.parameters import Contact, Meshing, Solid
@@ -43,8 +43,7 @@ def cup_surface(
         raise ModelError(
             f"a {wall} mm wall leaves no inside to a cup of radius {radius} and height {height}"
         )
-    if int(segments) != segments or segments < 3:
-        raise ModelError(f"segments must be an integer >= 3, got {segments!r}")
+    _require_whole("segments", segments, 3)
     inner = radius - wall
     ring = [(radius, 0.0), (radius, height), (inner, height), (inner, wall)]
     angles = 2.0 * np.pi * np.arange(segments) / segments

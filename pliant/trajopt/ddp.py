@@ -22,6 +22,7 @@ The backward pass may also be crocoddyl's (Box-FDDP's, on a chain of its LQR act
 
 from __future__ import annotations
 
+import copy
 import time
 from dataclasses import dataclass, field
 from typing import Literal, Protocol
@@ -293,17 +294,8 @@ class BoxDDP:
         from pliant.trajopt import rate
 
         n_u = us.shape[1]
-        inner = BoxDDP(
-            max_iterations=self.max_iterations,
-            tolerance=self.tolerance,
-            backend=self.backend,
-            alphas=self.alphas,
-            armijo=self.armijo,
-            min_regularisation=self.min_regularisation,
-            max_regularisation=self.max_regularisation,
-            feedback=self.feedback,
-            change_bound="sequential",
-        )
+        inner = copy.copy(self)  # the same settings, on a problem whose bound is a box
+        inner.change_bound = "sequential"
         deltas = np.diff(np.vstack([bounds.previous, us]), axis=0)
         result = inner.solve(
             rate.RateSystem(system, bounds.previous, n_u),

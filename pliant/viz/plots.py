@@ -97,15 +97,20 @@ def plot_trajectory(
     ax = fig.add_subplot(1, 2, 2)
     ax.plot(np.arange(len(error)), error, marker="o", markersize=3, color="tab:blue")
     ax.axhline(error.mean(), color="0.4", linestyle="--", label=f"mean {error.mean():.3g} {unit}")
+    goal_distance_axes(ax, unit)
+    if title:
+        fig.suptitle(title)
+    fig.tight_layout()
+    return _save(fig, path)
+
+
+def goal_distance_axes(ax: Axes, unit: str) -> None:
+    """Labels, grid and legend of a panel of the distance to the goal per goal index."""
     ax.set_xlabel("goal index")
     ax.set_ylabel(f"distance to goal [{unit}]")
     ax.set_ylim(bottom=0.0)
     ax.grid(True, alpha=0.3)
     ax.legend()
-    if title:
-        fig.suptitle(title)
-    fig.tight_layout()
-    return _save(fig, path)
 
 
 def _finish_axes(fig, ax, path, xlabel: str, ylabel: str, title: str | None) -> Path:

@@ -39,7 +39,7 @@ def gauss_seidel(
     n = len(actuators)
     blocks = ContactBlocks.of(actuators, np.zeros(n), slice(0, n), n, mu)
     lam = np.zeros(free.size)
-    done, residual = kernels.gauss_seidel(w, free, lam, *blocks.arrays(), tolerance, sweeps)
+    done, residual = kernels.gauss_seidel(w, free, lam, blocks.arrays(), tolerance, sweeps)
     return lam, int(done), float(residual)
 
 
@@ -176,14 +176,14 @@ def test_newton_derivative_matches_finite_differences(rng):
     actuators = cables()
     blocks = ContactBlocks.of(actuators, np.zeros(2), slice(0, 2), 2, mu).arrays()
     jacobian, proximal, none = np.empty((r, r)), np.empty((r, r)), np.empty((0, 0))
-    f, _ = kernels.alart_curnier(w, w @ lam + free, lam, *blocks, jacobian, proximal)
+    f, _ = kernels.alart_curnier(w, w @ lam + free, lam, blocks, jacobian, proximal)
     step = 1e-6
     numeric = np.empty((r, r))
     for j in range(r):
         e = np.zeros(r)
         e[j] = step
-        plus, _ = kernels.alart_curnier(w, w @ (lam + e) + free, lam + e, *blocks, none, none)
-        minus, _ = kernels.alart_curnier(w, w @ (lam - e) + free, lam - e, *blocks, none, none)
+        plus, _ = kernels.alart_curnier(w, w @ (lam + e) + free, lam + e, blocks, none, none)
+        minus, _ = kernels.alart_curnier(w, w @ (lam - e) + free, lam - e, blocks, none, none)
         numeric[:, j] = (plus - minus) / (2 * step)
     np.testing.assert_allclose(jacobian, numeric, atol=1e-6 * np.abs(jacobian).max())
 

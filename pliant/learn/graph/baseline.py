@@ -9,7 +9,12 @@ import numpy as np
 import torch
 
 from pliant.files import atomic_path, read_checked
-from pliant.learn.graph.hierarchy import GraphConfig, check_schedule, episode_means
+from pliant.learn.graph.hierarchy import (
+    GraphConfig,
+    check_schedule,
+    episode_means,
+    train_and_evaluate,
+)
 from pliant.learn.graph.sac import SAC, ReplayBuffer
 
 
@@ -75,19 +80,9 @@ class FlatSAC:
 
     def learn(self, env, total_steps, *, eval_env=None, eval_every=0, eval_episodes=5,
               callback=None) -> list[dict]:  # fmt: skip
-        history = []
-        next_eval = self.next_eval if self.next_eval is not None else self.steps + eval_every
-        while self.steps < total_steps:
-            self.run_episode(env, train=True, seed=int(self.rng.integers(2**31)))
-            if eval_every and self.steps >= next_eval:
-                next_eval += eval_every
-                self.next_eval = next_eval
-                history.append(
-                    {"steps": self.steps, **self.evaluate(eval_env or env, eval_episodes)}
-                )
-                if callback is not None:
-                    callback(history[-1])
-        return history
+        return train_and_evaluate(
+            self, env, total_steps, eval_env, eval_every, eval_episodes, callback
+        )
 
     def save(self, path: str | Path) -> None:
         state = {"steps": self.steps, "rng": self.rng.bit_generator.state}

@@ -119,6 +119,26 @@ def episode_means(runs: list[dict]) -> dict[str, float]:
     }
 
 
+def train_and_evaluate(
+    agent, env, total_steps, eval_env, eval_every, eval_episodes, callback
+) -> list[dict]:
+    """`agent`'s training episodes until ``total_steps`` environment steps, evaluated every
+    ``eval_every`` steps (``agent.learn`` of :class:`GraphAgent` and of the flat baseline).
+    Returns the evaluations [{steps, return, success}]."""
+    history = []
+    next_eval = agent.next_eval if agent.next_eval is not None else agent.steps + eval_every
+    while agent.steps < total_steps:
+        agent.run_episode(env, train=True, seed=int(agent.rng.integers(2**31)))
+        if eval_every and agent.steps >= next_eval:
+            next_eval += eval_every
+            agent.next_eval = next_eval  # a checkpoint the callback saves resumes on time
+            result = {"steps": agent.steps, **agent.evaluate(eval_env or env, eval_episodes)}
+            history.append(result)
+            if callback is not None:
+                callback(result)
+    return history
+
+
 def check_schedule(config: GraphConfig) -> None:
     """TrainingError unless the update schedule is one: a positive rate per step, or a
     positive whole number of updates per episode."""
@@ -401,18 +421,9 @@ class GraphAgent:
     ) -> list[dict]:
         """Train until ``total_steps`` environment steps; evaluate every ``eval_every`` steps.
         Returns the evaluations [{steps, return, success}]."""
-        history = []
-        next_eval = self.next_eval if self.next_eval is not None else self.steps + eval_every
-        while self.steps < total_steps:
-            self.run_episode(env, train=True, seed=int(self.rng.integers(2**31)))
-            if eval_every and self.steps >= next_eval:
-                next_eval += eval_every
-                self.next_eval = next_eval  # a checkpoint the callback saves resumes on time
-                result = {"steps": self.steps, **self.evaluate(eval_env or env, eval_episodes)}
-                history.append(result)
-                if callback is not None:
-                    callback(result)
-        return history
+        return train_and_evaluate(
+            self, env, total_steps, eval_env, eval_every, eval_episodes, callback
+        )
 
     def evaluate(self, env: gym.Env, episodes: int = 5, seed: int = 10_000) -> dict:
         """Mean return and success over ``episodes`` greedy episodes, and the mean of each
