@@ -2,8 +2,11 @@
 
 from __future__ import annotations
 
+import importlib.util
+import os
 from collections.abc import Callable
 
+import numba
 import numpy as np
 import pytest
 
@@ -16,6 +19,20 @@ from pliant.mesh import TetMesh, box_beam
 from pliant.model import Model, State
 
 MATERIALS: dict[str, type[Material]] = {"corotational": Corotational, "neo-hookean": NeoHookean}
+
+
+def pytest_configure(config) -> None:
+    """Under pytest-xdist (the README's test command runs one worker per core), each worker
+    takes its share of the cores for numba's and PyTorch's thread pools, so that two workers
+    on two cores do not run four busy threads."""
+    workers = int(os.environ.get("PYTEST_XDIST_WORKER_COUNT", "1"))
+    if workers > 1:
+        share = max(1, (os.cpu_count() or 1) // workers)
+        numba.set_num_threads(min(share, numba.config.NUMBA_NUM_THREADS))
+        if importlib.util.find_spec("torch") is not None:
+            import torch
+
+            torch.set_num_threads(share)
 
 
 @pytest.fixture

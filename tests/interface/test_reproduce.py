@@ -106,7 +106,11 @@ def test_experiments_readme_is_generated_from_the_registry():
 
 
 def test_list_shows_every_study_with_ours(monkeypatch):
-    monkeypatch.setenv("COLUMNS", "300")
+    from pliant.cli.reproduce import console
+
+    # The console's width is fixed when it is made if COLUMNS is set then (pytest-xdist's
+    # workers set it to 80): the table must be wide enough not to wrap the studies' names.
+    monkeypatch.setattr(console, "_width", 300)
     result = CliRunner().invoke(app, ["reproduce", "--list"])
     assert result.exit_code == 0, result.output
     for entry in STUDIES:
