@@ -83,10 +83,9 @@ _GRID = {
     "convolutionSize": 0,
     "facets": _EMPTY,
 }
-_CABLE = {
-    "indices": _EMPTY,
-    "pullPoint": [0.0, 0.0, 0.0],
-    "hasPullPoint": True,
+# What SoftRobots' point actuators (CableConstraint, PositionConstraint) share: the command
+# and its bounds.
+_POINT_ACTUATOR = {
     "value": [0.0],
     "valueIndex": 0,
     "valueType": "displacement",
@@ -94,9 +93,15 @@ _CABLE = {
     "maxForce": 0.0,
     "maxPositiveDisp": 0.0,
     "maxNegativeDisp": 0.0,
-    "maxDispVariation": 0.0,
     "displacement": 0.0,
     "force": 0.0,
+}
+_CABLE = {
+    **_POINT_ACTUATOR,
+    "indices": _EMPTY,
+    "pullPoint": [0.0, 0.0, 0.0],
+    "hasPullPoint": True,
+    "maxDispVariation": 0.0,
     "cableLength": 0.0,
     "cableInitialLength": 0.0,
     "constraintIndex": 0,
@@ -333,15 +338,7 @@ FIELDS: dict[str, dict] = {
         "useDirections": [1, 1, 1],
         "directions": _EMPTY,
         "weight": [1.0, 1.0, 1.0],
-        "value": [0.0],
-        "valueIndex": 0,
-        "valueType": "displacement",
-        "minForce": 0.0,
-        "maxForce": 0.0,
-        "maxPositiveDisp": 0.0,
-        "maxNegativeDisp": 0.0,
-        "force": 0.0,
-        "displacement": 0.0,
+        **_POINT_ACTUATOR,
         "delta": _EMPTY,
         "constraintIndex": 0,
         "template": "Vec3",

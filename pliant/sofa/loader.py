@@ -528,6 +528,18 @@ def _command(obj: SceneObject, options: tuple[str, str]) -> tuple[np.ndarray, in
     return values, index, kind
 
 
+def _actuator_bounds(obj: SceneObject) -> dict[str, float]:
+    """A SoftRobots point actuator's bounds (CableConstraint, PositionConstraint), as Pliant's
+    actuator keywords: SoftRobots bounds the tension and the course only where the scene sets
+    them."""
+    return {
+        "min_force": _float(obj, "minForce", -math.inf),
+        "max_force": _float(obj, "maxForce", math.inf),
+        "min_displacement": -_float(obj, "maxNegativeDisp", math.inf),
+        "max_displacement": _float(obj, "maxPositiveDisp", math.inf),
+    }
+
+
 def _float(obj: SceneObject, key: str, default: float) -> float:
     if key not in obj.attrs:
         return default
@@ -1532,11 +1544,7 @@ class _Builder:
             name=obj.node.name if obj.name == obj.type else obj.node.name + "/" + obj.name,
             mode=mode,
             value=float(values[index]) if values.size else 0.0,
-            # SoftRobots bounds the tension only where the scene sets the bounds.
-            min_force=_float(obj, "minForce", -math.inf),
-            max_force=_float(obj, "maxForce", math.inf),
-            min_displacement=-_float(obj, "maxNegativeDisp", math.inf),
-            max_displacement=_float(obj, "maxPositiveDisp", math.inf),
+            **_actuator_bounds(obj),
             max_displacement_change=None if change is None else _float(obj, "maxDispVariation", 0),
             change_reference=self.choices.change_reference,
         )
@@ -1572,10 +1580,7 @@ class _Builder:
                         name=f"{name}[{i}]{'xyz'[axis]}",
                         mode=mode,
                         value=float(values[index]) if values.size else 0.0,
-                        min_force=_float(obj, "minForce", -math.inf),
-                        max_force=_float(obj, "maxForce", math.inf),
-                        min_displacement=-_float(obj, "maxNegativeDisp", math.inf),
-                        max_displacement=_float(obj, "maxPositiveDisp", math.inf),
+                        **_actuator_bounds(obj),
                     )
                 )
                 self.bindings.actuators.append(obj)
