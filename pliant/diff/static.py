@@ -24,8 +24,20 @@ check both).
 
 Closed contacts (:func:`pliant.diff.contact.closed_contacts`) join the equality rows d with
 their states held, at zero target: each gap held closed, each sticking point held where it is
-(its two tangential rows); the friction coefficient then does not enter (its cotangent is
-zero), and sliding contacts are refused (their static derivative is one-sided).
+(its two tangential rows). A sliding contact (only for ``StaticSolver(slip="solve")``, whose
+slip delta_t = t.P (q - q_0) runs from the start q_0; the default solver's slip is each
+Newton update's, and its sliding equilibrium a function of the iterations' path) pushes with
+mu lambda_n s, s = -delta_t / |delta_t|: its normal row's force direction is
+G = n.P + mu s.(t.P) (K = n.P what it holds), and s turning with the slip adds
+sum c r r^T to K_c (r = e.(t.P), e across the slip, c = mu lambda_n / |delta_t|). With
+z = -C R^T mu_q the adjoint is
+
+    mu_q = K_c^-T (R z + K^T mu_l - qbar),   R^T mu_q + C^-1 z = 0,   G mu_q = 0,
+
+one LU solve on [qbar, R, K^T] and a dense system for (z, mu_l). The friction coefficient's
+cotangent is -lambda_n s.(t.P) mu_q per sliding contact (zero for sticking ones), and the
+start's, "start_positions", that of the slip's q_0: K_t^T mu_l of the sticking rows and
+-c r (r.mu_q) of the sliding contacts, on the free nodes.
 """
 
 from __future__ import annotations
@@ -73,7 +85,9 @@ def static_gradient(
     """Gradients of a loss L(q) of the equilibrium `equilibrium` (solved by `solver` under
     `commands`), given dL/dq (n, 3), with respect to `wrt` (as
     :func:`pliant.diff.rollout_gradient`; the Rayleigh coefficients do not enter a static
-    equilibrium and get 0).
+    equilibrium and get 0). `start`: the state the solve started from, for a
+    ``StaticSolver(slip="solve")`` with contacts (its slip is measured from it); the result
+    then has "start_positions" (n, 3) too, the cotangent of the start's positions.
 
     Raises:
         ModelError: unsupported model, solver or parameter; wrong shapes.
@@ -174,8 +188,12 @@ def static_gradient(
             if contacts is not None:  # a contact point carried by held nodes
                 held = (body.free_index < 0).reshape(-1, 3)
                 out[name] -= np.where(held, contacts.full_t(mu_c, body.n_nodes), 0.0)
-    if start is not None and contacts is not None:
-        out["start_positions"] = _start_positions(body, contacts, mu_q, mu_c)
+    if start is not None:
+        out["start_positions"] = (
+            np.zeros_like(grad_q)
+            if contacts is None
+            else _start_positions(body, contacts, mu_q, mu_c)
+        )
     return out
 
 

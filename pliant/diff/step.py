@@ -207,14 +207,23 @@ class ActuatorRows:
 
 
 def full_rows_t(model: Model, x: np.ndarray, coefficients: np.ndarray) -> np.ndarray:
-    """H(x)^T c over every node (n, 3), for one coefficient per actuator row."""
-    out = np.zeros((model.body.n_nodes, 3))
-    for c, act in zip(coefficients, model.actuators, strict=True):
-        if c != 0.0:
-            rows = act.jacobian(x)
-            nodes, values = rows.nodes[0], c * rows.values[0]
-            for i in range(3):  # bincount: a row repeats nodes, np.add.at is slow at it
-                out[:, i] += np.bincount(nodes, values[:, i], out.shape[0])
+    """H(x)^T c over every node (n, 3), for one coefficient per actuator row (the cables'
+    rows from their bundle at once)."""
+    n = model.body.n_nodes
+    coefficients = np.asarray(coefficients, dtype=float)
+    cables, bundle, others = _cables(model)
+    parts = []
+    if cables.size and np.any(coefficients[cables]):
+        rows = bundle.jacobian(x)
+        parts.append((rows.nodes, coefficients[cables][:, None, None] * rows.values))
+    for i in np.flatnonzero(others & (coefficients != 0.0)):
+        rows = model.actuators[i].jacobian(x)
+        parts.append((rows.nodes[0], coefficients[i] * rows.values[0]))
+    out = np.zeros((n, 3))
+    for nodes, values in parts:  # bincount: rows repeat nodes, np.add.at is slow at it
+        flat, v = nodes.ravel(), values.reshape(-1, 3)
+        for i in range(3):
+            out[:, i] += np.bincount(flat, v[:, i], n)
     return out
 
 
