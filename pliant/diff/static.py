@@ -176,8 +176,9 @@ def static_gradient(
                 if contacts.friction.shape[1] < contacts.closed - contacts.sticking:
                     raise ModelError(
                         "static_gradient: the friction coefficient at a frictionless closed"
-                        " contact needs its slip, measured from the state the solve started"
-                        " from (start=)"
+                        " contact needs its slip over the solve (friction would start against"
+                        " it): a StaticSolver(slip='solve') with start=, and a contact that"
+                        " slipped"
                     )
                 np.add.at(out[name], contacts.friction_shape, -(contacts.friction.T @ mu_q))
         elif name == "cable_routing":
