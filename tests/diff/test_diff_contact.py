@@ -192,6 +192,16 @@ def test_static_gradient_with_sliding_contacts_against_finite_differences():
     eq = solve(model, commands)
     held = closed_contacts(model, eq, start)
     assert (held.closed, held.sticking, held.sliding) == (2, 0, 2)
+    # The solve's friction opposes each point's tangential motion over the whole solve.
+    contact = model.contacts.constraint(eq.positions, None)
+    forces = eq.contact_forces.warm_start(contact.contacts).reshape(-1, 3)
+    closed = forces[:, 0] > 0.0
+    points = model.contacts.points
+    moved = points.positions(eq.positions) - points.positions(start.positions)
+    tangents = contact.contacts.frames[closed, 1:]
+    slip = np.einsum("krj,kj->kr", tangents, moved[contact.contacts.index_a[closed]])
+    along = forces[closed, 1:] / np.linalg.norm(forces[closed, 1:], axis=1)[:, None]
+    np.testing.assert_allclose(along, -slip / np.linalg.norm(slip, axis=1)[:, None], atol=1e-8)
     w = np.random.default_rng(1).standard_normal(rest.shape)
 
     def loss(m, c=commands, s=start):
@@ -230,6 +240,8 @@ def test_static_gradient_refuses_sliding_contacts_and_friction_at_frictionless_o
         static_gradient(
             model, StaticSolver(model, slip="solve"), eq, np.array([0.3, 2.0]), eq.positions
         )
+    with pytest.raises(ModelError, match="slip must be"):
+        StaticSolver(model, slip="update")
     model = beam_on_floor(friction=0.0)
     solver, eq = _static(model, [0.3, 2.0])
     with pytest.raises(ModelError, match="frictionless closed contact"):
