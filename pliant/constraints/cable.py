@@ -197,6 +197,37 @@ class CableBundle:
         )[:, None, None]
         return self._g_coef[:, None, None] * blocks[self._g_segment]
 
+    def geometric_product(
+        self, x: np.ndarray, tension: np.ndarray, direction: np.ndarray
+    ) -> np.ndarray:
+        """-sum_s lambda_s (d^2 L_s/dx^2) d on every node (n, 3): the blocks of
+        :meth:`geometric_stiffness` applied to the nodal direction `d` (n, 3), segment by
+        segment ((I - u u^T)/l on the difference of its end points' motions), without forming
+        the blocks: the derivative of H(x)^T lambda along d."""
+        n_points = len(self._nodes)
+        p = np.einsum("ka,kai->ki", self._weights, x[self._nodes])
+        moved = np.einsum("ka,kai->ki", self._weights, direction[self._nodes])
+        verts = np.vstack([p, self._pulls])
+        moves = np.vstack([moved, np.zeros_like(self._pulls)])
+        seg = verts[self._ends] - verts[self._starts]
+        rel = moves[self._ends] - moves[self._starts]
+        length = np.linalg.norm(seg, axis=1)
+        safe = np.where(length > 0, length, 1.0)
+        unit = seg / safe[:, None]
+        scale = np.where(length > 0, np.asarray(tension, dtype=float)[self._owner] / safe, 0.0)
+        push = (rel - unit * np.einsum("si,si->s", unit, rel)[:, None]) * scale[:, None]
+        at_points = np.zeros((len(verts), 3))
+        for i in range(3):
+            at_points[:, i] = np.bincount(self._ends, push[:, i], len(verts)) - np.bincount(
+                self._starts, push[:, i], len(verts)
+            )
+        spread = self._weights[:, :, None] * at_points[:n_points, None, :]
+        out = np.zeros_like(x)
+        nodes = self._nodes.ravel()
+        for i in range(3):
+            out[:, i] = -np.bincount(nodes, spread[:, :, i].ravel(), x.shape[0])
+        return out
+
     def _geometry_entries(self) -> None:
         if hasattr(self, "_g_segment"):
             return

@@ -157,15 +157,34 @@ class ClosedContacts:
     Attributes:
         rows: K^T on the free DoFs (n_free, r): each closed contact's normal n.P and a
             sticking one's tangents t.P, rows held at their value (gap closed, point stuck).
-        nodes, values: the same rows on every node, (r, 4) nodes with (r, 4, 3) values.
-        closed, sticking: how many contacts were closed, and of those how many stick.
+        force: G^T (n_free, r): how their multipliers push (K^T but for a sliding contact's
+            normal, n.P + mu s.(t.P)).
+        nodes, values: K on every node, (r, 4) nodes with (r, 4, 3) values.
+        normal: (r,) bool, the row is a normal (else a sticking contact's tangent).
+        across: R (n_free, s), each sliding contact's tangential row across its slip, and
+            across_nodes, across_values the same on every node.
+        stiffness: c (s,), mu lambda_n / |delta_t| of each sliding contact.
+        friction: d R1 / d mu_i = lambda_n (t.P)^T s of each closed contact that slides
+            (frictionless ones slide too) as columns (n_free, f), with each one's obstacle
+            shape (friction_shape, (f,)).
+        closed, sticking, sliding: how many contacts were closed, and of those how many stick
+            and how many slide.
     """
 
     rows: np.ndarray
+    force: np.ndarray
     nodes: np.ndarray
     values: np.ndarray
+    normal: np.ndarray
+    across: np.ndarray
+    across_nodes: np.ndarray
+    across_values: np.ndarray
+    stiffness: np.ndarray
+    friction: np.ndarray
+    friction_shape: np.ndarray
     closed: int
     sticking: int
+    sliding: int
 
     def full_t(self, coefficients: np.ndarray, n_nodes: int) -> np.ndarray:
         """sum_r c_r K_r on every node (n, 3)."""
@@ -173,24 +192,39 @@ class ClosedContacts:
         np.add.at(out, self.nodes, coefficients[:, None, None] * self.values)
         return out
 
+    def across_full_t(self, coefficients: np.ndarray, n_nodes: int) -> np.ndarray:
+        """sum_s c_s R_s on every node (n, 3)."""
+        out = np.zeros((n_nodes, 3))
+        np.add.at(out, self.across_nodes, coefficients[:, None, None] * self.across_values)
+        return out
 
-def closed_contacts(model: Model, equilibrium: State) -> ClosedContacts | None:
+
+def closed_contacts(
+    model: Model, equilibrium: State, start: State | None = None
+) -> ClosedContacts | None:
     """The closed contacts of a static equilibrium (:class:`pliant.solvers.StaticSolver`) with
     their states held, as bilateral rows; None without contacts or none closed.
 
     A static equilibrium with friction depends on its path: a sticking point stays where the
-    iterations that led to it left it. Held here: the set of closed contacts (each gap stays
-    closed) and each sticking contact's point (its two tangential rows held at their value).
-    This is the derivative of the equilibrium continued from itself (the static solve
-    restarted from it), exact while every sticking contact's force stays inside its cone.
+    iterations that led to it left it, a sliding one slides until its friction force reaches
+    the cone. Held here: the set of closed contacts (each gap stays closed), each sticking
+    contact's point (its two tangential rows held at their value) and each sliding contact's
+    state: it slides, its friction mu lambda_n s on the cone against its slip over the solve,
+    delta_t = t.P (q - q_0) from the state `start` the solve started from, s = -delta_t /
+    |delta_t| (the solve from `start` is one quasi-static step: the static analogue of the
+    dynamic step's slip over the step). So a sliding contact's normal row pushes along
+    G_n = n.P + mu s.(t.P) while it holds n.P, and the friction's turning with the slip,
+    d s / d delta_t = -(I - s s^T) / |delta_t|, stiffens the equilibrium: K_c gains
+    sum c r r^T, r = e.(t.P), e across the slip, c = mu lambda_n / |delta_t|. This is the
+    derivative of the solve from `start` where no contact changes state; where one would (a
+    sliding contact easing to stick) the equilibrium has a kink and this is the derivative
+    of its sliding branch.
+
+    With `start` None (the default solver's slip="iteration"), sliding contacts are refused.
 
     Raises:
-        ModelError: a sliding contact (its friction force on the cone, within
-            SLIP_TOLERANCE, as a quasi-static slide ends): its derivative is one-sided (a
-            perturbation that pulls it back makes it stick) and its friction's direction
-            follows the slip the perturbation causes, so that neither the restarted solve nor
-            the solve from rest is differentiated by holding the direction; the dynamic step
-            (rollout_gradient), whose slip is finite, differentiates it.
+        ModelError: a sliding contact (its friction force on the cone, within SLIP_TOLERANCE)
+            when `start` is None, or one that did not slip from `start`.
     """
     if model.contacts is None:
         return None
@@ -201,25 +235,71 @@ def closed_contacts(model: Model, equilibrium: State) -> ClosedContacts | None:
     closed = np.flatnonzero(lam[:, 0] > 0.0)
     if closed.size == 0:
         return None
+    lam = lam[closed]
     mu = contact.friction[closed]
-    tangential = np.linalg.norm(lam[closed, 1:], axis=1)
+    tangential = np.linalg.norm(lam[:, 1:], axis=1)
     friction = mu > 0.0
-    sliding = friction & (tangential >= mu * lam[closed, 0] * (1.0 - SLIP_TOLERANCE))
-    if sliding.any():
-        raise ModelError(
-            f"{model.name}: static_gradient differentiates closed contacts that stick or are"
-            f" frictionless; {int(sliding.sum())} of {closed.size} slide (friction on the cone),"
-            " whose static derivative is one-sided and follows the slip's direction; the"
-            " dynamic step differentiates sliding (rollout_gradient)"
-        )
-    keep = [3 * k + r for k in range(closed.size) for r in ((0, 1, 2) if friction[k] else (0,))]
+    sliding = friction & (tangential >= mu * lam[:, 0] * (1.0 - SLIP_TOLERANCE))
     held = contact.take(closed)
-    ht = model.constraint_space(equilibrium.positions, [held], with_distance=False)
+    ht = model.constraint_space(equilibrium.positions, [held], with_distance=False).jacobian_t
     jac = held.jacobian(equilibrium.positions)
+    rows = ht.reshape(ht.shape[0], -1, 3)  # (n_free, contact, n t1 t2)
+    slip = None
+    if start is not None:
+        moved = equilibrium.positions - model.check_state(start).positions
+        slip = np.einsum("rpi,rpi->r", jac.values, moved[jac.nodes]).reshape(-1, 3)[:, 1:]
+    elif sliding.any():
+        raise ModelError(
+            f"{model.name}: {int(sliding.sum())} of {closed.size} closed contacts slide (friction"
+            " on the cone) at an equilibrium whose slip was measured over each Newton update:"
+            " its friction's direction is that of the last updates, a function of the"
+            " iterations' path; solve it with StaticSolver(slip='solve') and pass start= to"
+            " static_gradient"
+        )
+    keep, force, across, across_rows, stiffness, pushes, shapes = [], [], [], [], [], [], []
+    for k in range(closed.size):
+        normal = rows[:, k, 0]
+        keep.append(3 * k)
+        force.append(normal)
+        size = 0.0 if slip is None else float(np.linalg.norm(slip[k]))
+        if sliding[k]:
+            if size == 0.0:
+                raise ModelError(
+                    f"{model.name}: a closed contact's friction is on the cone but it did not"
+                    " slip from the start state: its static derivative is one-sided"
+                )
+            s = lam[k, 1:] / tangential[k]
+            force[-1] = normal + mu[k] * (rows[:, k, 1:] @ s)
+            e = np.array([-s[1], s[0]])
+            across.append(rows[:, k, 1:] @ e)
+            across_rows.append((3 * k + 1, 3 * k + 2, e))
+            stiffness.append(mu[k] * lam[k, 0] / size)
+        elif friction[k]:
+            keep.extend((3 * k + 1, 3 * k + 2))
+            force.extend((rows[:, k, 1], rows[:, k, 2]))
+        if not (friction[k] and not sliding[k]) and size > 0.0:
+            # mu's share, the friction's size along -slip (at mu = 0 the derivative from
+            # mu > 0, where a frictionless closed contact slides).
+            pushes.append(lam[k, 0] * (rows[:, k, 1:] @ (-slip[k] / size)))
+            shapes.append(held.contacts.index_b[k])
+    n_free = ht.shape[0]
+    nodes = jac.nodes
+    across_values = np.array(
+        [e[0] * jac.values[a] + e[1] * jac.values[b] for a, b, e in across_rows]
+    ).reshape(-1, *jac.values.shape[1:])
     return ClosedContacts(
-        ht.jacobian_t[:, keep],
-        jac.nodes[keep],
+        ht[:, keep],
+        np.column_stack(force),
+        nodes[keep],
         jac.values[keep],
+        np.array([r % 3 == 0 for r in keep]),
+        np.column_stack(across) if across else np.zeros((n_free, 0)),
+        np.array([nodes[a] for a, _, _ in across_rows], dtype=np.int64).reshape(-1, nodes.shape[1]),
+        across_values,
+        np.array(stiffness),
+        np.column_stack(pushes) if pushes else np.zeros((n_free, 0)),
+        np.array(shapes, dtype=np.int64),
         int(closed.size),
-        int(friction.sum()),
+        int((friction & ~sliding).sum()),
+        int(sliding.sum()),
     )

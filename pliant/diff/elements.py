@@ -232,6 +232,6 @@ def complex_step_jacobian(function, x: np.ndarray) -> np.ndarray:
 
 def nodal_sum(body: TetBody, element_values: np.ndarray) -> np.ndarray:
     """Sum element-node values (m, 4, 3) onto the nodes (n, 3)."""
-    out = np.zeros((body.n_nodes, 3))
-    np.add.at(out, body.tets, element_values)
-    return out
+    nodes = body.tets.ravel()
+    values = element_values.reshape(-1, 3)
+    return np.column_stack([np.bincount(nodes, values[:, i], body.n_nodes) for i in range(3)])

@@ -1,13 +1,14 @@
 """Gradients of a trajectory loss by a checkpointed reverse sweep of step adjoints.
 
-Forward: T steps of the solver from s_0 under the controls, keeping every k-th state
-(checkpoints) and summing the loss's stage terms. Reverse: segment by segment from the last,
-the segment's states are recomputed from its checkpoint (the step is deterministic: the
-"fresh" policy refactorises each step; the last segment is kept from the forward pass), then
-each step's adjoint (:class:`pliant.diff.step.StepAdjoint`: its linearisation and
+Forward: T steps of the solver from s_0 under the controls, keeping every k-th state counted
+back from the last (checkpoints: the first segment takes the remainder of T / k, the last,
+kept from the forward pass, a whole k steps) and summing the loss's stage terms. Reverse:
+segment by segment from the last, the segment's states are recomputed from its checkpoint
+(the step is deterministic: the "fresh" policy refactorises each step), then each step's
+adjoint (:class:`pliant.diff.step.StepAdjoint`: its linearisation and
 factorisation, one block solve, the complex-step element terms) carries the cotangent of
 s_{n+1} back to s_n and adds its parameters' share. With k ~ sqrt(T), 2 sqrt(T) states are
-held at a time for 2 T forward steps in all; with k = T (the default for trajectories that
+held at a time for 2 T - k forward steps in all; with k = T (the default for trajectories that
 fit in memory), T states and T forward steps.
 
 Each adjoint reuses its forward step's linearisation and factorisation ("fresh" factorises
@@ -214,7 +215,7 @@ def _sweep(model, solver, tape, state0, controls, loss, names, k, regions) -> Ro
         tape.record(n)
         stage_values.append(loss.stage(n + 1, state, controls[n]).value)
         tail.append(state)
-        if (n + 1) % k == 0 and n + 1 < n_steps:
+        if (n_steps - n - 1) % k == 0 and n + 1 < n_steps:
             checkpoints[n + 1] = state.copy()
             tail = [checkpoints[n + 1]]
             tape.clear()
@@ -226,8 +227,8 @@ def _sweep(model, solver, tape, state0, controls, loss, names, k, regions) -> Ro
     per_element: dict[str, np.ndarray] = {}
     control_grad = np.zeros_like(controls)
     held = len(checkpoints)
-    for start in sorted(checkpoints, reverse=True):
-        stop = min(start + k, n_steps)
+    starts = sorted(checkpoints)
+    for start, stop in reversed(list(zip(starts, [*starts[1:], n_steps], strict=True))):
         segment, tail = (tail, None) if tail is not None else ([checkpoints[start]], None)
         for n in range(start + len(segment) - 1, stop):
             segment.append(solver.step(segment[-1], DirectControl(controls[n].copy())))

@@ -24,8 +24,20 @@ check both).
 
 Closed contacts (:func:`pliant.diff.contact.closed_contacts`) join the equality rows d with
 their states held, at zero target: each gap held closed, each sticking point held where it is
-(its two tangential rows); the friction coefficient then does not enter (its cotangent is
-zero), and sliding contacts are refused (their static derivative is one-sided).
+(its two tangential rows). A sliding contact (only for ``StaticSolver(slip="solve")``, whose
+slip delta_t = t.P (q - q_0) runs from the start q_0; the default solver's slip is each
+Newton update's, and its sliding equilibrium a function of the iterations' path) pushes with
+mu lambda_n s, s = -delta_t / |delta_t|: its normal row's force direction is
+G = n.P + mu s.(t.P) (K = n.P what it holds), and s turning with the slip adds
+sum c r r^T to K_c (r = e.(t.P), e across the slip, c = mu lambda_n / |delta_t|). With
+z = -C R^T mu_q the adjoint is
+
+    mu_q = K_c^-T (R z + K^T mu_l - qbar),   R^T mu_q + C^-1 z = 0,   G mu_q = 0,
+
+one LU solve on [qbar, R, K^T] and a dense system for (z, mu_l). The friction coefficient's
+cotangent is -lambda_n s.(t.P) mu_q per sliding contact (zero for sticking ones), and the
+start's, "start_positions", that of the slip's q_0: K_t^T mu_l of the sticking rows and
+-c r (r.mu_q) of the sliding contacts, on the free nodes.
 """
 
 from __future__ import annotations
@@ -68,11 +80,14 @@ def static_gradient(
     *,
     wrt: tuple[str, ...] | str = ("controls",),
     regions: np.ndarray | None = None,
+    start: State | None = None,
 ) -> dict[str, np.ndarray | float]:
     """Gradients of a loss L(q) of the equilibrium `equilibrium` (solved by `solver` under
     `commands`), given dL/dq (n, 3), with respect to `wrt` (as
     :func:`pliant.diff.rollout_gradient`; the Rayleigh coefficients do not enter a static
-    equilibrium and get 0).
+    equilibrium and get 0). `start`: the state the solve started from, for a
+    ``StaticSolver(slip="solve")`` with contacts (its slip is measured from it); the result
+    then has "start_positions" (n, 3) too, the cotangent of the start's positions.
 
     Raises:
         ModelError: unsupported model, solver or parameter; wrong shapes.
@@ -104,17 +119,37 @@ def static_gradient(
     ht = space.jacobian_t[:, space.slices["actuator"]]
     qbar = body.gather(grad_q)
     # Equality rows: the actuators', then the closed contacts' at their held states.
-    contacts = closed_contacts(model, equilibrium)
-    rows_d = ht[:, d] if contacts is None else np.hstack([ht[:, d], contacts.rows])
-    cols = lu.solve(np.column_stack([qbar, rows_d]))
-    mu_l = np.zeros(lam.size)
-    mu_c = np.zeros(0)
-    mu_q = -cols[:, 0]
-    if rows_d.shape[1]:
-        schur = rows_d.T @ cols[:, 1:]
-        mu_all = np.linalg.solve(schur, rows_d.T @ cols[:, 0])
-        mu_l[d], mu_c = mu_all[: int(d.sum())], mu_all[int(d.sum()) :]
-        mu_q = cols[:, 1:] @ mu_all - cols[:, 0]
+    if start is not None and solver.slip != "solve":
+        raise ModelError(
+            "static_gradient: start= is the state a StaticSolver(slip='solve') started from;"
+            " this solver measures slip over each Newton update"
+        )
+    if start is None and solver.slip == "solve" and model.contacts is not None:
+        raise ModelError(
+            "static_gradient of a StaticSolver(slip='solve') with contacts needs start=, the"
+            " state its solve started from (the contacts' slip is measured from it)"
+        )
+    contacts = closed_contacts(model, equilibrium, start)
+    mu_l, mu_c, mu_q = np.zeros(lam.size), np.zeros(0), None
+    if contacts is None:
+        rows_d = push_d = ht[:, d]
+        across, stiffness = np.zeros((ht.shape[0], 0)), np.zeros(0)
+    else:
+        rows_d, push_d = (np.hstack([ht[:, d], c]) for c in (contacts.rows, contacts.force))
+        across, stiffness = contacts.across, contacts.stiffness
+    s = stiffness.size
+    cols = lu.solve(np.column_stack([qbar, across, rows_d]))
+    if rows_d.shape[1] + s:
+        # -(K_c + R C R^T)^T mu_q + K^T mu_l = qbar, G mu_q = 0 (G: the rows' force
+        # directions), with z = -C R^T mu_q: mu_q = K_c^-T (R z + K^T mu_l - qbar).
+        lhs = cols[:, 1:]
+        system = np.vstack([across.T @ lhs, push_d.T @ lhs])
+        system[:s, :s] += np.diag(1.0 / stiffness)
+        w_all = np.linalg.solve(system, np.concatenate([across.T, push_d.T]) @ cols[:, 0])
+        mu_l[d], mu_c = w_all[s : s + int(d.sum())], w_all[s + int(d.sum()) :]
+        mu_q = lhs @ w_all - cols[:, 0]
+    else:
+        mu_q = -cols[:, 0]
     mu_full = body.scatter(mu_q)
     mu_e = mu_full[body.tets]
     out: dict[str, np.ndarray | float] = {}
@@ -135,14 +170,17 @@ def static_gradient(
             out[name] = 0.0
         elif name == "external_forces":
             out[name] = -mu_full
-        elif name == "friction":  # one per obstacle shape: sticking contacts hold their point
-            if contacts is not None and contacts.sticking < contacts.closed:
-                raise ModelError(
-                    "static_gradient: the friction coefficient at a frictionless closed contact"
-                    " (friction would start along a slip the solve from rest decides); the"
-                    " dynamic step differentiates it (rollout_gradient)"
-                )
+        elif name == "friction":  # one per obstacle shape: the sliding contacts' share
             out[name] = np.zeros(len(model.contacts.shapes) if model.contacts else 0)
+            if contacts is not None:
+                if contacts.friction.shape[1] < contacts.closed - contacts.sticking:
+                    raise ModelError(
+                        "static_gradient: the friction coefficient at a frictionless closed"
+                        " contact needs its slip over the solve (friction would start against"
+                        " it): a StaticSolver(slip='solve') with start=, and a contact that"
+                        " slipped"
+                    )
+                np.add.at(out[name], contacts.friction_shape, -(contacts.friction.T @ mu_q))
         elif name == "cable_routing":
             out[name] = routing_gradient(model, q, -mu_l, [(-lam, mu_full)])
         else:
@@ -151,7 +189,25 @@ def static_gradient(
             if contacts is not None:  # a contact point carried by held nodes
                 held = (body.free_index < 0).reshape(-1, 3)
                 out[name] -= np.where(held, contacts.full_t(mu_c, body.n_nodes), 0.0)
+    if start is not None:
+        out["start_positions"] = (
+            np.zeros_like(grad_q)
+            if contacts is None
+            else _start_positions(body, contacts, mu_q, mu_c)
+        )
     return out
+
+
+def _start_positions(body, contacts, mu_q, mu_c) -> np.ndarray:
+    """The cotangent of the start's free nodes (slip="solve": the slip t.P (q - q_0) is
+    measured from them): a sticking row held at zero slip gives K_t^T mu_c, a sliding
+    contact's friction turning with its slip -c r (r.mu_q). The held nodes do not slip (they
+    stay at the start's positions)."""
+    tangential = np.ones(contacts.rows.shape[1], dtype=bool)
+    tangential[contacts.normal] = False
+    out = contacts.full_t(np.where(tangential, mu_c, 0.0), body.n_nodes)
+    out -= contacts.across_full_t(contacts.stiffness * (contacts.across.T @ mu_q), body.n_nodes)
+    return np.where((body.free_index >= 0).reshape(-1, 3), out, 0.0)
 
 
 def _held_nodes(model, q, lam, grad_q, mu_e, mu_full, mu_l, shape, local) -> np.ndarray:

@@ -207,12 +207,23 @@ class ActuatorRows:
 
 
 def full_rows_t(model: Model, x: np.ndarray, coefficients: np.ndarray) -> np.ndarray:
-    """H(x)^T c over every node (n, 3), for one coefficient per actuator row."""
-    out = np.zeros((model.body.n_nodes, 3))
-    for c, act in zip(coefficients, model.actuators, strict=True):
-        if c != 0.0:
-            rows = act.jacobian(x)
-            np.add.at(out, rows.nodes[0], c * rows.values[0])
+    """H(x)^T c over every node (n, 3), for one coefficient per actuator row (the cables'
+    rows from their bundle at once)."""
+    n = model.body.n_nodes
+    coefficients = np.asarray(coefficients, dtype=float)
+    cables, bundle, others = _cables(model)
+    parts = []
+    if cables.size and np.any(coefficients[cables]):
+        rows = bundle.jacobian(x)
+        parts.append((rows.nodes, coefficients[cables][:, None, None] * rows.values))
+    for i in np.flatnonzero(others & (coefficients != 0.0)):
+        rows = model.actuators[i].jacobian(x)
+        parts.append((rows.nodes[0], coefficients[i] * rows.values[0]))
+    out = np.zeros((n, 3))
+    for nodes, values in parts:  # bincount: rows repeat nodes, np.add.at is slow at it
+        flat, v = nodes.ravel(), values.reshape(-1, 3)
+        for i in range(3):
+            out[:, i] += np.bincount(flat, v[:, i], n)
     return out
 
 
@@ -220,20 +231,18 @@ def row_hessian_product(
     model: Model, x: np.ndarray, coefficients: np.ndarray, direction: np.ndarray
 ) -> np.ndarray:
     """(sum_r c_r Hess delta_r(x)) d (n, 3): the derivative of H(x)^T c along d. Cables in
-    closed form (their bundle's geometric stiffness: Hess delta = -Hess L, whose segment
-    blocks are (I - u u^T) / l), other rows by a fourth-order central difference."""
+    closed form (their bundle's geometric stiffness applied segment by segment: Hess delta =
+    -Hess L, whose segment blocks are (I - u u^T) / l), other rows by a fourth-order
+    central difference."""
     out = np.zeros_like(x)
     coefficients = np.asarray(coefficients, dtype=float)
     size = float(np.max(np.abs(direction)))
     if size == 0.0 or not np.any(coefficients):
         return out
-    cables, bundle, pairs = _cables(model)
+    cables, bundle, others_mask = _cables(model)
     if cables.size and np.any(coefficients[cables]):
-        blocks = bundle.geometric_stiffness(x, coefficients[cables])
-        product = np.einsum("eij,ej->ei", blocks, direction[pairs[1]])
-        for i in range(3):  # bincount: the pairs repeat nodes, np.add.at is slow at it
-            out[:, i] -= np.bincount(pairs[0], weights=product[:, i], minlength=out.shape[0])
-    others = np.where(np.isin(np.arange(coefficients.size), cables), 0.0, coefficients)
+        out += bundle.geometric_product(x, coefficients[cables], direction)
+    others = np.where(others_mask, coefficients, 0.0)
     if np.any(others):
         eps = _ROW_STEP * model.body.extent / size
         at = [full_rows_t(model, x + k * eps * direction, others) for k in (-2, -1, 1, 2)]
@@ -244,19 +253,21 @@ def row_hessian_product(
 _CABLES: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
 
-def _cables(model: Model) -> tuple[np.ndarray, CableBundle | None, tuple | None]:
-    """The model's cable actuators (indices), their bundle and its node pairs; cached while
-    the cables and their points are the same objects (a design step may replace them)."""
+def _cables(model: Model) -> tuple[np.ndarray, CableBundle | None, np.ndarray]:
+    """The model's cable actuators (indices), their bundle and which actuators are not
+    cables; cached while the cables and their points are the same objects (a design step may
+    replace them)."""
     index = [i for i, a in enumerate(model.actuators) if isinstance(a, CableActuator)]
     key = tuple(
         (id(a), id(a.points), id(a.points.weights), id(a.pull_point))
         for a in (model.actuators[i] for i in index)
-    )
+    ) + (len(model.actuators),)
     cached = _CABLES.get(model)
     if cached is None or cached[0] != key:
         bundle = CableBundle([model.actuators[i] for i in index]) if index else None
-        pairs = bundle.geometric_pairs() if bundle is not None else None
-        cached = _CABLES[model] = (key, np.array(index, dtype=np.int64), bundle, pairs)
+        others = np.ones(len(model.actuators), dtype=bool)
+        others[index] = False
+        cached = _CABLES[model] = (key, np.array(index, dtype=np.int64), bundle, others)
     return cached[1:]
 
 

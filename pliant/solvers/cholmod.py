@@ -257,6 +257,8 @@ class CholmodCholesky:
         self._finalizer = weakref.finalize(
             self, _release, lib, self._common, self._factor, (self._x, self._y, self._e)
         )
+        self._matrix.x = None  # the analysis read the pattern only
+        del self._data
         if not self._factor.value:
             raise SolverError("CHOLMOD's symbolic analysis failed (out of memory?)")
         self.factorised = False
@@ -264,13 +266,15 @@ class CholmodCholesky:
     def factorize(self, data: np.ndarray) -> None:
         """Numeric factorisation of the matrix with values `data` on the pattern."""
         values = np.ascontiguousarray(data, dtype=np.float64)
-        if values.shape != self._data.shape:
-            raise SolverError(f"expected {self._data.size} values, got {values.shape}")
+        if values.shape != self._indices.shape:
+            raise SolverError(f"expected {self._indices.size} values, got {values.shape}")
         if not np.all(np.isfinite(values)):
             raise SolverError("the system matrix has non-finite entries")
-        self._data = values
         self._matrix.x = values.ctypes.data
         self._lib.cholmod_factorize(ctypes.byref(self._matrix), self._factor, self._common)
+        # The factor does not read A again: its values are not held (a kept factorisation,
+        # pliant.diff's, would hold them for nothing), nor pointed to.
+        self._matrix.x = None
         head = _FactorHead.from_address(self._factor.value)
         self.factorised = head.minor == head.n
         if not self.factorised:

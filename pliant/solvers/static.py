@@ -59,6 +59,19 @@ def _kept_commands(model: Model) -> Iterator[None]:
         model.set_actuation(saved)
 
 
+def _slip_from(
+    problem: CondensedProblem, contact: ContactConstraint, q: np.ndarray, start: np.ndarray
+) -> CondensedProblem:
+    """`problem` with its contacts' tangential rows measured from `start` rather than from `q`:
+    their free distance gains t.(p(q) - p(start)), each point's tangential motion so far."""
+    rows = contact.jacobian(q)
+    moved = np.einsum("rai,rai->r", rows.values, (q - start)[rows.nodes]).reshape(-1, 3)
+    moved[:, 0] = 0.0
+    free = problem.free_distance.copy()
+    free[problem.slices["contact"]] += moved.ravel()
+    return CondensedProblem(problem.compliance, free, problem.slices)
+
+
 class StaticSolver:
     """Quasi-static solver: each step solves the equilibrium for the current commands.
 
@@ -86,6 +99,17 @@ class StaticSolver:
             K alone turns indefinite, and the fallback to SOFA's tangent converges linearly
             (80 iterations and more). :meth:`condense` gives the exact W = H K^-1 H^T, without
             the term.
+        slip: what a contact's tangential displacement delta_t (Coulomb's slip, which a
+            sliding friction force opposes and a sticking contact holds at zero) is measured
+            over. "iteration" (the default): over each Newton update, from the iterate the
+            contacts are detected at; a sticking point stays where the iterations left it, and
+            a sliding one's friction ends along its last updates, so that the equilibrium
+            depends on the iterations' path. "solve": over the whole step, from the state it
+            starts from, as the dynamic step measures it over its time step: the equilibrium
+            is then that of one quasi-static increment (a sticking point held where the step
+            started, a sliding one's friction against its slip over the step), a function of
+            the start state and the commands only, whose derivative
+            :func:`pliant.diff.static.static_gradient` takes for sliding contacts too.
     """
 
     def __init__(
@@ -97,6 +121,7 @@ class StaticSolver:
         tangent: TangentPolicy = "fresh",
         consistent: bool = True,
         augmentation: float = 10.0,
+        slip: str = "iteration",
     ) -> None:
         if not isinstance(model, Model):
             raise ModelError(f"StaticSolver solves a pliant Model, got {type(model).__name__}")
@@ -145,6 +170,9 @@ class StaticSolver:
             exact_tangent=consistent,
         )
         self.augmentation = number_option(augmentation, "augmentation", at_least=0.0)
+        if slip not in ("iteration", "solve"):
+            raise ModelError(f"slip must be 'iteration' or 'solve', got {slip!r}")
+        self.slip = slip
         self._row_stiffness: np.ndarray | None = None
         self._size = model.body.extent
         self._gravity = model.body.gravity_forces()
@@ -229,7 +257,9 @@ class StaticSolver:
         feedback = getattr(ctrl, "feedback", True)
         with _kept_commands(model):
             try:
-                q, it, held, problem, contact_report = self._iterate(q, ctrl, guide, step, feedback)
+                q, it, held, problem, contact_report = self._iterate(
+                    q, ctrl, guide, step, feedback, start=q
+                )
             except DivergenceError as exc:
                 if not feedback:
                     raise
@@ -242,8 +272,9 @@ class StaticSolver:
                     f"{exc}; the actuators are held where the step started (a best effort)",
                 )
                 guide = state.copy()
+                start = model.drive(state.positions, state.time)
                 q, it, _, problem, contact_report = self._iterate(
-                    model.drive(state.positions, state.time), DirectControl(), guide, step, False
+                    start, DirectControl(), guide, step, False, start=start
                 )
                 held = True
         self.last_report = StepReport(
@@ -268,12 +299,12 @@ class StaticSolver:
         )
 
     def _iterate(
-        self, q: np.ndarray, ctrl, guide: State, step: int, feedback: bool
+        self, q: np.ndarray, ctrl, guide: State, step: int, feedback: bool, *, start: np.ndarray
     ) -> tuple[np.ndarray, int, bool, CondensedProblem, object]:
         """Newton iterations from `q` to the equilibrium: the positions, the iterations,
         whether the actuators were held (a feedback control cycled), the last iteration's
         condensed problem and contact report. `guide` carries the forces from one iteration
-        to the next."""
+        to the next; `start`: the positions the step started from (slip="solve")."""
         model, body = self.model, self.model.body
         updates, held = [], False
         for it in range(1, self.max_iterations + 1):  # noqa: B007 (reported after the loop)
@@ -284,6 +315,8 @@ class StaticSolver:
                 )
             except SolverError as exc:
                 raise DivergenceError(f"step {step}: {exc}", step=step, cause="solver") from exc
+            if contact is not None and self.slip == "solve":
+                problem = _slip_from(problem, contact, q, start)
             try:
                 lam, contact_report, contact_forces = constraint_forces(
                     ctrl, problem, model, guide, contact

@@ -1,7 +1,8 @@
 """Contact and friction in the gradients (pliant.diff.contact): a cantilever whose tip sags onto
 a floor and is dragged along it by its cables, against central differences of the solvers
 themselves, where no contact changes state under the perturbation: the rollout with and
-without friction, the static equilibrium frictionless and with its contacts sticking."""
+without friction, the static equilibrium frictionless, with its contacts sticking and, its
+slip measured over the solve, sliding."""
 
 from __future__ import annotations
 
@@ -175,11 +176,72 @@ def test_static_gradient_with_sticking_contacts_against_finite_differences():
     np.testing.assert_array_equal(grads["friction"], [0.0])
 
 
+def test_static_gradient_with_sliding_contacts_against_finite_differences():
+    """The beam dragged along the floor from rest, its slip measured over the whole solve
+    (StaticSolver(slip="solve")): both tip corners slide, on the cone, against their slip from
+    the start. Their friction's turning with the slip included, the derivative of the solve
+    from rest against central differences of it: commands, E, the friction coefficient, and
+    the rest shape (the start being the rest state: its cotangent added)."""
+    model = beam_on_floor(friction=0.3)
+    rest, start = model.body.rest_positions, model.rest_state()
+    commands = np.array([0.3, 2.0])
+
+    def solve(m, c, s=start):
+        return StaticSolver(m, slip="solve").step(s, DirectControl(np.asarray(c, float)))
+
+    eq = solve(model, commands)
+    held = closed_contacts(model, eq, start)
+    assert (held.closed, held.sticking, held.sliding) == (2, 0, 2)
+    # The solve's friction opposes each point's tangential motion over the whole solve.
+    contact = model.contacts.constraint(eq.positions, None)
+    forces = eq.contact_forces.warm_start(contact.contacts).reshape(-1, 3)
+    closed = forces[:, 0] > 0.0
+    points = model.contacts.points
+    moved = points.positions(eq.positions) - points.positions(start.positions)
+    tangents = contact.contacts.frames[closed, 1:]
+    slip = np.einsum("krj,kj->kr", tangents, moved[contact.contacts.index_a[closed]])
+    along = forces[closed, 1:] / np.linalg.norm(forces[closed, 1:], axis=1)[:, None]
+    np.testing.assert_allclose(along, -slip / np.linalg.norm(slip, axis=1)[:, None], atol=1e-8)
+    w = np.random.default_rng(1).standard_normal(rest.shape)
+
+    def loss(m, c=commands, s=start):
+        return float(np.sum(w * (solve(m, c, s).positions - rest)))
+
+    names = ("controls", "young_modulus", "friction", "rest_positions")
+    grads = static_gradient(
+        model, StaticSolver(model, slip="solve"), eq, commands, w, wrt=names, start=start
+    )
+    for i in range(2):
+        moved = [loss(model, commands + np.eye(2)[i] * e) for e in (1e-4, -1e-4)]
+        assert relative_error((moved[0] - moved[1]) / 2e-4, grads["controls"][i]) < TOL
+    moved = [loss(beam_on_floor(young_modulus=200.0 * (1 + e))) for e in (1e-5, -1e-5)]
+    assert relative_error((moved[0] - moved[1]) / 4e-3, grads["young_modulus"]) < TOL
+    moved = [loss(beam_on_floor(friction=0.3 + e)) for e in (1e-5, -1e-5)]
+    assert relative_error((moved[0] - moved[1]) / 2e-5, grads["friction"][0]) < TOL
+    d = np.random.default_rng(2).standard_normal(rest.shape)
+    moved = []
+    for e in (1e-5, -1e-5):
+        m = beam_on_floor(points=rest + e * d)
+        moved.append(loss(m, s=m.rest_state()))
+    exact = np.sum((grads["rest_positions"] + grads["start_positions"]) * d)
+    assert relative_error((moved[0] - moved[1]) / 2e-5, exact) < TOL
+
+
 def test_static_gradient_refuses_sliding_contacts_and_friction_at_frictionless_ones():
     model = beam_on_floor(friction=0.3)
     solver, eq = _static(model, [0.3, 2.0])  # dragged: both corners slide, on the cone
-    with pytest.raises(ModelError, match="2 of 2 slide"):
+    with pytest.raises(ModelError, match="2 of 2 closed contacts slide.*slip='solve'"):
         static_gradient(model, solver, eq, np.array([0.3, 2.0]), np.zeros_like(eq.positions))
+    with pytest.raises(ModelError, match="start= is the state"):
+        static_gradient(
+            model, solver, eq, np.array([0.3, 2.0]), np.zeros_like(eq.positions), start=eq
+        )
+    with pytest.raises(ModelError, match="needs start="):
+        static_gradient(
+            model, StaticSolver(model, slip="solve"), eq, np.array([0.3, 2.0]), eq.positions
+        )
+    with pytest.raises(ModelError, match="slip must be"):
+        StaticSolver(model, slip="update")
     model = beam_on_floor(friction=0.0)
     solver, eq = _static(model, [0.3, 2.0])
     with pytest.raises(ModelError, match="frictionless closed contact"):
