@@ -27,6 +27,7 @@ import statistics
 import time
 from contextlib import contextmanager
 
+import numba
 import numpy as np
 
 from pliant.bench.timing import POLICY_OPTIONS
@@ -207,7 +208,8 @@ def race(
     engines taken in turn within a round so that all see the same load; medians of steps/s.
     Then the tip's motion (the mean of the nodes at the largest x) after `motion_steps` steps
     from rest in each, and the steps of that run on which MuJoCo warned (a solve that stopped
-    at its iteration cap short of its tolerance)."""
+    at its iteration cap short of its tolerance). Pliant runs twice a round: with its compiled
+    kernels' threads (numba's count) and on one thread, as MuJoCo steps."""
     settings = SETTINGS if settings is None else settings
     body = model.body
     peers = {name: FlexPeer(model, dt, **options) for name, options in settings.items()}
@@ -219,13 +221,20 @@ def race(
     for name, peer in peers.items():
         peer.step(warmup)
         saved[name] = peer.save()
-    rates: dict[str, list[float]] = {"pliant": [], **{name: [] for name in peers}}
+    threads = numba.get_num_threads()
+    rates: dict[str, list[float]] = {"pliant": [], "pliant_one_thread": []}
+    rates |= {name: [] for name in peers}
     for _ in range(repeats):
-        s = state.copy()
-        t0 = time.perf_counter()
-        for _ in range(steps):
-            s = solver.step(s, None)
-        rates["pliant"].append(steps / (time.perf_counter() - t0))
+        for key, count in (("pliant", threads), ("pliant_one_thread", 1)):
+            numba.set_num_threads(count)
+            try:
+                s = state.copy()
+                t0 = time.perf_counter()
+                for _ in range(steps):
+                    s = solver.step(s, None)
+                rates[key].append(steps / (time.perf_counter() - t0))
+            finally:
+                numba.set_num_threads(threads)
         for name, peer in peers.items():
             peer.restore(saved[name])
             t0 = time.perf_counter()
@@ -239,11 +248,15 @@ def race(
         s = solver.step(s, None)
     pliant_tip = (s.positions[tip] - rest[tip]).mean(axis=0)
     pliant_rate = statistics.median(rates["pliant"])
+    one_thread = statistics.median(rates["pliant_one_thread"])
     out = {
         "tets": body.n_elements,
         "policy": policy,
+        "pliant_threads": threads,
         "pliant_steps_per_s": pliant_rate,
         "pliant_repeats": rates["pliant"],
+        "pliant_one_thread_steps_per_s": one_thread,
+        "pliant_one_thread_repeats": rates["pliant_one_thread"],
         "pliant_tip_displacement_mm": pliant_tip.tolist(),
         "seconds_simulated": motion_steps * dt,
         "mujoco_version": next(iter(peers.values()))._mj.__version__ if peers else None,
@@ -264,6 +277,7 @@ def race(
             "steps_per_s": rate,
             "repeats": rates[name],
             "ratio": pliant_rate / rate,
+            "ratio_one_thread": one_thread / rate,
             "tip_displacement_mm": tip_motion.tolist(),
             "tip_difference_percent": float(
                 100.0 * np.linalg.norm(tip_motion - pliant_tip) / np.linalg.norm(pliant_tip)
