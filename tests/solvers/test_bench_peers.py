@@ -4,10 +4,13 @@ same cantilever and moves it as Pliant does."""
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
-from pliant.bench import cantilever, time_steps
+from pliant.bench import cantilever, sofa_scene, time_steps
+from pliant.bench.engine import TRUNK_CABLES
 from pliant.bench.mujoco_peer import FlexPeer, flex_xml, race
 from pliant.errors import ModelError
 from pliant.fem.body import TetBody
@@ -40,6 +43,21 @@ def test_from_rest_times_the_first_factorisation_of_every_run(beam) -> None:
 
     assert timing(True).factorisations_per_step >= 1.0 / steps
     assert timing(False).factorisations_per_step < 1.0 / steps
+
+
+MESHES = Path("../shared/meshes")
+
+
+@pytest.mark.skipif(
+    not (MESHES.parent / "sofa-reference" / "trunk_cables.scn").is_file(),
+    reason="../shared/sofa-reference (SOFA's scenes) is not beside the checkout",
+)
+def test_the_trunk_with_cables_pulls_what_sofas_scene_pulls() -> None:
+    """The Trunk's "with cables" row is timed beside SOFA's figure on trunk_cables.scn: the
+    same commands (one cable, L0 at 10 mm)."""
+    loaded = sofa_scene(MESHES, "trunk_cables.scn")
+    np.testing.assert_array_equal(loaded.commands(), TRUNK_CABLES)
+    assert np.count_nonzero(TRUNK_CABLES) == 1
 
 
 def test_the_peer_refuses_a_body_it_cannot_build_alike() -> None:
