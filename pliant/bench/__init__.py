@@ -3,8 +3,9 @@
 One module per thing timed: :mod:`~pliant.bench.engine` (the engine's scenes: SPEC §5's
 Diamond, Trunk, cantilevers and Multigait, the contact scenes, the Soft Finger, batched
 stepping, a static solve and an inverse-control step), :mod:`~pliant.bench.sofa_scenes` (SOFA's
-own scenes read by the scene loader), :mod:`~pliant.bench.profile` (where a step's time goes,
-and the default step's error against the exact one), :mod:`~pliant.bench.envs` (the
+own scenes read by the scene loader), :mod:`~pliant.bench.mujoco_peer` (MuJoCo flex on the same
+cantilevers, raced in the same run; optional), :mod:`~pliant.bench.profile` (where a step's
+time goes, and the default step's error against the exact one), :mod:`~pliant.bench.envs` (the
 environments' speed, ``--envs``), :mod:`~pliant.bench.learner` (the learner's cost per training
 step, ``--learner``), :mod:`~pliant.bench.gradient` (a rollout gradient against its rollout,
 ``--gradient``), with :mod:`~pliant.bench.timing` (timed runs of a scene under each solver

@@ -72,11 +72,13 @@ class LearnerCost:
         return asdict(self)
 
 
-def _matmul_speed(repeats: int = 200) -> float:
+def _matmul_speed(repeats: int = 200, dtype=None, warmup: int = 10) -> float:
+    """GFLOP/s of a 256 x 512 by 512 x 512 product in `dtype` (default float32)."""
     import torch
 
-    a, b = torch.randn(256, 512), torch.randn(512, 512)
-    for _ in range(10):
+    dtype = dtype or torch.float32
+    a, b = torch.randn(256, 512, dtype=dtype), torch.randn(512, 512, dtype=dtype)
+    for _ in range(warmup):
         a @ b
     t0 = time.perf_counter()
     for _ in range(repeats):
@@ -161,6 +163,32 @@ def learner_cost(
     )
 
 
+def bfloat16_speedup(repeats: int = 5) -> dict:
+    """Whether bfloat16 products would pay on this CPU: the speed of the learner's kind of
+    product in bfloat16 over float32, measured in turn on one PyTorch thread, with the
+    instruction set PyTorch found. It depends on the CPU: 2.3x where the host had AVX512-BF16
+    (2026-12-06), 0.025x on an AVX2 host of the same kind (2026-12-07), where a SAC update of
+    the thesis' 3 x 512 networks under ``torch.autocast("cpu", torch.bfloat16)`` took 16x as
+    long as in float32 (docs/concepts/speed.md)."""
+    import torch
+
+    saved = torch.get_num_threads()
+    torch.set_num_threads(1)
+    try:
+        fp32, bf16 = [], []
+        for _ in range(repeats):
+            fp32.append(_matmul_speed(20, torch.float32, warmup=2))
+            bf16.append(_matmul_speed(2, torch.bfloat16, warmup=1))
+    finally:
+        torch.set_num_threads(saved)
+    return {
+        "cpu_capability": torch.backends.cpu.get_cpu_capability(),
+        "matmul_fp32_gflop_per_s": statistics.median(fp32),
+        "matmul_bf16_gflop_per_s": statistics.median(bf16),
+        "bf16_over_fp32": statistics.median(bf16) / statistics.median(fp32),
+    }
+
+
 # The thesis' learning runs whose learner the bench times (configs/<Env>.yaml).
 THESIS_RUNS = (("pliant/CartStemContact-v0", "SAC"), ("pliant/TrunkSpaceDebris-v0", "PPO"))
 
@@ -195,6 +223,11 @@ def report_learner(*, quick: bool, out, console, torch_threads: int = 1) -> list
             f"{100 * r.share_of_matmul_speed:.0f} %",
         )
     console.print(table)
-    write_json(out, {"learner": [r.to_dict() for r in rows], "quick": quick})
+    bf16 = bfloat16_speedup(repeats=1 if quick else 5)
+    console.print(
+        f"bfloat16 product on this CPU ({bf16['cpu_capability']}):"
+        f" {bf16['bf16_over_fp32']:.2f}x the float32 one (one thread, measured in turn)"
+    )
+    write_json(out, {"learner": [r.to_dict() for r in rows], "bfloat16": bf16, "quick": quick})
     console.print(f"saved {out}")
     return rows

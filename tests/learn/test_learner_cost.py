@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import pytest
 
-from pliant.bench.learner import learner_cost
+from pliant.bench.learner import bfloat16_speedup, learner_cost
 from pliant.errors import TrainingError
 
 
@@ -40,3 +40,13 @@ def test_learner_cost_refuses_empty_runs_unknown_algorithms_and_environments():
         learner_cost("Pendulum-v1", "XYZ")
     with pytest.raises(TrainingError, match="no environment 'pliant/NoSuch-v0'"):
         learner_cost("pliant/NoSuch-v0", "SAC")
+
+
+def test_bfloat16_speedup_reports_both_speeds_and_the_cpu():
+    """Whether bfloat16 pays depends on the CPU (AVX512-BF16 or not): the bench measures it."""
+    report = bfloat16_speedup(repeats=1)
+    assert report["matmul_fp32_gflop_per_s"] > 0.0 and report["matmul_bf16_gflop_per_s"] > 0.0
+    assert report["bf16_over_fp32"] == pytest.approx(
+        report["matmul_bf16_gflop_per_s"] / report["matmul_fp32_gflop_per_s"]
+    )
+    assert report["cpu_capability"]
