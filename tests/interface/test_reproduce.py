@@ -241,6 +241,24 @@ def test_evaluation_of_the_kept_model_compares_with_the_committed(tmp_path):
         Study("s", "T", "t", "true", (_figure(),), no_quick="none", evaluate=kept, not_kept="x")
 
 
+def test_a_re_evaluation_of_some_figures_compares_those_and_says_why_not_the_others(tmp_path):
+    """Where only some figures' models are kept, the re-evaluation names its figures; the
+    others are left out of the comparison and the study says why they are not kept."""
+    (tmp_path / "result.json").write_text(json.dumps({"runs": {"a": {"mm": 1.0}}}))
+    figures = (_figure(), _figure(name="other", path="runs/a/mm"))
+    some = Quick(
+        _writer(1.02, "{out}/again.json"), {"result.json": "again.json"}, 1.0, ("distance",)
+    )
+    entry = Study("s", "T", "t", "true", figures, no_quick="none", evaluate=some, not_kept="big")
+    rows, _ = runner.evaluate(entry, tmp_path)
+    assert [(row.figure.name, row.ok) for row in rows] == [("distance", True)]
+    with pytest.raises(ValueError, match="not why"):
+        Study("s", "T", "t", "true", figures, no_quick="none", evaluate=some)
+    unknown = Quick("true", {"result.json": "again.json"}, 1.0, ("speed",))
+    with pytest.raises(ValueError, match="speed"):
+        Study("s", "T", "t", "true", figures, no_quick="none", evaluate=unknown, not_kept="big")
+
+
 def test_the_kept_models_are_tracked_and_small():
     """A study that re-evaluates its kept policy or model reads it from tracked files only."""
     tracked = _tracked()
