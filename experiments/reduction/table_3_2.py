@@ -12,14 +12,7 @@ replayed on the reduced model and on the full FEM (default mesh, SofaGym's rewar
 
 The learned gait is the deterministic episode, from the environment's reset, of the run's best
 evaluated policy (the task has no randomness: every episode starts at rest, so an evaluation
-is this very episode); the final policy's episode (chosen by nothing) is replayed beside it.
-Both policies are kept (experiments/results/reduction/table_3_2_ppo/: model, metadata, config,
-evaluations and summary of the run); the same command on that folder re-evaluates them:
-
-    python experiments/reduction/table_3_2.py --run experiments/results/reduction/table_3_2_ppo \
-        --out OUT
-
-Writes
+is this very episode). Writes
 experiments/results/reduction/table_3_2.json and .png with the learning curve (mean return of
 the run's evaluations against environment steps) and the thesis' figures beside ours.
 The thesis' figures are on SofaGym's reference mesh and its command sizes, in cm; ours on
@@ -79,14 +72,13 @@ def run_env_kwargs(run: Path) -> dict:
     return yaml.safe_load((run / "config.yaml").read_text()).get("env_kwargs") or {}
 
 
-def learned_actions(run: Path, which: str = "best") -> list[int]:
-    """The saved policy's deterministic actions over one episode of the reduced model: the
-    run's best evaluated policy (`which` "best", else the last) or its last ("final")."""
+def learned_actions(run: Path) -> list[int]:
+    """The saved policy's deterministic actions over one episode of the reduced model."""
     from pliant.learn.evaluate import load_policy
 
     # The best evaluated policy (evaluations are this deterministic episode), else the last.
-    best = which == "best" and (run / "best" / "model.zip").exists()
-    policy = load_policy(run / "best" if best else run / "final")
+    folder = run / "best" if (run / "best" / "model.zip").exists() else run / "final"
+    policy = load_policy(folder)
     env = gym.make("pliant/ReducedMultigait-v0", **run_env_kwargs(run))
     obs, _ = env.reset(seed=0)
     actions, done = [], False
@@ -157,9 +149,6 @@ def main() -> None:
     parser.add_argument("--name", default="table_3_2", help="stem of the JSON and PNG written")
     args = parser.parse_args()
     learned = learned_actions(args.run)
-    gaits = [("hand", HAND), ("learned", learned)]
-    if (args.run / "final" / "model.zip").exists():  # the last policy, chosen by nothing
-        gaits.append(("final", learned_actions(args.run, "final")))
     env_kwargs = run_env_kwargs(args.run)
     results = {
         "run": str(args.run),
@@ -167,7 +156,7 @@ def main() -> None:
         "thesis_cm": THESIS,
         "learning_curve": learning_curve(args.run),
     }
-    for name, actions in gaits:
+    for name, actions in (("hand", HAND), ("learned", learned)):
         results[name] = {
             "actions": actions,
             "reduced": replay("pliant/ReducedMultigait-v0", actions, **env_kwargs),
@@ -185,7 +174,7 @@ def main() -> None:
     args.out.mkdir(parents=True, exist_ok=True)
     (args.out / f"{args.name}.json").write_text(json.dumps(results, indent=1))
     plot(results, args.out / f"{args.name}.png")
-    for name, _ in gaits:
+    for name in ("hand", "learned"):
         r = results[name]
         print(
             f"{name:<8} {r['actions']}: reduced reward {r['reduced']['cumulative_reward_mm']:.2f}"
