@@ -65,8 +65,8 @@ def main(
     ] = None,
 ) -> None:
     out.mkdir(parents=True, exist_ok=True)
-    path = out / "table_5_2.json"
-    rows = json.loads(path.read_text()) if path.is_file() and evaluate is None else {}
+    table = out / "table_5_2.json"
+    rows = json.loads(table.read_text()) if table.is_file() and evaluate is None else {}
     goals = robots.entry("finger").trajectories["closing"](25)
     if evaluate is not None:
         for resolution in resolutions.split(","):
@@ -78,7 +78,7 @@ def main(
                 **_rates(learned, goals, iterations),
             }
             print(resolution, json.dumps(rows[resolution]))
-        path.write_text(json.dumps(rows, indent=1))
+        table.write_text(json.dumps(rows, indent=1))
         return
     for resolution in resolutions.split(","):
         plan = CollectionPlan(  # the thesis' W (material tangent), as in table_5_1.py
@@ -117,7 +117,7 @@ def main(
         " (network in NumPy + warm-started ProxQP), single thread, no FEM in the loop. W of"
         " SOFA's material tangent (the thesis' W), equilibria on the consistent tangent."
     )
-    path.write_text(json.dumps(rows, indent=1))
+    table.write_text(json.dumps(rows, indent=1))
 
 
 def _rates(learned: LearnedCondensedModel, goals: np.ndarray, iterations: int) -> dict:
