@@ -42,7 +42,7 @@ import typer
 
 from pliant import configure_threads
 from pliant.condensed.collect import load_or_collect, solve_split
-from pliant.condensed.dataset import CollectionPlan, Dataset, Split
+from pliant.condensed.dataset import Dataset, Split
 from pliant.condensed.learned import LearnedCondensedModel
 from pliant.condensed.networks import StandardisedMLP
 from pliant.condensed.train import TrainConfig, evaluate_loss, fit, sample_losses
@@ -115,15 +115,9 @@ def main(
     # The corner box from the validation set alone, before any held-out sample is solved.
     worst = validation.delta_a[int(np.argmax(sample_losses(first, validation)))]
     box = corner_box(worst, uniform.plan.actuator_bounds, corner_width)
-    corner_plan = CollectionPlan(
-        "diamond",
-        box,
-        corner_samples,
-        robot_kwargs=uniform.plan.robot_kwargs,
-        consistent_tangent=False,
-        start="rest",
-        test_fraction=0.0,
-        seed=7,
+    # The uniform plan's robot and solver (each sample from rest, SOFA's W) in the corner box.
+    corner_plan = replace(
+        uniform.plan, actuator_bounds=box, n_train=corner_samples, test_fraction=0.0, seed=7
     )
     name = f"diamond_corner_{corner_samples}_" + "_".join(f"{lo:g}-{hi:g}" for lo, hi in box)
     corner = load_or_collect(corner_plan, work / f"{name}.h5", workers=workers)

@@ -299,3 +299,13 @@ def test_the_kept_selector_gives_its_committed_accuracy():
     """The Selector network kept in the repository, re-tested (about 30 s): its figure again."""
     rows, _ = runner.evaluate(study("graph-selector"))
     assert rows and all(row.ok for row in rows), [(row.ours, row.why) for row in rows]
+
+
+@pytest.mark.slow
+def test_the_kept_coarse_finger_gives_its_committed_test_loss():
+    """The coarse Finger's condensed network kept in the repository, its test samples solved
+    again by the FEM (about 2 min): the committed test loss (its loop rate, a timing of the
+    machine, is not asserted here)."""
+    rows, _ = runner.evaluate(study("table-5.2"))
+    losses = [row for row in rows if row.figure.name == "test loss, coarse mesh"]
+    assert losses and all(row.ok for row in losses), [(row.ours, row.why) for row in losses]
