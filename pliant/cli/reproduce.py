@@ -123,6 +123,8 @@ def reproduce_command(
             raise typer.Exit(RUNTIME_EXIT) from error
         console.print(f"{chosen[0].name}: re-evaluated in {seconds:.0f} s")
         console.print(_rows_table("re-evaluation against the committed figures", rows, "committed"))
+        if chosen[0].not_kept:  # the figures whose model is not kept
+            console.print(f"not re-evaluated: {chosen[0].not_kept}")
     else:
         rows, seconds = runner.rerun(chosen[0])
         console.print(f"{chosen[0].name}: {seconds:.0f} s")

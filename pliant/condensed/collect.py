@@ -96,15 +96,10 @@ def collect(
         )
     if out.is_dir():
         raise DatasetError(f"{out} is a folder; the dataset is a file")
-    model = _build(plan.robot, json.dumps(plan.robot_kwargs, sort_keys=True))
-    layout = Layout.of(model, [contact_points(model, plan.contacts)] if plan.contacts else [])
+    layout = _layout(plan)
     parts = _parts_folder(out, plan, restart=overwrite)
     points = plan.points()
-    chunks = [
-        (split, start, min(start + plan.chunk_size, len(points[split])))
-        for split in SPLITS
-        for start in range(0, len(points[split]), plan.chunk_size)
-    ]
+    chunks = _chunks(plan, points, SPLITS)
     total = sum(len(p) for p in points.values())
     solved = {key: split for key in chunks if (split := _saved_chunk(parts, key)) is not None}
     done = sum(stop - start for _, start, stop in solved)
@@ -134,6 +129,33 @@ def collect(
         ) from exc
     shutil.rmtree(parts)
     return dataset
+
+
+def solve_split(plan: CollectionPlan, split: str, *, workers: int | None = None) -> Split:
+    """The samples of one split of `plan` solved again, chunk by chunk as `collect` solves
+    them: the same samples as that split of the plan's dataset, without the other split (the
+    test set of a kept model re-made from the plan stored in it). Nothing is written."""
+    if split not in SPLITS:
+        raise DatasetError(f"split must be one of {SPLITS}, got {split!r}")
+    points = plan.points()
+    chunks = _chunks(plan, points, (split,))
+    jobs = [(key, (plan, points[split][key[1] : key[2]])) for key in chunks]
+    solved = dict(run_jobs(solve_chunk, jobs, workers=workers))
+    empty = Split.empty(Split.widths(plan, _layout(plan)))
+    return Split.concatenate([empty, *(solved[key] for key in chunks)])
+
+
+def _chunks(plan: CollectionPlan, points: dict[str, np.ndarray], splits) -> list[ChunkKey]:
+    return [
+        (split, start, min(start + plan.chunk_size, len(points[split])))
+        for split in splits
+        for start in range(0, len(points[split]), plan.chunk_size)
+    ]
+
+
+def _layout(plan: CollectionPlan) -> Layout:
+    model = _build(plan.robot, json.dumps(plan.robot_kwargs, sort_keys=True))
+    return Layout.of(model, [contact_points(model, plan.contacts)] if plan.contacts else [])
 
 
 def verify(out: str | os.PathLike) -> list[str]:

@@ -72,6 +72,9 @@ def studies_table(studies: tuple[Study, ...] = STUDIES) -> str:
             quick = "none: " + _cell(study.no_quick)
         if study.evaluate is not None:
             kept = f"`{_cell(study.evaluate.command)}` ({study.evaluate.seconds:.0f} s)"
+            if study.evaluate.figures:
+                kept += f": {_cell(', '.join(study.evaluate.figures))}; others not kept: "
+                kept += _cell(study.not_kept)
         else:
             kept = "none: " + _cell(study.not_kept) if study.not_kept else "-"
             if study.retrain:

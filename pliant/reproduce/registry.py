@@ -140,11 +140,18 @@ class Quick:
             the figures of these files must be read from the quick run's (values not compared:
             the quick run is smaller than the study).
         seconds: wall time measured on the project's shared 2-core machine.
+        figures: the names of the figures it makes (empty: every figure of its files); a
+            re-evaluation that makes only some (the models of the others not kept) names them.
     """
 
     command: str
     files: dict[str, str]
     seconds: float
+    figures: tuple[str, ...] = ()
+
+    def makes(self, figure: Figure) -> bool:
+        """Whether this run writes `figure` (its file mapped, and named where names are given)."""
+        return figure.file in self.files and (not self.figures or figure.name in self.figures)
 
 
 @dataclass(frozen=True)
@@ -164,7 +171,8 @@ class Study:
             alone (``pliant reproduce NAME --evaluate``), written into ``{out}``; its files'
             figures are compared with the committed ones within their tolerance.
         not_kept: why the figures cannot be re-evaluated from the repository (the policy or
-            model is not tracked, and what re-making it costs).
+            model is not tracked, and what re-making it costs); beside a re-evaluation that
+            names its figures, why the others cannot.
         retrain: the command that re-makes the policy or model not kept, where it is not the
             study's own ``command``.
     """
@@ -188,8 +196,15 @@ class Study:
     def __post_init__(self) -> None:
         if (self.quick is None) == (not self.no_quick):
             raise ValueError(f"study {self.name}: give a quick variant or the reason for none")
-        if self.evaluate is not None and self.not_kept:
+        if self.evaluate is not None and self.not_kept and not self.evaluate.figures:
             raise ValueError(f"study {self.name}: a re-evaluation and no kept model")
+        if self.evaluate is not None and self.evaluate.figures:
+            names = {figure.name for figure in self.figures}
+            if not set(self.evaluate.figures) <= names:
+                unknown = sorted(set(self.evaluate.figures) - names)
+                raise ValueError(f"study {self.name}: re-evaluates no figure named {unknown}")
+            if len(self.evaluate.figures) < len(self.figures) and not self.not_kept:
+                raise ValueError(f"study {self.name}: says not why some figures are not kept")
         if self.retrain and not self.not_kept:
             raise ValueError(f"study {self.name}: a re-training command and nothing not kept")
         for figure in self.figures:

@@ -5,8 +5,9 @@
 - ``quick``: the quick variant in a fresh folder; each figure of the files it maps must be
   read from what it wrote (a number where the committed file has one): the pipeline still
   produces its figures. Its values are not compared, the run being smaller.
-- ``evaluate``: the kept policy or model re-evaluated in a fresh folder; each figure of the
-  files it maps is compared with the committed one within the figure's tolerance.
+- ``evaluate``: the kept policy or model re-evaluated in a fresh folder; each figure it makes
+  (those of the files it maps, or the ones it names) is compared with the committed one within
+  the figure's tolerance.
 - ``check``: the committed files against the thesis: every figure read, and any that does not
   meet the thesis' value (or is in other units) states its departure.
 """
@@ -117,7 +118,7 @@ def evaluate(study: Study, root: Path = ROOT) -> tuple[list[Row], float]:
         rows = [
             _compared(study, f, f.read(root), root, Path(out) / study.evaluate.files[f.file])
             for f in study.figures
-            if f.file in study.evaluate.files
+            if study.evaluate.makes(f)
         ]
     return rows, seconds
 

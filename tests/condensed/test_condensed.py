@@ -20,7 +20,7 @@ import torch  # noqa: E402
 
 from pliant import robots  # noqa: E402
 from pliant.condensed.calibration import calibrate  # noqa: E402
-from pliant.condensed.collect import collect  # noqa: E402
+from pliant.condensed.collect import collect, solve_split  # noqa: E402
 from pliant.condensed.control import (  # noqa: E402
     PID,
     EmbeddedController,
@@ -148,6 +148,15 @@ def test_resuming_with_another_plan_is_refused(tmp_path) -> None:
 
 def test_parallel_collection_equals_serial(small, tmp_path) -> None:
     _assert_same(collect(SMALL, tmp_path / "parallel.h5", workers=2), small)
+
+
+def test_one_split_solved_again_is_that_split_of_the_dataset(small) -> None:
+    """A kept model's test set re-made from its plan: the collected samples, no others."""
+    test = solve_split(SMALL, "test", workers=1)
+    for f in dataclasses.fields(Split):
+        np.testing.assert_array_equal(getattr(test, f.name), getattr(small.test, f.name), f.name)
+    with pytest.raises(DatasetError, match="split"):
+        solve_split(SMALL, "validation")
 
 
 # ---------------------------------------------------------------------------------------------

@@ -241,6 +241,24 @@ def test_evaluation_of_the_kept_model_compares_with_the_committed(tmp_path):
         Study("s", "T", "t", "true", (_figure(),), no_quick="none", evaluate=kept, not_kept="x")
 
 
+def test_a_re_evaluation_of_some_figures_compares_those_and_says_why_not_the_others(tmp_path):
+    """Where only some figures' models are kept, the re-evaluation names its figures; the
+    others are left out of the comparison and the study says why they are not kept."""
+    (tmp_path / "result.json").write_text(json.dumps({"runs": {"a": {"mm": 1.0}}}))
+    figures = (_figure(), _figure(name="other", path="runs/a/mm"))
+    some = Quick(
+        _writer(1.02, "{out}/again.json"), {"result.json": "again.json"}, 1.0, ("distance",)
+    )
+    entry = Study("s", "T", "t", "true", figures, no_quick="none", evaluate=some, not_kept="big")
+    rows, _ = runner.evaluate(entry, tmp_path)
+    assert [(row.figure.name, row.ok) for row in rows] == [("distance", True)]
+    with pytest.raises(ValueError, match="not why"):
+        Study("s", "T", "t", "true", figures, no_quick="none", evaluate=some)
+    unknown = Quick("true", {"result.json": "again.json"}, 1.0, ("speed",))
+    with pytest.raises(ValueError, match="speed"):
+        Study("s", "T", "t", "true", figures, no_quick="none", evaluate=unknown, not_kept="big")
+
+
 def test_the_kept_models_are_tracked_and_small():
     """A study that re-evaluates its kept policy or model reads it from tracked files only."""
     tracked = _tracked()
@@ -281,3 +299,13 @@ def test_the_kept_selector_gives_its_committed_accuracy():
     """The Selector network kept in the repository, re-tested (about 30 s): its figure again."""
     rows, _ = runner.evaluate(study("graph-selector"))
     assert rows and all(row.ok for row in rows), [(row.ours, row.why) for row in rows]
+
+
+@pytest.mark.slow
+def test_the_kept_coarse_finger_gives_its_committed_test_loss():
+    """The coarse Finger's condensed network kept in the repository, its test samples solved
+    again by the FEM (about 2 min): the committed test loss (its loop rate, a timing of the
+    machine, is not asserted here)."""
+    rows, _ = runner.evaluate(study("table-5.2"))
+    losses = [row for row in rows if row.figure.name == "test loss, coarse mesh"]
+    assert losses and all(row.ok for row in losses), [(row.ours, row.why) for row in losses]
