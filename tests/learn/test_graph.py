@@ -336,10 +336,12 @@ def test_avoid_cycles_keeps_the_evaluator_off_a_loop_it_has_closed():
 
 
 def test_hierarchy_with_convex_internal_agents():
-    """Internal agents replaced by the corridor's closed-form QP, run until the node changes."""
+    """Internal agents replaced by the corridor's closed-form QP, run until the node changes:
+    the Evaluator and the external agents alone learn, and solve the corridor from about 750
+    steps (seed 0, success 1.0 from 1000 on)."""
     env, agent = _corridor_agent({i: corridor_controller() for i in range(3)})
     assert not any(a.learned for a in agent.internal)
-    agent.learn(env, 2000)
+    agent.learn(env, 1200)
     assert agent.evaluate(env, 10)["success"] >= 0.9
 
 
