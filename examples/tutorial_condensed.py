@@ -27,7 +27,7 @@ from pliant.condensed.plots import plot_reached
 plan = CollectionPlan(
     robot="finger",
     actuator_bounds=((-10.0, 10.0), (-10.0, 10.0)),  # mm, both cables
-    n_train=48 if QUICK else 400,
+    n_train=24 if QUICK else 400,
 )
 start = time.perf_counter()
 with tempfile.TemporaryDirectory() as folder:
@@ -41,7 +41,7 @@ print(
 
 # 2. Train F: (delta_a, W0, delta0_free) -> (W upper triangle, delta_free), Eq. 5.4-5.5.
 config = TrainConfig(
-    epochs=60 if QUICK else 1000,
+    epochs=30 if QUICK else 1000,
     hidden=(64, 64) if QUICK else (256, 256, 256),
     learning_rate=1e-3,
     progress=False,
@@ -55,7 +55,7 @@ print(
 
 # 3. Control: for each goal, W and delta_free at the robot's state from the network (or the
 # FEM), the inverse QP, and the displacements it chose imposed on the FEM finger.
-goals = robots.entry("finger").trajectories["closing"](4 if QUICK else 15)
+goals = robots.entry("finger").trajectories["closing"](3 if QUICK else 15)
 finger = robots.build("finger")
 with warnings.catch_warnings():
     warnings.simplefilter("ignore", OutOfBoundsWarning)  # goals near the box's edge

@@ -4,7 +4,10 @@ from __future__ import annotations
 
 import importlib.util
 import os
+import subprocess
+import sys
 from collections.abc import Callable
+from pathlib import Path
 
 import numba
 import numpy as np
@@ -151,3 +154,38 @@ def mechanical_energy(model: Model, state: State) -> float:
         total += 0.5 * b.mass * float(state.rigid_velocities[i] @ state.rigid_velocities[i])
         total += 0.5 * float(w @ b.inertia @ w) - b.mass * float(g @ state.rigid_positions[i])
     return total
+
+
+# The tutorials (examples/tutorial_*.py) run in their quick settings, in two files so that
+# neither is a long pole under pytest-xdist's --dist loadfile: the learning ones
+# (tests/interface/test_tutorials_learning.py) and every other (test_tutorials_simulation.py).
+EXAMPLES = Path(__file__).parents[1] / "examples"
+LEARNING_TUTORIALS = frozenset(
+    {"condensed", "environment", "graph", "planning", "proxy", "reduction", "training"}
+)
+
+
+def tutorials(learning: bool) -> list[Path]:
+    """The tutorial scripts of one of the two groups, sorted."""
+    return [
+        p
+        for p in sorted(EXAMPLES.glob("tutorial_*.py"))
+        if (p.stem.removeprefix("tutorial_") in LEARNING_TUTORIALS) == learning
+    ]
+
+
+def run_tutorial(script: Path, tmp_path: Path) -> None:
+    """Run one tutorial with this checkout's pliant in its quick settings; it must exit 0
+    and write its figures."""
+    path = os.pathsep.join([str(EXAMPLES.parent), os.environ.get("PYTHONPATH", "")])
+    env = {
+        **os.environ,
+        "PYTHONPATH": path,
+        "PLIANT_TUTORIAL_QUICK": "1",
+        "PLIANT_TUTORIAL_OUT": str(tmp_path),
+    }
+    result = subprocess.run(
+        [sys.executable, str(script)], cwd=EXAMPLES.parent, capture_output=True, text=True, env=env
+    )
+    assert result.returncode == 0, result.stderr[-3000:]
+    assert any((tmp_path / "tutorials").iterdir())

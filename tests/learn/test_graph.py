@@ -264,18 +264,18 @@ def _corridor_agent(controllers=None, seed=0, config=FAST):
 
 def test_hierarchy_reaches_a_goal_in_another_region():
     """Start left of −1/3, goal right of 1/3: the task needs two changes of region. With learned
-    internal and external agents the greedy hierarchy succeeds within 2000 steps (seed 0 from
-    about 1300; seeds 0-2 within 1300-2500, plain SAC within about 500 on this easy task:
+    internal and external agents the greedy hierarchy succeeds within 1600 steps (seed 0 from
+    about 1250; seeds 0-2 within 1300-2500, plain SAC within about 500 on this easy task:
     experiments/results/graph/Corridor)."""
     env, agent = _corridor_agent()
-    agent.learn(env, 2000)
+    agent.learn(env, 1600)
     runs = [agent.run_episode(env, train=False, seed=100 + k) for k in range(10)]
     assert np.mean([r["success"] for r in runs]) >= 0.9
     assert all(r["nodes"][0] == 0 and 2 in r["nodes"] for r in runs)
     # The thesis' swap (L863): the trained internal agents replaced by the closed-form QP (the
     # optimal in-region controller), the Evaluator and external agents kept: the task is
-    # still solved and the return no worse (here 2000 steps leave the learned agents short of
-    # optimal: the return improves, by about a quarter).
+    # still solved and the return no worse (here 1600 steps leave the learned agents short of
+    # optimal: the return improves).
     learned = np.mean([r["return"] for r in runs])
     agent.swap_internal({i: corridor_controller() for i in range(3)})
     assert not any(a.learned for a in agent.internal)
@@ -336,10 +336,12 @@ def test_avoid_cycles_keeps_the_evaluator_off_a_loop_it_has_closed():
 
 
 def test_hierarchy_with_convex_internal_agents():
-    """Internal agents replaced by the corridor's closed-form QP, run until the node changes."""
+    """Internal agents replaced by the corridor's closed-form QP, run until the node changes:
+    the Evaluator and the external agents alone learn, and solve the corridor from about 750
+    steps (seed 0, success 1.0 from 1000 on)."""
     env, agent = _corridor_agent({i: corridor_controller() for i in range(3)})
     assert not any(a.learned for a in agent.internal)
-    agent.learn(env, 2000)
+    agent.learn(env, 1200)
     assert agent.evaluate(env, 10)["success"] >= 0.9
 
 
@@ -539,11 +541,12 @@ def test_checkpoint_round_trip(tmp_path):
 
 def test_shared_internal_hierarchy_learns_checkpoints_and_refuses_a_mismatch(tmp_path):
     """The shared internal agent in the whole hierarchy: the corridor solved from the left
-    region in 2000 steps (as the per-node agents do), one network for the three nodes, its
-    buffer holding every step; a checkpoint restores it and is refused by per-node agents."""
+    region in 1500 steps (seed 0 from about 1000, as the per-node agents do), one network for
+    the three nodes, its buffer holding every step; a checkpoint restores it and is refused by
+    per-node agents."""
     shared = GraphConfig(**{**FAST.__dict__, "internal": "shared"})
     env, agent = _corridor_agent(config=shared)
-    agent.learn(env, 2000)
+    agent.learn(env, 1500)
     runs = [agent.run_episode(env, train=False, seed=100 + k) for k in range(10)]
     assert np.mean([r["success"] for r in runs]) >= 0.9
     assert len(agent.shared_internal.buffer) == agent.steps
