@@ -201,10 +201,12 @@ HANDLED = HANDLED | ARTICULATED
 # Components Pliant knows but cannot map, and why (their data are still checked).
 UNSUPPORTED = {
     # SoftRobots registers it on Vec1 only: an articulation's angle or course, which an
-    # ArticulatedSystemMapping turns into rigid frames. Pliant's joints are a rod node's turn
-    # (RotationActuator) and kinematic servos; it reads no articulated system from a scene.
+    # ArticulatedSystemMapping turns into rigid frames. Pliant reads a servo's angle as the
+    # rest_position its RestShapeSpringsForceField pulls it to (pliant.sofa.servos), not as a
+    # constraint's value.
     "JointConstraint": "an articulation's degree of freedom (Vec1 of an"
-    " ArticulatedSystemMapping); Pliant reads no articulated system",
+    " ArticulatedSystemMapping); Pliant reads a servo's angle from its"
+    " RestShapeSpringsForceField's rest_position only",
 }
 # A rigidified group's frame is a Pliant rigid body with this share of its nodes' mass (SOFA's
 # frames have none of their own: the nodes carry it; Pliant's rigid bodies need a mass).
