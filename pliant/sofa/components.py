@@ -154,7 +154,7 @@ _BOX = {
     "drawPoints": False,
     "drawSize": 0.0,
     "doUpdate": False,
-    "strict": False,
+    "strict": True,
     "computeEdges": True,
     "computeTriangles": True,
     "computeTetrahedra": True,

@@ -213,6 +213,7 @@ UNSUPPORTED = {
 FRAME_MASS_SHARE = 1e-6
 CAVITIES = frozenset({"SurfacePressureConstraint", "SurfacePressureActuator"})
 ROIS = frozenset({"BoxROI", "SphereROI"})
+TOPOLOGIES = frozenset({"MeshTopology", "TetrahedronSetTopologyContainer"})
 POINT_CONSTRAINTS = frozenset(
     {"CableConstraint", "CableActuator", "PositionEffector", "PositionConstraint", *CAVITIES}
 )
@@ -992,8 +993,26 @@ class _Builder:
             return Plane(normal=normal, point=a[0])
         return TriangleMesh(points, faces)
 
+    @staticmethod
+    def _is_layer(node: SceneNode) -> bool:
+        """A second FEM on part of the body's elements (SoftRobots' stiffer layer): a child of
+        the body's node with a FEM and a topology of its own but no MechanicalObject (it acts
+        on its parent's nodes, SOFA's context)."""
+        parent = node.parent
+        return (
+            parent is not None
+            and any(o.type in FEM for o in parent.objects)
+            and any(o.type in FEM for o in node.objects)
+            and not any(o.type == "MechanicalObject" for o in node.objects)
+            and any(o.type in TOPOLOGIES for o in node.objects)
+        )
+
     def _body_node(self) -> SceneNode:
-        nodes = [n for n in self.root.walk() if any(o.type in FEM for o in n.objects)]
+        nodes = [
+            n
+            for n in self.root.walk()
+            if any(o.type in FEM for o in n.objects) and not self._is_layer(n)
+        ]
         if not nodes:
             raise SceneError(
                 f"{self.path.name} has no deformable body (no TetrahedronFEMForceField or"
@@ -1061,6 +1080,7 @@ class _Builder:
         negative = signed_volumes(points, tets) < 0.0
         tets[negative] = tets[negative][:, [0, 2, 1, 3]]
         mesh = TetMesh(points, tets)
+        layers = self._layers(node, fem, mesh)
         mass_kwargs = self._mass(node, points.shape[0])
         solver_kind, rayleigh = self._ode_solver(node)
         fixed = np.union1d(self._fixed_nodes(node, points), self._held_groups(node, points))
@@ -1077,7 +1097,66 @@ class _Builder:
             rayleigh_stiffness=rayleigh[1],
             **mass_kwargs,
         )
+        for elements, (mu, lam) in layers:  # the same law: its parameters add up
+            body.mu[elements] += mu
+            body.lam[elements] += lam
+        if layers:
+            body.changed()
         return body, mesh, solver_kind
+
+    def _layers(self, node: SceneNode, fem: SceneObject, mesh: TetMesh) -> list:
+        """The body's stiffer layers (see :meth:`_is_layer`): for each, its elements among
+        the body's and the Lame parameters its FEM adds there. Two FEMs of the same law (and,
+        corotational, the same frame) on an element sum to that law with the sum of their mu
+        and lambda: every law Pliant has is linear in them (the corotational force is R K0
+        (X - R^T x), K0 linear in mu and lambda; NeoHookean's and St Venant-Kirchhoff's
+        energies are too). The layer's tetrahedra are its topology's (given, or a BoxROI's
+        ``tetrahedraInROI``: those whose centre is in a box, or all of whose nodes are with
+        ``strict``)."""
+        layers = []
+        for child in [c for c in node.children if self._is_layer(c)]:
+            own = self._one(child, FEM, "FEM force fields")
+            if own.type != fem.type or own.type == HEXAHEDRA:
+                raise SceneError(f"{own.path}: a layer's FEM is the body's ({fem.type}) in Pliant")
+            keys = ("method", "materialName")
+            if any(
+                str(own.attrs.get(k, "")).lower() != str(fem.attrs.get(k, "")).lower() for k in keys
+            ):
+                raise SceneError(f"{own.path}: a layer's method and material are the body's")
+            topology = self._one(child, TOPOLOGIES, "topologies")
+            tets = self._layer_tets(child, topology, mesh)
+            index = {tuple(sorted(t)): k for k, t in enumerate(mesh.tets.tolist())}
+            elements = np.array([index.get(tuple(sorted(t)), -1) for t in tets.tolist()], np.int64)
+            if (elements < 0).any():
+                raise SceneError(f"{topology.path}: the layer's tetrahedra are not the body's")
+            if fem.type == HYPERELASTIC:
+                material = self._hyperelastic(own)
+            else:
+                material = Corotational(
+                    _float(own, "youngModulus", 5000.0), _float(own, "poissonRatio", 0.45)
+                )
+            layers.append((elements, (material.mu, material.lam)))
+        return layers
+
+    def _layer_tets(self, node: SceneNode, topology: SceneObject, mesh: TetMesh) -> np.ndarray:
+        value = topology.attrs.get("tetrahedra", topology.attrs.get("tetras", ""))
+        if not _is_link(value):
+            return _floats(value, f"{topology.path}.tetrahedra").astype(np.int64).reshape(-1, 4)
+        box = self.link(node, value)
+        if box is None or box.type != "BoxROI" or not str(value).endswith("tetrahedraInROI"):
+            raise SceneError(
+                f"{topology.path}.tetrahedra: {value!r} is no BoxROI's tetrahedraInROI"
+            )
+        strict = _flag(box, "strict", True)
+        if strict:
+            inside = np.zeros(mesh.n_nodes, dtype=bool)
+            inside[self._box_nodes(box, mesh.points)] = True
+            chosen = inside[mesh.tets].all(axis=1)
+        else:
+            centres = mesh.points[mesh.tets].mean(axis=1)
+            chosen = np.zeros(len(centres), dtype=bool)
+            chosen[self._box_nodes(box, centres)] = True
+        return mesh.tets[chosen]
 
     def _hyperelastic(self, fem: SceneObject) -> Material:
         """SOFA's TetrahedronHyperelasticityFEMForceField: ``materialName`` (SOFA's default
@@ -1851,8 +1930,9 @@ def _roi_points(roi: SceneObject) -> np.ndarray:
         return _floats(given, f"{roi.path}.position").reshape(-1, 3)
     builder = _script_builder(roi.node)
     dofs = builder.link(roi.node, given) if given is not None and _is_link(given) else None
-    if dofs is None:
-        dofs = roi.node.getMechanicalState()
+    at = roi.node
+    while dofs is None and at is not None:  # the context's, then the parent's
+        dofs, at = at.getMechanicalState(), at.parent
     if dofs is None:
         raise SceneError(f"{roi.path}: no position to select from (no MechanicalObject here)")
     _init_positions(dofs)
