@@ -52,7 +52,7 @@ from pliant.mesh.tetmesh import TetMesh
 from pliant.model import Model, State
 from pliant.sofa.components import FIELDS, is_visual
 from pliant.sofa.grids import GRIDS, HEXAHEDRA, grid_tetrahedra, hex_body
-from pliant.sofa.servos import ARTICULATED, Servo, read_servos, rigid_pose
+from pliant.sofa.servos import ARTICULATED, Servo, linked_dofs, read_servos, rigid_pose
 from pliant.sofa.tree import (
     INITIALISERS,
     SceneError,
@@ -1549,7 +1549,7 @@ class _Builder:
         from the root of a part built apart ("@/Tripod/..." before the Tripod joined the
         scene) names the one node whose path ends so."""
         path = str(link).strip().lstrip("@")
-        found = self._path_dofs(node, path)
+        found = linked_dofs(node, path)
         if found is None and path.startswith("/"):
             tail = "/" + path.strip("/")
             ends = [n for n in self.root.walk() if n.sofa_path.endswith(tail)]
@@ -1561,21 +1561,6 @@ class _Builder:
             if len(objects) == 1 and objects[0].type == "MechanicalObject":
                 return objects[0]
         return found
-
-    def _path_dofs(self, node: SceneNode, path: str) -> SceneObject | None:
-        at: SceneNode | None = self.root if path.startswith("/") else node
-        for part in [p for p in path.split("/") if p not in ("", ".")]:
-            if at is None:
-                return None
-            if part == "..":
-                at = at.parent
-                continue
-            child = next((c for c in at.children if c.name == part), None)
-            if child is None:
-                found = next((o for o in at.objects if o.name == part), None)
-                return found if found is not None and found.type == "MechanicalObject" else None
-            at = child
-        return None if at is None else at.getMechanicalState()
 
     def _frame_poses(self, frames, owner, chosen, per_point, points) -> list:
         """(index, position, rotation) of each frame (see :meth:`_groups`)."""

@@ -182,7 +182,7 @@ def read_servos(root: SceneNode) -> dict[int, Servo]:
             centre.attrs.get("posOnParent", [0, 0, 0]), f"{centre.path}.posOnParent"
         )
         base_link = str(mapping.attrs.get("input2", "")).strip().lstrip("@")
-        base = _linked_dofs(wheel, base_link)
+        base = linked_dofs(wheel, base_link)
         if base is None:
             raise SceneError(f"{mapping.path}.input2: {base_link!r} names no Rigid3 base")
         held = any(
@@ -210,18 +210,20 @@ def read_servos(root: SceneNode) -> dict[int, Servo]:
     return servos
 
 
-def _linked_dofs(node: SceneNode, link: str) -> SceneObject | None:
-    """The MechanicalObject a mapping's input link names (a node or its ``dofs``)."""
-    at: SceneNode | None = node.getRoot() if link.startswith("/") else node
-    parts = [p for p in link.split("/") if p not in ("", ".")]
-    for k, part in enumerate(parts):
+def linked_dofs(node: SceneNode, link: str) -> SceneObject | None:
+    """The MechanicalObject a mapping's input link names from `node`: a node's (its state),
+    or a MechanicalObject by its path."""
+    path = str(link).strip().lstrip("@")
+    at: SceneNode | None = node.getRoot() if path.startswith("/") else node
+    for part in [p for p in path.split("/") if p not in ("", ".")]:
         if at is None:
             return None
         if part == "..":
             at = at.parent
             continue
         child = next((c for c in at.children if c.name == part), None)
-        if child is None and k == len(parts) - 1:
-            return next((o for o in at.objects if o.name == part), None)
+        if child is None:
+            found = next((o for o in at.objects if o.name == part), None)
+            return found if found is not None and found.type == "MechanicalObject" else None
         at = child
     return None if at is None else at.getMechanicalState()
