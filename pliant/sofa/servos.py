@@ -197,8 +197,13 @@ def read_servos(root: SceneNode) -> dict[int, Servo]:
         pivot = position + rotation @ on_parent
         # the wheel at angle 0: the base, its origin moved so that posOnChild is on the pivot
         wheel_origin = pivot - rotation @ on_child
-        start = float(_numbers(angle_dofs.attrs.get("position", [0.0]), "position")[0])
         made = Servo(angle_dofs, springs[0], wheel, None)  # type: ignore[arg-type]
+        given = angle_dofs.attrs.get("position", [0.0])
+        try:
+            start = float(_numbers(given, f"{angle_dofs.path}.position")[0])
+        except (SceneError, TypeError, ValueError):  # a data field set there: its command's
+            made.commands = [(-math.inf, 0.0)]
+            start = made.command()
         made.commands = [(-math.inf, start)]
         made.carrier = KinematicBody(
             Box(np.full(3, 1e-3), position=wheel_origin, rotation=rotation),
