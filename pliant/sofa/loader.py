@@ -44,7 +44,7 @@ from pliant.errors import ContactError, ModelError
 from pliant.fem.body import TetBody, fixed_components, nodes_in_box
 from pliant.fem.loads import Load, NodalForces, RestShapeSprings
 from pliant.fem.material import Corotational, Material, NeoHookean, StVenantKirchhoff
-from pliant.fem.rigid import RigidBody
+from pliant.fem.rigid import DrivenNodes, RigidBody
 from pliant.fem.supports import OnLine, OnPlane, Projection
 from pliant.geometry.collision import Box, Plane, TriangleMesh
 from pliant.mesh.quality import signed_volumes
@@ -52,7 +52,15 @@ from pliant.mesh.tetmesh import TetMesh
 from pliant.model import Model, State
 from pliant.sofa.components import FIELDS, is_visual
 from pliant.sofa.grids import GRIDS, HEXAHEDRA, grid_tetrahedra, hex_body
-from pliant.sofa.tree import SceneError, SceneNode, SceneObject, close_match, read_scene
+from pliant.sofa.servos import ARTICULATED, Servo, linked_dofs, read_servos, rigid_pose
+from pliant.sofa.tree import (
+    INITIALISERS,
+    SceneError,
+    SceneNode,
+    SceneObject,
+    close_match,
+    read_scene,
+)
 
 # SOFA's BarycentricMapping carries a point wherever it lies; Pliant still refuses one farther
 # from the mesh than this share of the body's extent (a typo in a coordinate).
@@ -137,6 +145,7 @@ HANDLED = frozenset(
         "UniformMass",
         "MeshMatrixMass",
         "BoxROI",
+        "SphereROI",
         "FixedConstraint",
         "FixedProjectiveConstraint",
         "PartialFixedConstraint",
@@ -187,18 +196,24 @@ HANDLED = HANDLED | {PLANE_CONSTRAINT}
 # STLIB's Rigidify: the body's node gathered from its free nodes and from nodes carried by
 # rigid frames (a RigidMapping with rigidIndexPerPoint).
 HANDLED = HANDLED | {"SubsetMultiMapping"}
+# SoftRobots' servo motors (ArticulatedSystemPlugin): kinematic servos, pliant.sofa.servos.
+HANDLED = HANDLED | ARTICULATED
 # Components Pliant knows but cannot map, and why (their data are still checked).
 UNSUPPORTED = {
     # SoftRobots registers it on Vec1 only: an articulation's angle or course, which an
-    # ArticulatedSystemMapping turns into rigid frames. Pliant's joints are a rod node's turn
-    # (RotationActuator) and kinematic servos; it reads no articulated system from a scene.
+    # ArticulatedSystemMapping turns into rigid frames. Pliant reads a servo's angle as the
+    # rest_position its RestShapeSpringsForceField pulls it to (pliant.sofa.servos), not as a
+    # constraint's value.
     "JointConstraint": "an articulation's degree of freedom (Vec1 of an"
-    " ArticulatedSystemMapping); Pliant reads no articulated system",
+    " ArticulatedSystemMapping); Pliant reads a servo's angle from its"
+    " RestShapeSpringsForceField's rest_position only",
 }
 # A rigidified group's frame is a Pliant rigid body with this share of its nodes' mass (SOFA's
 # frames have none of their own: the nodes carry it; Pliant's rigid bodies need a mass).
 FRAME_MASS_SHARE = 1e-6
 CAVITIES = frozenset({"SurfacePressureConstraint", "SurfacePressureActuator"})
+ROIS = frozenset({"BoxROI", "SphereROI"})
+TOPOLOGIES = frozenset({"MeshTopology", "TetrahedronSetTopologyContainer"})
 POINT_CONSTRAINTS = frozenset(
     {"CableConstraint", "CableActuator", "PositionEffector", "PositionConstraint", *CAVITIES}
 )
@@ -290,6 +305,8 @@ class SofaScene:
                 if goals.shape[0] == 1:
                     goals = np.repeat(goals, len(effector.points), axis=0)
                 effector.goals = goals
+        for servo in bindings.servos:  # a command reached at the end of this step
+            servo.set_command(state.time)
         written = bindings.written
         if bindings.body is not None and bindings.body.attrs.get("position") is not written:
             positions = _floats(bindings.body.attrs["position"], f"{bindings.body.path}.position")
@@ -328,10 +345,14 @@ class SofaScene:
         for dofs, frames in bindings.frames:  # Rigidify's frames: a rigid body's, or held
             poses = []
             for index, x, r in frames:
-                if index is not None:
+                if isinstance(index, Servo):
+                    x, r = index.carrier.pose(state.time)
+                elif index is not None:
                     x, r = state.rigid_positions[index], state.rigid_rotations[index]
                 poses.append(np.concatenate([x, Rotation.from_matrix(r).as_quat()]))
             dofs.attrs["position"] = _frozen(poses)
+        for servo in bindings.servos:
+            servo.write(state.time)
         if self.root is not None:
             self.root.attrs["time"] = float(state.time)
 
@@ -390,6 +411,7 @@ class Bindings:
     # Rigidify's frames: their MechanicalObject, and for each frame (rigid body index or None
     # where it is held, its initial position and rotation).
     frames: list[tuple[SceneObject, list]] = dataclasses.field(default_factory=list)
+    servos: list[Servo] = dataclasses.field(default_factory=list)
 
 
 class ControlledSolver:
@@ -424,6 +446,8 @@ class _Frames:
     groups: list[np.ndarray]
     poses: list
     fixed: np.ndarray
+    # the servo turning each frame (its nodes are then held and driven), or None
+    driven: list = dataclasses.field(default_factory=list)
 
 
 @dataclass(frozen=True)
@@ -579,6 +603,20 @@ def _in_oriented_box(points: np.ndarray, box: np.ndarray) -> np.ndarray:
     return np.flatnonzero(inside & (np.abs(c) <= 0.5 * depth + eps))
 
 
+def _sphere_nodes(roi: SceneObject, points: np.ndarray) -> np.ndarray:
+    """Nodes in any of a SphereROI's spheres (``centers``, ``radii``: one radius for all or
+    one each), their boundary included."""
+    centres = _floats(roi.attrs.get("centers", ""), f"{roi.path}.centers").reshape(-1, 3)
+    radii = _floats(roi.attrs.get("radii", ""), f"{roi.path}.radii")
+    if centres.shape[0] == 0 or radii.size not in (1, centres.shape[0]):
+        raise SceneError(
+            f"{roi.path}: {centres.shape[0]} centers and {radii.size} radii (one, or one each)"
+        )
+    radii = np.broadcast_to(radii, centres.shape[0])
+    distance = np.linalg.norm(points[:, None, :] - centres[None], axis=2)
+    return np.flatnonzero((distance <= radii[None]).any(axis=1))
+
+
 def _read_obj(file: Path) -> meshio.Mesh:
     """An OBJ file's vertices and faces (polygons fanned into triangles), for files meshio
     refuses (texture coordinates that do not match the vertices)."""
@@ -634,6 +672,7 @@ class _Builder:
     # --- scene-wide ------------------------------------------------------------------------
     def build(self) -> SofaScene:
         self._check_supported()
+        self._servos = read_servos(self.root)
         body_node = self._body_node()
         dt = float(_floats(self.root.attrs.get("dt", 0.01), "root.dt")[0])
         gravity = _floats(self.root.attrs.get("gravity", "0 -9.81 0"), "root.gravity")
@@ -675,22 +714,31 @@ class _Builder:
         if planes is not None:  # solved with the contacts, whether the scene detects any
             contacts = Contacts([], planes=planes) if contacts is None else contacts
             contacts.planes = planes
+        drivers = [
+            DrivenNodes(g.groups[j], servo.carrier, name=f"{g.dofs.node.name}[{j}]")
+            for g in self._rigidified
+            for j, servo in enumerate(g.driven)
+            if servo is not None
+        ]
         model = Model(
             body,
             actuators=actuators,
             effectors=effectors,
             contacts=contacts,
+            drivers=drivers,
             rigid_bodies=rigid + frames,
             attachments=attachments,
             name=self.path.stem,
         )
         self.bindings.body = self._one(body_node, {"MechanicalObject"}, "MechanicalObjects")
         self.bindings.rigid = [self._rigid_dofs(n) for n in self.root.walk() if self._is_rigid(n)]
+        self.bindings.servos = list(self._servos.values())
         self.bindings.frames, k = [], len(rigid)
         for g in self._rigidified:  # the rigid bodies of the free frames follow the others
             entries = []
             for j, (x, r) in g.poses:
-                entries.append((None if g.fixed[j] else k, x, r))
+                servo = g.driven[j] if g.driven else None
+                entries.append((servo if servo is not None else None if g.fixed[j] else k, x, r))
                 k += not g.fixed[j]
             self.bindings.frames.append((g.dofs, entries))
         scene = SofaScene(model, dt, solver_kind, self.path, self.root, self.bindings)
@@ -817,9 +865,29 @@ class _Builder:
         marks a static one, a floor, moving=False and simulated=False)."""
         if not _Builder._rigid_dofs(node) or _Builder._is_frames(node):
             return False
+        if _Builder._servo_part(node):
+            return False
         models = [o for n in node.walk() for o in n.objects if o.type in COLLISION_MODELS]
         return not models or any(
             _flag(o, "moving", True) or _flag(o, "simulated", True) for o in models
+        )
+
+    @staticmethod
+    def _servo_part(node: SceneNode) -> bool:
+        """A node of a servo (its body, wheel and arm) or a frame that Rigidify's frames map
+        from (their mapping's input): kinematic in Pliant, no rigid body."""
+        at: SceneNode | None = node
+        while at is not None:
+            if any(o.type in ARTICULATED for o in at.objects):
+                return True
+            siblings = at.parent.children if at.parent is not None else []
+            if any(o.type == "ArticulatedHierarchyContainer" for s in siblings for o in s.objects):
+                return True
+            at = at.parent
+        return any(
+            o.type == "SubsetMultiMapping" and node.name in str(o.attrs.get("input", ""))
+            for n in node.walk()
+            for o in n.objects
         )
 
     @staticmethod
@@ -925,8 +993,26 @@ class _Builder:
             return Plane(normal=normal, point=a[0])
         return TriangleMesh(points, faces)
 
+    @staticmethod
+    def _is_layer(node: SceneNode) -> bool:
+        """A second FEM on part of the body's elements (SoftRobots' stiffer layer): a child of
+        the body's node with a FEM and a topology of its own but no MechanicalObject (it acts
+        on its parent's nodes, SOFA's context)."""
+        parent = node.parent
+        return (
+            parent is not None
+            and any(o.type in FEM for o in parent.objects)
+            and any(o.type in FEM for o in node.objects)
+            and not any(o.type == "MechanicalObject" for o in node.objects)
+            and any(o.type in TOPOLOGIES for o in node.objects)
+        )
+
     def _body_node(self) -> SceneNode:
-        nodes = [n for n in self.root.walk() if any(o.type in FEM for o in n.objects)]
+        nodes = [
+            n
+            for n in self.root.walk()
+            if any(o.type in FEM for o in n.objects) and not self._is_layer(n)
+        ]
         if not nodes:
             raise SceneError(
                 f"{self.path.name} has no deformable body (no TetrahedronFEMForceField or"
@@ -994,6 +1080,7 @@ class _Builder:
         negative = signed_volumes(points, tets) < 0.0
         tets[negative] = tets[negative][:, [0, 2, 1, 3]]
         mesh = TetMesh(points, tets)
+        layers = self._layers(node, fem, mesh)
         mass_kwargs = self._mass(node, points.shape[0])
         solver_kind, rayleigh = self._ode_solver(node)
         fixed = np.union1d(self._fixed_nodes(node, points), self._held_groups(node, points))
@@ -1010,7 +1097,66 @@ class _Builder:
             rayleigh_stiffness=rayleigh[1],
             **mass_kwargs,
         )
+        for elements, (mu, lam) in layers:  # the same law: its parameters add up
+            body.mu[elements] += mu
+            body.lam[elements] += lam
+        if layers:
+            body.changed()
         return body, mesh, solver_kind
+
+    def _layers(self, node: SceneNode, fem: SceneObject, mesh: TetMesh) -> list:
+        """The body's stiffer layers (see :meth:`_is_layer`): for each, its elements among
+        the body's and the Lame parameters its FEM adds there. Two FEMs of the same law (and,
+        corotational, the same frame) on an element sum to that law with the sum of their mu
+        and lambda: every law Pliant has is linear in them (the corotational force is R K0
+        (X - R^T x), K0 linear in mu and lambda; NeoHookean's and St Venant-Kirchhoff's
+        energies are too). The layer's tetrahedra are its topology's (given, or a BoxROI's
+        ``tetrahedraInROI``: those whose centre is in a box, or all of whose nodes are with
+        ``strict``)."""
+        layers = []
+        for child in [c for c in node.children if self._is_layer(c)]:
+            own = self._one(child, FEM, "FEM force fields")
+            if own.type != fem.type or own.type == HEXAHEDRA:
+                raise SceneError(f"{own.path}: a layer's FEM is the body's ({fem.type}) in Pliant")
+            keys = ("method", "materialName")
+            if any(
+                str(own.attrs.get(k, "")).lower() != str(fem.attrs.get(k, "")).lower() for k in keys
+            ):
+                raise SceneError(f"{own.path}: a layer's method and material are the body's")
+            topology = self._one(child, TOPOLOGIES, "topologies")
+            tets = self._layer_tets(child, topology, mesh)
+            index = {tuple(sorted(t)): k for k, t in enumerate(mesh.tets.tolist())}
+            elements = np.array([index.get(tuple(sorted(t)), -1) for t in tets.tolist()], np.int64)
+            if (elements < 0).any():
+                raise SceneError(f"{topology.path}: the layer's tetrahedra are not the body's")
+            if fem.type == HYPERELASTIC:
+                material = self._hyperelastic(own)
+            else:
+                material = Corotational(
+                    _float(own, "youngModulus", 5000.0), _float(own, "poissonRatio", 0.45)
+                )
+            layers.append((elements, (material.mu, material.lam)))
+        return layers
+
+    def _layer_tets(self, node: SceneNode, topology: SceneObject, mesh: TetMesh) -> np.ndarray:
+        value = topology.attrs.get("tetrahedra", topology.attrs.get("tetras", ""))
+        if not _is_link(value):
+            return _floats(value, f"{topology.path}.tetrahedra").astype(np.int64).reshape(-1, 4)
+        box = self.link(node, value)
+        if box is None or box.type != "BoxROI" or not str(value).endswith("tetrahedraInROI"):
+            raise SceneError(
+                f"{topology.path}.tetrahedra: {value!r} is no BoxROI's tetrahedraInROI"
+            )
+        strict = _flag(box, "strict", True)
+        if strict:
+            inside = np.zeros(mesh.n_nodes, dtype=bool)
+            inside[self._box_nodes(box, mesh.points)] = True
+            chosen = inside[mesh.tets].all(axis=1)
+        else:
+            centres = mesh.points[mesh.tets].mean(axis=1)
+            chosen = np.zeros(len(centres), dtype=bool)
+            chosen[self._box_nodes(box, centres)] = True
+        return mesh.tets[chosen]
 
     def _hyperelastic(self, fem: SceneObject) -> Material:
         """SOFA's TetrahedronHyperelasticityFEMForceField: ``materialName`` (SOFA's default
@@ -1158,10 +1304,14 @@ class _Builder:
             return None
         if _is_link(value):
             source = self.link(node, value)
-            if source is None or source.type != "BoxROI":
-                raise SceneError(f"{obj.path}.{key}: {value!r} names no BoxROI")
-            return self._box_nodes(source, points)
+            if source is None or source.type not in ROIS:
+                raise SceneError(f"{obj.path}.{key}: {value!r} names no BoxROI or SphereROI")
+            return self._roi_nodes(source, points)
         return _floats(value, f"{obj.path}.{key}").astype(np.int64)
+
+    def _roi_nodes(self, roi: SceneObject, points: np.ndarray) -> np.ndarray:
+        """The nodes a BoxROI or SphereROI selects."""
+        return self._box_nodes(roi, points) if roi.type == "BoxROI" else _sphere_nodes(roi, points)
 
     def _box_nodes(self, box: SceneObject, points: np.ndarray) -> np.ndarray:
         """Nodes inside any of the BoxROI's boxes (xmin ymin zmin xmax ymax zmax each)."""
@@ -1323,8 +1473,11 @@ class _Builder:
                 )
             poses = self._frame_poses(frames, owner, chosen, per_point, points)
             held = np.zeros(len(poses), dtype=bool)
+            driven: list = [None] * len(poses)
             for obj in frames_node.objects:
-                if obj.type in ("FixedConstraint", "FixedProjectiveConstraint"):
+                if obj.type in ("SubsetMultiMapping", "RigidMapping"):  # from servos, frames
+                    self._mapped_frames(obj, poses, held, driven)
+                elif obj.type in ("FixedConstraint", "FixedProjectiveConstraint"):
                     idx = _floats(obj.attrs.get("indices", ""), f"{obj.path}.indices")
                     held[idx.astype(np.int64)] = True
                     held |= _flag(obj, "fixAll", False)
@@ -1334,8 +1487,80 @@ class _Builder:
                         f" not a {obj.type}"
                     )
             groups = [chosen[per_point == j] for j in range(len(poses))]
-            self._rigidified.append(_Frames(frames, groups, list(enumerate(poses)), held))
+            self._rigidified.append(_Frames(frames, groups, list(enumerate(poses)), held, driven))
         return self._rigidified
+
+    def _mapped_frames(self, mapping: SceneObject, poses: list, held, driven: list) -> None:
+        """Rigidify's frames given by a SubsetMultiMapping (``input``: Rigid3 frames, in
+        ``indexPairs`` (input, index) for each frame): the wheel of a servo (its frame 1) turns
+        its frame, the servo's base (frame 0) holds it, and any other Rigid3 frame (the
+        Tripod's free centre) places a free frame."""
+        links = mapping.attrs.get("input", "")
+        links = links.split() if isinstance(links, str) else [str(v) for v in links]
+        sources = [self.link_dofs(mapping.node, link) for link in links]
+        if mapping.type == "RigidMapping":  # every frame from the input's frame `index`
+            index = int(_float(mapping, "index", 0.0))
+            pairs = np.array([[0, index]] * len(poses), dtype=np.int64)
+        else:
+            pairs = _floats(mapping.attrs.get("indexPairs", ""), f"{mapping.path}.indexPairs")
+            pairs = pairs.astype(np.int64).reshape(-1, 2)
+        if len(pairs) != len(poses) or any(
+            k < 0 or k >= len(sources) or sources[k] is None for k, _ in pairs
+        ):
+            raise SceneError(
+                f"{mapping.path}: one (input, index) pair of indexPairs for each of the"
+                f" {len(poses)} frames, each input a Rigid3 MechanicalObject"
+            )
+        for j, (k, i) in enumerate(pairs):
+            dofs, i = self._frame_source(sources[k], int(i))
+            servo = self._servos.get(id(dofs.node))
+            if servo is not None and i == 1:
+                driven[j], held[j] = servo, True
+                poses[j] = servo.carrier.pose(0.0)
+            elif servo is not None:
+                held[j] = True
+                poses[j] = servo._base_pose
+            else:
+                poses[j] = rigid_pose(dofs, int(i))
+                held[j] = any(
+                    o.type in ("FixedConstraint", "FixedProjectiveConstraint")
+                    for o in dofs.node.objects
+                )
+
+    def _frame_source(self, dofs: SceneObject, index: int) -> tuple[SceneObject, int]:
+        """The frame that moves a Rigid3 frame: itself, or, through the RigidMappings that
+        carry it (a servo's arm on its wheel), the frame they map it from. A constant offset
+        changes nothing: the nodes follow the same rigid motion."""
+        for _ in range(16):
+            if id(dofs.node) in self._servos:
+                return dofs, index
+            mappings = [o for o in dofs.node.objects if o.type == "RigidMapping"]
+            link = mappings[0].attrs.get("input") if mappings else None
+            if link is None and mappings:
+                link = "@.."  # SOFA's default input: the parent's state
+            source = self.link_dofs(dofs.node, str(link)) if link is not None else None
+            if source is None:
+                return dofs, index
+            dofs, index = source, int(_float(mappings[0], "index", 0.0))
+        return dofs, index
+
+    def link_dofs(self, node: SceneNode, link: str) -> SceneObject | None:
+        """The MechanicalObject a mapping's input names: a node's, or a component. A path
+        from the root of a part built apart ("@/Tripod/..." before the Tripod joined the
+        scene) names the one node whose path ends so."""
+        path = str(link).strip().lstrip("@")
+        found = linked_dofs(node, path)
+        if found is None and path.startswith("/"):
+            tail = "/" + path.strip("/")
+            ends = [n for n in self.root.walk() if n.sofa_path.endswith(tail)]
+            if len(ends) == 1:
+                return ends[0].getMechanicalState()
+            head, _, name = tail.rpartition("/")  # a component's path
+            ends = [n for n in self.root.walk() if n.sofa_path.endswith(head)]
+            objects = [o for n in ends for o in n.objects if o.name == name]
+            if len(objects) == 1 and objects[0].type == "MechanicalObject":
+                return objects[0]
+        return found
 
     def _frame_poses(self, frames, owner, chosen, per_point, points) -> list:
         """(index, position, rotation) of each frame (see :meth:`_groups`)."""
@@ -1650,3 +1875,64 @@ class _Builder:
         return PositionEffector(
             points, body.rest_positions, goals=goals, axes=axes, name=obj.node.name
         )
+
+
+# --- what a script's init() computes --------------------------------------------------------
+def _script_builder(node: SceneNode) -> _Builder:
+    """A builder for the tree a script is building (run in the script's folder)."""
+    root = node
+    while root.parent is not None:
+        root = root.parent
+    return _Builder(root, Path.cwd() / "scene.py", SOFA_CHOICES, [])
+
+
+def _init_positions(dofs: SceneObject) -> None:
+    """MechanicalObject.init(): its ``rest_position`` from its ``position`` (given, or linked
+    to a mesh loader's), else from the node's mesh loader, as SOFA's takes its topology's."""
+    if "rest_position" in dofs.attrs and not _is_link(dofs.attrs["rest_position"]):
+        return
+    given = dofs.attrs.get("position")
+    builder = _script_builder(dofs.node)
+    if given is not None and not _is_link(given):
+        points = _floats(given, f"{dofs.path}.position")
+    else:
+        source = builder.link(dofs.node, given) if given is not None else None
+        if source is None or source.type not in MESH_LOADERS:
+            try:
+                source = builder._mesh_loader(dofs.node)
+            except SceneError:
+                return  # nothing to read: SOFA's state stays empty too
+        points = builder._loaded(source)[0]
+    width = 7 if str(dofs.attrs.get("template", "")).startswith("Rigid3") else 3
+    dofs.attrs["rest_position"] = _frozen(points.reshape(-1, width))
+
+
+def _roi_points(roi: SceneObject) -> np.ndarray:
+    """The points a ROI selects among: its ``position`` (given or linked), by default the
+    rest positions of its node's MechanicalObject (SOFA links it so)."""
+    given = roi.attrs.get("position")
+    if given is not None and not _is_link(given) and np.size(given):
+        return _floats(given, f"{roi.path}.position").reshape(-1, 3)
+    builder = _script_builder(roi.node)
+    dofs = builder.link(roi.node, given) if given is not None and _is_link(given) else None
+    at = roi.node
+    while dofs is None and at is not None:  # the context's, then the parent's
+        dofs, at = at.getMechanicalState(), at.parent
+    if dofs is None:
+        raise SceneError(f"{roi.path}: no position to select from (no MechanicalObject here)")
+    _init_positions(dofs)
+    if "rest_position" not in dofs.attrs:
+        raise SceneError(f"{roi.path}: {dofs.path} has no positions yet")
+    rest = _floats(dofs.attrs["rest_position"], f"{dofs.path}.rest_position")
+    width = 7 if str(dofs.attrs.get("template", "")).startswith("Rigid3") else 3
+    return rest.reshape(-1, width)[:, :3]
+
+
+def _init_roi(roi: SceneObject) -> None:
+    """BoxROI.init() / SphereROI.init() in a script: the ``indices`` of the points inside."""
+    points = _roi_points(roi)
+    indices = _script_builder(roi.node)._roi_nodes(roi, points)
+    roi.attrs["indices"] = _frozen(indices).astype(np.int64)
+
+
+INITIALISERS.update(MechanicalObject=_init_positions, BoxROI=_init_roi, SphereROI=_init_roi)

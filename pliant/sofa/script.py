@@ -120,6 +120,9 @@ def _where(path: Path, exc: BaseException, *, message: bool = True) -> str:
 def _stand_ins(folder: Path):
     """The stand-in modules and the script's folder, for the duration of the load only."""
     modules = {**sofa_modules(), **prefab_modules()}
+    # SPLIB's objectmodel imports Sofa and os: ``from splib3.objectmodel import *`` gives them
+    modules["splib3.objectmodel"].Sofa = modules["Sofa"]
+    modules["splib3.objectmodel"].os = os
     saved = {name: sys.modules.get(name) for name in modules}
     before = set(sys.modules)
     sys.modules.update(modules)

@@ -75,12 +75,17 @@ class Data:
 
     @property
     def value(self):
-        value = data_value(self.owner.attrs.get(self.key, self.default))
+        raw = self.owner.attrs.get(self.key, self.default)
+        if self._unread_state(raw):  # a script reads a state before SOFA would fill it
+            self.owner.init()
+            raw = self.owner.attrs.get("rest_position", raw)
+        value = data_value(raw)
         if not isinstance(value, (np.ndarray, float, int)) or isinstance(value, bool):
             return value
         scalar = isinstance(self.default, (int, float)) and not isinstance(self.default, bool)
         if self.key in POINT_FIELDS and not scalar:  # points: (n, 3), or (n, 7) rigid poses
-            width = 7 if str(self.owner.attrs.get("template", "")).startswith("Rigid3") else 3
+            template = str(self.owner.attrs.get("template", ""))
+            width = 7 if template.startswith("Rigid3") else 1 if template == "Vec1" else 3
             value = np.asarray(value, dtype=float).reshape(-1, width)
         elif self.key in INDEX_FIELDS:
             value = np.atleast_1d(value).astype(np.int64)
@@ -94,6 +99,16 @@ class Data:
     @value.setter
     def value(self, value) -> None:
         self.owner.attrs[self.key] = value
+
+    def _unread_state(self, raw) -> bool:
+        """A MechanicalObject's positions not given, or linked to a loader's: SOFA fills them
+        at init from its mesh (read then, see SceneObject.init)."""
+        owner = self.owner
+        if self.key not in ("position", "rest_position") or not isinstance(owner, SceneObject):
+            return False
+        if owner.type != "MechanicalObject":
+            return False
+        return (isinstance(raw, str) and raw.strip().startswith("@")) or np.size(raw) == 0
 
     @contextmanager
     def writeable(self):
@@ -295,9 +310,19 @@ class SceneObject:
         return self.type
 
     def init(self) -> None:
-        """SOFA initialises components after the scene is built; Pliant reads them then."""
+        """SOFA initialises components after the scene is built; Pliant reads them then. A
+        script that calls ``init()`` itself reads some outputs at once: a MechanicalObject's
+        positions from its mesh loader, a ROI's ``indices`` (:data:`INITIALISERS`)."""
+        initialise = INITIALISERS.get(self.type)
+        if initialise is not None:
+            initialise(self)
 
     reinit = bwdInit = init  # noqa: N815
+
+
+# What ``init()`` computes for a component type, filled by the loader (which reads meshes):
+# a function of the component that sets its output data.
+INITIALISERS: dict[str, Any] = {}
 
 
 def _fields(type_name: str) -> set[str]:

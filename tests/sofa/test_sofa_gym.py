@@ -167,12 +167,12 @@ def _scene(folder: Path, body: str) -> Path:
         ),
         (
             """
-            from splib3.numerics import RigidDof
+            from splib3.numerics import RigidBody
 
             def createScene(rootNode, config):
                 pass
             """,
-            "imports RigidDof from 'splib3.numerics', which Pliant does not provide",
+            "imports RigidBody from 'splib3.numerics', which Pliant does not provide",
         ),
         (
             """

@@ -34,6 +34,7 @@ def prefab_modules() -> dict[str, types.ModuleType]:
         "to_degrees": splib.to_degrees,
         "getOrientedBoxFromTransform": splib.getOrientedBoxFromTransform,
         "Quat": splib.Quat,
+        "RigidDof": splib.RigidDof,
         **vec3,
     }
     keys = {k: v for k, v in vars(Key).items() if k[0] != "_"}

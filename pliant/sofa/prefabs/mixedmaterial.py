@@ -43,9 +43,8 @@ def Rigidify(  # noqa: N802 (STLIB's name)
     where = f"Rigidify (on {sourceObject.path})"
     if not groups or any(not group for group in groups):
         raise SceneError(
-            f"{where}.groupIndices: one non-empty group of node indices per frame (Pliant"
-            " computes no ROI's indices while the script runs: a group read from a BoxROI's"
-            " indices there is empty)"
+            f"{where}.groupIndices: one non-empty group of node indices per frame (a ROI's"
+            " indices are computed when the script calls its init())"
         )
     if len(frames) != len(groups):
         raise SceneError(

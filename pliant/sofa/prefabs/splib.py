@@ -287,15 +287,38 @@ def getOrientedBoxFromTransform(  # noqa: N802
     return [*corners.ravel().tolist(), float(2.0 * half[2])]
 
 
+class RigidDof:
+    """SPLIB's handle on a Rigid3 MechanicalObject (a servo's base moved by a controller).
+    Importable; Pliant's servo bases stay where the scene put them, so a call that reads or
+    moves the frame is named in the scene's error."""
+
+    def __init__(self, rigidobject) -> None:
+        self.rigidobject = rigidobject
+
+    def __getattr__(self, key: str):
+        if key.startswith("__") or key == "rigidobject":
+            raise AttributeError(key)
+        raise SceneError(
+            f"splib3.numerics.RigidDof.{key} (on {self.rigidobject.getPathName()}): Pliant"
+            " holds a servo's base where the scene placed it and does not move it from a"
+            " controller"
+        )
+
+
 def setData(target, **values) -> None:  # noqa: N802
     """Sets several data fields of a component or node."""
     for key, value in values.items():
         setattr(target, key, value)
 
 
-def SofaPrefab(cls):  # noqa: N802 (SPLIB's name)
-    """SPLIB's prefab decorator: the class unchanged (Pliant's tree needs no registration)."""
-    return cls
+class SofaPrefab:
+    """SPLIB's prefab decorator, also a base class: as a decorator the class is returned
+    unchanged (Pliant's tree needs no registration); a subclass is a plain Python class."""
+
+    def __new__(cls, *args, **kwargs):
+        if cls is SofaPrefab and len(args) == 1 and isinstance(args[0], type) and not kwargs:
+            return args[0]
+        return super().__new__(cls)
 
 
 class SofaObject:
