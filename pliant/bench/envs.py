@@ -8,9 +8,14 @@ when it ends; the first step (compilation, first factorisation) is not timed.
 
 from __future__ import annotations
 
+import functools
+import importlib
 import json
+import sys
+import threading
 import time
 import warnings
+from collections.abc import Callable
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
@@ -35,36 +40,146 @@ class EnvSpeed:
     note: str = ""
 
 
-def measure_env(
-    name: str, dt: float = 0.01, *, env_steps: int = 10, seed: int = 0, **kwargs
-) -> EnvSpeed:
-    """Time `env_steps` environment steps of `name` at time step `dt` (default settings, or
-    `kwargs`)."""
+# ------------------------------------------------------------------ where a step's time goes
+#: The parts of an environment step that :func:`profile_env` times: (module, function or
+#: Class.method) of each. A part's time is its functions' own time, less that of the parts
+#: they call (collision detection inside the contact rows counts as collision), on the
+#: stepping thread only (a background factorisation counts where the step waits for it).
+ENV_PARTS: dict[str, tuple[tuple[str, str], ...]] = {
+    "collision": (
+        ("pliant.geometry.collision", "detect"),
+        ("pliant.geometry.collision", "collide"),
+    ),
+    "forces": (
+        ("pliant.fem.body", "TetBody.linearise"),
+        ("pliant.fem.hexbody", "HexBody.linearise"),
+        ("pliant.fem.rod", "RodBody.linearise"),
+    ),
+    "assembly": (("pliant.solvers.system", "LinearisedSystem._assemble"),),
+    "factorisation": (
+        ("pliant.solvers.cholmod", "CholmodCholesky.factorize"),
+        ("pliant.solvers.linear", "CholespyCholesky.factorize"),
+        ("pliant.solvers.system", "LinearisedSystem._wait"),
+    ),
+    "solves": (
+        ("pliant.solvers.cholmod", "CholmodCholesky.solve"),
+        ("pliant.solvers.linear", "CholespyCholesky.solve"),
+        ("pliant.solvers.linear", "block_pcg"),
+    ),
+    "constraint_rows": (
+        ("pliant.constraints.contact", "Contacts.constraint"),
+        ("pliant.model", "Model.constraint_space"),
+    ),
+    "constraint_solve": (("pliant.constraints.control", "constraint_forces"),),
+}
+
+
+class _PartClock:
+    """Own time of wrapped functions by part, on one thread and while `running`: a call's
+    time less that of the wrapped calls it makes (which their parts get)."""
+
+    def __init__(self) -> None:
+        self.running = False
+        self.seconds: dict[str, float] = {}
+        self._stack: list[list[float]] = []
+        self._thread = threading.get_ident()
+        self._undo: list[Callable[[], None]] = []
+
+    def wrap(self, part: str, function: Callable) -> Callable:
+        self.seconds.setdefault(part, 0.0)
+
+        @functools.wraps(function)
+        def timed(*args, **kwargs):
+            if not self.running or threading.get_ident() != self._thread:
+                return function(*args, **kwargs)
+            inner = [0.0]
+            self._stack.append(inner)
+            start = time.perf_counter()
+            try:
+                return function(*args, **kwargs)
+            finally:
+                elapsed = time.perf_counter() - start
+                self._stack.pop()
+                self.seconds[part] += elapsed - inner[0]
+                if self._stack:
+                    self._stack[-1][0] += elapsed
+
+        return timed
+
+    def patch(self, owner, name: str, part: str) -> None:
+        """Time `owner.name` (a class's own method, or an instance's attribute) as `part`."""
+        had = name in vars(owner)
+        original = getattr(owner, name)
+        setattr(owner, name, self.wrap(part, vars(owner)[name] if had else original))
+        self._undo.append(
+            (lambda: setattr(owner, name, original)) if had else (lambda: delattr(owner, name))
+        )
+
+    def patch_function(self, module: str, name: str, part: str) -> None:
+        """Time the function `module.name` wherever a Pliant module holds it by that name."""
+        original = getattr(importlib.import_module(module), name)
+        timed = self.wrap(part, original)
+        for loaded in list(sys.modules.values()):
+            if getattr(loaded, "__name__", "").startswith("pliant") and (
+                vars(loaded).get(name) is original
+            ):
+                setattr(loaded, name, timed)
+                self._undo.append(lambda m=loaded: setattr(m, name, original))
+
+    def restore(self) -> None:
+        while self._undo:
+            self._undo.pop()()
+
+
+def _env_at(name: str, dt: float, **kwargs):
+    """The environment `name` at time step `dt`, its sub-steps scaled so that an environment
+    step lasts its default simulated time; and those sub-steps."""
     spec_env = make(f"pliant/{name}-v0", **kwargs)
-    base = spec_env.unwrapped
-    step_time = base.step_time
+    step_time = spec_env.unwrapped.step_time
     spec_env.close()
     substeps = max(1, round(step_time / dt))
-    env = make(f"pliant/{name}-v0", dt=dt, substeps=substeps, **kwargs)
+    return make(f"pliant/{name}-v0", dt=dt, substeps=substeps, **kwargs), substeps
+
+
+def _rollout(env, env_steps: int, seed: int, clock: _PartClock | None = None):
+    """Time `env_steps` random (seeded) steps after an untimed first one (compilation, first
+    factorisation), restarting ended episodes: (steps done, wall seconds, divergence note).
+    `clock` runs during the timed steps only."""
     env.action_space.seed(seed)
     diverged = ""
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         env.reset(seed=seed)
-        env.step(env.action_space.sample())  # compilation and first factorisation
+        env.step(env.action_space.sample())
         wall, done = 0.0, 0
         while done < env_steps:
             action = env.action_space.sample()
-            clock = time.perf_counter()
+            if clock is not None:
+                clock.running = True
+            start = time.perf_counter()
             _, _, term, trunc, info = env.step(action)
-            wall += time.perf_counter() - clock
+            wall += time.perf_counter() - start
+            if clock is not None:
+                clock.running = False
             done += 1
             if "diverged" in info:
                 diverged = info["diverged"]
                 break
             if term or trunc:
                 env.reset()
-    env.close()
+    return done, wall, diverged
+
+
+def measure_env(
+    name: str, dt: float = 0.01, *, env_steps: int = 10, seed: int = 0, **kwargs
+) -> EnvSpeed:
+    """Time `env_steps` environment steps of `name` at time step `dt` (default settings, or
+    `kwargs`)."""
+    env, substeps = _env_at(name, dt, **kwargs)
+    try:
+        done, wall, diverged = _rollout(env, env_steps, seed)
+    finally:
+        env.close()
     return EnvSpeed(
         env=name,
         dt=dt,
@@ -120,6 +235,86 @@ def report_envs(names: list[str] | None, *, quick: bool, out: Path, console: Con
             f"{r['real_time_factor']:.2f}",
             "" if r["stable"] else "diverged",
         )
+    console.print(table)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    with atomic_path(out) as tmp:
+        tmp.write_text(json.dumps({"environments": rows, "quick": quick}, indent=1))
+    console.print(f"saved {out}")
+    return rows
+
+
+def profile_env(
+    name: str, dt: float = 0.01, *, env_steps: int = 10, seed: int = 0, **kwargs
+) -> dict:
+    """Where an environment step's time goes: the share of each part of :data:`ENV_PARTS`,
+    of the solver's other work ("solver_other": its Python and small numpy operations), of
+    the observation, of the reward (with the info), and of the rest of the step ("glue": the
+    action's check, the commands, the sub-step loop, the Gymnasium wrappers), over
+    `env_steps` random steps at `dt` (as :func:`measure_env`). Shares (fractions of the
+    step) compare across a loaded machine where absolute times do not; the milliseconds and
+    the real-time factor are given beside them."""
+    env, substeps = _env_at(name, dt, **kwargs)
+    base = env.unwrapped
+    clock = _PartClock()
+    for part in (*ENV_PARTS, "solver_other", "observation", "reward"):
+        clock.seconds[part] = 0.0
+    try:
+        for part, functions in ENV_PARTS.items():
+            for module, qualified in functions:
+                owner_name, _, attr = qualified.rpartition(".")
+                if owner_name:
+                    owner = getattr(importlib.import_module(module), owner_name)
+                    clock.patch(owner, attr, part)
+                else:
+                    clock.patch_function(module, attr, part)
+        clock.patch(base.sim, "step", "solver_other")
+        clock.patch(base, "_observe", "observation")
+        clock.patch(base, "_reward", "reward")
+        clock.patch(base, "_info", "reward")
+        done, wall, note = _rollout(env, env_steps, seed, clock)
+    finally:
+        clock.restore()
+        env.close()
+    shares = {part: seconds / wall for part, seconds in clock.seconds.items()}
+    shares["glue"] = max(0.0, 1.0 - sum(shares.values()))
+    return {
+        "env": name,
+        "dt": dt,
+        "substeps": substeps,
+        "env_steps": done,
+        "ms_per_env_step": 1e3 * wall / done,
+        "real_time_factor": done * substeps * dt / wall,
+        "fractions": shares,
+        "note": note,
+    }
+
+
+def report_env_profile(
+    names: list[str] | None, *, quick: bool, out: Path, console: Console, env_steps: int = 10
+) -> list[dict]:
+    """Profile each environment (or `names`) at dt 0.01, print the shares and write the JSON
+    (`pliant bench --env-profile`)."""
+    unknown = sorted(set(names or []) - set(ENVS))
+    if unknown:
+        raise UnknownRobotError(f"unknown environments {unknown}; available: {sorted(ENVS)}")
+    rows = []
+    for name in names or sorted(ENVS):
+        kwargs = dict(ENVS[name].quick) if quick else {}
+        kwargs.pop("substeps", None)
+        try:
+            rows.append(profile_env(name, env_steps=env_steps, **kwargs))
+        except Exception as exc:  # a failure is a result of the benchmark: report it
+            rows.append({"env": name, "dt": 0.01, "note": repr(exc)})
+    parts = (*ENV_PARTS, "solver_other", "observation", "reward", "glue")
+    table = Table(title="where an environment step's time goes (% of the step, dt 0.01)")
+    for col in ("env", "RTF", *parts):
+        table.add_column(col.replace("_", " "))
+    for r in rows:
+        if "fractions" not in r:
+            table.add_row(r["env"], "", *[""] * len(parts))
+            continue
+        shares = [f"{100 * r['fractions'][p]:.0f}" for p in parts]
+        table.add_row(r["env"], f"{r['real_time_factor']:.2f}", *shares)
     console.print(table)
     out.parent.mkdir(parents=True, exist_ok=True)
     with atomic_path(out) as tmp:
