@@ -139,10 +139,15 @@ class Shape(ABC):
 
     def set_pose(self, position, rotation: np.ndarray) -> None:
         """Place the shape: world point = position + rotation @ shape point."""
-        self.position = _vector(position, f"{type(self).__name__} position")
-        self.rotation = check_rotation(
-            rotation, name=f"{type(self).__name__} rotation", error=ContactError
+        self._place(
+            _vector(position, f"{type(self).__name__} position"),
+            check_rotation(rotation, name=f"{type(self).__name__} rotation", error=ContactError),
         )
+
+    def _place(self, position: np.ndarray, rotation: np.ndarray) -> None:
+        """Set a checked pose (owned arrays); the bounds are those of the new pose."""
+        self.position, self.rotation = position, rotation
+        self._bounds: tuple[np.ndarray, np.ndarray] | None = None
 
     def set_twist(self, linear_velocity, angular_velocity) -> None:
         """Velocity of the shape frame's origin and angular velocity, both in the world."""
@@ -173,18 +178,22 @@ class Shape(ABC):
         return None
 
     def bounds(self) -> tuple[np.ndarray, np.ndarray] | None:
-        """World axis-aligned bounding box (lower, upper), None for an unbounded shape."""
-        box = self._local_box()
-        if box is None:
-            return None
-        # The extreme corners of R [lo, hi] + x, axis by axis: each term of the row sums (as
-        # _rotate adds them) takes the corner coordinate that makes it smallest or largest.
-        at_lo, at_hi = self.rotation * box[0], self.rotation * box[1]
-        low, high = np.minimum(at_lo, at_hi), np.maximum(at_lo, at_hi)
-        return (
-            low[:, 0] + low[:, 1] + low[:, 2] + self.position,
-            high[:, 0] + high[:, 1] + high[:, 2] + self.position,
-        )
+        """World axis-aligned bounding box (lower, upper), None for an unbounded shape; read
+        only, and computed once per pose (a contact step asks for it several times)."""
+        if self._bounds is None:
+            box = self._local_box()
+            if box is None:
+                return None
+            # The extreme corners of R [lo, hi] + x, axis by axis: each term of the row sums
+            # (as _rotate adds them) takes the corner coordinate that makes it smallest or
+            # largest.
+            at_lo, at_hi = self.rotation * box[0], self.rotation * box[1]
+            low, high = np.minimum(at_lo, at_hi), np.maximum(at_lo, at_hi)
+            low = low[:, 0] + low[:, 1] + low[:, 2] + self.position
+            high = high[:, 0] + high[:, 1] + high[:, 2] + self.position
+            low.flags.writeable = high.flags.writeable = False
+            self._bounds = (low, high)
+        return self._bounds
 
     def bounding_radius(self) -> float:
         """Radius of a ball about the shape's origin that holds the shape (inf: unbounded)."""
@@ -372,6 +381,7 @@ class TriangleMesh(Shape):
         self._size = float(np.linalg.norm(np.ptp(v, axis=0)))
         self._triangles = np.ascontiguousarray(tri)
         self._bvh = kernels.build_bvh(self._triangles)
+        self._vertex_box = (v.min(axis=0), v.max(axis=0))
         self._pseudo_normals()
         super().__init__(position, rotation)
 
@@ -445,7 +455,7 @@ class TriangleMesh(Shape):
         return gap, normal, closest
 
     def _local_box(self):
-        return self.vertices.min(axis=0), self.vertices.max(axis=0)
+        return self._vertex_box
 
     def samples(self):
         return _rotate(self.vertices, self.rotation) + self.position, 0.0
@@ -516,12 +526,19 @@ class BoxUnion(TriangleMesh):
         volumes = np.array([np.prod(b.half_extents) for b in self.boxes])
         return volumes @ np.array([b.position for b in self.boxes]) / volumes.sum()
 
-    def set_pose(self, position, rotation: np.ndarray) -> None:
-        super().set_pose(position, rotation)
+    def _place(self, position: np.ndarray, rotation: np.ndarray) -> None:
+        super()._place(position, rotation)
+        # The parts' poses follow from the union's, checked: they are placed unchecked.
         for box, part in zip(self.boxes, self._parts, strict=True):
-            part.set_pose(
-                self.position + self.rotation @ box.position, self.rotation @ box.rotation
-            )
+            part._place(position + rotation @ box.position, rotation @ box.rotation)
+        self._part_bounds: tuple[np.ndarray, np.ndarray] | None = None
+
+    def part_bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        """(lower, upper) (boxes, 3): the bounds of the parts (`parts`), once per pose."""
+        if self._part_bounds is None:
+            bounds = [part.bounds() for part in self._parts]
+            self._part_bounds = (np.array([b[0] for b in bounds]), np.array([b[1] for b in bounds]))
+        return self._part_bounds
 
     def parts(self) -> list[Box]:
         """The boxes posed in the world (with the union's pose)."""
@@ -738,13 +755,15 @@ def _collide_parts(shape_a: Shape, union: BoxUnion, margin: float) -> ContactSet
     samples; the parity, a's or b's sample, is kept)."""
     n = max(8, len(shape_a.samples()[0]))
     reach = shape_a.bounds()
+    parts = union.parts()
+    near = range(len(parts))
+    if reach is not None:
+        lo, hi = union.part_bounds()
+        apart = np.any(lo - margin > reach[1], axis=1) | np.any(reach[0] - margin > hi, axis=1)
+        near = np.flatnonzero(~apart).tolist()
     found = []
-    for j, part in enumerate(union.parts()):
-        if reach is not None:
-            lo, hi = part.bounds()
-            if np.any(lo - margin > reach[1]) or np.any(reach[0] - margin > hi):
-                continue
-        pair = collide(shape_a, part, margin)
+    for j in near:
+        pair = collide(shape_a, parts[j], margin)
         feature = 2 * (j * n + pair.feature // 2) + pair.feature % 2
         found.append(replace(pair, feature=feature))
     return ContactSet.concatenate(found)
