@@ -66,6 +66,17 @@ ENV_PARTS: dict[str, tuple[tuple[str, str], ...]] = {
         ("pliant.solvers.linear", "CholespyCholesky.solve"),
         ("pliant.solvers.linear", "block_pcg"),
     ),
+    "tangent_lag": (
+        ("pliant.solvers.system", "LinearisedSystem._turn"),
+        ("pliant.fem.kernels", "max_abs_difference"),
+    ),
+    "compliance": (
+        ("pliant.solvers.compliance", "PointRows.condense"),
+        ("pliant.solvers.compliance", "PointCompliance.apply"),
+        ("pliant.solvers.implicit_euler", "ImplicitEuler._condense"),
+        ("pliant.solvers.implicit_euler", "ImplicitEuler._with_points"),
+        ("pliant.solvers.implicit_euler", "ImplicitEuler._free_with_points"),
+    ),
     "constraint_rows": (
         ("pliant.constraints.contact", "Contacts.constraint"),
         ("pliant.model", "Model.constraint_space"),
