@@ -4,11 +4,11 @@
 the reset that ends an episode) at the same time, one thread each: the scheme of
 :class:`pliant.solvers.BatchedImplicitEuler` at the level of the environment step. What runs
 in parallel is what releases the GIL (the compiled kernels, CHOLMOD's factorisations and
-solves); the step's Python runs one copy at a time. Where the step is mostly compiled work
-(the Diamond's FEM body) two threads beat two worker processes on two cores: no pickling of
-actions and observations, no process switching (measured in docs/concepts/speed.md,
-"Environments (#62 item 3)"); where the step is mostly Python (contacts with rigid bodies),
-worker processes (:func:`pliant.envs.make_subproc_vec_env`) are the faster choice.
+solves); the step's Python runs one copy at a time. Two copies on two threads stepped faster
+than two spawned worker processes (:func:`pliant.envs.make_subproc_vec_env`) on the Diamond,
+whose step is mostly compiled work, and on the SimpleMaze, whose step is mostly Python
+(collision and contact rows): no pickling of actions and observations, no second process
+competing for the cores (docs/concepts/speed.md, "Environments (#62 item 3)").
 
 Each copy's step is its own: the results are those of ``SyncVectorEnv`` bit for bit, whatever
 the threads do. A copy factorises on its own thread (``ImplicitEuler``'s background
