@@ -224,11 +224,25 @@ def measure_all(
     return out
 
 
-def report_envs(names: list[str] | None, *, quick: bool, out: Path, console: Console) -> list:
-    """Measure, print a table and write the JSON (`pliant bench --envs`)."""
+def _check_names(names: list[str] | None) -> None:
     unknown = sorted(set(names or []) - set(ENVS))
     if unknown:
         raise UnknownRobotError(f"unknown environments {unknown}; available: {sorted(ENVS)}")
+
+
+def _save(rows: list, table: Table, *, quick: bool, out: Path, console: Console) -> list:
+    """Print the table, write the rows' JSON to `out`; the rows."""
+    console.print(table)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    with atomic_path(out) as tmp:
+        tmp.write_text(json.dumps({"environments": rows, "quick": quick}, indent=1))
+    console.print(f"saved {out}")
+    return rows
+
+
+def report_envs(names: list[str] | None, *, quick: bool, out: Path, console: Console) -> list:
+    """Measure, print a table and write the JSON (`pliant bench --envs`)."""
+    _check_names(names)
     rows = measure_all(names, quick=quick)
     table = Table(title="environments (random actions; RTF = simulated / wall time)")
     for col in ("env", "dt", "sub-steps", "env steps/s", "sim steps/s", "RTF", "note"):
@@ -246,12 +260,7 @@ def report_envs(names: list[str] | None, *, quick: bool, out: Path, console: Con
             f"{r['real_time_factor']:.2f}",
             "" if r["stable"] else "diverged",
         )
-    console.print(table)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    with atomic_path(out) as tmp:
-        tmp.write_text(json.dumps({"environments": rows, "quick": quick}, indent=1))
-    console.print(f"saved {out}")
-    return rows
+    return _save(rows, table, quick=quick, out=out, console=console)
 
 
 def profile_env(
@@ -305,9 +314,7 @@ def report_env_profile(
 ) -> list[dict]:
     """Profile each environment (or `names`) at dt 0.01, print the shares and write the JSON
     (`pliant bench --env-profile`)."""
-    unknown = sorted(set(names or []) - set(ENVS))
-    if unknown:
-        raise UnknownRobotError(f"unknown environments {unknown}; available: {sorted(ENVS)}")
+    _check_names(names)
     rows = []
     for name in names or sorted(ENVS):
         kwargs = dict(ENVS[name].quick) if quick else {}
@@ -326,9 +333,4 @@ def report_env_profile(
             continue
         shares = [f"{100 * r['fractions'][p]:.0f}" for p in parts]
         table.add_row(r["env"], f"{r['real_time_factor']:.2f}", *shares)
-    console.print(table)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    with atomic_path(out) as tmp:
-        tmp.write_text(json.dumps({"environments": rows, "quick": quick}, indent=1))
-    console.print(f"saved {out}")
-    return rows
+    return _save(rows, table, quick=quick, out=out, console=console)
