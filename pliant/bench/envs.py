@@ -11,18 +11,21 @@ from __future__ import annotations
 import functools
 import importlib
 import json
+import statistics
 import sys
 import threading
 import time
 import warnings
 from collections.abc import Callable
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
+import numpy as np
 from rich.console import Console
 from rich.table import Table
 
-from pliant.envs import ENVS, make
+from pliant.envs import ENVS, make, make_subproc_vec_env
 from pliant.errors import UnknownRobotError
 from pliant.viz.video import atomic_path
 
@@ -335,3 +338,70 @@ def report_env_profile(
         shares = [f"{100 * r['fractions'][p]:.0f}" for p in parts]
         table.add_row(r["env"], f"{r['real_time_factor']:.2f}", *shares)
     return _save(rows, table, quick=quick, out=out, console=console)
+
+
+def vector_throughput(
+    name: str,
+    copies: int = 2,
+    *,
+    steps: int = 4,
+    repeats: int = 9,
+    modes: tuple[str, ...] = ("sequential", "threads", "subproc"),
+    **kwargs,
+) -> dict:
+    """Environment steps per second (all copies) of `copies` copies of `name` stepped in
+    turn in one process ("sequential"), at the same time on threads of one process
+    ("threads": what releases the GIL, the compiled kernels and CHOLMOD, overlaps, as in
+    :class:`pliant.solvers.BatchedImplicitEuler`), and in spawned worker processes
+    (:func:`pliant.envs.make_subproc_vec_env`, "subproc"); each repeat times `steps` vector
+    steps of every mode in turn (interleaved), medians over `repeats` and every repeat."""
+    envs = [make(f"pliant/{name}-v0", **kwargs) for _ in range(copies)]
+    for i, env in enumerate(envs):
+        env.reset(seed=i)
+        env.action_space.seed(i)
+    pool = ThreadPoolExecutor(copies)
+    workers = (
+        make_subproc_vec_env(f"pliant/{name}-v0", copies, seed=0, **kwargs)
+        if "subproc" in modes
+        else None
+    )
+    space = envs[0].action_space
+
+    def one(env) -> None:
+        _, _, terminated, truncated, _ = env.step(env.action_space.sample())
+        if terminated or truncated:
+            env.reset()
+
+    steppers = {
+        "sequential": lambda: [one(env) for env in envs],
+        "threads": lambda: list(pool.map(one, envs)),
+        "subproc": lambda: workers.step(np.array([space.sample() for _ in range(copies)])),
+    }
+    runs: dict[str, list[float]] = {mode: [] for mode in modes}
+    try:
+        if workers is not None:
+            workers.reset()
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            for mode in modes:  # compilation, first factorisations
+                steppers[mode]()
+            for _ in range(repeats):
+                for mode in modes:
+                    start = time.perf_counter()
+                    for _ in range(steps):
+                        steppers[mode]()
+                    runs[mode].append(copies * steps / (time.perf_counter() - start))
+    finally:
+        pool.shutdown()
+        if workers is not None:
+            workers.close()
+        for env in envs:
+            env.close()
+    return {
+        "env": name,
+        "copies": copies,
+        "steps": steps,
+        "repeats": repeats,
+        "env_steps_per_s": {mode: statistics.median(v) for mode, v in runs.items()},
+        "runs": runs,
+    }

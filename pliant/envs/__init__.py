@@ -12,8 +12,7 @@ why) and rendering.
 Vectorised stepping: numba's OpenMP kernels abort a child process forked after they ran in
 the parent ("fork() called from a process already using GNU OpenMP"), so worker processes
 must start with "spawn" or "forkserver": :func:`make_vector_env` and
-:func:`make_subproc_vec_env` do so by default. :func:`make_threaded_vec_env` steps the copies
-on threads of one process instead (:mod:`pliant.envs.vector`).
+:func:`make_subproc_vec_env` do so by default.
 """
 
 from __future__ import annotations
@@ -25,7 +24,6 @@ import gymnasium as gym
 
 from pliant.envs.base import EnvSnapshot, EnvStateError, SoftRobotEnv
 from pliant.envs.config import SimulationConfig
-from pliant.envs.vector import ThreadedVectorEnv
 
 
 @dataclass(frozen=True)
@@ -127,13 +125,6 @@ def make_vector_env(
     return gym.vector.SyncVectorEnv(factories)
 
 
-def make_threaded_vec_env(env_id: str, n: int, *, threads: int | None = None, **kwargs):
-    """n copies of an environment in one process, stepped at the same time on threads
-    (:class:`pliant.envs.vector.ThreadedVectorEnv`; on two cores faster than worker
-    processes, measured on the Diamond and the SimpleMaze)."""
-    return ThreadedVectorEnv([partial(make, env_id, **kwargs) for _ in range(n)], threads=threads)
-
-
 def make_subproc_vec_env(
     env_id: str, n: int, *, start_method: str = "spawn", seed: int | None = None, **kwargs
 ):
@@ -157,12 +148,10 @@ __all__ = [
     "EnvStateError",
     "SimulationConfig",
     "SoftRobotEnv",
-    "ThreadedVectorEnv",
     "env_ids",
     "get_state",
     "set_state",
     "make",
     "make_subproc_vec_env",
-    "make_threaded_vec_env",
     "make_vector_env",
 ]

@@ -1,11 +1,12 @@
 """`pliant bench --env-profile` (pliant.bench.envs.profile_env): the shares of an environment
-step add up to one, the parts that run do show, and the timing leaves the code as it was."""
+step add up to one, the parts that run do show, and the timing leaves the code as it was;
+vector_throughput times each way of stepping copies in turn."""
 
 from __future__ import annotations
 
 import pytest
 
-from pliant.bench.envs import ENV_PARTS, profile_env
+from pliant.bench.envs import ENV_PARTS, profile_env, vector_throughput
 from pliant.constraints import contact
 from pliant.envs import ENVS
 from pliant.geometry import collision
@@ -33,3 +34,11 @@ def test_the_functions_timed_are_put_back(diamond):
     assert not hasattr(LinearisedSystem._assemble, "__wrapped__")
     assert not hasattr(collision.detect, "__wrapped__")
     assert not hasattr(contact.detect, "__wrapped__")
+
+
+def test_vector_throughput_times_every_mode_in_turn():
+    out = vector_throughput(
+        "CartStem", 2, steps=1, repeats=2, modes=("sequential", "threads"), **ENVS["CartStem"].quick
+    )
+    assert set(out["env_steps_per_s"]) == {"sequential", "threads"}
+    assert all(len(v) == 2 and min(v) > 0.0 for v in out["runs"].values())
