@@ -22,6 +22,7 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 
 import numpy as np
+from rich import box
 from rich.console import Console
 from rich.table import Table
 
@@ -313,6 +314,24 @@ def profile_env(
     }
 
 
+#: column names of the profile's table (its caption spells them out)
+_SHORT = {
+    "collision": "coll",
+    "forces": "forc",
+    "assembly": "asm",
+    "factorisation": "fact",
+    "solves": "solv",
+    "tangent_lag": "lag",
+    "compliance": "W",
+    "constraint_rows": "rows",
+    "constraint_solve": "QP",
+    "solver_other": "othr",
+    "observation": "obs",
+    "reward": "rew",
+    "glue": "glue",
+}
+
+
 def report_env_profile(
     names: list[str] | None, *, quick: bool, out: Path, console: Console, env_steps: int = 10
 ) -> list[dict]:
@@ -328,9 +347,13 @@ def report_env_profile(
         except Exception as exc:  # a failure is a result of the benchmark: report it
             rows.append({"env": name, "dt": 0.01, "note": repr(exc)})
     parts = (*ENV_PARTS, "solver_other", "observation", "reward", "glue")
-    table = Table(title="where an environment step's time goes (% of the step, dt 0.01)")
-    for col in ("env", "RTF", *parts):
-        table.add_column(col.replace("_", " "))
+    table = Table(
+        title="where an environment step's time goes (% of the step, dt 0.01)",
+        box=box.SIMPLE,
+        caption=", ".join(f"{_SHORT[p]}: {p.replace('_', ' ')}" for p in parts),
+    )
+    for col in ("env", "RTF", *(_SHORT[p] for p in parts)):
+        table.add_column(col)
     for r in rows:
         if "fractions" not in r:
             table.add_row(r["env"], "", *[""] * len(parts))
