@@ -36,6 +36,14 @@ def bench(
             " the scenes) or comma-separated names"
         ),
     ] = "all",
+    env_profile: Annotated[
+        bool,
+        typer.Option(
+            help="with --envs, where each environment's step goes at dt 0.01 (shares of"
+            " collision, forces, assembly, factorisation, solves, constraint rows and solve,"
+            " the solver's other work, observation, reward, glue), written to env_profile.json"
+        ),
+    ] = False,
     profile: Annotated[
         bool,
         typer.Option(
@@ -87,6 +95,11 @@ def bench(
 
         names = None if envs in ("all", "only") else [n.strip() for n in envs.split(",")]
         report_envs(names, quick=quick, out=out.with_name("envs.json"), console=console)
+        if env_profile:
+            from pliant.bench.envs import report_env_profile
+
+            out_profile = out.with_name("env_profile.json")
+            report_env_profile(names, quick=quick, out=out_profile, console=console)
     if learner:
         from pliant.bench.learner import report_learner
 

@@ -83,6 +83,14 @@ def _rotate(vectors: np.ndarray, rotation: np.ndarray) -> np.ndarray:
     return x * rotation[:, 0] + y * rotation[:, 1] + z * rotation[:, 2]
 
 
+def _rotate_each(vectors: np.ndarray, rotations: np.ndarray) -> np.ndarray:
+    """`_rotate` of each (k, 3) array of `vectors` (m, k, 3) by its rotation (m, 3, 3)."""
+    x, y, z = vectors[..., 0:1], vectors[..., 1:2], vectors[..., 2:3]
+    return (
+        x * rotations[:, None, :, 0] + y * rotations[:, None, :, 1] + z * rotations[:, None, :, 2]
+    )
+
+
 def _box_corners(lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
     """The 8 corners of the box [lo, hi]."""
     return np.array(
@@ -139,10 +147,15 @@ class Shape(ABC):
 
     def set_pose(self, position, rotation: np.ndarray) -> None:
         """Place the shape: world point = position + rotation @ shape point."""
-        self.position = _vector(position, f"{type(self).__name__} position")
-        self.rotation = check_rotation(
-            rotation, name=f"{type(self).__name__} rotation", error=ContactError
+        self._place(
+            _vector(position, f"{type(self).__name__} position"),
+            check_rotation(rotation, name=f"{type(self).__name__} rotation", error=ContactError),
         )
+
+    def _place(self, position: np.ndarray, rotation: np.ndarray) -> None:
+        """Set a checked pose (owned arrays); the bounds are those of the new pose."""
+        self.position, self.rotation = position, rotation
+        self._bounds: tuple[np.ndarray, np.ndarray] | None = None
 
     def set_twist(self, linear_velocity, angular_velocity) -> None:
         """Velocity of the shape frame's origin and angular velocity, both in the world."""
@@ -173,18 +186,22 @@ class Shape(ABC):
         return None
 
     def bounds(self) -> tuple[np.ndarray, np.ndarray] | None:
-        """World axis-aligned bounding box (lower, upper), None for an unbounded shape."""
-        box = self._local_box()
-        if box is None:
-            return None
-        # The extreme corners of R [lo, hi] + x, axis by axis: each term of the row sums (as
-        # _rotate adds them) takes the corner coordinate that makes it smallest or largest.
-        at_lo, at_hi = self.rotation * box[0], self.rotation * box[1]
-        low, high = np.minimum(at_lo, at_hi), np.maximum(at_lo, at_hi)
-        return (
-            low[:, 0] + low[:, 1] + low[:, 2] + self.position,
-            high[:, 0] + high[:, 1] + high[:, 2] + self.position,
-        )
+        """World axis-aligned bounding box (lower, upper), None for an unbounded shape; read
+        only, and computed once per pose (a contact step asks for it several times)."""
+        if self._bounds is None:
+            box = self._local_box()
+            if box is None:
+                return None
+            # The extreme corners of R [lo, hi] + x, axis by axis: each term of the row sums
+            # (as _rotate adds them) takes the corner coordinate that makes it smallest or
+            # largest.
+            at_lo, at_hi = self.rotation * box[0], self.rotation * box[1]
+            low, high = np.minimum(at_lo, at_hi), np.maximum(at_lo, at_hi)
+            low = low[:, 0] + low[:, 1] + low[:, 2] + self.position
+            high = high[:, 0] + high[:, 1] + high[:, 2] + self.position
+            low.flags.writeable = high.flags.writeable = False
+            self._bounds = (low, high)
+        return self._bounds
 
     def bounding_radius(self) -> float:
         """Radius of a ball about the shape's origin that holds the shape (inf: unbounded)."""
@@ -372,6 +389,7 @@ class TriangleMesh(Shape):
         self._size = float(np.linalg.norm(np.ptp(v, axis=0)))
         self._triangles = np.ascontiguousarray(tri)
         self._bvh = kernels.build_bvh(self._triangles)
+        self._vertex_box = (v.min(axis=0), v.max(axis=0))
         self._pseudo_normals()
         super().__init__(position, rotation)
 
@@ -445,7 +463,7 @@ class TriangleMesh(Shape):
         return gap, normal, closest
 
     def _local_box(self):
-        return self.vertices.min(axis=0), self.vertices.max(axis=0)
+        return self._vertex_box
 
     def samples(self):
         return _rotate(self.vertices, self.rotation) + self.position, 0.0
@@ -508,6 +526,10 @@ class BoxUnion(TriangleMesh):
             faces.append(triangles + offset)
             offset += len(local)
         self._parts = [Box(b.half_extents) for b in self.boxes]
+        self._stacked = tuple(
+            np.array([getattr(b, name) for b in self.boxes])
+            for name in ("position", "rotation", "half_extents")
+        )
         super().__init__(np.vstack(vertices), np.vstack(faces), position, rotation)
 
     @property
@@ -516,25 +538,47 @@ class BoxUnion(TriangleMesh):
         volumes = np.array([np.prod(b.half_extents) for b in self.boxes])
         return volumes @ np.array([b.position for b in self.boxes]) / volumes.sum()
 
-    def set_pose(self, position, rotation: np.ndarray) -> None:
-        super().set_pose(position, rotation)
+    def _place(self, position: np.ndarray, rotation: np.ndarray) -> None:
+        super()._place(position, rotation)
+        # The parts' poses follow from the union's, checked: they are placed unchecked.
         for box, part in zip(self.boxes, self._parts, strict=True):
-            part.set_pose(
-                self.position + self.rotation @ box.position, self.rotation @ box.rotation
-            )
+            part._place(position + rotation @ box.position, rotation @ box.rotation)
+        self._part_bounds: tuple[np.ndarray, np.ndarray] | None = None
+
+    def part_bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        """(lower, upper) (boxes, 3): the bounds of the parts (`parts`), once per pose."""
+        if self._part_bounds is None:
+            bounds = [part.bounds() for part in self._parts]
+            self._part_bounds = (np.array([b[0] for b in bounds]), np.array([b[1] for b in bounds]))
+        return self._part_bounds
 
     def parts(self) -> list[Box]:
         """The boxes posed in the world (with the union's pose)."""
         return self._parts
 
     def _local_distance(self, p):
-        answers = [b.signed_distance(p) for b in self.boxes]
-        nearest = np.argmin(np.array([a.gap for a in answers]), axis=0)
+        """The nearest box's answer, every box's (Box.signed_distance) computed in one pass
+        over a (boxes, points, 3) array: the same operations, element by element."""
+        position, rotation, half = self._stacked
+        local = _rotate_each(p[None] - position[:, None], rotation.transpose(0, 2, 1))
+        q = np.abs(local) - half[:, None]
+        outside_length = np.linalg.norm(np.maximum(q, 0.0), axis=2)
+        outside = outside_length > 0.0
+        gaps = np.where(outside, outside_length, q.max(axis=2))
+        closest = np.clip(local, -half[:, None], half[:, None])
+        normal = np.zeros_like(local)
+        normal[outside] = (local[outside] - closest[outside]) / outside_length[outside, None]
+        # Inside (or on the surface): the nearest face is the one of largest q.
+        box, row = np.nonzero(~outside)
+        axis = np.argmax(q[box, row], axis=1)
+        side = np.where(local[box, row, axis] < 0.0, -1.0, 1.0)
+        normal[box, row, axis] = side
+        closest[box, row, axis] = side * half[box, axis]
+        nearest = np.argmin(gaps, axis=0)
         rows = np.arange(len(p))
-        gap = np.array([a.gap for a in answers])[nearest, rows]
-        normal = np.array([a.normal for a in answers])[nearest, rows]
-        closest = np.array([a.closest for a in answers])[nearest, rows]
-        return gap, normal, closest
+        normal = _rotate_each(normal, rotation)[nearest, rows]
+        closest = (_rotate_each(closest, rotation) + position[:, None])[nearest, rows]
+        return gaps[nearest, rows], normal, closest
 
 
 @dataclass(frozen=True)
@@ -738,13 +782,15 @@ def _collide_parts(shape_a: Shape, union: BoxUnion, margin: float) -> ContactSet
     samples; the parity, a's or b's sample, is kept)."""
     n = max(8, len(shape_a.samples()[0]))
     reach = shape_a.bounds()
+    parts = union.parts()
+    near = range(len(parts))
+    if reach is not None:
+        lo, hi = union.part_bounds()
+        apart = np.any(lo - margin > reach[1], axis=1) | np.any(reach[0] - margin > hi, axis=1)
+        near = np.flatnonzero(~apart).tolist()
     found = []
-    for j, part in enumerate(union.parts()):
-        if reach is not None:
-            lo, hi = part.bounds()
-            if np.any(lo - margin > reach[1]) or np.any(reach[0] - margin > hi):
-                continue
-        pair = collide(shape_a, part, margin)
+    for j in near:
+        pair = collide(shape_a, parts[j], margin)
         feature = 2 * (j * n + pair.feature // 2) + pair.feature % 2
         found.append(replace(pair, feature=feature))
     return ContactSet.concatenate(found)
