@@ -12,7 +12,7 @@ import math
 import numbers
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Literal
+from typing import Any, Literal
 
 import numba
 import numpy as np
@@ -150,8 +150,32 @@ def _sized_threads(method):
     return wrapper
 
 
+@dataclass(frozen=True, eq=False)
+class BodyOptions:
+    """The keywords that every body of elements (:class:`TetBody`, its hexahedral
+    :class:`pliant.fem.hexbody.HexBody`) takes besides its mesh, material and own keywords:
+    its mass, supports, gravity, damping and loads, declared once with their defaults (see
+    :class:`TetBody` for their meaning). The bodies take them as keywords; an unknown one is
+    a TypeError."""
+
+    density: float | None = None
+    total_mass: float | None = None
+    mass: MassType = "lumped"
+    fixed_nodes: np.ndarray | None = None
+    gravity: tuple[float, float, float] | np.ndarray = (0.0, 0.0, 0.0)
+    rayleigh_mass: float = 0.0
+    rayleigh_stiffness: float = 0.0
+    fixed_dofs: np.ndarray | None = None
+    loads: Sequence[Load] = ()
+    projections: Sequence[Projection] = ()
+
+
 class TetBody(Revised):
     """A deformable body of linear tetrahedra.
+
+    Its own keywords are `membranes` and `frame_nodes`; the others (density or total mass,
+    mass, held nodes and DoFs, gravity, damping, loads, projections) are those of
+    :class:`BodyOptions`, which every body of elements shares.
 
     Args:
         mesh: the tetrahedral mesh (validated).
@@ -190,18 +214,9 @@ class TetBody(Revised):
         mesh: TetMesh,
         material: Material,
         *,
-        density: float | None = None,
-        total_mass: float | None = None,
-        mass: MassType = "lumped",
-        fixed_nodes: np.ndarray | None = None,
-        gravity: tuple[float, float, float] | np.ndarray = (0.0, 0.0, 0.0),
-        rayleigh_mass: float = 0.0,
-        rayleigh_stiffness: float = 0.0,
         membranes: Sequence[Membrane] = (),
-        fixed_dofs: np.ndarray | None = None,
-        loads: Sequence[Load] = (),
         frame_nodes: np.ndarray | None = None,
-        projections: Sequence[Projection] = (),
+        **options: Any,
     ) -> None:
         # Inverted, degenerate, disconnected or malformed meshes raise their MeshError here.
         validate_mesh(mesh.points, mesh.tets)
@@ -231,22 +246,35 @@ class TetBody(Revised):
         self.mu = np.full(n_elem, material.mu)
         self.lam = np.full(n_elem, material.lam)
 
+        self._hold_and_weigh(self.tets, BodyOptions(**options), membranes)
+        self._element_blocks = np.empty((n_elem, 12, 12))
+
+    def _hold_and_weigh(
+        self, elements: np.ndarray, options: BodyOptions, membranes: Sequence[Membrane]
+    ) -> None:
+        """What every body of elements does once its volumes are known: its bulk properties
+        (mass, damping, gravity), held DoFs, layout and masses from `options`."""
         set_bulk_properties(
             self,
             float(self.volumes.sum()),
-            density=density,
-            total_mass=total_mass,
-            rayleigh_mass=rayleigh_mass,
-            rayleigh_stiffness=rayleigh_stiffness,
-            gravity=gravity,
+            density=options.density,
+            total_mass=options.total_mass,
+            rayleigh_mass=options.rayleigh_mass,
+            rayleigh_stiffness=options.rayleigh_stiffness,
+            gravity=options.gravity,
         )
-
-        self._layout(self.tets, fixed_nodes, fixed_dofs, membranes, loads, projections)
-        self.mass_type: MassType = mass
-        self.node_masses = self._node_masses(mass)
-        self.mass_data = self._mass_data(mass)
+        self._layout(
+            elements,
+            options.fixed_nodes,
+            options.fixed_dofs,
+            membranes,
+            options.loads,
+            options.projections,
+        )
+        self.mass_type: MassType = options.mass
+        self.node_masses = self._node_masses(options.mass)
+        self.mass_data = self._mass_data(options.mass)
         self._mass_diagonal = np.repeat(self.node_masses, 3)[self.free_dofs]
-        self._element_blocks = np.empty((n_elem, 12, 12))
 
     def _layout(self, elements, fixed_nodes, fixed_dofs, membranes, loads, projections) -> None:
         """Held and free DoFs, the stiffness pattern of `elements` (m, k nodes), the membranes,
