@@ -515,27 +515,11 @@ class TetBody(Revised):
             if velocities is None
             else np.ascontiguousarray(velocities, dtype=np.float64)
         )
-        m = self.tets.shape[0]
-        # Forces and K_s v side by side per element node: one gather (one parallel region)
-        # assembles both.
-        elem = np.empty((m, 4, 6 if v.shape[0] else 3))
-        elem_forces = elem[:, :, :3]
-        elem_kv = elem[:, :, 3:] if v.shape[0] else np.empty((0, 4, 3))
-        frames = np.empty((m, 3, 3))
-        dets = np.empty(m)
-        energy = kernels.internal_forces(
-            x,
-            v,
-            *self._element_args(),
-            self.frame_nodes,
-            self.rest_frames,
-            elem_forces,
-            elem_kv,
-            frames,
-            dets,
-        )
+        elem, energy, frames, dets = self._element_forces(x, v)
         nodal = np.empty((x.shape[0], elem.shape[2]))
-        kernels.gather_nodal(elem, self.tets, self._incidence_ptr, self._incidence, nodal)
+        kernels.gather_nodal(
+            elem, self._element_nodes(), self._incidence_ptr, self._incidence, nodal
+        )
         forces = np.ascontiguousarray(nodal[:, :3])
         kv = np.ascontiguousarray(nodal[:, 3:]) if v.shape[0] else None
         tangents = []
@@ -559,6 +543,34 @@ class TetBody(Revised):
             self._add_loads(x, v, forces, kv, time),
             self.material.tolerates_inversion,
         )
+
+    def _element_nodes(self) -> np.ndarray:
+        """The elements' nodes (m, k): what the kernels gather onto the nodes."""
+        return self.tets
+
+    def _element_forces(self, x: np.ndarray, v: np.ndarray) -> tuple:
+        """Per-element forces (and K_s v when `v` has rows) side by side, (m, k, 3 or 6), the
+        elastic energy, the element frames and their determinants at `x`."""
+        m = self.tets.shape[0]
+        # Forces and K_s v side by side per element node: one gather (one parallel region)
+        # assembles both.
+        elem = np.empty((m, 4, 6 if v.shape[0] else 3))
+        elem_forces = elem[:, :, :3]
+        elem_kv = elem[:, :, 3:] if v.shape[0] else np.empty((0, 4, 3))
+        frames = np.empty((m, 3, 3))
+        dets = np.empty(m)
+        energy = kernels.internal_forces(
+            x,
+            v,
+            *self._element_args(),
+            self.frame_nodes,
+            self.rest_frames,
+            elem_forces,
+            elem_kv,
+            frames,
+            dets,
+        )
+        return elem, energy, frames, dets
 
     def _add_loads(self, x, v, forces, kv, time: float) -> tuple:
         """Add the loads' forces at `time` to `forces` (and, when `kv` is given, their K v);

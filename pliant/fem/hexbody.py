@@ -147,16 +147,14 @@ class HexBody(TetBody):
         return data
 
     # --- elasticity -------------------------------------------------------------------------
-    @_sized_threads
-    def linearise(
-        self, positions: np.ndarray, velocities: np.ndarray | None = None, *, time: float = 0.0
-    ) -> Linearisation:
-        """Internal forces, energy and element rotations at `positions` (n, 3), and K_s v when
-        `velocities` are given; the loads' forces (and tangents) at `time` are added."""
-        x = np.ascontiguousarray(positions, dtype=np.float64)
-        with_v = velocities is not None
-        v = np.ascontiguousarray(velocities, dtype=np.float64) if with_v else np.empty((0, 3))
+    def _element_nodes(self) -> np.ndarray:
+        return self.hexes
+
+    def _element_forces(self, x: np.ndarray, v: np.ndarray) -> tuple:
+        """Per-element forces (and K_s v when `v` has rows) side by side, (m, 8, 3 or 6), the
+        energy, the element rotations and their determinants at `x`."""
         m = self.n_elements
+        with_v = v.shape[0] > 0
         elem = np.empty((m, 8, 6 if with_v else 3))
         frames = np.empty((m, 3, 3))
         dets = np.empty(m)
@@ -175,21 +173,7 @@ class HexBody(TetBody):
             frames,
             dets,
         )
-        nodal = np.empty((x.shape[0], elem.shape[2]))
-        kernels.gather_nodal(elem, self.hexes, self._incidence_ptr, self._incidence, nodal)
-        forces = np.ascontiguousarray(nodal[:, :3])
-        kv = np.ascontiguousarray(nodal[:, 3:]) if with_v else None
-        return Linearisation(
-            x,
-            forces,
-            float(energy),
-            frames,
-            dets,
-            kv,
-            (),
-            self._add_loads(x, v, forces, kv, time),
-            self.material.tolerates_inversion,
-        )
+        return elem, energy, frames, dets
 
     @_sized_threads
     def stiffness_matvec(
