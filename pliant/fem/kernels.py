@@ -163,8 +163,23 @@ def rest_gradients(points, tets):
 
 @njit(cache=True, inline="always")
 def _chunks(m):
-    """Bounds of the (at most 64) chunks of m elements that the parallel kernels share out."""
-    return np.linspace(0, m, max(1, min(m, 64)) + 1).astype(np.int64)
+    """Bounds of the (at most 64) chunks of m elements that the parallel kernels share out,
+    and their number."""
+    n_chunks = max(1, min(m, 64))
+    return np.linspace(0, m, n_chunks + 1).astype(np.int64), n_chunks
+
+
+@njit(cache=True, inline="always")
+def _piola_workspace():
+    """One chunk's matrices for `_piola_differential`: dF (zeroed), F, dP and its two
+    scratch products, each (3, 3)."""
+    return (
+        np.zeros((3, 3)),
+        np.empty((3, 3)),
+        np.empty((3, 3)),
+        np.empty((3, 3)),
+        np.empty((3, 3)),
+    )
 
 
 @njit(cache=True, inline="always")
@@ -218,16 +233,12 @@ def internal_forces(
     """
     m = tets.shape[0]
     with_v = v.shape[0] > 0
-    bounds = _chunks(m)
-    n_chunks = bounds.shape[0] - 1
+    bounds, n_chunks = _chunks(m)
     energies = np.zeros(n_chunks)
     for c in prange(n_chunks):
-        f = np.empty((3, 3))
+        # work: the gradient of v (dF) in K_s v; p, w1, sig: dP and its scratch there.
+        work, f, p, w1, sig = _piola_workspace()
         r = np.empty((3, 3))
-        work = np.empty((3, 3))
-        p = np.empty((3, 3))
-        sig = np.empty((3, 3))
-        w1 = np.empty((3, 3))
         q = np.empty((3, 3))
         energy = 0.0
         for e in range(bounds[c], bounds[c + 1]):
@@ -464,14 +475,9 @@ def stiffness_matvec(
     """
     m = tets.shape[0]
     k = u.shape[1]
-    bounds = _chunks(m)
-    n_chunks = bounds.shape[0] - 1
+    bounds, n_chunks = _chunks(m)
     for c in prange(n_chunks):
-        df = np.empty((3, 3))
-        f = np.empty((3, 3))
-        dp = np.empty((3, 3))
-        w1 = np.empty((3, 3))
-        w2 = np.empty((3, 3))
+        df, f, dp, w1, w2 = _piola_workspace()
         ue = np.empty((4, 3))
         for e in range(bounds[c], bounds[c + 1]):
             if not _active(dets[e], tag):
@@ -544,14 +550,9 @@ def _corotational_blocks(g, r, v, mu, lam, rg, out):
 def element_stiffness(x, tets, grads, vols, mu, lam, tag, frames, dets, exact, blocks):
     """Element tangent stiffness matrices, blocks (m, 12, 12), node-major (a, i)."""
     m = tets.shape[0]
-    bounds = _chunks(m)
-    n_chunks = bounds.shape[0] - 1
+    bounds, n_chunks = _chunks(m)
     for c in prange(n_chunks):
-        df = np.zeros((3, 3))
-        f = np.empty((3, 3))
-        dp = np.empty((3, 3))
-        w1 = np.empty((3, 3))
-        w2 = np.empty((3, 3))
+        df, f, dp, w1, w2 = _piola_workspace()
         rg = np.empty((4, 3))
         for e in range(bounds[c], bounds[c + 1]):
             if not _active(dets[e], tag):
