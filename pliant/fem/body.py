@@ -126,6 +126,34 @@ class Linearisation:
         return int(np.count_nonzero(~(self.dets > 0.0)))
 
 
+class DeformableBody(Revised):
+    """What every deformable body (:class:`TetBody`, its hexahedra, a rod) shares: three
+    DoFs a node (`n_nodes`), of which `free_dofs` are free, and its tangent stiffness as data
+    on its sparsity `pattern` (`stiffness_data`)."""
+
+    @property
+    def n_free(self) -> int:
+        return int(self.free_dofs.size)
+
+    @property
+    def n_elements(self) -> int:
+        return int(self.elements.shape[0])
+
+    def gather(self, full: np.ndarray) -> np.ndarray:
+        """Free-DoF part of nodal arrays (n, 3) or (n, 3, k) -> (n_free,) or (n_free, k)."""
+        flat = full.reshape(3 * self.n_nodes, *full.shape[2:])
+        return flat[self.free_dofs]
+
+    def scatter(self, free: np.ndarray) -> np.ndarray:
+        """Nodal array (n, 3[, k]) with zeros on fixed DoFs from a free-DoF vector."""
+        out = np.zeros((3 * self.n_nodes, *free.shape[1:]))
+        out[self.free_dofs] = free
+        return out.reshape(self.n_nodes, 3, *free.shape[1:])
+
+    def stiffness_matrix(self, lin: Linearisation, *, exact: bool = False) -> sp.csr_matrix:
+        return self.pattern.matrix(self.stiffness_data(lin, exact=exact))
+
+
 # Below this many elements the compiled kernels run on the calling thread alone: waking the
 # other threads costs more than they save. Linearisation (forces and K v), microseconds, 1 / 2
 # threads: 240 tets 51 / 88, 1972 (Trunk) 345 / 386, 4147 (Diamond) 736 / 785, 15360 3003 /
@@ -170,7 +198,7 @@ class BodyOptions:
     projections: Sequence[Projection] = ()
 
 
-class TetBody(Revised):
+class TetBody(DeformableBody):
     """A deformable body of linear tetrahedra.
 
     Its own keywords are `membranes` and `frame_nodes`; the others (density or total mass,
@@ -318,12 +346,9 @@ class TetBody(Revised):
         return int(self.rest_positions.shape[0])
 
     @property
-    def n_elements(self) -> int:
-        return int(self.tets.shape[0])
-
-    @property
-    def n_free(self) -> int:
-        return int(self.free_dofs.size)
+    def elements(self) -> np.ndarray:
+        """The elements' nodes (m, 4): what the kernels gather onto the nodes."""
+        return self.tets
 
     @property
     def extent(self) -> float:
@@ -359,17 +384,6 @@ class TetBody(Revised):
     def vtk_cells(self) -> tuple[str, np.ndarray, np.ndarray]:
         """(cell type, cells, point rows) of the body for ParaView."""
         return "tetra", self.tets, np.arange(self.n_nodes)
-
-    def gather(self, full: np.ndarray) -> np.ndarray:
-        """Free-DoF part of nodal arrays (n, 3) or (n, 3, k) -> (n_free,) or (n_free, k)."""
-        flat = full.reshape(3 * self.n_nodes, *full.shape[2:])
-        return flat[self.free_dofs]
-
-    def scatter(self, free: np.ndarray) -> np.ndarray:
-        """Nodal array (n, 3[, k]) with zeros on fixed DoFs from a free-DoF vector."""
-        out = np.zeros((3 * self.n_nodes, *free.shape[1:]))
-        out[self.free_dofs] = free
-        return out.reshape(self.n_nodes, 3, *free.shape[1:])
 
     def free_rigid_motions(self) -> list[str]:
         """The rigid motions that nothing holds (neither held DoFs, lines and planes, nor
@@ -517,9 +531,7 @@ class TetBody(Revised):
         )
         elem, energy, frames, dets = self._element_forces(x, v)
         nodal = np.empty((x.shape[0], elem.shape[2]))
-        kernels.gather_nodal(
-            elem, self._element_nodes(), self._incidence_ptr, self._incidence, nodal
-        )
+        kernels.gather_nodal(elem, self.elements, self._incidence_ptr, self._incidence, nodal)
         forces = np.ascontiguousarray(nodal[:, :3])
         kv = np.ascontiguousarray(nodal[:, 3:]) if v.shape[0] else None
         tangents = []
@@ -543,10 +555,6 @@ class TetBody(Revised):
             self._add_loads(x, v, forces, kv, time),
             self.material.tolerates_inversion,
         )
-
-    def _element_nodes(self) -> np.ndarray:
-        """The elements' nodes (m, k): what the kernels gather onto the nodes."""
-        return self.tets
 
     def _element_forces(self, x: np.ndarray, v: np.ndarray) -> tuple:
         """Per-element forces (and K_s v when `v` has rows) side by side, (m, k, 3 or 6), the
@@ -663,6 +671,3 @@ class TetBody(Revised):
             kernels.scatter_add(self._element_blocks, 1.0, self.pattern.scatter, data)
         self._add_surface_data(lin, data)
         return data
-
-    def stiffness_matrix(self, lin: Linearisation, *, exact: bool = False) -> sp.csr_matrix:
-        return self.pattern.matrix(self.stiffness_data(lin, exact=exact))

@@ -109,8 +109,8 @@ class HexBody(TetBody):
 
     # --- layout -----------------------------------------------------------------------------
     @property
-    def n_elements(self) -> int:
-        return int(self.hexes.shape[0])
+    def elements(self) -> np.ndarray:
+        return self.hexes
 
     @property
     def label(self) -> str:
@@ -147,9 +147,6 @@ class HexBody(TetBody):
         return data
 
     # --- elasticity -------------------------------------------------------------------------
-    def _element_nodes(self) -> np.ndarray:
-        return self.hexes
-
     def _element_forces(self, x: np.ndarray, v: np.ndarray) -> tuple:
         """Per-element forces (and K_s v when `v` has rows) side by side, (m, 8, 3 or 6), the
         energy, the element rotations and their determinants at `x`."""
