@@ -5,9 +5,10 @@ FEM robots' units (mm, kg, s; stresses in kPa) and placed as they are
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass, field
-from typing import Literal
+from typing import ClassVar, Literal
 
 import numpy as np
 
@@ -21,6 +22,8 @@ from pliant.model import Model
 from pliant.proxy.actuation import Bending, CurvatureActuation
 from pliant.proxy.skinning import Skinning
 from pliant.robots.multigait import face_points
+from pliant.robots.parameters import Cube, Damping, Gravity
+from pliant.robots.scene import builder
 from pliant.robots.trunk_cube import surface_points as trunk_surface_points
 
 # A leg's or the centre's inflation lengthens its roof over a floor the paper keeps: the beam
@@ -84,38 +87,38 @@ class Proxy:
 
 # --- Multigait ------------------------------------------------------------------------------
 
-MULTIGAIT_PARAMETERS = {
-    # Stiffness E (kPa), density (kg/mm^3) and curvature at command 1 (rad/mm) of the legs
-    # and the centre: the first calibration round on the FEM gait (40 TPE trials in a box of
-    # 0.3x to 3x hand-set values, experiments/proxy/round1), the centre of the next box.
-    "leg_stiffness": 253.0,
-    "centre_stiffness": 672.0,
-    "leg_density": 1.9e-6,
-    "centre_density": 8.7e-7,
-    "leg_curvature": 0.0577,
-    "centre_curvature": 0.0224,
-}
+
+@dataclass(frozen=True)
+class MultigaitBeams:
+    """Stiffness E (kPa), density (kg/mm^3) and curvature at command 1 (rad/mm) of the legs
+    and the centre: the first calibration round on the FEM gait (40 TPE trials in a box of
+    0.3x to 3x hand-set values, experiments/proxy/round1), the centre of the next box."""
+
+    keyword: ClassVar[str] = "beams"
+    leg_stiffness: float = 253.0
+    centre_stiffness: float = 672.0
+    leg_density: float = 1.9e-6
+    centre_density: float = 8.7e-7
+    leg_curvature: float = 0.0577
+    centre_curvature: float = 0.0224
 
 
+#: The calibrated values of :class:`MultigaitBeams`, by name.
+MULTIGAIT_PARAMETERS = dataclasses.asdict(MultigaitBeams())
+
+
+@builder(MultigaitBeams(), Gravity.Z, Damping(0.1, 0.01))
 def multigait_proxy(
+    p,
     *,
     length: float = 136.0,
     width: float = 58.0,
     thickness: float = 6.3,
     leg_width: float = 16.0,
     centre_length: float = 46.0,
-    leg_stiffness: float = MULTIGAIT_PARAMETERS["leg_stiffness"],
-    centre_stiffness: float = MULTIGAIT_PARAMETERS["centre_stiffness"],
-    leg_density: float = MULTIGAIT_PARAMETERS["leg_density"],
-    centre_density: float = MULTIGAIT_PARAMETERS["centre_density"],
-    leg_curvature: float = MULTIGAIT_PARAMETERS["leg_curvature"],
-    centre_curvature: float = MULTIGAIT_PARAMETERS["centre_curvature"],
     cross_stiffness: float | None = None,
     neutral: Literal["axis", "underside"] = "axis",
     poisson_ratio: float = 0.3,
-    gravity: tuple[float, float, float] = (0.0, 0.0, -9810.0),
-    rayleigh_mass: float = 0.1,
-    rayleigh_stiffness: float = 0.01,
     friction: float = 0.7,
     contact: Literal["nodes", "surface"] = "nodes",
 ) -> Proxy:
@@ -176,25 +179,25 @@ def multigait_proxy(
             elements.append([first + k, first + k + 1])
         groups["legs"] += own
         bendings_by_name[name] = own
-    m = len(elements)
-    stiffness, density = np.full(m, float(centre_stiffness)), np.full(m, float(centre_density))
-    stiffness[groups["legs"]] = leg_stiffness
-    density[groups["legs"]] = leg_density
+    m, beams = len(elements), p.beams
+    stiffness = np.full(m, float(beams.centre_stiffness))
+    density = np.full(m, float(beams.centre_density))
+    stiffness[groups["legs"]] = beams.leg_stiffness
+    density[groups["legs"]] = beams.leg_density
     if cross_stiffness is not None:
         stiffness[groups["cross"]] = cross_stiffness
     rod = RodBody(
         np.array(points),
         RodSection.rectangle(thickness, leg_width),
-        Material(float(centre_stiffness), poisson_ratio),
+        Material(float(beams.centre_stiffness), poisson_ratio),
         elements=np.array(elements),
         normal=(0.0, 0.0, 1.0),
         young_moduli=stiffness,
         densities=density,
-        gravity=gravity,
-        rayleigh_mass=rayleigh_mass,
-        rayleigh_stiffness=rayleigh_stiffness,
+        **p.loads(),
     )
-    curvatures = {name: leg_curvature for name in bendings_by_name} | {"centre": centre_curvature}
+    curvatures = {name: beams.leg_curvature for name in bendings_by_name}
+    curvatures["centre"] = beams.centre_curvature
     bendings = [
         Bending(
             name, tuple(bendings_by_name[name]), _CURL, curvatures[name], curvatures[name] * lever
@@ -213,56 +216,48 @@ def multigait_proxy(
         model,
         CurvatureActuation(rod, bendings),
         {k: np.array(v, dtype=np.int64) for k, v in groups.items()},
-        parameters=dict(
-            leg_stiffness=leg_stiffness,
-            centre_stiffness=centre_stiffness,
-            leg_density=leg_density,
-            centre_density=centre_density,
-            leg_curvature=leg_curvature,
-            centre_curvature=centre_curvature,
-        )
+        parameters=dataclasses.asdict(beams)
         | ({} if cross_stiffness is None else {"cross_stiffness": cross_stiffness}),
     )
 
 
 # --- Trunk on a translating base ------------------------------------------------------------
 
-TRUNK_PARAMETERS = {
-    # Calibrated on the FEM Trunk (pliant proxy calibrate trunk: round 2, 40 TPE trials,
-    # experiments/proxy; 6.34 mm on the optimisation positions). The thesis' values, for a
-    # SOFA Cosserat rod of the same radius: E 14332 and 62718 kPa, max curvature 0.01147 and
-    # 0.04999 rad/mm.
-    "lower_stiffness": 12336.0,
-    "upper_stiffness": 2706.0,
-    "lower_density": 1.04e-6,
-    "upper_density": 7.0e-7,
-    "lower_curvature": 0.0193,
-    "upper_curvature": 0.0604,
-}
+
+@dataclass(frozen=True)
+class TrunkBeams:
+    """Stiffness E (kPa), density (kg/mm^3) and curvature at command 1 (rad/mm) of the lower
+    and upper beams: calibrated on the FEM Trunk (pliant proxy calibrate trunk: round 2, 40
+    TPE trials, experiments/proxy; 6.34 mm on the optimisation positions). The thesis'
+    values, for a SOFA Cosserat rod of the same radius: E 14332 and 62718 kPa, max curvature
+    0.01147 and 0.04999 rad/mm."""
+
+    keyword: ClassVar[str] = "beams"
+    lower_stiffness: float = 12336.0
+    upper_stiffness: float = 2706.0
+    lower_density: float = 1.04e-6
+    upper_density: float = 7.0e-7
+    lower_curvature: float = 0.0193
+    upper_curvature: float = 0.0604
 
 
+#: The calibrated values of :class:`TrunkBeams`, by name.
+TRUNK_PARAMETERS = dataclasses.asdict(TrunkBeams())
+
+
+@builder(TrunkBeams(), Gravity((0.0, -9810.0, 0.0)), Damping(0.1, 0.01), Cube(30.0, 0.01))
 def trunk_proxy(
+    p,
     *,
     length: float = 195.0,
     radius: float = 10.0,
     nodes: int = 30,
-    lower_stiffness: float = TRUNK_PARAMETERS["lower_stiffness"],
-    upper_stiffness: float = TRUNK_PARAMETERS["upper_stiffness"],
-    lower_density: float = TRUNK_PARAMETERS["lower_density"],
-    upper_density: float = TRUNK_PARAMETERS["upper_density"],
-    lower_curvature: float = TRUNK_PARAMETERS["lower_curvature"],
-    upper_curvature: float = TRUNK_PARAMETERS["upper_curvature"],
     lower_contraction: float = 0.0,
     upper_contraction: float = 0.0,
     lower_cocontraction: float = 0.0,
     upper_cocontraction: float = 0.0,
     poisson_ratio: float = 0.45,
-    gravity: tuple[float, float, float] = (0.0, -9810.0, 0.0),
-    rayleigh_mass: float = 0.1,
-    rayleigh_stiffness: float = 0.01,
     base_limits: tuple[float, float] = (-200.0, 0.0),
-    cube_size: float = 30.0,
-    cube_mass: float = 0.01,
     cube_position: tuple[float, float] | None = (30.0, 150.0),
     floor_height: float = -30.0,
     friction: float = 0.3,
@@ -308,20 +303,21 @@ def trunk_proxy(
     m = nodes - 1
     lower = np.arange(m // 2)
     upper = np.arange(m // 2, m)
-    stiffness = np.where(np.arange(m) < m // 2, lower_stiffness, upper_stiffness).astype(float)
+    beams = p.beams
+    stiffness = np.where(
+        np.arange(m) < m // 2, beams.lower_stiffness, beams.upper_stiffness
+    ).astype(float)
     middle = (np.arange(m) + 0.5) / m
-    density = lower_density + (upper_density - lower_density) * middle
+    density = beams.lower_density + (beams.upper_density - beams.lower_density) * middle
     rod = RodBody(
         points,
         RodSection.circle(radius),
-        Material(float(lower_stiffness), poisson_ratio),
+        Material(float(beams.lower_stiffness), poisson_ratio),
         normal=(1.0, 0.0, 0.0),
         clamped=[0],
         young_moduli=stiffness,
         densities=density,
-        gravity=gravity,
-        rayleigh_mass=rayleigh_mass,
-        rayleigh_stiffness=rayleigh_stiffness,
+        **p.loads(),
     )
     bendings = [
         Bending(
@@ -332,8 +328,8 @@ def trunk_proxy(
             max_contraction=contraction,
         )
         for beam, elements, curvature, contraction in (
-            ("lower", lower, lower_curvature, lower_contraction),
-            ("upper", upper, upper_curvature, upper_contraction),
+            ("lower", lower, beams.lower_curvature, lower_contraction),
+            ("upper", upper, beams.upper_curvature, upper_contraction),
         )
         for axis, direction in (("d1", (1.0, 0.0, 0.0)), ("d2", (0.0, 1.0, 0.0)))
     ]
@@ -355,11 +351,11 @@ def trunk_proxy(
     floor = Plane(normal=(0.0, 1.0, 0.0), point=(0.0, floor_height, 0.0))
     rigid = []
     if cube_position is not None:
-        half, (x, z) = 0.5 * cube_size, cube_position
+        half, (x, z) = 0.5 * p.cube.cube_size, cube_position
         rigid.append(
             RigidBody(
                 Box([half, half, half], position=[x, floor_height + half, z]),
-                cube_mass,
+                p.cube.cube_mass,
                 friction=cube_friction,
                 linear_damping=cube_damping,
                 name="cube",
@@ -382,12 +378,5 @@ def trunk_proxy(
         CurvatureActuation(rod, bendings),
         {"lower": lower, "upper": upper},
         base=base,
-        parameters=dict(
-            lower_stiffness=lower_stiffness,
-            upper_stiffness=upper_stiffness,
-            lower_density=lower_density,
-            upper_density=upper_density,
-            lower_curvature=lower_curvature,
-            upper_curvature=upper_curvature,
-        ),
+        parameters=dataclasses.asdict(beams),
     )
