@@ -135,10 +135,6 @@ class DeformableBody(Revised):
     def n_free(self) -> int:
         return int(self.free_dofs.size)
 
-    @property
-    def n_elements(self) -> int:
-        return int(self.elements.shape[0])
-
     def gather(self, full: np.ndarray) -> np.ndarray:
         """Free-DoF part of nodal arrays (n, 3) or (n, 3, k) -> (n_free,) or (n_free, k)."""
         flat = full.reshape(3 * self.n_nodes, *full.shape[2:])
@@ -346,9 +342,13 @@ class TetBody(DeformableBody):
         return int(self.rest_positions.shape[0])
 
     @property
-    def elements(self) -> np.ndarray:
+    def element_nodes(self) -> np.ndarray:
         """The elements' nodes (m, 4): what the kernels gather onto the nodes."""
         return self.tets
+
+    @property
+    def n_elements(self) -> int:
+        return int(self.element_nodes.shape[0])
 
     @property
     def extent(self) -> float:
@@ -531,7 +531,7 @@ class TetBody(DeformableBody):
         )
         elem, energy, frames, dets = self._element_forces(x, v)
         nodal = np.empty((x.shape[0], elem.shape[2]))
-        kernels.gather_nodal(elem, self.elements, self._incidence_ptr, self._incidence, nodal)
+        kernels.gather_nodal(elem, self.element_nodes, self._incidence_ptr, self._incidence, nodal)
         forces = np.ascontiguousarray(nodal[:, :3])
         kv = np.ascontiguousarray(nodal[:, 3:]) if v.shape[0] else None
         tangents = []

@@ -109,7 +109,7 @@ class HexBody(TetBody):
 
     # --- layout -----------------------------------------------------------------------------
     @property
-    def elements(self) -> np.ndarray:
+    def element_nodes(self) -> np.ndarray:
         return self.hexes
 
     @property

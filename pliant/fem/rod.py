@@ -298,6 +298,10 @@ class RodBody(DeformableBody):
         return 2 * self.n_centreline
 
     @property
+    def n_elements(self) -> int:
+        return int(self.elements.shape[0])
+
+    @property
     def extent(self) -> float:
         """Diagonal of the rest centreline's bounding box."""
         return float(np.linalg.norm(np.ptp(self.rest_positions[: self.n_centreline], axis=0)))
