@@ -170,19 +170,6 @@ def _chunks(m):
 
 
 @njit(cache=True, inline="always")
-def _piola_workspace():
-    """One chunk's matrices for `_piola_differential`: dF (zeroed), F, dP and its two
-    scratch products, each (3, 3)."""
-    return (
-        np.zeros((3, 3)),
-        np.empty((3, 3)),
-        np.empty((3, 3)),
-        np.empty((3, 3)),
-        np.empty((3, 3)),
-    )
-
-
-@njit(cache=True, inline="always")
 def _row_dot(p, i, g, a):
     """P_i . g_a: the force on node a along i of an element of first Piola stress P."""
     return p[i, 0] * g[a, 0] + p[i, 1] * g[a, 1] + p[i, 2] * g[a, 2]
@@ -236,9 +223,12 @@ def internal_forces(
     bounds, n_chunks = _chunks(m)
     energies = np.zeros(n_chunks)
     for c in prange(n_chunks):
-        # work: the gradient of v (dF) in K_s v; p, w1, sig: dP and its scratch there.
-        work, f, p, w1, sig = _piola_workspace()
+        f = np.empty((3, 3))
         r = np.empty((3, 3))
+        work = np.empty((3, 3))
+        p = np.empty((3, 3))
+        sig = np.empty((3, 3))
+        w1 = np.empty((3, 3))
         q = np.empty((3, 3))
         energy = 0.0
         for e in range(bounds[c], bounds[c + 1]):
@@ -477,7 +467,11 @@ def stiffness_matvec(
     k = u.shape[1]
     bounds, n_chunks = _chunks(m)
     for c in prange(n_chunks):
-        df, f, dp, w1, w2 = _piola_workspace()
+        df = np.empty((3, 3))
+        f = np.empty((3, 3))
+        dp = np.empty((3, 3))
+        w1 = np.empty((3, 3))
+        w2 = np.empty((3, 3))
         ue = np.empty((4, 3))
         for e in range(bounds[c], bounds[c + 1]):
             if not _active(dets[e], tag):
@@ -552,7 +546,11 @@ def element_stiffness(x, tets, grads, vols, mu, lam, tag, frames, dets, exact, b
     m = tets.shape[0]
     bounds, n_chunks = _chunks(m)
     for c in prange(n_chunks):
-        df, f, dp, w1, w2 = _piola_workspace()
+        df = np.zeros((3, 3))
+        f = np.empty((3, 3))
+        dp = np.empty((3, 3))
+        w1 = np.empty((3, 3))
+        w2 = np.empty((3, 3))
         rg = np.empty((4, 3))
         for e in range(bounds[c], bounds[c + 1]):
             if not _active(dets[e], tag):
