@@ -5,10 +5,9 @@ FEM robots' units (mm, kg, s; stresses in kPa) and placed as they are
 
 from __future__ import annotations
 
-import dataclasses
 import math
 from dataclasses import dataclass, field
-from typing import ClassVar, Literal
+from typing import Literal
 
 import numpy as np
 
@@ -88,26 +87,20 @@ class Proxy:
 # --- Multigait ------------------------------------------------------------------------------
 
 
-@dataclass(frozen=True)
-class MultigaitBeams:
-    """Stiffness E (kPa), density (kg/mm^3) and curvature at command 1 (rad/mm) of the legs
-    and the centre: the first calibration round on the FEM gait (40 TPE trials in a box of
-    0.3x to 3x hand-set values, experiments/proxy/round1), the centre of the next box."""
-
-    keyword: ClassVar[str] = "beams"
-    leg_stiffness: float = 253.0
-    centre_stiffness: float = 672.0
-    leg_density: float = 1.9e-6
-    centre_density: float = 8.7e-7
-    leg_curvature: float = 0.0577
-    centre_curvature: float = 0.0224
+MULTIGAIT_PARAMETERS = {
+    # Stiffness E (kPa), density (kg/mm^3) and curvature at command 1 (rad/mm) of the legs
+    # and the centre: the first calibration round on the FEM gait (40 TPE trials in a box of
+    # 0.3x to 3x hand-set values, experiments/proxy/round1), the centre of the next box.
+    "leg_stiffness": 253.0,
+    "centre_stiffness": 672.0,
+    "leg_density": 1.9e-6,
+    "centre_density": 8.7e-7,
+    "leg_curvature": 0.0577,
+    "centre_curvature": 0.0224,
+}
 
 
-#: The calibrated values of :class:`MultigaitBeams`, by name.
-MULTIGAIT_PARAMETERS = dataclasses.asdict(MultigaitBeams())
-
-
-@builder(MultigaitBeams(), Gravity.Z, Damping(0.1, 0.01))
+@builder(Gravity.Z, Damping(0.1, 0.01))
 def multigait_proxy(
     p,
     *,
@@ -116,6 +109,12 @@ def multigait_proxy(
     thickness: float = 6.3,
     leg_width: float = 16.0,
     centre_length: float = 46.0,
+    leg_stiffness: float = MULTIGAIT_PARAMETERS["leg_stiffness"],
+    centre_stiffness: float = MULTIGAIT_PARAMETERS["centre_stiffness"],
+    leg_density: float = MULTIGAIT_PARAMETERS["leg_density"],
+    centre_density: float = MULTIGAIT_PARAMETERS["centre_density"],
+    leg_curvature: float = MULTIGAIT_PARAMETERS["leg_curvature"],
+    centre_curvature: float = MULTIGAIT_PARAMETERS["centre_curvature"],
     cross_stiffness: float | None = None,
     neutral: Literal["axis", "underside"] = "axis",
     poisson_ratio: float = 0.3,
@@ -179,25 +178,23 @@ def multigait_proxy(
             elements.append([first + k, first + k + 1])
         groups["legs"] += own
         bendings_by_name[name] = own
-    m, beams = len(elements), p.beams
-    stiffness = np.full(m, float(beams.centre_stiffness))
-    density = np.full(m, float(beams.centre_density))
-    stiffness[groups["legs"]] = beams.leg_stiffness
-    density[groups["legs"]] = beams.leg_density
+    m = len(elements)
+    stiffness, density = np.full(m, float(centre_stiffness)), np.full(m, float(centre_density))
+    stiffness[groups["legs"]] = leg_stiffness
+    density[groups["legs"]] = leg_density
     if cross_stiffness is not None:
         stiffness[groups["cross"]] = cross_stiffness
     rod = RodBody(
         np.array(points),
         RodSection.rectangle(thickness, leg_width),
-        Material(float(beams.centre_stiffness), poisson_ratio),
+        Material(float(centre_stiffness), poisson_ratio),
         elements=np.array(elements),
         normal=(0.0, 0.0, 1.0),
         young_moduli=stiffness,
         densities=density,
         **p.loads(),
     )
-    curvatures = {name: beams.leg_curvature for name in bendings_by_name}
-    curvatures["centre"] = beams.centre_curvature
+    curvatures = {name: leg_curvature for name in bendings_by_name} | {"centre": centre_curvature}
     bendings = [
         Bending(
             name, tuple(bendings_by_name[name]), _CURL, curvatures[name], curvatures[name] * lever
@@ -216,7 +213,14 @@ def multigait_proxy(
         model,
         CurvatureActuation(rod, bendings),
         {k: np.array(v, dtype=np.int64) for k, v in groups.items()},
-        parameters=dataclasses.asdict(beams)
+        parameters=dict(
+            leg_stiffness=leg_stiffness,
+            centre_stiffness=centre_stiffness,
+            leg_density=leg_density,
+            centre_density=centre_density,
+            leg_curvature=leg_curvature,
+            centre_curvature=centre_curvature,
+        )
         | ({} if cross_stiffness is None else {"cross_stiffness": cross_stiffness}),
     )
 
@@ -224,34 +228,33 @@ def multigait_proxy(
 # --- Trunk on a translating base ------------------------------------------------------------
 
 
-@dataclass(frozen=True)
-class TrunkBeams:
-    """Stiffness E (kPa), density (kg/mm^3) and curvature at command 1 (rad/mm) of the lower
-    and upper beams: calibrated on the FEM Trunk (pliant proxy calibrate trunk: round 2, 40
-    TPE trials, experiments/proxy; 6.34 mm on the optimisation positions). The thesis'
-    values, for a SOFA Cosserat rod of the same radius: E 14332 and 62718 kPa, max curvature
-    0.01147 and 0.04999 rad/mm."""
-
-    keyword: ClassVar[str] = "beams"
-    lower_stiffness: float = 12336.0
-    upper_stiffness: float = 2706.0
-    lower_density: float = 1.04e-6
-    upper_density: float = 7.0e-7
-    lower_curvature: float = 0.0193
-    upper_curvature: float = 0.0604
+TRUNK_PARAMETERS = {
+    # Calibrated on the FEM Trunk (pliant proxy calibrate trunk: round 2, 40 TPE trials,
+    # experiments/proxy; 6.34 mm on the optimisation positions). The thesis' values, for a
+    # SOFA Cosserat rod of the same radius: E 14332 and 62718 kPa, max curvature 0.01147 and
+    # 0.04999 rad/mm.
+    "lower_stiffness": 12336.0,
+    "upper_stiffness": 2706.0,
+    "lower_density": 1.04e-6,
+    "upper_density": 7.0e-7,
+    "lower_curvature": 0.0193,
+    "upper_curvature": 0.0604,
+}
 
 
-#: The calibrated values of :class:`TrunkBeams`, by name.
-TRUNK_PARAMETERS = dataclasses.asdict(TrunkBeams())
-
-
-@builder(TrunkBeams(), Gravity((0.0, -9810.0, 0.0)), Damping(0.1, 0.01), Cube(30.0, 0.01))
+@builder(Gravity((0.0, -9810.0, 0.0)), Damping(0.1, 0.01), Cube(30.0, 0.01))
 def trunk_proxy(
     p,
     *,
     length: float = 195.0,
     radius: float = 10.0,
     nodes: int = 30,
+    lower_stiffness: float = TRUNK_PARAMETERS["lower_stiffness"],
+    upper_stiffness: float = TRUNK_PARAMETERS["upper_stiffness"],
+    lower_density: float = TRUNK_PARAMETERS["lower_density"],
+    upper_density: float = TRUNK_PARAMETERS["upper_density"],
+    lower_curvature: float = TRUNK_PARAMETERS["lower_curvature"],
+    upper_curvature: float = TRUNK_PARAMETERS["upper_curvature"],
     lower_contraction: float = 0.0,
     upper_contraction: float = 0.0,
     lower_cocontraction: float = 0.0,
@@ -303,16 +306,13 @@ def trunk_proxy(
     m = nodes - 1
     lower = np.arange(m // 2)
     upper = np.arange(m // 2, m)
-    beams = p.beams
-    stiffness = np.where(
-        np.arange(m) < m // 2, beams.lower_stiffness, beams.upper_stiffness
-    ).astype(float)
+    stiffness = np.where(np.arange(m) < m // 2, lower_stiffness, upper_stiffness).astype(float)
     middle = (np.arange(m) + 0.5) / m
-    density = beams.lower_density + (beams.upper_density - beams.lower_density) * middle
+    density = lower_density + (upper_density - lower_density) * middle
     rod = RodBody(
         points,
         RodSection.circle(radius),
-        Material(float(beams.lower_stiffness), poisson_ratio),
+        Material(float(lower_stiffness), poisson_ratio),
         normal=(1.0, 0.0, 0.0),
         clamped=[0],
         young_moduli=stiffness,
@@ -328,8 +328,8 @@ def trunk_proxy(
             max_contraction=contraction,
         )
         for beam, elements, curvature, contraction in (
-            ("lower", lower, beams.lower_curvature, lower_contraction),
-            ("upper", upper, beams.upper_curvature, upper_contraction),
+            ("lower", lower, lower_curvature, lower_contraction),
+            ("upper", upper, upper_curvature, upper_contraction),
         )
         for axis, direction in (("d1", (1.0, 0.0, 0.0)), ("d2", (0.0, 1.0, 0.0)))
     ]
@@ -378,5 +378,12 @@ def trunk_proxy(
         CurvatureActuation(rod, bendings),
         {"lower": lower, "upper": upper},
         base=base,
-        parameters=dataclasses.asdict(beams),
+        parameters=dict(
+            lower_stiffness=lower_stiffness,
+            upper_stiffness=upper_stiffness,
+            lower_density=lower_density,
+            upper_density=upper_density,
+            lower_curvature=lower_curvature,
+            upper_curvature=upper_curvature,
+        ),
     )
