@@ -18,9 +18,10 @@ import numpy as np
 from scipy.optimize import minimize
 
 from pliant.constraints.base import EmbeddedPoints
+from pliant.diff.control import CountedRollouts
 from pliant.diff.losses import PointTracking
 from pliant.diff.parameters import set_parameters
-from pliant.diff.rollout import check_controls, rollout, rollout_gradient
+from pliant.diff.rollout import check_controls, rollout
 from pliant.errors import ModelError
 from pliant.model import Model, State
 from pliant.solvers.implicit_euler import ImplicitEuler
@@ -107,21 +108,12 @@ def calibrate(
         raise ModelError("every start value must lie within its bounds")
     loss = trajectory_loss(points, observed, stages)
     history: list[tuple[float, dict[str, float]]] = []
-    steps = [0]
+    rollouts = CountedRollouts(model, solver, state0, loss, checkpoint_every)
 
     def evaluate(x: np.ndarray) -> tuple[float, np.ndarray]:
         values = dict(zip(names, (x * scale).tolist(), strict=True))
         set_parameters(model, **values)
-        result = rollout_gradient(
-            model,
-            solver,
-            state0,
-            controls,
-            loss,
-            wrt=names,
-            checkpoint_every=checkpoint_every,
-        )
-        steps[0] += result.forward_steps
+        result = rollouts(controls, names)
         history.append((result.value, values))
         grad = np.array([result.gradients[n] for n in names]) * scale
         return result.value, grad
@@ -140,7 +132,7 @@ def calibrate(
         dict(history[best][1]),
         float(history[best][0]),
         len(history),
-        steps[0],
+        rollouts.forward_steps,
         int(fit.nit),
         history,
         str(fit.message),

@@ -33,6 +33,32 @@ from pliant.model import Model, State
 from pliant.solvers.implicit_euler import ImplicitEuler
 
 
+class CountedRollouts:
+    """The rollouts and adjoints an optimiser asks for, all of one model, solver, start state
+    and loss (:func:`pliant.diff.rollout_gradient`), and the solver steps they took in all
+    (forward passes and recomputations): what :func:`optimise_controls` and
+    :func:`pliant.diff.calibration.calibrate` report."""
+
+    def __init__(self, model, solver, state0, loss, checkpoint_every: int | None) -> None:
+        self.model, self.solver, self.state0, self.loss = model, solver, state0, loss
+        self.checkpoint_every = checkpoint_every
+        self.forward_steps = 0
+
+    def __call__(self, controls: np.ndarray, wrt: tuple[str, ...]):
+        """:func:`pliant.diff.rollout_gradient` under `controls`, with respect to `wrt`."""
+        result = rollout_gradient(
+            self.model,
+            self.solver,
+            self.state0,
+            controls,
+            self.loss,
+            wrt=wrt,
+            checkpoint_every=self.checkpoint_every,
+        )
+        self.forward_steps += result.forward_steps
+        return result
+
+
 @dataclass
 class ControlResult:
     """The optimised controls and what the optimisation cost.
@@ -171,20 +197,11 @@ def optimise_controls(
     history: list[float] = []
     iterations: list[tuple[int, int, float, float]] = []
     best = {"loss": np.inf, "controls": start * unit}
-    steps = [0]
+    rollouts = CountedRollouts(model, solver, state0, loss, checkpoint_every)
 
     def evaluate(x: np.ndarray) -> tuple[float, np.ndarray]:
         controls = np.clip(x.reshape(n_steps, n_a) * unit, lo, hi)
-        result = rollout_gradient(
-            model,
-            solver,
-            state0,
-            controls,
-            loss,
-            wrt=("controls",),
-            checkpoint_every=checkpoint_every,
-        )
-        steps[0] += result.forward_steps
+        result = rollouts(controls, ("controls",))
         history.append(result.value)
         if result.value < best["loss"]:
             best["loss"], best["controls"] = result.value, controls
@@ -216,7 +233,7 @@ def optimise_controls(
         loss=float(best["loss"]),
         iterations=int(fit.nit),
         evaluations=len(history),
-        simulated_steps=steps[0],
+        simulated_steps=rollouts.forward_steps,
         wall_time=time.perf_counter() - clock,
         history=history,
         iteration_losses=iterations,

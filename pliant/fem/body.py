@@ -12,7 +12,7 @@ import math
 import numbers
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Literal
+from typing import Any, Literal
 
 import numba
 import numpy as np
@@ -126,6 +126,30 @@ class Linearisation:
         return int(np.count_nonzero(~(self.dets > 0.0)))
 
 
+class DeformableBody(Revised):
+    """What every deformable body (:class:`TetBody`, its hexahedra, a rod) shares: three
+    DoFs a node (`n_nodes`), of which `free_dofs` are free, and its tangent stiffness as data
+    on its sparsity `pattern` (`stiffness_data`)."""
+
+    @property
+    def n_free(self) -> int:
+        return int(self.free_dofs.size)
+
+    def gather(self, full: np.ndarray) -> np.ndarray:
+        """Free-DoF part of nodal arrays (n, 3) or (n, 3, k) -> (n_free,) or (n_free, k)."""
+        flat = full.reshape(3 * self.n_nodes, *full.shape[2:])
+        return flat[self.free_dofs]
+
+    def scatter(self, free: np.ndarray) -> np.ndarray:
+        """Nodal array (n, 3[, k]) with zeros on fixed DoFs from a free-DoF vector."""
+        out = np.zeros((3 * self.n_nodes, *free.shape[1:]))
+        out[self.free_dofs] = free
+        return out.reshape(self.n_nodes, 3, *free.shape[1:])
+
+    def stiffness_matrix(self, lin: Linearisation, *, exact: bool = False) -> sp.csr_matrix:
+        return self.pattern.matrix(self.stiffness_data(lin, exact=exact))
+
+
 # Below this many elements the compiled kernels run on the calling thread alone: waking the
 # other threads costs more than they save. Linearisation (forces and K v), microseconds, 1 / 2
 # threads: 240 tets 51 / 88, 1972 (Trunk) 345 / 386, 4147 (Diamond) 736 / 785, 15360 3003 /
@@ -150,8 +174,32 @@ def _sized_threads(method):
     return wrapper
 
 
-class TetBody(Revised):
+@dataclass(frozen=True, eq=False)
+class BodyOptions:
+    """The keywords that every body of elements (:class:`TetBody`, its hexahedral
+    :class:`pliant.fem.hexbody.HexBody`) takes besides its mesh, material and own keywords:
+    its mass, supports, gravity, damping and loads, declared once with their defaults (see
+    :class:`TetBody` for their meaning). The bodies take them as keywords; an unknown one is
+    a TypeError."""
+
+    density: float | None = None
+    total_mass: float | None = None
+    mass: MassType = "lumped"
+    fixed_nodes: np.ndarray | None = None
+    gravity: tuple[float, float, float] | np.ndarray = (0.0, 0.0, 0.0)
+    rayleigh_mass: float = 0.0
+    rayleigh_stiffness: float = 0.0
+    fixed_dofs: np.ndarray | None = None
+    loads: Sequence[Load] = ()
+    projections: Sequence[Projection] = ()
+
+
+class TetBody(DeformableBody):
     """A deformable body of linear tetrahedra.
+
+    Its own keywords are `membranes` and `frame_nodes`; the others (density or total mass,
+    mass, held nodes and DoFs, gravity, damping, loads, projections) are those of
+    :class:`BodyOptions`, which every body of elements shares.
 
     Args:
         mesh: the tetrahedral mesh (validated).
@@ -190,18 +238,9 @@ class TetBody(Revised):
         mesh: TetMesh,
         material: Material,
         *,
-        density: float | None = None,
-        total_mass: float | None = None,
-        mass: MassType = "lumped",
-        fixed_nodes: np.ndarray | None = None,
-        gravity: tuple[float, float, float] | np.ndarray = (0.0, 0.0, 0.0),
-        rayleigh_mass: float = 0.0,
-        rayleigh_stiffness: float = 0.0,
         membranes: Sequence[Membrane] = (),
-        fixed_dofs: np.ndarray | None = None,
-        loads: Sequence[Load] = (),
         frame_nodes: np.ndarray | None = None,
-        projections: Sequence[Projection] = (),
+        **options: Any,
     ) -> None:
         # Inverted, degenerate, disconnected or malformed meshes raise their MeshError here.
         validate_mesh(mesh.points, mesh.tets)
@@ -231,22 +270,35 @@ class TetBody(Revised):
         self.mu = np.full(n_elem, material.mu)
         self.lam = np.full(n_elem, material.lam)
 
+        self._hold_and_weigh(self.tets, BodyOptions(**options), membranes)
+        self._element_blocks = np.empty((n_elem, 12, 12))
+
+    def _hold_and_weigh(
+        self, elements: np.ndarray, options: BodyOptions, membranes: Sequence[Membrane]
+    ) -> None:
+        """What every body of elements does once its volumes are known: its bulk properties
+        (mass, damping, gravity), held DoFs, layout and masses from `options`."""
         set_bulk_properties(
             self,
             float(self.volumes.sum()),
-            density=density,
-            total_mass=total_mass,
-            rayleigh_mass=rayleigh_mass,
-            rayleigh_stiffness=rayleigh_stiffness,
-            gravity=gravity,
+            density=options.density,
+            total_mass=options.total_mass,
+            rayleigh_mass=options.rayleigh_mass,
+            rayleigh_stiffness=options.rayleigh_stiffness,
+            gravity=options.gravity,
         )
-
-        self._layout(self.tets, fixed_nodes, fixed_dofs, membranes, loads, projections)
-        self.mass_type: MassType = mass
-        self.node_masses = self._node_masses(mass)
-        self.mass_data = self._mass_data(mass)
+        self._layout(
+            elements,
+            options.fixed_nodes,
+            options.fixed_dofs,
+            membranes,
+            options.loads,
+            options.projections,
+        )
+        self.mass_type: MassType = options.mass
+        self.node_masses = self._node_masses(options.mass)
+        self.mass_data = self._mass_data(options.mass)
         self._mass_diagonal = np.repeat(self.node_masses, 3)[self.free_dofs]
-        self._element_blocks = np.empty((n_elem, 12, 12))
 
     def _layout(self, elements, fixed_nodes, fixed_dofs, membranes, loads, projections) -> None:
         """Held and free DoFs, the stiffness pattern of `elements` (m, k nodes), the membranes,
@@ -290,12 +342,13 @@ class TetBody(Revised):
         return int(self.rest_positions.shape[0])
 
     @property
-    def n_elements(self) -> int:
-        return int(self.tets.shape[0])
+    def element_nodes(self) -> np.ndarray:
+        """The elements' nodes (m, 4): what the kernels gather onto the nodes."""
+        return self.tets
 
     @property
-    def n_free(self) -> int:
-        return int(self.free_dofs.size)
+    def n_elements(self) -> int:
+        return int(self.element_nodes.shape[0])
 
     @property
     def extent(self) -> float:
@@ -331,17 +384,6 @@ class TetBody(Revised):
     def vtk_cells(self) -> tuple[str, np.ndarray, np.ndarray]:
         """(cell type, cells, point rows) of the body for ParaView."""
         return "tetra", self.tets, np.arange(self.n_nodes)
-
-    def gather(self, full: np.ndarray) -> np.ndarray:
-        """Free-DoF part of nodal arrays (n, 3) or (n, 3, k) -> (n_free,) or (n_free, k)."""
-        flat = full.reshape(3 * self.n_nodes, *full.shape[2:])
-        return flat[self.free_dofs]
-
-    def scatter(self, free: np.ndarray) -> np.ndarray:
-        """Nodal array (n, 3[, k]) with zeros on fixed DoFs from a free-DoF vector."""
-        out = np.zeros((3 * self.n_nodes, *free.shape[1:]))
-        out[self.free_dofs] = free
-        return out.reshape(self.n_nodes, 3, *free.shape[1:])
 
     def free_rigid_motions(self) -> list[str]:
         """The rigid motions that nothing holds (neither held DoFs, lines and planes, nor
@@ -487,27 +529,9 @@ class TetBody(Revised):
             if velocities is None
             else np.ascontiguousarray(velocities, dtype=np.float64)
         )
-        m = self.tets.shape[0]
-        # Forces and K_s v side by side per element node: one gather (one parallel region)
-        # assembles both.
-        elem = np.empty((m, 4, 6 if v.shape[0] else 3))
-        elem_forces = elem[:, :, :3]
-        elem_kv = elem[:, :, 3:] if v.shape[0] else np.empty((0, 4, 3))
-        frames = np.empty((m, 3, 3))
-        dets = np.empty(m)
-        energy = kernels.internal_forces(
-            x,
-            v,
-            *self._element_args(),
-            self.frame_nodes,
-            self.rest_frames,
-            elem_forces,
-            elem_kv,
-            frames,
-            dets,
-        )
+        elem, energy, frames, dets = self._element_forces(x, v)
         nodal = np.empty((x.shape[0], elem.shape[2]))
-        kernels.gather_nodal(elem, self.tets, self._incidence_ptr, self._incidence, nodal)
+        kernels.gather_nodal(elem, self.element_nodes, self._incidence_ptr, self._incidence, nodal)
         forces = np.ascontiguousarray(nodal[:, :3])
         kv = np.ascontiguousarray(nodal[:, 3:]) if v.shape[0] else None
         tangents = []
@@ -531,6 +555,30 @@ class TetBody(Revised):
             self._add_loads(x, v, forces, kv, time),
             self.material.tolerates_inversion,
         )
+
+    def _element_forces(self, x: np.ndarray, v: np.ndarray) -> tuple:
+        """Per-element forces (and K_s v when `v` has rows) side by side, (m, k, 3 or 6), the
+        elastic energy, the element frames and their determinants at `x`."""
+        m = self.tets.shape[0]
+        # Forces and K_s v side by side per element node: one gather (one parallel region)
+        # assembles both.
+        elem = np.empty((m, 4, 6 if v.shape[0] else 3))
+        elem_forces = elem[:, :, :3]
+        elem_kv = elem[:, :, 3:] if v.shape[0] else np.empty((0, 4, 3))
+        frames = np.empty((m, 3, 3))
+        dets = np.empty(m)
+        energy = kernels.internal_forces(
+            x,
+            v,
+            *self._element_args(),
+            self.frame_nodes,
+            self.rest_frames,
+            elem_forces,
+            elem_kv,
+            frames,
+            dets,
+        )
+        return elem, energy, frames, dets
 
     def _add_loads(self, x, v, forces, kv, time: float) -> tuple:
         """Add the loads' forces at `time` to `forces` (and, when `kv` is given, their K v);
@@ -623,6 +671,3 @@ class TetBody(Revised):
             kernels.scatter_add(self._element_blocks, 1.0, self.pattern.scatter, data)
         self._add_surface_data(lin, data)
         return data
-
-    def stiffness_matrix(self, lin: Linearisation, *, exact: bool = False) -> sp.csr_matrix:
-        return self.pattern.matrix(self.stiffness_data(lin, exact=exact))

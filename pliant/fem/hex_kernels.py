@@ -74,8 +74,7 @@ def internal_forces(
     (n, 3) is not empty, R K0 R^T v into `elem_kv` (m, 8, 3). Returns the energy."""
     m = hexes.shape[0]
     with_v = v.shape[0] > 0
-    bounds = _chunks(m)
-    n_chunks = bounds.shape[0] - 1
+    bounds, n_chunks = _chunks(m)
     energies = np.zeros(n_chunks)
     for c in prange(n_chunks):
         edges = np.empty((3, 3))
@@ -142,8 +141,7 @@ def stiffness_matvec(u, elem_dofs, k0, frames, dets, tag, elem_out):
     `kernels.gather_free`."""
     m = elem_dofs.shape[0]
     k = u.shape[1]
-    bounds = _chunks(m)
-    n_chunks = bounds.shape[0] - 1
+    bounds, n_chunks = _chunks(m)
     for c in prange(n_chunks):
         local = np.empty(24)
         kd = np.empty(24)

@@ -16,22 +16,25 @@ and loads work on it unchanged.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
 from functools import cached_property
+from typing import Any
 
 import numpy as np
 
 from pliant.errors import MaterialError, ModelError
 from pliant.fem import hex_kernels, kernels
-from pliant.fem.body import Linearisation, MassType, TetBody, _sized_threads, set_bulk_properties
-from pliant.fem.loads import Load
+from pliant.fem.body import (
+    BodyOptions,
+    Linearisation,
+    TetBody,
+    _sized_threads,
+)
 from pliant.fem.material import (
     COROTATIONAL,
     COROTATIONAL_LARGE,
     COROTATIONAL_LARGE_INVERTIBLE,
     Corotational,
 )
-from pliant.fem.supports import Projection
 from pliant.mesh.hexmesh import CORNERS, HexMesh, shape_derivatives, shape_functions
 
 # The 2 x 2 x 2 Gauss points (weights 1) in natural coordinates.
@@ -68,7 +71,8 @@ class HexBody(TetBody):
             MeshMatrixMass with lumping), "uniform" (total mass / nodes, SOFA's UniformMass)
             or "consistent".
 
-    The other arguments are :class:`pliant.fem.body.TetBody`'s.
+    The other keywords are those of :class:`pliant.fem.body.BodyOptions`, as for
+    :class:`pliant.fem.body.TetBody` (a hexahedral body has no membranes or frame nodes).
     """
 
     def __init__(
@@ -76,17 +80,8 @@ class HexBody(TetBody):
         mesh: HexMesh,
         material: Corotational,
         *,
-        density: float | None = None,
-        total_mass: float | None = None,
-        mass: MassType = "lumped",
-        fixed_nodes: np.ndarray | None = None,
-        gravity: tuple[float, float, float] | np.ndarray = (0.0, 0.0, 0.0),
-        rayleigh_mass: float = 0.0,
-        rayleigh_stiffness: float = 0.0,
-        fixed_dofs: np.ndarray | None = None,
-        loads: Sequence[Load] = (),
-        projections: Sequence[Projection] = (),
         stiffness_weights: np.ndarray | None = None,
+        **options: Any,
     ) -> None:
         tags = (COROTATIONAL, COROTATIONAL_LARGE, COROTATIONAL_LARGE_INVERTIBLE)
         if not isinstance(material, Corotational) or material.kernel_tag not in tags:
@@ -110,25 +105,12 @@ class HexBody(TetBody):
         self.rest_frames, self._rest_dets = hex_kernels.rest_frames(
             self.rest_positions, self.hexes, CORNERS, material.kernel_tag
         )
-        set_bulk_properties(
-            self,
-            float(self.volumes.sum()),
-            density=density,
-            total_mass=total_mass,
-            rayleigh_mass=rayleigh_mass,
-            rayleigh_stiffness=rayleigh_stiffness,
-            gravity=gravity,
-        )
-        self._layout(self.hexes, fixed_nodes, fixed_dofs, (), loads, projections)
-        self.mass_type: MassType = mass
-        self.node_masses = self._node_masses(mass)
-        self.mass_data = self._mass_data(mass)
-        self._mass_diagonal = np.repeat(self.node_masses, 3)[self.free_dofs]
+        self._hold_and_weigh(self.hexes, BodyOptions(**options), ())
 
     # --- layout -----------------------------------------------------------------------------
     @property
-    def n_elements(self) -> int:
-        return int(self.hexes.shape[0])
+    def element_nodes(self) -> np.ndarray:
+        return self.hexes
 
     @property
     def label(self) -> str:
@@ -165,16 +147,11 @@ class HexBody(TetBody):
         return data
 
     # --- elasticity -------------------------------------------------------------------------
-    @_sized_threads
-    def linearise(
-        self, positions: np.ndarray, velocities: np.ndarray | None = None, *, time: float = 0.0
-    ) -> Linearisation:
-        """Internal forces, energy and element rotations at `positions` (n, 3), and K_s v when
-        `velocities` are given; the loads' forces (and tangents) at `time` are added."""
-        x = np.ascontiguousarray(positions, dtype=np.float64)
-        with_v = velocities is not None
-        v = np.ascontiguousarray(velocities, dtype=np.float64) if with_v else np.empty((0, 3))
+    def _element_forces(self, x: np.ndarray, v: np.ndarray) -> tuple:
+        """Per-element forces (and K_s v when `v` has rows) side by side, (m, 8, 3 or 6), the
+        energy, the element rotations and their determinants at `x`."""
         m = self.n_elements
+        with_v = v.shape[0] > 0
         elem = np.empty((m, 8, 6 if with_v else 3))
         frames = np.empty((m, 3, 3))
         dets = np.empty(m)
@@ -193,21 +170,7 @@ class HexBody(TetBody):
             frames,
             dets,
         )
-        nodal = np.empty((x.shape[0], elem.shape[2]))
-        kernels.gather_nodal(elem, self.hexes, self._incidence_ptr, self._incidence, nodal)
-        forces = np.ascontiguousarray(nodal[:, :3])
-        kv = np.ascontiguousarray(nodal[:, 3:]) if with_v else None
-        return Linearisation(
-            x,
-            forces,
-            float(energy),
-            frames,
-            dets,
-            kv,
-            (),
-            self._add_loads(x, v, forces, kv, time),
-            self.material.tolerates_inversion,
-        )
+        return elem, energy, frames, dets
 
     @_sized_threads
     def stiffness_matvec(

@@ -163,8 +163,10 @@ def rest_gradients(points, tets):
 
 @njit(cache=True, inline="always")
 def _chunks(m):
-    """Bounds of the (at most 64) chunks of m elements that the parallel kernels share out."""
-    return np.linspace(0, m, max(1, min(m, 64)) + 1).astype(np.int64)
+    """Bounds of the (at most 64) chunks of m elements that the parallel kernels share out,
+    and their number."""
+    n_chunks = max(1, min(m, 64))
+    return np.linspace(0, m, n_chunks + 1).astype(np.int64), n_chunks
 
 
 @njit(cache=True, inline="always")
@@ -218,8 +220,7 @@ def internal_forces(
     """
     m = tets.shape[0]
     with_v = v.shape[0] > 0
-    bounds = _chunks(m)
-    n_chunks = bounds.shape[0] - 1
+    bounds, n_chunks = _chunks(m)
     energies = np.zeros(n_chunks)
     for c in prange(n_chunks):
         f = np.empty((3, 3))
@@ -464,8 +465,7 @@ def stiffness_matvec(
     """
     m = tets.shape[0]
     k = u.shape[1]
-    bounds = _chunks(m)
-    n_chunks = bounds.shape[0] - 1
+    bounds, n_chunks = _chunks(m)
     for c in prange(n_chunks):
         df = np.empty((3, 3))
         f = np.empty((3, 3))
@@ -544,8 +544,7 @@ def _corotational_blocks(g, r, v, mu, lam, rg, out):
 def element_stiffness(x, tets, grads, vols, mu, lam, tag, frames, dets, exact, blocks):
     """Element tangent stiffness matrices, blocks (m, 12, 12), node-major (a, i)."""
     m = tets.shape[0]
-    bounds = _chunks(m)
-    n_chunks = bounds.shape[0] - 1
+    bounds, n_chunks = _chunks(m)
     for c in prange(n_chunks):
         df = np.zeros((3, 3))
         f = np.empty((3, 3))

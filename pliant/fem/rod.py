@@ -24,11 +24,10 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
-import scipy.sparse as sp
 
 from pliant.errors import MaterialError, ModelError
 from pliant.fem import kernels, rod_kernels
-from pliant.fem.body import Linearisation, Revised, set_bulk_properties
+from pliant.fem.body import DeformableBody, Linearisation, set_bulk_properties
 from pliant.fem.material import Material
 from pliant.fem.rigid import KinematicBody
 from pliant.fem.sparsity import StiffnessPattern
@@ -106,7 +105,7 @@ def parallel_frames(points: np.ndarray, normal: Sequence[float] | None = None) -
     return frames
 
 
-class RodBody(Revised):
+class RodBody(DeformableBody):
     """A deformable rod: a discrete Cosserat rod along a polyline, or a lattice of them.
 
     Args:
@@ -303,10 +302,6 @@ class RodBody(Revised):
         return int(self.elements.shape[0])
 
     @property
-    def n_free(self) -> int:
-        return int(self.free_dofs.size)
-
-    @property
     def extent(self) -> float:
         """Diagonal of the rest centreline's bounding box."""
         return float(np.linalg.norm(np.ptp(self.rest_positions[: self.n_centreline], axis=0)))
@@ -314,16 +309,6 @@ class RodBody(Revised):
     @property
     def label(self) -> str:
         return f"rod of {self.n_centreline - 1} elements"
-
-    def gather(self, full: np.ndarray) -> np.ndarray:
-        """Free-DoF part of nodal arrays (2N, 3) or (2N, 3, k)."""
-        return full.reshape(3 * self.n_nodes, *full.shape[2:])[self.free_dofs]
-
-    def scatter(self, free: np.ndarray) -> np.ndarray:
-        """Nodal array (2N, 3[, k]) with zeros on fixed DoFs from a free-DoF vector."""
-        out = np.zeros((3 * self.n_nodes, *free.shape[1:]))
-        out[self.free_dofs] = free
-        return out.reshape(self.n_nodes, 3, *free.shape[1:])
 
     def centreline(self, positions: np.ndarray) -> np.ndarray:
         """(N, 3) centreline points of a state's positions."""
@@ -425,9 +410,6 @@ class RodBody(Revised):
         data = np.zeros(self.pattern.nnz)
         kernels.scatter_add(self._blocks, 1.0, self.pattern.scatter, data)
         return data
-
-    def stiffness_matrix(self, lin: Linearisation, *, exact: bool = False) -> sp.csr_matrix:
-        return self.pattern.matrix(self.stiffness_data(lin, exact=exact))
 
     def stiffness_matvec(
         self, lin: Linearisation, u: np.ndarray, *, exact: bool = False

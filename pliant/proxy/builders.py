@@ -21,6 +21,8 @@ from pliant.model import Model
 from pliant.proxy.actuation import Bending, CurvatureActuation
 from pliant.proxy.skinning import Skinning
 from pliant.robots.multigait import face_points
+from pliant.robots.parameters import Cube, Damping, Gravity
+from pliant.robots.scene import builder
 from pliant.robots.trunk_cube import surface_points as trunk_surface_points
 
 # A leg's or the centre's inflation lengthens its roof over a floor the paper keeps: the beam
@@ -84,6 +86,7 @@ class Proxy:
 
 # --- Multigait ------------------------------------------------------------------------------
 
+
 MULTIGAIT_PARAMETERS = {
     # Stiffness E (kPa), density (kg/mm^3) and curvature at command 1 (rad/mm) of the legs
     # and the centre: the first calibration round on the FEM gait (40 TPE trials in a box of
@@ -97,7 +100,9 @@ MULTIGAIT_PARAMETERS = {
 }
 
 
+@builder(Gravity.Z, Damping(0.1, 0.01))
 def multigait_proxy(
+    p,
     *,
     length: float = 136.0,
     width: float = 58.0,
@@ -113,9 +118,6 @@ def multigait_proxy(
     cross_stiffness: float | None = None,
     neutral: Literal["axis", "underside"] = "axis",
     poisson_ratio: float = 0.3,
-    gravity: tuple[float, float, float] = (0.0, 0.0, -9810.0),
-    rayleigh_mass: float = 0.1,
-    rayleigh_stiffness: float = 0.01,
     friction: float = 0.7,
     contact: Literal["nodes", "surface"] = "nodes",
 ) -> Proxy:
@@ -190,9 +192,7 @@ def multigait_proxy(
         normal=(0.0, 0.0, 1.0),
         young_moduli=stiffness,
         densities=density,
-        gravity=gravity,
-        rayleigh_mass=rayleigh_mass,
-        rayleigh_stiffness=rayleigh_stiffness,
+        **p.loads(),
     )
     curvatures = {name: leg_curvature for name in bendings_by_name} | {"centre": centre_curvature}
     bendings = [
@@ -227,6 +227,7 @@ def multigait_proxy(
 
 # --- Trunk on a translating base ------------------------------------------------------------
 
+
 TRUNK_PARAMETERS = {
     # Calibrated on the FEM Trunk (pliant proxy calibrate trunk: round 2, 40 TPE trials,
     # experiments/proxy; 6.34 mm on the optimisation positions). The thesis' values, for a
@@ -241,7 +242,9 @@ TRUNK_PARAMETERS = {
 }
 
 
+@builder(Gravity((0.0, -9810.0, 0.0)), Damping(0.1, 0.01), Cube(30.0, 0.01))
 def trunk_proxy(
+    p,
     *,
     length: float = 195.0,
     radius: float = 10.0,
@@ -257,12 +260,7 @@ def trunk_proxy(
     lower_cocontraction: float = 0.0,
     upper_cocontraction: float = 0.0,
     poisson_ratio: float = 0.45,
-    gravity: tuple[float, float, float] = (0.0, -9810.0, 0.0),
-    rayleigh_mass: float = 0.1,
-    rayleigh_stiffness: float = 0.01,
     base_limits: tuple[float, float] = (-200.0, 0.0),
-    cube_size: float = 30.0,
-    cube_mass: float = 0.01,
     cube_position: tuple[float, float] | None = (30.0, 150.0),
     floor_height: float = -30.0,
     friction: float = 0.3,
@@ -319,9 +317,7 @@ def trunk_proxy(
         clamped=[0],
         young_moduli=stiffness,
         densities=density,
-        gravity=gravity,
-        rayleigh_mass=rayleigh_mass,
-        rayleigh_stiffness=rayleigh_stiffness,
+        **p.loads(),
     )
     bendings = [
         Bending(
@@ -355,11 +351,11 @@ def trunk_proxy(
     floor = Plane(normal=(0.0, 1.0, 0.0), point=(0.0, floor_height, 0.0))
     rigid = []
     if cube_position is not None:
-        half, (x, z) = 0.5 * cube_size, cube_position
+        half, (x, z) = 0.5 * p.cube.cube_size, cube_position
         rigid.append(
             RigidBody(
                 Box([half, half, half], position=[x, floor_height + half, z]),
-                cube_mass,
+                p.cube.cube_mass,
                 friction=cube_friction,
                 linear_damping=cube_damping,
                 name="cube",

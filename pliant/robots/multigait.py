@@ -32,7 +32,6 @@ import functools
 import numpy as np
 
 from pliant.constraints.base import EmbeddedPoints
-from pliant.constraints.contact import Contacts
 from pliant.errors import ModelError
 from pliant.fem.membrane import Membrane
 from pliant.geometry.collision import Plane
@@ -41,7 +40,7 @@ from pliant.mesh.tetmesh import TetMesh
 from pliant.model import Model
 from pliant.robots import common
 from pliant.robots.common import cavity
-from pliant.robots.parameters import Damping, Gravity, Meshing, Solid, TotalMass
+from pliant.robots.parameters import Contact, Damping, Gravity, Meshing, Solid, TotalMass
 from pliant.robots.scene import builder
 
 # Thesis §3.4.1: inflate the rear legs, the centre, the front legs, then deflate in that order.
@@ -58,11 +57,11 @@ GAIT = (
     TotalMass(0.035),
     Gravity.Z,
     Damping(0.1, 0.1),
+    Contact(0.7, contact_margin=1.0),
 )
 def multigait(
     p,
     *,
-    friction: float = 0.7,
     collision_points: np.ndarray | None = None,
     collision_spacing: float = 20.0,
     cavity_mode: str = "volume",
@@ -115,7 +114,7 @@ def multigait(
         else EmbeddedPoints.at_nodes(_face_nodes(mesh, collision_spacing))
     )
     floor = Plane(point=(0.0, 0.0, float(mesh.points[:, 2].min())))
-    contacts = Contacts([floor], friction=friction, margin=1.0, points=points)
+    contacts = p.contacts([floor], points=points)
     return Model(body, actuators=chambers, contacts=contacts, name="multigait")
 
 

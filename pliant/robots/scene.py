@@ -67,7 +67,8 @@ class Shared:
     def _mass_keywords(self) -> dict[str, object]:
         return {f.name: getattr(self.inertia, f.name) for f in dataclasses.fields(self.inertia)}
 
-    def _loads(self) -> dict[str, object]:
+    def loads(self) -> dict[str, object]:
+        """The body keywords of the gravity and damping groups (no damping group: none)."""
         keywords: dict[str, object] = {}
         if "gravity" in self.groups:
             keywords["gravity"] = self.gravity.gravity
@@ -84,7 +85,7 @@ class Shared:
             self.solid.law(),
             **self._mass_keywords(),
             mass=self.solid.mass,
-            **self._loads(),
+            **self.loads(),
             **extra,
         )
 
@@ -98,7 +99,7 @@ class Shared:
             Material(elastic.young_modulus, elastic.poisson_ratio),
             **self._mass_keywords(),
             **extra,
-            **self._loads(),
+            **self.loads(),
         )
 
     def contacts(self, obstacles: Sequence, **extra) -> Contacts:
