@@ -91,6 +91,26 @@ def _rotate_each(vectors: np.ndarray, rotations: np.ndarray) -> np.ndarray:
     )
 
 
+def _box_distance(p: np.ndarray, h: np.ndarray):
+    """(gap, normal, closest) of points p (..., 3) in a box's frame against the box of half
+    extents h (broadcast to p's shape: one box, or one per leading index)."""
+    h = np.broadcast_to(h, p.shape)
+    q = np.abs(p) - h
+    outside_length = np.linalg.norm(np.maximum(q, 0.0), axis=-1)
+    outside = outside_length > 0.0
+    gap = np.where(outside, outside_length, q.max(axis=-1))
+    closest = np.clip(p, -h, h)
+    normal = np.zeros_like(p)
+    normal[outside] = (p[outside] - closest[outside]) / outside_length[outside][:, None]
+    # Inside (or on the surface): the nearest face is the one of largest q.
+    inside = np.nonzero(~outside)
+    at = (*inside, np.argmax(q[inside], axis=-1))
+    side = np.where(p[at] < 0.0, -1.0, 1.0)
+    normal[at] = side
+    closest[at] = side * h[at]
+    return gap, normal, closest
+
+
 def _box_corners(lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
     """The 8 corners of the box [lo, hi]."""
     return np.array(
@@ -294,22 +314,7 @@ class Box(Shape):
         super().__init__(position, rotation)
 
     def _local_distance(self, p):
-        h = self.half_extents
-        q = np.abs(p) - h
-        outside_part = np.maximum(q, 0.0)
-        outside_length = np.linalg.norm(outside_part, axis=1)
-        outside = outside_length > 0.0
-        gap = np.where(outside, outside_length, q.max(axis=1))
-        closest = np.clip(p, -h, h)
-        normal = np.zeros_like(p)
-        normal[outside] = (p[outside] - closest[outside]) / outside_length[outside, None]
-        # Inside (or on the surface): the nearest face is the one of largest q.
-        rows = np.flatnonzero(~outside)
-        axis = np.argmax(q[rows], axis=1)
-        side = np.where(p[rows, axis] < 0.0, -1.0, 1.0)
-        normal[rows, axis] = side
-        closest[rows, axis] = side * h[axis]
-        return gap, normal, closest
+        return _box_distance(p, self.half_extents)
 
     def _primitive(self):
         return kernels.BOX, self.half_extents
@@ -561,19 +566,7 @@ class BoxUnion(TriangleMesh):
         over a (boxes, points, 3) array: the same operations, element by element."""
         position, rotation, half = self._stacked
         local = _rotate_each(p[None] - position[:, None], rotation.transpose(0, 2, 1))
-        q = np.abs(local) - half[:, None]
-        outside_length = np.linalg.norm(np.maximum(q, 0.0), axis=2)
-        outside = outside_length > 0.0
-        gaps = np.where(outside, outside_length, q.max(axis=2))
-        closest = np.clip(local, -half[:, None], half[:, None])
-        normal = np.zeros_like(local)
-        normal[outside] = (local[outside] - closest[outside]) / outside_length[outside, None]
-        # Inside (or on the surface): the nearest face is the one of largest q.
-        box, row = np.nonzero(~outside)
-        axis = np.argmax(q[box, row], axis=1)
-        side = np.where(local[box, row, axis] < 0.0, -1.0, 1.0)
-        normal[box, row, axis] = side
-        closest[box, row, axis] = side * half[box, axis]
+        gaps, normal, closest = _box_distance(local, half[:, None])
         nearest = np.argmin(gaps, axis=0)
         rows = np.arange(len(p))
         normal = _rotate_each(normal, rotation)[nearest, rows]
