@@ -197,8 +197,8 @@ class BodyOptions:
 class TetBody(DeformableBody):
     """A deformable body of linear tetrahedra.
 
-    Its own keywords are `membranes` and `frame_nodes`; the others (density or total mass,
-    mass, held nodes and DoFs, gravity, damping, loads, projections) are those of
+    Its own keywords are `membranes`, `frame_nodes` and `separate`; the others (density or
+    total mass, mass, held nodes and DoFs, gravity, damping, loads, projections) are those of
     :class:`BodyOptions`, which every body of elements shares.
 
     Args:
@@ -226,6 +226,9 @@ class TetBody(DeformableBody):
             positions (:class:`pliant.fem.supports.OnPlane`, :class:`~pliant.fem.supports.OnLine`;
             SOFA's ProjectToPlaneConstraint and ProjectToLineConstraint): the solvers project
             their increments (:mod:`pliant.fem.supports`).
+        separate: the mesh may hold several separate pieces (bodies that share nothing but
+            the solver, as :mod:`pliant.sofa` joins a scene's bodies); otherwise a mesh in
+            pieces is refused (DisconnectedMeshError).
     """
 
     # Largest change of an element frame entry before the "lagged" policy refactorises: on
@@ -240,10 +243,11 @@ class TetBody(DeformableBody):
         *,
         membranes: Sequence[Membrane] = (),
         frame_nodes: np.ndarray | None = None,
+        separate: bool = False,
         **options: Any,
     ) -> None:
         # Inverted, degenerate, disconnected or malformed meshes raise their MeshError here.
-        validate_mesh(mesh.points, mesh.tets)
+        validate_mesh(mesh.points, mesh.tets, allow_disconnected=separate)
         self.mesh = mesh
         self.material = material
         self.rest_positions = np.ascontiguousarray(mesh.points, dtype=np.float64)
@@ -503,6 +507,23 @@ class TetBody(DeformableBody):
         )
         data[k] = mat.diagonal()
         return data
+
+    def set_node_masses(self, masses: np.ndarray) -> None:
+        """Give each node its own mass (a diagonal mass matrix), in place of those the density
+        or total mass spread: separate pieces of one body that weigh differently (a SOFA scene's
+        bodies, each with its UniformMass). ModelError for a consistent mass matrix, or masses
+        that are not (n,), finite and > 0."""
+        masses = np.asarray(masses, dtype=float)
+        if self.mass_type == "consistent":
+            raise ModelError("node masses make a diagonal mass matrix: not a consistent one")
+        if masses.shape != (self.n_nodes,) or not np.all(np.isfinite(masses) & (masses > 0)):
+            raise ModelError(f"node masses must be {self.n_nodes} finite values > 0")
+        self.node_masses = masses.copy()
+        self.total_mass = float(masses.sum())
+        self.density = self.total_mass / float(self.volumes.sum())
+        self.mass_data = self._mass_data(self.mass_type)
+        self._mass_diagonal = np.repeat(self.node_masses, 3)[self.free_dofs]
+        self.changed()
 
     def mass_matvec(self, u: np.ndarray) -> np.ndarray:
         """M u on the free DoFs; u is (n_free,) or (n_free, k)."""

@@ -50,6 +50,7 @@ from pliant.geometry.collision import Box, Plane, TriangleMesh
 from pliant.mesh.quality import signed_volumes
 from pliant.mesh.tetmesh import TetMesh
 from pliant.model import Model, State
+from pliant.sofa.bodies import Part, contact_problem, join
 from pliant.sofa.components import FIELDS, is_visual
 from pliant.sofa.grids import GRIDS, HEXAHEDRA, grid_tetrahedra, hex_body
 from pliant.sofa.servos import ARTICULATED, Servo, linked_dofs, read_servos, rigid_pose
@@ -207,6 +208,10 @@ UNSUPPORTED = {
     "JointConstraint": "an articulation's degree of freedom (Vec1 of an"
     " ArticulatedSystemMapping); Pliant reads a servo's angle from its"
     " RestShapeSpringsForceField's rest_position only",
+    "ReadState": "positions read from a file as the scene runs (SofaGym's TrunkCup: one"
+    " recorded state); a Pliant scene starts from its rest shape",
+    "MeshSpringForceField": "springs on the edges of points mapped on the body; Pliant's"
+    " springs hold nodes to their rest positions only (RestShapeSpringsForceField)",
 }
 # A rigidified group's frame is a Pliant rigid body with this share of its nodes' mass (SOFA's
 # frames have none of their own: the nodes carry it; Pliant's rigid bodies need a mass).
@@ -307,10 +312,23 @@ class SofaScene:
                 effector.goals = goals
         for servo in bindings.servos:  # a command reached at the end of this step
             servo.set_command(state.time)
-        written = bindings.written
-        if bindings.body is not None and bindings.body.attrs.get("position") is not written:
-            positions = _floats(bindings.body.attrs["position"], f"{bindings.body.path}.position")
-            state = dataclasses.replace(state, positions=positions.reshape(-1, 3).copy())
+        positions = None  # each body's MechanicalObject holds its rows of the positions
+        for (dofs, rows), written in zip(bindings.bodies, bindings.written, strict=True):
+            if dofs.attrs.get("position") is written:
+                continue
+            given = _floats(dofs.attrs["position"], f"{dofs.path}.position").reshape(-1, 3)
+            if len(bindings.bodies) == 1:
+                positions = given.copy()
+                break
+            positions = state.positions.copy() if positions is None else positions
+            if given.shape != positions[rows].shape:
+                raise SceneError(
+                    f"{dofs.path}.position: {len(given)} points set where the body has"
+                    f" {len(positions[rows])}"
+                )
+            positions[rows] = given
+        if positions is not None:
+            state = dataclasses.replace(state, positions=positions)
         return state
 
     def write_outputs(self, state: State) -> None:
@@ -320,10 +338,10 @@ class SofaScene:
         bindings = self.bindings
         if bindings is None:
             return
-        if bindings.body is not None:
-            bindings.written = _frozen(state.positions)
-            bindings.body.attrs["position"] = bindings.written
-            bindings.body.attrs["velocity"] = _frozen(state.velocities)
+        bindings.written = [_frozen(state.positions[rows]) for _, rows in bindings.bodies]
+        for (dofs, rows), written in zip(bindings.bodies, bindings.written, strict=True):
+            dofs.attrs["position"] = written
+            dofs.attrs["velocity"] = _frozen(state.velocities[rows])
         for dofs, points in bindings.mapped:
             dofs.attrs["position"] = _frozen(points.positions(state.positions))
         n = len(self.model.actuators)
@@ -399,15 +417,16 @@ class SofaScene:
 @dataclass
 class Bindings:
     """Which components of the scene hold the model's inputs and outputs: the actuators'
-    and effectors' components (in the model's order), the body's MechanicalObject, those of
-    the points it carries (with their embedding) and the rigid bodies'."""
+    and effectors' components (in the model's order), the MechanicalObject of each of the
+    scene's deformable bodies with its rows of the model's nodes, those of the points they
+    carry (with their embedding) and the rigid bodies'."""
 
     actuators: list[SceneObject] = dataclasses.field(default_factory=list)
     effectors: list[SceneObject] = dataclasses.field(default_factory=list)
-    body: SceneObject | None = None
+    bodies: list[tuple[SceneObject, slice]] = dataclasses.field(default_factory=list)
     mapped: list[tuple[SceneObject, EmbeddedPoints]] = dataclasses.field(default_factory=list)
     rigid: list[SceneObject] = dataclasses.field(default_factory=list)
-    written: np.ndarray | None = None  # the body's positions as last written
+    written: list[np.ndarray] = dataclasses.field(default_factory=list)  # as last written
     # Rigidify's frames: their MechanicalObject, and for each frame (rigid body index or None
     # where it is held, its initial position and rotation).
     frames: list[tuple[SceneObject, list]] = dataclasses.field(default_factory=list)
@@ -668,41 +687,57 @@ class _Builder:
     def __init__(self, root: SceneNode, path: Path, choices: Choices, mesh_dirs: list[Path]):
         self.root, self.path, self.choices, self.mesh_dirs = root, path, choices, mesh_dirs
         self.bindings = Bindings()
+        self._part: Part | None = None  # the body whose points are read, of several
 
     # --- scene-wide ------------------------------------------------------------------------
     def build(self) -> SofaScene:
         self._check_supported()
         self._servos = read_servos(self.root)
-        body_node = self._body_node()
+        nodes = self._body_nodes()
+        body_node = nodes[0]
         dt = float(_floats(self.root.attrs.get("dt", 0.01), "root.dt")[0])
         gravity = _floats(self.root.attrs.get("gravity", "0 -9.81 0"), "root.gravity")
         if gravity.size != 3:
             raise SceneError(f"root.gravity: three values expected, got {gravity.size}")
-        body, mesh, solver_kind = self._body(body_node, gravity)
-        actuators, effectors = [], []
-        carried = [n for n in body_node.walk() if n is not body_node]
-        for obj in body_node.objects:  # on the body's own nodes
-            if obj.type == "PositionConstraint":
-                idx = self._indices(body_node, obj, "indices", mesh.points)
-                nodes = np.arange(mesh.n_nodes) if idx is None else np.asarray(idx)
-                actuators += self._position_constraint(obj, EmbeddedPoints.at_nodes(nodes), body)
-        for child in carried:
-            acts, effs = self._embedded(child, body, mesh)
-            actuators += acts
-            effectors += effs
+        parts = [Part(n, *self._body(n, gravity)) for n in nodes]
+        body, mesh, solver_kind = parts[0].body, parts[0].mesh, parts[0].solver_kind
+        if len(parts) > 1:  # the scene's bodies side by side in one (pliant.sofa.bodies)
+            body = join(parts, self.path.name)
+            mesh = body.mesh
+        actuators, effectors, carried = [], [], []
+        for part in parts:
+            self._part = part if len(parts) > 1 else None
+            before = len(actuators), len(effectors)
+            inside = [n for n in part.node.walk() if n is not part.node]
+            carried += inside
+            for obj in part.node.objects:  # on the body's own nodes
+                if obj.type == "PositionConstraint":
+                    idx = self._indices(part.node, obj, "indices", part.mesh.points)
+                    at = np.arange(part.mesh.n_nodes) if idx is None else np.asarray(idx)
+                    at = EmbeddedPoints.at_nodes(at + part.offset)
+                    actuators += self._position_constraint(obj, at, body)
+            for child in inside:
+                acts, effs = self._embedded(child, body, mesh)
+                actuators += acts
+                effectors += effs
+            if self._part is not None:  # named after their body, unique among the bodies'
+                for c in actuators[before[0] :] + effectors[before[1] :]:
+                    c.name = f"{part.label}/{c.name}"
+        self._part = None
         stray = [
             f"{obj.type} (at {node.path})"
             for node in self.root.walk()
-            if node is not body_node and not any(node is c for c in carried)
+            if not any(node is p.node for p in parts) and not any(node is c for c in carried)
             for obj in node.objects
             if obj.type in POINT_CONSTRAINTS
         ]
         if stray:
             raise SceneError(
                 f"{self.path.name}: actuators and effectors act on points carried by the body"
-                f" (a node under {body_node.path} with a BarycentricMapping): " + "; ".join(stray)
+                f" (a node under {' or '.join(n.path for n in nodes)} with a"
+                " BarycentricMapping): " + "; ".join(stray)
             )
-        contacts, rigid = self._collisions(body_node, body, mesh)
+        contacts, rigid = self._collisions(parts, body, mesh)
         frames, attachments = self._free_frames(body_node, body, mesh)
         if frames and solver_kind == "static":
             raise SceneError(
@@ -730,7 +765,11 @@ class _Builder:
             attachments=attachments,
             name=self.path.stem,
         )
-        self.bindings.body = self._one(body_node, {"MechanicalObject"}, "MechanicalObjects")
+        self.bindings.bodies = [
+            (dofs, slice(p.offset, p.offset + p.body.n_nodes))
+            for p in parts
+            if (dofs := self._one(p.node, {"MechanicalObject"}, "MechanicalObjects")) is not None
+        ]
         self.bindings.rigid = [self._rigid_dofs(n) for n in self.root.walk() if self._is_rigid(n)]
         self.bindings.servos = list(self._servos.values())
         self.bindings.frames, k = [], len(rigid)
@@ -772,6 +811,9 @@ class _Builder:
                     hint = close_match(key, near, cutoff=0.85)
                     if hint:
                         problems.append(f"{obj.type}.{key} (at {node.path}): no such data{hint}")
+        if detects:
+            touching = contact_problem(self._deformable_nodes(), COLLISION_MODELS)
+            problems += [touching] if touching else []
         if problems:
             raise SceneError(
                 f"{self.path.name} uses what Pliant does not support: "
@@ -795,7 +837,7 @@ class _Builder:
             _flag(o, "selfCollision", False) for models in carriers for o in models
         )
 
-    def _collisions(self, body_node: SceneNode, body: TetBody, mesh: TetMesh):
+    def _collisions(self, parts: list[Part], body: TetBody, mesh: TetMesh):
         """Contacts and rigid bodies from the collision pipeline: the body's collision points
         (a child node with a PointCollisionModel mapped on it), static triangle obstacles (a
         plane where their triangles are coplanar, else a closed triangle mesh), and rigid
@@ -813,22 +855,27 @@ class _Builder:
         rigid_nodes = [n for n in self.root.walk() if self._is_rigid(n)]
         rigid = [self._rigid_body(n, friction) for n in rigid_nodes]
         inside_rigid = {id(c) for n in rigid_nodes for c in n.walk()}
-        body_nodes = {id(c) for c in body_node.walk()}
-        points, obstacles = [], []
+        points, obstacles, joined = [], [], []
         for node in self.root.walk():
             types = {o.type for o in node.objects}
             if not types & COLLISION_MODELS or id(node) in inside_rigid:
                 continue
-            if id(node) in body_nodes:
+            part = next((p for p in parts if p.owns(node)), None)
+            if part is not None:
                 if "PointCollisionModel" not in types:
                     raise SceneError(f"{node.path}: the body collides by points only")
-                if node is body_node:  # the body's own nodes collide
-                    points.append(body.rest_positions)
+                if node is part.node:  # the body's own nodes collide
+                    points.append(part.body.rest_positions)
+                    ends = part.offset + np.arange(part.body.n_nodes)
+                    joined.append(EmbeddedPoints.at_nodes(ends))
                     continue
                 if not types & MAPPINGS:
                     raise SceneError(f"{node.path}: collision points not mapped on the body")
                 dofs = self._one(node, {"MechanicalObject"}, "MechanicalObjects")
                 points.append(np.unique(self._positions(node, dofs), axis=0))
+                self._part = part
+                joined.append(self._embed(mesh, points[-1], body))
+                self._part = None
             else:
                 obstacles.append(self._obstacle(node))
         if not points:
@@ -837,11 +884,15 @@ class _Builder:
             return None, []
         if not obstacles:
             raise SceneError(f"{self.path.name}: rigid bodies need a static obstacle too")
-        embedded = EmbeddedPoints(
-            mesh,
-            np.vstack(points),
-            tolerance=SOFA_REACH * body.extent,
-            outside=self.choices.outside,
+        embedded = (
+            EmbeddedPoints.stack(joined)  # each body's points in its own mesh
+            if len(parts) > 1
+            else EmbeddedPoints(
+                mesh,
+                np.vstack(points),
+                tolerance=SOFA_REACH * body.extent,
+                outside=self.choices.outside,
+            )
         )
         contacts = Contacts(
             obstacles, friction=friction, margin=margin, points=embedded, thickness=thickness
@@ -1007,23 +1058,37 @@ class _Builder:
             and any(o.type in TOPOLOGIES for o in node.objects)
         )
 
-    def _body_node(self) -> SceneNode:
-        nodes = [
+    def _deformable_nodes(self) -> list[SceneNode]:
+        return [
             n
             for n in self.root.walk()
             if any(o.type in FEM for o in n.objects) and not self._is_layer(n)
         ]
+
+    def _body_nodes(self) -> list[SceneNode]:
+        """The nodes of the scene's deformable bodies; several are joined in one Pliant body
+        (:mod:`pliant.sofa.bodies`), without STLIB's Rigidify or self-contact planes."""
+        nodes = self._deformable_nodes()
         if not nodes:
             raise SceneError(
                 f"{self.path.name} has no deformable body (no TetrahedronFEMForceField or"
                 " TetrahedronHyperelasticityFEMForceField)"
             )
         if len(nodes) > 1:
-            raise SceneError(
-                f"{self.path.name} has {len(nodes)} deformable bodies"
-                f" ({', '.join(n.path for n in nodes)}); a Pliant model has one"
-            )
-        return nodes[0]
+            found = [
+                f"{o.type} (at {n.path})"
+                for n in self.root.walk()
+                for o in n.objects
+                if o.type == PLANE_CONSTRAINT
+                or (o.type == "SubsetMultiMapping" and any(n is b for b in nodes))
+            ]
+            if found:
+                raise SceneError(
+                    f"{self.path.name} has {len(nodes)} deformable bodies"
+                    f" ({', '.join(n.path for n in nodes)}), which Pliant joins in one body"
+                    " without STLIB's Rigidify or UnilateralPlaneConstraint: " + "; ".join(found)
+                )
+        return nodes
 
     def _one(self, node: SceneNode, types: frozenset[str] | set[str], what: str):
         found = [o for o in node.objects if o.type in types]
@@ -1720,7 +1785,14 @@ class _Builder:
         return actuators, effectors
 
     def _embed(self, mesh: TetMesh, points: np.ndarray, body: TetBody) -> EmbeddedPoints:
-        """Points carried by the body (SOFA's BarycentricMapping)."""
+        """Points carried by the body (SOFA's BarycentricMapping); of several bodies, by the
+        one being read, in its own mesh."""
+        if self._part is not None:
+            part, self._part = self._part, None
+            try:
+                return part.shifted(self._embed(part.mesh, points, part.body))
+            finally:
+                self._part = part
         return EmbeddedPoints(
             mesh, points, tolerance=SOFA_REACH * body.extent, outside=self.choices.outside
         )
