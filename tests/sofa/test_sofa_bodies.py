@@ -139,6 +139,7 @@ def test_each_body_reads_and_writes_its_own_nodes(beam, joined) -> None:
     [
         ({"damping_b": 0.2}, "different Rayleigh damping"),
         ({"law_b": "neohookean"}, "elements of different laws"),
+        ({"static_b": True}, r"static and dynamic ODE solvers \(root/A: dynamic, root/B: static"),
         (
             {"floor": True, "floor_groups": {"A": 1, "B": 2}},
             "contact between deformable bodies, which SOFA tests: root/A and root/B",
