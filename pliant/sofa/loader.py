@@ -52,6 +52,14 @@ from pliant.mesh.tetmesh import TetMesh
 from pliant.model import Model, State
 from pliant.sofa.components import FIELDS, is_visual
 from pliant.sofa.grids import GRIDS, HEXAHEDRA, grid_tetrahedra, hex_body
+from pliant.sofa.rigids import (
+    MASS_GENERATOR,
+    SPHERE_MODEL,
+    generate_rigid_mass,
+    is_particle_sphere,
+    rigid_body,
+    static_sphere,
+)
 from pliant.sofa.servos import ARTICULATED, Servo, linked_dofs, read_servos, rigid_pose
 from pliant.sofa.tree import (
     INITIALISERS,
@@ -186,9 +194,11 @@ INTERSECTIONS = frozenset(
     {"LocalMinDistance", "MinProximityIntersection", "NewProximityIntersection"}
 )
 COLLISION_MODELS = frozenset(
-    {"PointCollisionModel", "TriangleCollisionModel", "LineCollisionModel"}
+    {"PointCollisionModel", "TriangleCollisionModel", "LineCollisionModel", SPHERE_MODEL}
 )
 HANDLED = HANDLED | PIPELINE | INTERSECTIONS | COLLISION_MODELS | {"RigidMapping"}
+# Rigid bodies' masses from a mesh and a density (pliant.sofa.rigids).
+HANDLED = HANDLED | {MASS_GENERATOR}
 HANDLED = HANDLED | GRIDS  # hexahedral bodies: pliant.sofa.grids
 # SoftRobots' self-contact of the body: a point kept on one side of the plane of three others.
 PLANE_CONSTRAINT = "UnilateralPlaneConstraint"
@@ -665,6 +675,8 @@ _COMMON = frozenset({"name", "template", "printLog", "tags", "bbox", "listening"
 
 
 class _Builder:
+    loaders = MESH_LOADERS
+
     def __init__(self, root: SceneNode, path: Path, choices: Choices, mesh_dirs: list[Path]):
         self.root, self.path, self.choices, self.mesh_dirs = root, path, choices, mesh_dirs
         self.bindings = Bindings()
@@ -798,8 +810,9 @@ class _Builder:
     def _collisions(self, body_node: SceneNode, body: TetBody, mesh: TetMesh):
         """Contacts and rigid bodies from the collision pipeline: the body's collision points
         (a child node with a PointCollisionModel mapped on it), static triangle obstacles (a
-        plane where their triangles are coplanar, else a closed triangle mesh), and rigid
-        bodies (a Rigid3 MechanicalObject whose collision child is a box's eight corners).
+        plane where their triangles are coplanar, else a closed triangle mesh; a still
+        sphere), and rigid bodies (pliant.sofa.rigids: a Rigid3 MechanicalObject with a
+        sphere, a box or a mesh, or a particle ball).
         ``alarmDistance`` is the contact margin, ``contactDistance`` the points' thickness,
         the response's ``mu`` the friction everywhere."""
         intersection = [o for n in self.root.walk() for o in n.objects if o.type in INTERSECTIONS]
@@ -861,8 +874,11 @@ class _Builder:
 
     @staticmethod
     def _is_rigid(node: SceneNode) -> bool:
-        """A moving rigid body: a Rigid3 MechanicalObject whose collision models move (STLIB
-        marks a static one, a floor, moving=False and simulated=False)."""
+        """A moving rigid body: a Rigid3 MechanicalObject, or a particle ball (a Vec3 one with
+        a SphereCollisionModel), whose collision models move (STLIB marks a static one, a
+        floor, moving=False and simulated=False)."""
+        if is_particle_sphere(node) and not any(o.type in FEM for o in node.objects):
+            return _flag(next(o for o in node.objects if o.type == SPHERE_MODEL), "moving", True)
         if not _Builder._rigid_dofs(node) or _Builder._is_frames(node):
             return False
         if _Builder._servo_part(node):
@@ -920,50 +936,15 @@ class _Builder:
         return turn.apply(pose[:3]) + shift, (turn * rotation).as_matrix()
 
     def _rigid_body(self, node: SceneNode, friction: float) -> RigidBody:
-        dofs = self._one(node, {"MechanicalObject"}, "MechanicalObjects")
-        position, rotation = self._pose(dofs)
-        mass = self._one(node, {"UniformMass"}, "masses")
-        if mass is None or "vertexMass" not in mass.attrs:
-            raise SceneError(f"{node.path}: a rigid body needs a UniformMass with vertexMass")
-        values = _floats(mass.attrs["vertexMass"], f"{mass.path}.vertexMass")
-        if values.size != 11:
-            raise SceneError(
-                f"{mass.path}.vertexMass: mass, volume and a 3x3 inertia per unit mass expected"
-            )
-        children = [c for c in node.children if any(o.type == "RigidMapping" for o in c.objects)]
-        shapes = [
-            self._rigid_box(c) for c in children if {o.type for o in c.objects} & COLLISION_MODELS
-        ]
-        if len(shapes) != 1:
-            raise SceneError(f"{node.path}: a rigid body collides through one mapped box")
-        half, offset = shapes[0]
-        if np.linalg.norm(offset) > 1e-9 * np.linalg.norm(half):
-            raise SceneError(f"{node.path}: the box must be centred on the rigid frame")
-        return RigidBody(
-            Box(half, position=position, rotation=rotation),
-            values[0],
-            values[0] * values[2:].reshape(3, 3),
-            friction=friction,
-            name=node.name,
-        )
-
-    def _rigid_box(self, node: SceneNode) -> tuple[np.ndarray, np.ndarray]:
-        dofs = self._one(node, {"MechanicalObject"}, "MechanicalObjects")
-        corners = _floats(dofs.attrs.get("position", ""), f"{dofs.path}.position").reshape(-1, 3)
-        lo, hi = corners.min(axis=0), corners.max(axis=0)
-        expected = np.array([[x, y, z] for x in (0, 1) for y in (0, 1) for z in (0, 1)])
-        box = lo + expected * (hi - lo)
-        if len(corners) != 8 or not all(np.isclose(box, c).all(1).any() for c in corners):
-            raise SceneError(
-                f"{node.path}: rigid collision shapes are boxes (the eight corners) here"
-            )
-        return 0.5 * (hi - lo), 0.5 * (hi + lo)
+        return rigid_body(self, node, friction)
 
     def _obstacle(self, node: SceneNode):
         """A static obstacle: a plane where its triangles are coplanar, else a closed mesh."""
         types = {o.type for o in node.objects}
+        if SPHERE_MODEL in types:
+            return static_sphere(self, node)
         if "TriangleCollisionModel" not in types:
-            raise SceneError(f"{node.path}: static obstacles collide by triangles")
+            raise SceneError(f"{node.path}: static obstacles collide by triangles or spheres")
         model = next(o for o in node.objects if o.type == "TriangleCollisionModel")
         if _flag(model, "moving", False) or _flag(model, "simulated", False):
             raise SceneError(f"{node.path}: a moving obstacle needs a body (not supported)")
@@ -1935,4 +1916,14 @@ def _init_roi(roi: SceneObject) -> None:
     roi.attrs["indices"] = _frozen(indices).astype(np.int64)
 
 
-INITIALISERS.update(MechanicalObject=_init_positions, BoxROI=_init_roi, SphereROI=_init_roi)
+def _init_rigid_mass(obj: SceneObject) -> None:
+    """GenerateRigidMass.init() in a script: its rigid mass (pliant.sofa.rigids)."""
+    generate_rigid_mass(_script_builder(obj.node), obj)
+
+
+INITIALISERS.update(
+    MechanicalObject=_init_positions,
+    BoxROI=_init_roi,
+    SphereROI=_init_roi,
+    GenerateRigidMass=_init_rigid_mass,
+)

@@ -63,6 +63,15 @@ def data_value(raw):
     return raw
 
 
+def field_numbers(obj: SceneObject, key: str, default) -> np.ndarray:
+    """A field's numbers, flat (``data_value`` reads them as SofaPython3 does)."""
+    raw = obj.attrs.get(key, default)
+    try:
+        return np.atleast_1d(np.asarray(data_value(raw), dtype=float)).ravel()
+    except (TypeError, ValueError):
+        raise SceneError(f"{obj.path}.{key}: expected numbers, got {raw!r}") from None
+
+
 class Data:
     """One data field of a component or node, as SofaPython3 gives it: ``.value`` to read
     (SofaPython3's arrays are read-only) and to write, ``writeable()`` to edit in place,
