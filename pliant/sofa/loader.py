@@ -593,6 +593,8 @@ def _flag(obj: SceneObject, key: str, default: bool) -> bool:
 def _placed(obj: SceneObject, points: np.ndarray) -> np.ndarray:
     """Points under a component's scale (``scale3d`` or uniform ``scale``), rotation (Euler
     angles in degrees, Rz Ry Rx as SOFA composes them) and translation, in that order."""
+    if not {"scale3d", "scale", "rotation", "translation"} & obj.attrs.keys():
+        return points
     scale = _floats(obj.attrs.get("scale3d", obj.attrs.get("scale", "1")), f"{obj.path}.scale")
     euler = _floats(obj.attrs.get("rotation", "0 0 0"), f"{obj.path}.rotation")
     shift = _floats(obj.attrs.get("translation", "0 0 0"), f"{obj.path}.translation")
@@ -1716,7 +1718,7 @@ class _Builder:
             loaders = [o for o in node.objects if o.type in MESH_LOADERS]
             if len(loaders) != 1:
                 raise SceneError(f"{dofs.path}: no position (and no single mesh loader)")
-            return self._loaded(loaders[0])[0]
+            return _placed(dofs, self._loaded(loaders[0])[0])
         if _is_link(value):
             source = self.link(node, value)
             for _ in range(4):  # a topology's src, or its position link, names the loader
@@ -1726,7 +1728,7 @@ class _Builder:
                     break
                 source = self.link(source.node, source.attrs["src"])
             if source is not None and source.type in MESH_LOADERS:
-                return self._loaded(source)[0]
+                return _placed(dofs, self._loaded(source)[0])
             if source is None or "position" not in source.attrs:
                 raise SceneError(f"{dofs.path}.position: {value!r} names no positions")
             if _is_link(source.attrs["position"]):
