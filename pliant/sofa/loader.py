@@ -57,6 +57,7 @@ from pliant.sofa.rigids import (
     SPHERE_MODEL,
     generate_rigid_mass,
     is_particle_sphere,
+    particle_moves,
     rigid_body,
     static_sphere,
 )
@@ -351,6 +352,9 @@ class SofaScene:
         for dofs, x, r in zip(
             bindings.rigid, state.rigid_positions, state.rigid_rotations, strict=False
         ):
+            if not str(dofs.attrs.get("template", "")).startswith("Rigid3"):  # a particle ball
+                dofs.attrs["position"] = _frozen(x[None])
+                continue
             dofs.attrs["position"] = _frozen(np.concatenate([x, Rotation.from_matrix(r).as_quat()]))
         for dofs, frames in bindings.frames:  # Rigidify's frames: a rigid body's, or held
             poses = []
@@ -745,7 +749,11 @@ class _Builder:
             name=self.path.stem,
         )
         self.bindings.body = self._one(body_node, {"MechanicalObject"}, "MechanicalObjects")
-        self.bindings.rigid = [self._rigid_dofs(n) for n in self.root.walk() if self._is_rigid(n)]
+        self.bindings.rigid = [
+            self._one(n, {"MechanicalObject"}, "MechanicalObjects")
+            for n in self.root.walk()
+            if self._is_rigid(n)
+        ]
         self.bindings.servos = list(self._servos.values())
         self.bindings.frames, k = [], len(rigid)
         for g in self._rigidified:  # the rigid bodies of the free frames follow the others
@@ -880,11 +888,11 @@ class _Builder:
         a SphereCollisionModel), whose collision models move (STLIB marks a static one, a
         floor, moving=False and simulated=False)."""
         if is_particle_sphere(node) and not any(o.type in FEM for o in node.objects):
-            return _flag(next(o for o in node.objects if o.type == SPHERE_MODEL), "moving", True)
+            return particle_moves(node)
         if not _Builder._rigid_dofs(node) or _Builder._is_frames(node):
             return False
-        if _Builder._servo_part(node):
-            return False
+        if _Builder._servo_part(node) or any(o.type.endswith("Mapping") for o in node.objects):
+            return False  # a servo's part, or a frame carried by another (no state of its own)
         models = [o for n in node.walk() for o in n.objects if o.type in COLLISION_MODELS]
         return not models or any(
             _flag(o, "moving", True) or _flag(o, "simulated", True) for o in models
@@ -954,6 +962,12 @@ class _Builder:
         points = self._positions(node, dofs)
         frame = self._rigid_dofs(node.parent)
         if frame is not None and any(o.type == "RigidMapping" for o in node.objects):
+            if self._is_frames(node.parent) or self._servo_part(node.parent):
+                raise SceneError(
+                    f"{node.path}: a collision model carried by a moving frame"
+                    f" ({node.parent.path}, Rigidify's or a servo's) is not supported: Pliant's"
+                    " moving shapes are rigid bodies (a Rigid3 MechanicalObject with a mass)"
+                )
             position, rotation = self._pose(frame)  # a static rigid object: its frame's points
             points = points @ rotation.T + position
         topology = self._one(node, {"MeshTopology"}, "topologies")
@@ -997,9 +1011,11 @@ class _Builder:
             if any(o.type in FEM for o in n.objects) and not self._is_layer(n)
         ]
         if not nodes:
+            alone = any(self._is_rigid(n) for n in self.root.walk())
             raise SceneError(
                 f"{self.path.name} has no deformable body (no TetrahedronFEMForceField or"
                 " TetrahedronHyperelasticityFEMForceField)"
+                + ("; a Pliant model needs one beside its rigid bodies" if alone else "")
             )
         if len(nodes) > 1:
             raise SceneError(

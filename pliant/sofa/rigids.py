@@ -85,6 +85,20 @@ def is_particle_sphere(node: SceneNode) -> bool:
     )
 
 
+def particle_moves(node: SceneNode) -> bool:
+    """A particle ball moves when its model moves, it has a mass and an ODE solver in its
+    context (its node or an ancestor's); else SOFA leaves it where it is (a goal marker): an
+    obstacle."""
+    model = next(o for o in node.objects if o.type == SPHERE_MODEL)
+    value = model.attrs.get("moving", True)
+    moving = value.strip().lower() in ("1", "true") if isinstance(value, str) else bool(value)
+    solver, at = False, node
+    while at is not None and not solver:
+        solver = any(o.type in ("EulerImplicitSolver", "StaticSolver") for o in at.objects)
+        at = at.parent
+    return moving and solver and any(o.type == "UniformMass" for o in node.objects)
+
+
 def _mapped_children(node: SceneNode) -> list[SceneNode]:
     """The children carried rigidly that hold collision models."""
     return [
