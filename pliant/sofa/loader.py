@@ -598,7 +598,7 @@ def _placed(obj: SceneObject, points: np.ndarray) -> np.ndarray:
     """Points under a component's scale (``scale3d`` or uniform ``scale``), rotation (Euler
     angles in degrees, Rz Ry Rx as SOFA composes them) and translation, in that order."""
     if not {"scale3d", "scale", "rotation", "translation"} & obj.attrs.keys():
-        return points
+        return np.array(points, dtype=float)
     scale = _floats(obj.attrs.get("scale3d", obj.attrs.get("scale", "1")), f"{obj.path}.scale")
     euler = _floats(obj.attrs.get("rotation", "0 0 0"), f"{obj.path}.rotation")
     shift = _floats(obj.attrs.get("translation", "0 0 0"), f"{obj.path}.translation")

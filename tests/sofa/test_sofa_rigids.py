@@ -24,6 +24,8 @@ from pliant.geometry.inertia import mesh_mass
 from pliant.mesh import box_beam
 from pliant.model import Model
 from pliant.sofa import SceneError, load_scene
+from pliant.sofa.rigids import PARTICLE_INERTIA
+from pliant.sofa.tree import SceneNode
 from pliant.solvers import ImplicitEuler
 
 SCENES = Path(__file__).parent / "sofa_scenes"
@@ -151,3 +153,34 @@ def test_a_rigid_body_needs_a_mass(folder, tmp_path) -> None:
     (tmp_path / "massless.py").write_text(massless)
     with pytest.raises(SceneError, match="root/Ball: a rigid body needs a mass"):
         load_scene(tmp_path / "massless.py", mesh_dirs=[folder])
+
+
+def test_a_particle_ball_is_a_rigid_sphere_that_does_not_turn(folder) -> None:
+    """particle_ball.py: the Vec3 ball (totalMass 1e-4, radius 2) is a rigid sphere whose
+    inertia is PARTICLE_INERTIA times a solid ball's (SOFA does not turn a particle); it lands
+    on the floor at its radius and its position is written back to its MechanicalObject; the
+    goal marker, with no solver nor mass, is a still sphere obstacle."""
+    scene = load_scene(SCENES / "particle_ball.py", mesh_dirs=[folder])
+    (ball,) = scene.model.rigid_bodies
+    assert isinstance(ball.shape, Sphere) and ball.shape.radius == 2.0 and ball.mass == 1e-4
+    np.testing.assert_allclose(ball.inertia, PARTICLE_INERTIA * 0.4 * 1e-4 * 4.0 * np.eye(3))
+    floor, goal = scene.model.contacts.shapes
+    assert isinstance(goal, Sphere) and goal.radius == 1.5
+    np.testing.assert_allclose(goal.position, [-20.0, 0.0, 3.0])
+    state = scene.simulate(12)
+    assert state.rigid_positions[0, 2] == pytest.approx(2.0, abs=1e-6)
+    scene.write_outputs(state)
+    written = scene.root.Ball.ball_mo.position.value
+    np.testing.assert_allclose(written, state.rigid_positions[:1], rtol=0, atol=0)
+
+
+def test_a_script_renames_a_component_and_a_node() -> None:
+    """SofaGym's ``obj.name.value = "RigidBaseMO"``: the component (and a node) renamed, found
+    under the new name."""
+    root = SceneNode("root")
+    cart = root.addChild("Cart")
+    dofs = cart.addObject("MechanicalObject", template="Rigid3")
+    dofs.name.value = "RigidBaseMO"
+    cart.name.value = "Carriage"
+    assert root.Carriage is cart and cart.RigidBaseMO is dofs
+    assert dofs.getPathName() == "/Carriage/RigidBaseMO"
