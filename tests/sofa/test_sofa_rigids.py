@@ -24,7 +24,7 @@ from pliant.geometry.inertia import mesh_mass
 from pliant.mesh import box_beam
 from pliant.model import Model
 from pliant.sofa import SceneError, load_scene
-from pliant.sofa.rigids import PARTICLE_INERTIA
+from pliant.sofa.rigids import PARTICLE_INERTIA, mesh_shape
 from pliant.sofa.tree import SceneNode
 from pliant.solvers import ImplicitEuler
 
@@ -184,3 +184,16 @@ def test_a_script_renames_a_component_and_a_node() -> None:
     cart.name.value = "Carriage"
     assert root.Carriage is cart and cart.RigidBaseMO is dofs
     assert dofs.getPathName() == "/Carriage/RigidBaseMO"
+
+
+def test_collision_points_without_a_closed_surface_take_their_convex_hull() -> None:
+    """A rigid body's collision points with no triangles (a PointCollisionModel on a ball's
+    vertices, as BubbleMotion's ball) or with an open surface: the closed mesh of their convex
+    hull, faces outwards (its volume, the polyhedron's, is positive)."""
+    vertices, faces = ball_surface(200, 3.0)
+    for given in (None, faces[:-1]):  # no triangles; one missing: open
+        shape = mesh_shape(vertices, given, "ball")
+        assert isinstance(shape, TriangleMesh) and len(shape.faces) == len(faces)
+        assert shape.volume == pytest.approx(mesh_mass(vertices, faces).volume, rel=1e-12)
+    with pytest.raises(SceneError, match="bound no solid"):
+        mesh_shape(np.eye(3), None, "flat")
