@@ -19,8 +19,8 @@ from pliant.fem.body import TetBody
 from pliant.fem.loads import NodalForces
 from pliant.fem.material import Corotational
 from pliant.fem.rigid import RigidBody
-from pliant.geometry.collision import Plane, Sphere, TriangleMesh
-from pliant.geometry.inertia import mesh_mass
+from pliant.geometry.collision import Box, Plane, Sphere, TriangleMesh
+from pliant.geometry.inertia import box_inertia, mesh_mass
 from pliant.mesh import box_beam
 from pliant.model import Model
 from pliant.sofa import SceneError, load_scene
@@ -197,3 +197,24 @@ def test_collision_points_without_a_closed_surface_take_their_convex_hull() -> N
         assert shape.volume == pytest.approx(mesh_mass(vertices, faces).volume, rel=1e-12)
     with pytest.raises(SceneError, match="bound no solid"):
         mesh_shape(np.eye(3), None, "flat")
+
+
+def test_a_cart_on_sofas_shared_cube_is_a_box(folder, tmp_path) -> None:
+    """addRigidObject on SOFA's shared mesh/cube.obj (corners at +-1), scaled as SofaGym's
+    carts are and turned by its quaternion: a Box of half extents `scale`, mass 8 sx sy sz
+    rho and the box's inertia (GenerateRigidMass: the solid the cube bounds)."""
+    scene = tmp_path / "cart.py"
+    scene.write_text(
+        (folder / "rigid_mesh_ball.py")
+        .read_text()
+        .replace('filename="ball.obj"', 'filename="mesh/cube.obj", scale=[2.0, 1.0, 3.0]')
+        .replace("0.0, 0.0, 0.0, 1.0]", "0.0, -0.7071068, 0.0, 0.7071068]")
+    )
+    shutil.copy(folder / "block.vtu", tmp_path)
+    (cart,) = load_scene(scene).model.rigid_bodies
+    assert isinstance(cart.shape, Box)
+    np.testing.assert_allclose(cart.shape.half_extents, [2.0, 1.0, 3.0])
+    mass = 8.0 * 6.0 * DENSITY
+    assert cart.mass == pytest.approx(mass, rel=1e-12)
+    np.testing.assert_allclose(cart.inertia, box_inertia(mass, [2.0, 1.0, 3.0]), atol=1e-12 * mass)
+    np.testing.assert_allclose(cart.rotation @ [1.0, 0.0, 0.0], [0.0, 0.0, 1.0], atol=1e-6)
