@@ -12,6 +12,7 @@ from pathlib import Path
 import numba
 import numpy as np
 import pytest
+from scipy.spatial import ConvexHull
 
 from pliant.constraints.base import EmbeddedPoints
 from pliant.constraints.cable import CableActuator
@@ -122,6 +123,20 @@ def two_cable_beam(*, max_displacement: float = 1.0, effector_goal=None, **model
 
 # A clamped rod along +x (tests/fem/test_rod.py, tests/constraints/test_attachment.py).
 ROD_L, ROD_E, ROD_RADIUS = 100.0, 1000.0, 1.0  # mm, kPa, mm
+
+
+def ball_surface(n: int, radius: float, centre=(0.0, 0.0, 0.0)) -> tuple[np.ndarray, np.ndarray]:
+    """A closed triangulated sphere: the convex hull of n Fibonacci points, faces outwards."""
+    k = np.arange(n) + 0.5
+    polar, turn = np.arccos(1.0 - 2.0 * k / n), np.pi * (1.0 + 5.0**0.5) * k
+    unit = np.c_[np.cos(turn) * np.sin(polar), np.sin(turn) * np.sin(polar), np.cos(polar)]
+    points = radius * unit
+    faces = ConvexHull(points).simplices.copy()
+    tri = points[faces]
+    normals = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    inward = np.einsum("ij,ij->i", normals, tri.mean(axis=1)) < 0.0
+    faces[inward] = faces[inward][:, ::-1]
+    return points + np.asarray(centre, dtype=float), faces
 
 
 def straight_rod(n: int, *, nu: float = 0.3, **kwargs) -> RodBody:

@@ -364,6 +364,27 @@ FIELDS: dict[str, dict] = {
     **dict.fromkeys(
         ["PointCollisionModel", "LineCollisionModel", "TriangleCollisionModel"], _COLLISION
     ),
+    "SphereCollisionModel": {
+        **_COLLISION,
+        "radius": 1.0,
+        "listRadius": _EMPTY,
+        "showImpostors": True,
+        "template": "Vec3",
+    },
+    "GenerateRigidMass": {
+        "density": 1000.0,
+        "scale3d": [1.0, 1.0, 1.0],
+        "position": _EMPTY,
+        "triangles": _EMPTY,
+        "quads": _EMPTY,
+        "polygons": _EMPTY,
+        "rigidMass": _EMPTY,
+        "mass": 1.0,
+        "volume": 0.0,
+        "inertiaMatrix": _EMPTY,
+        "massCenter": [0.0, 0.0, 0.0],
+        "centerToOrigin": [0.0, 0.0, 0.0],
+    },
     "JointConstraint": {
         "index": 0,
         "value": 0.0,

@@ -30,7 +30,7 @@ from pliant.errors import ModelError
 from pliant.fem.hexbody import HexBody
 from pliant.fem.material import Corotational
 from pliant.mesh.hexmesh import HexMesh, regular_grid, sparse_grid
-from pliant.sofa.tree import SceneError, SceneNode, SceneObject, data_value
+from pliant.sofa.tree import SceneError, SceneNode, SceneObject, data_value, field_numbers
 
 if TYPE_CHECKING:
     from pliant.sofa.loader import _Builder
@@ -40,13 +40,7 @@ GRIDS = frozenset({"RegularGridTopology", "SparseGridTopology"})
 _METHODS = ("large", "polar")
 
 
-def _numbers(obj: SceneObject, key: str, default) -> np.ndarray:
-    """A field's numbers, flat (``data_value`` reads them as SofaPython3 does)."""
-    raw = obj.attrs.get(key, default)
-    try:
-        return np.atleast_1d(np.asarray(data_value(raw), dtype=float)).ravel()
-    except (TypeError, ValueError):
-        raise SceneError(f"{obj.path}.{key}: expected numbers, got {raw!r}") from None
+_numbers = field_numbers
 
 
 def _triple(obj: SceneObject, key: str, axes: tuple[str, str, str], default) -> np.ndarray:

@@ -53,6 +53,15 @@ from pliant.model import Model, State
 from pliant.sofa.bodies import Part, contact_problem, join
 from pliant.sofa.components import FIELDS, is_visual
 from pliant.sofa.grids import GRIDS, HEXAHEDRA, grid_tetrahedra, hex_body
+from pliant.sofa.rigids import (
+    MASS_GENERATOR,
+    SPHERE_MODEL,
+    generate_rigid_mass,
+    is_particle_sphere,
+    particle_moves,
+    rigid_body,
+    static_sphere,
+)
 from pliant.sofa.servos import ARTICULATED, Servo, linked_dofs, read_servos, rigid_pose
 from pliant.sofa.tree import (
     INITIALISERS,
@@ -187,9 +196,11 @@ INTERSECTIONS = frozenset(
     {"LocalMinDistance", "MinProximityIntersection", "NewProximityIntersection"}
 )
 COLLISION_MODELS = frozenset(
-    {"PointCollisionModel", "TriangleCollisionModel", "LineCollisionModel"}
+    {"PointCollisionModel", "TriangleCollisionModel", "LineCollisionModel", SPHERE_MODEL}
 )
 HANDLED = HANDLED | PIPELINE | INTERSECTIONS | COLLISION_MODELS | {"RigidMapping"}
+# Rigid bodies' masses from a mesh and a density (pliant.sofa.rigids).
+HANDLED = HANDLED | {MASS_GENERATOR}
 HANDLED = HANDLED | GRIDS  # hexahedral bodies: pliant.sofa.grids
 # SoftRobots' self-contact of the body: a point kept on one side of the plane of three others.
 PLANE_CONSTRAINT = "UnilateralPlaneConstraint"
@@ -359,6 +370,9 @@ class SofaScene:
         for dofs, x, r in zip(
             bindings.rigid, state.rigid_positions, state.rigid_rotations, strict=False
         ):
+            if not str(dofs.attrs.get("template", "")).startswith("Rigid3"):  # a particle ball
+                dofs.attrs["position"] = _frozen(x[None])
+                continue
             dofs.attrs["position"] = _frozen(np.concatenate([x, Rotation.from_matrix(r).as_quat()]))
         for dofs, frames in bindings.frames:  # Rigidify's frames: a rigid body's, or held
             poses = []
@@ -602,6 +616,8 @@ def _flag(obj: SceneObject, key: str, default: bool) -> bool:
 def _placed(obj: SceneObject, points: np.ndarray) -> np.ndarray:
     """Points under a component's scale (``scale3d`` or uniform ``scale``), rotation (Euler
     angles in degrees, Rz Ry Rx as SOFA composes them) and translation, in that order."""
+    if not {"scale3d", "scale", "rotation", "translation"} & obj.attrs.keys():
+        return np.array(points, dtype=float)
     scale = _floats(obj.attrs.get("scale3d", obj.attrs.get("scale", "1")), f"{obj.path}.scale")
     euler = _floats(obj.attrs.get("rotation", "0 0 0"), f"{obj.path}.rotation")
     shift = _floats(obj.attrs.get("translation", "0 0 0"), f"{obj.path}.translation")
@@ -684,6 +700,8 @@ _COMMON = frozenset({"name", "template", "printLog", "tags", "bbox", "listening"
 
 
 class _Builder:
+    loaders = MESH_LOADERS
+
     def __init__(self, root: SceneNode, path: Path, choices: Choices, mesh_dirs: list[Path]):
         self.root, self.path, self.choices, self.mesh_dirs = root, path, choices, mesh_dirs
         self.bindings = Bindings()
@@ -770,7 +788,11 @@ class _Builder:
             for p in parts
             if (dofs := self._one(p.node, {"MechanicalObject"}, "MechanicalObjects")) is not None
         ]
-        self.bindings.rigid = [self._rigid_dofs(n) for n in self.root.walk() if self._is_rigid(n)]
+        self.bindings.rigid = [
+            self._one(n, {"MechanicalObject"}, "MechanicalObjects")
+            for n in self.root.walk()
+            if self._is_rigid(n)
+        ]
         self.bindings.servos = list(self._servos.values())
         self.bindings.frames, k = [], len(rigid)
         for g in self._rigidified:  # the rigid bodies of the free frames follow the others
@@ -840,8 +862,9 @@ class _Builder:
     def _collisions(self, parts: list[Part], body: TetBody, mesh: TetMesh):
         """Contacts and rigid bodies from the collision pipeline: the body's collision points
         (a child node with a PointCollisionModel mapped on it), static triangle obstacles (a
-        plane where their triangles are coplanar, else a closed triangle mesh), and rigid
-        bodies (a Rigid3 MechanicalObject whose collision child is a box's eight corners).
+        plane where their triangles are coplanar, else a closed triangle mesh; a still
+        sphere), and rigid bodies (pliant.sofa.rigids: a Rigid3 MechanicalObject with a
+        sphere, a box or a mesh, or a particle ball).
         ``alarmDistance`` is the contact margin, ``contactDistance`` the points' thickness,
         the response's ``mu`` the friction everywhere."""
         intersection = [o for n in self.root.walk() for o in n.objects if o.type in INTERSECTIONS]
@@ -912,12 +935,15 @@ class _Builder:
 
     @staticmethod
     def _is_rigid(node: SceneNode) -> bool:
-        """A moving rigid body: a Rigid3 MechanicalObject whose collision models move (STLIB
-        marks a static one, a floor, moving=False and simulated=False)."""
+        """A moving rigid body: a Rigid3 MechanicalObject, or a particle ball (a Vec3 one with
+        a SphereCollisionModel), whose collision models move (STLIB marks a static one, a
+        floor, moving=False and simulated=False)."""
+        if is_particle_sphere(node) and not any(o.type in FEM for o in node.objects):
+            return particle_moves(node)
         if not _Builder._rigid_dofs(node) or _Builder._is_frames(node):
             return False
-        if _Builder._servo_part(node):
-            return False
+        if _Builder._servo_part(node) or any(o.type.endswith("Mapping") for o in node.objects):
+            return False  # a servo's part, or a frame carried by another (no state of its own)
         models = [o for n in node.walk() for o in n.objects if o.type in COLLISION_MODELS]
         return not models or any(
             _flag(o, "moving", True) or _flag(o, "simulated", True) for o in models
@@ -971,50 +997,15 @@ class _Builder:
         return turn.apply(pose[:3]) + shift, (turn * rotation).as_matrix()
 
     def _rigid_body(self, node: SceneNode, friction: float) -> RigidBody:
-        dofs = self._one(node, {"MechanicalObject"}, "MechanicalObjects")
-        position, rotation = self._pose(dofs)
-        mass = self._one(node, {"UniformMass"}, "masses")
-        if mass is None or "vertexMass" not in mass.attrs:
-            raise SceneError(f"{node.path}: a rigid body needs a UniformMass with vertexMass")
-        values = _floats(mass.attrs["vertexMass"], f"{mass.path}.vertexMass")
-        if values.size != 11:
-            raise SceneError(
-                f"{mass.path}.vertexMass: mass, volume and a 3x3 inertia per unit mass expected"
-            )
-        children = [c for c in node.children if any(o.type == "RigidMapping" for o in c.objects)]
-        shapes = [
-            self._rigid_box(c) for c in children if {o.type for o in c.objects} & COLLISION_MODELS
-        ]
-        if len(shapes) != 1:
-            raise SceneError(f"{node.path}: a rigid body collides through one mapped box")
-        half, offset = shapes[0]
-        if np.linalg.norm(offset) > 1e-9 * np.linalg.norm(half):
-            raise SceneError(f"{node.path}: the box must be centred on the rigid frame")
-        return RigidBody(
-            Box(half, position=position, rotation=rotation),
-            values[0],
-            values[0] * values[2:].reshape(3, 3),
-            friction=friction,
-            name=node.name,
-        )
-
-    def _rigid_box(self, node: SceneNode) -> tuple[np.ndarray, np.ndarray]:
-        dofs = self._one(node, {"MechanicalObject"}, "MechanicalObjects")
-        corners = _floats(dofs.attrs.get("position", ""), f"{dofs.path}.position").reshape(-1, 3)
-        lo, hi = corners.min(axis=0), corners.max(axis=0)
-        expected = np.array([[x, y, z] for x in (0, 1) for y in (0, 1) for z in (0, 1)])
-        box = lo + expected * (hi - lo)
-        if len(corners) != 8 or not all(np.isclose(box, c).all(1).any() for c in corners):
-            raise SceneError(
-                f"{node.path}: rigid collision shapes are boxes (the eight corners) here"
-            )
-        return 0.5 * (hi - lo), 0.5 * (hi + lo)
+        return rigid_body(self, node, friction)
 
     def _obstacle(self, node: SceneNode):
         """A static obstacle: a plane where its triangles are coplanar, else a closed mesh."""
         types = {o.type for o in node.objects}
+        if SPHERE_MODEL in types:
+            return static_sphere(self, node)
         if "TriangleCollisionModel" not in types:
-            raise SceneError(f"{node.path}: static obstacles collide by triangles")
+            raise SceneError(f"{node.path}: static obstacles collide by triangles or spheres")
         model = next(o for o in node.objects if o.type == "TriangleCollisionModel")
         if _flag(model, "moving", False) or _flag(model, "simulated", False):
             raise SceneError(f"{node.path}: a moving obstacle needs a body (not supported)")
@@ -1022,6 +1013,12 @@ class _Builder:
         points = self._positions(node, dofs)
         frame = self._rigid_dofs(node.parent)
         if frame is not None and any(o.type == "RigidMapping" for o in node.objects):
+            if self._is_frames(node.parent) or self._servo_part(node.parent):
+                raise SceneError(
+                    f"{node.path}: a collision model carried by a moving frame"
+                    f" ({node.parent.path}, Rigidify's or a servo's) is not supported: Pliant's"
+                    " moving shapes are rigid bodies (a Rigid3 MechanicalObject with a mass)"
+                )
             position, rotation = self._pose(frame)  # a static rigid object: its frame's points
             points = points @ rotation.T + position
         topology = self._one(node, {"MeshTopology"}, "topologies")
@@ -1070,9 +1067,11 @@ class _Builder:
         (:mod:`pliant.sofa.bodies`), without STLIB's Rigidify or self-contact planes."""
         nodes = self._deformable_nodes()
         if not nodes:
+            alone = any(self._is_rigid(n) for n in self.root.walk())
             raise SceneError(
                 f"{self.path.name} has no deformable body (no TetrahedronFEMForceField or"
                 " TetrahedronHyperelasticityFEMForceField)"
+                + ("; a Pliant model needs one beside its rigid bodies" if alone else "")
             )
         if len(nodes) > 1:
             found = [
@@ -1807,7 +1806,7 @@ class _Builder:
             loaders = [o for o in node.objects if o.type in MESH_LOADERS]
             if len(loaders) != 1:
                 raise SceneError(f"{dofs.path}: no position (and no single mesh loader)")
-            return self._loaded(loaders[0])[0]
+            return _placed(dofs, self._loaded(loaders[0])[0])
         if _is_link(value):
             source = self.link(node, value)
             for _ in range(4):  # a topology's src, or its position link, names the loader
@@ -1817,7 +1816,7 @@ class _Builder:
                     break
                 source = self.link(source.node, source.attrs["src"])
             if source is not None and source.type in MESH_LOADERS:
-                return self._loaded(source)[0]
+                return _placed(dofs, self._loaded(source)[0])
             if source is None or "position" not in source.attrs:
                 raise SceneError(f"{dofs.path}.position: {value!r} names no positions")
             if _is_link(source.attrs["position"]):
@@ -2007,4 +2006,14 @@ def _init_roi(roi: SceneObject) -> None:
     roi.attrs["indices"] = _frozen(indices).astype(np.int64)
 
 
-INITIALISERS.update(MechanicalObject=_init_positions, BoxROI=_init_roi, SphereROI=_init_roi)
+def _init_rigid_mass(obj: SceneObject) -> None:
+    """GenerateRigidMass.init() in a script: its rigid mass (pliant.sofa.rigids)."""
+    generate_rigid_mass(_script_builder(obj.node), obj)
+
+
+INITIALISERS.update(
+    MechanicalObject=_init_positions,
+    BoxROI=_init_roi,
+    SphereROI=_init_roi,
+    GenerateRigidMass=_init_rigid_mass,
+)

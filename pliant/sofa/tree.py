@@ -32,11 +32,29 @@ class SceneAttributeError(AttributeError):
 
 
 class Name(str):
-    """A node's or component's name: a string that also answers SofaPython3's ``.value``."""
+    """A node's or component's name: a string that also answers SofaPython3's ``.value``,
+    which renames its owner when set (``obj.name.value = "new"``)."""
+
+    _rename = None
+
+    def __reduce__(self):  # copied or pickled as the plain name
+        return Name, (str(self),)
 
     @property
     def value(self) -> str:
         return str(self)
+
+    @value.setter
+    def value(self, new: str) -> None:
+        if self._rename is None:
+            raise AttributeError(f"{self!r} names nothing that can be renamed")
+        self._rename(str(new))
+
+
+def _owned(name: str, rename) -> Name:
+    owned = Name(name)
+    owned._rename = rename
+    return owned
 
 
 def data_value(raw):
@@ -61,6 +79,15 @@ def data_value(raw):
         array.flags.writeable = False
         return array
     return raw
+
+
+def field_numbers(obj: SceneObject, key: str, default) -> np.ndarray:
+    """A field's numbers, flat (``data_value`` reads them as SofaPython3 does)."""
+    raw = obj.attrs.get(key, default)
+    try:
+        return np.atleast_1d(np.asarray(data_value(raw), dtype=float)).ravel()
+    except (TypeError, ValueError):
+        raise SceneError(f"{obj.path}.{key}: expected numbers, got {raw!r}") from None
 
 
 class Data:
@@ -254,7 +281,7 @@ class SceneObject:
 
     @property
     def name(self) -> Name:
-        return Name(self.attrs.get("name", self.type))
+        return _owned(self.attrs.get("name", self.type), lambda new: self.attrs.update(name=new))
 
     @property
     def path(self) -> str:
@@ -455,7 +482,7 @@ class SceneNode:
 
     def __setattr__(self, key: str, value) -> None:
         if key == "name":
-            object.__setattr__(self, key, Name(value))
+            object.__setattr__(self, key, _owned(value, lambda new: setattr(self, "name", new)))
         elif key in SceneNode.__dataclass_fields__ or key.startswith("_"):
             object.__setattr__(self, key, value)
         elif key in self.attrs or key in NODE_DEFAULTS:  # root.dt = 0.01, root.gravity = [...]

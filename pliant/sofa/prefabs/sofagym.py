@@ -3,15 +3,17 @@ environments' scenes import, written for Pliant from what they are documented to
 
 ``addHeader`` sets up the root as SofaGym's scenes expect (frictional contact pipeline,
 constraint-based loop, animation manager, gravity and time step); ``addVisu`` adds cameras and
-lights only, which Pliant does not draw. The beam and rigid-mesh builders of ``sofagym.utils``
-need models Pliant lacks (Cosserat rods; rigid bodies given by a mesh and a density): they
-stop the load with a :class:`SceneError` naming what is missing.
+lights only, which Pliant does not draw. ``addRigidObject`` adds a rigid body given by a mesh
+and a density (read by :mod:`pliant.sofa.rigids`). The beam builders of ``sofagym.utils`` need
+a model Pliant lacks (Cosserat rods): they stop the load with a :class:`SceneError` naming it.
 """
 
 from __future__ import annotations
 
+import numpy as np
+
 from pliant.sofa.prefabs.splib import AnimationManager
-from pliant.sofa.prefabs.stlib import ContactHeader
+from pliant.sofa.prefabs.stlib import SHAPES, ContactHeader
 from pliant.sofa.tree import SceneError, SceneNode
 
 
@@ -43,6 +45,70 @@ def addVisu(rootNode: SceneNode, config, position, direction, cutoff: float = 25
     """Cameras and spot lights: nothing Pliant simulates."""
 
 
+# SOFA's shared meshes a scene may name (SofaGym's carts: mesh/cube.obj), written out.
+_SHARED = {"mesh/cube.obj": SHAPES["cube"]}
+
+
+def _mesh(node: SceneNode, filename: str, scale) -> dict:
+    """The mesh of `filename` in `node` (a loader named ``loader``, or SOFA's shared mesh
+    written out as a topology): the data a GenerateRigidMass reads it from."""
+    scale3d = np.broadcast_to(np.asarray(scale, dtype=float), 3)
+    shared = _SHARED.get(str(filename).replace("\\", "/"))
+    if shared is None:
+        loader = "MeshSTLLoader" if str(filename).lower().endswith(".stl") else "MeshOBJLoader"
+        node.addObject(loader, name="loader", filename=filename, scale3d=scale3d.tolist())
+        return {"src": "@" + node.name + "/loader"}
+    points, faces = np.asarray(shared[0]) * scale3d, np.asarray(shared[1]).ravel().tolist()
+    node.addObject("MeshTopology", name="loader", position=points.tolist(), triangles=faces)
+    return {"position": points.tolist(), "triangles": faces}
+
+
+def addRigidObject(  # noqa: N802
+    node: SceneNode,
+    filename: str,
+    collisionFilename: str | None = None,  # noqa: N803
+    position=(0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0),
+    scale=(1.0, 1.0, 1.0),
+    textureFilename: str = "",  # noqa: N803
+    color=(1.0, 1.0, 1.0),
+    density: float = 0.002,
+    name: str = "Object",
+    withSolver: bool = True,  # noqa: N803
+) -> SceneNode:
+    """A rigid body given by a surface mesh (`filename`, scaled by `scale`) and a `density`,
+    as SofaGym documents it: a child `name` of `node` with a Rigid3 MechanicalObject at
+    `position` (x y z and a quaternion), a solver unless `withSolver` is false, a ``Visu``
+    child (the mesh, drawn), a ``GenerateRigidMass`` named ``mass`` (the solid's mass and
+    inertia at `density`) read by a UniformMass, and a ``Collision`` child: the collision mesh
+    (`collisionFilename`, by default the same) shifted so that its centre of mass is on the
+    frame, with triangle, line and point models, carried by a RigidMapping."""
+    body = node.addChild(name)
+    body.addObject("MechanicalObject", template="Rigid3", position=list(position))
+    if withSolver:
+        body.addObject("EulerImplicitSolver")
+        body.addObject("CGLinearSolver", tolerance=1e-5, iterations=25, threshold=1e-5)
+        body.addObject("UncoupledConstraintCorrection")
+    visual = body.addChild("Visu")
+    source = _mesh(visual, filename, scale)
+    visual.addObject("OglModel", color=list(color) if not textureFilename else "")
+    visual.addObject("RigidMapping")
+    mass = body.addObject("GenerateRigidMass", name="mass", density=density, **source)
+    mass.init()
+    shift = list(mass.centerToOrigin.value)
+    body.addObject("UniformMass", vertexMass="@mass.rigidMass")
+    collision = body.addChild("Collision")
+    given = _mesh(collision, collisionFilename or filename, scale)
+    if "src" in given:
+        collision.addObject("MeshTopology", src="@loader")
+        collision.addObject("MechanicalObject", translation=shift)
+    else:
+        collision.addObject("MechanicalObject", position=given["position"], translation=shift)
+    for model in ("TriangleCollisionModel", "LineCollisionModel", "PointCollisionModel"):
+        collision.addObject(model)
+    collision.addObject("RigidMapping")
+    return body
+
+
 def _lacks(what: str):
     def refuse(*_args, **_kwargs):
         raise SceneError(f"sofagym.utils.{what}: Pliant has no {_LACKS[what]}")
@@ -53,7 +119,6 @@ def _lacks(what: str):
 
 _LACKS = {
     "createCosserat": "Cosserat rod (SOFA's Cosserat plugin)",
-    "addRigidObject": "rigid body given by a mesh and a density (its rigid bodies are boxes)",
     "addEdgeCollision": "collision model on a Cosserat rod's edges",
 }
 
@@ -63,4 +128,4 @@ def header_members() -> dict:
 
 
 def utils_members() -> dict:
-    return {name: _lacks(name) for name in _LACKS}
+    return {"addRigidObject": addRigidObject} | {name: _lacks(name) for name in _LACKS}

@@ -2,7 +2,8 @@
 ``stlib3.solver``, ``stlib3.components``), written for Pliant from STLIB's documentation: each
 adds to the scene the components STLIB documents for it, with its documented arguments and
 defaults. Rigid shapes that STLIB loads from SOFA's shared meshes (``mesh/cube.obj``,
-``mesh/floor.obj``) are written out here as their corners and faces.
+``mesh/floor.obj``) are written out here as their corners and faces; its ball
+(``mesh/ball.obj``, a unit sphere) as a SphereCollisionModel of the same radius.
 """
 
 from __future__ import annotations
@@ -303,7 +304,8 @@ def RigidObject(  # noqa: N802
     """A rigid body: a Rigid3 ``mstate`` placed by `translation` and `rotation` (Euler
     angles, degrees), its mass (``totalMass``, ``volume``, ``inertiaMatrix``), a solver unless
     static, and a ``collision`` child (points, lines, triangles) mapped rigidly; `shape` names
-    one of :data:`SHAPES` written out instead of a mesh file."""
+    one of :data:`SHAPES` written out instead of a mesh file, or "ball": a sphere of radius
+    `uniformScale` on the frame (SOFA's unit ball scaled)."""
     node = SceneNode(name) if parent is None else parent.addChild(name)
     node.addObject(
         "MechanicalObject",
@@ -322,7 +324,12 @@ def RigidObject(  # noqa: N802
     if shape is None and surfaceMeshFileName is None:
         return node
     collision = node.addChild("collision")
-    if shape is not None:
+    still = {"moving": False, "simulated": False} if isAStaticObject else {}
+    group = {"group": collisionGroup} if collisionGroup else {}
+    if shape == "ball":
+        collision.addObject("MechanicalObject", position=[0.0, 0.0, 0.0])
+        collision.addObject("SphereCollisionModel", radius=uniformScale, **still, **group)
+    elif shape is not None:
         points, faces = SHAPES[shape]
         collision.addObject("MeshTopology", triangles=np.array(faces).ravel().tolist())
         collision.addObject("MechanicalObject", position=(uniformScale * points).tolist())
@@ -332,10 +339,9 @@ def RigidObject(  # noqa: N802
         )
         collision.addObject("MeshTopology", src="@loader")
         collision.addObject("MechanicalObject")
-    still = {"moving": False, "simulated": False} if isAStaticObject else {}
-    group = {"group": collisionGroup} if collisionGroup else {}
     for model in ("TriangleCollisionModel", "LineCollisionModel", "PointCollisionModel"):
-        collision.addObject(model, **still, **group)
+        if shape != "ball":
+            collision.addObject(model, **still, **group)
     collision.addObject("RigidMapping")
     visual = node.addChild(VisualModel(name="visual", color=list(color)))
     visual.addObject("RigidMapping")
@@ -355,10 +361,10 @@ def Floor(node: SceneNode, **kwargs) -> SceneNode:  # noqa: N802
 
 
 def Sphere(node: SceneNode, **kwargs) -> SceneNode:  # noqa: N802
-    """A rigid ball (SOFA's mesh/ball.obj: Pliant's rigid bodies are boxes, so this scene
-    stops with a SceneError naming it)."""
+    """A rigid ball of radius uniformScale (STLIB's SOFA's unit ball, mesh/ball.obj, collides
+    by its triangles; Pliant's ball is the exact sphere, a SphereCollisionModel)."""
     kwargs.setdefault("name", "Sphere")
-    return RigidObject(parent=node, surfaceMeshFileName="mesh/ball.obj", **kwargs)
+    return RigidObject(parent=node, shape="ball", **kwargs)
 
 
 def addOrientedBoxRoi(  # noqa: N802
