@@ -11,6 +11,7 @@ import os
 import pickle
 import uuid
 import zipfile
+import zlib
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
@@ -77,7 +78,8 @@ def write_json(path: str | os.PathLike, data, *, indent: int | None = 1, **kwarg
 MANIFEST = "manifest.json"
 
 # What reading a damaged file raises, by the readers Pliant uses (zip, pickle, NumPy, HDF5,
-# JSON, PyTorch, SB3's asserts): converted into a CorruptFileError naming the file.
+# JSON, PyTorch, SB3's asserts, zlib for a compressed member): converted into a
+# CorruptFileError naming the file.
 _DAMAGE = (
     AssertionError,
     EOFError,
@@ -90,6 +92,7 @@ _DAMAGE = (
     RuntimeError,
     pickle.UnpicklingError,
     zipfile.BadZipFile,
+    zlib.error,
     UnicodeDecodeError,
 )
 
