@@ -21,7 +21,7 @@ from pliant.cli.support import (
     numbers_list,
     one_of,
 )
-from pliant.files import write_json
+from pliant.files import write_json, write_results
 
 app = command_group("Beam-skeleton proxies of FEM robots (thesis §4.1).")
 console = Console()
@@ -462,7 +462,7 @@ def transfer(
     result = loop.run(sequence, policy=chooser, steps=steps, progress=progress)
     out.mkdir(parents=True, exist_ok=True)
     report = {"command": "pliant " + " ".join(sys.argv[1:]), **result.to_dict()}
-    write_json(out / f"{robot}_transfer.json", report)
+    write_results(out / f"{robot}_transfer.json", report)  # its trajectories at 7 digits
     plot_transfer(result, out / f"{robot}_transfer.png")
     if gif and frames:
         from pliant.viz.video import save_gif
