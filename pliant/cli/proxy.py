@@ -311,7 +311,8 @@ def transfer(
         Path | None,
         typer.Option(
             help="a policy trained on the proxy env by `pliant train` (its folder or model.zip,"
-            " with meta.json and vecnormalize.pkl beside it) or a bare SB3 PPO .zip"
+            " with meta.json and vecnormalize.pkl beside it), a bare SB3 PPO .zip, or a kept"
+            " policy.npz (`pliant export-policy`) or its folder"
         ),
     ] = None,
     steps: Annotated[int, option("steps of --policy", at_least_one)] = 8,
