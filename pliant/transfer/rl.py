@@ -22,6 +22,7 @@ import numpy as np
 import torch
 
 from pliant.errors import TrainingError
+from pliant.files import write_results
 from pliant.learn.config import TrainConfig, deep_merge
 from pliant.learn.evaluate import KEPT, export_run, load_policy
 from pliant.learn.training import train
@@ -285,5 +286,5 @@ def learn(
     # the kept policy: what acting needs (pliant.learn.kept), not the run's model.zip
     export_run(run_dir / "final", out / KEPT)
     shutil.copy(run_dir / "learning_curve.png", out / "learning_curve.png")
-    (out / "report.json").write_text(json.dumps(report, indent=1))
+    write_results(out / "report.json", report)
     return report
