@@ -46,6 +46,11 @@ VERSION = 1
 KINDS = ("diag_gaussian", "categorical", "squashed_gaussian", "deterministic", "greedy")
 # SB3's clamp of SAC's log standard deviation (stable_baselines3.sac.policies)
 LOG_STD_MIN, LOG_STD_MAX = -20.0, 2.0
+# The parameter-free layers kept by name (rebuilt with their default arguments, as SB3 builds
+# its ``activation_fn``): torch's activations, Identity and Flatten.
+_NAMED = (
+    frozenset(torch.nn.modules.activation.__all__) - {"MultiheadAttention", "PReLU", "Threshold"}
+) | {"Identity", "Flatten"}
 
 
 def _sequence(module: torch.nn.Module, name: str, arrays: dict) -> list[str]:
@@ -58,9 +63,11 @@ def _sequence(module: torch.nn.Module, name: str, arrays: dict) -> list[str]:
             bias = layer.bias if layer.bias is not None else torch.zeros(layer.out_features)
             arrays[f"{name}.{i}.bias"] = bias.detach().cpu().numpy().astype(np.float32)
             layers.append("linear")
-        elif isinstance(layer, torch.nn.Flatten):
-            layers.append("Flatten")
-        elif not any(True for _ in layer.parameters()) and hasattr(torch.nn, type(layer).__name__):
+        elif (
+            type(layer).__name__ in _NAMED
+            and not any(True for _ in layer.parameters())
+            and repr(layer) == repr(type(layer)())  # its default arguments: rebuilt by name
+        ):
             layers.append(type(layer).__name__)  # an activation: Tanh, ReLU, SiLU, ...
         else:
             raise PolicyError(f"{name}: a {type(layer).__name__} layer cannot be kept")
@@ -189,7 +196,7 @@ class _Sequence(torch.nn.Module):
                 linear = torch.nn.Linear(weight.shape[1], weight.shape[0])
                 linear.weight.data, linear.bias.data = weight, bias
                 modules.append(linear)
-            elif hasattr(torch.nn, layer) and layer[:1].isupper():
+            elif layer in _NAMED:
                 modules.append(getattr(torch.nn, layer)())
             else:
                 raise ValueError(f"{name}.{i}: unknown layer {layer!r}")

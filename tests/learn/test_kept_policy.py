@@ -184,3 +184,16 @@ def test_a_kept_policy_evaluates_as_its_saved_run(tmp_path):
         load_policy(tmp_path / "final", algo="SAC")
     with pytest.raises(PolicyError, match="kept policy already"):
         export_run(tmp_path / "final", tmp_path / "again.npz")
+
+
+def test_layers_are_kept_by_name_only_with_their_default_arguments(tmp_path):
+    env = _Spaces(BOX_OBS, BOX_ACT)
+    silu = {"net_arch": [8], "activation_fn": torch.nn.SiLU}
+    model = PPO("MlpPolicy", env, policy_kwargs=silu)
+    assert load_kept(export_policy(model, tmp_path / "silu.npz")).meta["layers"]["trunk"] == [
+        "linear",
+        "SiLU",
+    ]
+    model.policy.mlp_extractor.policy_net[1] = torch.nn.LeakyReLU(0.3)
+    with pytest.raises(PolicyError, match="LeakyReLU"):
+        export_policy(model, tmp_path / "leaky.npz")
