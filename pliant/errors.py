@@ -126,6 +126,11 @@ class LearnedModelError(PliantError, ValueError):
     layout (actuators, effectors, contacts and their rows) differs from the one it learned."""
 
 
+class PolicyError(PliantError, ValueError):
+    """A policy cannot be kept or used: an algorithm, policy or space the kept format does not
+    hold, or an observation of another shape than the policy's (or not finite)."""
+
+
 class PlanningError(PliantError, ValueError):
     """A planner cannot be used on this environment or with these settings: no discrete actions,
     no get_state/set_state, a reward outside what the algorithm assumes, a budget too small."""

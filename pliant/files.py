@@ -7,10 +7,13 @@ from __future__ import annotations
 
 import hashlib
 import json
+import math
 import os
 import pickle
+import re
 import uuid
 import zipfile
+import zlib
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
@@ -73,11 +76,70 @@ def write_json(path: str | os.PathLike, data, *, indent: int | None = 1, **kwarg
         tmp.write_text(text)
 
 
+#: Significant digits of a series in a result file (:func:`write_results`): a float32's
+#: precision, finer than any figure is quoted at or compared within.
+SERIES_DIGITS = 7
+#: The numbers a list holds (itself, or its lists of numbers) to be a series: trajectories,
+#: time lines, per-episode values; shorter ones (a position, a gain vector) keep every digit.
+SERIES_LENGTH = 32
+
+_TOKEN = r"(?:-?\d+(?:\.\d+)?(?:[eE][+-]?\d+)?|-?Infinity|NaN|true|false|null)"
+_FLAT_LIST = re.compile(rf"\[\n\s*({_TOKEN}(?:,\n\s*{_TOKEN})*)\n\s*\]")
+
+
+def _numbers(value) -> int | None:
+    """How many numbers `value` holds if it is a list of numbers or of such lists, else None."""
+    if isinstance(value, bool) or not isinstance(value, list):
+        return 1 if isinstance(value, int | float) and not isinstance(value, bool) else None
+    total = 0
+    for item in value:
+        count = _numbers(item)
+        if count is None:
+            return None
+        total += count
+    return total
+
+
+def _rounded(value, digits: int):
+    if isinstance(value, list):
+        return [_rounded(item, digits) for item in value]
+    if isinstance(value, float) and math.isfinite(value):
+        return float(f"{value:.{digits}g}")
+    return value
+
+
+def compact_series(data, digits: int = SERIES_DIGITS, length: int = SERIES_LENGTH):
+    """`data` (JSON-like; NumPy arrays and scalars become lists and numbers) with the floats of
+    every series (a list of numbers, or of lists of numbers, holding at least `length`)
+    rounded to `digits` significant digits; every other number (a figure, a setting) as it
+    is."""
+    if isinstance(data, np.ndarray | np.generic):
+        data = data.tolist()
+    if isinstance(data, dict):
+        return {key: compact_series(value, digits, length) for key, value in data.items()}
+    if isinstance(data, list | tuple):
+        data = [compact_series(item, digits, length) for item in data]
+        count = _numbers(data)
+        return _rounded(data, digits) if count is not None and count >= length else data
+    return data
+
+
+def write_results(path: str | os.PathLike, data, *, digits: int = SERIES_DIGITS, **kwargs) -> None:
+    """A result file: :func:`write_json` of :func:`compact_series` of `data`, each list of
+    numbers on one line (a series is about a third of its size written with 17 digits, one
+    number a line); what the registry reads as figures (single numbers) keeps every digit."""
+    text = json.dumps(compact_series(data, digits), indent=1, **kwargs)
+    text = _FLAT_LIST.sub(lambda m: "[" + re.sub(r",\n\s*", ", ", m[1]) + "]", text)
+    with atomic_path(path) as tmp:
+        tmp.write_text(text)
+
+
 #: The file of a folder written by :func:`write_manifest`: each file's size and SHA-256.
 MANIFEST = "manifest.json"
 
 # What reading a damaged file raises, by the readers Pliant uses (zip, pickle, NumPy, HDF5,
-# JSON, PyTorch, SB3's asserts): converted into a CorruptFileError naming the file.
+# JSON, PyTorch, SB3's asserts, zlib for a compressed member): converted into a
+# CorruptFileError naming the file.
 _DAMAGE = (
     AssertionError,
     EOFError,
@@ -90,6 +152,7 @@ _DAMAGE = (
     RuntimeError,
     pickle.UnpicklingError,
     zipfile.BadZipFile,
+    zlib.error,
     UnicodeDecodeError,
 )
 

@@ -28,7 +28,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from pliant.files import write_json  # noqa: E402
+from pliant.files import write_results  # noqa: E402
 from pliant.robots.trunk_cube import PUSH_TARGETS, push_demo, trunk_push  # noqa: E402
 from pliant.solvers import ImplicitEuler  # noqa: E402
 
@@ -133,7 +133,7 @@ def main() -> None:
             )
         print(f"  contact kept {100 * res['contact_kept_fraction']:.0f}% of the steps")
     plot(results, args.out / "qpcc_push.png")
-    write_json(args.out / "qpcc_push.json", {"dt_s": DT, "runs": results})
+    write_results(args.out / "qpcc_push.json", {"dt_s": DT, "runs": results})
 
 
 if __name__ == "__main__":

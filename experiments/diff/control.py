@@ -53,7 +53,7 @@ from pliant.diff import (
     rollout,
     rollout_gradient,
 )
-from pliant.files import write_json
+from pliant.files import write_results
 from pliant.solvers import ImplicitEuler
 from pliant.trajopt import ActuationBounds, BoxDDP
 from pliant.trajopt.scenarios import diamond_two_goals, trunk_reach
@@ -174,7 +174,7 @@ def main() -> None:
     def save() -> None:
         data["load_average_1min_at_save"] = os.getloadavg()[0]
         data["cores"] = os.cpu_count()
-        write_json(out, data)
+        write_results(out, data)
 
     # Warm-up, untimed: the compiled kernels of both methods (numba) on this problem.
     BoxDDP(max_iterations=1).solve(scenario.dynamics, scenario.start, scenario.cost, bounds)

@@ -51,7 +51,7 @@ import torch  # noqa: E402
 
 import pliant.envs  # noqa: E402, F401  (registers the environments)
 from pliant.diff.policy import closed_loop, embedded_positions  # noqa: E402
-from pliant.files import atomic_path, write_json  # noqa: E402
+from pliant.files import atomic_path, write_results  # noqa: E402
 from pliant.solvers import ImplicitEuler  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -282,7 +282,7 @@ def run_learner(name: str, args, folder: Path, goals: dict) -> dict:
     learner = train_apg if name == "apg" else train_ppo
     for _ in learner(args, folder, record, goals):
         record.pop("test", None)
-        write_json(path, record)
+        write_results(path, record)
     best = select(record["curve"])
     if record.get("test", {}).get("checkpoint") != best["checkpoint"]:
         env = make_env()
@@ -291,7 +291,7 @@ def run_learner(name: str, args, folder: Path, goals: dict) -> dict:
         record["test"] = evaluate(env, load_actor(name, folder, best["checkpoint"]), test)
         record["test"]["checkpoint"] = best["checkpoint"]
         print(name.upper(), "test", record["test"], flush=True)
-    write_json(path, record)
+    write_results(path, record)
     return record
 
 
@@ -325,7 +325,7 @@ def report(args, folder: Path, out: Path, settings: dict) -> None:
         {"level": level, **{name: steps_to(result[name]["curve"], level) for name in LEARNERS}}
         for level in levels
     ]
-    write_json(out, result)
+    write_results(out, result)
     plot(result, out.with_suffix(".png"))
     print(f"wrote {out}")
 

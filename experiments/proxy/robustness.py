@@ -46,7 +46,7 @@ from pathlib import Path
 import numpy as np
 
 from pliant._proxsuite import BUILD
-from pliant.condensed.dataset import atomic_write
+from pliant.files import write_results
 from pliant.learn.evaluate import load_policy
 from pliant.transfer.fem_rl import summary, transfer_proxy_policy
 from pliant.transfer.proxy import FORWARD, MULTIGAIT_GAINS, multigait_transfer
@@ -159,7 +159,7 @@ def retransfer(report: dict, path: Path, tag: str) -> None:
         row["transfer"]["earlier_build"] = earlier.get("proxsuite_build", EARLIER_BUILD)
         fem = row["transfer"]["fem"]["mean_final_distance_mm"]
         print(f"{name}: FEM {fem:.2f} mm (earlier {row['transfer']['earlier_fem_mean_mm']:.2f})")
-        atomic_write(path, lambda tmp: Path(tmp).write_text(json.dumps(report, indent=1)))
+        write_results(path, report)
     plot_trunk(report["rows"], path.with_suffix(".png"))
 
 
@@ -264,7 +264,7 @@ def main() -> None:
                 "feedforward": None if trunk else args.feedforward,
                 "rows": rows,
             }
-            path.write_text(json.dumps(report, indent=1))
+            write_results(path, report)
             (plot_trunk if trunk else plot)(rows, path.with_suffix(".png"))
 
 

@@ -62,7 +62,7 @@ from pathlib import Path
 import numpy as np
 
 from pliant import configure_threads
-from pliant.files import write_json
+from pliant.files import write_json, write_results
 
 RESULTS = Path("experiments/results/rl/trunk_debris_expert")
 ENV_ID = "pliant/TrunkSpaceDebris-v0"
@@ -445,7 +445,7 @@ def main() -> None:
                 records.append(json.loads(path.read_text()))
                 continue
             record = run(placement)
-            write_json(path, record)
+            write_results(path, record)
             records.append(record)
             row = _row(record)
             print(f"{phase} {' '.join(f'{k}={v}' for k, v in row.items())}", flush=True)

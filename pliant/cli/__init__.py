@@ -3,10 +3,11 @@
 :mod:`~pliant.cli.run` (``run``, ``inverse``, ``view``), :mod:`~pliant.cli.bench`,
 :mod:`~pliant.cli.planning` (``plan``), :mod:`~pliant.cli.reduction` (``reduce``),
 :mod:`~pliant.cli.reproduce`, :mod:`~pliant.cli.learn` (``train``, ``eval``, ``enjoy``,
-``tune``), and the groups :mod:`~pliant.cli.condensed`, :mod:`~pliant.cli.trajopt`,
-:mod:`~pliant.cli.proxy` and :mod:`~pliant.cli.graph`; :mod:`~pliant.cli.support` is what every
-command shares (one red line per failure, option checks at entry). A command imports the code
-it runs when it runs, so that ``pliant --help`` starts quickly.
+``export-policy``, ``tune``), and the groups :mod:`~pliant.cli.condensed`,
+:mod:`~pliant.cli.trajopt`, :mod:`~pliant.cli.proxy` and :mod:`~pliant.cli.graph`;
+:mod:`~pliant.cli.support` is what every command shares (one red line per failure, option
+checks at entry). A command imports the code it runs when it runs, so that ``pliant --help``
+starts quickly.
 """
 
 from __future__ import annotations
@@ -43,6 +44,7 @@ app.command("reproduce")(reproduce_command)
 app.command("train")(learn.train)
 app.command("eval")(learn.eval_)
 app.command("enjoy")(learn.enjoy)
+app.command("export-policy")(learn.export_policy)
 app.command("tune")(learn.tune)
 app.add_typer(proxy_app, name="proxy")
 app.add_typer(graph_app, name="graph")

@@ -1,6 +1,6 @@
-"""``pliant train``, ``pliant eval``, ``pliant enjoy``, ``pliant tune``: reinforcement learning on
-Pliant's environments (docs/learning.md). Stable-Baselines3 and PyTorch are imported when a
-command runs, not when the CLI starts."""
+"""``pliant train``, ``pliant eval``, ``pliant enjoy``, ``pliant export-policy``, ``pliant tune``:
+reinforcement learning on Pliant's environments (docs/learning.md). Stable-Baselines3 and
+PyTorch are imported when a command runs, not when the CLI starts."""
 
 from __future__ import annotations
 
@@ -12,7 +12,7 @@ import typer
 from rich.console import Console
 
 from pliant.cli.support import assignments, json_or_text
-from pliant.files import write_json
+from pliant.files import atomic_path, write_json
 from pliant.threads import configure_threads
 
 console = Console()
@@ -129,7 +129,9 @@ def _evaluate(model, env, episodes, env_kwarg, algo, seed, **options):
 
 
 def eval_(
-    model: Annotated[Path, typer.Argument(help="model.zip, its folder, or a run folder")],
+    model: Annotated[
+        Path, typer.Argument(help="model.zip, its folder, a run folder, or a kept policy.npz")
+    ],
     env: Annotated[str | None, typer.Argument(help="default: the one it was trained on")] = None,
     episodes: Annotated[int, typer.Option()] = 10,
     algo: Annotated[str | None, typer.Option(help="if the model has no meta.json")] = None,
@@ -142,7 +144,8 @@ def eval_(
     result = _evaluate(model, env, episodes, env_kwarg, algo, seed, deterministic=not stochastic)
     text = json.dumps(result.to_dict(per_episode=True), indent=1)
     if json_out:
-        json_out.write_text(text)
+        with atomic_path(json_out) as tmp:
+            tmp.write_text(text)
     console.print_json(json.dumps(result.to_dict()))
 
 
@@ -158,6 +161,19 @@ def enjoy(
     """Run a trained policy and save its episodes as a GIF."""
     result = _evaluate(model, env, episodes, env_kwarg, algo, seed, gif=gif, gif_episodes=episodes)
     console.print(f"{gif}: {episodes} episode(s), mean return {result.mean_return:.4g}")
+
+
+def export_policy(
+    model: Annotated[Path, typer.Argument(help="a run folder, its final/ or best/, a model.zip")],
+    out: Annotated[Path, typer.Argument(help="the kept policy (.npz)")],
+) -> None:
+    """Keep what acting needs of a trained policy in one small file (pliant.learn.kept): the
+    actor's float32 weights, the observation normaliser, the spaces and where it comes from.
+    `pliant eval OUT` evaluates it."""
+    from pliant.learn.evaluate import export_run
+
+    written = export_run(model, out)
+    console.print(f"{written}: {written.stat().st_size / 1e6:.2f} MB (from {model})")
 
 
 def tune(

@@ -21,7 +21,7 @@ from pliant.cli.support import (
     numbers_list,
     one_of,
 )
-from pliant.files import write_json
+from pliant.files import write_json, write_results
 
 app = command_group("Beam-skeleton proxies of FEM robots (thesis §4.1).")
 console = Console()
@@ -311,7 +311,8 @@ def transfer(
         Path | None,
         typer.Option(
             help="a policy trained on the proxy env by `pliant train` (its folder or model.zip,"
-            " with meta.json and vecnormalize.pkl beside it) or a bare SB3 PPO .zip"
+            " with meta.json and vecnormalize.pkl beside it), a bare SB3 PPO .zip, or a kept"
+            " policy.npz (`pliant export-policy`) or its folder"
         ),
     ] = None,
     steps: Annotated[int, option("steps of --policy", at_least_one)] = 8,
@@ -462,7 +463,7 @@ def transfer(
     result = loop.run(sequence, policy=chooser, steps=steps, progress=progress)
     out.mkdir(parents=True, exist_ok=True)
     report = {"command": "pliant " + " ".join(sys.argv[1:]), **result.to_dict()}
-    write_json(out / f"{robot}_transfer.json", report)
+    write_results(out / f"{robot}_transfer.json", report)  # its trajectories at 7 digits
     plot_transfer(result, out / f"{robot}_transfer.png")
     if gif and frames:
         from pliant.viz.video import save_gif

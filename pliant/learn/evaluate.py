@@ -8,13 +8,22 @@ import warnings
 import zipfile
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
+import yaml
 
-from pliant.errors import CheckpointWarning, CorruptFileError, TrainingError
+from pliant.errors import CheckpointWarning, CorruptFileError, PolicyError, TrainingError
 from pliant.files import atomic_path, check_manifest, read_checked, write_json
 from pliant.learn.config import ALGOS
 from pliant.learn.vec import make_env
+
+if TYPE_CHECKING:
+    from pliant.learn.kept import KeptPolicy
+
+
+#: The file name of a kept policy in a folder (:mod:`pliant.learn.kept`).
+KEPT = "policy.npz"
 
 
 @dataclass
@@ -129,16 +138,43 @@ def save_policy(model, folder: Path, algo: str, env_id: str, env_kwargs: dict, v
     write_json(folder / "meta.json", meta)
 
 
+class _NormalisedInput:
+    """A kept policy acting on normalised observations, as an SB3 model does."""
+
+    def __init__(self, policy: KeptPolicy) -> None:
+        self.policy = policy
+
+    def predict(self, observation, state=None, episode_start=None, deterministic=True):
+        return self.policy.predict(observation, deterministic=deterministic, normalized=True)
+
+
+def _kept(path: Path, algo: str | None) -> SavedPolicy:
+    from pliant.learn import kept  # PyTorch, on first use
+
+    policy = kept.load_policy(path)
+    if algo is not None and algo != policy.algo:
+        raise PolicyError(f"{path}: a kept {policy.algo} policy, not {algo}")
+    return SavedPolicy(
+        _NormalisedInput(policy), policy.algo, policy.env_id, policy.env_kwargs, policy.normalizer
+    )
+
+
 def load_policy(path: str | Path, algo: str | None = None, device: str = "cpu") -> SavedPolicy:
     """A model saved by training: a ``model.zip``, the folder holding it, or a run folder
     (its ``final/``, else its newest intact checkpoint: damaged newer ones are skipped with a
-    CheckpointWarning naming them).
+    CheckpointWarning naming them); or a kept policy (:mod:`pliant.learn.kept`): a
+    ``policy.npz``, or a folder holding one and no ``model.zip``. Its ``model.predict`` takes
+    normalised observations (``normalize_obs``), as an SB3 model's.
 
     Raises:
         CorruptFileError: the model, its meta.json or its statistics are not readable; or a
             run folder without ``final/`` whose checkpoints are all damaged.
     """
     path = Path(path)
+    if path.is_dir() and not (path / "model.zip").exists() and (path / KEPT).exists():
+        path = path / KEPT
+    if path.suffix == ".npz":
+        return _kept(path, algo)
     if path.is_dir():
         candidates = [path / "model.zip", path / "final" / "model.zip"]
         path = next((c for c in candidates if c.exists()), None)
@@ -163,6 +199,31 @@ def load_policy(path: str | Path, algo: str | None = None, device: str = "cpu") 
         vecnorm = read_checked(folder / "vecnormalize.pkl", _unpickle, "VecNormalize statistics")
         vecnorm.training = False
     return SavedPolicy(model, algo, meta.get("env_id"), meta.get("env_kwargs") or {}, vecnorm)
+
+
+def export_run(path: str | Path, out: str | Path) -> Path:
+    """Keep the policy saved in `path` (as :func:`load_policy` finds it: a run folder, its
+    ``final/`` or ``best/``, a ``model.zip``) in `out` (:func:`pliant.learn.kept.export_policy`),
+    with its environment, and the run's configuration, seed and step where the run has them."""
+    path = Path(path)
+    saved = load_policy(path)
+    if isinstance(saved.model, _NormalisedInput):
+        raise PolicyError(f"{path} is a kept policy already: copy it")
+    provenance: dict = {"env_id": saved.env_id, "env_kwargs": saved.env_kwargs}
+    folder = path if path.is_dir() else path.parent
+    for run in (folder, folder.parent):
+        if (run / "config.yaml").is_file():
+            config = read_checked(
+                run / "config.yaml", lambda p: yaml.safe_load(p.read_text()), "YAML"
+            )
+            provenance.update(run=str(run), config=config, seed=(config or {}).get("seed"))
+            break
+    provenance["source"] = str(path)
+    from pliant.learn import kept  # PyTorch, on first use
+
+    return kept.export_policy(
+        saved.model, out, algo=saved.algo, vecnormalize=saved.vecnormalize, provenance=provenance
+    )
 
 
 def _unpickle(path: Path):

@@ -169,7 +169,13 @@ class Study:
         docs: the docs page that reports the study.
         evaluate: re-evaluates the kept policy or model behind the figures from the repository
             alone (``pliant reproduce NAME --evaluate``), written into ``{out}``; its files'
-            figures are compared with the committed ones within their tolerance.
+            figures are compared with the committed ones within their tolerance. A policy is
+            kept as a ``policy.npz`` (``pliant export-policy RUN experiments/results/STUDY/
+            policy.npz``: the actor and normaliser alone, docs/learning.md) and named by its
+            path in the command, e.g. ``pliant eval experiments/results/STUDY/policy.npz
+            --episodes 100 --json {out}/evaluation.json`` or a study's script given the file
+            (every loader of ``pliant.learn.evaluate.load_policy`` reads it); the kept files
+            must be tracked and small (tests/interface/test_reproduce.py).
         not_kept: why the figures cannot be re-evaluated from the repository (the policy or
             model is not tracked, and what re-making it costs); beside a re-evaluation that
             names its figures, why the others cannot.

@@ -611,6 +611,9 @@ STUDIES: tuple[Study, ...] = (
         ),
         # Measured 2026-12-07 at load 15-19 (the committed run took 135 s on a quieter one):
         # the re-evaluation gave the committed transfer to the last digit (FEM 10.1264 mm, 1.8 %).
+        # The policy is kept as rl_multigait_surface/policy.npz since (pliant export-policy of its
+        # model.zip: the same actions to the bit on 5 000 random and 60 environment observations;
+        # a one-step run gave the committed first step, action 4, rewards within 1e-10).
         evaluate=Quick(
             "pliant proxy transfer multigait --policy experiments/results/proxy/"
             "rl_multigait_surface --steps 8 --inverse-model twin --matched underside"

@@ -22,8 +22,9 @@ import numpy as np
 import torch
 
 from pliant.errors import TrainingError
+from pliant.files import write_results
 from pliant.learn.config import TrainConfig, deep_merge
-from pliant.learn.evaluate import load_policy
+from pliant.learn.evaluate import KEPT, export_run, load_policy
 from pliant.learn.training import train
 from pliant.learn.vec import make_env
 from pliant.proxy.builders import MULTIGAIT_PARAMETERS, TRUNK_PARAMETERS
@@ -282,8 +283,8 @@ def learn(
         "curve": json.loads((run_dir / "evaluations.json").read_text()),
     }
     out.mkdir(parents=True, exist_ok=True)
-    for f in ("model.zip", "vecnormalize.pkl", "meta.json"):
-        shutil.copy(run_dir / "final" / f, out / f)
+    # the kept policy: what acting needs (pliant.learn.kept), not the run's model.zip
+    export_run(run_dir / "final", out / KEPT)
     shutil.copy(run_dir / "learning_curve.png", out / "learning_curve.png")
-    (out / "report.json").write_text(json.dumps(report, indent=1))
+    write_results(out / "report.json", report)
     return report
