@@ -29,7 +29,7 @@ from pliant.errors import MaterialError, ModelError
 from pliant.fem import kernels, rod_kernels
 from pliant.fem.body import DeformableBody, Linearisation, set_bulk_properties
 from pliant.fem.material import Material
-from pliant.fem.rigid import KinematicBody
+from pliant.fem.rigid import KinematicBody, carried
 from pliant.fem.sparsity import StiffnessPattern
 
 
@@ -488,6 +488,7 @@ class ClampedEnd:
         self.carrier = carrier
         self.name = name
         self._local: tuple[np.ndarray, np.ndarray] | None = None
+        self._memo: tuple | None = None  # (the carrier's pose, the positions it gives)
 
     def attach(self, rest_positions: np.ndarray) -> None:
         """Fix the node's position and frame in the carrier's frame (called by the Model)."""
@@ -496,12 +497,19 @@ class ClampedEnd:
         self._local = (rotation.T @ (point - position), rotation.T @ _exp(vector))
 
     def positions(self, t: float) -> np.ndarray:
-        """(2, 3): the node's position and its orientation (rotation vector) at time t."""
+        """(2, 3): the node's position and its orientation (rotation vector) at time t
+        (read-only)."""
         if self._local is None:
             raise ModelError(f"{self.name}: not attached to a rod (give it to a Model)")
-        position, rotation = self.carrier.pose(t)
+        pose = self.carrier.pose(t)
+        return carried(self, pose, lambda: self._place(*pose))
+
+    def _place(self, position: np.ndarray, rotation: np.ndarray) -> np.ndarray:
         point, frame = self._local
-        return np.vstack([position + rotation @ point, _log(rotation @ frame)])
+        out = np.empty((2, 3))
+        out[0] = position + rotation @ point
+        rod_kernels.so3_log(np.ascontiguousarray(rotation @ frame), out[1])
+        return out
 
 
 def _per_element(name: str, values, m: int) -> np.ndarray:

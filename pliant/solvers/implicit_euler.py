@@ -67,6 +67,8 @@ from pliant.solvers.compliance import PointCompliance, PointRows
 from pliant.solvers.compliance_kernels import framed_block
 from pliant.solvers.system import LinearisedSystem, TangentPolicy
 
+#: The slices of a problem without rows (as Model.constraint_space gives them).
+_NO_ROWS = {role: slice(0, 0) for role in ("actuator", "effector", "contact")}
 MIN_DT = 1e-12  # s: the smallest time step accepted (see ImplicitEuler.__init__)
 #: Free DoFs under which a body factorises on the step's own thread: handing a factorisation
 #: of a few tens of microseconds to the background thread costs more than it saves (measured
@@ -174,8 +176,10 @@ class ImplicitEuler:
         ctrl = begin_control(model, state, control)
         step = state.step + 1
         at = model.drive(state.positions, state.time + h) if model.drivers else state.positions
+        ahead = self._ahead
         lin, drive = self._linearise(state)
-        check_linearisation(lin, step, h)
+        if ahead is None or lin is not ahead.linearisation:
+            check_linearisation(lin, step, h)  # the look-ahead's was, by the step that made it
         a_m, a_k = self._coefficients()
         try:  # on a small body, a refactorisation runs on while the step detects its contacts
             self.system.prepare(lin, a_m, a_k, background=self._background, warp=self._warp)
@@ -308,6 +312,13 @@ class ImplicitEuler:
         solve); returns the problem and (dv_free, lambda -> A^-1 H^T lambda)."""
         h = self.dt
         extra = ((contact,) if contact is not None else ()) + tuple(self.model.attachments)
+        if not (extra or rigid is not None or self.model.actuators or self.model.effectors):
+            # No row (a bare body): the free motion is the step's motion, with no constraint
+            # space to build, nor products of empty blocks.
+            dv_free = self.system.solve(rhs)
+            n = dv_free.size
+            problem = CondensedProblem(np.zeros((0, 0)), np.zeros(0), dict(_NO_ROWS))
+            return problem, (dv_free, lambda lam: np.zeros(n), None)
         space = self.model.constraint_space(at, roles=roles, extra=extra)
         cols = self.system.solve(np.column_stack([rhs, space.jacobian_t]))
         dv_free, a_inv_ht = cols[:, 0], cols[:, 1:]
