@@ -234,11 +234,13 @@ class KinematicBody:
         # for t and t + h repeatedly (its drive, its look-ahead, the contacts' obstacles).
         self._poses: dict[float, tuple[np.ndarray, np.ndarray]] = {}
         self._poses_of: Trajectory | None = None
+        self._carried: dict = {}  # what `carry` gave each owner: (the pose, its result)
 
     def forget(self) -> None:
         """Drop the memoised poses: after its trajectory was changed in place (an environment
         retargeting a cart), the pose at a time asked before is no longer the same."""
         self._poses = {}
+        self._carried = {}
 
     def pose(self, t: float) -> tuple[np.ndarray, np.ndarray]:
         """The pose at t (read-only arrays; one object for as long as it is memoised)."""
@@ -260,6 +262,24 @@ class KinematicBody:
             del poses[next(iter(poses))]  # the oldest
         poses[t] = pose
         return pose
+
+    def carry(
+        self, owner, t: float, place: Callable[[np.ndarray, np.ndarray], np.ndarray]
+    ) -> np.ndarray:
+        """`place(position, rotation)` at the pose at t (the positions of what the body
+        carries: driven nodes, a clamped rod end), memoised per `owner` for its last pose: a
+        step asks for the driven nodes at t + h three times (the drive, its velocities, the
+        driven result) and the next step again. A pose is one object for as long as it is
+        memoised (a new one after :meth:`forget`), and the memo holds it, so that its
+        identity is the key. The result is read-only."""
+        pose = self.pose(t)
+        memo = self._carried.get(owner)
+        if memo is not None and memo[0] is pose:
+            return memo[1]
+        out = place(*pose)
+        out.flags.writeable = False
+        self._carried[owner] = (pose, out)
+        return out
 
     def twist(self, t: float, dt: float) -> tuple[np.ndarray, np.ndarray]:
         x0, r0 = self.pose(t)
@@ -337,7 +357,6 @@ class DrivenNodes:
         self.carrier = carrier
         self.name = name
         self.local_points: np.ndarray | None = None
-        self._memo: tuple | None = None  # (the carrier's pose, the positions it gives)
 
     def attach(self, rest_positions: np.ndarray) -> None:
         """Fix the nodes' coordinates in the carrier's frame (called once by the Model)."""
@@ -345,6 +364,7 @@ class DrivenNodes:
             raise ModelError(
                 f"{self.name}: node indices must lie in [0, {rest_positions.shape[0]})"
             )
+        self.carrier.forget()  # positions carried before were another body's
         position, rotation = self.carrier.pose(0.0)
         self.local_points = (rest_positions[self.nodes] - position) @ rotation
 
@@ -352,23 +372,10 @@ class DrivenNodes:
         """(k, 3) world positions of the nodes at time t: x(t) + R(t) r_i (read-only)."""
         if self.local_points is None:
             raise ModelError(f"{self.name}: not attached to a body (give it to a Model)")
-        pose = self.carrier.pose(t)
-        return carried(self, pose, lambda: pose[0] + self.local_points @ pose[1].T)
+        return self.carrier.carry(self, t, self._place)
 
-
-def carried(driver, pose: tuple, compute: Callable[[], np.ndarray]) -> np.ndarray:
-    """What `compute` gives for the carrier's `pose`, memoised on the driver for the last pose:
-    a step asks for the driven nodes at t + h three times (the drive, its velocities, the
-    driven result) and the next step again. The carrier's memoised pose is one object for as
-    long as it holds (a new one after a retargeting, :meth:`KinematicBody.forget`), and the
-    memo holds it, so that its identity is the key. The positions are read-only."""
-    memo = driver._memo
-    if memo is not None and memo[0] is pose:
-        return memo[1]
-    out = compute()
-    out.flags.writeable = False
-    driver._memo = (pose, out)
-    return out
+    def _place(self, position: np.ndarray, rotation: np.ndarray) -> np.ndarray:
+        return position + self.local_points @ rotation.T
 
 
 def free_angular_velocity(

@@ -29,7 +29,7 @@ from pliant.errors import MaterialError, ModelError
 from pliant.fem import kernels, rod_kernels
 from pliant.fem.body import DeformableBody, Linearisation, set_bulk_properties
 from pliant.fem.material import Material
-from pliant.fem.rigid import KinematicBody, carried
+from pliant.fem.rigid import KinematicBody
 from pliant.fem.sparsity import StiffnessPattern
 
 
@@ -488,10 +488,10 @@ class ClampedEnd:
         self.carrier = carrier
         self.name = name
         self._local: tuple[np.ndarray, np.ndarray] | None = None
-        self._memo: tuple | None = None  # (the carrier's pose, the positions it gives)
 
     def attach(self, rest_positions: np.ndarray) -> None:
         """Fix the node's position and frame in the carrier's frame (called by the Model)."""
+        self.carrier.forget()  # positions carried before were another body's
         position, rotation = self.carrier.pose(0.0)
         point, vector = rest_positions[self.nodes]
         self._local = (rotation.T @ (point - position), rotation.T @ _exp(vector))
@@ -501,8 +501,7 @@ class ClampedEnd:
         (read-only)."""
         if self._local is None:
             raise ModelError(f"{self.name}: not attached to a rod (give it to a Model)")
-        pose = self.carrier.pose(t)
-        return carried(self, pose, lambda: self._place(*pose))
+        return self.carrier.carry(self, t, self._place)
 
     def _place(self, position: np.ndarray, rotation: np.ndarray) -> np.ndarray:
         point, frame = self._local
