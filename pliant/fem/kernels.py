@@ -697,3 +697,15 @@ def motion_check(positions, velocities, displacement):
             if d > jump:
                 jump = d
     return True, jump
+
+
+@njit(cache=True, nogil=True)
+def equal_2d(a, b):
+    """Whether two 2-D arrays of one shape hold the same values (NaN equal to nothing, as
+    ``np.array_equal``), without its temporaries: a step's test that it starts from the state
+    the last step returned."""
+    for i in range(a.shape[0]):
+        for j in range(a.shape[1]):
+            if a[i, j] != b[i, j]:  # NaN differs from itself
+                return False
+    return True
