@@ -352,14 +352,14 @@ class RodBody(DeformableBody):
 
     def difference(self, to: np.ndarray, frm: np.ndarray, nodes: np.ndarray) -> np.ndarray:
         """Increments (k, 3) that :meth:`advance` `frm` to `to`, for the body nodes `nodes`."""
-        out = to - frm
-        turn = nodes >= self.n_centreline
-        if np.any(turn):
-            spins = np.empty((int(turn.sum()), 3))
-            rod_kernels.rotation_differences(
-                np.ascontiguousarray(to[turn]), np.ascontiguousarray(frm[turn]), spins
-            )
-            out[turn] = spins
+        out = np.empty((len(nodes), 3))
+        rod_kernels.node_differences(
+            np.ascontiguousarray(to, dtype=np.float64),
+            np.ascontiguousarray(frm, dtype=np.float64),
+            np.asarray(nodes, dtype=np.int64),
+            self.n_centreline,
+            out,
+        )
         return out
 
     # --- mass -------------------------------------------------------------------------------
