@@ -246,17 +246,18 @@ class State:
         return state
 
 
-def _real_array(value, what: str) -> np.ndarray:
-    """`value` as a float64 array (itself when it is one), finite; StateError otherwise."""
+def _real_array(value, what: str, name: str) -> np.ndarray:
+    """`value` as a float64 array (itself when it is one), finite; StateError naming
+    "`what`: `name`" otherwise."""
     if type(value) is np.ndarray and value.dtype == np.float64:
         array = value  # the usual case, without a conversion
     else:
         try:
             array = np.asarray(value)
         except (ValueError, TypeError) as exc:  # ragged nested sequences
-            raise StateError(f"{what} is not an array of numbers: {exc}") from None
+            raise StateError(f"{what}: {name} is not an array of numbers: {exc}") from None
         if array.dtype.kind not in "iuf":
-            raise StateError(f"{what} must hold real numbers, got dtype {array.dtype}")
+            raise StateError(f"{what}: {name} must hold real numbers, got dtype {array.dtype}")
         array = array.astype(np.float64)
     # One pass: a finite sum shows every value finite (an overflowing one is told apart).
     if (
@@ -264,7 +265,7 @@ def _real_array(value, what: str) -> np.ndarray:
         and not math.isfinite(np.add.reduce(array, axis=None))
         and not np.all(np.isfinite(array))
     ):
-        raise StateError(f"{what} holds non-finite values (NaN or inf)")
+        raise StateError(f"{what}: {name} holds non-finite values (NaN or inf)")
     return array
 
 
@@ -523,39 +524,43 @@ class Model:
             )
         n = self.body.n_nodes
         b = len(self.rigid_bodies)
-        expected = {
-            "positions": (n, 3),
-            "velocities": (n, 3),
-            "rigid_positions": (b, 3),
-            "rigid_rotations": (b, 3, 3),
-            "rigid_velocities": (b, 3),
-            "rigid_angular_velocities": (b, 3),
-        }
         cast = {}
-        for name, shape in expected.items():
-            array = _real_array(getattr(state, name), f"{what}: {name}")
+        for name, shape in (
+            ("positions", (n, 3)),
+            ("velocities", (n, 3)),
+            ("rigid_positions", (b, 3)),
+            ("rigid_rotations", (b, 3, 3)),
+            ("rigid_velocities", (b, 3)),
+            ("rigid_angular_velocities", (b, 3)),
+        ):
+            value = getattr(state, name)
+            array = _real_array(value, what, name)
             if array.shape != shape:
                 whose = "nodes" if name in ("positions", "velocities") else "rigid bodies"
                 raise StateError(
                     f"{what}: {name} has shape {array.shape}, {self.name} needs {shape} (its"
                     f" {whose}); was the state made for another model?"
                 )
-            cast[name] = array
+            if array is not value:
+                cast[name] = array
+        n_actuators = self.n_actuators
         for name in ("actuation", "displacement", "displacement_before"):
-            array = _real_array(getattr(state, name), f"{what}: {name}")
-            if array.ndim != 1 or array.size not in (0, self.n_actuators):
+            value = getattr(state, name)
+            array = _real_array(value, what, name)
+            if array.ndim != 1 or array.size not in (0, n_actuators):
                 if strict or array.ndim != 1:
                     raise StateError(
                         f"{what}: {name} has shape {array.shape}, {self.name} has"
-                        f" {self.n_actuators} actuators; was the state made for another model?"
+                        f" {n_actuators} actuators; was the state made for another model?"
                     )
                 array = np.zeros(0)
-            cast[name] = array
+            if array is not value:
+                cast[name] = array
         forces = state.contact_forces
         if not isinstance(forces, ContactForces):
             raise StateError(f"{what}: contact_forces must be ContactForces")
         keys = np.asarray(forces.keys)
-        values = _real_array(forces.forces, f"{what}: contact forces")
+        values = _real_array(forces.forces, what, "contact forces")
         if keys.ndim != 2 or keys.shape[1] != 3 or keys.dtype.kind not in "iu":
             raise StateError(f"{what}: contact keys must be (k, 3) integers, got {keys.shape}")
         if values.shape != keys.shape:
@@ -574,14 +579,16 @@ class Model:
             raise StateError(f"{what}: step must be an integer, got {state.step!r}")
         if state.step < 0:
             raise StateError(f"{what}: step must be >= 0, got {state.step}")
-        if all(cast[name] is getattr(state, name) for name in cast) and values is forces.forces:
+        if not cast and values is forces.forces:
             return state
+        kept = ("positions", "velocities", "actuation", "displacement", "displacement_before")
+        arrays = {name: getattr(state, name) for name in (*kept, *State._RIGID)}
         return State(
             time=float(state.time),
             step=int(state.step),
             contact_forces=ContactForces(keys.astype(np.int64), values),
             layout=layout,
-            **cast,
+            **(arrays | cast),
         )
 
     def set_actuation(self, values: np.ndarray | list[float], mode: str | None = None) -> None:

@@ -307,6 +307,8 @@ def change_reference(actuators: list[Actuator], state) -> np.ndarray:
     """The displacement each actuator's largest change per step is measured from, for the step
     that starts from `state` (see :class:`Actuator`'s `change_reference`)."""
     last = state.displacement
+    if not actuators:
+        return last
     # States that do not keep the displacement before (a reduced model's) measure from the last.
     before = getattr(state, "displacement_before", last)
     before = before if before.size == last.size else last

@@ -46,6 +46,8 @@ from pliant.geometry.inertia import box_inertia, box_union_inertia, capsule_iner
 from pliant.geometry.rotation import axis_angle, check_rotation, exp_map, log_map, skew
 
 Trajectory = Callable[[float], tuple[np.ndarray, np.ndarray]]
+#: Poses a kinematic body keeps memoised (the latest times asked for).
+_POSES_KEPT = 4
 
 
 def twist_jacobian(arms: np.ndarray) -> np.ndarray:
@@ -228,18 +230,27 @@ class KinematicBody:
         self.friction = _check_friction(friction, name)
         fixed = (shape.position.copy(), shape.rotation.copy())
         self.trajectory = trajectory if trajectory is not None else (lambda t: fixed)
-        self._last_pose = None  # (trajectory, t, pose): a step asks for the same t repeatedly
+        # The poses asked for lately, by time, and the trajectory they are of: a step asks
+        # for t and t + h repeatedly (its drive, its look-ahead, the contacts' obstacles).
+        self._poses: dict[float, tuple[np.ndarray, np.ndarray]] = {}
+        self._poses_of: Trajectory | None = None
+        self._carried: dict = {}  # what `carry` gave each owner: (the pose, its result)
 
     def forget(self) -> None:
-        """Drop the memoised pose: after its trajectory was changed in place (an environment
+        """Drop the memoised poses: after its trajectory was changed in place (an environment
         retargeting a cart), the pose at a time asked before is no longer the same."""
-        self._last_pose = None
+        self._poses = {}
+        self._carried = {}
 
     def pose(self, t: float) -> tuple[np.ndarray, np.ndarray]:
-        """The pose at t (read-only arrays)."""
-        last = self._last_pose
-        if last is not None and last[0] is self.trajectory and last[1] == t:
-            return last[2]
+        """The pose at t (read-only arrays; one object for as long as it is memoised)."""
+        poses = self._poses
+        if self._poses_of is not self.trajectory:
+            poses.clear()
+            self._poses_of = self.trajectory
+        pose = poses.get(t)
+        if pose is not None:
+            return pose
         position, rotation = self.trajectory(t)
         position = np.asarray(position, dtype=float).reshape(3)
         if not np.all(np.isfinite(position)):
@@ -247,8 +258,28 @@ class KinematicBody:
         pose = (position.copy(), check_rotation(rotation, name=f"{self.name} rotation at t={t}"))
         for array in pose:
             array.flags.writeable = False
-        self._last_pose = (self.trajectory, t, pose)
+        if len(poses) >= _POSES_KEPT:
+            del poses[next(iter(poses))]  # the oldest
+        poses[t] = pose
         return pose
+
+    def carry(
+        self, owner, t: float, place: Callable[[np.ndarray, np.ndarray], np.ndarray]
+    ) -> np.ndarray:
+        """`place(position, rotation)` at the pose at t (the positions of what the body
+        carries: driven nodes, a clamped rod end), memoised per `owner` for its last pose: a
+        step asks for the driven nodes at t + h three times (the drive, its velocities, the
+        driven result) and the next step again. A pose is one object for as long as it is
+        memoised (a new one after :meth:`forget`), and the memo holds it, so that its
+        identity is the key. The result is read-only."""
+        pose = self.pose(t)
+        memo = self._carried.get(owner)
+        if memo is not None and memo[0] is pose:
+            return memo[1]
+        out = place(*pose)
+        out.flags.writeable = False
+        self._carried[owner] = (pose, out)
+        return out
 
     def twist(self, t: float, dt: float) -> tuple[np.ndarray, np.ndarray]:
         x0, r0 = self.pose(t)
@@ -333,14 +364,17 @@ class DrivenNodes:
             raise ModelError(
                 f"{self.name}: node indices must lie in [0, {rest_positions.shape[0]})"
             )
+        self.carrier.forget()  # positions carried before were another body's
         position, rotation = self.carrier.pose(0.0)
         self.local_points = (rest_positions[self.nodes] - position) @ rotation
 
     def positions(self, t: float) -> np.ndarray:
-        """(k, 3) world positions of the nodes at time t: x(t) + R(t) r_i."""
+        """(k, 3) world positions of the nodes at time t: x(t) + R(t) r_i (read-only)."""
         if self.local_points is None:
             raise ModelError(f"{self.name}: not attached to a body (give it to a Model)")
-        position, rotation = self.carrier.pose(t)
+        return self.carrier.carry(self, t, self._place)
+
+    def _place(self, position: np.ndarray, rotation: np.ndarray) -> np.ndarray:
         return position + self.local_points @ rotation.T
 
 

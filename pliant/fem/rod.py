@@ -352,14 +352,14 @@ class RodBody(DeformableBody):
 
     def difference(self, to: np.ndarray, frm: np.ndarray, nodes: np.ndarray) -> np.ndarray:
         """Increments (k, 3) that :meth:`advance` `frm` to `to`, for the body nodes `nodes`."""
-        out = to - frm
-        turn = nodes >= self.n_centreline
-        if np.any(turn):
-            spins = np.empty((int(turn.sum()), 3))
-            rod_kernels.rotation_differences(
-                np.ascontiguousarray(to[turn]), np.ascontiguousarray(frm[turn]), spins
-            )
-            out[turn] = spins
+        out = np.empty((len(nodes), 3))
+        rod_kernels.node_differences(
+            np.ascontiguousarray(to, dtype=np.float64),
+            np.ascontiguousarray(frm, dtype=np.float64),
+            np.asarray(nodes, dtype=np.int64),
+            self.n_centreline,
+            out,
+        )
         return out
 
     # --- mass -------------------------------------------------------------------------------
@@ -491,17 +491,24 @@ class ClampedEnd:
 
     def attach(self, rest_positions: np.ndarray) -> None:
         """Fix the node's position and frame in the carrier's frame (called by the Model)."""
+        self.carrier.forget()  # positions carried before were another body's
         position, rotation = self.carrier.pose(0.0)
         point, vector = rest_positions[self.nodes]
         self._local = (rotation.T @ (point - position), rotation.T @ _exp(vector))
 
     def positions(self, t: float) -> np.ndarray:
-        """(2, 3): the node's position and its orientation (rotation vector) at time t."""
+        """(2, 3): the node's position and its orientation (rotation vector) at time t
+        (read-only)."""
         if self._local is None:
             raise ModelError(f"{self.name}: not attached to a rod (give it to a Model)")
-        position, rotation = self.carrier.pose(t)
+        return self.carrier.carry(self, t, self._place)
+
+    def _place(self, position: np.ndarray, rotation: np.ndarray) -> np.ndarray:
         point, frame = self._local
-        return np.vstack([position + rotation @ point, _log(rotation @ frame)])
+        out = np.empty((2, 3))
+        out[0] = position + rotation @ point
+        rod_kernels.so3_log(np.ascontiguousarray(rotation @ frame), out[1])
+        return out
 
 
 def _per_element(name: str, values, m: int) -> np.ndarray:

@@ -444,3 +444,16 @@ def advance_rotations(vectors, spins, out):
 def rotation_differences(to, frm, out):
     """out[i] = log(exp(to[i]) exp(frm[i])^T): the spatial spin that turns frm into to."""
     _compose(to, frm, True, out)
+
+
+@njit(cache=True)
+def node_differences(to, frm, nodes, n_centreline, out):
+    """out[i] = to[i] - frm[i] for a centreline node, the spin of :func:`rotation_differences`
+    for an orientation (nodes[i] >= n_centreline): a rod's :meth:`~pliant.fem.rod.RodBody.
+    difference` in one call (the drive velocities of every step)."""
+    for i in range(nodes.shape[0]):
+        if nodes[i] >= n_centreline:
+            _compose(to[i : i + 1], frm[i : i + 1], True, out[i : i + 1])
+        else:
+            for j in range(3):
+                out[i, j] = to[i, j] - frm[i, j]

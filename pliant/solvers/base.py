@@ -13,6 +13,7 @@ from pliant.constraints.control import as_control
 from pliant.constraints.friction import ContactReport
 from pliant.errors import DivergenceError, SolverError
 from pliant.fem.body import Linearisation
+from pliant.fem.kernels import motion_check
 
 
 @dataclass
@@ -55,13 +56,15 @@ def number_option(
     return int(value) if integer else float(value)
 
 
+def _hint(dt: float | None) -> str:
+    """What to change when a step diverges (`dt` None: a static step)."""
+    if dt is not None:
+        return f"reduce the time step (now {dt}) or the actuation rate"
+    return "reduce the load or actuation per static step (load stepping)"
+
+
 def check_linearisation(lin: Linearisation, step: int, dt: float | None) -> None:
     """Raise DivergenceError if elements are inverted or forces are not finite."""
-    hint = (
-        f"reduce the time step (now {dt}) or the actuation rate"
-        if dt is not None
-        else "reduce the load or actuation per static step (load stepping)"
-    )
     if (
         lin.dets.size
         and lin.dets.min() > 0.0
@@ -73,13 +76,13 @@ def check_linearisation(lin: Linearisation, step: int, dt: float | None) -> None
         first = int(np.flatnonzero(~(lin.dets > 0))[0])
         raise DivergenceError(
             f"step {step}: {lin.n_inverted} element(s) inverted (first: element {first},"
-            f" det F = {lin.dets[first]:.3g}); {hint}",
+            f" det F = {lin.dets[first]:.3g}); {_hint(dt)}",
             step=step,
             cause="inverted",
         )
     if not (np.all(np.isfinite(lin.forces)) and np.isfinite(lin.energy)):
         raise DivergenceError(
-            f"step {step}: non-finite internal forces; {hint}", step=step, cause="non-finite"
+            f"step {step}: non-finite internal forces; {_hint(dt)}", step=step, cause="non-finite"
         )
 
 
@@ -92,24 +95,22 @@ def check_motion(
     dt: float | None,
 ) -> None:
     """Raise DivergenceError for non-finite states or a jump larger than the body itself."""
-    hint = (
-        f"reduce the time step (now {dt}) or the actuation rate"
-        if dt is not None
-        else "reduce the load or actuation per static step (load stepping)"
-    )
-    # One pass each; a sum that overflows on finite values is told apart by the full check.
-    finite = math.isfinite(float(positions.sum()) + float(velocities.sum())) or (
-        np.all(np.isfinite(positions)) and np.all(np.isfinite(velocities))
-    )
+    if positions.ndim == velocities.ndim == displacement.ndim == 2:
+        finite, jump = motion_check(positions, velocities, displacement)  # one compiled pass
+    else:
+        # One pass each; a sum that overflows on finite values is told apart by the full check.
+        finite = math.isfinite(float(positions.sum()) + float(velocities.sum())) or (
+            np.all(np.isfinite(positions)) and np.all(np.isfinite(velocities))
+        )
+        jump = float(np.max(np.abs(displacement))) if finite and displacement.size else 0.0
     if not finite:
         raise DivergenceError(
-            f"step {step}: the state became non-finite; {hint}", step=step, cause="non-finite"
+            f"step {step}: the state became non-finite; {_hint(dt)}", step=step, cause="non-finite"
         )
-    jump = float(np.max(np.abs(displacement))) if displacement.size else 0.0
     if jump > size:
         raise DivergenceError(
             f"step {step}: a node moved {jump:.3g} in one step, more than the body's size"
-            f" ({size:.3g}): energy blow-up; {hint}",
+            f" ({size:.3g}): energy blow-up; {_hint(dt)}",
             step=step,
             cause="energy",
         )

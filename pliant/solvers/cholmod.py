@@ -254,6 +254,10 @@ class CholmodCholesky:
         )
         p = ctypes.POINTER(_Dense)
         self._x, self._y, self._e = p(), p(), p()
+        self._refs = tuple(ctypes.byref(w) for w in (self._x, self._y, self._e))
+        # The solution's workspace, read as an array: (its address, columns, the array). CHOLMOD
+        # keeps the workspace while the columns do not change, so the array is made once.
+        self._solution: tuple[int, int, np.ndarray] | None = None
         self._finalizer = weakref.finalize(
             self, _release, lib, self._common, self._factor, (self._x, self._y, self._e)
         )
@@ -291,19 +295,18 @@ class CholmodCholesky:
         b = np.asfortranarray(rhs, dtype=np.float64)
         k = 1 if b.ndim == 1 else b.shape[1]
         dense = _Dense(self.n, k, self.n * k, self.n, b.ctypes.data, None, _REAL, _DOUBLE)
+        x, y, e = self._refs
         ok = self._lib.cholmod_solve2(
-            _SOLVE_A,
-            self._factor,
-            ctypes.byref(dense),
-            None,
-            ctypes.byref(self._x),
-            None,
-            ctypes.byref(self._y),
-            ctypes.byref(self._e),
-            self._common,
+            _SOLVE_A, self._factor, ctypes.byref(dense), None, x, None, y, e, self._common
         )
         if not ok:
             raise SolverError("CHOLMOD's solve failed")
-        buf = ctypes.cast(self._x.contents.x, ctypes.POINTER(ctypes.c_double))
-        x = np.ctypeslib.as_array(buf, shape=(k, self.n)).T.copy(order="F")
-        return x[:, 0] if b.ndim == 1 else x
+        address = self._x.contents.x
+        solution = self._solution
+        if solution is None or solution[0] != address or solution[1] != k:
+            buf = ctypes.cast(address, ctypes.POINTER(ctypes.c_double))
+            solution = (address, k, np.ctypeslib.as_array(buf, shape=(k, self.n)))
+            self._solution = solution
+        if b.ndim == 1:
+            return solution[2][0].copy()
+        return solution[2].T.copy(order="F")

@@ -54,6 +54,7 @@ from pliant.constraints.control import constraint_forces
 from pliant.constraints.friction import ContactForces, ContactReport, ContactSolution
 from pliant.errors import ConstraintError, DivergenceError, ModelError, SolverError
 from pliant.fem.body import PARALLEL_MIN_TETS
+from pliant.fem.kernels import equal_2d
 from pliant.fem.rigid import RigidStep, integrate_poses
 from pliant.model import ConstraintSpace, Model, State
 from pliant.solvers.base import (
@@ -67,6 +68,8 @@ from pliant.solvers.compliance import PointCompliance, PointRows
 from pliant.solvers.compliance_kernels import framed_block
 from pliant.solvers.system import LinearisedSystem, TangentPolicy
 
+#: The slices of a problem without rows (as Model.constraint_space gives them).
+_NO_ROWS = {role: slice(0, 0) for role in ("actuator", "effector", "contact")}
 MIN_DT = 1e-12  # s: the smallest time step accepted (see ImplicitEuler.__init__)
 #: Free DoFs under which a body factorises on the step's own thread: handing a factorisation
 #: of a few tens of microseconds to the background thread costs more than it saves (measured
@@ -174,8 +177,10 @@ class ImplicitEuler:
         ctrl = begin_control(model, state, control)
         step = state.step + 1
         at = model.drive(state.positions, state.time + h) if model.drivers else state.positions
+        ahead = self._ahead
         lin, drive = self._linearise(state)
-        check_linearisation(lin, step, h)
+        if ahead is None or lin is not ahead.linearisation:
+            check_linearisation(lin, step, h)  # the look-ahead's was, by the step that made it
         a_m, a_k = self._coefficients()
         try:  # on a small body, a refactorisation runs on while the step detects its contacts
             self.system.prepare(lin, a_m, a_k, background=self._background, warp=self._warp)
@@ -292,8 +297,8 @@ class ImplicitEuler:
             reuse
             and ahead is not None
             and (ahead.time, ahead.dt) == (state.time, self.dt)
-            and np.array_equal(ahead.positions, state.positions)
-            and np.array_equal(ahead.velocities, state.velocities)
+            and _same(ahead.positions, state.positions)
+            and _same(ahead.velocities, state.velocities)
             and (drive is None or np.array_equal(ahead.drive, drive))
             and ahead.revision == body.revision
         ):
@@ -308,6 +313,13 @@ class ImplicitEuler:
         solve); returns the problem and (dv_free, lambda -> A^-1 H^T lambda)."""
         h = self.dt
         extra = ((contact,) if contact is not None else ()) + tuple(self.model.attachments)
+        if not (extra or rigid is not None or self.model.actuators or self.model.effectors):
+            # No row (a bare body): the free motion is the step's motion, with no constraint
+            # space to build, nor products of empty blocks.
+            dv_free = self.system.solve(rhs)
+            n = dv_free.size
+            problem = CondensedProblem(np.zeros((0, 0)), np.zeros(0), dict(_NO_ROWS))
+            return problem, (dv_free, lambda lam: np.zeros(n), None)
         space = self.model.constraint_space(at, roles=roles, extra=extra)
         cols = self.system.solve(np.column_stack([rhs, space.jacobian_t]))
         dv_free, a_inv_ht = cols[:, 0], cols[:, 1:]
@@ -601,3 +613,10 @@ class _Passive:
             ContactReport(),
             problem.slices,
         )
+
+
+def _same(kept: np.ndarray, given: np.ndarray) -> bool:
+    """np.array_equal for the look-ahead's arrays (n, 3) and a state's, in one compiled pass."""
+    if kept.shape != given.shape or given.ndim != 2:
+        return np.array_equal(kept, given)
+    return equal_2d(kept, given)
