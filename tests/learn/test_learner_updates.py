@@ -63,7 +63,11 @@ def test_fast_update_kwargs_leave_chosen_settings_alone():
 
 def _tiny(algo: str, **kw) -> TrainConfig:
     hyper = {"policy": "MlpPolicy", "policy_kwargs": {"net_arch": [16]}}
-    hyper.update({"SAC": {"learning_starts": 16, "batch_size": 8}}.get(algo, {"n_steps": 16, "batch_size": 16}))
+    hyper.update(
+        {"SAC": {"learning_starts": 16, "batch_size": 8}}.get(
+            algo, {"n_steps": 16, "batch_size": 16}
+        )
+    )
     return TrainConfig(
         env_id=TOY, algo=algo, total_timesteps=32, n_envs=1, vec_env="dummy", eval_freq=0,
         checkpoint_freq=0, video_episodes=0, hyperparams=hyper, **kw,
