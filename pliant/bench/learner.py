@@ -258,7 +258,7 @@ def _process_cpu(pid: int) -> float:
 
 
 class TrainingClock(BaseCallback):
-    """Times a training run from the first rollout that starts after `after` steps (the
+    """Times a training run from the first rollout that starts at or after `after` steps (the
     updates of SAC start after ``learning_starts``) to its end: wall and CPU time of this
     process, CPU time of the environment workers, and the updates apart (SB3 updates between a
     rollout's end and the next one's start, or the run's end)."""
@@ -298,7 +298,7 @@ class TrainingClock(BaseCallback):
 
     def _on_rollout_start(self) -> None:
         self._between()
-        if self.start is None and self.num_timesteps > self.after:
+        if self.start is None and self.num_timesteps >= self.after:
             self.start = self._now()
 
     def _on_rollout_end(self) -> None:
@@ -336,6 +336,7 @@ def training_speed(
     quick: bool = False,
     window: int | None = None,
     seed: int = 0,
+    overrides: dict | None = None,
 ) -> dict:
     """Environment steps per second of `pliant train` with `env_id`'s configuration for `algo`
     (module docstring), updates included, with Pliant's updates or (``fast_updates=False``)
@@ -347,10 +348,10 @@ def training_speed(
     The result adds ``cpu_bound_steps_per_s``: the rate if the learner and each worker had a
     core of their own (SB3 steps the workers and then updates, in turn), from the CPU times:
     steps / (learner CPU + workers' CPU / n_envs), the figure that a shared host's load does
-    not move."""
-    overrides = {"seed": seed, "eval_freq": 0, "eval_episodes": 0, "checkpoint_freq": 0}
-    overrides.update(video_episodes=0, fast_updates=fast_updates)
-    config = load_config(env_id, algo, overrides=overrides)
+    not move. `overrides`: TrainConfig fields over the configuration's (a quick check's)."""
+    settings = {"seed": seed, "eval_freq": 0, "eval_episodes": 0, "checkpoint_freq": 0}
+    settings.update(video_episodes=0, fast_updates=fast_updates, **(overrides or {}))
+    config = load_config(env_id, algo, overrides=settings)
     hyper = config.hyperparams
     if algo in OFF_POLICY:
         if quick:
@@ -360,7 +361,7 @@ def training_speed(
     else:
         if quick:
             hyper["n_steps"] = 256
-        after = -1
+        after = 0
         config.total_timesteps = hyper.get("n_steps", 2048) * config.n_envs
     clock = TrainingClock(after)
     with tempfile.TemporaryDirectory() as tmp:
@@ -375,7 +376,7 @@ def training_speed(
         "env_id": env_id, "algo": algo, "fast_updates": fast_updates, "quick": quick,
         "n_envs": config.n_envs, "vec_env": config.vec_env,
         "net_arch": list(hyper.get("policy_kwargs", {}).get("net_arch", [])),
-        "warmup_steps": max(after, 0), "torch_threads": torch.get_num_threads(),
+        "warmup_steps": after, "torch_threads": torch.get_num_threads(),
         **r, "cpu_bound_steps_per_s": 1e3 / per_step, "load_average": os.getloadavg()[0],
     }  # fmt: skip
 
