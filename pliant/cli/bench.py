@@ -64,6 +64,14 @@ def bench(
             " with its arithmetic against this machine's matrix-product speed; learner.json"
         ),
     ] = False,
+    training: Annotated[
+        bool,
+        typer.Option(
+            help="real training steps/s, updates included (SAC CartStemContact, PPO"
+            " TrunkSpaceDebris, thesis configurations, a short window after the warm-up), with"
+            " SB3's updates and with Pliant's, in turn; learner_training.json"
+        ),
+    ] = False,
     gradient: Annotated[
         bool,
         typer.Option(
@@ -104,6 +112,10 @@ def bench(
         from pliant.bench.learner import report_learner
 
         report_learner(quick=quick, out=out.with_name("learner.json"), console=console)
+    if training:
+        from pliant.bench.learner import report_training
+
+        report_training(quick=quick, out=out.with_name("learner_training.json"), console=console)
     if gradient:
         from pliant.bench import report_gradient
 

@@ -71,8 +71,8 @@ def train(
         int | None,
         typer.Option(
             min=1,
-            help="PyTorch threads of the learner (default PyTorch's); 1 on a machine the run"
-            " shares: 2 threads there made SAC 8 times slower",
+            help="PyTorch threads of the learner (default PyTorch's, one per core); 1 on a"
+            " machine the run shares, where a second one adds CPU time and no speed",
         ),
     ] = None,
 ) -> None:

@@ -73,6 +73,10 @@ class TrainConfig:
     device: str = "cpu"
     #: keyword arguments of the SB3 algorithm (``policy`` included).
     hyperparams: dict = field(default_factory=dict)
+    #: the learner's updates without the time that is not their arithmetic
+    #: (:mod:`pliant.learn.updates`: SAC's critics skip weight gradients nobody reads, same
+    #: results to the bit; Adam fused, same up to round-off); False: SB3's own, as they were.
+    fast_updates: bool = True
     #: behaviour-cloning pre-training (:mod:`pliant.learn.bc`): ``expert`` ("module:function"),
     #: ``epochs``, ``episodes``, ``batch_size``, ``learning_rate``, ``successful_only`` (clone
     #: the expert's successful episodes only), ``std`` (the cloned policy's exploration).

@@ -48,6 +48,7 @@ from pliant.learn.callbacks import (
 )
 from pliant.learn.config import OFF_POLICY, TrainConfig, sb3_kwargs
 from pliant.learn.evaluate import algorithm_class, save_policy
+from pliant.learn.updates import fast_update_kwargs
 from pliant.learn.vec import make_env, make_vec_env
 
 
@@ -134,6 +135,9 @@ def train(
             start_step = state["num_timesteps"]
         else:
             venv = _vec_normalize(venv, config)
+            kwargs = sb3_kwargs(config.hyperparams)
+            if config.fast_updates:
+                kwargs = fast_update_kwargs(config.algo, kwargs)
             try:
                 model = algo_class(
                     env=venv,
@@ -141,7 +145,7 @@ def train(
                     device=config.device,
                     tensorboard_log=str(run_dir / "tb"),
                     verbose=verbose,
-                    **sb3_kwargs(config.hyperparams),
+                    **kwargs,
                 )
             except (TypeError, ValueError, AssertionError) as exc:  # SB3's and torch's checks
                 raise TrainingError(

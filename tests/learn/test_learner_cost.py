@@ -5,8 +5,10 @@ from __future__ import annotations
 
 import pytest
 
-from pliant.bench.learner import bfloat16_speedup, learner_cost
+from pliant.bench.learner import bfloat16_speedup, learner_cost, training_speed
 from pliant.errors import TrainingError
+
+TOY = "pliant-test/PointReach-v0"  # pliant.learn.toys
 
 
 def _cost(width: int):
@@ -50,3 +52,20 @@ def test_bfloat16_speedup_reports_both_speeds_and_the_cpu():
         report["matmul_bf16_gflop_per_s"] / report["matmul_fp32_gflop_per_s"]
     )
     assert report["cpu_capability"]
+
+
+def test_training_speed_times_the_window_after_the_warm_up():
+    """`pliant bench --training` on the toy task (one environment, in this process, small
+    networks): SAC's window starts after learning_starts and holds one update per step;
+    PPO's is one rollout and its update."""
+    small = {"policy": "MlpPolicy", "policy_kwargs": {"net_arch": [32, 32]}}
+    one = {"n_envs": 1, "vec_env": "dummy"}
+    sac = training_speed(TOY, "SAC", window=24, overrides={**one, "hyperparams": small})
+    assert (sac["window_steps"], sac["updates"], sac["warmup_steps"]) == (24, 24, 100)
+    ppo = training_speed(TOY, "PPO", quick=True, overrides={**one, "hyperparams": small})
+    assert (ppo["window_steps"], ppo["updates"], ppo["warmup_steps"]) == (256, 1, 0)
+    for r in (sac, ppo):
+        assert r["fast_updates"] and r["steps_per_s"] > 0.0
+        assert 0.0 < r["update_cpu_ms_per_step"] <= r["learner_cpu_ms_per_step"]
+        assert r["workers_cpu_ms_per_step"] == 0.0  # no worker process
+        assert r["cpu_bound_steps_per_s"] == pytest.approx(1e3 / r["learner_cpu_ms_per_step"])
