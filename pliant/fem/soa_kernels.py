@@ -24,15 +24,17 @@ from numba.extending import intrinsic
 
 from pliant.fem import kernels
 
-# Unscaled Newton steps every element takes (written out in `_blocks`); the last must move the
-# rotation by less than the element-by-element tolerance, else the element is computed again
-# one at a time.
+# Unscaled Newton steps every element takes (written out in `_blocks`); while the last moves a
+# rotation of the block by more than the element-by-element tolerance, the whole block takes
+# another, up to `MAX_POLAR_STEPS`; an element still moving is computed again one at a time.
 POLAR_STEPS = 3
+MAX_POLAR_STEPS = 10
 # Elements per block: the loop over a block's elements is the one LLVM vectorises.
 LANES = 16
-# Rows of a block's results: forces (12), K_s v (12), rotation (9), det F, energy, last step.
-_ROWS = 36
-_KV, _R, _DET, _ENERGY, _LAST = 12, 24, 33, 34, 35
+# Rows of a block's results: forces (12), K_s v (12), rotation (9), det F, energy, last step,
+# deformation gradient (9).
+_ROWS = 45
+_KV, _R, _DET, _ENERGY, _LAST, _F = 12, 24, 33, 34, 35, 36
 
 
 def soa_layout(tets: np.ndarray, grads: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -207,9 +209,9 @@ def _put_nodal(buf, row, l, p, g, e, scale):
 
 
 @njit(cache=True, inline="always")
-def _lane_rotation(buf, l):
-    """The rotation stored in lane l of the block's results."""
-    k = _R * LANES + l
+def _rows(buf, row, l):
+    """Rows row to row + 8 of lane l (a 3 x 3 matrix, row by row)."""
+    k = row * LANES + l
     return (
         buf[k],
         buf[k + LANES],
@@ -223,21 +225,38 @@ def _lane_rotation(buf, l):
     )
 
 
+@njit(cache=True, inline="always")
+def _put_rows(buf, row, l, a):
+    """Rows row to row + 8 of lane l = the 3 x 3 matrix a (row by row)."""
+    a00, a01, a02, a10, a11, a12, a20, a21, a22 = a
+    k = row * LANES + l
+    buf[k] = a00
+    buf[k + LANES] = a01
+    buf[k + 2 * LANES] = a02
+    buf[k + 3 * LANES] = a10
+    buf[k + 4 * LANES] = a11
+    buf[k + 5 * LANES] = a12
+    buf[k + 6 * LANES] = a20
+    buf[k + 7 * LANES] = a21
+    buf[k + 8 * LANES] = a22
+
+
 @njit(cache=True, nogil=True, error_model="numpy")
 def _blocks(
     lo, hi, x, v, nodes, g, vols, mu, lam, elem_forces, elem_kv, frames, dets, energies, last
 ):
-    """Elements lo to hi - 1, `LANES` at a time: the loops over a block's elements have no
-    branch (LLVM computes four elements per AVX2 register) and write the block's results
-    (forces, rotation after `POLAR_STEPS` Newton steps, det F, energy, last step: inf where
-    det F <= 0, and K_s v when `v` has rows), which are then copied out."""
+    """Elements lo to hi - 1, `LANES` at a time. The loops over a block's elements have no
+    branch (LLVM computes four elements per AVX2 register): deformation gradients and
+    `POLAR_STEPS` Newton steps; more steps for the whole block while one of its (uninverted)
+    elements moves by more than the tolerance; stresses, forces and energies; K_s v when `v`
+    has rows. The block's results are then copied out, with the last polar step of each
+    element (inf where det F <= 0)."""
     buf = numba.carray(_block_buffer(), (_ROWS * LANES,))
     with_v = v.shape[0] > 0
     for b in range(lo, hi, LANES):
         n = min(LANES, hi - b)
         for l in range(n):
-            e = b + l
-            f = _gradient(x, nodes, g, e)
+            f = _gradient(x, nodes, g, b + l)
             f00, f01, f02, f10, f11, f12, f20, f21, f22 = f
             det = (
                 f00 * (f11 * f22 - f12 * f21)
@@ -247,26 +266,32 @@ def _blocks(
             r, d = _newton_step(f)
             r, d = _newton_step(r)
             r, d = _newton_step(r)
+            _put_rows(buf, _F, l, f)
+            _put_rows(buf, _R, l, r)
+            buf[_DET * LANES + l] = det
+            buf[_LAST * LANES + l] = d if det > 0.0 else np.inf
+        for _ in range(MAX_POLAR_STEPS - POLAR_STEPS):
+            moving = False
+            for l in range(n):
+                d = buf[_LAST * LANES + l]
+                moving |= d >= kernels._POLAR_TOL and d < np.inf
+            if not moving:
+                break
+            for l in range(n):
+                r, d = _newton_step(_rows(buf, _R, l))
+                _put_rows(buf, _R, l, r)
+                buf[_LAST * LANES + l] = d if buf[_DET * LANES + l] > 0.0 else np.inf
+        for l in range(n):
+            e = b + l
+            f = _rows(buf, _F, l)
+            r = _rows(buf, _R, l)
             sig, tr, eps2 = _isotropic(_transpose_times(r, f), mu[e], lam[e], 1.0)
             _put_nodal(buf, 0, l, _times(r, sig), g, e, -vols[e])
-            r00, r01, r02, r10, r11, r12, r20, r21, r22 = r
-            k = _R * LANES + l
-            buf[k] = r00
-            buf[k + LANES] = r01
-            buf[k + 2 * LANES] = r02
-            buf[k + 3 * LANES] = r10
-            buf[k + 4 * LANES] = r11
-            buf[k + 5 * LANES] = r12
-            buf[k + 6 * LANES] = r20
-            buf[k + 7 * LANES] = r21
-            buf[k + 8 * LANES] = r22
-            buf[_DET * LANES + l] = det
             buf[_ENERGY * LANES + l] = vols[e] * (mu[e] * eps2 + 0.5 * lam[e] * tr * tr)
-            buf[_LAST * LANES + l] = d if det > 0.0 else np.inf
         if with_v:
             for l in range(n):
                 e = b + l
-                r = _lane_rotation(buf, l)
+                r = _rows(buf, _R, l)
                 ds, _, _ = _isotropic(
                     _transpose_times(r, _gradient(v, nodes, g, e)), mu[e], lam[e], 0.0
                 )

@@ -70,12 +70,15 @@ def test_vectorised_pass_on_a_bent_beam_with_per_element_materials(rng) -> None:
     assert np.abs(old[0]).max() > 1.0  # a real deformation, not the rest shape
 
 
-def test_three_newton_steps_meet_the_element_pass_tolerance_at_small_strain(rng) -> None:
-    """At a small strain every element converges in the vectorised pass's fixed steps (none is
-    computed again), and its rotation is the polar factor of its deformation gradient."""
+@pytest.mark.parametrize("stretch", [1.01, 1.3])
+def test_block_newton_steps_reach_the_polar_factor(rng, stretch) -> None:
+    """Small strains converge in the fixed steps, 30 % stretches in the block's further steps:
+    no element is left to the element-by-element code, and each rotation is the polar factor
+    of its deformation gradient."""
     mesh = box_beam(20.0, 10.0, 10.0, 2, 1, 1)
     turn = Rotation.from_rotvec([0.2, 0.5, -0.4]).as_matrix()
-    x = (mesh.points * 1.01 + rng.normal(scale=0.01, size=mesh.points.shape)) @ turn.T
+    x = mesh.points * [stretch, 1.0, 1.0] + rng.normal(scale=0.01, size=mesh.points.shape)
+    x = x @ turn.T
     vols, grads = kernels.rest_gradients(mesh.points, mesh.tets)
     nodes, g = soa_kernels.soa_layout(mesh.tets, grads)
     m = mesh.n_tets
