@@ -152,6 +152,29 @@ def _bent(body: TetBody) -> tuple[np.ndarray, np.ndarray]:
     return x, np.random.default_rng(1).normal(size=p.shape)
 
 
+def _blocks_args(body: TetBody, x: np.ndarray, v: np.ndarray, hi: int | None = None) -> tuple:
+    """Arguments of :func:`pliant.fem.soa_kernels._blocks` over the body's elements up to `hi`
+    (all by default), forces alone; the last one is the last polar step of each element."""
+    m = body.n_elements
+    nodes, g = soa_kernels.soa_layout(body.tets, body.grads)
+    f = np.empty((m, 4, 3))
+    out = (np.empty((m, 3, 3)), np.empty(m), np.empty(m), np.empty(m))
+    return (
+        0,
+        m if hi is None else hi,
+        x,
+        v[:0],
+        nodes,
+        g,
+        body.volumes,
+        body.mu,
+        body.lam,
+        f,
+        f[:0],
+        *out,
+    )
+
+
 def _pass_times(body: TetBody, x: np.ndarray, v: np.ndarray, repeats: int) -> dict:
     """CPU ns per element of each pass, forces alone and with K_s v (interleaved medians)."""
     m = body.n_elements
@@ -183,26 +206,9 @@ def _pass_times(body: TetBody, x: np.ndarray, v: np.ndarray, repeats: int) -> di
         results[label] = {k: statistics.median(s) for k, s in samples.items()}
         results[label]["speed_up"] = results[label]["element"] / results[label]["vectorised"]
     # Elements the vectorised pass computed again one at a time at this configuration.
-    last, energies = np.empty(m), np.empty(m)
-    f = np.empty((m, 4, 3))
-    soa_kernels._blocks(
-        0,
-        m,
-        x,
-        v[:0],
-        nodes,
-        g,
-        body.volumes,
-        body.mu,
-        body.lam,
-        f,
-        f[:0],
-        frames,
-        dets,
-        energies,
-        last,
-    )
-    results["recomputed_fraction"] = float(np.mean(~(last < kernels._POLAR_TOL)))
+    args = _blocks_args(body, x, v)
+    soa_kernels._blocks(*args)
+    results["recomputed_fraction"] = float(np.mean(~(args[-1] < kernels._POLAR_TOL)))
     return results
 
 
@@ -246,28 +252,7 @@ def report_element_pass(
         beam = cantilever(8)
         scenes[f"cantilever-{beam.body.n_elements}"] = (beam, _bent(beam.body))
         compiled = numba.njit(error_model="numpy")(soa_kernels._blocks.py_func)
-        body = beam.body
-        m = body.n_elements
-        nodes, g = soa_kernels.soa_layout(body.tets, body.grads)
-        x, v = scenes[f"cantilever-{m}"][1]
-        f = np.empty((m, 4, 3))
-        compiled(
-            0,
-            8,
-            x,
-            v[:0],
-            nodes,
-            g,
-            body.volumes,
-            body.mu,
-            body.lam,
-            f,
-            f[:0],
-            np.empty((m, 3, 3)),
-            np.empty(m),
-            np.empty(m),
-            np.empty(m),
-        )
+        compiled(*_blocks_args(beam.body, *scenes[f"cantilever-{beam.body.n_elements}"][1], 8))
         flops = vector_flops(compiled.inspect_llvm(compiled.signatures[0]))
         flops_forces = flops["polar_steps"] + flops["stress_and_forces"]
         flops_kv = flops["kv"]

@@ -114,18 +114,7 @@ def _newton_step(a):
 def _transpose_times(r, m):
     """R^T M, row by row."""
     r00, r01, r02, r10, r11, r12, r20, r21, r22 = r
-    m00, m01, m02, m10, m11, m12, m20, m21, m22 = m
-    return (
-        r00 * m00 + r10 * m10 + r20 * m20,
-        r00 * m01 + r10 * m11 + r20 * m21,
-        r00 * m02 + r10 * m12 + r20 * m22,
-        r01 * m00 + r11 * m10 + r21 * m20,
-        r01 * m01 + r11 * m11 + r21 * m21,
-        r01 * m02 + r11 * m12 + r21 * m22,
-        r02 * m00 + r12 * m10 + r22 * m20,
-        r02 * m01 + r12 * m11 + r22 * m21,
-        r02 * m02 + r12 * m12 + r22 * m22,
-    )
+    return _times((r00, r10, r20, r01, r11, r21, r02, r12, r22), m)
 
 
 @njit(cache=True, inline="always")
