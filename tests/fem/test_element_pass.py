@@ -8,6 +8,7 @@ import pytest
 from conftest import distorted_box
 from scipy.spatial.transform import Rotation
 
+from pliant.bench.element_pass import vector_flops
 from pliant.fem import kernels, soa_kernels
 from pliant.fem.body import TetBody
 from pliant.fem.material import Corotational
@@ -91,3 +92,26 @@ def test_block_newton_steps_reach_the_polar_factor(rng, stretch) -> None:
     f = np.einsum("eai,eaj->eij", x[mesh.tets], grads)
     for e in range(m):
         np.testing.assert_allclose(frames[e], kernels.polar_rotation(f[e]), atol=1e-12)
+
+
+def test_vector_flops_reads_the_vector_loops_of_an_ir_listing() -> None:
+    """`pliant bench --element-pass` counts flops per element in the vector loops' IR: each
+    vector operation's lanes over the elements an iteration takes, loops told apart by their
+    divisions and by whether they read `v`; scalar blocks are not counted."""
+    ir = "\n".join(
+        [
+            "entry:",
+            "  %a = fmul double %x, %y",
+            "vector.body:",
+            "  %1 = fdiv <4 x double> %p, %q",
+            "  %2 = fmul <4 x double> %1, %1",
+            "  %index.next = add nuw i64 %index, 4",
+            "vector.body7:",
+            "  %3 = load <4 x double>, ptr %arg.v.4",
+            "  %4 = fadd <4 x double> %3, %3",
+            "  %5 = fsub <4 x double> %4, %3",
+            "  %6 = fmul fast <4 x double> %5, %4",
+            "  %index.next9 = add nuw i64 %index8, 4",
+        ]
+    )
+    assert vector_flops(ir) == {"one_more_polar_step": 2.0, "kv": 3.0}
