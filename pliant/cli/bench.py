@@ -79,6 +79,15 @@ def bench(
             " Finger and the Diamond; gradient.json"
         ),
     ] = False,
+    element_pass: Annotated[
+        bool,
+        typer.Option(
+            help="the polar corotational element pass one element at a time and vectorised"
+            " across elements (ns per tet on one thread, Trunk, Diamond, 15 360-tet"
+            " cantilever) against this machine's arithmetic and memory ceilings, and the"
+            " default step with either; element_pass.json"
+        ),
+    ] = False,
     scenes: Annotated[
         bool,
         typer.Option(help="the SPEC scenes' speed (--no-scenes: only what the other flags ask)"),
@@ -116,6 +125,10 @@ def bench(
         from pliant.bench.learner import report_training
 
         report_training(quick=quick, out=out.with_name("learner_training.json"), console=console)
+    if element_pass:
+        from pliant.bench.element_pass import report_element_pass
+
+        report_element_pass(out=out.with_name("element_pass.json"), console=console, meshes=meshes)
     if gradient:
         from pliant.bench import report_gradient
 

@@ -19,7 +19,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from pliant.errors import MaterialError, ModelError
-from pliant.fem import kernels
+from pliant.fem import kernels, soa_kernels
 from pliant.fem.loads import Load, LoadAssembly
 from pliant.fem.material import (
     COROTATIONAL,
@@ -235,6 +235,9 @@ class TetBody(DeformableBody):
     # the Diamond pulled by its cables it stays within 8e-3 mm of refactorising every step
     # (see pliant.solvers.system).
     lag_tolerance = 0.02
+    # The polar corotational law's forces (and K_s v) by blocks of elements vectorised across
+    # them (pliant.fem.soa_kernels, equal to round-off); False: one element at a time.
+    vectorised_element_pass = True
 
     def __init__(
         self,
@@ -253,6 +256,8 @@ class TetBody(DeformableBody):
         self.rest_positions = np.ascontiguousarray(mesh.points, dtype=np.float64)
         self.tets = np.ascontiguousarray(mesh.tets, dtype=np.int64)
         self.volumes, self.grads = kernels.rest_gradients(self.rest_positions, self.tets)
+        # The elements' nodes and gradients by component, for the vectorised polar pass.
+        self._soa_nodes, self._soa_grads = soa_kernels.soa_layout(self.tets, self.grads)
         # SOFA's "large" rotation compares each element's edge frame with its rest one.
         large = material.kernel_tag in (COROTATIONAL_LARGE, COROTATIONAL_LARGE_INVERTIBLE)
         nodes = self.tets[:, :3] if frame_nodes is None else np.asarray(frame_nodes, np.int64)
@@ -588,6 +593,23 @@ class TetBody(DeformableBody):
         elem_kv = elem[:, :, 3:] if v.shape[0] else np.empty((0, 4, 3))
         frames = np.empty((m, 3, 3))
         dets = np.empty(m)
+        if self.vectorised_element_pass and self.material.kernel_tag == COROTATIONAL:
+            energy = soa_kernels.corotational_forces(
+                x,
+                v,
+                self.tets,
+                self.grads,
+                self.volumes,
+                self.mu,
+                self.lam,
+                self._soa_nodes,
+                self._soa_grads,
+                elem_forces,
+                elem_kv,
+                frames,
+                dets,
+            )
+            return elem, energy, frames, dets
         energy = kernels.internal_forces(
             x,
             v,

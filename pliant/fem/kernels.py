@@ -219,89 +219,132 @@ def internal_forces(
     `elem_kv` (m, 4, 3), in the same pass: an implicit step needs both. Returns the energy.
     """
     m = tets.shape[0]
-    with_v = v.shape[0] > 0
     bounds, n_chunks = _chunks(m)
     energies = np.zeros(n_chunks)
     for c in prange(n_chunks):
-        f = np.empty((3, 3))
-        r = np.empty((3, 3))
-        work = np.empty((3, 3))
-        p = np.empty((3, 3))
-        sig = np.empty((3, 3))
-        w1 = np.empty((3, 3))
-        q = np.empty((3, 3))
+        scratch = np.empty((7, 3, 3))
         energy = 0.0
         for e in range(bounds[c], bounds[c + 1]):
-            g = grads[e]
-            _gradient(x, tets[e], g, f)
-            det = _det3(f)
-            dets[e] = det
-            if not _active(det, tag):
-                elem_forces[e] = 0.0
-                if with_v:
-                    elem_kv[e] = 0.0
-                continue
-            if tag == 4:
-                # St Venant-Kirchhoff: P = F S, S = lam tr(E) I + 2 mu E, E = (F^T F - I)/2.
-                _svk_stress(f, mu[e], lam[e], sig, work)
-                tr = work[0, 0] + work[1, 1] + work[2, 2]
-                e2 = 0.0
-                for i in range(3):
-                    for j in range(3):
-                        e2 += work[i, j] * work[i, j]
-                        p[i, j] = f[i, 0] * sig[0, j] + f[i, 1] * sig[1, j] + f[i, 2] * sig[2, j]
-                        frames[e, i, j] = f[i, j]
-                energy += vols[e] * (0.5 * lam[e] * tr * tr + mu[e] * e2)
-            elif tag != 1:
-                if tag == 0:
-                    _polar(f, r, work)
-                else:
-                    _edge_frame(x, frame_nodes[e], q)
-                    q0 = rest_frames[e]
-                    for i in range(3):
-                        for j in range(3):
-                            r[i, j] = q[i, 0] * q0[j, 0] + q[i, 1] * q0[j, 1] + q[i, 2] * q0[j, 2]
-                # S = R^T F, eps = sym(S) - I.
-                for i in range(3):
-                    for j in range(3):
-                        work[i, j] = r[0, i] * f[0, j] + r[1, i] * f[1, j] + r[2, i] * f[2, j]
-                tr = work[0, 0] + work[1, 1] + work[2, 2] - 3.0
-                eps2 = 0.0
-                for i in range(3):
-                    for j in range(3):
-                        eij = 0.5 * (work[i, j] + work[j, i]) - (1.0 if i == j else 0.0)
-                        eps2 += eij * eij
-                        sig[i, j] = 2.0 * mu[e] * eij + (lam[e] * tr if i == j else 0.0)
-                for i in range(3):
-                    for j in range(3):
-                        p[i, j] = r[i, 0] * sig[0, j] + r[i, 1] * sig[1, j] + r[i, 2] * sig[2, j]
-                        frames[e, i, j] = r[i, j]
-                energy += vols[e] * (mu[e] * eps2 + 0.5 * lam[e] * tr * tr)
-            else:
-                _inv3(f, work)
-                lnj = np.log(det)
-                c2 = 0.0
-                for i in range(3):
-                    for j in range(3):
-                        c2 += f[i, j] * f[i, j]
-                for i in range(3):
-                    for j in range(3):
-                        p[i, j] = mu[e] * f[i, j] + (lam[e] * lnj - mu[e]) * work[j, i]
-                        frames[e, i, j] = work[i, j]
-                energy += vols[e] * (
-                    0.5 * mu[e] * (c2 - 3.0) - mu[e] * lnj + 0.5 * lam[e] * lnj * lnj
-                )
-            for a in range(4):
-                for i in range(3):
-                    elem_forces[e, a, i] = -vols[e] * _row_dot(p, i, g, a)
-            if with_v:
-                _gradient(v, tets[e], g, work)
-                _piola_differential(work, frames[e], f, det, mu[e], lam[e], tag, False, p, w1, sig)
-                for a in range(4):
-                    for i in range(3):
-                        elem_kv[e, a, i] = vols[e] * _row_dot(p, i, g, a)
+            energy += _element(
+                e,
+                x,
+                v,
+                tets,
+                grads,
+                vols,
+                mu,
+                lam,
+                tag,
+                frame_nodes,
+                rest_frames,
+                elem_forces,
+                elem_kv,
+                frames,
+                dets,
+                scratch,
+            )
         energies[c] = energy
     return energies.sum()
+
+
+@njit(cache=True, inline="always")
+def _element(
+    e,
+    x,
+    v,
+    tets,
+    grads,
+    vols,
+    mu,
+    lam,
+    tag,
+    frame_nodes,
+    rest_frames,
+    elem_forces,
+    elem_kv,
+    frames,
+    dets,
+    scratch,
+):
+    """One element of `internal_forces` (`scratch`: (7, 3, 3)); returns its energy."""
+    with_v = v.shape[0] > 0
+    f, r, work, p, sig, w1, q = (
+        scratch[0],
+        scratch[1],
+        scratch[2],
+        scratch[3],
+        scratch[4],
+        scratch[5],
+        scratch[6],
+    )
+    energy = 0.0
+    g = grads[e]
+    _gradient(x, tets[e], g, f)
+    det = _det3(f)
+    dets[e] = det
+    if not _active(det, tag):
+        elem_forces[e] = 0.0
+        if with_v:
+            elem_kv[e] = 0.0
+        return 0.0
+    if tag == 4:
+        # St Venant-Kirchhoff: P = F S, S = lam tr(E) I + 2 mu E, E = (F^T F - I)/2.
+        _svk_stress(f, mu[e], lam[e], sig, work)
+        tr = work[0, 0] + work[1, 1] + work[2, 2]
+        e2 = 0.0
+        for i in range(3):
+            for j in range(3):
+                e2 += work[i, j] * work[i, j]
+                p[i, j] = f[i, 0] * sig[0, j] + f[i, 1] * sig[1, j] + f[i, 2] * sig[2, j]
+                frames[e, i, j] = f[i, j]
+        energy += vols[e] * (0.5 * lam[e] * tr * tr + mu[e] * e2)
+    elif tag != 1:
+        if tag == 0:
+            _polar(f, r, work)
+        else:
+            _edge_frame(x, frame_nodes[e], q)
+            q0 = rest_frames[e]
+            for i in range(3):
+                for j in range(3):
+                    r[i, j] = q[i, 0] * q0[j, 0] + q[i, 1] * q0[j, 1] + q[i, 2] * q0[j, 2]
+        # S = R^T F, eps = sym(S) - I.
+        for i in range(3):
+            for j in range(3):
+                work[i, j] = r[0, i] * f[0, j] + r[1, i] * f[1, j] + r[2, i] * f[2, j]
+        tr = work[0, 0] + work[1, 1] + work[2, 2] - 3.0
+        eps2 = 0.0
+        for i in range(3):
+            for j in range(3):
+                eij = 0.5 * (work[i, j] + work[j, i]) - (1.0 if i == j else 0.0)
+                eps2 += eij * eij
+                sig[i, j] = 2.0 * mu[e] * eij + (lam[e] * tr if i == j else 0.0)
+        for i in range(3):
+            for j in range(3):
+                p[i, j] = r[i, 0] * sig[0, j] + r[i, 1] * sig[1, j] + r[i, 2] * sig[2, j]
+                frames[e, i, j] = r[i, j]
+        energy += vols[e] * (mu[e] * eps2 + 0.5 * lam[e] * tr * tr)
+    else:
+        _inv3(f, work)
+        lnj = np.log(det)
+        c2 = 0.0
+        for i in range(3):
+            for j in range(3):
+                c2 += f[i, j] * f[i, j]
+        for i in range(3):
+            for j in range(3):
+                p[i, j] = mu[e] * f[i, j] + (lam[e] * lnj - mu[e]) * work[j, i]
+                frames[e, i, j] = work[i, j]
+        energy += vols[e] * (0.5 * mu[e] * (c2 - 3.0) - mu[e] * lnj + 0.5 * lam[e] * lnj * lnj)
+    for a in range(4):
+        for i in range(3):
+            elem_forces[e, a, i] = -vols[e] * _row_dot(p, i, g, a)
+    if with_v:
+        _gradient(v, tets[e], g, work)
+        _piola_differential(work, frames[e], f, det, mu[e], lam[e], tag, False, p, w1, sig)
+        for a in range(4):
+            for i in range(3):
+                elem_kv[e, a, i] = vols[e] * _row_dot(p, i, g, a)
+    return energy
 
 
 def gather_nodal(elem_values, tets, incidence_ptr, incidence, out):
