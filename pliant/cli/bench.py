@@ -92,6 +92,14 @@ def bench(
         bool,
         typer.Option(help="the SPEC scenes' speed (--no-scenes: only what the other flags ask)"),
     ] = True,
+    goals: Annotated[
+        bool,
+        typer.Option(
+            help="last, issue #62's goals (10x SOFA, 5x exact, 3x MuJoCo, 10x real time, 3x SAC"
+            " training) met or missed, read from the bench.json, envs.json and"
+            " learner_training.json beside --out; goals.json"
+        ),
+    ] = False,
 ) -> None:
     """Median steps/s beside SOFA's measured figures; writes JSON and a log-log plot."""
     from pliant.bench import run_benchmarks
@@ -135,6 +143,10 @@ def bench(
         report_gradient(
             quick=quick, out=out.with_name("gradient.json"), console=console, repeats=repeats
         )
+    if goals:
+        from pliant.bench.goals import report_goals
+
+        report_goals(out.parent, console=console)
 
 
 def _copy_counts(text: str) -> tuple[int, ...]:
