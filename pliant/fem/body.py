@@ -149,6 +149,34 @@ class DeformableBody(Revised):
     def stiffness_matrix(self, lin: Linearisation, *, exact: bool = False) -> sp.csr_matrix:
         return self.pattern.matrix(self.stiffness_data(lin, exact=exact))
 
+    def _add_loads(self, x, v, forces, kv, time: float) -> tuple:
+        """Add the loads' forces at `time` to `forces` (and, when `kv` is given, their K v);
+        return their tangents."""
+        tangents = []
+        for assembly in self.loads:
+            forces += assembly.load.forces(x, time)
+            tangent = assembly.tangents(x, time)
+            tangents.append(tangent)
+            if kv is not None and tangent is not None:
+                kv += self.scatter(assembly.matvec(tangent, self.gather(v)[:, None])[:, 0])
+        return tuple(tangents)
+
+    def _add_surface_matvec(self, lin: Linearisation, cols: np.ndarray, out: np.ndarray) -> None:
+        """out += the membranes' and loads' tangents times `cols`."""
+        for assembly, tangent in zip(self.membranes, lin.membrane_tangents, strict=True):
+            out += assembly.matvec(tangent, cols)
+        for assembly, tangent in zip(self.loads, lin.load_tangents, strict=True):
+            if tangent is not None:
+                out += assembly.matvec(tangent, cols)
+
+    def _add_surface_data(self, lin: Linearisation, data: np.ndarray) -> None:
+        """data += the membranes' and loads' tangents, on the stiffness pattern."""
+        for assembly, tangent in zip(self.membranes, lin.membrane_tangents, strict=True):
+            assembly.add_to_data(tangent, data)
+        for assembly, tangent in zip(self.loads, lin.load_tangents, strict=True):
+            if tangent is not None:
+                assembly.add_to_data(tangent, data)
+
 
 # Below this many elements the compiled kernels run on the calling thread alone: waking the
 # other threads costs more than they save. Linearisation (forces and K v), microseconds, 1 / 2
@@ -622,34 +650,6 @@ class TetBody(DeformableBody):
             dets,
         )
         return elem, energy, frames, dets
-
-    def _add_loads(self, x, v, forces, kv, time: float) -> tuple:
-        """Add the loads' forces at `time` to `forces` (and, when `kv` is given, their K v);
-        return their tangents."""
-        tangents = []
-        for assembly in self.loads:
-            forces += assembly.load.forces(x, time)
-            tangent = assembly.tangents(x, time)
-            tangents.append(tangent)
-            if kv is not None and tangent is not None:
-                kv += self.scatter(assembly.matvec(tangent, self.gather(v)[:, None])[:, 0])
-        return tuple(tangents)
-
-    def _add_surface_matvec(self, lin: Linearisation, cols: np.ndarray, out: np.ndarray) -> None:
-        """out += the membranes' and loads' tangents times `cols`."""
-        for assembly, tangent in zip(self.membranes, lin.membrane_tangents, strict=True):
-            out += assembly.matvec(tangent, cols)
-        for assembly, tangent in zip(self.loads, lin.load_tangents, strict=True):
-            if tangent is not None:
-                out += assembly.matvec(tangent, cols)
-
-    def _add_surface_data(self, lin: Linearisation, data: np.ndarray) -> None:
-        """data += the membranes' and loads' tangents, on the stiffness pattern."""
-        for assembly, tangent in zip(self.membranes, lin.membrane_tangents, strict=True):
-            assembly.add_to_data(tangent, data)
-        for assembly, tangent in zip(self.loads, lin.load_tangents, strict=True):
-            if tangent is not None:
-                assembly.add_to_data(tangent, data)
 
     def _tangent_args(self, lin: Linearisation, exact: bool) -> tuple:
         """The arguments the tangent kernels share: configuration, elements, material, frames."""

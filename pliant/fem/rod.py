@@ -28,6 +28,7 @@ import numpy as np
 from pliant.errors import MaterialError, ModelError
 from pliant.fem import kernels, rod_kernels
 from pliant.fem.body import DeformableBody, Linearisation, set_bulk_properties
+from pliant.fem.loads import Load, LoadAssembly
 from pliant.fem.material import Material
 from pliant.fem.rigid import KinematicBody
 from pliant.fem.sparsity import StiffnessPattern
@@ -125,6 +126,13 @@ class RodBody(DeformableBody):
         pinned: centreline nodes whose position only is held (a ball joint).
         gravity: acceleration vector (robot scenes: (0, 0, -9810) mm/s^2).
         rayleigh_mass, rayleigh_stiffness: alpha and beta of D = alpha M + beta K.
+        point_masses: (node, mass, inertia) of solids built into centreline nodes (a cart,
+            a ball welded on with its centre there): the mass is added to the node's and the
+            inertia, isotropic (kg length^2), to its orientation's; both carry their weight.
+        held_dofs: single DoFs held (3 k + axis, k a body node: an orientation row's axis
+            is a world axis of its spin), beside the nodes `clamped` and `pinned` hold.
+        loads: external loads on body nodes (:mod:`pliant.fem.loads`, e.g. NodalForces):
+            on a centreline node a force, on an orientation row a moment (world axes).
 
     Node k of the body is centreline node k for k < N and the orientation of node k - N
     above: `fixed_nodes` lists those held, as for a :class:`pliant.fem.body.TetBody`.
@@ -155,6 +163,9 @@ class RodBody(DeformableBody):
         rayleigh_stiffness: float = 0.0,
         young_moduli: Sequence[float] | None = None,
         densities: Sequence[float] | None = None,
+        point_masses: Sequence[tuple[int, float, float]] = (),
+        held_dofs: Sequence[int] = (),
+        loads: Sequence[Load] = (),
     ) -> None:
         x = np.ascontiguousarray(points, dtype=np.float64)
         if x.ndim != 2 or x.shape[1] != 3 or x.shape[0] < 2 or not np.all(np.isfinite(x)):
@@ -245,6 +256,11 @@ class RodBody(DeformableBody):
         np.add.at(share, pairs[:, 0], 0.5 * rho_e * lengths)
         np.add.at(share, pairs[:, 1], 0.5 * rho_e * lengths)
         self.node_masses = np.concatenate([section.area * share, 0.5 * (i1 + i2) * share])
+        for node, mass, inertia in point_masses:
+            if not (0 <= int(node) < n and mass >= 0.0 and inertia >= 0.0):
+                raise ModelError(f"point mass ({node}, {mass}, {inertia}): node in [0, {n}), >= 0")
+            self.node_masses[int(node)] += float(mass)
+            self.node_masses[n + int(node)] += float(inertia)
 
         for label, nodes in (("clamped", clamped), ("pinned", pinned)):
             idx = np.asarray(nodes, dtype=np.int64).reshape(-1)
@@ -255,6 +271,10 @@ class RodBody(DeformableBody):
         self.fixed_nodes = np.unique(np.concatenate([clamped, clamped + n, pinned]))
         fixed_mask = np.zeros(6 * n, dtype=bool)
         fixed_mask[(3 * self.fixed_nodes[:, None] + np.arange(3)).ravel()] = True
+        held = np.asarray(held_dofs, dtype=np.int64).reshape(-1)
+        if held.size and (held.min() < 0 or held.max() >= 6 * n):
+            raise ModelError(f"held DoFs must lie in [0, {6 * n}), got {held.tolist()}")
+        fixed_mask[held] = True
         self.free_dofs = np.flatnonzero(~fixed_mask)
         self.free_index = np.full(6 * n, -1, dtype=np.int64)
         self.free_index[self.free_dofs] = np.arange(self.free_dofs.size)
@@ -266,6 +286,9 @@ class RodBody(DeformableBody):
         self.mass_data = np.zeros(self.pattern.nnz)
         self.mass_data[diagonal.astype(np.int64)] = self._mass_diagonal
         self._blocks = np.empty((m, 12, 12))
+        self.loads = [
+            LoadAssembly(load, self.n_nodes, self.free_index, self.pattern) for load in loads
+        ]
 
     def set_rest_curvature(self, curvature: np.ndarray, elements: np.ndarray | None = None) -> None:
         """Prescribe the rest curvature and twist kappa0 (k, 3) (material frame, rad per
@@ -384,7 +407,7 @@ class RodBody(DeformableBody):
     ) -> Linearisation:
         """Forces and moments, energy, the elements' middle frames and stretches gamma_3 (the
         inversion check: an element turned against its frame has gamma_3 <= 0), and K v.
-        (`time` is the loads' time for bodies that have loads; a rod has none.)"""
+        (`time` is the loads' time.)"""
         x, rot = self._split(positions)
         m = self.elements.shape[0]
         v = np.empty((0, 3)) if velocities is None else np.ascontiguousarray(velocities, float)
@@ -393,14 +416,10 @@ class RodBody(DeformableBody):
         frames = np.empty((m, 3, 3))
         stretch = np.empty(m)
         energy = rod_kernels.rod_forces(x, rot, *self._elements, v, forces, kv, frames, stretch)
-        return Linearisation(
-            np.array(positions, dtype=float),
-            forces,
-            float(energy),
-            frames,
-            stretch,
-            kv if velocities is not None else None,
-        )
+        kv = kv if velocities is not None else None
+        positions = np.array(positions, dtype=float)
+        loads = self._add_loads(positions, v, forces, kv, time) if self.loads else ()
+        return Linearisation(positions, forces, float(energy), frames, stretch, kv, (), loads)
 
     def stiffness_data(self, lin: Linearisation, *, exact: bool = False) -> np.ndarray:
         """Tangent stiffness on the free DoFs, as data aligned with `self.pattern`: the
@@ -409,13 +428,15 @@ class RodBody(DeformableBody):
         rod_kernels.rod_stiffness(x, rot, *self._elements, exact, self._blocks)
         data = np.zeros(self.pattern.nnz)
         kernels.scatter_add(self._blocks, 1.0, self.pattern.scatter, data)
+        if self.loads:
+            self._add_surface_data(lin, data)
         return data
 
     def stiffness_matvec(
         self, lin: Linearisation, u: np.ndarray, *, exact: bool = False
     ) -> np.ndarray:
         """K u on the free DoFs; u is (n_free,) or (n_free, k)."""
-        return self.stiffness_matrix(lin, exact=exact) @ u
+        return self.stiffness_matrix(lin, exact=exact) @ u  # with the loads' tangents
 
     # --- drawing ----------------------------------------------------------------------------
     def skin(self, positions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -50,6 +50,7 @@ from pliant.geometry.collision import Box, Plane, TriangleMesh
 from pliant.mesh.quality import signed_volumes
 from pliant.mesh.tetmesh import TetMesh
 from pliant.model import Model, State
+from pliant.sofa import rods
 from pliant.sofa.bodies import Part, contact_problem, join
 from pliant.sofa.components import FIELDS, is_visual
 from pliant.sofa.grids import GRIDS, HEXAHEDRA, grid_tetrahedra, hex_body
@@ -270,7 +271,8 @@ class SofaScene:
             solver = StaticSolver(self.model)
         else:
             solver = ImplicitEuler(self.model, self.dt, tangent=tangent)
-        return ControlledSolver(self, solver) if self.controllers() else solver
+        hooks = self.bindings is not None and self.bindings.hooks
+        return ControlledSolver(self, solver) if self.controllers() or hooks else solver
 
     def controllers(self) -> list:
         """The scene's Python controllers, in scene order."""
@@ -340,6 +342,8 @@ class SofaScene:
             positions[rows] = given
         if positions is not None:
             state = dataclasses.replace(state, positions=positions)
+        for hook in bindings.hooks:
+            state = hook.read(state)
         return state
 
     def write_outputs(self, state: State) -> None:
@@ -350,6 +354,8 @@ class SofaScene:
         if bindings is None:
             return
         bindings.written = [_frozen(state.positions[rows]) for _, rows in bindings.bodies]
+        for hook in bindings.hooks:
+            hook.write(state)
         for (dofs, rows), written in zip(bindings.bodies, bindings.written, strict=True):
             dofs.attrs["position"] = written
             dofs.attrs["velocity"] = _frozen(state.velocities[rows])
@@ -445,6 +451,9 @@ class Bindings:
     # where it is held, its initial position and rotation).
     frames: list[tuple[SceneObject, list]] = dataclasses.field(default_factory=list)
     servos: list[Servo] = dataclasses.field(default_factory=list)
+    # Bodies whose data have their own reading and writing (pliant.sofa.rods.RodData):
+    # read(state) -> state before a step, write(state) after it.
+    hooks: list = dataclasses.field(default_factory=list)
 
 
 class ControlledSolver:
@@ -701,6 +710,7 @@ _COMMON = frozenset({"name", "template", "printLog", "tags", "bbox", "listening"
 
 class _Builder:
     loaders = MESH_LOADERS
+    intersections = INTERSECTIONS
 
     def __init__(self, root: SceneNode, path: Path, choices: Choices, mesh_dirs: list[Path]):
         self.root, self.path, self.choices, self.mesh_dirs = root, path, choices, mesh_dirs
@@ -710,6 +720,11 @@ class _Builder:
     # --- scene-wide ------------------------------------------------------------------------
     def build(self) -> SofaScene:
         self._check_supported()
+        if rods.has_rods(self.root):  # a Cosserat rod as the body (pliant.sofa.rods)
+            model, dt, solver_kind, rod = rods.rod_model(self)
+            scene = SofaScene(model, dt, solver_kind, self.path, self.root, Bindings(hooks=[rod]))
+            scene.write_outputs(model.rest_state())
+            return scene
         self._servos = read_servos(self.root)
         nodes = self._body_nodes()
         body_node = nodes[0]
@@ -812,11 +827,12 @@ class _Builder:
         name, close to one of its fields)."""
         problems = []
         detects = self._detects()
+        handled = HANDLED | (rods.COMPONENTS if rods.has_rods(self.root) else frozenset())
         for node in self.root.walk():
             for obj in node.objects:
                 if not detects and obj.type.endswith("CollisionModel"):
                     continue
-                if obj.type not in HANDLED and obj.type not in IGNORED and not is_visual(obj.type):
+                if obj.type not in handled and obj.type not in IGNORED and not is_visual(obj.type):
                     why = UNSUPPORTED.get(obj.type, "")
                     problems.append(f"{obj.type} (at {node.path}{': ' + why if why else ''})")
                     if not why:  # a component Pliant knows has its data checked too

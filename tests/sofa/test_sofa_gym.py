@@ -151,10 +151,13 @@ def _scene(folder: Path, body: str) -> Path:
             from sofagym.utils import createCosserat
 
             def createScene(rootNode, config):
-                createCosserat(rootNode, config, name="Stem")
+                for name in ("A", "B"):
+                    shape = {"init_pos": [0, 0, 0], "tot_length": 10, "nbSectionS": 1,
+                             "nbFramesF": 2}
+                    rod = createCosserat(rootNode, shape, name=name)
+                    rod.rigidBase.MappedFrames.addObject("UniformMass", totalMass=1)
             """,
-            "scene.py, line 5 (in createScene): sofagym.utils.createCosserat: Pliant has no"
-            " Cosserat rod",
+            "Pliant simulates one moving Cosserat rod (the model's body), got 2",
         ),
         (
             """

@@ -4,8 +4,9 @@ environments' scenes import, written for Pliant from what they are documented to
 ``addHeader`` sets up the root as SofaGym's scenes expect (frictional contact pipeline,
 constraint-based loop, animation manager, gravity and time step); ``addVisu`` adds cameras and
 lights only, which Pliant does not draw. ``addRigidObject`` adds a rigid body given by a mesh
-and a density (read by :mod:`pliant.sofa.rigids`). The beam builders of ``sofagym.utils`` need
-a model Pliant lacks (Cosserat rods): they stop the load with a :class:`SceneError` naming it.
+and a density (read by :mod:`pliant.sofa.rigids`). ``createCosserat`` adds a Cosserat rod of
+SOFA's Cosserat plugin and ``addEdgeCollision`` collision models on its frames (read by
+:mod:`pliant.sofa.rods`).
 """
 
 from __future__ import annotations
@@ -14,7 +15,7 @@ import numpy as np
 
 from pliant.sofa.prefabs.splib import AnimationManager
 from pliant.sofa.prefabs.stlib import SHAPES, ContactHeader
-from pliant.sofa.tree import SceneError, SceneNode
+from pliant.sofa.tree import SceneNode
 
 
 def addHeader(  # noqa: N802 (SofaGym's names)
@@ -109,18 +110,117 @@ def addRigidObject(  # noqa: N802
     return body
 
 
-def _lacks(what: str):
-    def refuse(*_args, **_kwargs):
-        raise SceneError(f"sofagym.utils.{what}: Pliant has no {_LACKS[what]}")
+def addEdgeCollision(parentNode: SceneNode, position3D, edges) -> SceneNode:  # noqa: N802, N803
+    """Collision lines and points on a rod's frames: a child ``CollisCosserat`` of
+    `parentNode` (the frames' node) with an edge set on the points `position3D` (`edges`: the
+    flat list of point pairs), a MechanicalObject ``CollisionDOFs`` on them, line and point
+    models (group 2) and an IdentityMapping from the frames' positions."""
+    node = parentNode.addChild("CollisCosserat")
+    node.addObject("EdgeSetTopologyContainer", name="collisEdgeSet", position=position3D,
+                   edges=edges)  # fmt: skip
+    node.addObject("EdgeSetTopologyModifier", name="collisEdgeModifier")
+    node.addObject("MechanicalObject", name="CollisionDOFs", position=position3D)
+    node.addObject("LineCollisionModel", bothSide=1, group=2)
+    node.addObject("PointCollisionModel", bothSide=1, group=2)
+    node.addObject("IdentityMapping", name="mapping")
+    return node
 
-    refuse.__name__ = what
-    return refuse
 
+def createCosserat(  # noqa: N802
+    parent: SceneNode,
+    config: dict,
+    name: str = "Cosserat",
+    orientation=(0.0, 0.0, 0.0, 1.0),
+    radius: float = 0.5,
+    last_frame: dict | None = None,
+    rigidBase: SceneNode | None = None,  # noqa: N803
+    nonColored: bool = False,  # noqa: N803
+    buildCollision: bool = False,  # noqa: N803
+    youngModulus: float = 100e6,  # noqa: N803
+) -> SceneNode:
+    """A Cosserat rod of SOFA's Cosserat plugin as SofaGym documents its builder: a child
+    `name` of `parent` with its solver (EulerImplicitSolver, Rayleigh 0.1 mass and 0.2
+    stiffness), holding
 
-_LACKS = {
-    "createCosserat": "Cosserat rod (SOFA's Cosserat plugin)",
-    "addEdgeCollision": "collision model on a Cosserat rod's edges",
-}
+    * the base: a child ``rigidBase`` with a Rigid3 MechanicalObject ``RigidBaseMO`` at
+      ``config["init_pos"]`` and `orientation` (x y z w), held by springs (5000 on its
+      position and its angle); or the node `rigidBase` given (a cart), made a child too;
+    * ``rateAngularDeform``: the strains (torsion and two bendings per unit length, zero at
+      rest) of ``config["nbSectionS"]`` sections of equal length along
+      ``config["tot_length"]``, with a BeamHookeLawForceField (circular section of `radius`,
+      `youngModulus`);
+    * ``MappedFrames``, child of both: a Rigid3 MechanicalObject ``FramesMO`` of the frames
+      along the rod, at the base, at ``config["nbFramesF"]`` equal steps from it (the first
+      at the base again) and at the tip, placed by a DiscreteCosseratMapping from the strains
+      and the base; with `buildCollision`, edge collision on them (:func:`addEdgeCollision`).
+
+    The rod runs along the base frame's x axis; curvilinear abscissas start at the base's x.
+    `last_frame` ({"orient", "index", "dist"}) adds frames carried by one of the frames.
+    `nonColored` only changes the drawing. Pliant reads the rod as a
+    :class:`pliant.fem.rod.RodBody` (:mod:`pliant.sofa.rods`)."""
+    x, y, z = (float(v) for v in config["init_pos"])
+    total = float(config["tot_length"])
+    n_sections, n_frames = int(config["nbSectionS"]), int(config["nbFramesF"])
+    last = last_frame or {"orient": [], "index": None, "dist": None}
+    base = parent.addChild(name)
+    base.addObject("EulerImplicitSolver", firstOrder=0, rayleighStiffness=0.2, rayleighMass=0.1)
+    base.addObject("SparseLDLSolver", template="CompressedRowSparseMatrixd", name="solver")
+    base.addObject("GenericConstraintCorrection")
+    if rigidBase is None:
+        base_node = base.addChild("rigidBase")
+        base_dofs = base_node.addObject(
+            "MechanicalObject", template="Rigid3d", name="RigidBaseMO",
+            position=[x, y, z, *orientation],
+        )  # fmt: skip
+        base_node.addObject(
+            "RestShapeSpringsForceField", name="spring", stiffness=5000, angularStiffness=5000,
+            external_points=0, mstate="@RigidBaseMO", points=0, template="Rigid3d",
+        )  # fmt: skip
+    else:
+        base_node = base.addChild(rigidBase)
+        base_dofs = rigidBase.RigidBaseMO
+    step = total / n_sections
+    lengths = [step] * n_sections
+    sections = [x + step * i for i in range(n_sections)] + [x + total]
+    strains = base.addChild("rateAngularDeform")
+    strain_dofs = strains.addObject(
+        "MechanicalObject", template="Vec3d", name="rateAngularDeformMO",
+        position=[[0.0, 0.0, 0.0]] * n_sections,
+    )  # fmt: skip
+    strains.addObject(
+        "BeamHookeLawForceField", crossSectionShape="circular", length=lengths, radius=radius,
+        youngModulus=youngModulus,
+    )  # fmt: skip
+    along = [i * total / n_frames for i in range(n_frames)]
+    if last["index"] is not None and 1 <= int(last["index"]) <= n_frames:
+        along[int(last["index"]) - 1] = float(last["dist"])
+    abscissas = [x] + [x + s for s in along] + [x + total]
+    frames = [[a, y, z, 0.0, 0.0, 0.0, 1.0] for a in abscissas]
+    mapped = base_node.addChild("MappedFrames")
+    strains.addChild(mapped)
+    frame_dofs = mapped.addObject(
+        "MechanicalObject", template="Rigid3d", name="FramesMO", position=frames
+    )
+    if buildCollision:
+        points = [f[:3] for f in frames]
+        edges = [k for i in range(len(points) - 1) for k in (i, i + 1)]
+        addEdgeCollision(mapped, points, edges)
+    mapped.addObject(
+        "DiscreteCosseratMapping", curv_abs_input=sections, curv_abs_output=abscissas,
+        input1=strain_dofs.getLinkPath(), input2=base_dofs.getLinkPath(),
+        output=frame_dofs.getLinkPath(), debug=0, radius=radius, nonColored=nonColored,
+    )  # fmt: skip
+    for i, orient in enumerate(last["orient"]):
+        carried = base.addChild(f"lastFrame_{i}")
+        dofs = carried.addObject(
+            "MechanicalObject", template="Rigid3d", name="RigidBaseMO",
+            position=[x + float(last["dist"]), y, z, *orient],
+        )  # fmt: skip
+        carried.addObject(
+            "RigidMapping", name="mapLastFrame", input=frame_dofs.getLinkPath(),
+            output=dofs.getLinkPath(), index=last["index"], globalToLocalCoords=True,
+        )  # fmt: skip
+    return base
 
 
 def header_members() -> dict:
@@ -128,4 +228,8 @@ def header_members() -> dict:
 
 
 def utils_members() -> dict:
-    return {"addRigidObject": addRigidObject} | {name: _lacks(name) for name in _LACKS}
+    return {
+        "addRigidObject": addRigidObject,
+        "createCosserat": createCosserat,
+        "addEdgeCollision": addEdgeCollision,
+    }
