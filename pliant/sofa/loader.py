@@ -224,6 +224,11 @@ UNSUPPORTED = {
     " recorded state); a Pliant scene starts from its rest shape",
     "MeshSpringForceField": "springs on the edges of points mapped on the body; Pliant's"
     " springs hold nodes to their rest positions only (RestShapeSpringsForceField)",
+    # BeamAdapter's beams (SofaGym's StemPendulum): Pliant reads the Cosserat plugin's rods
+    # (pliant.sofa.rods), not BeamAdapter's interpolated beams.
+    "BeamInterpolation": "BeamAdapter's beam (Pliant reads SOFA's Cosserat plugin rods)",
+    "AdaptiveBeamForceFieldAndMass": "BeamAdapter's beam (Pliant reads SOFA's Cosserat"
+    " plugin rods)",
 }
 # A rigidified group's frame is a Pliant rigid body with this share of its nodes' mass (SOFA's
 # frames have none of their own: the nodes carry it; Pliant's rigid bodies need a mass).
@@ -720,7 +725,7 @@ class _Builder:
     # --- scene-wide ------------------------------------------------------------------------
     def build(self) -> SofaScene:
         self._check_supported()
-        if rods.has_rods(self.root):  # a Cosserat rod as the body (pliant.sofa.rods)
+        if rods.has_rods(self.root) and rods.moving_rods(self):  # a rod as the body
             model, dt, solver_kind, rod = rods.rod_model(self)
             scene = SofaScene(model, dt, solver_kind, self.path, self.root, Bindings(hooks=[rod]))
             scene.write_outputs(model.rest_state())

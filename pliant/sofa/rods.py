@@ -40,7 +40,8 @@ What the rod carries:
   point collides at its frame's node, the lines between the nodes not at all).
 
 A rod with no mass, no solid, no load and no contact (SofaGym's drawn ``Path``) never moves in
-SOFA: Pliant leaves it out of the model, its data at rest. Written back after each step: the
+SOFA: Pliant leaves it out of the model, its data at rest (a scene whose rods are all such
+is read without them). Written back after each step: the
 frames, the base's and the welded solids' poses and velocities, the strains (each section's
 mean), the collision points. A controller that writes the strains' ``rest_position`` sets the
 rod's rest curvature (:meth:`pliant.fem.rod.RodBody.set_rest_curvature`).
@@ -425,6 +426,26 @@ def _active(builder: _Builder, rod: _Rod) -> bool:
         o.type.endswith("CollisionModel") for c in rod.frames.node.walk() for o in c.objects
     )
     return collides and builder._detects()
+
+
+def moving_rods(builder: _Builder) -> bool:
+    """Whether the scene has a Cosserat rod that moves; the rods that never move are taken
+    out of the tree the model is read from (a script still reaches them by their names)."""
+    rods = [_read_rod(builder, law) for n in builder.root.walk() for law in _objects(n, LAW)]
+    still = [r for r in rods if not _active(builder, r)]
+    if len(still) < len(rods):
+        return True
+    for rod in still:
+        nodes = [rod.strains.node, rod.frames.node, rod.base.node]
+        top = rod.strains.node.parent
+        if top is not None and all(n is top or n.parent is top for n in nodes[::2]):
+            nodes = [top]  # createCosserat's node: the rod's base, strains and frames
+        for node in nodes:
+            parent = node.parent
+            if parent is not None and node in parent.children:
+                parent.children.remove(node)
+                parent.extras[str(node.name)] = node
+    return False
 
 
 def rod_model(builder: _Builder) -> tuple[Model, float, str, RodData]:

@@ -6,12 +6,13 @@ constraint-based loop, animation manager, gravity and time step); ``addVisu`` ad
 lights only, which Pliant does not draw. ``addRigidObject`` adds a rigid body given by a mesh
 and a density (read by :mod:`pliant.sofa.rigids`). ``createCosserat`` adds a Cosserat rod of
 SOFA's Cosserat plugin and ``addEdgeCollision`` collision models on its frames (read by
-:mod:`pliant.sofa.rods`).
+:mod:`pliant.sofa.rods`); ``express_point`` gives a pose relative to another.
 """
 
 from __future__ import annotations
 
 import numpy as np
+from scipy.spatial.transform import Rotation
 
 from pliant.sofa.prefabs.splib import AnimationManager
 from pliant.sofa.prefabs.stlib import SHAPES, ContactHeader
@@ -223,6 +224,17 @@ def createCosserat(  # noqa: N802
     return base
 
 
+def express_point(base, point) -> list[float]:
+    """A Rigid3 pose `point` (x y z, quaternion x y z w) relative to the pose `base`, as
+    SofaGym documents it: the difference of the positions (world axes, not turned into the
+    base's) and the rotation taking the base's orientation to the point's, base^-1 point."""
+    base, point = np.asarray(base, dtype=float), np.asarray(point, dtype=float)
+    turn = Rotation.from_quat(base[3:7]).inv() * Rotation.from_quat(point[3:7])
+    quaternion = turn.as_quat()
+    quaternion *= -1.0 if quaternion[3] < 0 else 1.0
+    return [float(v) for v in (*(point[:3] - base[:3]), *quaternion)]
+
+
 def header_members() -> dict:
     return {"addHeader": addHeader, "addVisu": addVisu}
 
@@ -232,4 +244,5 @@ def utils_members() -> dict:
         "addRigidObject": addRigidObject,
         "createCosserat": createCosserat,
         "addEdgeCollision": addEdgeCollision,
+        "express_point": express_point,
     }
