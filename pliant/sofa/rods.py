@@ -276,16 +276,17 @@ def _indices(obj: SceneObject, key: str, count: int) -> np.ndarray:
 
 
 def _wrenches(obj: SceneObject, count: int) -> tuple[np.ndarray, np.ndarray]:
-    """A Rigid3 ConstantForceField's points and their (k, 6) forces and moments."""
+    """A Rigid3 ConstantForceField's points and their (k, 6) forces and moments: its
+    ``forces`` (one per point), else its ``force`` (on each), else its ``totalForce`` (shared),
+    whichever is set and not zero (a controller sets ``force`` on SofaGym's cart, created
+    with a zero ``totalForce``)."""
     idx = _indices(obj, "indices", count)
-    if "forces" in obj.attrs:
-        values = np.asarray(data_value(obj.attrs["forces"]), dtype=float).reshape(-1, 6)
-    elif "totalForce" in obj.attrs:
-        values = np.asarray(data_value(obj.attrs["totalForce"]), dtype=float).reshape(-1, 6)
-        values = values / max(idx.size, 1)
-    else:
-        values = np.asarray(data_value(obj.attrs.get("force", [0.0] * 6)), dtype=float)
-        values = values.reshape(-1, 6)
+    values = np.zeros((1, 6))
+    for key in ("forces", "force", "totalForce"):  # the first one set and not zero
+        given = np.asarray(data_value(obj.attrs.get(key, [])), dtype=float).reshape(-1)
+        if given.size and given.any():
+            values = given.reshape(-1, 6) / (max(idx.size, 1) if key == "totalForce" else 1)
+            break
     if len(values) not in (1, idx.size) or not np.all(np.isfinite(values)):
         raise SceneError(f"{obj.path}: finite 6-value forces (force and moment) per point expected")
     return idx, np.broadcast_to(values, (idx.size, 6))

@@ -110,9 +110,13 @@ class Data:
         if not isinstance(value, (np.ndarray, float, int)) or isinstance(value, bool):
             return value
         scalar = isinstance(self.default, (int, float)) and not isinstance(self.default, bool)
-        if self.key in POINT_FIELDS and not scalar:  # points: (n, 3), or (n, 7) rigid poses
+        if self.key in ONE_DERIVATIVE.get(getattr(self.owner, "type", ""), ()):
+            value = _one_derivative(self.owner, value)
+        elif self.key in POINT_FIELDS and not scalar:  # points: (n, 3), or (n, 7) rigid poses
             template = str(self.owner.attrs.get("template", ""))
             width = 7 if template.startswith("Rigid3") else 1 if template == "Vec1" else 3
+            if width == 7 and self.key in DERIVATIVES:  # a rigid twist or wrench: 6 values
+                width = 6
             value = np.asarray(value, dtype=float).reshape(-1, width)
         elif self.key in INDEX_FIELDS:
             value = np.atleast_1d(value).astype(np.int64)
@@ -229,6 +233,26 @@ POINT_FIELDS = frozenset(
     {"position", "velocity", "rest_position", "force", "externalForce", "free_position",
      "effectorGoal"}
 )  # fmt: skip
+# Point fields that are derivatives (a Rigid3 point's: velocity and angular velocity, force
+# and moment, six values).
+DERIVATIVES = frozenset({"velocity", "force", "externalForce"})
+
+# Fields of one derivative of the component's state (a force on each of its points: six
+# values, force and moment, on a Rigid3 state), not a vector of points.
+ONE_DERIVATIVE = {"ConstantForceField": ("force", "totalForce")}
+
+
+def _one_derivative(owner, value) -> np.ndarray:
+    """`value` as one derivative of the owner's state: (6,) on a Rigid3 MechanicalObject
+    (SOFA's default zero where the field gives three), else (3,)."""
+    dofs = owner.node.getMechanicalState()
+    rigid = dofs is not None and str(dofs.attrs.get("template", "")).startswith("Rigid3")
+    out = np.asarray(value, dtype=float).reshape(-1)
+    if rigid and out.size == 3 and not out.any():
+        out = np.zeros(6)
+    out.flags.writeable = False
+    return out
+
 
 # Data fields that hold indices (SofaPython3 gives them as integer arrays).
 INDEX_FIELDS = frozenset(

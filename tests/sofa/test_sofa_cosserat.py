@@ -159,6 +159,17 @@ def test_rod_on_a_sliding_cart_carrying_a_welded_ball(tmp_path) -> None:
     # n (n + 1) / 2 after n steps (less 1 %: createCosserat's Rayleigh mass damping, 0.1 / s).
     centre = (2.0 * cart[0] + 1.0 * ball[0]) / 3.0
     assert centre == pytest.approx(3.0 / 3.0 * scene.dt**2 * 20 * 21 / 2, rel=0.02)
+    # A Rigid3 state's velocity and a ConstantForceField's force on it: six values each; a
+    # force a script sets (as SofaGym's CartStem toolbox does) drives the next steps.
+    assert scene.root.Stem.Cart.RigidBaseMO.velocity.value.shape == (1, 6)
+    push = scene.root.Stem.Cart.ConstantForceField
+    force = push.force.value.tolist()
+    assert force == [0.0] * 6
+    force[0] = -30.0
+    push.force.value = np.array(force)
+    for _ in range(5):
+        state = solver.step(state)
+    assert scene.root.Stem.Cart.RigidBaseMO.velocity.value[0, 0] < 0.0
 
 
 def test_rod_scene_errors_name_what_is_wrong(tmp_path) -> None:
