@@ -20,6 +20,7 @@ from pliant.fem.material import Material
 from pliant.fem.rod import RodBody, RodSection
 from pliant.model import Model
 from pliant.sofa import SceneError, load_scene
+from pliant.sofa.prefabs.sofagym import express_point
 from pliant.solvers import ImplicitEuler, StaticSolver
 
 SCENE = Path(__file__).parent / "sofa_scenes" / "cosserat_cantilever.py"
@@ -189,3 +190,32 @@ def test_rod_scene_errors_name_what_is_wrong(tmp_path) -> None:
     )
     with pytest.raises(SceneError, match="length: the sections' lengths"):
         load_scene(scene_file, config={})
+
+
+def test_a_rod_that_never_moves_is_left_out(tmp_path) -> None:
+    """SofaGym's drawn path: a rod with no mass, solid, load or contact stays where it is in
+    SOFA; Pliant reads the scene without it (here nothing is left: no deformable body)."""
+    scene_file = tmp_path / "drawn_rod.py"
+    scene_file.write_text(
+        textwrap.dedent(
+            """
+            from sofagym.utils import createCosserat
+
+            def createScene(rootNode, config):
+                shape = {"init_pos": [-5, 0, 0], "tot_length": 10, "nbSectionS": 1,
+                         "nbFramesF": 1}
+                createCosserat(rootNode, shape, name="Path")
+            """
+        )
+    )
+    with pytest.raises(SceneError, match="has no deformable body"):
+        load_scene(scene_file, config={})
+
+
+def test_express_point_is_a_pose_relative_to_a_base() -> None:
+    """sofagym.utils.express_point: the positions' difference (world axes) and the rotation
+    from the base's orientation to the point's."""
+    turn = [0.0, 0.0, np.sin(np.pi / 4), np.cos(np.pi / 4)]  # 90 degrees about z
+    half = [0.0, 0.0, np.sin(np.pi / 8), np.cos(np.pi / 8)]  # 45 degrees about z
+    pose = express_point([1.0, 2.0, 3.0, *half], [2.0, 2.0, 5.0, *turn])
+    np.testing.assert_allclose(pose, [1.0, 0.0, 2.0, *half], atol=1e-12)
