@@ -716,6 +716,7 @@ _COMMON = frozenset({"name", "template", "printLog", "tags", "bbox", "listening"
 class _Builder:
     loaders = MESH_LOADERS
     intersections = INTERSECTIONS
+    point_constraints = POINT_CONSTRAINTS
 
     def __init__(self, root: SceneNode, path: Path, choices: Choices, mesh_dirs: list[Path]):
         self.root, self.path, self.choices, self.mesh_dirs = root, path, choices, mesh_dirs

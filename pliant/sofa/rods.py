@@ -468,6 +468,17 @@ def rod_model(builder: _Builder) -> tuple[Model, float, str, RodData]:
             f"{path.name}: a Cosserat rod beside a tetrahedral body"
             f" ({builder._deformable_nodes()[0].path}); Pliant's model has one body"
         )
+    acting = [
+        f"{o.type} (at {n.path})"
+        for n in root.walk()
+        for o in n.objects
+        if o.type in builder.point_constraints
+    ]
+    if acting:
+        raise SceneError(
+            f"{path.name}: actuators and effectors act on a tetrahedral body's points, not on a"
+            " Cosserat rod: " + "; ".join(acting)
+        )
     gravity = np.asarray(data_value(root.attrs.get("gravity", [0.0, -9.81, 0.0])), float)
     dt = float(np.asarray(data_value(root.attrs.get("dt", 0.01)), float).reshape(-1)[0])
     base_pose = _pose(builder, rod.base)
@@ -535,6 +546,21 @@ def rod_model(builder: _Builder) -> tuple[Model, float, str, RodData]:
             raise SceneError(f"{other.node.path}: a welded solid needs a mass (a UniformMass)")
         masses.append((node, *solid))
         rod.welded.append((other, node, (centre, sofa_frames[node].T @ turn)))
+    # Moving solids the rod does not carry: SOFA moves them, Pliant's model has none here.
+    carried = {id(rod.base.node)} | {id(w[0].node) for w in rod.welded}
+    loose = [
+        n.path
+        for n in root.walk()
+        if id(n) not in carried
+        and builder._is_rigid(n)
+        and _objects(n, "UniformMass")
+        and not any(o.type in ("FixedConstraint", "FixedProjectiveConstraint") for o in n.objects)
+    ]
+    if loose:
+        raise SceneError(
+            f"{path.name}: moving rigid bodies beside a Cosserat rod are not supported"
+            f" ({', '.join(loose)}); Pliant reads solids welded to the rod or carrying its base"
+        )
     # The rod's own mass.
     own = builder._one(rod.frames.node, {"UniformMass"}, "masses")
     kind, damping = builder._ode_solver(rod.strains.node)

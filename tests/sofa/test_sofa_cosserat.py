@@ -9,6 +9,7 @@ under its weight, tip slope F L^2 / (2 E I) (one-point quadrature on 10 elements
 
 from __future__ import annotations
 
+import re
 import textwrap
 from pathlib import Path
 
@@ -173,7 +174,23 @@ def test_rod_on_a_sliding_cart_carrying_a_welded_ball(tmp_path) -> None:
     assert scene.root.Stem.Cart.RigidBaseMO.velocity.value[0, 0] < 0.0
 
 
-def test_rod_scene_errors_name_what_is_wrong(tmp_path) -> None:
+@pytest.mark.parametrize(
+    ("extra", "message"),
+    [
+        (
+            "rod.rateAngularDeform.BeamHookeLawForceField.length = [5.0, 4.0]",
+            "length: the sections' lengths",
+        ),
+        (
+            'ball = rootNode.addChild("ball")\n'
+            'ball.addObject("MechanicalObject", template="Rigid3", position=[0, 5, 0, 0, 0, 0, 1])'
+            "\n"
+            'ball.addObject("UniformMass", totalMass=1)',
+            "moving rigid bodies beside a Cosserat rod are not supported (root/ball)",
+        ),
+    ],
+)
+def test_rod_scene_errors_name_what_is_wrong(tmp_path, extra, message) -> None:
     scene_file = tmp_path / "bad_rod.py"
     scene_file.write_text(
         textwrap.dedent(
@@ -183,12 +200,13 @@ def test_rod_scene_errors_name_what_is_wrong(tmp_path) -> None:
             def createScene(rootNode, config):
                 rod = createCosserat(rootNode, {"init_pos": [0, 0, 0], "tot_length": 10,
                                      "nbSectionS": 2, "nbFramesF": 4}, name="Rod")
-                rod.rateAngularDeform.BeamHookeLawForceField.length = [5.0, 4.0]
                 rod.rigidBase.MappedFrames.addObject("UniformMass", totalMass=1)
             """
         )
+        + textwrap.indent(extra, "    ")
+        + "\n"
     )
-    with pytest.raises(SceneError, match="length: the sections' lengths"):
+    with pytest.raises(SceneError, match=re.escape(message)):
         load_scene(scene_file, config={})
 
 
