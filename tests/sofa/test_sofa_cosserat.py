@@ -237,3 +237,39 @@ def test_express_point_is_a_pose_relative_to_a_base() -> None:
     half = [0.0, 0.0, np.sin(np.pi / 8), np.cos(np.pi / 8)]  # 45 degrees about z
     pose = express_point([1.0, 2.0, 3.0, *half], [2.0, 2.0, 5.0, *turn])
     np.testing.assert_allclose(pose, [1.0, 0.0, 2.0, *half], atol=1e-12)
+
+
+def test_rod_frames_collide_with_a_static_obstacle(tmp_path) -> None:
+    """addEdgeCollision's points on the frames, SofaGym's contact header: the cantilever,
+    sagging under its weight (2.3 free at the tip), rests on a floor under its outer half at
+    the header's contactDistance above it."""
+    scene_file = tmp_path / "rod_floor.py"
+    scene_file.write_text(
+        textwrap.dedent(
+            """
+            from sofagym.header import addHeader
+            from sofagym.utils import createCosserat
+
+            def createScene(rootNode, config):
+                addHeader(rootNode, alarmDistance=0.5, contactDistance=0.1,
+                          gravity=[0, 0, -9810.0], dt=0.01, mu="0")
+                shape = {"init_pos": [0, 0, 0], "tot_length": 100, "nbSectionS": 10,
+                         "nbFramesF": 10}
+                rod = createCosserat(rootNode, shape, name="Rod", radius=1.0, youngModulus=2e5,
+                                     buildCollision=True)
+                rod.rigidBase.addObject("FixedConstraint", indices=0)
+                rod.rigidBase.MappedFrames.addObject("UniformMass", totalMass=3e-4)
+                floor = rootNode.addChild("floor")
+                corners = [[50, -10, -1], [150, -10, -1], [150, 10, -1], [50, 10, -1]]
+                floor.addObject("MeshTopology", name="mesh", position=corners,
+                                triangles=[0, 1, 2, 0, 2, 3])
+                floor.addObject("MechanicalObject", position="@mesh.position")
+                floor.addObject("TriangleCollisionModel", moving=0, simulated=0)
+            """
+        )
+    )
+    scene = load_scene(scene_file, config={})
+    assert scene.model.contacts is not None
+    heights = StaticSolver(scene.model).step(scene.model.rest_state()).positions[: N + 1, 2]
+    assert heights[N] == pytest.approx(-0.9, abs=1e-6)
+    assert np.all(heights >= -0.9 - 1e-6) and np.all(np.diff(heights) < 0)
