@@ -13,11 +13,13 @@ SOFA's rod (as SofaGym's ``createCosserat`` builds it, :mod:`pliant.sofa.prefabs
   the frames follow the base frame's x axis, curved by the initial strains.
 
 Pliant's rod has a node at each distinct frame abscissa, its directors d1, d2, d3 the frame's
-y, z and x axes, and SOFA's stiffness: bending E Iy, E Iz and torsion G J. Departures, all
-small for a slender rod: Pliant's curvature is one per element (between two frames), SOFA's
-one per section (several elements share it: SOFA's rod is stiffer when it has fewer sections
-than frames); Pliant's rod also stretches and shears, with the stiffness E A and G A that
-SOFA's inextensible and unshearable rod has as constraints.
+y, z and x axes, and SOFA's stiffness: bending E Iy, E Iz and torsion G J. Departures:
+Pliant's curvature is one per element (between two frames), SOFA's one per section. With a
+section per frame the two discretise the same beam; with fewer sections SOFA's rod is
+stiffer (SofaGym's stems have one section: SOFA's only takes circular arcs, under an end load
+it deflects F L^3 / (4 E I) where Pliant's takes the elastica, F L^3 / (3 E I)). Pliant's rod
+also stretches and shears, with the stiffness E A and G A that SOFA's inextensible and
+unshearable rod has as constraints (small for a slender rod).
 
 What the rod carries:
 
@@ -41,10 +43,11 @@ What the rod carries:
 
 A rod with no mass, no solid, no load and no contact (SofaGym's drawn ``Path``) never moves in
 SOFA: Pliant leaves it out of the model, its data at rest (a scene whose rods are all such
-is read without them). Written back after each step: the
-frames, the base's and the welded solids' poses and velocities, the strains (each section's
-mean), the collision points. A controller that writes the strains' ``rest_position`` sets the
-rod's rest curvature (:meth:`pliant.fem.rod.RodBody.set_rest_curvature`).
+is read without them). Written back after each step: the frames, the base's and the welded
+solids' poses and velocities, the strains (each section's mean), the points the frames carry.
+A controller that writes the strains' ``rest_position`` sets the rod's rest curvature
+(:meth:`pliant.fem.rod.RodBody.set_rest_curvature`); one that writes the base's
+``position`` (SofaGym's CartStemContact moves its cart so) moves the rod's first node.
 """
 
 from __future__ import annotations
@@ -315,12 +318,11 @@ class RodData:
     """The rod's inputs and outputs in the scene's data, read before and written after each
     step (a :class:`pliant.sofa.loader.SofaScene` hook)."""
 
-    def __init__(self, rod: _Rod, body: RodBody, forces: list, springs_rest: dict) -> None:
+    def __init__(self, rod: _Rod, body: RodBody, forces: list) -> None:
         self.rod, self.body, self.forces = rod, body, forces
         self.section_of = _section_of(rod, 0.5 * (rod.nodes[:-1] + rod.nodes[1:]))
         self.rest = _strain_values(rod.strains, "rest_position").copy()
         self.written_base: np.ndarray | None = None
-        self.springs_rest = springs_rest
         self.carried: dict = {}  # local points of the MechanicalObjects frames carry
 
     def read(self, state: State) -> State:
@@ -485,7 +487,6 @@ def rod_model(builder: _Builder) -> tuple[Model, float, str, RodData]:
     points, sofa_frames = _rest_frames(rod, base_pose)
     n = len(points)
     clamped, held, masses, loads, forces = [], [], [], [], []
-    springs_rest: dict = {}
     # The base: held, on springs, carrying a mass, loaded.
     base_node = rod.base.node
     for obj in base_node.objects:
@@ -593,7 +594,7 @@ def rod_model(builder: _Builder) -> tuple[Model, float, str, RodData]:
     except ModelError as exc:
         raise SceneError(f"{path.name}: {rod.strains.node.path}: {exc}") from exc
     rest = _strain_values(rod.strains, "rest_position")
-    data = RodData(rod, body, forces, springs_rest)
+    data = RodData(rod, body, forces)
     data.apply_forces()
     if not np.allclose(rest, _strain_values(rod.strains, "position")):
         body.set_rest_curvature(rest[data.section_of][:, TO_PLIANT])
