@@ -133,6 +133,10 @@ class RodBody(DeformableBody):
             is a world axis of its spin), beside the nodes `clamped` and `pinned` hold.
         loads: external loads on body nodes (:mod:`pliant.fem.loads`, e.g. NodalForces):
             on a centreline node a force, on an orientation row a moment (world axes).
+        sections: a section number per element: consecutive elements of a polyline in
+            the same section keep the same curvature and twist (a stiff penalty,
+            :class:`SectionTies`): SOFA's piecewise-constant-strain Cosserat rod, whose
+            sections bend only into helices and arcs. Default: every element free.
 
     Node k of the body is centreline node k for k < N and the orientation of node k - N
     above: `fixed_nodes` lists those held, as for a :class:`pliant.fem.body.TetBody`.
@@ -166,6 +170,7 @@ class RodBody(DeformableBody):
         point_masses: Sequence[tuple[int, float, float]] = (),
         held_dofs: Sequence[int] = (),
         loads: Sequence[Load] = (),
+        sections: Sequence[int] | None = None,
     ) -> None:
         x = np.ascontiguousarray(points, dtype=np.float64)
         if x.ndim != 2 or x.shape[1] != 3 or x.shape[0] < 2 or not np.all(np.isfinite(x)):
@@ -280,7 +285,14 @@ class RodBody(DeformableBody):
         self.free_index[self.free_dofs] = np.arange(self.free_dofs.size)
         # An element couples its two nodes and their two orientations: a 4-"node" element.
         self._element_nodes = np.column_stack([self.elements, self.elements + n]).astype(np.int64)
-        self.pattern = StiffnessPattern.build(self._element_nodes, self.free_index)
+        ties = self._ties(sections, bend_twist)
+        groups = self._element_nodes
+        if ties is not None:  # the ties couple three orientations: in the pattern too
+            tied = ties.groups
+            groups = np.vstack([groups, np.column_stack([tied, tied[:, 1]])])
+            loads = [*loads, ties]
+        self.pattern = StiffnessPattern.build(groups, self.free_index)
+        self._scatter = self.pattern.scatter[:m]
         self._mass_diagonal = np.repeat(self.node_masses, 3)[self.free_dofs]
         diagonal = self.pattern.matrix(np.arange(self.pattern.nnz, dtype=float)).diagonal()
         self.mass_data = np.zeros(self.pattern.nnz)
@@ -289,6 +301,22 @@ class RodBody(DeformableBody):
         self.loads = [
             LoadAssembly(load, self.n_nodes, self.free_index, self.pattern) for load in loads
         ]
+
+    def _ties(self, sections, bend_twist: np.ndarray) -> SectionTies | None:
+        """The ties of consecutive elements in one section, or None."""
+        if sections is None:
+            return None
+        label = np.asarray(sections).reshape(-1)
+        if self.is_lattice or label.shape != (self.n_elements,):
+            raise ModelError(
+                f"sections: one section number per element of a polyline ({self.n_elements})"
+            )
+        first = np.flatnonzero(label[:-1] == label[1:])  # element e tied to e + 1
+        if first.size == 0:
+            return None
+        stiffness = SectionTies.PENALTY * bend_twist[first].max(axis=1) / self.lengths[first]
+        triples = np.column_stack([first, first + 1, first + 2])
+        return SectionTies(self.n_centreline, triples, stiffness)
 
     def set_rest_curvature(self, curvature: np.ndarray, elements: np.ndarray | None = None) -> None:
         """Prescribe the rest curvature and twist kappa0 (k, 3) (material frame, rad per
@@ -427,7 +455,7 @@ class RodBody(DeformableBody):
         x, rot = self._split(lin.positions)
         rod_kernels.rod_stiffness(x, rot, *self._elements, exact, self._blocks)
         data = np.zeros(self.pattern.nnz)
-        kernels.scatter_add(self._blocks, 1.0, self.pattern.scatter, data)
+        kernels.scatter_add(self._blocks, 1.0, self._scatter, data)
         if self.loads:
             self._add_surface_data(lin, data)
         return data
@@ -487,6 +515,57 @@ class RodBody(DeformableBody):
     def vtk_cells(self) -> tuple[str, np.ndarray, np.ndarray]:
         """(cell type, cells, point rows) of the body for ParaView: lines on the centreline."""
         return "line", self.elements, np.arange(self.n_centreline)
+
+
+class SectionTies(Load):
+    """Consecutive elements (a, b) and (b, c) of a rod held to the same turn between their
+    ends (equal lengths: the same curvature and twist), by a penalty energy k/2 |u|^2, u =
+    log((R_a^T R_b)^T (R_b^T R_c)), on the nodes' orientation rows.
+
+    With spatial spins dtheta, du = G_a^T dtheta_a - (G_a + G_c)^T dtheta_b + G_c^T dtheta_c
+    to first order in u (G_a = R_a R_b^T R_c, G_c = R_c); the forces are minus k times that
+    row's G u, the tangent k J^T J (Gauss-Newton: exact where the ties hold, u = 0).
+
+    Args:
+        n_centreline: the rod's centreline nodes (orientation rows follow them).
+        triples: (t, 3) centreline nodes a, b, c.
+        stiffness: (t,) k, moment per radian.
+    """
+
+    # k as a multiple of the elements' bending stiffness E I / l: ten elements of a section
+    # then differ in curvature by 2e-5 of it (1.6e-3 at 1e4).
+    PENALTY = 1.0e6
+
+    def __init__(self, n_centreline: int, triples, stiffness) -> None:
+        triples = np.asarray(triples, dtype=np.int64).reshape(-1, 3)
+        self.groups = n_centreline + triples
+        self.stiffness = np.broadcast_to(np.asarray(stiffness, float), (len(triples),)).copy()
+        if not np.all(np.isfinite(self.stiffness)) or np.any(self.stiffness <= 0):
+            raise ModelError("SectionTies: stiffness must be finite and > 0")
+
+    def _terms(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        vectors = np.ascontiguousarray(x[self.groups].reshape(-1, 3), dtype=float)
+        r = rod_kernels.node_rotations(vectors).reshape(-1, 3, 3, 3)
+        ra, rb, rc = r[:, 0], r[:, 1], r[:, 2]
+        ga = np.einsum("tij,tkj,tkl->til", ra, rb, rc)  # R_a R_b^T R_c
+        turn = np.einsum("tji,tjk->tik", rb, ga)  # P = R_b^T R_a R_b^T R_c
+        u = np.empty((len(turn), 3))
+        for i, q in enumerate(turn):
+            rod_kernels.so3_log(np.ascontiguousarray(q), u[i])
+        return u, ga, rc
+
+    def group_forces(self, x: np.ndarray, time: float) -> np.ndarray:
+        u, ga, gc = self._terms(x)
+        fa = -self.stiffness[:, None] * np.einsum("tij,tj->ti", ga, u)
+        fc = -self.stiffness[:, None] * np.einsum("tij,tj->ti", gc, u)
+        return np.stack([fa, -(fa + fc), fc], axis=1)
+
+    def group_tangents(self, x: np.ndarray, time: float) -> np.ndarray:
+        _, ga, gc = self._terms(x)
+        rows = np.concatenate(
+            [ga.transpose(0, 2, 1), -(ga + gc).transpose(0, 2, 1), gc.transpose(0, 2, 1)], axis=2
+        )  # (t, 3, 9): du / dtheta
+        return self.stiffness[:, None, None] * np.einsum("tki,tkj->tij", rows, rows)
 
 
 class ClampedEnd:

@@ -13,13 +13,14 @@ SOFA's rod (as SofaGym's ``createCosserat`` builds it, :mod:`pliant.sofa.prefabs
   the frames follow the base frame's x axis, curved by the initial strains.
 
 Pliant's rod has a node at each distinct frame abscissa, its directors d1, d2, d3 the frame's
-y, z and x axes, and SOFA's stiffness: bending E Iy, E Iz and torsion G J. Departures:
-Pliant's curvature is one per element (between two frames), SOFA's one per section. With a
-section per frame the two discretise the same beam; with fewer sections SOFA's rod is
-stiffer (SofaGym's stems have one section: SOFA's only takes circular arcs, under an end load
-it deflects F L^3 / (4 E I) where Pliant's takes the elastica, F L^3 / (3 E I)). Pliant's rod
-also stretches and shears, with the stiffness E A and G A that SOFA's inextensible and
-unshearable rod has as constraints (small for a slender rod).
+y, z and x axes, and SOFA's stiffness: bending E Iy, E Iz and torsion G J. SOFA's strain is
+one per section: the elements of a section are tied to the same curvature and twist
+(:class:`pliant.fem.rod.SectionTies`, a stiff penalty), so that a section bends only into
+an arc or a helix as SOFA's does (SofaGym's stems have one section: under an end load such a
+rod deflects F L^3 / (4 E I), not the elastica's F L^3 / (3 E I)). An element straddling two
+sections belongs to the one holding its middle. Departure: Pliant's rod also stretches and
+shears, with the stiffness E A and G A that SOFA's inextensible and unshearable rod has as
+constraints (small for a slender rod).
 
 What the rod carries:
 
@@ -590,6 +591,7 @@ def rod_model(builder: _Builder) -> tuple[Model, float, str, RodData]:
             gravity=gravity,
             rayleigh_mass=damping[0],
             rayleigh_stiffness=damping[1],
+            sections=_section_of(rod, 0.5 * (rod.nodes[:-1] + rod.nodes[1:])),
         )
     except ModelError as exc:
         raise SceneError(f"{path.name}: {rod.strains.node.path}: {exc}") from exc

@@ -654,3 +654,20 @@ def test_a_tripod_lattice_settles_on_its_static_equilibrium_under_gravity() -> N
     for _ in range(300):
         state = solver.step(state)
     assert np.abs(state.positions[:13] - static.positions[:13]).max() < 1e-3 * sag
+
+
+def test_rod_sections_loads_point_masses_and_held_dofs_are_checked() -> None:
+    """The rod's SOFA-reading options refuse what they cannot mean, naming it."""
+    points = np.column_stack([np.linspace(0.0, 10.0, 4), np.zeros(4), np.zeros(4)])
+    args = (points, RodSection.circle(0.5), Material(1e5, 0.3))
+    with pytest.raises(ModelError, match="one section number per element"):
+        RodBody(*args, density=1e-6, sections=[0, 0])
+    with pytest.raises(ModelError, match="point mass"):
+        RodBody(*args, density=1e-6, point_masses=[(7, 1.0, 0.0)])
+    with pytest.raises(ModelError, match="held DoFs"):
+        RodBody(*args, density=1e-6, held_dofs=[24])
+    rod = RodBody(
+        *args, density=1e-6, sections=[0, 0, 1], point_masses=[(3, 2.0, 0.5)], held_dofs=[0]
+    )
+    assert rod.node_masses[3] > 2.0 and rod.node_masses[7] > 0.5
+    assert rod.free_dofs[0] == 1 and len(rod.loads) == 1  # the tie of elements 0 and 1

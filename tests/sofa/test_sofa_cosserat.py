@@ -68,6 +68,31 @@ def test_end_load_matches_the_api_rod_and_the_cantilever_formula() -> None:
     assert np.abs(strains[:, [0, 2]]).max() < 1e-12
 
 
+@pytest.mark.parametrize(("sections", "share"), [(1, 1.0 / 4.0), (2, 10.0 / 32.0)])
+def test_sections_bend_as_sofas_piecewise_constant_strain(sections, share) -> None:
+    """Fewer sections than frames: the elements of a section keep one curvature, as SOFA's
+    strain is one per section. Under an end load F, one section of constant curvature
+    deflects F L^3 / (4 E I) (energy E I k^2 L / 2 - F k L^2 / 2 least), two halves 10/32 of
+    F L^3 / (E I) (curvatures 3 F L / (4 E I) and F L / (4 E I)), against the elastica's 1/3;
+    the scene's rod is the API rod with those sections to round-off."""
+    force = -0.05
+    scene = load_scene(
+        SCENE, config={"sections": sections, "tip_force": [0.0, 0.0, force, 0.0, 0.0, 0.0]}
+    )
+    state = scene.solver().step(scene.model.rest_state())
+    label = np.repeat(np.arange(sections), N // sections)
+    api = Model(
+        _api_rod(total_mass=1.0, loads=[NodalForces([N], [0.0, 0.0, force])], sections=label)
+    )
+    expected = StaticSolver(api).step(api.rest_state())
+    np.testing.assert_allclose(state.positions, expected.positions, rtol=0, atol=1e-12)
+    closed = share * force * LENGTH**3 / (YOUNG * INERTIA)
+    assert state.positions[N, 2] == pytest.approx(closed, rel=5e-3)
+    turns = np.linalg.norm(np.diff(state.positions[N + 1 :], axis=0), axis=1)
+    for part in np.split(turns, sections):  # one curvature a section
+        assert np.ptp(part) < 1e-4 * part.max()
+
+
 def test_weight_and_damping_match_the_api_rod_and_the_cantilever_formula() -> None:
     """A UniformMass on the frames under gravity: the scene's implicit steps (createCosserat's
     Rayleigh damping 0.1 and 0.2) are the API rod's; its static sag is q L^4 / (8 E I)."""
