@@ -7,12 +7,18 @@ replayed on the reduced model and on the full FEM (default mesh, SofaGym's rewar
         --env-kwarg 'training={"sequences": 20}'
     # (20 is now the environment's default; the committed run with the former default of 3,
     # table_3_2_sequences3.json, was made with 'training={"sequences": 3}'.)
-    # 2. replay both gaits on both models, write the table
-    python experiments/reduction/table_3_2.py --run runs/table_3_2_ppo
+    # 2. replay the gaits on both models, write the table, keep the policies (small .npz)
+    python experiments/reduction/table_3_2.py --run runs/table_3_2_ppo \
+        --keep experiments/results/reduction/table_3_2_policies
+    # re-evaluate the kept policies from the repository alone (pliant reproduce table-3.2
+    # --evaluate): the same replays, into another folder
+    python experiments/reduction/table_3_2.py \
+        --evaluate experiments/results/reduction/table_3_2_policies --out /tmp/t32
 
 The learned gait is the deterministic episode, from the environment's reset, of the run's best
 evaluated policy (the task has no randomness: every episode starts at rest, so an evaluation
-is this very episode). Writes
+is this very episode: the selection and the figure are one episode); the final policy's gait,
+chosen by nothing, is replayed beside it (``final``). Writes
 experiments/results/reduction/table_3_2.json and .png with the learning curve (mean return of
 the run's evaluations against environment steps) and the thesis' figures beside ours.
 The thesis' figures are on SofaGym's reference mesh and its command sizes, in cm; ours on
@@ -32,6 +38,7 @@ import gymnasium as gym
 import numpy as np
 
 import pliant.envs  # noqa: F401  (registers the environments)
+from pliant.files import write_results
 
 HAND = [4, 0, 2, 5, 1, 3]  # rear, centre, front inflated; then deflated in that order
 # Thesis Table 3.2 (cm): cumulative reward on the reduced model, final x on the reduced and on
@@ -72,14 +79,13 @@ def run_env_kwargs(run: Path) -> dict:
     return yaml.safe_load((run / "config.yaml").read_text()).get("env_kwargs") or {}
 
 
-def learned_actions(run: Path) -> list[int]:
-    """The saved policy's deterministic actions over one episode of the reduced model."""
+def policy_actions(source: Path, env_kwargs: dict) -> list[int]:
+    """The deterministic actions over one episode of the reduced model of the policy in
+    `source` (a run's best/ or final/, or a kept policy .npz)."""
     from pliant.learn.evaluate import load_policy
 
-    # The best evaluated policy (evaluations are this deterministic episode), else the last.
-    folder = run / "best" if (run / "best" / "model.zip").exists() else run / "final"
-    policy = load_policy(folder)
-    env = gym.make("pliant/ReducedMultigait-v0", **run_env_kwargs(run))
+    policy = load_policy(source)
+    env = gym.make("pliant/ReducedMultigait-v0", **env_kwargs)
     obs, _ = env.reset(seed=0)
     actions, done = [], False
     normalize = policy.normalize_obs
@@ -93,6 +99,26 @@ def learned_actions(run: Path) -> list[int]:
             done = terminated or truncated
     env.close()
     return actions
+
+
+def run_policies(run: Path) -> dict[str, Path]:
+    """The run's best evaluated policy (evaluations are this deterministic episode; the last
+    one where the run saved no best) and its final one."""
+    best = run / "best" if (run / "best" / "model.zip").exists() else run / "final"
+    return {"learned": best, "final": run / "final"}
+
+
+def kept_policies(folder: Path) -> tuple[dict[str, Path], dict]:
+    """The kept policies (policy_learned.npz, policy_final.npz) and the reduced model's
+    arguments they were trained with (their provenance)."""
+    from pliant.learn.kept import load_policy
+
+    paths = {name: folder / f"policy_{name}.npz" for name in ("learned", "final")}
+    for path in paths.values():
+        if not path.is_file():
+            raise SystemExit(f"{path}: no kept policy (make them with --run RUN --keep DIR)")
+    env_kwargs = load_policy(paths["learned"]).meta["provenance"].get("env_kwargs") or {}
+    return paths, env_kwargs
 
 
 def learning_curve(run: Path) -> dict:
@@ -113,15 +139,18 @@ def plot(results: dict, path: Path) -> None:
 
     fig, (a, b) = plt.subplots(1, 2, figsize=(10, 4))
     labels = ["reward (reduced)", "final x (reduced)", "final x (full)"]
-    for k, (name, colour) in enumerate((("hand", "tab:blue"), ("learned", "tab:orange"))):
+    gaits = (("hand", "tab:blue"), ("learned", "tab:orange"), ("final", "tab:green"))
+    gaits = [(name, colour) for name, colour in gaits if name in results]
+    width = 0.8 / len(gaits)
+    for k, (name, colour) in enumerate(gaits):
         r = results[name]
         values = [
             r["reduced"]["cumulative_reward_mm"],
             r["reduced"]["final_travel_mm"],
             r["full"]["final_travel_mm"],
         ]
-        a.bar(np.arange(3) + 0.38 * k, values, 0.38, label=f"{name} {r['actions']}", color=colour)
-    a.set_xticks(np.arange(3) + 0.19, labels)
+        a.bar(np.arange(3) + width * k, values, width, label=f"{name} {r['actions']}", color=colour)
+    a.set_xticks(np.arange(3) + 0.4 - width / 2, labels)
     a.set_ylabel("mm")
     a.set_title("Table 3.2 on Pliant's default Multigait")
     a.legend(fontsize=8)
@@ -144,37 +173,52 @@ def plot(results: dict, path: Path) -> None:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--run", type=Path, default=Path("runs/table_3_2_ppo"))
+    source = parser.add_mutually_exclusive_group()
+    source.add_argument("--run", type=Path, default=Path("runs/table_3_2_ppo"))
+    source.add_argument(
+        "--evaluate", type=Path, help="a folder of kept policies (made by --keep): replay them"
+    )
+    parser.add_argument(
+        "--keep", type=Path, help="keep the run's best and final policies here (.npz, small)"
+    )
     parser.add_argument("--out", type=Path, default=Path("experiments/results/reduction"))
     parser.add_argument("--name", default="table_3_2", help="stem of the JSON and PNG written")
     args = parser.parse_args()
-    learned = learned_actions(args.run)
-    env_kwargs = run_env_kwargs(args.run)
-    results = {
-        "run": str(args.run),
-        "reduced_env_kwargs": env_kwargs,
-        "thesis_cm": THESIS,
-        "learning_curve": learning_curve(args.run),
-    }
-    for name, actions in (("hand", HAND), ("learned", learned)):
+    if args.evaluate is not None:
+        policies, env_kwargs = kept_policies(args.evaluate)
+        results = {"policies": str(args.evaluate), "reduced_env_kwargs": env_kwargs}
+    else:
+        policies, env_kwargs = run_policies(args.run), run_env_kwargs(args.run)
+        if args.keep is not None:
+            from pliant.learn.evaluate import export_run
+
+            for name, folder in policies.items():
+                export_run(folder, args.keep / f"policy_{name}.npz")
+            policies = {name: args.keep / f"policy_{name}.npz" for name in policies}
+        results = {
+            "run": str(args.run),
+            "reduced_env_kwargs": env_kwargs,
+            "learning_curve": learning_curve(args.run),
+        }
+    results["thesis_cm"] = THESIS
+    gaits = {"hand": HAND} | {n: policy_actions(p, env_kwargs) for n, p in policies.items()}
+    for name, actions in gaits.items():
         results[name] = {
             "actions": actions,
             "reduced": replay("pliant/ReducedMultigait-v0", actions, **env_kwargs),
             "full": replay("pliant/Multigait-v0", actions, reward="sofagym"),
         }
-    summary = (
-        json.loads((args.run / "summary.json").read_text())
-        if (args.run / "summary.json").exists()
-        else {}
-    )
-    results["training"] = summary
+    if args.evaluate is None:
+        summary = args.run / "summary.json"
+        results["training"] = json.loads(summary.read_text()) if summary.exists() else {}
     results["learned_beats_hand_on_full"] = (
         results["learned"]["full"]["final_travel_mm"] > results["hand"]["full"]["final_travel_mm"]
     )
     args.out.mkdir(parents=True, exist_ok=True)
-    (args.out / f"{args.name}.json").write_text(json.dumps(results, indent=1))
-    plot(results, args.out / f"{args.name}.png")
-    for name in ("hand", "learned"):
+    write_results(args.out / f"{args.name}.json", results)
+    if "learning_curve" in results:
+        plot(results, args.out / f"{args.name}.png")
+    for name in gaits:
         r = results[name]
         print(
             f"{name:<8} {r['actions']}: reduced reward {r['reduced']['cumulative_reward_mm']:.2f}"

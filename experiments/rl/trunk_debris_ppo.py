@@ -47,7 +47,7 @@ from pliant import configure_threads
 from pliant.envs import make
 from pliant.files import write_json
 from pliant.learn import load_config, train
-from pliant.learn.evaluate import load_policy
+from pliant.learn.evaluate import export_run, load_policy
 from pliant.learn.plots import plot_learning_curve
 
 RESULTS = Path("experiments/results/rl/trunk_debris_ppo")
@@ -81,6 +81,10 @@ VARIANTS = {
 # element under one long cable at 42 mm and under two adjacent ones pulled together at 38-42
 # mm; such an episode is stopped as diverged (counted), as any other.
 VARIANTS["catchable_course40"] = {**VARIANTS["catchable"], "max_long_displacement": 40.0}
+# What a variant changes of the environment's draw of the cube and its success test; the rest
+# (cable courses, increments, law) is the robot the policy acts on. A policy's test on the
+# environment's own draw keeps the rest and drops these.
+DRAW = ("cube_sizes", "z_low", "z_high", "gap_low", "gap_high", "azimuth_range", "success")
 THESIS = {"algo": "PPO, MLP 3x512", "steps": 100_000, "success": 0.8, "drops_of_failures": 0.7}
 
 
@@ -96,11 +100,22 @@ def by_cube_size(records: list[dict]) -> dict:
     return out
 
 
-def test_episodes(policy_dir: Path, tests: int, gif: Path | None) -> list[dict]:
+def own_draw(env_kwargs: dict) -> dict:
+    """The environment's own draw of the cube and success test, on the policy's robot."""
+    return {k: v for k, v in env_kwargs.items() if k not in DRAW}
+
+
+def test_episodes(
+    policy_dir: Path, tests: int, gif: Path | None, *, draw: str = "training"
+) -> list[dict]:
+    """The policy, deterministic, on `tests` episodes (seeds 30 000 on, not seen in training),
+    the cube drawn as in its training (`draw="training"`) or as the environment draws it
+    (`draw="own"`)."""
     policy = load_policy(policy_dir)
+    env_kwargs = policy.env_kwargs if draw == "training" else own_draw(policy.env_kwargs)
     env = make(
         "pliant/TrunkSpaceDebris-v0",
-        **policy.env_kwargs,  # the training's, the variant's included
+        **env_kwargs,
         render_mode="rgb_array" if gif else None,
     )
     normalize = policy.normalize_obs
@@ -137,6 +152,34 @@ def test_episodes(policy_dir: Path, tests: int, gif: Path | None) -> list[dict]:
     return records
 
 
+def test_summary(records: list[dict]) -> dict:
+    failures = [r for r in records if not r["success"]]
+    return {
+        "tests": len(records),
+        "success_rate": float(np.mean([r["success"] for r in records])),
+        "failures": len(failures),
+        "drops_of_failures": (
+            float(np.mean([r["caught_then_dropped"] for r in failures])) if failures else None
+        ),
+        "lost_of_failures": float(np.mean([r["lost"] for r in failures])) if failures else None,
+        "diverged": int(sum(r["diverged"] for r in records)),
+        "success_by_cube_size": by_cube_size(records),
+    }
+
+
+def evaluate_kept(policy: Path, tests: int, own_draw_tests: int, out: Path) -> None:
+    """Re-evaluate a kept policy (--evaluate): the same tests as after training, into `out`."""
+    out.mkdir(parents=True, exist_ok=True)
+    clock = time.perf_counter()
+    records = test_episodes(policy, tests, None)
+    summary = {"policy": str(policy), **test_summary(records)}
+    if own_draw_tests:
+        summary["own_draw"] = test_summary(test_episodes(policy, own_draw_tests, None, draw="own"))
+    summary["test_seconds"] = time.perf_counter() - clock
+    write_json(out / "summary.json", summary)
+    print(json.dumps(summary, indent=1))
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--steps", type=int, default=100_000)
@@ -163,13 +206,32 @@ def main() -> None:
     parser.add_argument("--learning-rate", type=float, default=None, help="PPO's (3e-4)")
     parser.add_argument("--target-kl", type=float, default=None, help="PPO's (none)")
     parser.add_argument("--tag", default="", help="appended to the run's and results' names")
+    parser.add_argument(
+        "--own-draw-tests",
+        type=int,
+        default=0,
+        help="also test the final policy on the environment's own draw of the cube (seeds"
+        " 30 000 on), besides the training's draw",
+    )
+    parser.add_argument(
+        "--evaluate",
+        type=Path,
+        help="re-evaluate a kept policy (.npz) instead of training: --tests on its training's"
+        " draw and --own-draw-tests on the environment's, written to --results",
+    )
+    parser.add_argument("--results", type=Path, help="default experiments/results/rl/...[_V]")
     args = parser.parse_args()
+    if args.evaluate is not None:
+        if args.results is None:
+            parser.error("--evaluate needs --results (the folder its summary.json goes to)")
+        evaluate_kept(args.evaluate, args.tests, args.own_draw_tests, args.results)
+        return
     suffix = ("" if args.variant == "default" else f"_{args.variant}") + (
         ("_bc" if args.bc_expert == "expert" else "_bc_sized") if args.bc else ""
     )
     suffix += f"_{args.tag}" if args.tag else ""
     args.run = args.run or Path(f"runs/trunk_debris_ppo{suffix}")
-    results = RESULTS.with_name(RESULTS.name + suffix)
+    results = args.results or RESULTS.with_name(RESULTS.name + suffix)
     configure_threads(torch_threads=args.threads)
     resume = (args.run / "checkpoints").exists() and any((args.run / "checkpoints").glob("step_*"))
     config = load_config(
@@ -213,22 +275,18 @@ def main() -> None:
             "success_rate": float(np.mean([r["success"] for r in cloned_records])),
             "success_by_cube_size": by_cube_size(cloned_records),
         }
-    failures = [r for r in records if not r["success"]]
     summary = {
         "env_id": "pliant/TrunkSpaceDebris-v0",
         "algo": f"PPO, MLP 3x512, VecNormalize, {config.n_envs} workers, cable increments",
         "variant": {"name": args.variant, "env_kwargs": VARIANTS[args.variant]},
         "training": result.summary,
-        "tests": len(records),
-        "success_rate": float(np.mean([r["success"] for r in records])),
-        "failures": len(failures),
-        "drops_of_failures": (
-            float(np.mean([r["caught_then_dropped"] for r in failures])) if failures else None
-        ),
-        "lost_of_failures": float(np.mean([r["lost"] for r in failures])) if failures else None,
-        "diverged": int(sum(r["diverged"] for r in records)),
-        "success_by_cube_size": by_cube_size(records),
+        **test_summary(records),
         "behaviour_cloning": cloned,
+        "own_draw": (
+            test_summary(test_episodes(args.run / "final", args.own_draw_tests, None, draw="own"))
+            if args.own_draw_tests
+            else None
+        ),
         "test_seconds": time.perf_counter() - clock,
         "thesis": THESIS,
         "command": "PYTHONPATH=. python experiments/rl/trunk_debris_ppo.py"
@@ -243,10 +301,13 @@ def main() -> None:
         )
         + (f" --learning-rate {args.learning_rate}" if args.learning_rate else "")
         + (f" --target-kl {args.target_kl}" if args.target_kl else "")
-        + (f" --tag {args.tag}" if args.tag else ""),
+        + (f" --tag {args.tag}" if args.tag else "")
+        + (f" --own-draw-tests {args.own_draw_tests}" if args.own_draw_tests else ""),
     }
     write_json(results / "summary.json", summary)
     write_json(results / "tests.json", records)
+    # The final policy, kept (small: the actor and the normaliser), for --evaluate.
+    export_run(args.run / "final", results / "policy.npz")
     for name in ("evaluations.json", "config.yaml"):
         if (args.run / name).exists():
             shutil.copy(args.run / name, results / name)

@@ -249,7 +249,9 @@ class SofaScene:
     Attributes:
         model: the Pliant model (actuators hold the scene's commands).
         dt: the root node's time step.
-        solver_kind: "dynamic" (EulerImplicitSolver) or "static" (StaticSolver).
+        solver_kind: "dynamic" (EulerImplicitSolver), "first-order" (the same with
+            firstOrder: no inertia, see :class:`~pliant.solvers.ImplicitEuler`) or "static"
+            (StaticSolver).
         path: the scene file.
         root: the scene's root node (its data hold the last state, see :meth:`write_outputs`).
         bindings: which components hold the model's inputs and outputs.
@@ -275,7 +277,8 @@ class SofaScene:
         if self.solver_kind == "static":
             solver = StaticSolver(self.model)
         else:
-            solver = ImplicitEuler(self.model, self.dt, tangent=tangent)
+            first_order = self.solver_kind == "first-order"
+            solver = ImplicitEuler(self.model, self.dt, tangent=tangent, first_order=first_order)
         hooks = self.bindings is not None and self.bindings.hooks
         return ControlledSolver(self, solver) if self.controllers() or hooks else solver
 
@@ -1376,7 +1379,7 @@ class _Builder:
                 if solver.type == "StaticSolver":
                     return "static", (0.0, 0.0)
                 if _flag(solver, "firstOrder", False):
-                    raise SceneError(f"{solver.path}: firstOrder='1' is not supported")
+                    return "first-order", (0.0, 0.0)  # SOFA ignores Rayleigh damping there
                 return "dynamic", (
                     _float(solver, "rayleighMass", 0.0),
                     _float(solver, "rayleighStiffness", 0.0),

@@ -33,6 +33,17 @@ rigid-body effectors depend on the twists too: with G all rows' dependence on th
 W gains h^2 G M_r^-1 G^T and delta_free h G u_free. Attachment rows are eliminated (Schur
 complement) before the control solves the rest.
 
+First order (``first_order=True``, SOFA's EulerImplicitSolver with firstOrder): the body
+moves as M dq/dt = f(q), no inertia carried from one step to the next (SOFA's tutorials use it
+for quasi-static pulls). Per step, (M + h K_s) v' = f(q) + f_ext + H^T lambda, written in the
+form above with the step's start velocity taken as zero:
+
+    A dv = b + h H^T lambda,   A = h M + h^2 K_s,   b = h (f(q) + f_ext),
+
+so that v' = dv, q' = q + h v' and W = h^2 H A^-1 H^T = h H (M + h K_s)^-1 H^T (a constraint
+force acts for the step as a force, not an impulse); Rayleigh damping has no place in it (SOFA
+ignores it there too).
+
 Contacts are screened (under commands): of the points within the contact margin, most stay
 open, and a contact that stays open needs no force, so the step solves those closed at the
 last step or approaching fast enough to close, and takes in the others only where its
@@ -103,6 +114,8 @@ class ImplicitEuler:
             round takes in every contact whose gap that round leaves below this (default: a
             tenth of the contact margin); any value >= 0 gives the same solution, it only
             sets how many rounds are needed.
+        first_order: integrate M dq/dt = f(q) (no inertia; SOFA's EulerImplicitSolver with
+            ``firstOrder``): see the module docstring. The body's Rayleigh damping is not used.
     """
 
     def __init__(
@@ -115,6 +128,7 @@ class ImplicitEuler:
         point_compliance: bool = True,
         contact_screening: bool = True,
         screen_gap: float | None = None,
+        first_order: bool = False,
     ) -> None:
         if not isinstance(model, Model):
             raise ModelError(f"ImplicitEuler steps a pliant Model, got {type(model).__name__}")
@@ -125,6 +139,7 @@ class ImplicitEuler:
         if screen_gap is not None:
             screen_gap = number_option(screen_gap, "screen_gap", at_least=0.0)
         self.model = model
+        self.first_order = bool(first_order)
         self.system = LinearisedSystem(model.body, policy=tangent, rtol=rtol)
         self._objects, self._object_rows = self._find_objects()
         # Each attachment with its body's index.
@@ -163,6 +178,8 @@ class ImplicitEuler:
 
     def _coefficients(self) -> tuple[float, float]:
         b, h = self.model.body, self.dt
+        if self.first_order:
+            return h, h * h
         return 1.0 + h * b.rayleigh_mass, h * b.rayleigh_stiffness + h * h
 
     def step(self, state: State, control=None) -> State:
@@ -188,11 +205,14 @@ class ImplicitEuler:
             raise DivergenceError(f"step {step}: {exc}", step=step, cause="solver") from exc
         rigid = self._rigid_step(state)
         contact = model.contacts.constraint(state.positions, h, rigid) if model.contacts else None
-        v = body.gather(state.velocities)
         rhs = h * body.gather(lin.forces + self._gravity)
-        rhs -= a_k * body.gather(lin.stiffness_velocity)
-        if a_m != 1.0:
-            rhs -= (a_m - 1.0) * body.mass_matvec(v)
+        if self.first_order:  # no velocity carried into the step
+            v = np.zeros(body.n_free)
+        else:
+            v = body.gather(state.velocities)
+            rhs -= a_k * body.gather(lin.stiffness_velocity)
+            if a_m != 1.0:
+                rhs -= (a_m - 1.0) * body.mass_matvec(v)
         roles = getattr(ctrl, "roles", None)
         self._place_objects(rigid)
         solved = None  # (lambda, contact report, contact forces) when screening solved them

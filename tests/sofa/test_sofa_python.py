@@ -406,3 +406,30 @@ def test_a_controller_moves_the_body_through_its_positions(tmp_path) -> None:
     state = scene.simulate(2)
     rest = scene.model.body.rest_positions
     np.testing.assert_allclose(state.positions, rest + [0.0, 0.0, 1.0], rtol=0, atol=1e-9)
+
+
+def test_a_first_order_euler_solver_steps_without_inertia(tmp_path) -> None:
+    """EulerImplicitSolver with firstOrder (SoftRobots' T4 cable tutorials): the scene's solver
+    is Pliant's first-order implicit Euler (tests/solvers/test_first_order.py checks its
+    physics), not the second-order one with the flag ignored."""
+    script = _scene(tmp_path, FEM + "body.addObject('FixedConstraint', indices=[0, 1, 2, 3])\n")
+    text = script.read_text().replace(
+        "body.addObject('StaticSolver')",
+        "rootNode.gravity = [0, 0, -9810]\n"
+        "    body.addObject('EulerImplicitSolver', firstOrder=True, rayleighMass=0.5)",
+    )
+    script.write_text(text)
+    scene = load_scene(script)
+    assert scene.solver_kind == "first-order"
+    solver = scene.solver()
+    assert isinstance(solver, ImplicitEuler) and solver.first_order
+    model, dt = scene.model, scene.dt
+    by_scene = scene.simulate(5)
+    first, second = model.rest_state(), model.rest_state()
+    for _ in range(5):
+        first = ImplicitEuler(model, dt, tangent="fresh", first_order=True).step(first)
+        second = ImplicitEuler(model, dt, tangent="fresh").step(second)
+    sag = np.abs(first.positions - model.rest_state().positions).max()
+    assert sag > 1e-3
+    np.testing.assert_allclose(by_scene.positions, first.positions, rtol=0, atol=1e-12 * sag)
+    assert np.abs(second.positions - first.positions).max() > 1e-2 * sag
