@@ -157,6 +157,9 @@ class Contacts:
             obstacles' and the planes'.
     """
 
+    #: The surface contacts between pieces of the body (none unless given).
+    surfaces: Sequence[SurfaceContact] = ()
+
     def __init__(
         self,
         shapes: Sequence[Shape],
@@ -172,12 +175,13 @@ class Contacts:
     ) -> None:
         self.shapes = list(shapes)
         self.planes = planes
-        self.surfaces = list(surfaces)
-        if not self.shapes and planes is None and not self.surfaces:
+        if surfaces:  # else the class's empty default: the model's attributes stay as they were
+            self.surfaces = list(surfaces)
+        if not self.shapes and planes is None and not surfaces:
             raise ContactError(
                 "Contacts needs at least one shape (or point planes, or surface contacts)"
             )
-        for surface in self.surfaces:
+        for surface in surfaces:
             if not isinstance(surface, SurfaceContact):
                 raise ContactError(f"not a SurfaceContact: {surface!r}")
         for shape in self.shapes:

@@ -4,23 +4,30 @@ other (SOFA's point-triangle proximity between two deformable collision models).
 A body may hold several separate pieces (:class:`pliant.fem.body.TetBody` with
 ``separate=True``: a SOFA scene's fingers and the object they grasp). A :class:`SurfaceContact`
 makes the points of one piece collide with the current triangles of another: each step, every
-point within the alarm distance of the surface (margin plus the contact distance) gets one
-contact with its closest triangle. With q = b_1 v_1 + b_2 v_2 + b_3 v_3 the closest point of
-that triangle (barycentric weights b of its vertices v, themselves points carried by the body),
-n the triangle's unit outward normal and r the contact distance, the row reads the relative
-point d(x) = p(x) - q(x), linear in the nodes of both pieces:
+point within the alarm distance of the surface (margin plus the contact distance) gets a
+contact with its closest triangle, and one with every other triangle it lies on (it projects
+into it, or onto an edge of it from no further than ON_EDGE of the triangles' size beyond)
+unless that triangle is in the closest one's plane: a point resting in the fold between two
+faces of a dented surface touches both, as SOFA's proximity makes it, instead of rocking from
+one to the other from step to step. With q = b_1 v_1 + b_2 v_2 + b_3 v_3 the closest point of
+a triangle (barycentric weights b of its vertices v, themselves points carried by the body), n
+its unit outward normal (the angle-weighted pseudo-normal of the edge or vertex where q lies
+on one and the point is not on the triangle) and r the contact distance, the row reads the
+relative point d(x) = p(x) - q(x), linear in the nodes of both pieces:
 
     delta_n = phi + n . (d(x) - d0),   delta_ti = t_i . (d(x) - d0),   phi = n . d0 - r,
 
 d0 = p - q at detection, so the Jacobian spans the point's nodes (weights w) and the
-triangle's (weights -b_i w_i), and the compliance H K^-1 H^T of the body couples both pieces as
+triangle's (weights -b_i w_i), and the compliance H A^-1 H^T of the body couples both pieces as
 it couples any two rows. The law is the other contacts': Signorini with Coulomb friction,
 solved with them by :func:`pliant.constraints.friction.solve_contact`. The normal and the
 weights are held over a step, as an obstacle's are.
 
 Broad phase: the points inside the surface's bounding box grown by the alarm distance, then the
-exact closest triangle over a bounding-volume hierarchy of the current triangles
-(:func:`pliant.geometry.collision_kernels.closest_points`), O(points log triangles).
+triangles whose centroid is within that distance plus the largest triangle's radius (a k-d
+tree of the current centroids, scipy.spatial.cKDTree), then the exact closest point of each
+such pair (:func:`pliant.geometry.collision_kernels.closest_on_triangles`): no loop over every
+point and triangle.
 """
 
 from __future__ import annotations
@@ -30,6 +37,7 @@ import math
 import numpy as np
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
+from scipy.spatial import cKDTree
 
 from pliant.constraints.base import EmbeddedPoints
 from pliant.errors import ContactError
@@ -37,9 +45,11 @@ from pliant.fem.material import check_friction
 from pliant.geometry import collision_kernels as kernels
 from pliant.geometry.collision import ContactSet
 
-#: A vertex of the surface is sharp where one of its faces turns from its normal by more
-#: than this (radians); a box's edges and corners are, a dented face is not.
-SHARP = math.radians(30.0)
+#: A point lies on a triangle whose closest point to it is on an edge when it projects no
+#: further than this share of the triangles' size beyond that edge: a point resting in the fold
+#: between two faces then touches both (a contact each), as SOFA's proximity gives it, rather
+#: than the nearer one, which changes from step to step as the point rocks across the fold.
+ON_EDGE = 1e-2
 
 
 def _trimmed(points: EmbeddedPoints) -> tuple[np.ndarray, np.ndarray]:
@@ -154,87 +164,93 @@ class SurfaceContact:
         near = np.flatnonzero(np.all((p >= lo) & (p <= hi), axis=1))
         if near.size == 0:
             return None
-        dist2, closest, t, feature = kernels.closest_points(
-            np.ascontiguousarray(p[near]), tri, *kernels.build_bvh(tri)
-        )
-        keep = dist2 <= reach * reach
-        if not keep.any():
+        centre = tri.mean(axis=1)
+        size = float(np.linalg.norm(tri - centre[:, None], axis=2).max())
+        found = cKDTree(centre).query_ball_point(p[near], reach + size)
+        count = np.array([len(f) for f in found], dtype=np.int64)
+        if not count.any():
             return None
-        near, closest, t, feature = near[keep], closest[keep], t[keep], feature[keep]
-        a, b, c = tri[t, 0], tri[t, 1], tri[t, 2]
-        # Barycentric weights of the closest point, from the triangle's Gram system.
-        e1, e2, r = b - a, c - a, closest - a
-        g11, g12, g22 = (np.einsum("ij,ij->i", u, v) for u, v in ((e1, e1), (e1, e2), (e2, e2)))
-        r1, r2 = np.einsum("ij,ij->i", r, e1), np.einsum("ij,ij->i", r, e2)
-        det = g11 * g22 - g12 * g12
-        v = (g22 * r1 - g12 * r2) / det
-        w = (g11 * r2 - g12 * r1) / det
-        bary = np.column_stack([1.0 - v - w, v, w])
-        normal = self._normals(tri, t, feature, bary)
-        d0 = p[near] - closest
-        gap = np.einsum("ij,ij->i", normal, d0) - self.distance
-        k = near.size
-        found = ContactSet(
-            near.astype(np.int64),
-            np.full(k, index_b, dtype=np.int64),
-            2 * t.astype(np.int64),
-            gap,
-            normal,
-            p[near],
-            closest,
-        )
-        pn, pw = self._point_rows
-        vn, vw = self._vertex_rows
-        corners = self.triangles[t]  # (k, 3) vertices
-        nodes = np.concatenate([pn[near], vn[corners].reshape(k, -1)], axis=1)
-        weights = np.concatenate(
-            [pw[near], (-bary[:, :, None] * vw[corners]).reshape(k, -1)], axis=1
-        )
-        return found, nodes, weights, d0
-
-    def _normals(
-        self, tri: np.ndarray, t: np.ndarray, feature: np.ndarray, bary: np.ndarray
-    ) -> np.ndarray:
-        """Unit normals of the contacts on triangles `t` at their closest `feature`, closest
-        point `bary`: the normals of the triangle's corners interpolated (Phong's), each the
-        angle-weighted normal of the surface at its vertex where the surface is smooth there;
-        at a sharp vertex (a face turned by more than SHARP from it: a box's edge), the
-        normal of the feature the closest point lies on (the face, the two faces of the
-        edge, or the vertex's; Baerentzen and Aanaes 2005, as Pliant's mesh obstacles).
-
-        Continuous across smooth edges, so that a point resting in the fold between two
-        faces of a dented surface does not flip from one face's normal to the other's from
-        step to step; exact on flat faces; and a point level with a sharp edge (a block on a
-        block of the same width) is pushed off both faces it meets, not along one of them.
-        """
+        pi = np.repeat(near, count)
+        ti = np.fromiter((t for f in found for t in f), dtype=np.int64, count=int(count.sum()))
+        vw, feature = kernels.closest_on_triangles(p, tri, pi, ti)
+        a = tri[ti, 0]
+        closest = a + vw[:, :1] * (tri[ti, 1] - a) + vw[:, 1:] * (tri[ti, 2] - a)
+        offset = p[pi] - closest
+        dist = np.linalg.norm(offset, axis=1)
         face = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
         face /= np.linalg.norm(face, axis=1, keepdims=True)
-        corner = np.zeros((len(self.vertices), 3))
-        for k in range(3):
-            e1 = tri[:, (k + 1) % 3] - tri[:, k]
-            e2 = tri[:, (k + 2) % 3] - tri[:, k]
-            cos = np.einsum("ij,ij->i", e1, e2) / (
-                np.linalg.norm(e1, axis=1) * np.linalg.norm(e2, axis=1)
-            )
-            np.add.at(corner, self.triangles[:, k], np.arccos(np.clip(cos, -1, 1))[:, None] * face)
-        corner /= np.maximum(np.linalg.norm(corner, axis=1, keepdims=True), 1e-300)
-        # The least cosine between a vertex's normal and its faces'.
-        least = np.ones(len(self.vertices))
-        for k in range(3):
-            v = self.triangles[:, k]
-            np.minimum.at(least, v, np.einsum("ij,ij->i", face, corner[v]))
-        smooth = least >= math.cos(SHARP)
-        on = face[t]
+        # On a triangle: the point projects into it, or onto one of its edges from no further
+        # than ON_EDGE of its size beyond it (a point in a fold between two faces).
+        beyond = np.linalg.norm(
+            offset - np.einsum("ij,ij->i", offset, face[ti])[:, None] * face[ti], axis=1
+        )
+        on = (feature == kernels.FACE) | (
+            (feature >= kernels.EDGE_AB) & (feature <= kernels.EDGE_CA) & (beyond <= ON_EDGE * size)
+        )
+        # Each point's closest triangle, and every other it lies on that is not in the
+        # closest's plane (a flat surface's triangles would repeat its row).
+        order = np.lexsort((dist, pi))
+        first = np.ones(order.size, dtype=bool)
+        first[1:] = pi[order[1:]] != pi[order[:-1]]
+        nearest = np.empty(pi.size, dtype=np.int64)
+        nearest[order] = order[np.maximum.accumulate(np.where(first, np.arange(order.size), 0))]
+        level = np.einsum("ij,ij->i", face[ti], face[ti[nearest]]) > 1.0 - 1e-12
+        chosen = on & ~level
+        chosen[order[first]] = True
+        chosen &= dist <= reach
+        if not chosen.any():
+            return None
+        pi, ti, vw, feature, closest, on = (
+            pi[chosen],
+            ti[chosen],
+            vw[chosen],
+            feature[chosen],
+            closest[chosen],
+            on[chosen],
+        )
+        bary = np.column_stack([1.0 - vw.sum(axis=1), vw])
+        normal = self._normals(tri, face, ti, np.where(on, kernels.FACE, feature))
+        d0 = p[pi] - closest
+        gap = np.einsum("ij,ij->i", normal, d0) - self.distance
+        k = pi.size
+        contacts = ContactSet(
+            pi, np.full(k, index_b, dtype=np.int64), 2 * ti, gap, normal, p[pi], closest
+        )
+        pn, pw = self._point_rows
+        vn, vw_ = self._vertex_rows
+        corners = self.triangles[ti]  # (k, 3) vertices
+        nodes = np.concatenate([pn[pi], vn[corners].reshape(k, -1)], axis=1)
+        weights = np.concatenate(
+            [pw[pi], (-bary[:, :, None] * vw_[corners]).reshape(k, -1)], axis=1
+        )
+        return contacts, nodes, weights, d0
+
+    def _normals(
+        self, tri: np.ndarray, face: np.ndarray, t: np.ndarray, feature: np.ndarray
+    ) -> np.ndarray:
+        """Unit normals of the contacts on triangles `t` at their closest `feature`: the
+        triangle's where the closest point is inside it, else the angle-weighted
+        pseudo-normal of its edge or vertex (Baerentzen and Aanaes 2005, as Pliant's mesh
+        obstacles), so that a point level with an edge of the surface (a block on a block of
+        the same width) is pushed off both faces it meets, not along one of them. `face`:
+        the unit normals of all the triangles `tri`."""
+        normal = face[t].copy()
         on_edge = (feature >= kernels.EDGE_AB) & (feature <= kernels.EDGE_CA)
         if on_edge.any():
             twin = self._twin[t[on_edge], feature[on_edge] - kernels.EDGE_AB]
-            on[on_edge] += np.where(twin[:, None] >= 0, face[np.maximum(twin, 0)], 0.0)
+            normal[on_edge] += np.where(twin[:, None] >= 0, face[np.maximum(twin, 0)], 0.0)
         on_vertex = feature <= kernels.VERTEX_C
-        on[on_vertex] = corner[self.triangles[t[on_vertex], feature[on_vertex]]]
-        on /= np.linalg.norm(on, axis=1, keepdims=True)
-        corners = self.triangles[t]  # (k, 3)
-        each = np.where(smooth[corners][:, :, None], corner[corners], on[:, None, :])
-        normal = np.einsum("ki,kij->kj", bary, each)
+        if on_vertex.any():
+            corner = np.zeros((len(self.vertices), 3))
+            for k in range(3):
+                e1 = tri[:, (k + 1) % 3] - tri[:, k]
+                e2 = tri[:, (k + 2) % 3] - tri[:, k]
+                cos = np.einsum("ij,ij->i", e1, e2) / (
+                    np.linalg.norm(e1, axis=1) * np.linalg.norm(e2, axis=1)
+                )
+                angle = np.arccos(np.clip(cos, -1.0, 1.0))
+                np.add.at(corner, self.triangles[:, k], angle[:, None] * face)
+            normal[on_vertex] = corner[self.triangles[t[on_vertex], feature[on_vertex]]]
         return normal / np.linalg.norm(normal, axis=1, keepdims=True)
 
 
