@@ -337,9 +337,9 @@ class Contacts:
         pair, the pair (numbered after the obstacles, rigid bodies and planes), twice the
         triangle."""
         first = len(self.shapes) + len(self.bodies) + 1
-        parts = []
+        parts, placed = [], {}
         for s, surface in enumerate(self.surfaces):
-            found = surface.detect(positions, self.margin, first + s)
+            found = surface.detect(positions, self.margin, first + s, placed)
             if found is not None:
                 contacts, nodes, weights, origin = found
                 parts.append(

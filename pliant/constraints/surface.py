@@ -123,6 +123,7 @@ class SurfaceContact:
         )
         shared = np.intersect1d(own, surface)
         self._twin = _twins(self.triangles)
+        self._used = np.unique(self.triangles)
         if shared.size:
             raise ContactError(
                 f"{name}: the points and the surface share node {int(shared[0])} (and"
@@ -152,18 +153,24 @@ class SurfaceContact:
             distance=distance,
         )
 
-    def detect(self, x: np.ndarray, margin: float, index_b: int):
+    def detect(self, x: np.ndarray, margin: float, index_b: int, placed: dict | None = None):
         """The contacts at positions `x` of the points within `margin` + r of the surface: a
         ContactSet (index_a the point, index_b `index_b`, feature 2 x triangle, point_a the
         point, point_b the triangle's closest point) and the rows' (nodes, weights, origin d0),
-        or None when no point is near."""
-        p = self.points.positions(x)
-        tri = np.ascontiguousarray(self.vertices.positions(x)[self.triangles])
+        or None when no point is near. `placed`: positions of embedded points already read
+        at `x`, by id (several pairs share their points), filled as they are read."""
+        placed = {} if placed is None else placed
+        for points in (self.points, self.vertices):
+            if id(points) not in placed:
+                placed[id(points)] = points.positions(x)
+        p, vertices = placed[id(self.points)], placed[id(self.vertices)]
         reach = margin + self.distance
-        lo, hi = tri.min(axis=(0, 1)) - reach, tri.max(axis=(0, 1)) + reach
+        corners = vertices[self._used]
+        lo, hi = corners.min(axis=0) - reach, corners.max(axis=0) + reach
         near = np.flatnonzero(np.all((p >= lo) & (p <= hi), axis=1))
         if near.size == 0:
             return None
+        tri = np.ascontiguousarray(vertices[self.triangles])
         centre = tri.mean(axis=1)
         size = float(np.linalg.norm(tri - centre[:, None], axis=2).max())
         found = cKDTree(centre).query_ball_point(p[near], reach + size)

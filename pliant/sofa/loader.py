@@ -717,6 +717,8 @@ class _Builder:
         self.root, self.path, self.choices, self.mesh_dirs = root, path, choices, mesh_dirs
         self.bindings = Bindings()
         self._part: Part | None = None  # the body whose points are read, of several
+        # The collision surfaces of the bodies read so far (vertices, triangles), by node.
+        self._surfaces: dict[int, tuple[EmbeddedPoints, np.ndarray]] = {}
 
     # --- scene-wide ------------------------------------------------------------------------
     def build(self) -> SofaScene:
@@ -965,11 +967,14 @@ class _Builder:
         """The triangles of a body's TriangleCollisionModel, outward, and their vertices as
         points of the body: its own boundary where the model sits on the body's node, else
         the node's mesh carried by a mapping."""
+        if id(node) in self._surfaces:  # one surface, touched by several bodies' points
+            return self._surfaces[id(node)]
         if node is part.node:
-            return (
+            self._surfaces[id(node)] = (
                 EmbeddedPoints.at_nodes(part.offset + np.arange(part.body.n_nodes)),
                 part.body.boundary_triangles,
             )
+            return self._surfaces[id(node)]
         if not any(o.type in MAPPINGS for o in node.objects):
             raise SceneError(f"{node.path}: collision triangles not mapped on the body")
         dofs = self._one(node, {"MechanicalObject"}, "MechanicalObjects")
@@ -984,9 +989,11 @@ class _Builder:
             faces = faces[:, ::-1]  # a closed surface's triangles turned inwards
         self._part = part
         try:
-            return self._embed(mesh, vertices, part.body), np.ascontiguousarray(faces)
+            embedded = self._embed(mesh, vertices, part.body)
         finally:
             self._part = None
+        self._surfaces[id(node)] = (embedded, np.ascontiguousarray(faces))
+        return self._surfaces[id(node)]
 
     def _friction(self) -> float:
         responses = [o for n in self.root.walk() for o in n.objects if o.type in RESPONSES]
