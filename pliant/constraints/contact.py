@@ -311,7 +311,7 @@ class Contacts:
         found, friction, motion = self._with_planes(
             positions, found, self.friction[found.index_b], motion
         )
-        surface = self._surface_rows(positions) if self.surfaces else None
+        surface = self.surface_rows(positions) if self.surfaces else None
         if surface is None:
             if len(found) == 0:
                 return None
@@ -331,7 +331,7 @@ class Contacts:
         )
         return ContactConstraint.joined([rows, surface]) if len(found) else surface
 
-    def _surface_rows(self, positions: np.ndarray) -> ContactConstraint | None:
+    def surface_rows(self, positions: np.ndarray) -> ContactConstraint | None:
         """The rows of the surface contacts at `positions` (:mod:`pliant.constraints.surface`),
         or None when no point is near another piece. A contact's identity: the point in its
         pair, the pair (numbered after the obstacles, rigid bodies and planes), twice the
@@ -411,7 +411,7 @@ class Contacts:
             obstacle_displacement=motion,
             thickness=self.thickness,
         )
-        surface = self._surface_rows(positions) if self.surfaces else None
+        surface = self.surface_rows(positions) if self.surfaces else None
         if surface is not None:  # nor do the rows between pieces of the body
             rows = ContactConstraint.joined([rows, surface])
             jacobian = np.vstack([jacobian, np.zeros((3 * len(surface.contacts), 6 * n))])

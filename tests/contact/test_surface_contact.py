@@ -13,7 +13,8 @@ from pliant.errors import ContactError
 from pliant.fem.body import TetBody
 from pliant.fem.loads import NodalForces
 from pliant.fem.material import Corotational
-from pliant.geometry.collision import Plane
+from pliant.fem.rigid import RigidBody
+from pliant.geometry.collision import Plane, Sphere
 from pliant.mesh import TetMesh, box_beam
 from pliant.model import Model
 from pliant.solvers import ImplicitEuler
@@ -68,7 +69,7 @@ def _rest(model: Model, steps: int = 100):
 
 def _deepest(model: Model, state) -> float:
     """The largest penetration of a piece into another at `state` (<= 0 when none)."""
-    rows = model.contacts.constraint(state.positions, None)
+    rows = model.contacts.surface_rows(state.positions)
     return max(0.0, -float(rows.contacts.gap.min()))
 
 
@@ -143,9 +144,12 @@ def test_symmetric_pieces_move_symmetrically() -> None:
     assert _deepest(model, state) < 1e-5
 
 
-def test_block_resting_on_a_block_carries_its_weight() -> None:
+@pytest.mark.parametrize("with_rigid", [False, True])
+def test_block_resting_on_a_block_carries_its_weight(with_rigid: bool) -> None:
     """Dynamics under gravity: a free block dropped 0.05 mm onto a held one comes to rest; the
-    contact forces then add up to its weight."""
+    contact forces then add up to its weight. With a rigid ball resting on a floor beside
+    them, the rows are coupled to the rigid bodies' (CoupledContact): the blocks' rows read
+    no twist, and the floor carries the ball."""
     bottom = box_beam(12.0, 12.0, 4.0, nx=3, ny=3, nz=1)
     top = box_beam(6.0, 6.0, 6.0, nx=2, ny=2, nz=2, origin=(3.0, 3.0, 4.05))
     mesh, a, b = _stack(bottom, top)
@@ -158,21 +162,24 @@ def test_block_resting_on_a_block_carries_its_weight() -> None:
         gravity=(0.0, 0.0, -G),
         rayleigh_mass=5.0,
     )
-    model = Model(
-        body,
-        contacts=Contacts(
-            [], surfaces=[SurfaceContact.between(body, b, a, friction=0.5)], margin=0.5
-        ),
-    )
+    surface = SurfaceContact.between(body, b, a, friction=0.5)
+    ball = RigidBody(Sphere(2.0), 1e-4, position=(40.0, 40.0, 2.0), friction=0.5)
+    rigid = {"rigid_bodies": [ball]} if with_rigid else {}
+    shapes = [Plane()] if with_rigid else []
+    model = Model(body, contacts=Contacts(shapes, surfaces=[surface], margin=0.5), **rigid)
     solver = ImplicitEuler(model, 0.01)
     state = model.rest_state()
     for _ in range(120):
         state = solver.step(state)
     weight = float(body.node_masses[b].sum()) * G
-    forces = state.contact_forces.forces
-    np.testing.assert_allclose(forces[:, 2].sum(), weight, rtol=1e-5)
-    assert np.abs(forces[:, :2].sum(axis=0)).max() < 1e-5 * weight
-    assert np.all(np.linalg.norm(forces[:, :2], axis=1) <= 0.5 * forces[:, 2] + 1e-9)
+    keys, forces = state.contact_forces.keys, state.contact_forces.forces
+    between = keys[:, 1] == len(shapes) + len(model.rigid_bodies) + 1
+    np.testing.assert_allclose(forces[between, 2].sum(), weight, rtol=1e-5)
+    on = forces[between]
+    assert np.abs(on[:, :2].sum(axis=0)).max() < 1e-5 * weight
+    assert np.all(np.linalg.norm(on[:, :2], axis=1) <= 0.5 * on[:, 2] + 1e-9)
+    if with_rigid:
+        np.testing.assert_allclose(forces[~between, 2].sum(), 1e-4 * G, rtol=1e-5)
     assert _deepest(model, state) < 1e-5
     assert np.abs(state.velocities).max() < 1e-3
     assert solver.last_report.contact.converged
