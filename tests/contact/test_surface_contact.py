@@ -11,13 +11,13 @@ from pliant.constraints.base import EmbeddedPoints
 from pliant.constraints.contact import Contacts
 from pliant.errors import ContactError
 from pliant.fem.body import TetBody
-from pliant.fem.loads import NodalForces
+from pliant.fem.loads import NodalForces, RestShapeSprings
 from pliant.fem.material import Corotational
 from pliant.fem.rigid import RigidBody
 from pliant.geometry.collision import Plane, Sphere
 from pliant.mesh import TetMesh, box_beam
 from pliant.model import Model
-from pliant.solvers import ImplicitEuler
+from pliant.solvers import ImplicitEuler, StaticSolver
 
 G = 9810.0  # mm/s^2
 
@@ -96,6 +96,42 @@ def test_pressed_blocks_carry_the_load_without_interpenetration(friction: float)
     assert _deepest(model, state) < 1e-5
     under = a[np.abs(model.body.rest_positions[a, 2] - 6.0) < 1e-9]
     assert state.positions[under, 2].min() < 6.0 - 0.1  # the bottom block was pressed
+
+
+@pytest.mark.parametrize("friction", [0.0, 0.3])
+def test_static_pressed_blocks_balance_the_load(friction: float) -> None:
+    """Statics (StaticSolver): the top block, held sideways at its top face and pressed down by
+    `load` there, is held up by the contact and by weak springs (k) on that face, its only
+    vertical supports: the contact forces equal the load less the springs' k |u|, to
+    round-off; no point ends inside the bottom block."""
+    load, k = 300.0, 1.0  # mN, mN/mm per node
+    bottom = box_beam(12.0, 12.0, 6.0, nx=3, ny=3, nz=2)
+    top = box_beam(8.0, 8.0, 6.0, nx=2, ny=2, nz=2, origin=(2.0, 2.0, 6.1))
+    mesh, a, b = _stack(bottom, top)
+    z = mesh.points[:, 2]
+    face = b[z[b] > z[b].max() - 1e-9]
+    body = TetBody(
+        mesh,
+        Corotational(100.0, 0.3),
+        density=1e-6,
+        separate=True,
+        fixed_nodes=np.flatnonzero(z < 1e-9),
+        fixed_dofs=np.concatenate([3 * face, 3 * face + 1]),
+        loads=[
+            NodalForces(face, (0.0, 0.0, -load / face.size)),
+            RestShapeSprings(face, mesh.points, k),
+        ],
+        gravity=(0.0, 0.0, 0.0),
+    )
+    surface = SurfaceContact.between(body, b, a, friction=friction)
+    model = Model(body, contacts=Contacts([], surfaces=[surface], margin=1.0))
+    state = StaticSolver(model).step(model.rest_state())
+    sunk = state.positions[face, 2] - z[face]
+    assert sunk.mean() < -0.3  # the gap closed, the blocks pressed
+    springs = -k * sunk.sum()
+    np.testing.assert_allclose(state.contact_forces.forces[:, 2].sum(), load - springs, rtol=1e-9)
+    assert springs < 0.05 * load
+    assert _deepest(model, state) < 1e-5
 
 
 def test_symmetric_pieces_move_symmetrically() -> None:
