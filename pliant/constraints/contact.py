@@ -269,6 +269,7 @@ class Contacts:
         within the margin of an obstacle or rigid body (as posed at the step's start): it may
         have crossed a surface no row was given for. A point swinging fast far from every
         obstacle is no concern."""
+        self._check_surface_travel(positions, displacement, step)
         moved = self.points.displacement(positions, displacement)[: self.n_colliding]
         travel = np.linalg.norm(moved, axis=1)
         fast = np.flatnonzero(travel > self.margin)
@@ -285,6 +286,32 @@ class Contacts:
                 ContactMarginWarning,
                 stacklevel=3,
             )
+
+    def _check_surface_travel(self, positions, displacement, step: int) -> None:
+        """As `check_travel` for the pieces of the body touching each other: a point that
+        ends the step near the other piece's surface having come closer to it over the step,
+        along the contact's normal, by more than the margin."""
+        for s, surface in enumerate(self.surfaces):
+            own = np.linalg.norm(surface.points.displacement(positions, displacement), axis=1)
+            other = np.linalg.norm(surface.vertices.displacement(positions, displacement), axis=1)
+            if own.max() + other.max() <= self.margin:
+                continue
+            found = surface.detect(positions, self.margin, s)
+            if found is None:
+                continue
+            contacts, nodes, weights, _ = found
+            relative = np.einsum("ka,kai->ki", weights, displacement[nodes])
+            approach = -np.einsum("ki,ki->k", contacts.normal, relative)
+            if approach.max() > self.margin:
+                warnings.warn(
+                    f"step {step}: {surface.name}: a point came {float(approach.max()):.3g}"
+                    " closer to the surface it ends near, more than the contact margin"
+                    f" {self.margin:.3g}; contacts may have been missed: raise the margin or"
+                    " reduce the time step",
+                    ContactMarginWarning,
+                    stacklevel=4,
+                )
+                return
 
     def constraint(
         self, positions: np.ndarray, dt: float | None, rigid: RigidStep | None = None

@@ -9,7 +9,7 @@ import pytest
 from pliant.constraints import SurfaceContact, body_pieces
 from pliant.constraints.base import EmbeddedPoints
 from pliant.constraints.contact import Contacts
-from pliant.errors import ContactError
+from pliant.errors import ContactError, ContactMarginWarning
 from pliant.fem.body import TetBody
 from pliant.fem.loads import NodalForces, RestShapeSprings
 from pliant.fem.material import Corotational
@@ -303,3 +303,16 @@ def test_obstacle_rows_come_first_and_keep_their_identity() -> None:
     assert len(rest) == 9 and np.all(rest.index_b == 2)
     np.testing.assert_allclose(rest.gap, 0.1, atol=1e-12)
     assert k > 0 and np.all(first.contacts.index_b == 0)
+
+
+def test_a_piece_moving_further_than_the_margin_onto_another_warns() -> None:
+    """A block thrown at 150 mm/s onto another (1.5 mm a step, the margin 0.5 mm) ends a step
+    near it having moved further than the margin: contacts may have been missed."""
+    model, a, b = _pressed(8.0, 1.0)
+    solver = ImplicitEuler(model, 0.01)
+    state = model.rest_state()
+    state.velocities[b, 2] = -150.0
+    model.contacts.margin = 0.5
+    with pytest.warns(ContactMarginWarning, match="closer to the surface it ends near"):
+        for _ in range(3):
+            state = solver.step(state)
