@@ -1232,7 +1232,9 @@ class _Builder:
         """MeshSpringForceFields on points the body carries (nodes under `node` with a
         BarycentricMapping): springs on their topology's edges, rest lengths the edges' first
         lengths (:class:`~pliant.fem.loads.EmbeddedSprings`); and those points' UniformMass
-        added to the body's nodes through their weights (the mapped mass lumped, J^T m)."""
+        added to the body's nodes through their weights: the mapped mass m w w^T (SOFA's
+        J^T M J) lumped by HRZ, w_a^2 / sum w^2 of m on node a, positive and summing to m
+        where the weights of a point kept outside the mesh are negative (row sums would not)."""
         springs, extra = [], None
         for child in node.walk():
             fields = [o for o in child.objects if o.type == "MeshSpringForceField"]
@@ -1251,6 +1253,7 @@ class _Builder:
             source = dofs if "position" in dofs.attrs else topology
             points = self._positions(child, source)
             edges = _floats(topology.attrs["edges"], f"{topology.path}.edges").astype(np.int64)
+            edges, lengths = _edge_lengths(points, edges, topology.path)
             extent = float(np.linalg.norm(np.ptp(mesh.points, axis=0)))
             embedded = EmbeddedPoints(
                 mesh, points, tolerance=SOFA_REACH * extent, outside=self.choices.outside
@@ -1271,7 +1274,7 @@ class _Builder:
                             embedded.weights,
                             edges,
                             k,
-                            rest_lengths=_edge_lengths(points, edges, topology.path),
+                            rest_lengths=lengths,
                         )
                     )
                 except ModelError as exc:
@@ -1284,7 +1287,7 @@ class _Builder:
                     else _float(mass, "vertexMass", 1.0)
                 )
                 extra = np.zeros(mesh.n_nodes) if extra is None else extra
-                np.add.at(extra, embedded.nodes.ravel(), each * embedded.weights.ravel())
+                np.add.at(extra, embedded.nodes.ravel(), each * _hrz_shares(embedded.weights))
         return springs, extra
 
     def _layers(self, node: SceneNode, fem: SceneObject, mesh: TetMesh) -> list:
@@ -2068,12 +2071,20 @@ class _Builder:
 
 
 # --- what a script's init() computes --------------------------------------------------------
-def _edge_lengths(points: np.ndarray, edges: np.ndarray, where: str) -> np.ndarray:
-    """The lengths of `edges` (a flat list of pairs) between `points`."""
-    if edges.size == 0 or edges.size % 2 or edges.min() < 0 or edges.max() >= len(points):
+def _hrz_shares(weights: np.ndarray) -> np.ndarray:
+    """Each point's shares w_a^2 / sum_b w_b^2 of its mass on its element's nodes (flat)."""
+    squared = weights**2
+    return (squared / squared.sum(axis=1, keepdims=True)).ravel()
+
+
+def _edge_lengths(points: np.ndarray, edges: np.ndarray, where: str) -> tuple:
+    """The edges (a flat list read as pairs) between `points` and their lengths. SOFA reads
+    pairs from the list while two numbers remain: an odd last index makes no edge (SofaGym's
+    TrunkCup gives 0..14, seven edges)."""
+    pairs = edges[: edges.size - edges.size % 2].reshape(-1, 2)
+    if pairs.size == 0 or pairs.min() < 0 or pairs.max() >= len(points):
         raise SceneError(f"{where}.edges: pairs of indices among the {len(points)} points expected")
-    pairs = edges.reshape(-1, 2)
-    return np.linalg.norm(points[pairs[:, 1]] - points[pairs[:, 0]], axis=1)
+    return pairs, np.linalg.norm(points[pairs[:, 1]] - points[pairs[:, 0]], axis=1)
 
 
 def _script_builder(node: SceneNode) -> _Builder:
