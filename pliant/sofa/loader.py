@@ -725,11 +725,13 @@ class _Builder:
         self.root, self.path, self.choices, self.mesh_dirs = root, path, choices, mesh_dirs
         self.bindings = Bindings()
         self._part: Part | None = None  # the body whose points are read, of several
+        self._springs_read: set[int] = set()  # MeshSpringForceFields read on a body
 
     # --- scene-wide ------------------------------------------------------------------------
     def build(self) -> SofaScene:
         self._check_supported()
         if rods.has_rods(self.root) and rods.moving_rods(self):  # a rod as the body
+            _refuse_on_rods(self.root)
             model, dt, solver_kind, rod = rods.rod_model(self)
             scene = SofaScene(model, dt, solver_kind, self.path, self.root, Bindings(hooks=[rod]))
             scene.write_outputs(model.rest_state())
@@ -743,6 +745,17 @@ class _Builder:
             raise SceneError(f"root.gravity: three values expected, got {gravity.size}")
         parts = [Part(n, *self._body(n, gravity)) for n in nodes]
         body, mesh, solver_kind = parts[0].body, parts[0].mesh, parts[0].solver_kind
+        unread = [
+            o.path
+            for n in self.root.walk()
+            for o in n.objects
+            if o.type == "MeshSpringForceField" and id(o) not in self._springs_read
+        ]
+        if unread:
+            raise SceneError(
+                f"{unread[0]}: springs on points carried by a deformable body of tetrahedra only"
+                " (a child node of its node with a BarycentricMapping)"
+            )
         if len(parts) > 1:  # the scene's bodies side by side in one (pliant.sofa.bodies)
             body = join(parts, self.path.name)
             mesh = body.mesh
@@ -1247,9 +1260,18 @@ class _Builder:
                     f"{fields[0].path}: springs on points without a BarycentricMapping to the"
                     f" body {node.path}"
                 )
+            self._springs_read.update(id(o) for o in fields)
             topology = next((o for o in child.objects if "edges" in o.attrs), None)
             if topology is None:
                 raise SceneError(f"{fields[0].path}: no topology with edges in {child.path}")
+            cells = [
+                k for k in ("triangles", "quads", "tetrahedra", "hexahedra") if k in topology.attrs
+            ]
+            if cells:
+                raise SceneError(
+                    f"{fields[0].path}: springs on the edges of {cells[0]} too (SOFA adds them);"
+                    " Pliant reads a topology of edges only"
+                )
             source = dofs if "position" in dofs.attrs else topology
             points = self._positions(child, source)
             edges = _floats(topology.attrs["edges"], f"{topology.path}.edges").astype(np.int64)
@@ -2071,6 +2093,14 @@ class _Builder:
 
 
 # --- what a script's init() computes --------------------------------------------------------
+def _refuse_on_rods(root: SceneNode) -> None:
+    """SceneError for a ReadState or MeshSpringForceField in a scene whose body is a rod."""
+    for node in root.walk():
+        for obj in node.objects:
+            if obj.type in ("ReadState", "MeshSpringForceField"):
+                raise SceneError(f"{obj.path}: {obj.type} on a tetrahedral body only (not a rod)")
+
+
 def _hrz_shares(weights: np.ndarray) -> np.ndarray:
     """Each point's shares w_a^2 / sum_b w_b^2 of its mass on its element's nodes (flat)."""
     squared = weights**2

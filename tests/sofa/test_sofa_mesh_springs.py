@@ -59,10 +59,10 @@ def beam(tmp_path_factory):
     return mesh, folder, first, later
 
 
-def _scene(folder, damping: float = 0.0):
+def _scene(folder, damping: float = 0.0, edges: str = 'edges="0 1 1 2 2 3"'):
     text = SCENE.format(
         points=" ".join(f"{v:g}" for v in POINTS.ravel()), stiffness=STIFFNESS, damping=damping
-    )
+    ).replace('edges="0 1 1 2 2 3"', edges)
     (folder / "springs.scn").write_text(text)
     return load_scene(folder / "springs.scn")
 
@@ -128,10 +128,12 @@ def test_the_scene_steps_as_the_model_built_with_the_api(beam) -> None:
     assert np.abs(free.positions - states[1].positions).max() > 1e-3
 
 
-def test_spring_damping_and_a_bad_state_file_are_refused(beam) -> None:
+def test_spring_damping_cells_and_a_bad_state_file_are_refused(beam) -> None:
     mesh, folder, _, _ = beam
     with pytest.raises(SceneError, match="damping"):
         _scene(folder, damping=0.5)
+    with pytest.raises(SceneError, match="edges of triangles too"):
+        _scene(folder, edges='edges="0 1 1 2" triangles="0 1 2"')
     (folder / "state.txt").write_text("T= 0\n  X= 1 2 3\n")
     with pytest.raises(SceneError, match="1 points where the body has"):
         _scene(folder)
