@@ -358,7 +358,8 @@ class TetBody(DeformableBody):
         self.free_dofs = np.flatnonzero(~fixed_mask)
         self.free_index = np.full(3 * n, -1, dtype=np.int64)
         self.free_index[self.free_dofs] = np.arange(self.free_dofs.size)
-        self.pattern = StiffnessPattern.build(elements, self.free_index)
+        spanning = tuple(load.groups for load in loads if load.spans_elements)
+        self.pattern = StiffnessPattern.build(elements, self.free_index, spanning)
         self.membranes = [MembraneAssembly(m, n, self.free_index, self.pattern) for m in membranes]
         self.loads = [LoadAssembly(load, n, self.free_index, self.pattern) for load in loads]
         self.projections = list(projections)

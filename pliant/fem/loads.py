@@ -1,7 +1,8 @@
 """External loads on a tetrahedral body and elastic supports: nodal forces (SOFA's
 ConstantForceField), surface pressure and traction (SurfacePressureForceField-like), a point
 force that turns with the body (a follower force in the frame of the element carrying it),
-springs to the rest shape (RestShapeSpringsForceField).
+springs to the rest shape (RestShapeSpringsForceField), springs between points carried by the
+body (MeshSpringForceField on barycentrically mapped points).
 
 A load gives nodal forces f(x, t) on groups of nodes (one node, or the three of a triangle)
 and, when they depend on the positions, the groups' tangent blocks K = -df/dx. The body adds
@@ -38,6 +39,9 @@ class Load:
 
     groups: np.ndarray
     schedule: Schedule | None = None
+    #: its groups may join nodes of different elements: the body widens its stiffness
+    #: pattern to hold them (otherwise a group outside one element is an error).
+    spans_elements: bool = False
 
     def scale(self, time: float) -> float:
         return 1.0 if self.schedule is None else float(self.schedule(time))
@@ -246,6 +250,94 @@ class RestShapeSprings(Load):
 
     def group_tangents(self, x, time):
         return self.stiffness[:, None, None] * np.eye(3)[None]
+
+
+class EmbeddedSprings(Load):
+    """Linear springs between points carried by the body (SOFA's MeshSpringForceField on the
+    edges of points a BarycentricMapping carries): point p = sum_a w_pa x_a over its element's
+    nodes. A spring of stiffness k and rest length L between points p, q of current length
+    l = |q - p| and direction u = (q - p) / l pulls with f_p = k (l - L) u = -f_q, energy
+    k (l - L)^2 / 2. Each node a of a point's element carries w_pa of its force (J^T f) and
+    the tangent is J^T K J, K = k [u u^T + (1 - L / l)(I - u u^T)] on the pair (p, q).
+
+    A group is a spring's two elements (2 k nodes, possibly different elements): the body
+    widens its stiffness pattern for them (``spans_elements``).
+
+    Args:
+        nodes: (p, k) each point's element nodes (weights 0 on spare slots).
+        weights: (p, k) its barycentric weights.
+        edges: (e, 2) pairs of point indices.
+        stiffness: k, one value or one per edge (> 0).
+        rest_lengths: (e,) rest lengths; default the edges' lengths at the points' positions
+            on the nodes `rest_positions` (give one of the two).
+        rest_positions: the body's node positions the rest lengths are measured at.
+    """
+
+    spans_elements = True
+
+    def __init__(
+        self, nodes, weights, edges, stiffness, *, rest_lengths=None, rest_positions=None
+    ) -> None:
+        nodes = np.asarray(nodes, dtype=np.int64)
+        weights = np.asarray(weights, dtype=float)
+        if nodes.ndim != 2 or weights.shape != nodes.shape or nodes.size == 0:
+            raise ModelError("EmbeddedSprings: nodes and weights must be (p, k) arrays alike")
+        _check_nodes(nodes, "EmbeddedSprings")
+        pairs = np.asarray(edges, dtype=np.int64)
+        if pairs.size == 0 or pairs.size % 2:
+            raise ModelError("EmbeddedSprings: edges must be pairs of point indices")
+        pairs = pairs.reshape(-1, 2)
+        if pairs.min() < 0 or pairs.max() >= nodes.shape[0]:
+            raise ModelError(
+                f"EmbeddedSprings: edge point indices must lie in [0, {nodes.shape[0]})"
+            )
+        k = np.broadcast_to(np.asarray(stiffness, dtype=float), (pairs.shape[0],)).copy()
+        if not np.all(np.isfinite(k)) or np.any(k <= 0):
+            raise ModelError("EmbeddedSprings: stiffness must be finite and > 0")
+        self.groups = np.concatenate([nodes[pairs[:, 0]], nodes[pairs[:, 1]]], axis=1)
+        # Signed weights: the spring's vector q - p = sum_a c_a x_a over the group's nodes.
+        self.coefficients = np.concatenate([-weights[pairs[:, 0]], weights[pairs[:, 1]]], axis=1)
+        self.stiffness = k
+        if (rest_lengths is None) == (rest_positions is None):
+            raise ModelError("EmbeddedSprings: give rest_lengths or rest_positions")
+        if rest_lengths is None:
+            rest = self._vectors(np.asarray(rest_positions, dtype=float))
+            rest_lengths = np.linalg.norm(rest, axis=1)
+        lengths = np.broadcast_to(np.asarray(rest_lengths, dtype=float), k.shape).copy()
+        if not np.all(np.isfinite(lengths)) or np.any(lengths < 0):
+            raise ModelError("EmbeddedSprings: rest lengths must be finite and >= 0")
+        self.rest_lengths = lengths
+
+    def _vectors(self, x: np.ndarray) -> np.ndarray:
+        """q - p of each spring (e, 3)."""
+        return np.einsum("ek,ekc->ec", self.coefficients, x[self.groups])
+
+    def energy(self, x: np.ndarray) -> float:
+        """sum k (l - L)^2 / 2."""
+        stretch = np.linalg.norm(self._vectors(x), axis=1) - self.rest_lengths
+        return float(0.5 * np.sum(self.stiffness * stretch**2))
+
+    def _directions(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        d = self._vectors(x)
+        length = np.linalg.norm(d, axis=1)
+        if np.any(length <= 0.0):
+            raise ModelError("EmbeddedSprings: a spring's two points coincide (no direction)")
+        return d / length[:, None], length
+
+    def group_forces(self, x, time):
+        u, length = self._directions(x)
+        pull = (self.stiffness * (length - self.rest_lengths))[:, None] * u  # on p, -on q
+        return -self.coefficients[:, :, None] * pull[:, None, :]
+
+    def group_tangents(self, x, time):
+        u, length = self._directions(x)
+        uu = u[:, :, None] * u[:, None, :]
+        ratio = (1.0 - self.rest_lengths / length)[:, None, None]
+        pair = self.stiffness[:, None, None] * (uu + ratio * (np.eye(3)[None] - uu))
+        c = self.coefficients
+        blocks = c[:, :, None, None, None] * c[:, None, :, None, None] * pair[:, None, None]
+        m = c.shape[1]  # (e, a, b, 3, 3) -> (e, 3 m, 3 m)
+        return blocks.transpose(0, 1, 3, 2, 4).reshape(-1, 3 * m, 3 * m)
 
 
 class LoadAssembly:

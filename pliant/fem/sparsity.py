@@ -27,9 +27,13 @@ class StiffnessPattern:
     scatter: np.ndarray
 
     @classmethod
-    def build(cls, tets: np.ndarray, free_index: np.ndarray) -> StiffnessPattern:
+    def build(
+        cls, tets: np.ndarray, free_index: np.ndarray, couplings: tuple = ()
+    ) -> StiffnessPattern:
         """`free_index[d]` is the free-DoF number of full DoF d, or -1 if d is fixed; `tets`
-        are the elements' nodes (m, k)."""
+        are the elements' nodes (m, k); `couplings`, groups of nodes (g, j) coupled besides
+        the elements (loads between elements): their entries join the pattern, not
+        `scatter`."""
         m, size = tets.shape[0], 3 * tets.shape[1]
         dofs = (3 * tets[:, :, None] + np.arange(3)[None, None, :]).reshape(m, size)
         fdofs = free_index[dofs]
@@ -38,9 +42,15 @@ class StiffnessPattern:
         valid = (rows >= 0) & (cols >= 0)
         n_free = int(free_index.max()) + 1 if free_index.size and free_index.max() >= 0 else 0
         key = rows.astype(np.int64) * max(n_free, 1) + cols
-        uniq, inverse = np.unique(key[valid], return_inverse=True)
+        keys = [key[valid]]
+        for group in couplings:
+            gd = free_index[(3 * group[:, :, None] + np.arange(3)).reshape(group.shape[0], -1)]
+            gr, gc = gd[:, :, None], gd[:, None, :]
+            both = (gr >= 0) & (gc >= 0)
+            keys.append((gr.astype(np.int64) * max(n_free, 1) + gc)[both])
+        uniq, inverse = np.unique(np.concatenate(keys), return_inverse=True)
         scatter = np.full((m, size, size), -1, dtype=np.int64)
-        scatter[valid] = inverse.ravel()
+        scatter[valid] = inverse.ravel()[: int(valid.sum())]
         urows = uniq // max(n_free, 1)
         indices = (uniq % max(n_free, 1)).astype(np.int32)
         indptr = np.zeros(n_free + 1, dtype=np.int32)

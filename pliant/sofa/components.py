@@ -262,6 +262,18 @@ FIELDS: dict[str, dict] = {
         "showColor": [1.0, 1.0, 1.0, 1.0],
         "drawMode": 0,
     },
+    "ReadState": {"filename": "", "interval": 0.0, "shift": 0.0},
+    "MeshSpringForceField": {
+        "stiffness": 1.0,
+        "damping": 0.0,
+        **{
+            f"{kind}{what}": 0.0
+            for kind in ("lines", "triangles", "quads", "tetrahedra", "cubes")
+            for what in ("Stiffness", "Damping")
+        },
+        "noCompression": False,
+        "template": "Vec3",
+    },
     "UniformMass": {
         "totalMass": 1.0,
         "vertexMass": 1.0,

@@ -43,7 +43,7 @@ from pliant.constraints.point import PointActuator
 from pliant.constraints.surface import SurfaceContact
 from pliant.errors import ContactError, ModelError
 from pliant.fem.body import TetBody, fixed_components, nodes_in_box
-from pliant.fem.loads import Load, NodalForces, RestShapeSprings
+from pliant.fem.loads import EmbeddedSprings, Load, NodalForces, RestShapeSprings
 from pliant.fem.material import Corotational, Material, NeoHookean, StVenantKirchhoff
 from pliant.fem.rigid import DrivenNodes, RigidBody
 from pliant.fem.supports import OnLine, OnPlane, Projection
@@ -65,6 +65,7 @@ from pliant.sofa.rigids import (
     static_sphere,
 )
 from pliant.sofa.servos import ARTICULATED, Servo, linked_dofs, read_servos, rigid_pose
+from pliant.sofa.states import RecordedStates, read_records
 from pliant.sofa.tree import (
     INITIALISERS,
     SceneError,
@@ -212,6 +213,9 @@ HANDLED = HANDLED | {PLANE_CONSTRAINT}
 HANDLED = HANDLED | {"SubsetMultiMapping"}
 # SoftRobots' servo motors (ArticulatedSystemPlugin): kinematic servos, pliant.sofa.servos.
 HANDLED = HANDLED | ARTICULATED
+# A body's state read from a file (pliant.sofa.states); springs between points the body
+# carries (pliant.fem.loads.EmbeddedSprings).
+HANDLED = HANDLED | {"ReadState", "MeshSpringForceField"}
 # Components Pliant knows but cannot map, and why (their data are still checked).
 UNSUPPORTED = {
     # SoftRobots registers it on Vec1 only: an articulation's angle or course, which an
@@ -221,10 +225,6 @@ UNSUPPORTED = {
     "JointConstraint": "an articulation's degree of freedom (Vec1 of an"
     " ArticulatedSystemMapping); Pliant reads a servo's angle from its"
     " RestShapeSpringsForceField's rest_position only",
-    "ReadState": "positions read from a file as the scene runs (SofaGym's TrunkCup: one"
-    " recorded state); a Pliant scene starts from its rest shape",
-    "MeshSpringForceField": "springs on the edges of points mapped on the body; Pliant's"
-    " springs hold nodes to their rest positions only (RestShapeSpringsForceField)",
     # BeamAdapter's beams (SofaGym's StemPendulum): Pliant reads the Cosserat plugin's rods
     # (pliant.sofa.rods), not BeamAdapter's interpolated beams.
     "BeamInterpolation": "BeamAdapter's beam (Pliant reads SOFA's Cosserat plugin rods)",
@@ -736,6 +736,7 @@ class _Builder:
         self.root, self.path, self.choices, self.mesh_dirs = root, path, choices, mesh_dirs
         self.bindings = Bindings()
         self._part: Part | None = None  # the body whose points are read, of several
+        self._springs_read: set[int] = set()  # MeshSpringForceFields read on a body
         # The collision surfaces of the bodies read so far (vertices, triangles), by node.
         self._surfaces: dict[int, tuple[EmbeddedPoints, np.ndarray]] = {}
 
@@ -743,6 +744,7 @@ class _Builder:
     def build(self) -> SofaScene:
         self._check_supported()
         if rods.has_rods(self.root) and rods.moving_rods(self):  # a rod as the body
+            _refuse_on_rods(self.root)
             model, dt, solver_kind, rod = rods.rod_model(self)
             scene = SofaScene(model, dt, solver_kind, self.path, self.root, Bindings(hooks=[rod]))
             scene.write_outputs(model.rest_state())
@@ -756,6 +758,17 @@ class _Builder:
             raise SceneError(f"root.gravity: three values expected, got {gravity.size}")
         parts = [Part(n, *self._body(n, gravity)) for n in nodes]
         body, mesh, solver_kind = parts[0].body, parts[0].mesh, parts[0].solver_kind
+        unread = [
+            o.path
+            for n in self.root.walk()
+            for o in n.objects
+            if o.type == "MeshSpringForceField" and id(o) not in self._springs_read
+        ]
+        if unread:
+            raise SceneError(
+                f"{unread[0]}: springs on points carried by a deformable body of tetrahedra only"
+                " (a child node of its node with a BarycentricMapping)"
+            )
         if len(parts) > 1:  # the scene's bodies side by side in one (pliant.sofa.bodies)
             body = join(parts, self.path.name)
             mesh = body.mesh
@@ -825,6 +838,7 @@ class _Builder:
             for p in parts
             if (dofs := self._one(p.node, {"MechanicalObject"}, "MechanicalObjects")) is not None
         ]
+        self.bindings.hooks += self._recorded_states(parts, dt)
         self.bindings.rigid = [
             self._one(n, {"MechanicalObject"}, "MechanicalObjects")
             for n in self.root.walk()
@@ -1217,6 +1231,11 @@ class _Builder:
     def _body(self, node: SceneNode, gravity: np.ndarray) -> tuple[TetBody, TetMesh, str]:
         fem = self._one(node, FEM, "FEM force fields")
         if fem.type == HEXAHEDRA:
+            springs = [
+                o for c in node.walk() for o in c.objects if o.type == "MeshSpringForceField"
+            ]
+            if springs:
+                raise SceneError(f"{springs[0].path}: springs on a hexahedral body's points")
             return hex_body(self, node, fem, gravity)
         split = grid_tetrahedra(self, node)  # a grid's cells cut in tetrahedra
         points, tets = split if split is not None else self._read_mesh(self._mesh_loader(node))
@@ -1250,25 +1269,125 @@ class _Builder:
         mass_kwargs = self._mass(node, points.shape[0])
         solver_kind, rayleigh = self._ode_solver(node)
         fixed = np.union1d(self._fixed_nodes(node, points), self._held_groups(node, points))
+        springs, carried_mass = self._mesh_springs(node, mesh)
         body = TetBody(
             mesh,
             material,
             fixed_nodes=fixed,
             fixed_dofs=self._fixed_components(node, points),
             frame_nodes=frame_nodes if rotation == "large" else None,
-            loads=self._loads(node, points),
+            loads=self._loads(node, points) + springs,
             projections=self._projections(node, points),
             gravity=tuple(gravity),
             rayleigh_mass=rayleigh[0],
             rayleigh_stiffness=rayleigh[1],
             **mass_kwargs,
         )
+        if carried_mass is not None:
+            if body.mass_type == "consistent":
+                raise SceneError(
+                    f"{node.path}: a mass on points mapped on the body adds to its nodes' masses"
+                    " (a diagonal mass): the body's MeshMatrixMass must be lumped"
+                )
+            body.set_node_masses(body.node_masses + carried_mass)
         for elements, (mu, lam) in layers:  # the same law: its parameters add up
             body.mu[elements] += mu
             body.lam[elements] += lam
         if layers:
             body.changed()
         return body, mesh, solver_kind
+
+    def _recorded_states(self, parts: list[Part], dt: float) -> list[RecordedStates]:
+        """A hook per ReadState on a body's node (pliant.sofa.states); one elsewhere is refused."""
+        hooks = []
+        for node in self.root.walk():
+            for obj in node.objects:
+                if obj.type != "ReadState":
+                    continue
+                part = next((p for p in parts if p.node is node), None)
+                if part is None:
+                    raise SceneError(
+                        f"{obj.path}: Pliant reads a state file into a deformable body's node"
+                        " only (its MechanicalObject)"
+                    )
+                if _float(obj, "interval", 0.0) != 0.0:
+                    raise SceneError(f"{obj.path}.interval: only 0 (every record) is supported")
+                n = part.body.n_nodes
+                records = read_records(self._resolve_file(obj), n, obj.path)
+                rows = slice(part.offset, part.offset + n)
+                hooks.append(RecordedStates(records, _float(obj, "shift", 0.0), dt, rows))
+        return hooks
+
+    def _mesh_springs(self, node: SceneNode, mesh: TetMesh) -> tuple[list, np.ndarray | None]:
+        """MeshSpringForceFields on points the body carries (nodes under `node` with a
+        BarycentricMapping): springs on their topology's edges, rest lengths the edges' first
+        lengths (:class:`~pliant.fem.loads.EmbeddedSprings`); and those points' UniformMass
+        added to the body's nodes through their weights: the mapped mass m w w^T (SOFA's
+        J^T M J) lumped by HRZ, w_a^2 / sum w^2 of m on node a, positive and summing to m
+        where the weights of a point kept outside the mesh are negative (row sums would not)."""
+        springs, extra = [], None
+        for child in node.walk():
+            fields = [o for o in child.objects if o.type == "MeshSpringForceField"]
+            if child is node or not fields:
+                continue
+            mapping = next((o for o in child.objects if o.type in MAPPINGS), None)
+            dofs = self._one(child, {"MechanicalObject"}, "MechanicalObjects")
+            if mapping is None or mapping.type != "BarycentricMapping" or dofs is None:
+                raise SceneError(
+                    f"{fields[0].path}: springs on points without a BarycentricMapping to the"
+                    f" body {node.path}"
+                )
+            self._springs_read.update(id(o) for o in fields)
+            topology = next((o for o in child.objects if "edges" in o.attrs), None)
+            if topology is None:
+                raise SceneError(f"{fields[0].path}: no topology with edges in {child.path}")
+            cells = [
+                k for k in ("triangles", "quads", "tetrahedra", "hexahedra") if k in topology.attrs
+            ]
+            if cells:
+                raise SceneError(
+                    f"{fields[0].path}: springs on the edges of {cells[0]} too (SOFA adds them);"
+                    " Pliant reads a topology of edges only"
+                )
+            source = dofs if "position" in dofs.attrs else topology
+            points = self._positions(child, source)
+            edges = _floats(topology.attrs["edges"], f"{topology.path}.edges").astype(np.int64)
+            edges, lengths = _edge_lengths(points, edges, topology.path)
+            extent = float(np.linalg.norm(np.ptp(mesh.points, axis=0)))
+            embedded = EmbeddedPoints(
+                mesh, points, tolerance=SOFA_REACH * extent, outside=self.choices.outside
+            )
+            for obj in fields if _flag(mapping, "mapForces", True) else []:
+                damping = _float(obj, "linesDamping", _float(obj, "damping", 0.0))
+                if damping != 0.0:
+                    raise SceneError(
+                        f"{obj.path}: damping {damping:g}: Pliant's springs have none (give 0)"
+                    )
+                if "stiffness" not in obj.attrs and "linesStiffness" not in obj.attrs:
+                    raise SceneError(f"{obj.path}: give the springs' stiffness")
+                k = _float(obj, "linesStiffness", _float(obj, "stiffness", 0.0))
+                try:
+                    springs.append(
+                        EmbeddedSprings(
+                            embedded.nodes,
+                            embedded.weights,
+                            edges,
+                            k,
+                            rest_lengths=lengths,
+                        )
+                    )
+                except ModelError as exc:
+                    raise SceneError(f"{obj.path}: {exc}") from exc
+            mass = next((o for o in child.objects if o.type == "UniformMass"), None)
+            if mass is not None and _flag(mapping, "mapMasses", True):
+                each = (
+                    _float(mass, "totalMass", 0.0) / len(points)
+                    if "totalMass" in mass.attrs
+                    else _float(mass, "vertexMass", 1.0)
+                )
+                extra = np.zeros(mesh.n_nodes) if extra is None else extra
+                np.add.at(extra, embedded.nodes.ravel(), each * _hrz_shares(embedded.weights))
+        return springs, extra
 
     def _layers(self, node: SceneNode, fem: SceneObject, mesh: TetMesh) -> list:
         """The body's stiffer layers (see :meth:`_is_layer`): for each, its elements among
@@ -2057,6 +2176,30 @@ class _Builder:
 
 
 # --- what a script's init() computes --------------------------------------------------------
+def _refuse_on_rods(root: SceneNode) -> None:
+    """SceneError for a ReadState or MeshSpringForceField in a scene whose body is a rod."""
+    for node in root.walk():
+        for obj in node.objects:
+            if obj.type in ("ReadState", "MeshSpringForceField"):
+                raise SceneError(f"{obj.path}: {obj.type} on a tetrahedral body only (not a rod)")
+
+
+def _hrz_shares(weights: np.ndarray) -> np.ndarray:
+    """Each point's shares w_a^2 / sum_b w_b^2 of its mass on its element's nodes (flat)."""
+    squared = weights**2
+    return (squared / squared.sum(axis=1, keepdims=True)).ravel()
+
+
+def _edge_lengths(points: np.ndarray, edges: np.ndarray, where: str) -> tuple:
+    """The edges (a flat list read as pairs) between `points` and their lengths. SOFA reads
+    pairs from the list while two numbers remain: an odd last index makes no edge (SofaGym's
+    TrunkCup gives 0..14, seven edges)."""
+    pairs = edges[: edges.size - edges.size % 2].reshape(-1, 2)
+    if pairs.size == 0 or pairs.min() < 0 or pairs.max() >= len(points):
+        raise SceneError(f"{where}.edges: pairs of indices among the {len(points)} points expected")
+    return pairs, np.linalg.norm(points[pairs[:, 1]] - points[pairs[:, 0]], axis=1)
+
+
 def _script_builder(node: SceneNode) -> _Builder:
     """A builder for the tree a script is building (run in the script's folder)."""
     root = node
