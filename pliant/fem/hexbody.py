@@ -136,7 +136,7 @@ class HexBody(TetBody):
             out = np.zeros(self.n_nodes)
             np.add.at(out, self.hexes.ravel(), self._element_masses().sum(axis=2).ravel())
             return out
-        raise ModelError(f"mass must be 'lumped', 'uniform' or 'consistent', got {mass!r}")
+        raise ModelError(f"mass must be 'lumped', 'uniform', 'consistent' or 'none', got {mass!r}")
 
     def _mass_data(self, mass: str) -> np.ndarray:
         if mass != "consistent":

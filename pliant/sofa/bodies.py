@@ -156,6 +156,12 @@ def _check_alike(parts: Sequence[Part], scene: str) -> None:
             + ", ".join(f"{p.node.path}: {p.body.material!r}" for p in parts)
             + "): the elements of one Pliant body share one law and element rotation"
         )
+    massless = [p for p in parts if p.body.massless]
+    if massless and len(massless) < len(parts):
+        problems.append(
+            "a body with no mass beside bodies with one"
+            f" ({', '.join(f'{p.node.path}: {p.body.mass_type}' for p in parts)})"
+        )
     consistent = [p for p in parts if p.body.mass_type == "consistent"]
     if consistent and (len(consistent) < len(parts) or len({p.body.density for p in parts}) > 1):
         problems.append(
@@ -188,14 +194,15 @@ def join(parts: Sequence[Part], scene: str) -> TetBody:
     held = np.concatenate([np.flatnonzero(p.body.free_index < 0) + 3 * p.offset for p in parts])
     loads = [_shifted_copy(a.load, "groups", p.offset) for p in parts for a in p.body.loads]
     projections = [_shifted_copy(j, "nodes", p.offset) for p in parts for j in p.body.projections]
-    mass = (
-        {"mass": "consistent", "density": first.density}
-        if first.mass_type == "consistent"
-        else {
+    if first.mass_type == "consistent":
+        mass = {"mass": "consistent", "density": first.density}
+    elif first.massless:
+        mass = {"mass": "none"}
+    else:
+        mass = {
             "mass": "uniform" if all(b.mass_type == "uniform" for b in bodies) else "lumped",
             "total_mass": float(sum(b.total_mass for b in bodies)),
         }
-    )
     body = TetBody(
         TetMesh(points, tets),
         first.material,
@@ -211,7 +218,7 @@ def join(parts: Sequence[Part], scene: str) -> TetBody:
     )
     body.mu[:] = np.concatenate([b.mu for b in bodies])
     body.lam[:] = np.concatenate([b.lam for b in bodies])
-    if body.mass_type != "consistent":
+    if body.mass_type not in ("consistent", "none"):
         body.set_node_masses(np.concatenate([b.node_masses for b in bodies]))
     body.changed()
     return body

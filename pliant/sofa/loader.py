@@ -911,7 +911,10 @@ class _Builder:
             part = next((p for p in parts if p.owns(node)), None)
             if part is not None:
                 if "PointCollisionModel" not in types:
-                    raise SceneError(f"{node.path}: the body collides by points only")
+                    raise SceneError(
+                        f"{node.path}: the body collides by points only (PointCollisionModel),"
+                        f" not by {', '.join(sorted(types & COLLISION_MODELS))}"
+                    )
                 if node is part.node:  # the body's own nodes collide
                     points.append(part.body.rest_positions)
                     ends = part.offset + np.arange(part.body.n_nodes)
@@ -1360,7 +1363,9 @@ class _Builder:
     def _mass(self, node: SceneNode, n_nodes: int) -> dict:
         mass = self._one(node, {"UniformMass", "MeshMatrixMass"}, "masses")
         if mass is None:
-            raise SceneError(f"{node.path}: the body has no mass (UniformMass, MeshMatrixMass)")
+            # SOFA: no mass component, no mass term and no weight (the implicit step is then
+            # a damped Newton step towards equilibrium; the static solve never reads a mass).
+            return {"mass": "none"}
         if mass.type == "UniformMass":
             if "totalMass" in mass.attrs:
                 return {"mass": "uniform", "total_mass": _float(mass, "totalMass", 1.0)}
@@ -1690,6 +1695,11 @@ class _Builder:
             for j, (x, r) in g.poses:
                 if g.fixed[j]:
                     continue
+                if body.massless:
+                    raise SceneError(
+                        f"{g.dofs.path}: a free rigidified frame of a body with no mass (Pliant"
+                        " gives the frame a share of its nodes' mass); give the body a mass"
+                    )
                 mass = FRAME_MASS_SHARE * float(body.node_masses[g.groups[j]].sum())
                 size = 1e-3 * body.extent
                 frame = RigidBody(
