@@ -175,6 +175,18 @@ def _check_alike(parts: Sequence[Part], scene: str) -> None:
         )
 
 
+def check_held_if_massless(node: SceneNode, body: TetBody) -> None:
+    """SceneError for a body with no mass that nothing holds against a rigid motion: SOFA's
+    implicit step is then the stiffness alone, singular (an iterative solver leaves the body
+    still only while no force acts on it)."""
+    free = body.free_rigid_motions() if body.massless else []
+    if free:
+        raise SceneError(
+            f"{node.path}: the body has no mass (UniformMass, MeshMatrixMass) and nothing holds"
+            f" it ({'; '.join(free)} free): its step, the stiffness alone, is singular"
+        )
+
+
 def join(parts: Sequence[Part], scene: str) -> TetBody:
     """One body over the disjoint union of the parts' meshes (each built alone, their
     offsets set here), with each part's elements, masses, held DoFs, loads and projections.

@@ -51,7 +51,7 @@ from pliant.mesh.quality import signed_volumes
 from pliant.mesh.tetmesh import TetMesh
 from pliant.model import Model, State
 from pliant.sofa import rods
-from pliant.sofa.bodies import Part, contact_problem, join
+from pliant.sofa.bodies import Part, check_held_if_massless, contact_problem, join
 from pliant.sofa.components import FIELDS, is_visual
 from pliant.sofa.grids import GRIDS, HEXAHEDRA, grid_tetrahedra, hex_body
 from pliant.sofa.rigids import (
@@ -1189,6 +1189,7 @@ class _Builder:
             rayleigh_stiffness=rayleigh[1],
             **mass_kwargs,
         )
+        check_held_if_massless(node, body)
         for elements, (mu, lam) in layers:  # the same law: its parameters add up
             body.mu[elements] += mu
             body.lam[elements] += lam
