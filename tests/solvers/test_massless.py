@@ -13,9 +13,11 @@ import pytest
 from pliant.diff.step import check_has_mass
 from pliant.errors import MaterialError, ModelError
 from pliant.fem.body import TetBody
+from pliant.fem.hexbody import HexBody
 from pliant.fem.loads import NodalForces
 from pliant.fem.material import Corotational
 from pliant.mesh import box_beam
+from pliant.mesh.hexmesh import regular_grid
 from pliant.model import Model
 from pliant.solvers import ImplicitEuler, StaticSolver
 
@@ -109,3 +111,25 @@ def test_a_massless_body_takes_no_density_nor_masses():
         body.set_node_masses(np.ones(body.n_nodes))
     with pytest.raises(ModelError, match="no density to differentiate"):
         check_has_mass(body)
+
+
+def test_a_massless_hexahedral_body_settles_on_its_equilibrium():
+    mesh = regular_grid((4, 2, 2), (0.0, 0.0, 0.0), (40.0, 10.0, 10.0))
+    x = mesh.points
+    body = HexBody(
+        mesh,
+        Corotational(200.0, 0.3),
+        mass="none",
+        fixed_nodes=np.flatnonzero(x[:, 0] < 0.1),
+        loads=[NodalForces(np.flatnonzero(x[:, 0] > 39.9), [0.0, 0.0, -5.0])],
+        gravity=(0.0, 0.0, -9810.0),
+    )
+    model = Model(body, name="massless grid")
+    assert body.massless and not np.any(body.gravity_forces())
+    sim, state = ImplicitEuler(model, H, tangent="fresh"), model.rest_state()
+    for _ in range(20):
+        state = sim.step(state)
+    equilibrium = StaticSolver(model).step(model.rest_state()).positions
+    tip = np.abs(equilibrium - x).max()
+    assert tip > 1.0
+    np.testing.assert_allclose(state.positions, equilibrium, atol=1e-9 * tip)
