@@ -52,6 +52,7 @@ _FACE = {
     "PositionEffector": "pliant.constraints",
     "RigidEffector": "pliant.constraints",
     "Contacts": "pliant.constraints",
+    "SurfaceContact": "pliant.constraints",
     "Plane": "pliant.geometry",
     "Box": "pliant.geometry",
     "Sphere": "pliant.geometry",

@@ -10,6 +10,7 @@ from pliant.constraints.control import DirectControl, InverseControl
 from pliant.constraints.effector import PositionEffector, RigidEffector
 from pliant.constraints.joint import RotationActuator
 from pliant.constraints.point import PointActuator
+from pliant.constraints.surface import SurfaceContact, body_pieces
 
 __all__ = [
     "Actuator",
@@ -26,5 +27,7 @@ __all__ = [
     "PositionEffector",
     "RigidEffector",
     "RotationActuator",
+    "SurfaceContact",
     "Weld",
+    "body_pieces",
 ]

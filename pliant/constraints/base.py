@@ -124,13 +124,18 @@ class EmbeddedPoints:
     def rows(self, x: np.ndarray, index: np.ndarray, directions: np.ndarray) -> JacobianRows:
         """Rows d . dp of the points `index`, one per direction: `directions` (k, r, 3) gives
         r directions for each of the k points; rows ordered point by point."""
-        nodes, weights = self.nodes[index], self.weights[index]
-        k, m = nodes.shape
-        r = directions.shape[1]
-        values = weights[:, None, :, None] * directions[:, :, None, :]
-        return JacobianRows(
-            np.repeat(nodes[:, None, :], r, axis=1).reshape(k * r, m), values.reshape(k * r, m, 3)
-        )
+        return embedded_rows(self.nodes[index], self.weights[index], directions)
+
+
+def embedded_rows(nodes: np.ndarray, weights: np.ndarray, directions: np.ndarray) -> JacobianRows:
+    """Rows d . p of k points p = sum_a w_a x_a (`nodes`, `weights`: (k, m)), r directions
+    (k, r, 3) each, ordered point by point."""
+    k, m = nodes.shape
+    r = directions.shape[1]
+    values = weights[:, None, :, None] * directions[:, :, None, :]
+    return JacobianRows(
+        np.repeat(nodes[:, None, :], r, axis=1).reshape(k * r, m), values.reshape(k * r, m, 3)
+    )
 
 
 @dataclass(frozen=True)

@@ -23,6 +23,10 @@ the velocity of the contact point of side a relative to side b due to them,
 so that the step's compliance gains h^2 G M^-1 G^T and its free distance h G u_free
 (pliant.solvers.implicit_euler), and lambda acts on both sides of each contact.
 
+Pieces of the body touching each other (:class:`pliant.constraints.surface.SurfaceContact`,
+points of one piece against the current triangles of another) add rows on the relative point
+of the two pieces, with the obstacles' law, after the planes' rows.
+
 Self-contact planes (:class:`PointPlanes`, SoftRobots' UnilateralPlaneConstraint) keep a
 point of the body on one side of the plane through three others. The point's offset from the
 three's centroid, d = p_a - (p_b + p_c + p_d) / 3, is linear in the nodes: it is one more
@@ -42,6 +46,7 @@ import numpy as np
 
 from pliant.constraints.base import Constraint, EmbeddedPoints, JacobianRows
 from pliant.constraints.friction import ContactConstraint
+from pliant.constraints.surface import SurfaceContact
 from pliant.errors import ContactError, ContactMarginWarning
 from pliant.fem.material import check_friction
 from pliant.fem.rigid import RigidBody, RigidStep, contact_twist_jacobian
@@ -146,7 +151,14 @@ class Contacts:
         planes: self-contact planes of the body (:class:`PointPlanes`), solved with the
             contacts; `shapes` may then be empty. After the model attaches the contacts,
             `points` holds the colliding points, then the planes' offsets.
+        surfaces: contacts between pieces of the body (:class:`SurfaceContact`: points of one
+            piece against the surface of another), detected within `margin` each step and
+            solved with the others; `shapes` may then be empty. Their rows follow the
+            obstacles' and the planes'.
     """
+
+    #: The surface contacts between pieces of the body (none unless given).
+    surfaces: Sequence[SurfaceContact] = ()
 
     def __init__(
         self,
@@ -159,11 +171,19 @@ class Contacts:
         max_iterations: int = 1000,
         thickness: float = 0.0,
         planes: PointPlanes | None = None,
+        surfaces: Sequence[SurfaceContact] = (),
     ) -> None:
         self.shapes = list(shapes)
         self.planes = planes
-        if not self.shapes and planes is None:
-            raise ContactError("Contacts needs at least one shape (or point planes)")
+        if surfaces:  # else the class's empty default: the model's attributes stay as they were
+            self.surfaces = list(surfaces)
+        if not self.shapes and planes is None and not surfaces:
+            raise ContactError(
+                "Contacts needs at least one shape (or point planes, or surface contacts)"
+            )
+        for surface in surfaces:
+            if not isinstance(surface, SurfaceContact):
+                raise ContactError(f"not a SurfaceContact: {surface!r}")
         for shape in self.shapes:
             if not isinstance(shape, Shape):
                 raise ContactError(f"not a collision shape: {shape!r}")
@@ -194,6 +214,15 @@ class Contacts:
         if self.points is None:
             self.points = EmbeddedPoints.at_nodes(body.colliding_nodes())
         self.n_colliding = len(self.points)
+        if self.surfaces and not self.points.linear:
+            raise ContactError("surface contacts need colliding points linear in the nodes")
+        for surface in self.surfaces:
+            for points in (surface.points, surface.vertices):
+                if points.nodes.max() >= body.n_nodes:
+                    raise ContactError(
+                        f"{surface.name}: its points read node {int(points.nodes.max())} of a"
+                        f" body of {body.n_nodes} nodes"
+                    )
         if self.planes is not None:
             if not self.points.linear:
                 raise ContactError("point planes need colliding points linear in the nodes")
@@ -240,6 +269,7 @@ class Contacts:
         within the margin of an obstacle or rigid body (as posed at the step's start): it may
         have crossed a surface no row was given for. A point swinging fast far from every
         obstacle is no concern."""
+        self._check_surface_travel(positions, displacement, step)
         moved = self.points.displacement(positions, displacement)[: self.n_colliding]
         travel = np.linalg.norm(moved, axis=1)
         fast = np.flatnonzero(travel > self.margin)
@@ -256,6 +286,32 @@ class Contacts:
                 ContactMarginWarning,
                 stacklevel=3,
             )
+
+    def _check_surface_travel(self, positions, displacement, step: int) -> None:
+        """As `check_travel` for the pieces of the body touching each other: a point that
+        ends the step near the other piece's surface having come closer to it over the step,
+        along the contact's normal, by more than the margin."""
+        for s, surface in enumerate(self.surfaces):
+            own = np.linalg.norm(surface.points.displacement(positions, displacement), axis=1)
+            other = np.linalg.norm(surface.vertices.displacement(positions, displacement), axis=1)
+            if own.max() + other.max() <= self.margin:
+                continue
+            found = surface.detect(positions, self.margin, s)
+            if found is None:
+                continue
+            contacts, nodes, weights, _ = found
+            relative = np.einsum("ka,kai->ki", weights, displacement[nodes])
+            approach = -np.einsum("ki,ki->k", contacts.normal, relative)
+            if approach.max() > self.margin:
+                warnings.warn(
+                    f"step {step}: {surface.name}: a point came {float(approach.max()):.3g}"
+                    " closer to the surface it ends near, more than the contact margin"
+                    f" {self.margin:.3g}; contacts may have been missed: raise the margin or"
+                    " reduce the time step",
+                    ContactMarginWarning,
+                    stacklevel=4,
+                )
+                return
 
     def constraint(
         self, positions: np.ndarray, dt: float | None, rigid: RigidStep | None = None
@@ -282,15 +338,45 @@ class Contacts:
         found, friction, motion = self._with_planes(
             positions, found, self.friction[found.index_b], motion
         )
-        if len(found) == 0:
-            return None
-        return ContactConstraint(
+        surface = self.surface_rows(positions) if self.surfaces else None
+        if surface is None:
+            if len(found) == 0:
+                return None
+            return ContactConstraint(
+                found,
+                self.points,
+                friction=friction,
+                obstacle_displacement=motion,
+                thickness=self.thickness,
+            )
+        rows = ContactConstraint(
             found,
             self.points,
             friction=friction,
             obstacle_displacement=motion,
             thickness=self.thickness,
         )
+        return ContactConstraint.joined([rows, surface]) if len(found) else surface
+
+    def surface_rows(self, positions: np.ndarray) -> ContactConstraint | None:
+        """The rows of the surface contacts at `positions` (:mod:`pliant.constraints.surface`),
+        or None when no point is near another piece. A contact's identity: the point in its
+        pair, the pair (numbered after the obstacles, rigid bodies and planes), twice the
+        triangle."""
+        first = len(self.shapes) + len(self.bodies) + 1
+        parts, placed = [], {}
+        for s, surface in enumerate(self.surfaces):
+            found = surface.detect(positions, self.margin, first + s, placed)
+            if found is not None:
+                contacts, nodes, weights, origin = found
+                parts.append(
+                    ContactConstraint.relative(
+                        contacts, nodes, weights, origin, friction=surface.friction
+                    )
+                )
+        if not parts:
+            return None
+        return ContactConstraint.joined(parts) if len(parts) > 1 else parts[0]
 
     def _colliding(self, positions: np.ndarray) -> np.ndarray:
         """The colliding points' positions (without the planes' offsets)."""
@@ -352,8 +438,12 @@ class Contacts:
             obstacle_displacement=motion,
             thickness=self.thickness,
         )
+        surface = self.surface_rows(positions) if self.surfaces else None
+        if surface is not None:  # nor do the rows between pieces of the body
+            rows = ContactConstraint.joined([rows, surface])
+            jacobian = np.vstack([jacobian, np.zeros((3 * len(surface.contacts), 6 * n))])
         pairs = self._rigid_pairs(reach)
-        if len(deformable) + len(pairs) == 0:
+        if len(rows.contacts) + len(pairs) == 0:
             return None
         # Rigid-rigid pairs: side b is an obstacle (index < len(shapes)) or another body.
         pair_jacobian = contact_twist_jacobian(

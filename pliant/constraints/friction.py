@@ -62,6 +62,7 @@ from pliant.constraints.base import (
     EmbeddedPoints,
     JacobianRows,
     actuator_bounds,
+    embedded_rows,
 )
 from pliant.constraints.condensed import CondensedProblem
 from pliant.errors import ContactConvergenceWarning, ContactError
@@ -375,4 +376,62 @@ class ContactConstraint(Constraint):
 
     def jacobian(self, x: np.ndarray) -> JacobianRows:
         # w_a (n, t1, t2) for embedded points; a skinned point's rows turn with its frames.
+        if self.points is _LINEAR:  # rows on their own nodes (relative points)
+            return embedded_rows(self.nodes, self.weights, self._frames)
         return self.points.rows(x, self.contacts.index_a, self._frames)
+
+    @classmethod
+    def relative(
+        cls,
+        contacts: ContactSet,
+        nodes: np.ndarray,
+        weights: np.ndarray,
+        origin: np.ndarray,
+        *,
+        friction: np.ndarray | float = 0.0,
+        name: str = "contacts",
+    ) -> ContactConstraint:
+        """Rows on points given by their own `nodes` and `weights` (k, m), linear in the
+        nodes, read from `origin` (k, 3): delta = frames (p(x) - origin) + (gap, 0, 0). The
+        relative point of two pieces of a body (:mod:`pliant.constraints.surface`); the
+        contacts' index_a identifies them and indexes nothing."""
+        out = cls.__new__(cls)
+        out.name = name
+        out.contacts = contacts
+        out.friction = check_friction(friction, len(contacts))
+        out.points = _LINEAR
+        out.nodes = np.ascontiguousarray(nodes, dtype=np.int64)
+        out.weights = np.ascontiguousarray(weights, dtype=float)
+        out._origin = np.asarray(origin, dtype=float)
+        out._gap = contacts.gap
+        out._frames = contacts.frames
+        return out
+
+    @classmethod
+    def joined(cls, parts: Sequence[ContactConstraint]) -> ContactConstraint:
+        """The rows of `parts` in order, as one constraint (points linear in the nodes; those
+        read through fewer nodes than the widest get node 0 with weight 0 in the spare
+        columns)."""
+        width = max(p.nodes.shape[1] for p in parts)
+        out = cls.__new__(cls)
+        out.name = parts[0].name
+        out.contacts = ContactSet.concatenate([p.contacts for p in parts])
+        out.points = _LINEAR
+        out.nodes = np.vstack(
+            [np.pad(p.nodes, ((0, 0), (0, width - p.nodes.shape[1]))) for p in parts]
+        )
+        out.weights = np.vstack(
+            [np.pad(p.weights, ((0, 0), (0, width - p.weights.shape[1]))) for p in parts]
+        )
+        for name in ("friction", "_origin", "_gap", "_frames"):
+            setattr(out, name, np.concatenate([getattr(p, name) for p in parts]))
+        return out
+
+
+class _Linear:
+    """The points of rows given by their own nodes and weights: linear in the nodes."""
+
+    linear = True
+
+
+_LINEAR = _Linear()

@@ -148,6 +148,10 @@ def check_model(model: Model) -> None:
                 "contacts whose points are not linear in the nodes",
                 model.contacts is not None and not model.contacts.points.linear,
             ),
+            (
+                "contacts between pieces of the body (SurfaceContact)",
+                model.contacts is not None and bool(model.contacts.surfaces),
+            ),
             ("drivers", bool(model.drivers)),
             ("rigid bodies", bool(model.rigid_bodies)),
             ("attachments", bool(model.attachments)),

@@ -206,6 +206,19 @@ def _closest_on_triangle(p, tri):
 
 
 @njit(cache=True)
+def closest_on_triangles(points, triangles, point_index, triangle_index):
+    """For each pair (point point_index[i], triangle triangle_index[i]): the closest point of
+    the triangle (a, b, c) as a + v (b - a) + w (c - a), (k, 2) (v, w), and its feature."""
+    k = point_index.shape[0]
+    vw = np.empty((k, 2))
+    feature = np.empty(k, dtype=np.int64)
+    for i in range(k):
+        v, w, f = _closest_on_triangle(points[point_index[i]], triangles[triangle_index[i]])
+        vw[i, 0], vw[i, 1], feature[i] = v, w, f
+    return vw, feature
+
+
+@njit(cache=True)
 def _box_distance2(p, lo, hi):
     d2 = 0.0
     for k in range(3):

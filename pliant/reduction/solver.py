@@ -288,6 +288,8 @@ class ReducedImplicitEuler:
         ]
         if model.contacts is not None:
             wanted.append(model.contacts.points.nodes.reshape(-1))
+            for surface in model.contacts.surfaces:  # the points and the surface they touch
+                wanted += [surface.points.nodes.reshape(-1), surface.vertices.nodes.reshape(-1)]
         self.active = np.unique(np.concatenate(wanted)) if wanted else np.zeros(0, np.int64)
         self._active_modes = np.ascontiguousarray(modes[self.active].reshape(-1, r))
         self._active_rest = rest[self.active]

@@ -13,9 +13,11 @@ contacts of all bodies are solved together, as SOFA's constraint solver does.
 
 What stops such a scene, with one SceneError naming it:
 
-- two bodies whose collision models SOFA tests against each other (no ``group`` in common):
-  Pliant's contacts are a body's points against obstacles and rigid bodies, not against the
-  surface of another deformable body;
+- two bodies whose collision models SOFA tests against each other (no ``group`` in common)
+  other than by points of one against triangles of the other: Pliant's contact between
+  deformable bodies (:class:`pliant.constraints.surface.SurfaceContact`, built by
+  :func:`surface_pairs`) is a point-triangle proximity, as SOFA's on the usual collision meshes
+  (Point, Line and Triangle models together; the lines' contacts are not made);
 - bodies whose elements follow different laws (a corotational and a hyperelastic one, or two
   element rotations): the union's elements share one kernel;
 - different ODE solvers (static and dynamic), Rayleigh damping, or consistent mass matrices of
@@ -35,7 +37,7 @@ import numpy as np
 from pliant.constraints.base import EmbeddedPoints
 from pliant.fem.body import TetBody
 from pliant.mesh.tetmesh import TetMesh
-from pliant.sofa.tree import SceneError, SceneNode
+from pliant.sofa.tree import SceneError, SceneNode, SceneObject
 
 
 @dataclass
@@ -78,14 +80,37 @@ def _groups(model) -> frozenset[str]:
     return frozenset(str(int(v)) if float(v) == int(v) else str(v) for v in values)
 
 
-def touching_bodies(nodes: Sequence[SceneNode], collision_types: frozenset[str]) -> list[str]:
+POINTS, TRIANGLES = "PointCollisionModel", "TriangleCollisionModel"
+
+
+def _models(node: SceneNode, collision_types: frozenset[str]) -> list[SceneObject]:
+    return [o for n in node.walk() for o in n.objects if o.type in collision_types]
+
+
+def surface_pairs(
+    models: Sequence[tuple[int, SceneObject]],
+) -> list[tuple[SceneObject, SceneObject]]:
+    """(points, triangles) collision models that SOFA tests against each other among the
+    `models` of the deformable bodies, each given with its body's number: a
+    PointCollisionModel of one body and a TriangleCollisionModel of another with no ``group``
+    in common, both ways."""
+    return [
+        (a, b)
+        for i, a in models
+        for j, b in models
+        if i != j and a.type == POINTS and b.type == TRIANGLES and not (_groups(a) & _groups(b))
+    ]
+
+
+def touching_bodies(
+    nodes: Sequence[SceneNode], collision_types: frozenset[str], *, unmet: bool = False
+) -> list[str]:
     """Pairs of the deformable bodies under `nodes` that SOFA's collision pipeline tests
     against each other: a collision model of one and one of the other with no ``group`` in
-    common (SOFA's CollisionModel::canCollideWith). Call it only where the scene detects
-    collisions."""
-    models = [
-        [o for n in node.walk() for o in n.objects if o.type in collision_types] for node in nodes
-    ]
+    common (SOFA's CollisionModel::canCollideWith). With `unmet`, only those that do not
+    touch by points of one against triangles of the other (:func:`surface_pairs`). Call it
+    only where the scene detects collisions."""
+    models = [_models(node, collision_types) for node in nodes]
     found = []
     for i in range(len(nodes)):
         for j in range(i + 1, len(nodes)):
@@ -93,24 +118,28 @@ def touching_bodies(nodes: Sequence[SceneNode], collision_types: frozenset[str])
                 ((a, b) for a in models[i] for b in models[j] if not (_groups(a) & _groups(b))),
                 None,
             )
-            if pair is not None:
-                found.append(
-                    f"{nodes[i].path} and {nodes[j].path} (through {pair[0].node.path} and"
-                    f" {pair[1].node.path})"
-                )
+            both = [(0, m) for m in models[i]] + [(1, m) for m in models[j]]
+            if pair is None or (unmet and surface_pairs(both)):
+                continue
+            found.append(
+                f"{nodes[i].path} and {nodes[j].path} (through {pair[0].node.path} and"
+                f" {pair[1].node.path})"
+            )
     return found
 
 
 def contact_problem(nodes: Sequence[SceneNode], collision_types: frozenset[str]) -> str | None:
-    """The error's words for deformable bodies that may touch each other, or None."""
-    pairs = touching_bodies(nodes, collision_types)
+    """The error's words for deformable bodies that SOFA makes touch otherwise than by points
+    of one against triangles of the other (Pliant's SurfaceContact), or None."""
+    pairs = touching_bodies(nodes, collision_types, unmet=True)
     if not pairs:
         return None
     return (
         "contact between deformable bodies, which SOFA tests: "
         + "; ".join(pairs)
-        + " (collision models with no group in common); Pliant's contacts are a body's points"
-        " against obstacles and rigid bodies, not against another deformable body's surface"
+        + " (collision models with no group in common), not by points of one against triangles"
+        " of the other (a PointCollisionModel and a TriangleCollisionModel), the only contact"
+        " between deformable bodies Pliant has"
     )
 
 

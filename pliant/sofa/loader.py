@@ -40,6 +40,7 @@ from pliant.constraints.cavity import CavityActuator, enclosed_volume
 from pliant.constraints.contact import Contacts, PointPlanes
 from pliant.constraints.effector import PositionEffector
 from pliant.constraints.point import PointActuator
+from pliant.constraints.surface import SurfaceContact
 from pliant.errors import ContactError, ModelError
 from pliant.fem.body import TetBody, fixed_components, nodes_in_box
 from pliant.fem.loads import Load, NodalForces, RestShapeSprings
@@ -51,7 +52,7 @@ from pliant.mesh.quality import signed_volumes
 from pliant.mesh.tetmesh import TetMesh
 from pliant.model import Model, State
 from pliant.sofa import rods
-from pliant.sofa.bodies import Part, check_held_if_massless, contact_problem, join
+from pliant.sofa.bodies import Part, check_held_if_massless, contact_problem, join, surface_pairs
 from pliant.sofa.components import FIELDS, is_visual
 from pliant.sofa.grids import GRIDS, HEXAHEDRA, grid_tetrahedra, hex_body
 from pliant.sofa.rigids import (
@@ -708,6 +709,16 @@ def _read_gid(file: Path) -> meshio.Mesh:
     return meshio.Mesh(np.array([points[n] for n in sorted(points)]), [("tetra", cells)])
 
 
+def _within(node: SceneNode, ancestor: SceneNode) -> bool:
+    """Whether `node` is `ancestor` or lies under it."""
+    at: SceneNode | None = node
+    while at is not None:
+        if at is ancestor:
+            return True
+        at = at.parent
+    return False
+
+
 def _is_link(value) -> bool:
     return isinstance(value, str) and value.strip().startswith("@")
 
@@ -725,6 +736,8 @@ class _Builder:
         self.root, self.path, self.choices, self.mesh_dirs = root, path, choices, mesh_dirs
         self.bindings = Bindings()
         self._part: Part | None = None  # the body whose points are read, of several
+        # The collision surfaces of the bodies read so far (vertices, triangles), by node.
+        self._surfaces: dict[int, tuple[EmbeddedPoints, np.ndarray]] = {}
 
     # --- scene-wide ------------------------------------------------------------------------
     def build(self) -> SofaScene:
@@ -891,7 +904,9 @@ class _Builder:
         sphere), and rigid bodies (pliant.sofa.rigids: a Rigid3 MechanicalObject with a
         sphere, a box or a mesh, or a particle ball).
         ``alarmDistance`` is the contact margin, ``contactDistance`` the points' thickness,
-        the response's ``mu`` the friction everywhere."""
+        the response's ``mu`` the friction everywhere. Of several deformable bodies, the
+        points of one touch the triangles of another (SurfaceContact) where SOFA tests the
+        two models against each other (:func:`pliant.sofa.bodies.surface_pairs`)."""
         intersection = [o for n in self.root.walk() for o in n.objects if o.type in INTERSECTIONS]
         models = [o for n in self.root.walk() for o in n.objects if o.type in COLLISION_MODELS]
         if not models or not self._detects():
@@ -904,13 +919,19 @@ class _Builder:
         rigid = [self._rigid_body(n, friction) for n in rigid_nodes]
         inside_rigid = {id(c) for n in rigid_nodes for c in n.walk()}
         points, obstacles, joined = [], [], []
+        on_bodies: list[tuple[int, SceneObject]] = []  # (part, model) of the bodies' models
+        embedded_at: dict[int, EmbeddedPoints] = {}  # a node's collision points
         for node in self.root.walk():
             types = {o.type for o in node.objects}
             if not types & COLLISION_MODELS or id(node) in inside_rigid:
                 continue
             part = next((p for p in parts if p.owns(node)), None)
             if part is not None:
+                k = parts.index(part)
+                on_bodies += [(k, o) for o in node.objects if o.type in COLLISION_MODELS]
                 if "PointCollisionModel" not in types:
+                    if len(parts) > 1 and "TriangleCollisionModel" in types:
+                        continue  # another body's points may touch its triangles
                     raise SceneError(
                         f"{node.path}: the body collides by points only (PointCollisionModel),"
                         f" not by {', '.join(sorted(types & COLLISION_MODELS))}"
@@ -919,6 +940,7 @@ class _Builder:
                     points.append(part.body.rest_positions)
                     ends = part.offset + np.arange(part.body.n_nodes)
                     joined.append(EmbeddedPoints.at_nodes(ends))
+                    embedded_at[id(node)] = joined[-1]
                     continue
                 if not types & MAPPINGS:
                     raise SceneError(f"{node.path}: collision points not mapped on the body")
@@ -927,13 +949,25 @@ class _Builder:
                 self._part = part
                 joined.append(self._embed(mesh, points[-1], body))
                 self._part = None
+                embedded_at[id(node)] = joined[-1]
             else:
                 obstacles.append(self._obstacle(node))
         if not points:
             raise SceneError(f"{self.path.name}: the body has no collision points")
-        if not obstacles and not rigid:  # SOFA detects nothing: no contact to solve
+        surfaces = [
+            SurfaceContact(
+                embedded_at[id(a.node)],
+                *self._surface(b.node, parts[k], mesh),
+                friction=friction,
+                distance=thickness,
+                name=f"{a.node.path} on {b.node.path}",
+            )
+            for a, b in surface_pairs(on_bodies)
+            for k in [next(k for k, o in on_bodies if o is b)]
+        ]
+        if not obstacles and not rigid and not surfaces:  # SOFA detects nothing: no contact
             return None, []
-        if not obstacles:
+        if rigid and not obstacles:
             raise SceneError(f"{self.path.name}: rigid bodies need a static obstacle too")
         embedded = (
             EmbeddedPoints.stack(joined)  # each body's points in its own mesh
@@ -946,9 +980,48 @@ class _Builder:
             )
         )
         contacts = Contacts(
-            obstacles, friction=friction, margin=margin, points=embedded, thickness=thickness
+            obstacles,
+            friction=friction,
+            margin=margin,
+            points=embedded,
+            thickness=thickness,
+            surfaces=surfaces,
         )
         return contacts, rigid
+
+    def _surface(
+        self, node: SceneNode, part: Part, mesh: TetMesh
+    ) -> tuple[EmbeddedPoints, np.ndarray]:
+        """The triangles of a body's TriangleCollisionModel, outward, and their vertices as
+        points of the body: its own boundary where the model sits on the body's node, else
+        the node's mesh carried by a mapping."""
+        if id(node) in self._surfaces:  # one surface, touched by several bodies' points
+            return self._surfaces[id(node)]
+        if node is part.node:
+            self._surfaces[id(node)] = (
+                EmbeddedPoints.at_nodes(part.offset + np.arange(part.body.n_nodes)),
+                part.body.boundary_triangles,
+            )
+            return self._surfaces[id(node)]
+        if not any(o.type in MAPPINGS for o in node.objects):
+            raise SceneError(f"{node.path}: collision triangles not mapped on the body")
+        dofs = self._one(node, {"MechanicalObject"}, "MechanicalObjects")
+        vertices = self._positions(node, dofs)
+        faces = self._faces(node)
+        if faces.max() >= len(vertices):
+            raise SceneError(
+                f"{node.path}: triangles index {faces.max()} of {len(vertices)} points"
+            )
+        tri = vertices[faces]
+        if np.einsum("ij,ij->i", tri[:, 0], np.cross(tri[:, 1], tri[:, 2])).sum() < 0.0:
+            faces = faces[:, ::-1]  # a closed surface's triangles turned inwards
+        self._part = part
+        try:
+            embedded = self._embed(mesh, vertices, part.body)
+        finally:
+            self._part = None
+        self._surfaces[id(node)] = (embedded, np.ascontiguousarray(faces))
+        return self._surfaces[id(node)]
 
     def _friction(self) -> float:
         responses = [o for n in self.root.walk() for o in n.objects if o.type in RESPONSES]
@@ -1049,17 +1122,7 @@ class _Builder:
                 )
             position, rotation = self._pose(frame)  # a static rigid object: its frame's points
             points = points @ rotation.T + position
-        topology = self._one(node, {"MeshTopology"}, "topologies")
-        if topology is not None and "triangles" in topology.attrs:
-            faces = _floats(topology.attrs["triangles"], f"{topology.path}.triangles")
-            faces = faces.astype(np.int64).reshape(-1, 3)
-        else:
-            loaders = [o for o in node.objects if o.type in MESH_LOADERS]
-            if len(loaders) != 1:
-                raise SceneError(f"{node.path}: no triangles for the obstacle")
-            faces = self._loaded(loaders[0])[1].get("triangle")
-            if faces is None:
-                raise SceneError(f"{node.path}: its mesh holds no triangles")
+        faces = self._faces(node)
         a, b, c = (points[faces[:, k]] for k in range(3))
         normals = np.cross(b - a, c - a)
         normal = normals.sum(axis=0)
@@ -1068,6 +1131,20 @@ class _Builder:
         if spread <= 1e-9 * np.ptp(points, axis=0).max():
             return Plane(normal=normal, point=a[0])
         return TriangleMesh(points, faces)
+
+    def _faces(self, node: SceneNode) -> np.ndarray:
+        """The triangles of a node's collision model: its MeshTopology's, or its loader's."""
+        topology = self._one(node, {"MeshTopology"}, "topologies")
+        if topology is not None and "triangles" in topology.attrs:
+            faces = _floats(topology.attrs["triangles"], f"{topology.path}.triangles")
+            return faces.astype(np.int64).reshape(-1, 3)
+        loaders = [o for o in node.objects if o.type in MESH_LOADERS]
+        if len(loaders) != 1:
+            raise SceneError(f"{node.path}: no triangles for its collision model")
+        faces = self._loaded(loaders[0])[1].get("triangle")
+        if faces is None:
+            raise SceneError(f"{node.path}: its mesh holds no triangles")
+        return np.asarray(faces, dtype=np.int64).reshape(-1, 3)
 
     @staticmethod
     def _is_layer(node: SceneNode) -> bool:
@@ -1401,6 +1478,12 @@ class _Builder:
             source = self.link(node, value)
             if source is None or source.type not in ROIS:
                 raise SceneError(f"{obj.path}.{key}: {value!r} names no BoxROI or SphereROI")
+            owner = source.node
+            dofs = self._one(owner, {"MechanicalObject"}, "MechanicalObjects")
+            if dofs is not None and not _within(owner, node):
+                # Another body's ROI (a gripper's fingers sharing the first's): SOFA selects
+                # in its own node's points and uses the indices as they are.
+                points = self._positions(owner, dofs)
             return self._roi_nodes(source, points)
         return _floats(value, f"{obj.path}.{key}").astype(np.int64)
 

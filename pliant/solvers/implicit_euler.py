@@ -156,7 +156,10 @@ class ImplicitEuler:
         ]
         self._points = (
             PointCompliance(model.contacts.points, model.body.free_index)
-            if point_compliance and model.contacts is not None and model.contacts.points.linear
+            if point_compliance
+            and model.contacts is not None
+            and model.contacts.points.linear
+            and not model.contacts.surfaces  # rows on relative points: columns every step
             else None
         )
         self._row_points: dict[tuple[str, ...] | None, PointRows | None] = {}
