@@ -953,7 +953,16 @@ class _Builder:
             else:
                 obstacles.append(self._obstacle(node))
         if not points:
-            raise SceneError(f"{self.path.name}: the body has no collision points")
+            models = ", ".join(o.path for _, o in on_bodies)
+            raise SceneError(
+                f"{self.path.name}: the body has no collision points"
+                + (
+                    f" (its collision models: {models}; Pliant's bodies touch obstacles and"
+                    " rigid bodies by their points)"
+                    if models
+                    else ""
+                )
+            )
         surfaces = [
             SurfaceContact(
                 embedded_at[id(a.node)],
