@@ -60,6 +60,7 @@ from pliant.diff.parameters import check_regions, region_sum
 from pliant.diff.routing import routing_gradient
 from pliant.diff.step import (
     ActuatorRows,
+    check_has_mass,
     check_model,
     check_parameters,
     full_rows_t,
@@ -165,6 +166,7 @@ def static_gradient(
             e_bar, nu_bar = lame_to_young_poisson(body.mu, body.lam, *bars)
             out[name] = region_sum(e_bar if name == "young_modulus" else nu_bar, regions)
         elif name == "density":
+            check_has_mass(body)
             out[name] = float(-(mu_q @ body.gather(body.gravity_forces())) / body.density)
         elif name in ("rayleigh_mass", "rayleigh_stiffness"):
             out[name] = 0.0

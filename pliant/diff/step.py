@@ -124,6 +124,13 @@ def check_parameters(wrt) -> tuple[str, ...]:
     return names
 
 
+def check_has_mass(body) -> None:
+    """ModelError for the density gradient of a massless body (mass="none"): it has no density
+    to vary (M and its weight are 0 whatever the density)."""
+    if getattr(body, "massless", False):
+        raise ModelError("a massless body (mass='none') has no density to differentiate")
+
+
 def check_model(model: Model) -> None:
     """ModelError naming what pliant.diff does not differentiate in `model`."""
     if not isinstance(model, Model):
@@ -494,6 +501,7 @@ class StepAdjoint:
         if name == "rayleigh_stiffness":
             return float(-h * mu_v @ body.stiffness_matvec(self.lin, v_new))
         if name == "density":
+            check_has_mass(body)
             g = body.gather(body.gravity_forces())
             term = self.a_m * body.mass_matvec(v_new) - body.mass_matvec(v) - h * g
             return float(-(mu_v @ term) / body.density)

@@ -33,7 +33,7 @@ from pliant.fem.supports import Projection
 from pliant.mesh.quality import validate_mesh
 from pliant.mesh.tetmesh import TetMesh
 
-MassType = Literal["lumped", "uniform", "consistent"]
+MassType = Literal["lumped", "uniform", "consistent", "none"]
 
 
 def nodes_in_box(points: np.ndarray, box: np.ndarray | tuple) -> np.ndarray:
@@ -63,20 +63,29 @@ def set_bulk_properties(
     rayleigh_mass: float,
     rayleigh_stiffness: float,
     gravity,
+    massless: bool = False,
 ) -> None:
-    """Check and set a body's density and total mass (from exactly one of them), Rayleigh
-    coefficients and gravity: MaterialError or ModelError on a missing, non-finite or negative
-    value."""
-    if (density is None) == (total_mass is None):
-        raise MaterialError("give exactly one of density or total_mass")
-    given = ("density", density) if density is not None else ("total_mass", total_mass)
+    """Check and set a body's density and total mass (from exactly one of them; neither for a
+    `massless` body, whose density and total mass are 0), Rayleigh coefficients and gravity:
+    MaterialError or ModelError on a missing, non-finite or negative value."""
     damping = (("rayleigh_mass", rayleigh_mass), ("rayleigh_stiffness", rayleigh_stiffness))
-    for name, val in (given, *damping):
+    if massless:
+        if density is not None or total_mass is not None:
+            raise MaterialError("a massless body (mass='none') takes no density or total_mass")
+        given = ()
+    elif (density is None) == (total_mass is None):
+        raise MaterialError("give exactly one of density or total_mass")
+    else:
+        given = (("density", density) if density is not None else ("total_mass", total_mass),)
+    for name, val in (*given, *damping):
         if isinstance(val, bool) or not isinstance(val, numbers.Real):
             raise MaterialError(f"{name} must be a real number, got {val!r}")
-    rho = float(density) if density is not None else float(total_mass) / volume
-    if not math.isfinite(rho) or rho <= 0:
-        raise MaterialError(f"density must be finite and > 0, got {rho!r}")
+    if massless:
+        rho = 0.0
+    else:
+        rho = float(density) if density is not None else float(total_mass) / volume
+        if not math.isfinite(rho) or rho <= 0:
+            raise MaterialError(f"density must be finite and > 0, got {rho!r}")
     body.density = rho
     body.total_mass = rho * volume
     for name, val in damping:
@@ -235,7 +244,11 @@ class TetBody(DeformableBody):
         density: mass per volume; or give ``total_mass`` instead.
         total_mass: total mass of the body (SOFA scenes give this).
         mass: "lumped" (tet masses split over their nodes), "uniform" (total mass / nodes,
-            SOFA's UniformMass) or "consistent" (full element mass matrices).
+            SOFA's UniformMass), "consistent" (full element mass matrices) or "none": a
+            massless body (no density or total mass; SOFA's body with no mass component),
+            which gravity does not pull and whose implicit step is a damped Newton step
+            towards its static equilibrium (:mod:`pliant.solvers.implicit_euler`); it must
+            be held against every rigid motion.
         fixed_nodes: indices of nodes held at their rest position.
         gravity: acceleration vector (robot scenes: (0, 0, -9810) mm/s^2).
         rayleigh_mass, rayleigh_stiffness: alpha and beta of D = alpha M + beta K.
@@ -323,6 +336,7 @@ class TetBody(DeformableBody):
             rayleigh_mass=options.rayleigh_mass,
             rayleigh_stiffness=options.rayleigh_stiffness,
             gravity=options.gravity,
+            massless=options.mass == "none",
         )
         self._layout(
             elements,
@@ -333,8 +347,9 @@ class TetBody(DeformableBody):
             options.projections,
         )
         self.mass_type: MassType = options.mass
-        self.node_masses = self._node_masses(options.mass)
-        self.mass_data = self._mass_data(options.mass)
+        massless = options.mass == "none"
+        self.node_masses = np.zeros(self.n_nodes) if massless else self._node_masses(options.mass)
+        self.mass_data = np.zeros(self.pattern.nnz) if massless else self._mass_data(options.mass)
         self._mass_diagonal = np.repeat(self.node_masses, 3)[self.free_dofs]
 
     def _layout(self, elements, fixed_nodes, fixed_dofs, membranes, loads, projections) -> None:
@@ -514,7 +529,7 @@ class TetBody(DeformableBody):
             nm = np.zeros(n)
             np.add.at(nm, self.tets.ravel(), np.repeat(self.density * self.volumes / 4.0, 4))
             return nm
-        raise ModelError(f"mass must be 'lumped', 'uniform' or 'consistent', got {mass!r}")
+        raise ModelError(f"mass must be 'lumped', 'uniform', 'consistent' or 'none', got {mass!r}")
 
     def _mass_data(self, mass: str) -> np.ndarray:
         """Mass matrix on the free DoFs, as data aligned with the stiffness pattern."""
@@ -548,6 +563,8 @@ class TetBody(DeformableBody):
         bodies, each with its UniformMass). ModelError for a consistent mass matrix, or masses
         that are not (n,), finite and > 0."""
         masses = np.asarray(masses, dtype=float)
+        if self.massless:
+            raise ModelError("a massless body (mass='none') has no node masses to set")
         if self.mass_type == "consistent":
             raise ModelError("node masses make a diagonal mass matrix: not a consistent one")
         if masses.shape != (self.n_nodes,) or not np.all(np.isfinite(masses) & (masses > 0)):
@@ -558,6 +575,11 @@ class TetBody(DeformableBody):
         self.mass_data = self._mass_data(self.mass_type)
         self._mass_diagonal = np.repeat(self.node_masses, 3)[self.free_dofs]
         self.changed()
+
+    @property
+    def massless(self) -> bool:
+        """The body has no mass (``mass="none"``): M = 0, no weight."""
+        return self.mass_type == "none"
 
     def mass_matvec(self, u: np.ndarray) -> np.ndarray:
         """M u on the free DoFs; u is (n_free,) or (n_free, k)."""

@@ -68,8 +68,8 @@ class HexBody(TetBody):
         stiffness_weights: (m,) factors of each element's stiffness (SOFA's sparse grids with
             ``fillWeighted`` weigh the cells the surface crosses by 0.5); default 1.
         mass: "lumped" (the row sums of the element mass matrices on the nodes, SOFA's
-            MeshMatrixMass with lumping), "uniform" (total mass / nodes, SOFA's UniformMass)
-            or "consistent".
+            MeshMatrixMass with lumping), "uniform" (total mass / nodes, SOFA's UniformMass),
+            "consistent" or "none" (a massless body, as :class:`pliant.fem.body.TetBody`'s).
 
     The other keywords are those of :class:`pliant.fem.body.BodyOptions`, as for
     :class:`pliant.fem.body.TetBody` (a hexahedral body has no membranes or frame nodes).
@@ -136,7 +136,7 @@ class HexBody(TetBody):
             out = np.zeros(self.n_nodes)
             np.add.at(out, self.hexes.ravel(), self._element_masses().sum(axis=2).ravel())
             return out
-        raise ModelError(f"mass must be 'lumped', 'uniform' or 'consistent', got {mass!r}")
+        raise ModelError(f"mass must be 'lumped', 'uniform', 'consistent' or 'none', got {mass!r}")
 
     def _mass_data(self, mass: str) -> np.ndarray:
         if mass != "consistent":

@@ -185,6 +185,12 @@ def _check_alike(parts: Sequence[Part], scene: str) -> None:
             + ", ".join(f"{p.node.path}: {p.body.material!r}" for p in parts)
             + "): the elements of one Pliant body share one law and element rotation"
         )
+    massless = [p for p in parts if p.body.massless]
+    if massless and len(massless) < len(parts):
+        problems.append(
+            "a body with no mass beside bodies with one"
+            f" ({', '.join(f'{p.node.path}: {p.body.mass_type}' for p in parts)})"
+        )
     consistent = [p for p in parts if p.body.mass_type == "consistent"]
     if consistent and (len(consistent) < len(parts) or len({p.body.density for p in parts}) > 1):
         problems.append(
@@ -195,6 +201,18 @@ def _check_alike(parts: Sequence[Part], scene: str) -> None:
         raise SceneError(
             f"{scene}: its deformable bodies ({', '.join(p.node.path for p in parts)}) cannot be"
             " joined in one Pliant body: " + "; ".join(problems)
+        )
+
+
+def check_held_if_massless(node: SceneNode, body: TetBody) -> None:
+    """SceneError for a body with no mass that nothing holds against a rigid motion: SOFA's
+    implicit step is then the stiffness alone, singular (an iterative solver leaves the body
+    still only while no force acts on it)."""
+    free = body.free_rigid_motions() if body.massless else []
+    if free:
+        raise SceneError(
+            f"{node.path}: the body has no mass (UniformMass, MeshMatrixMass) and nothing holds"
+            f" it ({'; '.join(free)} free): its step, the stiffness alone, is singular"
         )
 
 
@@ -217,14 +235,15 @@ def join(parts: Sequence[Part], scene: str) -> TetBody:
     held = np.concatenate([np.flatnonzero(p.body.free_index < 0) + 3 * p.offset for p in parts])
     loads = [_shifted_copy(a.load, "groups", p.offset) for p in parts for a in p.body.loads]
     projections = [_shifted_copy(j, "nodes", p.offset) for p in parts for j in p.body.projections]
-    mass = (
-        {"mass": "consistent", "density": first.density}
-        if first.mass_type == "consistent"
-        else {
+    if first.mass_type == "consistent":
+        mass = {"mass": "consistent", "density": first.density}
+    elif first.massless:
+        mass = {"mass": "none"}
+    else:
+        mass = {
             "mass": "uniform" if all(b.mass_type == "uniform" for b in bodies) else "lumped",
             "total_mass": float(sum(b.total_mass for b in bodies)),
         }
-    )
     body = TetBody(
         TetMesh(points, tets),
         first.material,
@@ -240,7 +259,7 @@ def join(parts: Sequence[Part], scene: str) -> TetBody:
     )
     body.mu[:] = np.concatenate([b.mu for b in bodies])
     body.lam[:] = np.concatenate([b.lam for b in bodies])
-    if body.mass_type != "consistent":
+    if body.mass_type not in ("consistent", "none"):
         body.set_node_masses(np.concatenate([b.node_masses for b in bodies]))
     body.changed()
     return body

@@ -30,6 +30,7 @@ from pliant.errors import ModelError
 from pliant.fem.hexbody import HexBody
 from pliant.fem.material import Corotational
 from pliant.mesh.hexmesh import HexMesh, regular_grid, sparse_grid
+from pliant.sofa.bodies import check_held_if_massless
 from pliant.sofa.tree import SceneError, SceneNode, SceneObject, data_value, field_numbers
 
 if TYPE_CHECKING:
@@ -187,4 +188,5 @@ def hex_body(
         stiffness_weights=weights,
         **builder._mass(node, points.shape[0]),
     )
+    check_held_if_massless(node, body)
     return body, mesh, solver_kind

@@ -52,7 +52,7 @@ from pliant.mesh.quality import signed_volumes
 from pliant.mesh.tetmesh import TetMesh
 from pliant.model import Model, State
 from pliant.sofa import rods
-from pliant.sofa.bodies import Part, contact_problem, join, surface_pairs
+from pliant.sofa.bodies import Part, check_held_if_massless, contact_problem, join, surface_pairs
 from pliant.sofa.components import FIELDS, is_visual
 from pliant.sofa.grids import GRIDS, HEXAHEDRA, grid_tetrahedra, hex_body
 from pliant.sofa.rigids import (
@@ -946,7 +946,10 @@ class _Builder:
                 if "PointCollisionModel" not in types:
                     if len(parts) > 1 and "TriangleCollisionModel" in types:
                         continue  # another body's points may touch its triangles
-                    raise SceneError(f"{node.path}: the body collides by points only")
+                    raise SceneError(
+                        f"{node.path}: the body collides by points only (PointCollisionModel),"
+                        f" not by {', '.join(sorted(types & COLLISION_MODELS))}"
+                    )
                 if node is part.node:  # the body's own nodes collide
                     points.append(part.body.rest_positions)
                     ends = part.offset + np.arange(part.body.n_nodes)
@@ -964,7 +967,16 @@ class _Builder:
             else:
                 obstacles.append(self._obstacle(node))
         if not points:
-            raise SceneError(f"{self.path.name}: the body has no collision points")
+            models = ", ".join(o.path for _, o in on_bodies)
+            raise SceneError(
+                f"{self.path.name}: the body has no collision points"
+                + (
+                    f" (its collision models: {models}; Pliant's bodies touch obstacles and"
+                    " rigid bodies by their points)"
+                    if models
+                    else ""
+                )
+            )
         surfaces = [
             SurfaceContact(
                 embedded_at[id(a.node)],
@@ -1283,7 +1295,13 @@ class _Builder:
             rayleigh_stiffness=rayleigh[1],
             **mass_kwargs,
         )
+        check_held_if_massless(node, body)
         if carried_mass is not None:
+            if body.massless:
+                raise SceneError(
+                    f"{node.path}: a mass on points mapped on a body that has none (no mass"
+                    " component on the body's node): give the body a mass"
+                )
             if body.mass_type == "consistent":
                 raise SceneError(
                     f"{node.path}: a mass on points mapped on the body adds to its nodes' masses"
@@ -1556,7 +1574,9 @@ class _Builder:
     def _mass(self, node: SceneNode, n_nodes: int) -> dict:
         mass = self._one(node, {"UniformMass", "MeshMatrixMass"}, "masses")
         if mass is None:
-            raise SceneError(f"{node.path}: the body has no mass (UniformMass, MeshMatrixMass)")
+            # SOFA: no mass component, no mass term and no weight (the implicit step is then
+            # a damped Newton step towards equilibrium; the static solve never reads a mass).
+            return {"mass": "none"}
         if mass.type == "UniformMass":
             if "totalMass" in mass.attrs:
                 return {"mass": "uniform", "total_mass": _float(mass, "totalMass", 1.0)}
@@ -1892,6 +1912,11 @@ class _Builder:
             for j, (x, r) in g.poses:
                 if g.fixed[j]:
                     continue
+                if body.massless:
+                    raise SceneError(
+                        f"{g.dofs.path}: a free rigidified frame of a body with no mass (Pliant"
+                        " gives the frame a share of its nodes' mass); give the body a mass"
+                    )
                 mass = FRAME_MASS_SHARE * float(body.node_masses[g.groups[j]].sum())
                 size = 1e-3 * body.extent
                 frame = RigidBody(

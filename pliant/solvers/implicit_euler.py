@@ -44,6 +44,12 @@ so that v' = dv, q' = q + h v' and W = h^2 H A^-1 H^T = h H (M + h K_s)^-1 H^T (
 force acts for the step as a force, not an impulse); Rayleigh damping has no place in it (SOFA
 ignores it there too).
 
+A massless body (``mass="none"``, SOFA's body with no mass component) has M = 0 and no
+weight: A = (h beta + h^2) K_s and b = h f - (h beta + h^2) K_s v, so that v + dv =
+K_s^-1 f / (h + beta) and the step moves it by h / (h + beta) K_s^-1 f, a Newton step towards
+its static equilibrium damped by beta (a whole one with beta = 0), as in SOFA. It must be held
+against every rigid motion (ModelError otherwise).
+
 Contacts are screened (under commands): of the points within the contact margin, most stay
 open, and a contact that stays open needs no force, so the step solves those closed at the
 last step or approaching fast enough to close, and takes in the others only where its
@@ -140,6 +146,7 @@ class ImplicitEuler:
             screen_gap = number_option(screen_gap, "screen_gap", at_least=0.0)
         self.model = model
         self.first_order = bool(first_order)
+        _check_massless_held(model)
         self.system = LinearisedSystem(model.body, policy=tangent, rtol=rtol)
         self._objects, self._object_rows = self._find_objects()
         # Each attachment with its body's index.
@@ -592,6 +599,22 @@ class ImplicitEuler:
         finally:
             self.system.policy, self._look_ahead = saved, True
         return self.last_report.problem
+
+
+def _check_massless_held(model: Model) -> None:
+    """ModelError where the body has no mass and something leaves it free to move rigidly:
+    its step matrix is then (h beta + h^2) K_s alone, singular along those motions."""
+    body = model.body
+    if not getattr(body, "massless", False):
+        return
+    free = body.free_rigid_motions()
+    if free:
+        raise ModelError(
+            f"{model.name}'s body has no mass and is free to move rigidly: {'; '.join(free)}."
+            " Without mass its implicit step matrix is the stiffness alone, singular along"
+            " these motions; hold them (fixed nodes or components, rest-shape springs) or"
+            " give the body a mass"
+        )
 
 
 class LookAhead(NamedTuple):
