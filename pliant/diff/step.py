@@ -134,6 +134,7 @@ def check_model(model: Model) -> None:
             f"pliant.diff differentiates tetrahedral bodies, got {type(body).__name__}"
         )
     check_material(body)
+    body.uniform_rayleigh("pliant.diff")
     missing = [
         what
         for what, present in (
