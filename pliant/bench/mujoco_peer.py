@@ -80,6 +80,7 @@ def flex_xml(
         "a mass other than uniform (flexcomp spreads it evenly over the points)": body.mass_type
         != "uniform",
         "mass-proportional Rayleigh damping": body.rayleigh_mass != 0.0,
+        "Rayleigh damping by part of the body": body.rayleigh_dofs() is not None,
         "nodes held in some components only": body.free_dofs.size
         != 3 * body.n_nodes - 3 * body.fixed_nodes.size,
         "membranes, loads or projections": bool(body.membranes or body.loads or body.projections),

@@ -82,5 +82,6 @@ def set_parameters(
         if value is not None:
             if not np.isfinite(value) or value < 0:
                 raise MaterialError(f"{name} must be finite and >= 0, got {value!r}")
+            body.uniform_rayleigh(f"set_parameters({name}=...)")
             setattr(body, name, float(value))
     body.changed()

@@ -141,6 +141,7 @@ def check_model(model: Model) -> None:
             f"pliant.diff differentiates tetrahedral bodies, got {type(body).__name__}"
         )
     check_material(body)
+    body.uniform_rayleigh("pliant.diff")
     missing = [
         what
         for what, present in (
@@ -330,8 +331,9 @@ class StepAdjoint:
         self.lam = np.asarray(new.actuation, dtype=float)
         self.rows = ActuatorRows.classify(model, np.asarray(commands, float), self.lam, state)
         h = self.h
-        self.a_m = 1.0 + h * body.rayleigh_mass
-        self.a_k = h * body.rayleigh_stiffness + h * h
+        alpha, beta = body.uniform_rayleigh("the differentiable step (pliant.diff)")
+        self.a_m = 1.0 + h * alpha
+        self.a_k = h * beta + h * h
         self.lin = linearisation or body.linearise(self.q, self.v, time=state.time)
         if factor is None:
             data = self.a_k * body.stiffness_data(self.lin) + self.a_m * body.mass_data

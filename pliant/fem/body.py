@@ -158,6 +158,25 @@ class DeformableBody(Revised):
     def stiffness_matrix(self, lin: Linearisation, *, exact: bool = False) -> sp.csr_matrix:
         return self.pattern.matrix(self.stiffness_data(lin, exact=exact))
 
+    # Rayleigh damping per body (TetBody.set_rayleigh_per_body): alpha and beta of each free
+    # DoF, or None where the scalars rayleigh_mass and rayleigh_stiffness hold for the body.
+    _rayleigh_dofs: tuple[np.ndarray, np.ndarray] | None = None
+
+    def rayleigh_dofs(self) -> tuple[np.ndarray, np.ndarray] | None:
+        """Per free DoF (alpha, beta) where the body joins bodies of different Rayleigh
+        damping (D = sum_i alpha_i M_i + beta_i K_i); None where one pair holds for all."""
+        return self._rayleigh_dofs
+
+    def uniform_rayleigh(self, where: str) -> tuple[float, float]:
+        """(rayleigh_mass, rayleigh_stiffness) for `where`, which takes one pair for the whole
+        body: ModelError where the body holds bodies of different Rayleigh damping."""
+        if self._rayleigh_dofs is not None:
+            raise ModelError(
+                f"{where} takes one Rayleigh damping for the whole body; this body joins bodies"
+                " of different Rayleigh damping (per-body damping: use ImplicitEuler)"
+            )
+        return self.rayleigh_mass, self.rayleigh_stiffness
+
     def _add_loads(self, x, v, forces, kv, time: float) -> tuple:
         """Add the loads' forces at `time` to `forces` (and, when `kv` is given, their K v);
         return their tangents."""
@@ -556,6 +575,45 @@ class TetBody(DeformableBody):
         )
         data[k] = mat.diagonal()
         return data
+
+    def set_rayleigh_per_body(self, node_alpha, element_beta) -> None:
+        """Rayleigh damping by part of the body: `node_alpha` (n_nodes,) the mass-proportional
+        coefficient of each node, `element_beta` (n_elements,) the stiffness-proportional one
+        of each element, so that D = sum_i alpha_i M_i + beta_i K_i over the body's parts
+        (bodies joined over disjoint meshes, each damped as under its own solver). Where
+        all values agree the body keeps the scalar coefficients (the same arithmetic as a body
+        made with them). ModelError on a wrong shape, a negative or non-finite value, or a node
+        whose elements have different beta (the parts must not share nodes)."""
+        alpha = np.asarray(node_alpha, dtype=float)
+        beta = np.asarray(element_beta, dtype=float)
+        if alpha.shape != (self.n_nodes,) or beta.shape != (self.n_elements,):
+            raise ModelError(
+                f"per-body Rayleigh damping needs alpha per node ({self.n_nodes},) and beta per"
+                f" element ({self.n_elements},), got {alpha.shape} and {beta.shape}"
+            )
+        for name, val in (("alpha", alpha), ("beta", beta)):
+            if not np.all(np.isfinite(val)) or np.any(val < 0):
+                raise ModelError(f"per-body Rayleigh {name} must be finite and >= 0")
+        if np.all(alpha == alpha[0]) and np.all(beta == beta[0]):
+            self.rayleigh_mass, self.rayleigh_stiffness = float(alpha[0]), float(beta[0])
+            self._rayleigh_dofs = None
+            return
+        nodes = self.tets.ravel()
+        per = np.repeat(beta, self.tets.shape[1])
+        high = np.zeros(self.n_nodes)
+        low = np.full(self.n_nodes, np.inf)
+        np.maximum.at(high, nodes, per)
+        np.minimum.at(low, nodes, per)
+        shared = np.flatnonzero(np.isfinite(low) & (low != high))
+        if shared.size:
+            raise ModelError(
+                f"per-body Rayleigh damping: node {int(shared[0])} joins elements of different"
+                " stiffness-proportional damping (the damped parts must not share nodes)"
+            )
+        alpha_dofs, beta_dofs = (
+            self.gather(np.repeat(v[:, None], 3, axis=1)) for v in (alpha, high)
+        )
+        self._rayleigh_dofs = (alpha_dofs, beta_dofs)
 
     def set_node_masses(self, masses: np.ndarray) -> None:
         """Give each node its own mass (a diagonal mass matrix), in place of those the density

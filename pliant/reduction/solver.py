@@ -368,7 +368,8 @@ class ReducedImplicitEuler:
 
     def _coefficients(self) -> tuple[float, float]:
         b, h = self.model.body, self.dt
-        return 1.0 + h * b.rayleigh_mass, h * b.rayleigh_stiffness + h * h
+        alpha, beta = b.uniform_rayleigh("the reduced-order solver (pliant.reduction)")
+        return 1.0 + h * alpha, h * beta + h * h
 
     def _step(self, state: ReducedState, control) -> ReducedState:
         model, h = self.model, self.dt

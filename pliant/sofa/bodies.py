@@ -20,8 +20,9 @@ What stops such a scene, with one SceneError naming it:
   (Point, Line and Triangle models together; the lines' contacts are not made);
 - bodies whose elements follow different laws (a corotational and a hyperelastic one, or two
   element rotations): the union's elements share one kernel;
-- different ODE solvers (static and dynamic), Rayleigh damping, or consistent mass matrices of
-  different densities: one solver steps the union;
+- different ODE solvers (static and dynamic), or consistent mass matrices of different
+  densities: one solver steps the union (different Rayleigh damping joins: each part keeps its
+  own, :meth:`pliant.fem.body.TetBody.set_rayleigh_per_body`);
 - hexahedral bodies, and STLIB's Rigidify or UnilateralPlaneConstraint on one of several
   bodies (not joined here).
 """
@@ -164,17 +165,6 @@ def _check_alike(parts: Sequence[Part], scene: str) -> None:
             + ", ".join(f"{p.node.path}: {p.solver_kind}" for p in parts)
             + ")"
         )
-    damping = {(p.body.rayleigh_mass, p.body.rayleigh_stiffness) for p in parts}
-    if len(damping) > 1:
-        problems.append(
-            "different Rayleigh damping ("
-            + ", ".join(
-                f"{p.node.path}: rayleighMass {p.body.rayleigh_mass:g},"
-                f" rayleighStiffness {p.body.rayleigh_stiffness:g}"
-                for p in parts
-            )
-            + ")"
-        )
     laws = {
         (type(m).__name__, m.kernel_tag, m.tolerates_inversion)
         for m in (p.body.material for p in parts)
@@ -261,5 +251,10 @@ def join(parts: Sequence[Part], scene: str) -> TetBody:
     body.lam[:] = np.concatenate([b.lam for b in bodies])
     if body.mass_type not in ("consistent", "none"):
         body.set_node_masses(np.concatenate([b.node_masses for b in bodies]))
+    # Each part damped as under its own solver (one pair for all keeps the scalar path).
+    body.set_rayleigh_per_body(
+        np.concatenate([np.full(b.n_nodes, b.rayleigh_mass) for b in bodies]),
+        np.concatenate([np.full(b.n_elements, b.rayleigh_stiffness) for b in bodies]),
+    )
     body.changed()
     return body

@@ -185,11 +185,21 @@ class ImplicitEuler:
         # off while `condense` takes its passive step.
         self._ahead: LookAhead | None = None
         self._look_ahead = True
+        self._per_body = None  # ((dt, the body's per-DoF damping), (a_m, a_k)): _coefficients
 
-    def _coefficients(self) -> tuple[float, float]:
+    def _coefficients(self) -> tuple[float, float] | tuple[np.ndarray, np.ndarray]:
+        """(a_m, a_k) of A = a_m M + a_k K_s: floats, or one value a free DoF where the body
+        joins bodies of different Rayleigh damping (their blocks of M and K_s are disjoint)."""
         b, h = self.model.body, self.dt
         if self.first_order:
             return h, h * h
+        per_body = b.rayleigh_dofs()
+        if per_body is not None:
+            key = None if self._per_body is None else self._per_body[0]
+            if key is None or key[0] != h or key[1] is not per_body:
+                alpha, beta = per_body  # the same arrays every step: the factorisation is kept
+                self._per_body = ((h, per_body), (1.0 + h * alpha, h * beta + h * h))
+            return self._per_body[1]
         return 1.0 + h * b.rayleigh_mass, h * b.rayleigh_stiffness + h * h
 
     def step(self, state: State, control=None) -> State:
@@ -221,7 +231,7 @@ class ImplicitEuler:
         else:
             v = body.gather(state.velocities)
             rhs -= a_k * body.gather(lin.stiffness_velocity)
-            if a_m != 1.0:
+            if np.ndim(a_m) or a_m != 1.0:
                 rhs -= (a_m - 1.0) * body.mass_matvec(v)
         roles = getattr(ctrl, "roles", None)
         self._place_objects(rigid)

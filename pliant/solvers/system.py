@@ -41,7 +41,7 @@ from typing import Literal
 import numpy as np
 import scipy.sparse as sp
 
-from pliant.errors import SolverError
+from pliant.errors import ModelError, SolverError
 from pliant.fem.body import Linearisation, TetBody
 from pliant.fem.kernels import max_abs_difference
 from pliant.fem.material import COROTATIONAL, COROTATIONAL_LARGE, COROTATIONAL_LARGE_INVERTIBLE
@@ -166,7 +166,7 @@ class LinearisedSystem:
             not self._factor_valid
             or self.policy == "fresh"
             or self._refactor_next
-            or self._factor_coefs != (mass_coef, stiffness_coef)
+            or not _same_coefficients(self._factor_coefs, (mass_coef, stiffness_coef))
         )
         if not needs and self.policy == "lagged":
             drift = max_abs_difference(lin.frames, self._factor_frames)
@@ -211,15 +211,31 @@ class LinearisedSystem:
     def _assemble(self, *, exact: bool) -> np.ndarray:
         """Values of A on the system's pattern (the body's, merged with the extra one)."""
         body = self.body
-        data = self.stiffness_coef * body.stiffness_data(self.lin, exact=exact)
-        data += self.mass_coef * body.mass_data
+        mass_coef, stiffness_coef = self.mass_coef, self.stiffness_coef
+        if np.ndim(stiffness_coef):  # one value a free DoF: per entry, that of its row
+            pattern = body.pattern
+            rows = np.repeat(np.arange(body.n_free), np.diff(pattern.indptr))
+            mass_coef, stiffness_coef = mass_coef[rows], stiffness_coef[rows]
+        data = stiffness_coef * body.stiffness_data(self.lin, exact=exact)
+        data += mass_coef * body.mass_data
         if self._merged is not None:
             _, indices, body_slots, extra_slots = self._merged
             merged = np.zeros(indices.size)
             merged[body_slots] = data
-            merged += self.stiffness_coef * np.bincount(
-                extra_slots, weights=self.extra, minlength=indices.size
-            )
+            extra = self.extra
+            if np.ndim(self.stiffness_coef):
+                rows, cols = self._extra_pattern
+                if np.any(self.stiffness_coef[rows] != self.stiffness_coef[cols]):
+                    raise ModelError(
+                        "extra entries (a cable's stiffness) join bodies of different"
+                        " Rayleigh damping"
+                    )
+                extra = extra * self.stiffness_coef[rows]
+                merged += np.bincount(extra_slots, weights=extra, minlength=indices.size)
+            else:
+                merged += self.stiffness_coef * np.bincount(
+                    extra_slots, weights=extra, minlength=indices.size
+                )
             data = merged
         return data if self._projection is None else self._project(data)
 
@@ -271,14 +287,19 @@ class LinearisedSystem:
 
     def _apply(self, u: np.ndarray) -> np.ndarray:
         exact = self.exact_tangent and not self.last_fallback
-        out = self.stiffness_coef * self.body.stiffness_matvec(self.lin, u, exact=exact)
+        # Per-DoF coefficients scale rows (u may hold columns: (n_free, k)).
+        mass_coef, stiffness_coef = (
+            (c[:, None] if np.ndim(c) and u.ndim == 2 else c)
+            for c in (self.mass_coef, self.stiffness_coef)
+        )
+        out = stiffness_coef * self.body.stiffness_matvec(self.lin, u, exact=exact)
         if self._merged is not None:
             rows, cols = self._extra_pattern
             n = self.body.n_free
             extra = sp.csr_matrix((self.extra, (rows, cols)), shape=(n, n))
-            out += self.stiffness_coef * (extra @ u)
-        if self.mass_coef:
-            out += self.mass_coef * self.body.mass_matvec(u)
+            out += stiffness_coef * (extra @ u)
+        if np.any(self.mass_coef):
+            out += mass_coef * self.body.mass_matvec(u)
         return out
 
     def solve(self, rhs: np.ndarray) -> np.ndarray:
@@ -337,6 +358,16 @@ class LinearisedSystem:
         z = self._cholesky.solve(y)
         z[idx] = np.einsum("nij,nj...->ni...", q, z[idx])
         return z
+
+
+def _same_coefficients(kept, new) -> bool:
+    """Whether a factorisation made with coefficients `kept` (None: none made) is one of `new`
+    (floats, or per-DoF arrays: the same arrays)."""
+    if kept is None:
+        return False
+    if np.ndim(new[1]) or np.ndim(kept[1]):
+        return kept[0] is new[0] and kept[1] is new[1]
+    return kept == new
 
 
 def _merge(pattern: StiffnessPattern, rows: np.ndarray, cols: np.ndarray):

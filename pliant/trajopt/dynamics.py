@@ -253,7 +253,8 @@ class CondensedDynamics:
                 " CondensedDynamics(..., nonlinear=True)"
             )
         body = self.model.body
-        a_m, a_k = 1.0 + h * body.rayleigh_mass, h * body.rayleigh_stiffness + h * h
+        alpha, beta = body.uniform_rayleigh("trajopt's state derivative (CondensedDynamics)")
+        a_m, a_k = 1.0 + h * alpha, h * beta + h * h
         p = rollout.mass_response
         s = (eye - a_m * p) / a_k
         fx[:, :m, :m] = eye - h * h * s

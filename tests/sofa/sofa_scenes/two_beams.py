@@ -5,7 +5,7 @@ along z, each with its own EulerImplicitSolver. The configuration picks which be
 holds, and variants that Pliant refuses or that add a floor both beams may touch:
 
     bodies: "AB" (default), "A" or "B";
-    damping_b: beam B's rayleighStiffness (A's is 0.1);
+    damping_b, mass_damping_b: beam B's rayleighStiffness and rayleighMass (A's are 0.1);
     law_b: "corotational" (default) or "neohookean" (B's FEM);
     static_b: beam B under a StaticSolver;
     floor: collision models on both beams (group ``floor_groups``) and a floor below them.
@@ -22,10 +22,11 @@ def _beam(root, name, config):
     shift, young, mass = BEAMS[name]
     node = root.addChild(name)
     damping = config.get("damping_b", 0.1) if name == "B" else 0.1
+    mass_damping = config.get("mass_damping_b", 0.1) if name == "B" else 0.1
     if name == "B" and config.get("static_b"):
         node.addObject("StaticSolver")
     else:
-        node.addObject("EulerImplicitSolver", rayleighMass=0.1, rayleighStiffness=damping)
+        node.addObject("EulerImplicitSolver", rayleighMass=mass_damping, rayleighStiffness=damping)
     node.addObject("SparseLDLSolver")
     node.addObject("MeshVTKLoader", name="loader", filename="beam.vtu", translation=shift)
     node.addObject("MeshTopology", src="@loader", name="topology")
