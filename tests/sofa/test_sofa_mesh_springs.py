@@ -67,6 +67,21 @@ def _scene(folder, damping: float = 0.0, edges: str = 'edges="0 1 1 2 2 3"'):
     return load_scene(folder / "springs.scn")
 
 
+def _beam_body(mesh, total_mass: float, loads=()) -> TetBody:
+    """The scene's beam as Pliant's API builds it (its x < 0.1 end held)."""
+    return TetBody(
+        mesh,
+        Corotational(1000.0, 0.3, "large"),
+        mass="uniform",
+        total_mass=total_mass,
+        fixed_nodes=np.flatnonzero(mesh.points[:, 0] < 0.1),
+        gravity=(0.0, -9810.0, 0.0),
+        rayleigh_mass=0.1,
+        rayleigh_stiffness=0.1,
+        loads=list(loads),
+    )
+
+
 def test_the_scene_steps_as_the_model_built_with_the_api(beam) -> None:
     """Three steps: the first starts from the record at T = 0.01 (shift 0.01), the third
     from the record at T = 0.03; the springs and the mapped mass as Pliant's API builds them
@@ -84,17 +99,7 @@ def test_the_scene_steps_as_the_model_built_with_the_api(beam) -> None:
     springs = EmbeddedSprings(
         embedded.nodes, embedded.weights, [0, 1, 1, 2, 2, 3], STIFFNESS, rest_lengths=rest
     )
-    body = TetBody(
-        mesh,
-        Corotational(1000.0, 0.3, "large"),
-        mass="uniform",
-        total_mass=0.01,
-        fixed_nodes=np.flatnonzero(mesh.points[:, 0] < 0.1),
-        gravity=(0.0, -9810.0, 0.0),
-        rayleigh_mass=0.1,
-        rayleigh_stiffness=0.1,
-        loads=[springs],
-    )
+    body = _beam_body(mesh, 0.01, loads=[springs])
     carried = np.zeros(mesh.n_nodes)
     shares = embedded.weights**2 / (embedded.weights**2).sum(axis=1, keepdims=True)
     np.add.at(carried, embedded.nodes, 0.001 * shares)  # HRZ: positive, 0.001 per point
@@ -112,17 +117,7 @@ def test_the_scene_steps_as_the_model_built_with_the_api(beam) -> None:
     for got, want in zip(states[1:], expected[1:], strict=True):
         assert np.abs(got.positions - want.positions).max() < 1e-9
     # The springs move the body: without them the first step ends elsewhere.
-    plain = TetBody(
-        mesh,
-        Corotational(1000.0, 0.3, "large"),
-        mass="uniform",
-        total_mass=0.014,
-        fixed_nodes=np.flatnonzero(mesh.points[:, 0] < 0.1),
-        gravity=(0.0, -9810.0, 0.0),
-        rayleigh_mass=0.1,
-        rayleigh_stiffness=0.1,
-    )
-    alone = Model(plain)
+    alone = Model(_beam_body(mesh, 0.014))
     start = dataclasses.replace(alone.rest_state(), positions=first.copy())
     free = ImplicitEuler(alone, 0.01, tangent="fresh").step(start)
     assert np.abs(free.positions - states[1].positions).max() > 1e-3
