@@ -26,7 +26,13 @@ Needs the uniform dataset of table_5_1.py (collected first, 16 min on two quiet 
     python experiments/condensed/table_5_1_protocol.py --workers 2   # about 35 min more
 
 Writes table_5_1_diamond_protocol.json (old and new figures) to --out and the two networks to
---work (diamond_protocol_uniform.pt, diamond_protocol_corner.pt).
+--work (diamond_protocol_uniform.pt, diamond_protocol_corner.pt). The two networks are kept in
+experiments/results/condensed/models; ``--evaluate`` re-scores them from the repository alone
+(the held-out samples solved again by the FEM from the plan the models record: 1625 solves,
+about 8 min on one quiet core):
+
+    python experiments/condensed/table_5_1_protocol.py --evaluate \
+        experiments/results/condensed/models --out /tmp/t51
 """
 
 from __future__ import annotations
@@ -95,6 +101,28 @@ def scores(network: StandardisedMLP, test: Split) -> dict:
     }
 
 
+def held_out(plan, test_seed: int, workers: int) -> Split:
+    """The held-out test set: the test stream of `test_seed` in the uniform plan's box, solved
+    from rest by the plan's robot and solver (deterministic: the same samples every time)."""
+    return solve_split(replace(plan, seed=test_seed), "test", workers=workers).converged_only()
+
+
+def evaluate_kept(folder: Path, test_seed: int, workers: int, out: Path) -> None:
+    """The kept networks scored on the held-out samples solved again (--evaluate)."""
+    models = {
+        key: LearnedCondensedModel.load(folder / f"diamond_protocol_{key}.pt")
+        for key in ("uniform", "corner")
+    }
+    test = held_out(models["uniform"].plan, test_seed, workers)
+    report = {
+        "test_samples": len(test),
+        **{key: scores(model.network, test) for key, model in models.items()},
+    }
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "table_5_1_diamond_protocol.json").write_text(json.dumps(report, indent=1))
+    print(json.dumps(report, indent=1))
+
+
 def main(
     samples: Annotated[int, typer.Option(help="the uniform dataset's training samples")] = 6500,
     corner_samples: Annotated[int, typer.Option()] = 300,
@@ -106,8 +134,15 @@ def main(
     workers: Annotated[int, typer.Option()] = 1,
     work: Annotated[Path, typer.Option(help="datasets, checkpoints")] = Path("out/condensed_full"),
     out: Annotated[Path, typer.Option(help="results")] = Path("experiments/results/condensed"),
+    evaluate: Annotated[
+        Path | None,
+        typer.Option(help="a folder of the kept networks: re-score them on the test draw, exit"),
+    ] = None,
 ) -> None:
     configure_threads(torch_threads=1)
+    if evaluate is not None:
+        evaluate_kept(evaluate, test_seed, workers, out)
+        return
     uniform = Dataset.load(work / f"diamond_{samples}.h5")
     validation = uniform.test.converged_only()
     uniform_train = uniform.train.converged_only()
@@ -126,8 +161,7 @@ def main(
     )
     second, corner_row = train(both, validation, corner_epochs, work / f"protocol_{name}.ckpt")
     # The held-out test set, drawn only now: the test stream of another seed, same box.
-    test = solve_split(replace(uniform.plan, seed=test_seed), "test", workers=workers)
-    test = test.converged_only()
+    test = held_out(uniform.plan, test_seed, workers)
     for key, network in (("uniform", first), ("corner", second)):
         LearnedCondensedModel.from_dataset(network, uniform, {"selected_on": "validation"}).save(
             work / f"diamond_protocol_{key}.pt"
