@@ -65,6 +65,7 @@ from pliant.sofa.rigids import (
     static_sphere,
 )
 from pliant.sofa.servos import ARTICULATED, Servo, linked_dofs, read_servos, rigid_pose
+from pliant.sofa.shells import TRIANGLE_FEM, shell_body
 from pliant.sofa.states import RecordedStates, read_records
 from pliant.sofa.tree import (
     INITIALISERS,
@@ -129,7 +130,9 @@ MESH_LOADERS = frozenset(
 )
 HYPERELASTIC = "TetrahedronHyperelasticityFEMForceField"
 FAST_COROTATIONAL = "FastTetrahedralCorotationalForceField"
-FEM = frozenset({"TetrahedronFEMForceField", FAST_COROTATIONAL, HYPERELASTIC, HEXAHEDRA})
+FEM = frozenset(
+    {"TetrahedronFEMForceField", FAST_COROTATIONAL, HYPERELASTIC, HEXAHEDRA, TRIANGLE_FEM}
+)
 # The element rotation of each FEM method: TetrahedronFEMForceField's "large" and
 # FastTetrahedralCorotationalForceField's "qr" (also called "large" there) both take the frame
 # of the element's first edge and first face (Gram-Schmidt on its first two edges), "polar"
@@ -1249,6 +1252,8 @@ class _Builder:
             if springs:
                 raise SceneError(f"{springs[0].path}: springs on a hexahedral body's points")
             return hex_body(self, node, fem, gravity)
+        if fem.type == TRIANGLE_FEM:  # a shell of triangles (pliant.sofa.shells)
+            return shell_body(self, node, fem, gravity)
         split = grid_tetrahedra(self, node)  # a grid's cells cut in tetrahedra
         points, tets = split if split is not None else self._read_mesh(self._mesh_loader(node))
         if fem.type == HYPERELASTIC:
@@ -2054,6 +2059,14 @@ class _Builder:
         then its own transform (scale, rotation, translation), as SOFA's MechanicalObject
         applies it at initialisation."""
         value = dofs.attrs.get("position", dofs.attrs.get("src"))
+        topology = self._one(node, TOPOLOGIES, "topologies")
+        if value is None and topology is not None and "position" in topology.attrs:
+            value = topology.attrs["position"]  # SOFA's MechanicalObject takes its topology's
+            if not _is_link(value):
+                pts = _floats(value, f"{topology.path}.position")
+                if pts.size == 0 or pts.size % 3:
+                    raise SceneError(f"{topology.path}.position: triples of numbers expected")
+                return _placed(dofs, pts.reshape(-1, 3))
         if value is None:
             loaders = [o for o in node.objects if o.type in MESH_LOADERS]
             if len(loaders) != 1:
