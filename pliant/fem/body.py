@@ -413,7 +413,8 @@ class TetBody(DeformableBody):
         self.free_index = np.full(3 * n, -1, dtype=np.int64)
         self.free_index[self.free_dofs] = np.arange(self.free_dofs.size)
         spanning = tuple(load.groups for load in loads if load.spans_elements)
-        spanning += tuple(m.triangles for m in membranes)  # a shell's triangles span no tet
+        # A shell's triangles (pliant.fem.shell) may join nodes that share no tetrahedron.
+        spanning += tuple(m.triangles for m in membranes if m.spans_elements)
         self.pattern = StiffnessPattern.build(elements, self.free_index, spanning)
         self.membranes = [MembraneAssembly(m, n, self.free_index, self.pattern) for m in membranes]
         self.loads = [LoadAssembly(load, n, self.free_index, self.pattern) for load in loads]

@@ -93,6 +93,10 @@ class TriangleFEM:
     :class:`pliant.fem.membrane.Membrane` (node-major element vectors and matrices).
     """
 
+    # On a body of tetrahedra (a shell joined beside them), its triangles join nodes that
+    # share no tetrahedron: their entries join the body's stiffness pattern.
+    spans_elements = True
+
     def __init__(self, points: np.ndarray, triangles: np.ndarray, material: PlaneStress) -> None:
         if not isinstance(material, PlaneStress):
             raise MaterialError(f"a shell of triangles takes a PlaneStress law, got {material!r}")

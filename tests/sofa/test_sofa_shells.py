@@ -9,8 +9,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from pliant.diff.step import check_model
+from pliant.errors import ModelError, ReductionError
 from pliant.fem.shell import PlaneStress, ShellBody
 from pliant.model import Model
+from pliant.reduction import mesh_fingerprint
 from pliant.sofa import SceneError, load_scene
 from pliant.solvers import ImplicitEuler
 
@@ -83,6 +86,13 @@ def test_shell_beside_a_beam_moves_as_alone(alone) -> None:
     np.testing.assert_allclose(joined.positions[:8], state.positions, atol=1e-12)
     beam = joined.positions[8:] - scene.model.body.rest_positions[8:]
     assert np.abs(beam[:, 1]).max() > 1e-3  # the beam sags too
+    # What cannot take a shell names it: model reduction and pliant.diff.
+    with pytest.raises(ReductionError, match="shell of triangles"):
+        mesh_fingerprint(scene.model.body)
+    with pytest.raises(ModelError, match="membranes"):
+        check_model(scene.model)
+    with pytest.raises(ModelError, match="tetrahedra"):
+        mesh_fingerprint(alone[0].model.body)
 
 
 @pytest.mark.parametrize(
