@@ -1576,6 +1576,23 @@ class _Builder:
             )
         return points, tets
 
+    def body_options(self, node: SceneNode, points: np.ndarray, gravity) -> tuple[dict, str]:
+        """The keywords of a body of elements (BodyOptions) that a node's components give:
+        held nodes and DoFs, loads, projections, gravity, its solver's Rayleigh damping and
+        its mass; and the solver kind."""
+        solver_kind, rayleigh = self._ode_solver(node)
+        options = {
+            "fixed_nodes": self._fixed_nodes(node, points),
+            "fixed_dofs": self._fixed_components(node, points),
+            "loads": self._loads(node, points),
+            "projections": self._projections(node, points),
+            "gravity": tuple(gravity),
+            "rayleigh_mass": rayleigh[0],
+            "rayleigh_stiffness": rayleigh[1],
+            **self._mass(node, points.shape[0]),
+        }
+        return options, solver_kind
+
     def _mass(self, node: SceneNode, n_nodes: int) -> dict:
         mass = self._one(node, {"UniformMass", "MeshMatrixMass"}, "masses")
         if mass is None:
@@ -2059,7 +2076,7 @@ class _Builder:
         then its own transform (scale, rotation, translation), as SOFA's MechanicalObject
         applies it at initialisation."""
         value = dofs.attrs.get("position", dofs.attrs.get("src"))
-        topology = self._one(node, TOPOLOGIES, "topologies")
+        topology = next((o for o in node.objects if o.type in TOPOLOGIES), None)
         if value is None and topology is not None and "position" in topology.attrs:
             value = topology.attrs["position"]  # SOFA's MechanicalObject takes its topology's
             if not _is_link(value):

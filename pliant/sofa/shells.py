@@ -96,7 +96,7 @@ def shell_body(
     triangles = _triangles(builder, node)
     if triangles.max() >= len(points):
         raise SceneError(f"{node.path}: triangles index {triangles.max()} of {len(points)} nodes")
-    solver_kind, rayleigh = builder._ode_solver(node)
+    options, solver_kind = builder.body_options(node, points, gravity)
     try:
         material = PlaneStress(
             _number(fem, "youngModulus", 1000.0),
@@ -104,19 +104,7 @@ def shell_body(
             thickness=_number(fem, "thickness", 1.0),
             method=method,
         )
-        body = ShellBody(
-            points,
-            triangles,
-            material,
-            fixed_nodes=builder._fixed_nodes(node, points),
-            fixed_dofs=builder._fixed_components(node, points),
-            loads=builder._loads(node, points),
-            projections=builder._projections(node, points),
-            gravity=tuple(gravity),
-            rayleigh_mass=rayleigh[0],
-            rayleigh_stiffness=rayleigh[1],
-            **builder._mass(node, points.shape[0]),
-        )
+        body = ShellBody(points, triangles, material, **options)
     except PliantError as exc:
         raise SceneError(f"{fem.path}: {exc}") from exc
     check_held_if_massless(node, body)

@@ -95,6 +95,16 @@ def test_shell_beside_a_beam_moves_as_alone(alone) -> None:
         mesh_fingerprint(alone[0].model.body)
 
 
+def test_shell_and_beam_touch_by_points_against_triangles() -> None:
+    """With collision models on both, the cube's nodes meet the beam's surface and the beam's
+    nodes the cube's triangles (SOFA tests the two models against each other both ways)."""
+    scene = load_scene(SCENE, config={"beam": True, "contact": True})
+    names = sorted(s.name for s in scene.model.contacts.surfaces)
+    assert names == ["root/Beam on root/Cube", "root/Cube on root/Beam"]
+    state = _run(scene, 1)
+    assert np.all(np.isfinite(state.positions))
+
+
 @pytest.mark.parametrize(
     ("config", "words"),
     [({"plane_strain": True}, "planeStrain"), ({"method": "polar"}, "method 'polar'")],

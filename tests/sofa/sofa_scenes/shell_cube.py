@@ -6,7 +6,8 @@ moved up by 10 mm, held by a FixedConstraint on its bottom face and pulled down 
     method: the FEM's method, "large" (default) or "small";
     thickness: the FEM's thickness (default 0.5);
     plane_strain: SOFA's planeStrain flag (refused by Pliant);
-    beam: a cantilever of tetrahedra on a 4 x 2 x 2 grid beside the cube (its own solver).
+    beam: a cantilever of tetrahedra on a 4 x 2 x 2 grid beside the cube (its own solver);
+    contact: with the beam, a collision pipeline and point and triangle models on both.
 """
 
 CORNERS = [
@@ -50,4 +51,13 @@ def createScene(rootNode, config=None):
         beam.addObject("TetrahedronFEMForceField", youngModulus=500.0, poissonRatio=0.3)
         beam.addObject("BoxROI", name="held", box=[29.0, -1.0, -1.0, 31.0, 11.0, 11.0])
         beam.addObject("FixedConstraint", indices="@held.indices")
+    if config.get("contact"):
+        rootNode.addObject("DefaultPipeline")
+        rootNode.addObject("BruteForceBroadPhase")
+        rootNode.addObject("BVHNarrowPhase")
+        rootNode.addObject("LocalMinDistance", alarmDistance=2.0, contactDistance=0.5)
+        rootNode.addObject("DefaultContactManager", response="FrictionContactConstraint")
+        for node in (cube, beam):
+            node.addObject("TriangleCollisionModel")
+            node.addObject("PointCollisionModel")
     return rootNode
