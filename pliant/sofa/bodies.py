@@ -161,11 +161,11 @@ def _check_alike(parts: Sequence[Part], scene: str) -> None:
             )
         if part.body.membranes:
             problems.append(f"{part.node.path} has membranes")
-        if isinstance(part.body, ShellBody) and part.body.rayleigh_stiffness:
+        damped = {p.body.rayleigh_stiffness for p in parts}
+        if isinstance(part.body, ShellBody) and part.body.rayleigh_stiffness and len(damped) > 1:
             problems.append(
                 f"{part.node.path}: a shell of triangles damped by its stiffness"
-                " (rayleighStiffness)"
-                " beside other bodies"
+                " (rayleighStiffness) beside bodies damped otherwise"
             )
     solids = [p for p in parts if not isinstance(p.body, ShellBody)]
     if not solids:

@@ -107,7 +107,11 @@ def test_shell_and_beam_touch_by_points_against_triangles() -> None:
 
 @pytest.mark.parametrize(
     ("config", "words"),
-    [({"plane_strain": True}, "planeStrain"), ({"method": "polar"}, "method 'polar'")],
+    [
+        ({"plane_strain": True}, "planeStrain"),
+        ({"method": "polar"}, "method 'polar'"),
+        ({"beam": True, "cube_damping": 0.1}, "damped otherwise"),
+    ],
 )
 def test_refusals(config, words) -> None:
     with pytest.raises(SceneError, match=words):

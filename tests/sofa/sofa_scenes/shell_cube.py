@@ -6,6 +6,7 @@ moved up by 10 mm, held by a FixedConstraint on its bottom face and pulled down 
     method: the FEM's method, "large" (default) or "small";
     thickness: the FEM's thickness (default 0.5);
     plane_strain: SOFA's planeStrain flag (refused by Pliant);
+    cube_damping: the cube's rayleighStiffness (default 0; the beam's is 0);
     beam: a cantilever of tetrahedra on a 4 x 2 x 2 grid beside the cube (its own solver);
     contact: with the beam, a collision pipeline and point and triangle models on both.
 """
@@ -25,7 +26,7 @@ def createScene(rootNode, config=None):
     rootNode.dt = 0.01
     rootNode.gravity = [0.0, -9810.0, 0.0]
     cube = rootNode.addChild("Cube")
-    cube.addObject("EulerImplicitSolver")
+    cube.addObject("EulerImplicitSolver", rayleighStiffness=config.get("cube_damping", 0.0))
     cube.addObject("SparseLDLSolver")
     cube.addObject("MeshTopology", name="topology", position=CORNERS, triangles=TRIANGLES)
     cube.addObject("MechanicalObject", name="dofs", scale=10.0, translation=[0.0, 10.0, 0.0])
