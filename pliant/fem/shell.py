@@ -7,17 +7,19 @@ strain-displacement matrix of its rest shape in its own plane). Bending has no s
 
 The element's frame is SOFA's: x along its first edge (a -> b), z along the normal of its
 first two edges, y = z x x. Under ``method="large"`` (SOFA's default, corotational) the frame R
-follows the current triangle and the force is f = -R K0 (R^T x - R0^T X) (node-major, the
-local z rows of K0 zero): a rigid motion strains nothing, and an affine stretch in the plane
-gives the exact uniform stress of the constant-strain triangle. Its tangent is SOFA's, R K0
-R^T (the frame's variation is left out, as for the "large" tetrahedron); the energy is
-1/2 u^T K0 u with u = R^T x - R0^T X. Under ``method="small"`` the frame stays the rest one:
-f = -R0 K0 R0^T (x - X), linear elasticity (forces, energy and tangent exact).
+follows the current triangle, and so does B, as in SOFA's TriangleFEMForceField: the force is
+f = -R K u with K = A0 t B^T D B of the current triangle in its frame (A0 the rest area) and
+u = R^T (x - x_a) - R0^T (X - X_a) the local displacement (node-major; the z rows of K zero).
+A rigid motion strains nothing; the tangent is SOFA's, R K R^T (the variation of the frame and
+of B is left out); the energy is 1/2 u^T K u (the force is its gradient to first order in the
+strain). Under uniform tension the displacement departs from the uniform stress's by about
+2 (sigma / E)^2 L (the first edge turns with the stretch where it is no principal direction).
+Under ``method="small"`` the frame and B stay the rest ones: f = -R0 K0 R0^T (x - X), linear
+elasticity (forces, energy and tangent exact; it passes the patch test to round-off).
 
-Departures from SOFA, beside the numbers they change: SOFA's "large" element builds B from
-the current triangle (this one from the rest one; the forces differ by a relative amount of
-the order of the strain), and SOFA's "small" element reads the world's x and y components
-only (a triangle in the plane z = const); this one is the linear element in its rest plane.
+Departure from SOFA: SOFA's "small" element reads the world's x and y components only (a
+triangle in a plane z = const) with B of the current triangle; this one is the linear element
+in its rest plane.
 """
 
 from __future__ import annotations
@@ -119,25 +121,9 @@ class TriangleFEM:
         self.areas = 0.5 * twice_area
         # The rest triangle in its frame: local (t, 3 nodes, 3) with node a at the origin.
         self.rest_local = np.einsum("tji,taj->tai", frames, points[tri] - points[tri][:, :1])
-        bx, cx, cy = self.rest_local[:, 1, 0], self.rest_local[:, 2, 0], self.rest_local[:, 2, 1]
-        # Shape-function gradients (t, 3 nodes, 2) in the element's plane.
-        g = np.zeros((tri.shape[0], 3, 2))
-        g[:, 0] = np.stack([-1.0 / bx, (cx - bx) / (bx * cy)], axis=1)
-        g[:, 1] = np.stack([1.0 / bx, -cx / (bx * cy)], axis=1)
-        g[:, 2, 1] = 1.0 / cy
-        self.grads = g
-        # B (t, 3 strains, 3 nodes, 3 local components; z columns zero).
-        b = np.zeros((tri.shape[0], 3, 3, 3))
-        b[:, 0, :, 0] = g[:, :, 0]
-        b[:, 1, :, 1] = g[:, :, 1]
-        b[:, 2, :, 0] = g[:, :, 1]
-        b[:, 2, :, 1] = g[:, :, 0]
-        self.strain_displacement = b.reshape(-1, 3, 9)
-        d = material.plane_stress_matrix()
-        weight = (self.areas * material.thickness)[:, None, None]
-        self.k0 = weight * np.einsum(
-            "tsi,sr,trj->tij", self.strain_displacement, d, b.reshape(-1, 3, 9)
-        )
+        self._d = material.plane_stress_matrix()
+        self._weight = (self.areas * material.thickness)[:, None, None]
+        self.k0 = self._stiffness(self.rest_local)
         self.dofs = (3 * tri[:, :, None] + np.arange(3)).reshape(-1, 9)
         self.rest_points = points
 
@@ -146,23 +132,42 @@ class TriangleFEM:
         """Area times thickness of each triangle (t,)."""
         return self.areas * self.material.thickness
 
-    def frames(self, positions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """The elements' frames (t, 3, 3) at `positions` (the rest ones under "small") and
-        their current over rest areas (t,; 0 for a triangle collapsed to a line or a point,
-        whose frame is then the rest one)."""
+    def _stiffness(self, local: np.ndarray) -> np.ndarray:
+        """A0 t B^T D B (t, 9, 9) in the elements' frames, B the strain-displacement matrix of
+        the triangles `local` (t, 3 nodes, 3; node a at the origin, b on the x axis)."""
+        bx, cx, cy = local[:, 1, 0], local[:, 2, 0], local[:, 2, 1]
+        g = np.zeros((local.shape[0], 3, 2))  # shape-function gradients in the plane
+        g[:, 0] = np.stack([-1.0 / bx, (cx - bx) / (bx * cy)], axis=1)
+        g[:, 1] = np.stack([1.0 / bx, -cx / (bx * cy)], axis=1)
+        g[:, 2, 1] = 1.0 / cy
+        b = np.zeros((local.shape[0], 3, 3, 3))  # (strain, node, local component)
+        b[:, 0, :, 0] = g[:, :, 0]
+        b[:, 1, :, 1] = g[:, :, 1]
+        b[:, 2, :, 0] = g[:, :, 1]
+        b[:, 2, :, 1] = g[:, :, 0]
+        b = b.reshape(-1, 3, 9)
+        return self._weight * np.einsum("tsi,sr,trj->tij", b, self._d, b)
+
+    def local_state(self, positions: np.ndarray) -> tuple:
+        """At `positions`: the frames R (t, 3, 3), the current over rest areas (t,; 0 for a
+        triangle collapsed to a line or a point, which keeps its rest frame and B), the local
+        stiffnesses K (t, 9, 9; "large": of the current triangle, as SOFA's) and the local
+        displacements u = R^T (x - x_a) - R0^T (X - X_a) (t, 9)."""
+        x = positions[self.triangles]
         if self.material.method == "small":
-            return self.rest_frames, np.ones(self.triangles.shape[0])
+            local = np.einsum("tji,taj->tai", self.rest_frames, x - x[:, :1])
+            ratio = np.ones(self.triangles.shape[0])
+            return self.rest_frames, ratio, self.k0, (local - self.rest_local).reshape(-1, 9)
         frames, twice_area = edge_frames(positions, self.triangles)
         ratio = twice_area / (2.0 * self.areas)
         flat = ~np.all(np.isfinite(frames), axis=(1, 2)) | ~(ratio > 1e-12)
         frames[flat] = self.rest_frames[flat]
-        return frames, np.where(flat, 0.0, ratio)
-
-    def local_displacements(self, positions: np.ndarray, frames: np.ndarray) -> np.ndarray:
-        """u (t, 9) = R^T (x - x_a) - R0^T (X - X_a), node-major."""
-        x = positions[self.triangles]
         local = np.einsum("tji,taj->tai", frames, x - x[:, :1])
-        return (local - self.rest_local).reshape(-1, 9)
+        stiffness = self.k0.copy()
+        if not flat.all():
+            stiffness[~flat] = self._stiffness(local[~flat])
+        u = (local - self.rest_local).reshape(-1, 9)
+        return frames, np.where(flat, 0.0, ratio), stiffness, u
 
     def element_forces(self, positions: np.ndarray) -> tuple[np.ndarray, float]:
         """(t, 3, 3) forces on each triangle's nodes and the elastic energy."""
@@ -171,22 +176,22 @@ class TriangleFEM:
 
     def forces_and_frames(self, positions: np.ndarray) -> tuple:
         """Forces (t, 3, 3), energy, frames (t, 3, 3) and area ratios (t,) at `positions`."""
-        frames, ratio = self.frames(positions)
-        u = self.local_displacements(positions, frames)
-        local = np.einsum("tij,tj->ti", self.k0, u)
+        frames, ratio, stiffness, u = self.local_state(positions)
+        local = np.einsum("tij,tj->ti", stiffness, u)
         energy = 0.5 * float(np.einsum("ti,ti->", u, local))
         forces = -np.einsum("tij,taj->tai", frames, local.reshape(-1, 3, 3))
         return forces, energy, frames, ratio
 
-    def stiffness_blocks(self, frames: np.ndarray) -> np.ndarray:
-        """R K0 R^T (t, 9, 9) for the elements' frames (t, 3, 3)."""
-        k = self.k0.reshape(-1, 3, 3, 3, 3)
+    def stiffness_blocks(self, positions: np.ndarray) -> np.ndarray:
+        """R K R^T (t, 9, 9) at `positions`: SOFA's tangent."""
+        frames, _, stiffness, _ = self.local_state(positions)
+        k = stiffness.reshape(-1, 3, 3, 3, 3)
         k = np.einsum("tik,takbl,tjl->taibj", frames, k, frames)
         return k.reshape(-1, 9, 9)
 
     def element_stiffness(self, positions: np.ndarray) -> np.ndarray:
-        """The tangent stiffness -df/dx (t, 9, 9) of each triangle (SOFA's R K0 R^T)."""
-        return self.stiffness_blocks(self.frames(positions)[0])
+        """The tangent stiffness -df/dx (t, 9, 9) of each triangle (SOFA's R K R^T)."""
+        return self.stiffness_blocks(positions)
 
 
 class ShellBody(TetBody):
@@ -292,7 +297,7 @@ class ShellBody(TetBody):
         forces, energy, frames, ratio = self.elements.forces_and_frames(x)
         if not v.shape[0]:
             return np.ascontiguousarray(forces), energy, frames, ratio
-        blocks = self.elements.stiffness_blocks(frames)
+        blocks = self.elements.stiffness_blocks(x)
         kv = np.einsum("trc,tc->tr", blocks, v[self.triangles].reshape(-1, 9))
         elem = np.concatenate([forces, kv.reshape(-1, 3, 3)], axis=2)
         return np.ascontiguousarray(elem), energy, frames, ratio
@@ -302,7 +307,7 @@ class ShellBody(TetBody):
     ) -> np.ndarray:
         """K_s u on the free DoFs (SOFA's R K0 R^T); u is (n_free,) or (n_free, k)."""
         cols = np.ascontiguousarray(u[:, None] if u.ndim == 1 else u, dtype=np.float64)
-        blocks = self.elements.stiffness_blocks(lin.frames)
+        blocks = self.elements.stiffness_blocks(lin.positions)
         dofs = self._elem_dofs
         local = np.where(dofs[:, :, None] >= 0, cols[dofs], 0.0)
         elem_out = np.einsum("trc,tck->trk", blocks, local).reshape(-1, 3, 3, cols.shape[1])
@@ -320,7 +325,7 @@ class ShellBody(TetBody):
     def stiffness_data(self, lin: Linearisation, *, exact: bool = False) -> np.ndarray:
         """Tangent stiffness on the free DoFs, as data aligned with `self.pattern`."""
         data = np.zeros(self.pattern.nnz)
-        blocks = self.elements.stiffness_blocks(lin.frames)
+        blocks = self.elements.stiffness_blocks(lin.positions)
         kernels.scatter_add(np.ascontiguousarray(blocks), 1.0, self.pattern.scatter, data)
         self._add_surface_data(lin, data)
         return data
