@@ -25,6 +25,7 @@ in its rest plane.
 from __future__ import annotations
 
 import math
+import numbers
 from dataclasses import dataclass
 from functools import cached_property
 from typing import Any, ClassVar, Literal
@@ -53,7 +54,7 @@ class PlaneStress(Material):
     def __post_init__(self) -> None:
         super().__post_init__()
         t = self.thickness
-        if isinstance(t, bool) or not isinstance(t, (int, float)) or not math.isfinite(t) or t <= 0:
+        if isinstance(t, bool) or not isinstance(t, numbers.Real) or not math.isfinite(t) or t <= 0:
             raise MaterialError(f"a shell's thickness must be finite and > 0, got {t!r}")
         object.__setattr__(self, "thickness", float(t))
         if self.method not in ("large", "small"):

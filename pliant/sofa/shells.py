@@ -89,6 +89,20 @@ def shell_body(
         )
     if str(fem.attrs.get("planeStrain", "false")).lower() in ("1", "true"):
         raise SceneError(f"{fem.path}: planeStrain (SOFA's plane-strain triangle) is not supported")
+    carried = [
+        child.path
+        for child in node.walk()
+        if child is not node
+        and any(
+            o.type == "MechanicalObject" or o.type.endswith("CollisionModel") for o in child.objects
+        )
+    ]
+    if carried:
+        raise SceneError(
+            f"{node.path}: points carried by a shell of triangles ({', '.join(carried)}) are not"
+            " supported (a shell collides by its own nodes and triangles; cables, effectors and"
+            " mapped collision meshes need a body of tetrahedra)"
+        )
     dofs = builder._one(node, {"MechanicalObject"}, "MechanicalObjects")
     if dofs is None:
         raise SceneError(f"{node.path}: the shell has no MechanicalObject")

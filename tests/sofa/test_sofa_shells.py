@@ -111,6 +111,7 @@ def test_shell_and_beam_touch_by_points_against_triangles() -> None:
         ({"plane_strain": True}, "planeStrain"),
         ({"method": "polar"}, "method 'polar'"),
         ({"beam": True, "cube_damping": 0.1}, "damped otherwise"),
+        ({"carried": True}, "points carried by a shell"),
     ],
 )
 def test_refusals(config, words) -> None:

@@ -7,6 +7,7 @@ moved up by 10 mm, held by a FixedConstraint on its bottom face and pulled down 
     thickness: the FEM's thickness (default 0.5);
     plane_strain: SOFA's planeStrain flag (refused by Pliant);
     cube_damping: the cube's rayleighStiffness (default 0; the beam's is 0);
+    carried: a child node of the cube with points mapped on it (refused by Pliant);
     beam: a cantilever of tetrahedra on a 4 x 2 x 2 grid beside the cube (its own solver);
     contact: with the beam, a collision pipeline and point and triangle models on both.
 """
@@ -42,6 +43,10 @@ def createScene(rootNode, config=None):
     cube.addObject("TriangleFEMForceField", **fem)
     cube.addObject("BoxROI", name="bottom", box=[-11.0, -1.0, -11.0, 11.0, 1.0, 11.0])
     cube.addObject("FixedConstraint", indices="@bottom.indices")
+    if config.get("carried"):
+        points = cube.addChild("points")
+        points.addObject("MechanicalObject", position=[[0.0, 10.0, 0.0]])
+        points.addObject("BarycentricMapping")
     if config.get("beam"):
         beam = rootNode.addChild("Beam")
         beam.addObject("EulerImplicitSolver")
