@@ -105,7 +105,10 @@ def shell_body(
         )
     dofs = builder._one(node, {"MechanicalObject"}, "MechanicalObjects")
     if dofs is None:
-        raise SceneError(f"{node.path}: the shell has no MechanicalObject")
+        raise SceneError(
+            f"{node.path}: the shell has no MechanicalObject (a TriangleFEMForceField on the"
+            " nodes of a body above it, a membrane layer, is not supported)"
+        )
     points = builder._positions(node, dofs)
     triangles = _triangles(builder, node)
     if triangles.max() >= len(points):
