@@ -1,5 +1,5 @@
-"""Deformable bodies (tetrahedra, rods, membranes), materials, rigid bodies and the compiled
-kernels of their forces and tangents."""
+"""Deformable bodies (tetrahedra, hexahedra, shells of triangles, rods, membranes),
+materials, rigid bodies and the compiled kernels of their forces and tangents."""
 
 from pliant.fem.body import TetBody, nodes_in_box
 from pliant.fem.hexbody import HexBody
@@ -24,6 +24,7 @@ from pliant.fem.rigid import (
     servo,
 )
 from pliant.fem.rod import ClampedEnd, RodBody, RodSection
+from pliant.fem.shell import PlaneStress, ShellBody, TriangleFEM
 from pliant.fem.supports import OnLine, OnPlane, Projection
 
 __all__ = [
@@ -44,14 +45,17 @@ __all__ = [
     "NodalForces",
     "OnLine",
     "OnPlane",
+    "PlaneStress",
     "Projection",
     "RestShapeSprings",
     "RigidBody",
     "RodBody",
     "RodSection",
+    "ShellBody",
     "SurfacePressure",
     "SurfaceTraction",
     "TetBody",
+    "TriangleFEM",
     "motor",
     "nodes_in_box",
     "rail",

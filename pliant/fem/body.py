@@ -101,6 +101,24 @@ def set_bulk_properties(
         raise ModelError(f"gravity must be a finite 3-vector, got {gravity!r}")
 
 
+def _solid_part(mesh: TetMesh, membranes: Sequence[Membrane]) -> tuple[np.ndarray, np.ndarray]:
+    """The mesh's points and tetrahedra, less the nodes that only membranes hold (renumbered):
+    a node on no tetrahedron and no membrane stays, for validate_mesh to refuse."""
+    tets = np.asarray(mesh.tets)
+    if not membranes:
+        return mesh.points, tets
+    on_tets = np.zeros(len(mesh.points), dtype=bool)
+    on_tets[tets.ravel()] = True
+    shell = np.zeros_like(on_tets)
+    for membrane in membranes:
+        shell[np.asarray(membrane.triangles).ravel()] = True
+    keep = on_tets | ~shell
+    if keep.all():
+        return mesh.points, tets
+    number = np.cumsum(keep) - 1
+    return np.asarray(mesh.points)[keep], number[tets]
+
+
 class Revised:
     """What a body's forces read besides its state (positions, velocities, time) is counted:
     :attr:`revision` goes up at every change made in place between steps (a rod's rest
@@ -309,8 +327,10 @@ class TetBody(DeformableBody):
         separate: bool = False,
         **options: Any,
     ) -> None:
-        # Inverted, degenerate, disconnected or malformed meshes raise their MeshError here.
-        validate_mesh(mesh.points, mesh.tets, allow_disconnected=separate)
+        # Inverted, degenerate, disconnected or malformed meshes raise their MeshError here;
+        # nodes on membranes only (a shell of triangles joined beside the tetrahedra) are
+        # left out of the check.
+        validate_mesh(*_solid_part(mesh, membranes), allow_disconnected=separate)
         self.mesh = mesh
         self.material = material
         self.rest_positions = np.ascontiguousarray(mesh.points, dtype=np.float64)
@@ -393,6 +413,8 @@ class TetBody(DeformableBody):
         self.free_index = np.full(3 * n, -1, dtype=np.int64)
         self.free_index[self.free_dofs] = np.arange(self.free_dofs.size)
         spanning = tuple(load.groups for load in loads if load.spans_elements)
+        # A shell's triangles (pliant.fem.shell) may join nodes that share no tetrahedron.
+        spanning += tuple(m.triangles for m in membranes if m.spans_elements)
         self.pattern = StiffnessPattern.build(elements, self.free_index, spanning)
         self.membranes = [MembraneAssembly(m, n, self.free_index, self.pattern) for m in membranes]
         self.loads = [LoadAssembly(load, n, self.free_index, self.pattern) for load in loads]

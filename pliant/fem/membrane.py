@@ -43,6 +43,10 @@ class Membrane:
             stretch stiffness `fibre_stiffness` (force per length), or None.
     """
 
+    # Its triangles are faces of the body's tetrahedra (a pair of nodes that share none is
+    # refused); a shell's (pliant.fem.shell.TriangleFEM) may span nodes of no tetrahedron.
+    spans_elements = False
+
     def __init__(
         self,
         points: np.ndarray,

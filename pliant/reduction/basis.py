@@ -23,6 +23,11 @@ from pliant.errors import ReductionError
 def mesh_fingerprint(body) -> str:
     """A digest of the body's mesh, held nodes and membranes: a basis or reduced model is
     only valid for the mesh it was computed on."""
+    if any(assembly.membrane.spans_elements for assembly in body.membranes):
+        raise ReductionError(
+            "pliant.reduction reduces tetrahedra and membranes on their faces, not a shell of"
+            " triangles (pliant.fem.shell, SOFA's TriangleFEMForceField) joined to the body"
+        )
     digest = hashlib.sha256()
     for array in (body.rest_positions, body.tets, body.fixed_nodes):
         digest.update(np.ascontiguousarray(array).tobytes())

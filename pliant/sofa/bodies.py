@@ -37,6 +37,7 @@ import numpy as np
 
 from pliant.constraints.base import EmbeddedPoints
 from pliant.fem.body import TetBody
+from pliant.fem.shell import ShellBody, TriangleFEM
 from pliant.mesh.tetmesh import TetMesh
 from pliant.sofa.tree import SceneError, SceneNode, SceneObject
 
@@ -154,10 +155,21 @@ def _check_alike(parts: Sequence[Part], scene: str) -> None:
     """SceneError naming what differs between the bodies where one body cannot hold them."""
     problems = []
     for part in parts:
-        if type(part.body) is not TetBody:
-            problems.append(f"{part.node.path} is not a body of tetrahedra (only those join)")
+        if type(part.body) is not TetBody and not isinstance(part.body, ShellBody):
+            problems.append(
+                f"{part.node.path} is not a body of tetrahedra or triangles (only those join)"
+            )
         if part.body.membranes:
             problems.append(f"{part.node.path} has membranes")
+        damped = {p.body.rayleigh_stiffness for p in parts}
+        if isinstance(part.body, ShellBody) and part.body.rayleigh_stiffness and len(damped) > 1:
+            problems.append(
+                f"{part.node.path}: a shell of triangles damped by its stiffness"
+                " (rayleighStiffness) beside bodies damped otherwise"
+            )
+    solids = [p for p in parts if not isinstance(p.body, ShellBody)]
+    if not solids:
+        problems.append("shells of triangles only (one joins beside bodies of tetrahedra)")
     kinds = {p.solver_kind for p in parts}
     if len(kinds) > 1:
         problems.append(
@@ -167,12 +179,12 @@ def _check_alike(parts: Sequence[Part], scene: str) -> None:
         )
     laws = {
         (type(m).__name__, m.kernel_tag, m.tolerates_inversion)
-        for m in (p.body.material for p in parts)
+        for m in (p.body.material for p in solids)
     }
     if len(laws) > 1:
         problems.append(
             "elements of different laws ("
-            + ", ".join(f"{p.node.path}: {p.body.material!r}" for p in parts)
+            + ", ".join(f"{p.node.path}: {p.body.material!r}" for p in solids)
             + "): the elements of one Pliant body share one law and element rotation"
         )
     massless = [p for p in parts if p.body.massless]
@@ -217,11 +229,18 @@ def join(parts: Sequence[Part], scene: str) -> TetBody:
         part.offset = offset
         offset += part.body.n_nodes
     bodies = [p.body for p in parts]
-    first = bodies[0]
+    solids = [p for p in parts if not isinstance(p.body, ShellBody)]
+    first = solids[0].body
     points = np.vstack([b.rest_positions for b in bodies])
-    tets = np.vstack([b.tets + p.offset for b, p in zip(bodies, parts, strict=True)])
+    tets = np.vstack([p.body.tets + p.offset for p in solids])
     large = first.frame_nodes.shape[0] > 0
-    frames = np.vstack([b.frame_nodes + p.offset for b, p in zip(bodies, parts, strict=True)])
+    frames = np.vstack([p.body.frame_nodes + p.offset for p in solids])
+    # A shell's triangles act on the union's nodes as a membrane does (pliant.fem.shell).
+    shells = [
+        TriangleFEM(points, p.body.triangles + p.offset, p.body.material)
+        for p in parts
+        if isinstance(p.body, ShellBody)
+    ]
     held = np.concatenate([np.flatnonzero(p.body.free_index < 0) + 3 * p.offset for p in parts])
     loads = [_shifted_copy(a.load, "groups", p.offset) for p in parts for a in p.body.loads]
     projections = [_shifted_copy(j, "nodes", p.offset) for p in parts for j in p.body.projections]
@@ -240,6 +259,7 @@ def join(parts: Sequence[Part], scene: str) -> TetBody:
         separate=True,
         fixed_dofs=held,
         frame_nodes=frames if large else None,
+        membranes=shells,
         loads=loads,
         projections=projections,
         gravity=tuple(first.gravity),
@@ -247,14 +267,14 @@ def join(parts: Sequence[Part], scene: str) -> TetBody:
         rayleigh_stiffness=first.rayleigh_stiffness,
         **mass,
     )
-    body.mu[:] = np.concatenate([b.mu for b in bodies])
-    body.lam[:] = np.concatenate([b.lam for b in bodies])
+    body.mu[:] = np.concatenate([p.body.mu for p in solids])
+    body.lam[:] = np.concatenate([p.body.lam for p in solids])
     if body.mass_type not in ("consistent", "none"):
         body.set_node_masses(np.concatenate([b.node_masses for b in bodies]))
     # Each part damped as under its own solver (one pair for all keeps the scalar path).
     body.set_rayleigh_per_body(
         np.concatenate([np.full(b.n_nodes, b.rayleigh_mass) for b in bodies]),
-        np.concatenate([np.full(b.n_elements, b.rayleigh_stiffness) for b in bodies]),
+        np.concatenate([np.full(p.body.n_elements, p.body.rayleigh_stiffness) for p in solids]),
     )
     body.changed()
     return body

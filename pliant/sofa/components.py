@@ -207,6 +207,14 @@ FIELDS: dict[str, dict] = {
         _LOADER,
     ),
     **dict.fromkeys(["TetrahedronFEMForceField", "FastTetrahedralCorotationalForceField"], _FEM),
+    "TriangleFEMForceField": {
+        "youngModulus": 1000.0,
+        "poissonRatio": 0.3,
+        "thickness": 1.0,
+        "method": "large",
+        "planeStrain": False,
+        "template": "Vec3",
+    },
     "TetrahedronHyperelasticityFEMForceField": {
         "materialName": "ArrudaBoyce",
         "ParameterSet": _EMPTY,

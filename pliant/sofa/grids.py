@@ -174,19 +174,7 @@ def hex_body(
     )
     mesh, weights = grid_mesh(builder, grid_topology(builder, node))
     points = mesh.points
-    solver_kind, rayleigh = builder._ode_solver(node)
-    body = HexBody(
-        mesh,
-        material,
-        fixed_nodes=builder._fixed_nodes(node, points),
-        fixed_dofs=builder._fixed_components(node, points),
-        loads=builder._loads(node, points),
-        projections=builder._projections(node, points),
-        gravity=tuple(gravity),
-        rayleigh_mass=rayleigh[0],
-        rayleigh_stiffness=rayleigh[1],
-        stiffness_weights=weights,
-        **builder._mass(node, points.shape[0]),
-    )
+    options, solver_kind = builder.body_options(node, points, gravity)
+    body = HexBody(mesh, material, stiffness_weights=weights, **options)
     check_held_if_massless(node, body)
     return body, mesh, solver_kind

@@ -65,6 +65,7 @@ from pliant.sofa.rigids import (
     static_sphere,
 )
 from pliant.sofa.servos import ARTICULATED, Servo, linked_dofs, read_servos, rigid_pose
+from pliant.sofa.shells import TRIANGLE_FEM, shell_body
 from pliant.sofa.states import RecordedStates, read_records
 from pliant.sofa.tree import (
     INITIALISERS,
@@ -129,7 +130,9 @@ MESH_LOADERS = frozenset(
 )
 HYPERELASTIC = "TetrahedronHyperelasticityFEMForceField"
 FAST_COROTATIONAL = "FastTetrahedralCorotationalForceField"
-FEM = frozenset({"TetrahedronFEMForceField", FAST_COROTATIONAL, HYPERELASTIC, HEXAHEDRA})
+FEM = frozenset(
+    {"TetrahedronFEMForceField", FAST_COROTATIONAL, HYPERELASTIC, HEXAHEDRA, TRIANGLE_FEM}
+)
 # The element rotation of each FEM method: TetrahedronFEMForceField's "large" and
 # FastTetrahedralCorotationalForceField's "qr" (also called "large" there) both take the frame
 # of the element's first edge and first face (Gram-Schmidt on its first two edges), "polar"
@@ -1249,6 +1252,8 @@ class _Builder:
             if springs:
                 raise SceneError(f"{springs[0].path}: springs on a hexahedral body's points")
             return hex_body(self, node, fem, gravity)
+        if fem.type == TRIANGLE_FEM:  # a shell of triangles (pliant.sofa.shells)
+            return shell_body(self, node, fem, gravity)
         split = grid_tetrahedra(self, node)  # a grid's cells cut in tetrahedra
         points, tets = split if split is not None else self._read_mesh(self._mesh_loader(node))
         if fem.type == HYPERELASTIC:
@@ -1570,6 +1575,23 @@ class _Builder:
                 " would simulate them as free particles); remove them from the mesh"
             )
         return points, tets
+
+    def body_options(self, node: SceneNode, points: np.ndarray, gravity) -> tuple[dict, str]:
+        """The keywords of a body of elements (BodyOptions) that a node's components give:
+        held nodes and DoFs, loads, projections, gravity, its solver's Rayleigh damping and
+        its mass; and the solver kind."""
+        solver_kind, rayleigh = self._ode_solver(node)
+        options = {
+            "fixed_nodes": self._fixed_nodes(node, points),
+            "fixed_dofs": self._fixed_components(node, points),
+            "loads": self._loads(node, points),
+            "projections": self._projections(node, points),
+            "gravity": tuple(gravity),
+            "rayleigh_mass": rayleigh[0],
+            "rayleigh_stiffness": rayleigh[1],
+            **self._mass(node, points.shape[0]),
+        }
+        return options, solver_kind
 
     def _mass(self, node: SceneNode, n_nodes: int) -> dict:
         mass = self._one(node, {"UniformMass", "MeshMatrixMass"}, "masses")
@@ -2054,6 +2076,14 @@ class _Builder:
         then its own transform (scale, rotation, translation), as SOFA's MechanicalObject
         applies it at initialisation."""
         value = dofs.attrs.get("position", dofs.attrs.get("src"))
+        topology = next((o for o in node.objects if o.type in TOPOLOGIES), None)
+        if value is None and topology is not None and "position" in topology.attrs:
+            value = topology.attrs["position"]  # SOFA's MechanicalObject takes its topology's
+            if not _is_link(value):
+                pts = _floats(value, f"{topology.path}.position")
+                if pts.size == 0 or pts.size % 3:
+                    raise SceneError(f"{topology.path}.position: triples of numbers expected")
+                return _placed(dofs, pts.reshape(-1, 3))
         if value is None:
             loaders = [o for o in node.objects if o.type in MESH_LOADERS]
             if len(loaders) != 1:
