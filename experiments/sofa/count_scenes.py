@@ -13,6 +13,10 @@ never copied into this project). Each scene runs in a fresh interpreter with a t
   ``goalPos``), stepped three times, then the scene's ``Reward`` updated and read after two
   more steps when it has one.
 
+Meshes a scene takes from SOFA's own data (``mesh/floor.obj`` of SOFA's ``share`` folder) are
+found as SOFA finds them, in ``SOFA_DATA_PATH`` or ``$SOFA_ROOT/share`` (``--sofa-data-path``
+sets the first: e.g. a folder holding SOFA's ``share`` files).
+
 A scene "runs" when that ends; otherwise its outcome is the first line of the SceneError (or
 the name of another exception: a bare exception, which the loader must never give). Writes
 experiments/results/sofa/scene_counts.json.
@@ -126,7 +130,13 @@ def main() -> None:
         help="measure again only the scenes whose path contains this text (or, as"
         " 'outcome:timeout', whose stored outcome is this), keeping the others' results",
     )
+    parser.add_argument(
+        "--sofa-data-path",
+        help="folders where SOFA's own meshes are (SOFA_DATA_PATH for the scenes' interpreters)",
+    )
     args = parser.parse_args()
+    if args.sofa_data_path:
+        os.environ["SOFA_DATA_PATH"] = args.sofa_data_path
     jobs = [
         (s, s.relative_to(args.softrobots), None, False) for s in softrobots_scenes(args.softrobots)
     ]

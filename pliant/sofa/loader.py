@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import os
 import warnings
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
@@ -518,6 +519,15 @@ SOFA_CHOICES = Choices("scene", "keep", "lagged", "tolerate")
 PLIANT_CHOICES = Choices("polar", "project", "last", "refuse")
 
 
+def sofa_data_path() -> list[Path]:
+    """The folders SOFA finds its data files in: ``SOFA_DATA_PATH`` (separated by the
+    system's path separator), then ``$SOFA_ROOT/share`` and ``$SOFA_ROOT/examples``."""
+    folders = [Path(d) for d in os.environ.get("SOFA_DATA_PATH", "").split(os.pathsep) if d]
+    if root := os.environ.get("SOFA_ROOT"):
+        folders += [Path(root) / "share", Path(root) / "examples"]
+    return folders
+
+
 def load_scene(
     path: str | Path,
     *,
@@ -536,7 +546,9 @@ def load_scene(
         sofa_compatible: SOFA's choices where Pliant's defaults differ (see the module text);
             False takes Pliant's.
         mesh_dirs: folders where mesh files not found beside the scene are looked for (by their
-            path as written, then by their file name).
+            path as written, then by their file name); then, as SOFA looks, the folders of the
+            ``SOFA_DATA_PATH`` environment variable and ``$SOFA_ROOT/share`` and
+            ``$SOFA_ROOT/examples`` (SOFA's own meshes, e.g. ``mesh/floor.obj``).
         rotation, outside, change_reference: override one of those choices: the element
             rotation ("scene": the FEM's method; "polar"), points outside the mesh ("keep",
             "project"), what a cable's maxDispVariation is measured from ("lagged", "last"),
@@ -561,7 +573,9 @@ def load_scene(
         raise SceneError(f"inversion is 'tolerate' or 'refuse', got {choices.inversion!r}")
     root = read_scene(path, config)
     try:
-        return _Builder(root, path, choices, [Path(d) for d in mesh_dirs]).build()
+        return _Builder(
+            root, path, choices, [Path(d) for d in mesh_dirs] + sofa_data_path()
+        ).build()
     except SceneError:
         raise
     except ModelError as exc:  # what Pliant's model refuses in the scene, named with it
@@ -1239,7 +1253,7 @@ class _Builder:
         raise SceneError(
             f"{obj.path}: mesh file {name!r} not found beside the scene"
             + (f" nor in {', '.join(map(str, self.mesh_dirs))}" if self.mesh_dirs else "")
-            + " (pass mesh_dirs)"
+            + " (pass mesh_dirs, or set SOFA_DATA_PATH or SOFA_ROOT as for SOFA)"
         )
 
     # --- the deformable body ----------------------------------------------------------------

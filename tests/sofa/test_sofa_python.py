@@ -7,6 +7,7 @@ built with Pliant's own API, stepped with the same commands: the two agree to ro
 
 from __future__ import annotations
 
+import os
 import shutil
 import sys
 import textwrap
@@ -51,6 +52,25 @@ def _step_all(solver, state, n_steps, before=None):
         state = solver.step(state)
         states.append(state)
     return states
+
+
+def test_meshes_are_found_where_sofa_finds_them(meshes, monkeypatch) -> None:
+    """A mesh not beside the scene: found in SOFA_DATA_PATH's folders or $SOFA_ROOT/share (as
+    SOFA finds its own meshes), the same scene as with mesh_dirs; else one SceneError."""
+    monkeypatch.delenv("SOFA_DATA_PATH", raising=False)
+    monkeypatch.delenv("SOFA_ROOT", raising=False)
+    with pytest.raises(SceneError, match="beam.vtu.*SOFA_DATA_PATH"):
+        load_scene(SCENES / "cable_beam.py")
+    given = load_scene(SCENES / "cable_beam.py", mesh_dirs=[meshes["folder"]])
+    monkeypatch.setenv("SOFA_DATA_PATH", f"/nonexistent{os.pathsep}{meshes['folder']}")
+    found = load_scene(SCENES / "cable_beam.py")
+    assert np.array_equal(found.model.body.mesh.points, given.model.body.mesh.points)
+    monkeypatch.delenv("SOFA_DATA_PATH")
+    share = meshes["folder"] / "sofa" / "share"
+    share.mkdir(parents=True)
+    (meshes["folder"] / "beam.vtu").rename(share / "beam.vtu")
+    monkeypatch.setenv("SOFA_ROOT", str(meshes["folder"] / "sofa"))
+    assert load_scene(SCENES / "cable_beam.py").model.body.n_elements == given.model.body.n_elements
 
 
 def test_a_controller_drives_the_cable_as_the_api_does(meshes) -> None:
