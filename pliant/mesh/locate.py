@@ -84,8 +84,9 @@ def locate_points(
         return np.zeros(0, dtype=np.int64), np.zeros((0, 4))
 
     centroids = mesh.points[mesh.tets].mean(axis=1)
+    tree = cKDTree(centroids)
     n_candidates = min(_CANDIDATES, mesh.n_tets)
-    _, candidates = cKDTree(centroids).query(points, k=n_candidates)
+    _, candidates = tree.query(points, k=n_candidates)
     candidates = candidates.reshape(k, n_candidates)
     candidate_bary = barycentric_coordinates(
         mesh, candidates.ravel(), np.repeat(points, n_candidates, axis=0)
@@ -93,9 +94,13 @@ def locate_points(
     best = np.argmax(candidate_bary.min(axis=2), axis=1)
     element = candidates[np.arange(k), best]
     bary = candidate_bary[np.arange(k), best]
-    # The nearest centroids may miss the container in stretched meshes: try every element.
-    for j in np.flatnonzero(bary.min(axis=1) < -_INSIDE_EPS):
-        element[j], bary[j] = _best_element(mesh, np.arange(mesh.n_tets), points[j])
+    # The nearest centroids may miss the container in stretched meshes: search every element
+    # that may hold the point or be nearest to it (as a search of all of them would).
+    misses = np.flatnonzero(bary.min(axis=1) < -_INSIDE_EPS)
+    if misses.size:
+        reach = float(np.linalg.norm(mesh.points[mesh.tets] - centroids[:, None], axis=2).max())
+        for j in misses:
+            element[j], bary[j] = _search(mesh, tree, reach, points[j], candidates[j])
 
     out = bary.min(axis=1) < -_INSIDE_EPS
     projected = np.einsum("ki,kij->kj", _clamped(bary), mesh.points[mesh.tets[element]])
@@ -115,6 +120,25 @@ def locate_points(
             f"(tolerance {tolerance:.3g})"
         )
     return element, bary
+
+
+def _search(
+    mesh: TetMesh, tree: cKDTree, reach: float, x: np.ndarray, nearest: np.ndarray
+) -> tuple[int, np.ndarray]:
+    """:func:`_best_element` over all elements, searched among those it can choose: an element
+    holding x has its centroid within `reach` (the largest centroid-to-node distance) of x,
+    and an element whose clamped point is within d of x has its centroid within d + reach. So
+    the elements within `reach`, then (none holding x) those within the best distance found
+    so far plus `reach`, in index order (ties resolved as over all elements)."""
+    reach = reach * (1.0 + 1e-9)  # round-off at the bound's edge
+    near = np.union1d(tree.query_ball_point(x, reach), nearest).astype(np.int64)
+    element, bary = _best_element(mesh, near, x)
+    if bary.min() >= -_INSIDE_EPS:
+        return element, bary
+    found = np.einsum("i,ij->j", _clamped(bary), mesh.points[mesh.tets[element]])
+    distance = float(np.linalg.norm(found - x))
+    wider = np.asarray(tree.query_ball_point(x, distance + reach), dtype=np.int64)
+    return _best_element(mesh, np.sort(wider), x)
 
 
 def _best_element(mesh: TetMesh, candidates: np.ndarray, x: np.ndarray) -> tuple[int, np.ndarray]:

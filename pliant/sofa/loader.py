@@ -52,7 +52,7 @@ from pliant.geometry.collision import Box, Plane, TriangleMesh
 from pliant.mesh.quality import signed_volumes
 from pliant.mesh.tetmesh import TetMesh
 from pliant.model import Model, State
-from pliant.sofa import rods
+from pliant.sofa import reduced, rods
 from pliant.sofa.bodies import Part, check_held_if_massless, contact_problem, join, surface_pairs
 from pliant.sofa.components import FIELDS, is_visual
 from pliant.sofa.grids import GRIDS, HEXAHEDRA, grid_tetrahedra, hex_body
@@ -66,7 +66,7 @@ from pliant.sofa.rigids import (
     static_sphere,
 )
 from pliant.sofa.servos import ARTICULATED, Servo, linked_dofs, read_servos, rigid_pose
-from pliant.sofa.shells import TRIANGLE_FEM, shell_body
+from pliant.sofa.shells import TRIANGLE_FEM, is_membrane, membrane, shell_body
 from pliant.sofa.states import RecordedStates, read_records
 from pliant.sofa.tree import (
     INITIALISERS,
@@ -124,6 +124,8 @@ IGNORED = frozenset(
         # SoftRobots' volume engines: outputs (the cavity's volume), computed by Pliant's cavity
         "VolumeFromTetrahedrons",
         "VolumeFromTriangles",
+        # a reduced-order model's mode amplitudes, read as the full model (pliant.sofa.reduced)
+        reduced.AMPLITUDES,
     }
 )
 MESH_LOADERS = frozenset(
@@ -759,6 +761,14 @@ class _Builder:
 
     # --- scene-wide ------------------------------------------------------------------------
     def build(self) -> SofaScene:
+        if reduced.has_reduction(self.root):
+            changes = reduced.full_order(self)
+            warnings.warn(
+                f"{self.path.name}: its reduced-order model is read as the full model it"
+                f" reduces ({'; '.join(changes)})",
+                reduced.ReducedOrderWarning,
+                stacklevel=3,
+            )
         self._check_supported()
         if rods.has_rods(self.root) and rods.moving_rods(self):  # a rod as the body
             _refuse_on_rods(self.root)
@@ -1204,7 +1214,9 @@ class _Builder:
         return [
             n
             for n in self.root.walk()
-            if any(o.type in FEM for o in n.objects) and not self._is_layer(n)
+            if any(o.type in FEM for o in n.objects)
+            and not self._is_layer(n)
+            and not is_membrane(n, FEM)
         ]
 
     def _body_nodes(self) -> list[SceneNode]:
@@ -1259,6 +1271,12 @@ class _Builder:
     # --- the deformable body ----------------------------------------------------------------
     def _body(self, node: SceneNode, gravity: np.ndarray) -> tuple[TetBody, TetMesh, str]:
         fem = self._one(node, FEM, "FEM force fields")
+        membranes = [c for c in node.children if is_membrane(c, FEM)]
+        if membranes and fem.type == HEXAHEDRA:
+            raise SceneError(
+                f"{membranes[0].path}: a membrane of triangles on a hexahedral body's nodes is"
+                " not supported (on a body of tetrahedra it is)"
+            )
         if fem.type == HEXAHEDRA:
             springs = [
                 o for c in node.walk() for o in c.objects if o.type == "MeshSpringForceField"
@@ -1304,6 +1322,7 @@ class _Builder:
         body = TetBody(
             mesh,
             material,
+            membranes=[membrane(self, c, mesh.points, mesh.tets) for c in membranes],
             fixed_nodes=fixed,
             fixed_dofs=self._fixed_components(node, points),
             frame_nodes=frame_nodes if rotation == "large" else None,

@@ -7,6 +7,10 @@
   ``triangles``, numbers or a link to a loader's), else its loader's; the nodes are those of
   the node's MechanicalObject (its own scale, rotation and translation applied, as SOFA's
   MechanicalObject does at initialisation).
+* A TriangleFEMForceField in a child node of a body of tetrahedra, with a triangle topology
+  and no MechanicalObject, acts on the body's nodes (SOFA's context): a membrane
+  (:func:`membrane`), e.g. the MultiGait's paper layer, whose triangles are given or a
+  BoxROI's ``trianglesInROI`` (faces of the body's tetrahedra in its boxes).
 * The mass (UniformMass, MeshMatrixMass), held nodes, loads and the solver are read as for a
   tetrahedral body. A shell carries no mapped points (cables, effectors, collision points in a
   child node): it collides by its own nodes and triangles.
@@ -20,7 +24,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from pliant.errors import PliantError
-from pliant.fem.shell import PlaneStress, ShellBody
+from pliant.fem.shell import PlaneStress, ShellBody, TriangleFEM
 from pliant.sofa.bodies import check_held_if_massless
 from pliant.sofa.tree import SceneError, SceneNode, SceneObject, field_numbers
 
@@ -77,11 +81,8 @@ def _triangles(builder: _Builder, node: SceneNode) -> np.ndarray:
     return np.asarray(faces, dtype=np.int64).reshape(-1, 3)
 
 
-def shell_body(
-    builder: _Builder, node: SceneNode, fem: SceneObject, gravity: np.ndarray
-) -> tuple[ShellBody, ShellMesh, str]:
-    """The body of a TriangleFEMForceField node: its triangles, law, mass, held nodes, loads
-    and solver."""
+def plane_stress(fem: SceneObject) -> PlaneStress:
+    """A TriangleFEMForceField's law (SOFA's defaults: E 1000, nu 0.3, thickness 1, "large")."""
     method = str(fem.attrs.get("method", "large")).lower()
     if method not in _METHODS:
         raise SceneError(
@@ -89,6 +90,23 @@ def shell_body(
         )
     if str(fem.attrs.get("planeStrain", "false")).lower() in ("1", "true"):
         raise SceneError(f"{fem.path}: planeStrain (SOFA's plane-strain triangle) is not supported")
+    try:
+        return PlaneStress(
+            _number(fem, "youngModulus", 1000.0),
+            _number(fem, "poissonRatio", 0.3),
+            thickness=_number(fem, "thickness", 1.0),
+            method=method,
+        )
+    except PliantError as exc:
+        raise SceneError(f"{fem.path}: {exc}") from exc
+
+
+def shell_body(
+    builder: _Builder, node: SceneNode, fem: SceneObject, gravity: np.ndarray
+) -> tuple[ShellBody, ShellMesh, str]:
+    """The body of a TriangleFEMForceField node: its triangles, law, mass, held nodes, loads
+    and solver."""
+    material = plane_stress(fem)
     carried = [
         child.path
         for child in node.walk()
@@ -107,7 +125,7 @@ def shell_body(
     if dofs is None:
         raise SceneError(
             f"{node.path}: the shell has no MechanicalObject (a TriangleFEMForceField on the"
-            " nodes of a body above it, a membrane layer, is not supported)"
+            " nodes of a body above it is a membrane on a body of tetrahedra only)"
         )
     points = builder._positions(node, dofs)
     triangles = _triangles(builder, node)
@@ -115,14 +133,67 @@ def shell_body(
         raise SceneError(f"{node.path}: triangles index {triangles.max()} of {len(points)} nodes")
     options, solver_kind = builder.body_options(node, points, gravity)
     try:
-        material = PlaneStress(
-            _number(fem, "youngModulus", 1000.0),
-            _number(fem, "poissonRatio", 0.3),
-            thickness=_number(fem, "thickness", 1.0),
-            method=method,
-        )
         body = ShellBody(points, triangles, material, **options)
     except PliantError as exc:
         raise SceneError(f"{fem.path}: {exc}") from exc
     check_held_if_massless(node, body)
     return body, ShellMesh(points, triangles), solver_kind
+
+
+def is_membrane(node: SceneNode, fems: frozenset[str]) -> bool:
+    """A TriangleFEMForceField on a body's nodes: a child of a node with another FEM (one of
+    `fems`), with the triangle FEM and no MechanicalObject."""
+    parent = node.parent
+    return (
+        parent is not None
+        and any(o.type in fems and o.type != TRIANGLE_FEM for o in parent.objects)
+        and any(o.type == TRIANGLE_FEM for o in node.objects)
+        and not any(o.type == "MechanicalObject" for o in node.objects)
+    )
+
+
+def tet_faces(tets: np.ndarray) -> np.ndarray:
+    """Every face of the tetrahedra once (boundary and interior), each as the first element
+    that has it orders it (outward from that element)."""
+    local = np.array([[1, 2, 3], [0, 3, 2], [0, 1, 3], [0, 2, 1]])
+    faces = np.asarray(tets)[:, local].reshape(-1, 3)
+    _, first = np.unique(np.sort(faces, axis=1), axis=0, return_index=True)
+    return faces[np.sort(first)]
+
+
+def membrane(builder: _Builder, node: SceneNode, points: np.ndarray, tets: np.ndarray):
+    """The membrane a :func:`is_membrane` node puts on its parent's body: TriangleFEM on the
+    body's nodes (`points`), its triangles the node's topology's, numbers or a BoxROI's
+    ``trianglesInROI`` (the faces of `tets` all of whose nodes are in one of its boxes; with
+    ``strict`` false, whose centre is)."""
+    fem = next(o for o in node.objects if o.type == TRIANGLE_FEM)
+    topology = next((o for o in node.objects if o.type in _TOPOLOGIES), None)
+    value = None if topology is None else topology.attrs.get("triangles")
+    if value is None:
+        raise SceneError(
+            f"{node.path}: a membrane on the body's nodes needs a topology's triangles"
+        )
+    if isinstance(value, str) and value.strip().startswith("@"):
+        box = builder.link(node, value)
+        if box is None or box.type != "BoxROI" or not value.strip().endswith("trianglesInROI"):
+            raise SceneError(f"{topology.path}.triangles: {value!r} is no BoxROI's trianglesInROI")
+        faces = tet_faces(tets)
+        if str(box.attrs.get("strict", "true")).lower() in ("0", "false"):
+            chosen = np.zeros(len(faces), dtype=bool)
+            chosen[builder._box_nodes(box, points[faces].mean(axis=1))] = True
+        else:
+            inside = np.zeros(len(points), dtype=bool)
+            inside[builder._box_nodes(box, points)] = True
+            chosen = inside[faces].all(axis=1)
+        triangles = faces[chosen]
+    else:
+        numbers = np.asarray(field_numbers(topology, "triangles", ()), dtype=float)
+        if numbers.size == 0 or numbers.size % 3:
+            raise SceneError(f"{topology.path}.triangles: triples of node indices expected")
+        triangles = numbers.astype(np.int64).reshape(-1, 3)
+    if len(triangles) == 0:
+        raise SceneError(f"{node.path}: the membrane holds no triangle")
+    try:
+        return TriangleFEM(points, triangles, plane_stress(fem))
+    except PliantError as exc:
+        raise SceneError(f"{fem.path}: {exc}") from exc

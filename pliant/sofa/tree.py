@@ -114,7 +114,7 @@ class Data:
             value = _one_derivative(self.owner, value)
         elif self.key in POINT_FIELDS and not scalar:  # points: (n, 3), or (n, 7) rigid poses
             template = str(self.owner.attrs.get("template", ""))
-            width = 7 if template.startswith("Rigid3") else 1 if template == "Vec1" else 3
+            width = 7 if template.startswith("Rigid3") else 1 if template.startswith("Vec1") else 3
             if width == 7 and self.key in DERIVATIVES:  # a rigid twist or wrench: 6 values
                 width = 6
             value = np.asarray(value, dtype=float).reshape(-1, width)

@@ -385,6 +385,26 @@ def test_locate_points_reconstructs_points_exactly() -> None:
     np.testing.assert_array_equal(element[:200][clear], elements[clear])
 
 
+def test_locating_points_the_nearest_centroids_miss_searches_as_every_element_would() -> None:
+    """Points on and just off the surface of a graded mesh (the nearest centroids miss their
+    element): the pruned search picks the element a search of every element picks."""
+    from pliant.mesh.locate import _best_element
+
+    mesh = soft_finger(mesh_size=12.0)
+    rng = np.random.default_rng(1)
+    surface = mesh.boundary_triangles()
+    faces = surface[rng.integers(0, len(surface), 300)]
+    weights = rng.dirichlet(np.ones(3), 300)
+    on = np.einsum("ki,kij->kj", weights, mesh.points[faces])
+    normals = np.cross(*(mesh.points[faces[:, 1:]] - mesh.points[faces[:, :1]]).transpose(1, 0, 2))
+    normals /= np.linalg.norm(normals, axis=1, keepdims=True)
+    queries = on + rng.uniform(-0.05, 0.3, (300, 1)) * normals
+    element, _ = locate_points(mesh, queries, tolerance=1.0, outside="project")
+    everything = np.arange(mesh.n_tets)
+    expected = [_best_element(mesh, everything, x)[0] for x in queries]
+    np.testing.assert_array_equal(element, expected)
+
+
 def test_locate_points_clamps_near_points_and_rejects_far_ones() -> None:
     mesh = box_beam(nx=4, ny=2, nz=2)
     element, bary = locate_points(mesh, [100.0 + 1e-3, 10.0, 10.0], tolerance=0.01)
