@@ -40,7 +40,7 @@ from pliant.constraints.cavity import CavityActuator, enclosed_volume
 from pliant.constraints.contact import Contacts, PointPlanes
 from pliant.constraints.effector import PositionEffector
 from pliant.constraints.point import PointActuator
-from pliant.constraints.surface import SurfaceContact
+from pliant.constraints.surface import RigidSurfaceContact, SurfaceContact
 from pliant.errors import ContactError, ModelError
 from pliant.fem.body import TetBody, fixed_components, nodes_in_box
 from pliant.fem.loads import EmbeddedSprings, Load, NodalForces, RestShapeSprings
@@ -52,7 +52,14 @@ from pliant.mesh.quality import signed_volumes
 from pliant.mesh.tetmesh import TetMesh
 from pliant.model import Model, State
 from pliant.sofa import rods
-from pliant.sofa.bodies import Part, check_held_if_massless, contact_problem, join, surface_pairs
+from pliant.sofa.bodies import (
+    Part,
+    _groups,
+    check_held_if_massless,
+    contact_problem,
+    join,
+    surface_pairs,
+)
 from pliant.sofa.components import FIELDS, is_visual
 from pliant.sofa.grids import GRIDS, HEXAHEDRA, grid_tetrahedra, hex_body
 from pliant.sofa.rigids import (
@@ -920,7 +927,9 @@ class _Builder:
         ``alarmDistance`` is the contact margin, ``contactDistance`` the points' thickness,
         the response's ``mu`` the friction everywhere. Of several deformable bodies, the
         points of one touch the triangles of another (SurfaceContact) where SOFA tests the
-        two models against each other (:func:`pliant.sofa.bodies.surface_pairs`)."""
+        two models against each other (:func:`pliant.sofa.bodies.surface_pairs`), and the
+        points (or sphere) of a rigid body touch a body's TriangleCollisionModel
+        (RigidSurfaceContact) where they share no ``group``."""
         intersection = [o for n in self.root.walk() for o in n.objects if o.type in INTERSECTIONS]
         models = [o for n in self.root.walk() for o in n.objects if o.type in COLLISION_MODELS]
         if not models or not self._detects():
@@ -932,6 +941,10 @@ class _Builder:
         rigid_nodes = [n for n in self.root.walk() if self._is_rigid(n)]
         rigid = [self._rigid_body(n, friction) for n in rigid_nodes]
         inside_rigid = {id(c) for n in rigid_nodes for c in n.walk()}
+        rigid_models = [
+            [o for c in n.walk() for o in c.objects if o.type in COLLISION_MODELS]
+            for n in rigid_nodes
+        ]
         points, obstacles, joined = [], [], []
         on_bodies: list[tuple[int, SceneObject]] = []  # (part, model) of the bodies' models
         embedded_at: dict[int, EmbeddedPoints] = {}  # a node's collision points
@@ -944,8 +957,11 @@ class _Builder:
                 k = parts.index(part)
                 on_bodies += [(k, o) for o in node.objects if o.type in COLLISION_MODELS]
                 if "PointCollisionModel" not in types:
-                    if len(parts) > 1 and "TriangleCollisionModel" in types:
-                        continue  # another body's points may touch its triangles
+                    touched = len(parts) > 1 or any(
+                        _touches(m, o) for ms in rigid_models for m in ms for o in node.objects
+                    )
+                    if touched and "TriangleCollisionModel" in types:
+                        continue  # another body's or a rigid body's points may touch them
                     raise SceneError(
                         f"{node.path}: the body collides by points only (PointCollisionModel),"
                         f" not by {', '.join(sorted(types & COLLISION_MODELS))}"
@@ -966,6 +982,23 @@ class _Builder:
                 embedded_at[id(node)] = joined[-1]
             else:
                 obstacles.append(self._obstacle(node))
+        rigid_surfaces = [
+            RigidSurfaceContact(
+                rigid[r],
+                _rigid_points(rigid[r].shape)[0],
+                *self._surface(b.node, parts[k], mesh),
+                friction=friction,
+                distance=thickness,
+                radius=_rigid_points(rigid[r].shape)[1],
+                name=f"{rigid_nodes[r].path} on {b.node.path}",
+            )
+            for r, models in enumerate(rigid_models)
+            for k, b in on_bodies
+            if any(_touches(m, b) for m in models)
+        ]
+        if not points and rigid_surfaces:  # the body is touched by its triangles only
+            joined = [EmbeddedPoints.at_nodes(np.zeros(0, dtype=np.int64))]
+            points = [np.zeros((0, 3))]
         if not points:
             models = ", ".join(o.path for _, o in on_bodies)
             raise SceneError(
@@ -990,11 +1023,11 @@ class _Builder:
         ]
         if not obstacles and not rigid and not surfaces:  # SOFA detects nothing: no contact
             return None, []
-        if rigid and not obstacles:
+        if rigid and not obstacles and not rigid_surfaces:
             raise SceneError(f"{self.path.name}: rigid bodies need a static obstacle too")
         embedded = (
-            EmbeddedPoints.stack(joined)  # each body's points in its own mesh
-            if len(parts) > 1
+            EmbeddedPoints.stack(joined)  # each body's points in its own mesh (or none)
+            if len(parts) > 1 or not any(len(p) for p in points)
             else EmbeddedPoints(
                 mesh,
                 np.vstack(points),
@@ -1009,6 +1042,7 @@ class _Builder:
             points=embedded,
             thickness=thickness,
             surfaces=surfaces,
+            rigid_surfaces=rigid_surfaces,
         )
         return contacts, rigid
 
@@ -2293,3 +2327,20 @@ INITIALISERS.update(
     SphereROI=_init_roi,
     GenerateRigidMass=_init_rigid_mass,
 )
+
+
+def _touches(model: SceneObject, triangles: SceneObject) -> bool:
+    """Whether SOFA tests a rigid body's collision `model` (points, triangles or a sphere)
+    against a deformable body's `triangles`: a TriangleCollisionModel, no group in common."""
+    return triangles.type == "TriangleCollisionModel" and not (_groups(model) & _groups(triangles))
+
+
+def _rigid_points(shape) -> tuple[np.ndarray, float]:
+    """The points of a rigid body's shape that touch a deformable surface, in its frame, and
+    their radius: a sphere's centre (its radius), a box's corners, a mesh's vertices."""
+    if isinstance(shape, Box):
+        signs = np.array([[i, j, k] for i in (-1, 1) for j in (-1, 1) for k in (-1, 1)])
+        return signs * shape.half_extents, 0.0
+    if isinstance(shape, TriangleMesh):
+        return shape.vertices, 0.0
+    return np.zeros((1, 3)), float(shape.radius)
