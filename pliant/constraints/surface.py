@@ -182,10 +182,17 @@ class SurfaceContact:
         )
         return contacts, nodes, weights, d0
 
-    def _nearest(self, p: np.ndarray, vertices: np.ndarray, reach: float):
+    def _nearest(
+        self, p: np.ndarray, vertices: np.ndarray, reach: float, *, one_side: bool = False
+    ):
         """The (point, triangle) pairs of the points `p` within `reach` of the triangles on
         `vertices` (see the module docstring): point and triangle indices, barycentric
-        weights (k, 3), unit normals, closest points and gaps; None when no point is near."""
+        weights (k, 3), unit normals, closest points and gaps; None when no point is near.
+
+        With `one_side`, a point outside the surface (in front of its closest triangle) gets
+        no contact with a triangle it lies behind: that triangle is another sheet of the
+        surface seen through the body (the far side of a thin wall, the ceiling of a cavity
+        under a membrane), whose row would push the point into the body."""
         corners = vertices[self._used]
         lo, hi = corners.min(axis=0) - reach, corners.max(axis=0) + reach
         near = np.flatnonzero(np.all((p >= lo) & (p <= hi), axis=1))
@@ -228,18 +235,29 @@ class SurfaceContact:
         chosen &= dist <= reach
         if not chosen.any():
             return None
-        pi, ti, vw, feature, closest, on = (
+        nearest_of = np.zeros(pi.size, dtype=bool)
+        nearest_of[order[first]] = True
+        pi, ti, vw, feature, closest, on, nearest_of = (
             pi[chosen],
             ti[chosen],
             vw[chosen],
             feature[chosen],
             closest[chosen],
             on[chosen],
+            nearest_of[chosen],
         )
         bary = np.column_stack([1.0 - vw.sum(axis=1), vw])
         normal = self._normals(tri, face, ti, np.where(on, kernels.FACE, feature))
-        gap = np.einsum("ij,ij->i", normal, p[pi] - closest) - self.distance
-        return pi, ti, bary, normal, closest, gap
+        side = np.einsum("ij,ij->i", normal, p[pi] - closest)
+        if one_side:
+            outside = np.zeros(len(p), dtype=bool)
+            outside[pi[nearest_of]] = side[nearest_of] >= 0.0
+            keep = nearest_of | ~(outside[pi] & (side < 0.0))
+            if not keep.all():
+                pi, ti, bary, normal, closest, side = (
+                    a[keep] for a in (pi, ti, bary, normal, closest, side)
+                )
+        return pi, ti, bary, normal, closest, side - self.distance
 
     def _normals(
         self, tri: np.ndarray, face: np.ndarray, t: np.ndarray, feature: np.ndarray
@@ -277,7 +295,11 @@ class RigidSurfaceContact(SurfaceContact):
 
     The points sit at fixed places `local` in the rigid body's frame; a sphere is its centre
     with its radius added to the contact distance. Each step, posed with the body at the
-    step's start, they are detected as :class:`SurfaceContact`'s points are. The row reads
+    step's start, they are detected as :class:`SurfaceContact`'s points are, except that a
+    point in front of its closest triangle gets no contact with a triangle it lies behind
+    (another sheet of the surface within reach: a thin wall's far face, a cavity's ceiling
+    under a membrane, as on SOFA's BubbleMotion board; its row would push the point through
+    the body). The row reads
     the relative point d = p - q as there, but p moves with the rigid body:
 
         delta = phi + frames (q0 - q(x)) + h G u,
@@ -337,7 +359,7 @@ class RigidSurfaceContact(SurfaceContact):
         `rotation`): the ContactSet (point_a the rigid point, in the world) and the rows'
         (nodes, weights, origin) of the triangle's part, or None when no point is near."""
         p = centre + self.local @ np.asarray(rotation).T
-        found = self._nearest(p, self.vertices.positions(x), margin + self.distance)
+        found = self._nearest(p, self.vertices.positions(x), margin + self.distance, one_side=True)
         if found is None:
             return None
         pi, ti, bary, normal, closest, gap = found

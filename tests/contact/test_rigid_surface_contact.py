@@ -1,6 +1,7 @@
 """A rigid body's points against a deformable body's triangles (RigidSurfaceContact): a ball
 resting on a soft block carries its weight without sinking into it, a dropped ball comes to
-rest, and bad input is refused."""
+rest (on a massless board held by springs too, whose far face lies within the contact's reach),
+and bad input is refused."""
 
 from __future__ import annotations
 
@@ -12,6 +13,7 @@ from pliant.constraints.base import EmbeddedPoints
 from pliant.constraints.contact import Contacts
 from pliant.errors import ContactError
 from pliant.fem.body import TetBody
+from pliant.fem.loads import RestShapeSprings
 from pliant.fem.material import Corotational
 from pliant.fem.rigid import RigidBody
 from pliant.geometry.collision import Sphere
@@ -98,6 +100,61 @@ def test_dropped_ball_comes_to_rest_on_the_block() -> None:
     assert np.abs(state.velocities).max() < 1e-2
     assert _gap(model, surface, state) > -model.contacts.tolerance
     np.testing.assert_allclose(state.contact_forces.forces[:, 2].sum(), MASS * G, rtol=1e-3)
+
+
+def _sphere_points(n: int, radius: float) -> np.ndarray:
+    """`n` points spread over a sphere (a Fibonacci lattice), its poles included."""
+    z = np.linspace(-1.0, 1.0, n)
+    phi = np.pi * (3.0 - np.sqrt(5.0)) * np.arange(n)
+    rho = np.sqrt(1.0 - z * z)
+    return radius * np.column_stack([rho * np.cos(phi), rho * np.sin(phi), z])
+
+
+def _ball_on_board(drop: float):
+    """A massless board 12 x 12 x 1 mm held by rest-shape springs at its bottom nodes (SOFA's
+    BubbleMotion board, massless and spring-held), a ball of 40 points on a 2 mm sphere
+    `drop` above it. The board is thinner than the contact's reach at impact: the points near
+    its top face see its bottom face too, from behind."""
+    mesh = box_beam(12.0, 12.0, 1.0, nx=3, ny=3, nz=1)
+    bottom = np.flatnonzero(mesh.points[:, 2] < 1e-9)
+    body = TetBody(
+        mesh,
+        Corotational(1000.0, 0.3),
+        mass="none",
+        gravity=(0.0, 0.0, -G),
+        loads=[RestShapeSprings(bottom, mesh.points, 1e4)],
+    )
+    ball = RigidBody(Sphere(RADIUS), MASS, position=(5.9, 6.3, 1.0 + RADIUS + drop))
+    used, local = np.unique(body.boundary_triangles, return_inverse=True)
+    surface = RigidSurfaceContact(
+        ball,
+        _sphere_points(40, RADIUS),
+        EmbeddedPoints.at_nodes(used),
+        local.reshape(-1, 3),
+        friction=0.5,
+        distance=0.01,
+    )
+    contacts = Contacts([], rigid_surfaces=[surface], margin=0.5)
+    return Model(body, contacts=contacts, rigid_bodies=[ball]), surface
+
+
+def test_ball_dropped_on_a_massless_board_stays_on_it() -> None:
+    """Dropped 1 mm, the ball reaches the board at 140 mm/s (1.4 mm a step, more than the
+    board's thickness): it stops on the board's top face, never pushed through it by the
+    face beneath, and the board carries its weight to its springs."""
+    model, surface = _ball_on_board(1.0)
+    solver = ImplicitEuler(model, 0.01)
+    state, lowest = model.rest_state(), np.inf
+    for _ in range(60):
+        state = solver.step(state)
+        lowest = min(lowest, state.rigid_positions[0, 2])
+        assert solver.last_report.contact is None or solver.last_report.contact.converged
+    top = surface.vertices.positions(state.positions)[:, 2].max()
+    assert lowest > 1.0 + RADIUS - 0.5  # it never sank half a millimetre into the board
+    assert state.rigid_positions[0, 2] > top + 0.9 * RADIUS
+    assert np.abs(state.rigid_velocities).max() < 1e-2
+    assert _gap(model, surface, state) > -model.contacts.tolerance
+    np.testing.assert_allclose(state.contact_forces.forces[:, 2].sum(), MASS * G, rtol=1e-4)
 
 
 def test_bad_rigid_surface_contact_raises() -> None:
