@@ -396,6 +396,9 @@ class SofaScene:
                 dofs.attrs["position"] = _frozen(x[None])
                 continue
             dofs.attrs["position"] = _frozen(np.concatenate([x, Rotation.from_matrix(r).as_quat()]))
+        for dofs, i, local in bindings.carried:  # points on a rigid body (RigidMapping)
+            x, r = state.rigid_positions[i], state.rigid_rotations[i]
+            dofs.attrs["position"] = _frozen(x + local @ r.T)
         for dofs, frames in bindings.frames:  # Rigidify's frames: a rigid body's, or held
             poses = []
             for index, x, r in frames:
@@ -462,6 +465,9 @@ class Bindings:
     bodies: list[tuple[SceneObject, slice]] = dataclasses.field(default_factory=list)
     mapped: list[tuple[SceneObject, EmbeddedPoints]] = dataclasses.field(default_factory=list)
     rigid: list[SceneObject] = dataclasses.field(default_factory=list)
+    # Points carried by a rigid body through a RigidMapping: their MechanicalObject, the
+    # body's index and the points in its frame.
+    carried: list[tuple[SceneObject, int, np.ndarray]] = dataclasses.field(default_factory=list)
     written: list[np.ndarray] = dataclasses.field(default_factory=list)  # as last written
     # Rigidify's frames: their MechanicalObject, and for each frame (rigid body index or None
     # where it is held, its initial position and rotation).
@@ -851,6 +857,7 @@ class _Builder:
             for n in self.root.walk()
             if self._is_rigid(n)
         ]
+        self.bindings.carried = self._rigidly_carried(rigid)
         self.bindings.servos = list(self._servos.values())
         self.bindings.frames, k = [], len(rigid)
         for g in self._rigidified:  # the rigid bodies of the free frames follow the others
@@ -862,7 +869,62 @@ class _Builder:
             self.bindings.frames.append((g.dofs, entries))
         scene = SofaScene(model, dt, solver_kind, self.path, self.root, self.bindings)
         scene.write_outputs(model.rest_state())
+        self._default_positions()
         return scene
+
+    def _rigidly_carried(self, rigid: list[RigidBody]) -> list[tuple[SceneObject, int, np.ndarray]]:
+        """The points that the rigid bodies' child nodes carry by a ``RigidMapping`` (a
+        Goal, a collision surface), each body's in its frame: the child's MechanicalObject's
+        points (SOFA's one point at the origin when it gives none and no mesh sizes it, then
+        its transform), taken as offsets in the frame, or, with the mapping's
+        ``globalToLocalCoords``, as world points brought into the body's first pose."""
+        found = []
+        for i, dofs in enumerate(self.bindings.rigid[: len(rigid)]):
+            if dofs is None or not str(dofs.attrs.get("template", "")).startswith("Rigid3"):
+                continue
+            for child in dofs.node.children:
+                mappings = [o for o in child.objects if o.type == "RigidMapping"]
+                points = [o for o in child.objects if o.type == "MechanicalObject"]
+                if not mappings or len(points) != 1 or "rigidIndexPerPoint" in mappings[0].attrs:
+                    continue
+                if int(_float(mappings[0], "index", 0)) != 0:
+                    raise SceneError(
+                        f"{mappings[0].path}: a rigid body has one frame (index 0), not"
+                        f" {mappings[0].attrs['index']}"
+                    )
+                local = self._own_points(child, points[0])
+                if _flag(mappings[0], "globalToLocalCoords", False):
+                    local = (local - rigid[i].position) @ rigid[i].rotation
+                found.append((points[0], i, local))
+        return found
+
+    def _own_points(self, node: SceneNode, dofs: SceneObject) -> np.ndarray:
+        """A MechanicalObject's points as SOFA initialises them: its own positions (or its
+        mesh's), else ``size`` points (SOFA's default: one) at the origin, transformed."""
+        sized = "position" in dofs.attrs or "src" in dofs.attrs
+        if sized or any(o.type in MESH_LOADERS for o in node.objects):
+            return self._positions(node, dofs)
+        if any(o.type in TOPOLOGIES and "position" in o.attrs for o in node.objects):
+            raise SceneError(f"{dofs.path}: points given by a topology's position are not read")
+        size = int(_float(dofs, "size", 0)) if "size" in dofs.attrs else 0
+        return _placed(dofs, np.zeros((max(size, 1), 3)))
+
+    def _default_positions(self) -> None:
+        """SOFA's default positions for the Vec3 MechanicalObjects the scene gives none (nor a
+        mesh to read): ``size`` points (one unless given) at the origin under the object's
+        transform, as scripts then read them (after the model is built: nothing in it reads
+        them)."""
+        for node in self.root.walk():
+            if any(o.type in MESH_LOADERS or o.type in TOPOLOGIES for o in node.objects):
+                continue
+            for dofs in node.objects:
+                if (
+                    dofs.type == "MechanicalObject"
+                    and "position" not in dofs.attrs
+                    and "src" not in dofs.attrs
+                    and str(dofs.attrs.get("template", "Vec3")).startswith("Vec3")
+                ):
+                    dofs.attrs["position"] = _frozen(self._own_points(node, dofs))
 
     def _check_supported(self) -> None:
         """One error for everything the scene holds that Pliant cannot simulate: components

@@ -48,3 +48,29 @@ def test_rigid_ball_rests_on_a_block_touched_by_its_triangles(block) -> None:
         state.positions, 1.0, 0, state.rigid_positions[0], state.rigid_rotations[0]
     )
     assert found[0].gap.min() > -contacts.tolerance
+
+
+CART = Path(__file__).parent / "sofa_scenes" / "cart_goal.py"
+
+
+def test_a_goal_carried_by_a_cart_on_a_rail(block) -> None:
+    """SOFA's default MechanicalObject (one point at the origin, then its translation), the
+    points of a RigidMapping child written from the rigid body's frame each step, and a
+    PartialFixedConstraint holding the body to its x translation (CatchTheObject's cart)."""
+    scene = load_scene(CART, mesh_dirs=[block])
+    (cart,) = scene.model.rigid_bodies
+    np.testing.assert_array_equal(cart.held, [False] + [True] * 5)
+    goal, marker = scene.root.cart.Goal.GoalMO, scene.root.Marker.dofs
+    np.testing.assert_allclose(marker.position.value, [[1.0, 2.0, 3.0]])
+    # Turned 90 degrees about z: the offset (3, 2, 1) points along (-2, 3, 1).
+    np.testing.assert_allclose(goal.position.value, [[-2.0, 3.0, 11.0]], atol=1e-12)
+    solver, state, h = scene.solver(), scene.model.rest_state(), 0.01
+    for k in range(1, 11):
+        state = solver.step(state)
+        scene.write_outputs(state)  # as after each step of a scene with controllers
+        x = 1000.0 * h * h * k * (k + 1) / 2.0  # symplectic Euler under the x pull
+        np.testing.assert_allclose(state.rigid_positions[0], [x, 0.0, 10.0], atol=1e-9)
+        np.testing.assert_allclose(state.rigid_velocities[0], [1000.0 * h * k, 0.0, 0.0])
+        np.testing.assert_allclose(goal.position.value, [[x - 2.0, 3.0, 11.0]], atol=1e-9)
+    np.testing.assert_allclose(state.rigid_angular_velocities[0], 0.0, atol=0.0)
+    np.testing.assert_allclose(marker.position.value, [[1.0, 2.0, 3.0]])
