@@ -887,6 +887,8 @@ class _Builder:
                 points = [o for o in child.objects if o.type == "MechanicalObject"]
                 if not mappings or len(points) != 1 or "rigidIndexPerPoint" in mappings[0].attrs:
                     continue
+                if not str(points[0].attrs.get("template", "Vec3")).startswith("Vec3"):
+                    continue  # a frame carried by the body (Rigid3 to Rigid3): not points
                 if int(_float(mappings[0], "index", 0)) != 0:
                     raise SceneError(
                         f"{mappings[0].path}: a rigid body has one frame (index 0), not"
