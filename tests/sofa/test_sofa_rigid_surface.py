@@ -30,8 +30,11 @@ def block(tmp_path_factory) -> Path:
     return folder
 
 
-def test_rigid_ball_rests_on_a_block_touched_by_its_triangles(block) -> None:
-    scene = load_scene(SCENE, mesh_dirs=[block])
+@pytest.mark.parametrize("massless", [False, True])
+def test_rigid_ball_rests_on_a_block_touched_by_its_triangles(block, massless) -> None:
+    """Also on a massless block held by rest-shape springs (SofaGym's BubbleMotion board)."""
+    scene = load_scene(SCENE, mesh_dirs=[block], config={"massless": massless})
+    assert scene.model.body.massless == massless
     contacts = scene.model.contacts
     (surface,) = contacts.rigid_surfaces
     assert isinstance(surface, RigidSurfaceContact)

@@ -2,7 +2,8 @@
 written for Pliant's tests: the block collides by triangles only (a TriangleCollisionModel in
 group 1 on its surface mesh, block.stl, carried by a BarycentricMapping), the ball by its
 SphereCollisionModel (no group): SOFA tests the sphere against the block's triangles, and
-nothing else touches."""
+nothing else touches. With config {"massless": True} the block has no mass and is held by
+rest-shape springs at its base (SofaGym's BubbleMotion board)."""
 
 
 def createScene(rootNode, config=None):
@@ -24,10 +25,15 @@ def createScene(rootNode, config=None):
     block.addObject("MeshVTKLoader", name="loader", filename="block.vtu")
     block.addObject("MeshTopology", src="@loader")
     block.addObject("MechanicalObject", name="dofs")
-    block.addObject("UniformMass", totalMass=0.005)
+    massless = bool((config or {}).get("massless", False))
+    if not massless:
+        block.addObject("UniformMass", totalMass=0.005)
     block.addObject("TetrahedronFEMForceField", youngModulus=100.0, poissonRatio=0.3)
     block.addObject("BoxROI", name="base", box=[-1.0, -1.0, -0.1, 13.0, 13.0, 0.1])
-    block.addObject("FixedConstraint", indices="@base.indices")
+    if massless:  # held by springs to its rest shape, as SofaGym's BubbleMotion board
+        block.addObject("RestShapeSpringsForceField", points="@base.indices", stiffness=1e4)
+    else:
+        block.addObject("FixedConstraint", indices="@base.indices")
     block.addObject("LinearSolverConstraintCorrection")
     surface = block.addChild("Collision")
     surface.addObject("MeshSTLLoader", name="loader", filename="block.stl")
