@@ -152,8 +152,13 @@ def main() -> None:
                 config["goalPos"] = config["goalList"][0]
                 config["goal_node"] = 0
             if "board_dim" in config:  # BubbleMotion draws its ball and goal on the board
+                # Its environment draws the ball's start in [4, board_dim) and the goal in
+                # [1, 1 + board_dim) across the board; its reward divides by their initial
+                # distance across the board (x, y): the goal two cm off the start each way.
                 middle = config["board_dim"] / 2.0
-                config.update(init_pos=[middle, middle, 5.0], goalPos=[middle, middle, 2.0])
+                config.update(
+                    init_pos=[middle, middle, 5.0], goalPos=[middle - 2.0, middle + 2.0, 2.0]
+                )
             if not re.search(r"def createScene\(\s*\w+\s*,", scene.read_text()):
                 config = None  # a scene of the folder that takes no configuration
         jobs.append((scene, scene.relative_to(args.sofagym), config, True))

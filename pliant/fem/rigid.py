@@ -135,6 +135,10 @@ class RigidBody:
         position, rotation, velocity, angular_velocity: the initial state (default: the
             shape's pose, at rest).
         forces: forces fixed in the body's frame (:class:`BodyForce`), turning with it.
+        held: six flags, the components of the twist (v_x, v_y, v_z, w_x, w_y, w_z, world
+            frame) held at zero (SOFA's PartialFixedConstraint on a Rigid3 frame, a cart on
+            a rail): the step projects them out of the free twist and of M^-1, so that no
+            force moves the body along them (default: none held).
     """
 
     def __init__(
@@ -152,9 +156,18 @@ class RigidBody:
         angular_velocity=(0.0, 0.0, 0.0),
         name: str = "body",
         forces: Sequence[BodyForce] = (),
+        held: Sequence[bool] | None = None,
     ) -> None:
         self.name = name
         self.forces = list(forces)
+        self.held = None
+        if held is not None:
+            flags = np.asarray(held)
+            if flags.shape != (6,) or flags.dtype != bool:
+                raise ModelError(f"{name}: held must be six booleans, got {held!r}")
+            if flags.all():
+                raise ModelError(f"{name}: every motion held: a fixed body is an obstacle")
+            self.held = flags.copy() if flags.any() else None
         if shape.bounds() is None:
             raise ModelError(
                 f"{name}: a rigid body needs a bounded shape, got a {type(shape).__name__}"
@@ -409,6 +422,8 @@ def free_twists(
             twists[i, 3:] += dt * world_inverse @ wrench[3:]
         twists[i, :3] /= 1.0 + dt * b.linear_damping
         twists[i, 3:] /= 1.0 + dt * b.angular_damping
+        if b.held is not None:
+            twists[i, b.held] = 0.0
     return twists
 
 
@@ -422,6 +437,9 @@ def inverse_mass(bodies: list[RigidBody], rotations: np.ndarray, dt: float) -> n
         m_inv[i, 3:, i, 3:] = (rotations[i] @ b.inverse_inertia @ rotations[i].T) / (
             1.0 + dt * b.angular_damping
         )
+        if b.held is not None:  # P M^-1 P, P the projection off the held components
+            m_inv[i, b.held, i] = 0.0
+            m_inv[i, :, i, b.held] = 0.0
     return m_inv.reshape(6 * n, 6 * n)
 
 

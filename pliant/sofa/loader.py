@@ -41,7 +41,7 @@ from pliant.constraints.cavity import CavityActuator, enclosed_volume
 from pliant.constraints.contact import Contacts, PointPlanes
 from pliant.constraints.effector import PositionEffector
 from pliant.constraints.point import PointActuator
-from pliant.constraints.surface import SurfaceContact
+from pliant.constraints.surface import RigidSurfaceContact, SurfaceContact
 from pliant.errors import ContactError, ModelError
 from pliant.fem.body import TetBody, fixed_components, nodes_in_box
 from pliant.fem.loads import EmbeddedSprings, Load, NodalForces, RestShapeSprings
@@ -53,7 +53,14 @@ from pliant.mesh.quality import signed_volumes
 from pliant.mesh.tetmesh import TetMesh
 from pliant.model import Model, State
 from pliant.sofa import rods
-from pliant.sofa.bodies import Part, check_held_if_massless, contact_problem, join, surface_pairs
+from pliant.sofa.bodies import (
+    Part,
+    _groups,
+    check_held_if_massless,
+    contact_problem,
+    join,
+    surface_pairs,
+)
 from pliant.sofa.components import FIELDS, is_visual
 from pliant.sofa.grids import GRIDS, HEXAHEDRA, grid_tetrahedra, hex_body
 from pliant.sofa.rigids import (
@@ -393,6 +400,9 @@ class SofaScene:
                 dofs.attrs["position"] = _frozen(x[None])
                 continue
             dofs.attrs["position"] = _frozen(np.concatenate([x, Rotation.from_matrix(r).as_quat()]))
+        for dofs, i, local in bindings.carried:  # points on a rigid body (RigidMapping)
+            x, r = state.rigid_positions[i], state.rigid_rotations[i]
+            dofs.attrs["position"] = _frozen(x + local @ r.T)
         for dofs, frames in bindings.frames:  # Rigidify's frames: a rigid body's, or held
             poses = []
             for index, x, r in frames:
@@ -459,6 +469,9 @@ class Bindings:
     bodies: list[tuple[SceneObject, slice]] = dataclasses.field(default_factory=list)
     mapped: list[tuple[SceneObject, EmbeddedPoints]] = dataclasses.field(default_factory=list)
     rigid: list[SceneObject] = dataclasses.field(default_factory=list)
+    # Points carried by a rigid body through a RigidMapping: their MechanicalObject, the
+    # body's index and the points in its frame.
+    carried: list[tuple[SceneObject, int, np.ndarray]] = dataclasses.field(default_factory=list)
     written: list[np.ndarray] = dataclasses.field(default_factory=list)  # as last written
     # Rigidify's frames: their MechanicalObject, and for each frame (rigid body index or None
     # where it is held, its initial position and rotation).
@@ -861,6 +874,7 @@ class _Builder:
             for n in self.root.walk()
             if self._is_rigid(n)
         ]
+        self.bindings.carried = self._rigidly_carried(rigid)
         self.bindings.servos = list(self._servos.values())
         self.bindings.frames, k = [], len(rigid)
         for g in self._rigidified:  # the rigid bodies of the free frames follow the others
@@ -872,7 +886,64 @@ class _Builder:
             self.bindings.frames.append((g.dofs, entries))
         scene = SofaScene(model, dt, solver_kind, self.path, self.root, self.bindings)
         scene.write_outputs(model.rest_state())
+        self._default_positions()
         return scene
+
+    def _rigidly_carried(self, rigid: list[RigidBody]) -> list[tuple[SceneObject, int, np.ndarray]]:
+        """The points that the rigid bodies' child nodes carry by a ``RigidMapping`` (a
+        Goal, a collision surface), each body's in its frame: the child's MechanicalObject's
+        points (SOFA's one point at the origin when it gives none and no mesh sizes it, then
+        its transform), taken as offsets in the frame, or, with the mapping's
+        ``globalToLocalCoords``, as world points brought into the body's first pose."""
+        found = []
+        for i, dofs in enumerate(self.bindings.rigid[: len(rigid)]):
+            if dofs is None or not str(dofs.attrs.get("template", "")).startswith("Rigid3"):
+                continue
+            for child in dofs.node.children:
+                mappings = [o for o in child.objects if o.type == "RigidMapping"]
+                points = [o for o in child.objects if o.type == "MechanicalObject"]
+                if not mappings or len(points) != 1 or "rigidIndexPerPoint" in mappings[0].attrs:
+                    continue
+                if not str(points[0].attrs.get("template", "Vec3")).startswith("Vec3"):
+                    continue  # a frame carried by the body (Rigid3 to Rigid3): not points
+                if int(_float(mappings[0], "index", 0)) != 0:
+                    raise SceneError(
+                        f"{mappings[0].path}: a rigid body has one frame (index 0), not"
+                        f" {mappings[0].attrs['index']}"
+                    )
+                local = self._own_points(child, points[0])
+                if _flag(mappings[0], "globalToLocalCoords", False):
+                    local = (local - rigid[i].position) @ rigid[i].rotation
+                found.append((points[0], i, local))
+        return found
+
+    def _own_points(self, node: SceneNode, dofs: SceneObject) -> np.ndarray:
+        """A MechanicalObject's points as SOFA initialises them: its own positions (or its
+        mesh's), else ``size`` points (SOFA's default: one) at the origin, transformed."""
+        sized = "position" in dofs.attrs or "src" in dofs.attrs
+        if sized or any(o.type in MESH_LOADERS for o in node.objects):
+            return self._positions(node, dofs)
+        if any(o.type in TOPOLOGIES and "position" in o.attrs for o in node.objects):
+            raise SceneError(f"{dofs.path}: points given by a topology's position are not read")
+        size = int(_float(dofs, "size", 0)) if "size" in dofs.attrs else 0
+        return _placed(dofs, np.zeros((max(size, 1), 3)))
+
+    def _default_positions(self) -> None:
+        """SOFA's default positions for the Vec3 MechanicalObjects the scene gives none (nor a
+        mesh to read): ``size`` points (one unless given) at the origin under the object's
+        transform, as scripts then read them (after the model is built: nothing in it reads
+        them)."""
+        for node in self.root.walk():
+            if any(o.type in MESH_LOADERS or o.type in TOPOLOGIES for o in node.objects):
+                continue
+            for dofs in node.objects:
+                if (
+                    dofs.type == "MechanicalObject"
+                    and "position" not in dofs.attrs
+                    and "src" not in dofs.attrs
+                    and str(dofs.attrs.get("template", "Vec3")).startswith("Vec3")
+                ):
+                    dofs.attrs["position"] = _frozen(self._own_points(node, dofs))
 
     def _check_supported(self) -> None:
         """One error for everything the scene holds that Pliant cannot simulate: components
@@ -937,7 +1008,9 @@ class _Builder:
         ``alarmDistance`` is the contact margin, ``contactDistance`` the points' thickness,
         the response's ``mu`` the friction everywhere. Of several deformable bodies, the
         points of one touch the triangles of another (SurfaceContact) where SOFA tests the
-        two models against each other (:func:`pliant.sofa.bodies.surface_pairs`)."""
+        two models against each other (:func:`pliant.sofa.bodies.surface_pairs`), and the
+        points (or sphere) of a rigid body touch a body's TriangleCollisionModel
+        (RigidSurfaceContact) where they share no ``group``."""
         intersection = [o for n in self.root.walk() for o in n.objects if o.type in INTERSECTIONS]
         models = [o for n in self.root.walk() for o in n.objects if o.type in COLLISION_MODELS]
         if not models or not self._detects():
@@ -949,6 +1022,10 @@ class _Builder:
         rigid_nodes = [n for n in self.root.walk() if self._is_rigid(n)]
         rigid = [self._rigid_body(n, friction) for n in rigid_nodes]
         inside_rigid = {id(c) for n in rigid_nodes for c in n.walk()}
+        rigid_models = [
+            [o for c in n.walk() for o in c.objects if o.type in COLLISION_MODELS]
+            for n in rigid_nodes
+        ]
         points, obstacles, joined = [], [], []
         on_bodies: list[tuple[int, SceneObject]] = []  # (part, model) of the bodies' models
         embedded_at: dict[int, EmbeddedPoints] = {}  # a node's collision points
@@ -961,8 +1038,11 @@ class _Builder:
                 k = parts.index(part)
                 on_bodies += [(k, o) for o in node.objects if o.type in COLLISION_MODELS]
                 if "PointCollisionModel" not in types:
-                    if len(parts) > 1 and "TriangleCollisionModel" in types:
-                        continue  # another body's points may touch its triangles
+                    touched = len(parts) > 1 or any(
+                        _touches(m, o) for ms in rigid_models for m in ms for o in node.objects
+                    )
+                    if touched and "TriangleCollisionModel" in types:
+                        continue  # another body's or a rigid body's points may touch them
                     raise SceneError(
                         f"{node.path}: the body collides by points only (PointCollisionModel),"
                         f" not by {', '.join(sorted(types & COLLISION_MODELS))}"
@@ -983,6 +1063,23 @@ class _Builder:
                 embedded_at[id(node)] = joined[-1]
             else:
                 obstacles.append(self._obstacle(node))
+        rigid_surfaces = [
+            RigidSurfaceContact(
+                rigid[r],
+                _rigid_points(rigid[r].shape)[0],
+                *self._surface(b.node, parts[k], mesh),
+                friction=friction,
+                distance=thickness,
+                radius=_rigid_points(rigid[r].shape)[1],
+                name=f"{rigid_nodes[r].path} on {b.node.path}",
+            )
+            for r, models in enumerate(rigid_models)
+            for k, b in on_bodies
+            if any(_touches(m, b) for m in models)
+        ]
+        if not points and rigid_surfaces:  # the body is touched by its triangles only
+            joined = [EmbeddedPoints.at_nodes(np.zeros(0, dtype=np.int64))]
+            points = [np.zeros((0, 3))]
         if not points:
             models = ", ".join(o.path for _, o in on_bodies)
             raise SceneError(
@@ -1007,11 +1104,11 @@ class _Builder:
         ]
         if not obstacles and not rigid and not surfaces:  # SOFA detects nothing: no contact
             return None, []
-        if rigid and not obstacles:
+        if rigid and not obstacles and not rigid_surfaces:
             raise SceneError(f"{self.path.name}: rigid bodies need a static obstacle too")
         embedded = (
-            EmbeddedPoints.stack(joined)  # each body's points in its own mesh
-            if len(parts) > 1
+            EmbeddedPoints.stack(joined)  # each body's points in its own mesh (or none)
+            if len(parts) > 1 or not any(len(p) for p in points)
             else EmbeddedPoints(
                 mesh,
                 np.vstack(points),
@@ -1026,6 +1123,7 @@ class _Builder:
             points=embedded,
             thickness=thickness,
             surfaces=surfaces,
+            rigid_surfaces=rigid_surfaces,
         )
         return contacts, rigid
 
@@ -2337,3 +2435,20 @@ INITIALISERS.update(
     SphereROI=_init_roi,
     GenerateRigidMass=_init_rigid_mass,
 )
+
+
+def _touches(model: SceneObject, triangles: SceneObject) -> bool:
+    """Whether SOFA tests a rigid body's collision `model` (points, triangles or a sphere)
+    against a deformable body's `triangles`: a TriangleCollisionModel, no group in common."""
+    return triangles.type == "TriangleCollisionModel" and not (_groups(model) & _groups(triangles))
+
+
+def _rigid_points(shape) -> tuple[np.ndarray, float]:
+    """The points of a rigid body's shape that touch a deformable surface, in its frame, and
+    their radius: a sphere's centre (its radius), a box's corners, a mesh's vertices."""
+    if isinstance(shape, Box):
+        signs = np.array([[i, j, k] for i in (-1, 1) for j in (-1, 1) for k in (-1, 1)])
+        return signs * shape.half_extents, 0.0
+    if isinstance(shape, TriangleMesh):
+        return shape.vertices, 0.0
+    return np.zeros((1, 3)), float(shape.radius)

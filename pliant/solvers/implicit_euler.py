@@ -160,6 +160,7 @@ class ImplicitEuler:
             and model.contacts is not None
             and model.contacts.points.linear
             and not model.contacts.surfaces  # rows on relative points: columns every step
+            and not model.contacts.rigid_surfaces
             else None
         )
         self._row_points: dict[tuple[str, ...] | None, PointRows | None] = {}
