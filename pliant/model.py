@@ -305,9 +305,8 @@ class Model:
             (:class:`pliant.constraints.attachment.Attachment`).
         joints: joints between the rigid bodies, or a body and the world
             (:mod:`pliant.constraints.rigid_joints`); a model without deformable body only.
-        obstacles: moving obstacles (kinematic bodies whose pose is prescribed) the rigid
-            bodies touch, besides the still shapes of `contacts`; a model without deformable
-            body only.
+        obstacles: kinematic bodies (a prescribed pose) moving shapes of `contacts`, which
+            the others of its shapes stay still; a model without deformable body only.
         gravity: (3,) of a model without deformable body (default (0, 0, -9.81)); a body's
             model takes its body's.
     """
@@ -401,9 +400,15 @@ class Model:
         for b in self.rigid_bodies:
             if not isinstance(b, RigidBody):
                 raise ModelError(f"{name}: {b!r} is not a RigidBody")
+        shapes = {id(s) for s in self.contacts.shapes} if self.contacts is not None else set()
         for o in self.obstacles:
             if not isinstance(o, KinematicBody):
                 raise ModelError(f"{name}: a moving obstacle is a KinematicBody, got {o!r}")
+            if id(o.shape) not in shapes:
+                raise ModelError(
+                    f"{name}: the obstacle {o.name} moves a shape that is not one of the"
+                    " contacts' (give it in Contacts too: its friction and margin are theirs)"
+                )
         check_joints(self.joints, self.rigid_bodies)
         g = np.asarray((0.0, 0.0, -9.81) if gravity is None else gravity, dtype=float)
         if g.shape != (3,) or not np.all(np.isfinite(g)):

@@ -51,10 +51,11 @@ from pliant.geometry.collision import Box, Plane, TriangleMesh
 from pliant.mesh.quality import signed_volumes
 from pliant.mesh.tetmesh import TetMesh
 from pliant.model import Model, State
-from pliant.sofa import rods
+from pliant.sofa import rigid_scene, rods
 from pliant.sofa.bodies import Part, check_held_if_massless, contact_problem, join, surface_pairs
 from pliant.sofa.components import FIELDS, is_visual
 from pliant.sofa.grids import GRIDS, HEXAHEDRA, grid_tetrahedra, hex_body
+from pliant.sofa.prefabs.stlib import SHAPES
 from pliant.sofa.rigids import (
     MASS_GENERATOR,
     SPHERE_MODEL,
@@ -216,6 +217,10 @@ HANDLED = HANDLED | ARTICULATED
 # A body's state read from a file (pliant.sofa.states); springs between points the body
 # carries (pliant.fem.loads.EmbeddedSprings).
 HANDLED = HANDLED | {"ReadState", "MeshSpringForceField"}
+# SOFA's shared meshes (its share folder), by the name of their shape in STLIB's prefabs.
+SHARED_MESHES = {"mesh/cube.obj": "cube"}
+# Joints between rigid bodies, in scenes of rigid bodies alone (pliant.sofa.rigid_scene).
+HANDLED = HANDLED | rigid_scene.JOINTS
 # Components Pliant knows but cannot map, and why (their data are still checked).
 UNSUPPORTED = {
     # SoftRobots registers it on Vec1 only: an articulation's angle or course, which an
@@ -672,8 +677,9 @@ def _sphere_nodes(roi: SceneObject, points: np.ndarray) -> np.ndarray:
 
 def _read_obj(file: Path) -> meshio.Mesh:
     """An OBJ file's vertices and faces (polygons fanned into triangles), for files meshio
-    refuses (texture coordinates that do not match the vertices)."""
-    points, faces = [], []
+    refuses (texture coordinates that do not match the vertices), and its lines (polylines
+    cut into edges) where it has some."""
+    points, faces, lines = [], [], []
     for line in file.read_text(errors="replace").splitlines():
         parts = line.split()
         if not parts:
@@ -684,7 +690,14 @@ def _read_obj(file: Path) -> meshio.Mesh:
             ids = [int(p.split("/")[0]) for p in parts[1:]]
             ids = [i - 1 if i > 0 else len(points) + i for i in ids]
             faces += [[ids[0], ids[k], ids[k + 1]] for k in range(1, len(ids) - 1)]
-    return meshio.Mesh(np.array(points), [("triangle", np.array(faces, dtype=np.int64))])
+        elif parts[0] == "l":
+            ids = [int(p.split("/")[0]) for p in parts[1:]]
+            ids = [i - 1 if i > 0 else len(points) + i for i in ids]
+            lines += [[a, b] for a, b in zip(ids[:-1], ids[1:], strict=True)]
+    cells = [("triangle", np.array(faces, dtype=np.int64))]
+    if lines:
+        cells.append(("line", np.array(lines, dtype=np.int64)))
+    return meshio.Mesh(np.array(points), cells)
 
 
 def _read_gid(file: Path) -> meshio.Mesh:
@@ -749,13 +762,24 @@ class _Builder:
             scene = SofaScene(model, dt, solver_kind, self.path, self.root, Bindings(hooks=[rod]))
             scene.write_outputs(model.rest_state())
             return scene
+        if rigid_scene.is_rigid_scene(self):  # rigid bodies alone
+            return self._rigid_scene()
+        joints = [
+            f"{o.type} (at {n.path})"
+            for n in self.root.walk()
+            for o in n.objects
+            if o.type in rigid_scene.JOINTS
+        ]
+        if joints:
+            raise SceneError(
+                f"{self.path.name}: joints between rigid bodies are read in scenes of rigid"
+                " bodies alone (no deformable body), not beside a deformable body: "
+                + "; ".join(joints)
+            )
         self._servos = read_servos(self.root)
         nodes = self._body_nodes()
         body_node = nodes[0]
-        dt = float(_floats(self.root.attrs.get("dt", 0.01), "root.dt")[0])
-        gravity = _floats(self.root.attrs.get("gravity", "0 -9.81 0"), "root.gravity")
-        if gravity.size != 3:
-            raise SceneError(f"root.gravity: three values expected, got {gravity.size}")
+        dt, gravity = self._scene_time()
         parts = [Part(n, *self._body(n, gravity)) for n in nodes]
         body, mesh, solver_kind = parts[0].body, parts[0].mesh, parts[0].solver_kind
         unread = [
@@ -854,6 +878,25 @@ class _Builder:
                 k += not g.fixed[j]
             self.bindings.frames.append((g.dofs, entries))
         scene = SofaScene(model, dt, solver_kind, self.path, self.root, self.bindings)
+        scene.write_outputs(model.rest_state())
+        return scene
+
+    def _scene_time(self) -> tuple[float, np.ndarray]:
+        """The root's dt and gravity."""
+        dt = float(_floats(self.root.attrs.get("dt", 0.01), "root.dt")[0])
+        gravity = _floats(self.root.attrs.get("gravity", "0 -9.81 0"), "root.gravity")
+        if gravity.size != 3:
+            raise SceneError(f"root.gravity: three values expected, got {gravity.size}")
+        return dt, gravity
+
+    def _rigid_scene(self) -> SofaScene:
+        """A scene of rigid bodies alone (pliant.sofa.rigid_scene)."""
+        dt, gravity = self._scene_time()
+        model, dofs, hook = rigid_scene.rigid_model(self, dt, gravity)
+        for obj in [o for n in self.root.walk() for o in n.objects if o.type in MESH_LOADERS]:
+            init_loader(obj)  # SOFA initialises them: their outputs, for the scripts
+        bindings = Bindings(rigid=dofs, hooks=[hook])
+        scene = SofaScene(model, dt, "dynamic", self.path, self.root, bindings)
         scene.write_outputs(model.rest_state())
         return scene
 
@@ -1533,7 +1576,14 @@ class _Builder:
 
     def _loaded(self, loader: SceneObject) -> tuple[np.ndarray, dict[str, np.ndarray]]:
         """The loader's points (transformed as SOFA's MeshLoader does: scale, then rotation,
-        then translation) and its cells by type, in the file's order."""
+        then translation) and its cells by type, in the file's order. A SOFA shared mesh
+        (``mesh/cube.obj``, which SOFA finds in its own share folder) not beside the scene is
+        the one STLIB's prefabs write out (:data:`pliant.sofa.prefabs.stlib.SHAPES`)."""
+        name = str(loader.attrs.get("filename", "")).replace("\\", "/")
+        if name in SHARED_MESHES and not (self.path.parent / name).is_file():
+            points, faces = SHAPES[SHARED_MESHES[name]]
+            triangles = np.asarray(faces, dtype=np.int64)
+            return _placed(loader, np.asarray(points, dtype=float)), {"triangle": triangles}
         file = self._resolve_file(loader)
         try:
             with warnings.catch_warnings():
@@ -2287,7 +2337,18 @@ def _init_rigid_mass(obj: SceneObject) -> None:
     generate_rigid_mass(_script_builder(obj.node), obj)
 
 
+def init_loader(loader: SceneObject) -> None:
+    """A mesh loader's init(): its ``position`` (placed), ``edges`` and ``triangles`` outputs,
+    where not set, as scripts read them (SofaGym's SimpleMaze walks its path's edges)."""
+    points, cells = _script_builder(loader.node)._loaded(loader)
+    outputs = {"position": points, "edges": cells.get("line"), "triangles": cells.get("triangle")}
+    for key, value in outputs.items():
+        if value is not None and (key not in loader.attrs or _is_link(loader.attrs[key])):
+            loader.attrs[key] = _frozen(value) if key == "position" else _frozen(value).astype(int)
+
+
 INITIALISERS.update(
+    **dict.fromkeys(MESH_LOADERS - {"GIDMeshLoader"}, init_loader),
     MechanicalObject=_init_positions,
     BoxROI=_init_roi,
     SphereROI=_init_roi,

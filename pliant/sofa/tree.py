@@ -143,7 +143,9 @@ class Data:
 
     @contextmanager
     def writeable(self):
-        array = np.array(self.value, dtype=float)
+        value = self.value  # index fields stay integers, as SofaPython3 gives them
+        integer = isinstance(value, np.ndarray) and value.dtype.kind in "iu"
+        array = np.array(value, dtype=np.int64 if integer else float)
         yield array
         self.owner.attrs[self.key] = array
 

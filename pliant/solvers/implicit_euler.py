@@ -660,9 +660,10 @@ class ImplicitEuler:
 
 def _rigid_solver(model: Model, dt: float) -> RigidSolver:
     """The rigid bodies' solver of a model without deformable body: its bodies, joints, moving
-    obstacles and the still shapes of its contacts (each with its friction), its gravity, and
-    its contacts' margin and tolerance."""
+    obstacles and the other shapes of its contacts (still, each with its friction), its
+    gravity, and its contacts' margin and tolerance."""
     contacts = model.contacts
+    moving = {id(o.shape) for o in model.obstacles}
     still = []
     if contacts is not None:
         if contacts.planes is not None or contacts.surfaces or contacts.points is not None:
@@ -679,6 +680,7 @@ def _rigid_solver(model: Model, dt: float) -> RigidSolver:
                     strict=True,
                 )
             )
+            if id(shape) not in moving
         ]
     world = RigidWorld(
         model.rigid_bodies, [*still, *model.obstacles], gravity=model.gravity, joints=model.joints
