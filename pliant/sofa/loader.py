@@ -55,7 +55,7 @@ from pliant.sofa import rigid_scene, rods
 from pliant.sofa.bodies import Part, check_held_if_massless, contact_problem, join, surface_pairs
 from pliant.sofa.components import FIELDS, is_visual
 from pliant.sofa.grids import GRIDS, HEXAHEDRA, grid_tetrahedra, hex_body
-from pliant.sofa.prefabs.stlib import SHAPES
+from pliant.sofa.prefabs.stlib import SHARED_MESHES
 from pliant.sofa.rigids import (
     MASS_GENERATOR,
     SPHERE_MODEL,
@@ -217,8 +217,6 @@ HANDLED = HANDLED | ARTICULATED
 # A body's state read from a file (pliant.sofa.states); springs between points the body
 # carries (pliant.fem.loads.EmbeddedSprings).
 HANDLED = HANDLED | {"ReadState", "MeshSpringForceField"}
-# SOFA's shared meshes (its share folder), by the name of their shape in STLIB's prefabs.
-SHARED_MESHES = {"mesh/cube.obj": "cube"}
 # Joints between rigid bodies, in scenes of rigid bodies alone (pliant.sofa.rigid_scene).
 HANDLED = HANDLED | rigid_scene.JOINTS
 # Components Pliant knows but cannot map, and why (their data are still checked).
@@ -1578,13 +1576,16 @@ class _Builder:
         """The loader's points (transformed as SOFA's MeshLoader does: scale, then rotation,
         then translation) and its cells by type, in the file's order. A SOFA shared mesh
         (``mesh/cube.obj``, which SOFA finds in its own share folder) not beside the scene is
-        the one STLIB's prefabs write out (:data:`pliant.sofa.prefabs.stlib.SHAPES`)."""
-        name = str(loader.attrs.get("filename", "")).replace("\\", "/")
-        if name in SHARED_MESHES and not (self.path.parent / name).is_file():
-            points, faces = SHAPES[SHARED_MESHES[name]]
+        the one STLIB's prefabs write out (:data:`pliant.sofa.prefabs.stlib.SHARED_MESHES`)."""
+        try:
+            file = self._resolve_file(loader)
+        except SceneError:
+            name = str(loader.attrs.get("filename", "")).replace("\\", "/")
+            if name not in SHARED_MESHES:
+                raise
+            points, faces = SHARED_MESHES[name]
             triangles = np.asarray(faces, dtype=np.int64)
             return _placed(loader, np.asarray(points, dtype=float)), {"triangle": triangles}
-        file = self._resolve_file(loader)
         try:
             with warnings.catch_warnings():
                 # meshio sniffs an ASCII STL as binary first, with an integer overflow warning.
