@@ -58,6 +58,17 @@ class RigidJoint:
         """(delta (r,), G (r, 6n)) at the bodies' poses; `index` maps id(body) to its index."""
         raise NotImplementedError
 
+    def _hold(self, body_a, body_b, name: str) -> None:
+        """Take the joint's name and bodies: a RigidBody, and another one or None."""
+        self.name = name
+        self.body_a = _check_body(body_a, f"{name}: body_a")
+        if self.body_a is None:
+            raise ModelError(f"{name}: body_a must be a RigidBody")
+        self.body_b = _check_body(body_b, f"{name}: body_b")
+        if self.body_b is self.body_a:
+            raise ModelError(f"{name}: a joint holds two different bodies")
+        self.bodies = (self.body_a, self.body_b)
+
     @staticmethod
     def _carried(body, local, positions, rotations, index):
         """(world point, its index or -1) of `local` fixed in `body` (None: the world)."""
@@ -82,20 +93,13 @@ class BallJoint(RigidJoint):
     n_rows = 3
 
     def __init__(self, body_a, point_a, body_b=None, point_b=None, *, name: str = "ball joint"):
-        self.name = name
-        self.body_a = _check_body(body_a, f"{name}: body_a")
-        if self.body_a is None:
-            raise ModelError(f"{name}: body_a must be a RigidBody")
-        self.body_b = _check_body(body_b, f"{name}: body_b")
-        if self.body_b is self.body_a:
-            raise ModelError(f"{name}: a joint holds two different bodies")
+        self._hold(body_a, body_b, name)
         self.point_a = _point(point_a, f"{name}: point_a")
         if point_b is None:  # where a's point is now, in b's frame or the world
             world = self.body_a.position + self.body_a.rotation @ self.point_a
             b = self.body_b
             point_b = world if b is None else b.rotation.T @ (world - b.position)
         self.point_b = _point(point_b, f"{name}: point_b")
-        self.bodies = (self.body_a, self.body_b)
 
     def rows(self, positions, rotations, index, n):
         pa, ia = self._carried(self.body_a, self.point_a, positions, rotations, index)
@@ -116,20 +120,13 @@ class SlidingJoint(RigidJoint):
     n_rows = 2
 
     def __init__(self, body_a, point, start, end, body_b=None, *, name: str = "sliding joint"):
-        self.name = name
-        self.body_a = _check_body(body_a, f"{name}: body_a")
-        if self.body_a is None:
-            raise ModelError(f"{name}: body_a must be a RigidBody")
-        self.body_b = _check_body(body_b, f"{name}: body_b")
-        if self.body_b is self.body_a:
-            raise ModelError(f"{name}: a joint holds two different bodies")
+        self._hold(body_a, body_b, name)
         self.point = _point(point, f"{name}: point")
         self.start = _point(start, f"{name}: start")
         self.end = _point(end, f"{name}: end")
         axis = self.end - self.start
         if not np.linalg.norm(axis) > 1e-12 * max(1.0, float(np.abs(self.start).max())):
             raise ModelError(f"{name}: the line's two points coincide")
-        self.bodies = (self.body_a, self.body_b)
 
     def normals(self, rotations, index) -> np.ndarray:
         """(2, 3) two unit normals of the line (world axes)."""
