@@ -19,6 +19,12 @@ is closed over the step.
   line along two normals of it. The normals are taken at the start of the step.
 * :class:`AxisLock` (SOFA's PartialFixedConstraint on a Rigid3 frame): components of a body's
   linear or angular velocity (world axes) held at zero; velocity rows (delta = 0).
+* :class:`RestSpring` (SOFA's RestShapeSpringsForceField on a Rigid3 frame): the body's centre
+  pulled to a rest position by a stiffness k, its rotation to a rest rotation by an angular
+  stiffness: compliant rows, delta = x - x_rest and log(R R_rest^T), held at delta = -lambda / k
+  at the end of the step (an implicit spring: the step solves (W + 1/k) lambda = -delta_free).
+
+A joint's rows have a compliance (:meth:`RigidJoint.compliance`): zero for the rigid joints.
 """
 
 from __future__ import annotations
@@ -29,6 +35,7 @@ import numpy as np
 
 from pliant.errors import ModelError
 from pliant.fem.rigid import RigidBody, twist_jacobian
+from pliant.geometry.rotation import check_rotation, log_map
 
 
 def _point(value, what: str) -> np.ndarray:
@@ -57,6 +64,10 @@ class RigidJoint:
     ) -> tuple[np.ndarray, np.ndarray]:
         """(delta (r,), G (r, 6n)) at the bodies' poses; `index` maps id(body) to its index."""
         raise NotImplementedError
+
+    def compliance(self) -> np.ndarray:
+        """(r,) each row's compliance 1 / k (zero: held exactly)."""
+        return np.zeros(self.n_rows)
 
     def _hold(self, body_a, body_b, name: str) -> None:
         """Take the joint's name and bodies: a RigidBody, and another one or None."""
@@ -173,6 +184,59 @@ class AxisLock(RigidJoint):
         g = np.zeros((self.n_rows, 6 * n))
         g[np.arange(self.n_rows), 6 * i + self.axes] = 1.0
         return np.zeros(self.n_rows), g
+
+
+class RestSpring(RigidJoint):
+    """A body's centre pulled to `rest_position` by `stiffness` (force / length) and, with an
+    `angular_stiffness` (torque / radian) > 0, its rotation to `rest_rotation`; by default the
+    body's initial pose. `rest_position` and `rest_rotation` may be reassigned between steps."""
+
+    def __init__(
+        self,
+        body,
+        stiffness: float,
+        angular_stiffness: float = 0.0,
+        rest_position=None,
+        rest_rotation=None,
+        *,
+        name: str = "rest spring",
+    ):
+        self.name = name
+        self.body = _check_body(body, f"{name}: body")
+        if self.body is None:
+            raise ModelError(f"{name}: body must be a RigidBody")
+        k, k_turn = float(stiffness), float(angular_stiffness)
+        if not (np.isfinite(k) and k > 0.0 and np.isfinite(k_turn) and k_turn >= 0.0):
+            raise ModelError(
+                f"{name}: the stiffness must be finite and > 0 and the angular one >= 0, got"
+                f" {stiffness!r} and {angular_stiffness!r}"
+            )
+        self.stiffness, self.angular_stiffness = k, k_turn
+        position = self.body.position if rest_position is None else rest_position
+        self.rest_position = _point(position, f"{name}: rest_position")
+        rotation = self.body.rotation if rest_rotation is None else rest_rotation
+        self.rest_rotation = check_rotation(rotation, name=f"{name}: rest_rotation")
+        self.n_rows = 6 if k_turn > 0.0 else 3
+        self.bodies = (self.body,)
+
+    def compliance(self) -> np.ndarray:
+        c = np.full(self.n_rows, 1.0 / self.stiffness)
+        c[3:] = 1.0 / self.angular_stiffness if self.n_rows == 6 else 0.0
+        return c
+
+    def rows(self, positions, rotations, index, n):
+        i = index[id(self.body)]
+        g = np.zeros((self.n_rows, 6 * n))
+        g[np.arange(self.n_rows), 6 * i + np.arange(self.n_rows)] = 1.0
+        delta = positions[i] - self.rest_position
+        if self.n_rows == 6:  # the turn from rest, world axes (its rate: the angular velocity)
+            delta = np.concatenate([delta, log_map(rotations[i] @ self.rest_rotation.T)])
+        return delta, g
+
+
+def joint_compliance(joints: Sequence[RigidJoint]) -> np.ndarray:
+    """All joints' row compliances, in order."""
+    return np.concatenate([j.compliance() for j in joints]) if joints else np.zeros(0)
 
 
 def joint_rows(

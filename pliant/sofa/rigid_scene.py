@@ -18,6 +18,9 @@
 * ``PartialFixedConstraint`` (``fixedDirections``, six values) and ``FixedConstraint`` on a
   body's frame: its velocity components held at zero (:class:`~pliant.constraints.
   rigid_joints.AxisLock`).
+* ``RestShapeSpringsForceField`` on a body's frame (``stiffness``, ``angularStiffness``): an
+  implicit spring to the frame's ``rest_position`` (:class:`~pliant.constraints.rigid_joints.
+  RestSpring`), read again before each step.
 * ``ConstantForceField`` on a body's frame: a force and torque in the world
   (:class:`~pliant.fem.rigid.WorldForce`), read again before each step (a controller pushing
   SofaGym's cart sets its ``force``).
@@ -36,7 +39,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from pliant.constraints.contact import Contacts
-from pliant.constraints.rigid_joints import AxisLock, BallJoint, SlidingJoint
+from pliant.constraints.rigid_joints import AxisLock, BallJoint, RestSpring, SlidingJoint
 from pliant.errors import ContactError, ModelError
 from pliant.fem.rigid import KinematicBody, RigidBody, WorldForce
 from pliant.geometry.collision import Box, Plane, TriangleMesh
@@ -98,8 +101,8 @@ class RigidData:
     :class:`pliant.sofa.loader.SofaScene` hook): the ConstantForceFields' forces and the
     spring-held frames' rest poses read before a step, the frames' poses written after it."""
 
-    def __init__(self, forces: list[tuple[SceneObject, WorldForce]], frames: list[_Frame]):
-        self.forces, self.frames = forces, frames
+    def __init__(self, forces, frames: list[_Frame], springs=()):
+        self.forces, self.frames, self.springs = forces, frames, list(springs)
 
     def read(self, state: State) -> State:
         for obj, force in self.forces:
@@ -107,6 +110,10 @@ class RigidData:
             force.force, force.torque = wrench[0, :3].copy(), wrench[0, 3:].copy()
         for frame in self.frames:
             frame.read()
+        for rest, spring in self.springs:  # a script may set a body's rest pose
+            if "rest_position" in rest.dofs.attrs:  # (its position is the body's own)
+                rest.read()
+                spring.rest_position, spring.rest_rotation = rest.position, rest.rotation
         return state
 
     def write(self, state: State) -> None:
@@ -130,14 +137,13 @@ def rigid_model(
     by_node = {id(n): b for n, b in zip(nodes, bodies, strict=True)}
     held: list = []
     forces: list[tuple[SceneObject, WorldForce]] = []
+    springs: list[tuple[_Frame, RestSpring]] = []
     for node, body in zip(nodes, bodies, strict=True):
         for obj in node.objects:
             if obj.type == SPRINGS:
-                raise SceneError(
-                    f"{obj.path}: rest-shape springs on a rigid body with a mass are not"
-                    " supported (Pliant reads springs on a massless frame: a kinematic body)"
-                )
-            if obj.type in FIXED:
+                rest = _Frame(builder._rigid_dofs(node), np.zeros(3), np.eye(3))
+                springs.append((rest, _spring(obj, body, rest)))
+            elif obj.type in FIXED:
                 held.append(AxisLock(body, [1] * 6, name=obj.path))
             elif obj.type in PARTIAL:
                 directions = field_numbers(obj, "fixedDirections", [1, 1, 1, 1, 1, 1])
@@ -155,7 +161,7 @@ def rigid_model(
     contacts, obstacles = None, []
     if builder._detects():
         contacts, obstacles = _obstacles(builder, nodes, frames, kinematic, friction)
-    joints = [*_joints(builder, by_node, frames), *held]
+    joints = [*_joints(builder, by_node, frames), *held, *(s for _, s in springs)]
     try:
         model = Model(
             None,
@@ -169,7 +175,30 @@ def rigid_model(
     except (ModelError, ContactError) as exc:
         raise SceneError(f"{builder.path.name}: {exc}") from exc
     dofs = [builder._one(n, {"MechanicalObject"}, "MechanicalObjects") for n in nodes]
-    return model, dofs, RigidData(forces, kinematic)
+    return model, dofs, RigidData(forces, kinematic, springs)
+
+
+def _spring(obj: SceneObject, body: RigidBody, rest: _Frame) -> RestSpring:
+    """A RestShapeSpringsForceField on a rigid body's frame: a RestSpring to its rest pose."""
+    if obj.attrs.get("external_rest_shape") or np.size(field_numbers(obj, "points", [])) > 1:
+        raise SceneError(
+            f"{obj.path}: springs on a rigid body pull its one frame to its own rest pose"
+            " (no external_rest_shape, one point)"
+        )
+    rest.read()
+    k = field_numbers(obj, "stiffness", [1.0]).reshape(-1)
+    k_turn = field_numbers(obj, "angularStiffness", [0.0]).reshape(-1)
+    try:
+        return RestSpring(
+            body,
+            k[0],
+            k_turn[0] if k_turn.size else 0.0,
+            rest.position,
+            rest.rotation,
+            name=obj.path,
+        )
+    except ModelError as exc:
+        raise SceneError(f"{obj.path}: {exc}") from exc
 
 
 def _obstacles(builder: _Builder, nodes, frames: dict, kinematic: list[_Frame], friction):

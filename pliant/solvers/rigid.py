@@ -8,8 +8,9 @@ Joints (:mod:`pliant.constraints.rigid_joints`: ball, sliding, locked axes) add 
 G after the contact rows: W gains h^2 G M^-1 G^T and its coupling with the contacts,
 delta_free the joints' delta(q) + h G u_free; the joint rows are eliminated (their Schur
 complement, :func:`pliant.constraints.attachment.eliminate`) before the contact solver sees
-the problem, and u = u_free + h M^-1 (J^T lambda_c + G^T lambda_j). Without joints the step is
-the contact step alone.
+the problem, and u = u_free + h M^-1 (J^T lambda_c + G^T lambda_j). A spring's rows
+(RestSpring) add their compliance 1 / k to W's diagonal: the spring acts at the end of the
+step. Without joints the step is the contact step alone.
 """
 
 from __future__ import annotations
@@ -22,7 +23,12 @@ import numpy as np
 from pliant.constraints.attachment import eliminate
 from pliant.constraints.condensed import CondensedProblem
 from pliant.constraints.friction import ContactForces, ContactReport, solve_contact
-from pliant.constraints.rigid_joints import RigidJoint, check_joints, joint_rows
+from pliant.constraints.rigid_joints import (
+    RigidJoint,
+    check_joints,
+    joint_compliance,
+    joint_rows,
+)
 from pliant.errors import DivergenceError, ModelError, SolverError
 from pliant.fem.rigid import (
     KinematicBody,
@@ -254,6 +260,8 @@ class RigidSolver:
             jac, delta_free = self._with_joints(state, jac, delta_free, u_free)
             slices["attachment"] = slice(3 * k, delta_free.size)
             compliance = h * h * (jac @ m_inv @ jac.T)
+            rows = np.arange(3 * k, delta_free.size)
+            compliance[rows, rows] += joint_compliance(world.joints)  # springs' rows
         problem = CondensedProblem(0.5 * (compliance + compliance.T), delta_free, slices)
         elimination = None
         if world.joints:

@@ -120,9 +120,25 @@ def test_what_a_rigid_scene_cannot_hold_is_named(tmp_path) -> None:
     rigid = _pendulum(tmp_path, 0.5, 0.1, 0.01, template="Rigid3")
     with pytest.raises(SceneError, match="Rigid3 BilateralInteractionConstraint"):
         load_scene(rigid)
-    text = HEADER.format(dt=0.01) + BODY.format(
+
+
+def test_rest_shape_springs_on_a_rigid_body_oscillate_at_their_period(tmp_path) -> None:
+    """A Rigid3 ball (m = 1) on a RestShapeSpringsForceField (stiffness 100) under gravity
+    (y): it oscillates about y = -m g / k with period 2 pi sqrt(m / k)."""
+    dt = 1e-3
+    text = HEADER.format(dt=dt) + BODY.format(
         name="Ball", pose=[0, 0, 0, 0, 0, 0, 1], mass=1.0, local=[[0.0, 0.0, 0.0]]
     )
-    text += '    body.addObject("RestShapeSpringsForceField", stiffness=10)\n'
-    with pytest.raises(SceneError, match="rest-shape springs on a rigid body with a mass"):
-        load_scene(_scene(tmp_path, text, "springs.py"))
+    text += '    body.addObject("RestShapeSpringsForceField", stiffness=100, angularStiffness=1)\n'
+    scene = load_scene(_scene(tmp_path, text, "springs.py"))
+    period = 2 * np.pi / 10.0
+    solver, state = scene.solver(), scene.model.rest_state()
+    y = []
+    for _ in range(int(1.3 * period / dt)):
+        state = solver.step(state)
+        y.append(state.rigid_positions[0, 1] + G / 100.0)
+    y, t = np.array(y), dt * (1 + np.arange(len(y)))
+    down = np.flatnonzero((y[:-1] > 0) & (y[1:] <= 0))[0]
+    up = np.flatnonzero((y[:-1] < 0) & (y[1:] >= 0))[0]
+    at = [t[i] + dt * y[i] / (y[i] - y[i + 1]) for i in (down, up)]
+    assert 2 * abs(at[1] - at[0]) == pytest.approx(period, rel=1e-3)

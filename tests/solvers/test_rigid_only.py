@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from pliant.constraints.contact import Contacts
-from pliant.constraints.rigid_joints import AxisLock, BallJoint, SlidingJoint
+from pliant.constraints.rigid_joints import AxisLock, BallJoint, RestSpring, SlidingJoint
 from pliant.errors import ModelError, StateError
 from pliant.fem.rigid import RigidBody, WorldForce
 from pliant.geometry.collision import Box, Plane, Sphere
@@ -123,6 +123,35 @@ def test_cart_and_pole_keep_their_horizontal_momentum():
         cart.forces = []
     momentum = 1.0 * pushed.rigid_velocities[0, 0] + 0.1 * pushed.rigid_velocities[1, 0]
     assert momentum == pytest.approx(2.0 * 20 * 5e-3, rel=1e-9)
+
+
+def test_rest_spring_oscillates_about_its_sag_at_its_period():
+    """A ball on a RestSpring (k, angular k_t) under gravity: its centre oscillates about
+    z = -m g / k with period 2 pi sqrt(m / k), its turn about z (started at 0.1 rad) with
+    2 pi sqrt(I / k_t); implicit Euler's phase error is O((h w)^2)."""
+    m, r, k, dt = 1.0, 0.1, 100.0, 1e-3
+    inertia = 0.4 * m * r * r
+    k_turn = inertia * 100.0  # the same w = 10 rad/s
+    turned = np.array([[np.cos(0.1), -np.sin(0.1), 0], [np.sin(0.1), np.cos(0.1), 0], [0, 0, 1]])
+    ball = RigidBody(Sphere(r), m, position=(0.0, 0.0, 0.0), rotation=turned)
+    spring = RestSpring(ball, k, k_turn, rest_rotation=np.eye(3))
+    period = 2 * np.pi * np.sqrt(m / k)
+    steps = int(1.3 * period / dt)
+    _, record = _run(
+        Model(None, rigid_bodies=[ball], joints=[spring]),
+        dt,
+        steps,
+        lambda s: (
+            s.rigid_positions[0, 2] + m * G / k,
+            np.arctan2(*s.rigid_rotations[0, 1::-1, 0]),
+        ),
+    )
+    t = dt * (1 + np.arange(steps))
+    for signal in record.T:
+        down = np.flatnonzero((signal[:-1] > 0) & (signal[1:] <= 0))[0]
+        up = np.flatnonzero((signal[:-1] < 0) & (signal[1:] >= 0))[0]
+        at = [t[i] + dt * signal[i] / (signal[i] - signal[i + 1]) for i in (down, up)]
+        assert 2 * abs(at[1] - at[0]) == pytest.approx(period, rel=1e-3)
 
 
 def test_rigid_only_ball_comes_to_rest_on_a_plane():
