@@ -5,7 +5,10 @@
   MechanicalObject with a ``UniformMass`` and a collision shape, or a particle ball.
 * A massless ``Rigid3`` frame held by a ``RestShapeSpringsForceField`` (SofaGym's SimpleMaze:
   the maze's frame, whose ``rest_position`` the actions tilt): a kinematic body at its rest
-  pose, the collision models it carries (a ``RigidMapping``) moving with it. SOFA's frame
+  pose, the collision models it carries (a ``RigidMapping``) moving with it: a closed
+  triangle mesh whose inside is read from its winding number (SimpleMaze's coarse maze has a
+  floor of zero thickness, two coincident sheets facing opposite ways, which SOFA's triangle
+  proximity holds a ball on; the pseudo-normal of whichever sheet is found first would not). SOFA's frame
   reaches its rest pose in one step (a massless first-order step is a Newton step on the
   springs) less the contact forces over the springs' stiffness, which Pliant leaves out.
 * ``BilateralInteractionConstraint`` (Vec3): the points ``first_point`` of ``object1`` held
@@ -223,7 +226,8 @@ def _obstacles(builder: _Builder, nodes, frames: dict, kinematic: list[_Frame], 
                 raise SceneError(f"{node.path}: a moving frame's obstacle collides by triangles")
             dofs = builder._one(node, {"MechanicalObject"}, "MechanicalObjects")
             try:
-                shape = TriangleMesh(builder._positions(node, dofs), builder._faces(node))
+                points, faces = builder._positions(node, dofs), builder._faces(node)
+                shape = TriangleMesh(points, faces, winding=True)
             except ContactError as exc:
                 raise SceneError(f"{node.path}: {exc}") from exc
             moving.append(KinematicBody(shape, frame.pose, friction=friction, name=node.path))
