@@ -8,9 +8,10 @@
   pose, the collision models it carries (a ``RigidMapping``) moving with it: a closed
   triangle mesh whose inside is read from its winding number (SimpleMaze's coarse maze has a
   floor of zero thickness, two coincident sheets facing opposite ways, which SOFA's triangle
-  proximity holds a ball on; the pseudo-normal of whichever sheet is found first would not). SOFA's frame
-  reaches its rest pose in one step (a massless first-order step is a Newton step on the
-  springs) less the contact forces over the springs' stiffness, which Pliant leaves out.
+  proximity holds a ball on; the pseudo-normal of whichever sheet is found first would not).
+  SOFA's frame reaches its rest pose in one step (a massless first-order step is a Newton
+  step on the springs) less the contact forces over the springs' stiffness, which Pliant
+  leaves out.
 * ``BilateralInteractionConstraint`` (Vec3): the points ``first_point`` of ``object1`` held
   on the points ``second_point`` of ``object2`` (:class:`~pliant.constraints.rigid_joints.
   BallJoint`); ``SlidingConstraint``: the point ``sliding_point`` of ``object1`` held on the
