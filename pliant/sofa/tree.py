@@ -87,7 +87,19 @@ def field_numbers(obj: SceneObject, key: str, default) -> np.ndarray:
     try:
         return np.atleast_1d(np.asarray(data_value(raw), dtype=float)).ravel()
     except (TypeError, ValueError):
+        pass
+    try:  # nested lists of unequal lengths (a rigid mass as [m, V, [I (9)]]), flattened
+        return np.asarray(list(_flat(data_value(raw))), dtype=float)
+    except (TypeError, ValueError):
         raise SceneError(f"{obj.path}.{key}: expected numbers, got {raw!r}") from None
+
+
+def _flat(value):
+    if isinstance(value, (list, tuple, np.ndarray)):
+        for item in value:
+            yield from _flat(item)
+    else:
+        yield value
 
 
 class Data:
