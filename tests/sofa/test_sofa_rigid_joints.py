@@ -142,3 +142,19 @@ def test_rest_shape_springs_on_a_rigid_body_oscillate_at_their_period(tmp_path) 
     up = np.flatnonzero((y[:-1] < 0) & (y[1:] >= 0))[0]
     at = [t[i] + dt * y[i] / (y[i] - y[i + 1]) for i in (down, up)]
     assert 2 * abs(at[1] - at[0]) == pytest.approx(period, rel=1e-3)
+
+
+def test_pliant_run_renders_a_scene_of_rigid_bodies(tmp_path) -> None:
+    """`pliant run` on a scene without deformable body: its frames, no VTU series."""
+    from typer.testing import CliRunner
+
+    from pliant.cli import app
+
+    scene = _pendulum(tmp_path, 0.5, 0.1, 0.01)
+    out = tmp_path / "out"
+    result = CliRunner().invoke(
+        app, ["run", str(scene), "--duration", "0.05", "--frames", "2", "--out", str(out)]
+    )
+    assert result.exit_code == 0, result.output
+    assert (out / "scene" / "scene.gif").is_file()
+    assert "1 rigid bodies" in result.output
