@@ -126,7 +126,9 @@ class BallJoint(RigidJoint):
 class SlidingJoint(RigidJoint):
     """A point of `body_a` (at `point` in its frame) held on the line through `start` and
     `end` (world points, or points in `body_b`'s frame): two rows, the point's offset from the
-    line along two unit normals of it."""
+    line along two unit normals of it. The line is unbounded: SOFA's SlidingConstraint also
+    stops the point at the segment's ends (a unilateral third row past either), which this
+    joint does not."""
 
     n_rows = 2
 
