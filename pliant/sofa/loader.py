@@ -73,6 +73,7 @@ from pliant.sofa.tree import (
     SceneNode,
     SceneObject,
     close_match,
+    flatten,
     read_scene,
 )
 
@@ -570,20 +571,11 @@ def load_scene(
 
 def _floats(value, what: str) -> np.ndarray:
     """A scene value (string of numbers, number, or sequence) as a flat float array."""
-    parts = value.replace(",", " ").split() if isinstance(value, str) else list(_flatten(value))
+    parts = value.replace(",", " ").split() if isinstance(value, str) else list(flatten(value))
     try:
         return np.array([float(p) for p in parts], dtype=float)
     except (TypeError, ValueError) as exc:
         raise SceneError(f"{what}: expected numbers, got {value!r}") from exc
-
-
-def _flatten(value):
-    """The numbers of a nested sequence (lists, tuples, arrays, mixed as scripts build them)."""
-    if isinstance(value, (list, tuple, np.ndarray)):
-        for item in value:
-            yield from _flatten(item)
-    else:
-        yield value
 
 
 def _value_type(obj: SceneObject, options: tuple[str, ...]) -> str:

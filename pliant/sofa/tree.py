@@ -89,15 +89,16 @@ def field_numbers(obj: SceneObject, key: str, default) -> np.ndarray:
     except (TypeError, ValueError):
         pass
     try:  # nested lists of unequal lengths (a rigid mass as [m, V, [I (9)]]), flattened
-        return np.asarray(list(_flat(data_value(raw))), dtype=float)
+        return np.asarray(list(flatten(data_value(raw))), dtype=float)
     except (TypeError, ValueError):
         raise SceneError(f"{obj.path}.{key}: expected numbers, got {raw!r}") from None
 
 
-def _flat(value):
+def flatten(value):
+    """The numbers of a nested sequence (lists, tuples, arrays, mixed as scripts build them)."""
     if isinstance(value, (list, tuple, np.ndarray)):
         for item in value:
-            yield from _flat(item)
+            yield from flatten(item)
     else:
         yield value
 

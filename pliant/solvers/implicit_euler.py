@@ -155,6 +155,11 @@ class ImplicitEuler:
         self.last_report = StepReport()
         self._rigid_solver = None
         if model.body is None:
+            if self.first_order:
+                raise ModelError(
+                    f"{model.name} has no deformable body: first_order (no inertia) does not"
+                    " apply to its rigid bodies, stepped with their inertia"
+                )
             self._rigid_solver = _rigid_solver(model, self.dt)
             return
         _check_massless_held(model)

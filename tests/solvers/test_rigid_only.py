@@ -179,5 +179,7 @@ def test_rigid_only_model_refuses_what_needs_a_body():
     solver = ImplicitEuler(model, 1e-2)
     with pytest.raises(ModelError, match="no actuators"):
         solver.step(model.rest_state(), [1.0])
+    with pytest.raises(ModelError, match="first_order"):
+        ImplicitEuler(model, 1e-2, first_order=True)
     with pytest.raises(StateError):
         solver.step(Model(None, rigid_bodies=[ball, other]).rest_state())
