@@ -106,6 +106,24 @@ class BodyForce:
         return np.vstack([skew(wrench[:3]), skew(wrench[3:])])
 
 
+class WorldForce:
+    """A force and a torque about the centre of mass fixed in the world (SOFA's
+    ConstantForceField on a Rigid3 frame: ``totalForce`` (fx fy fz tx ty tz)); `force` and
+    `torque` may be reassigned between steps (a controller pushing a cart). Taken at the start
+    of the step, like gravity."""
+
+    def __init__(self, force=(0.0, 0.0, 0.0), torque=(0.0, 0.0, 0.0)) -> None:
+        self.force = np.asarray(force, dtype=float).reshape(-1)
+        self.torque = np.asarray(torque, dtype=float).reshape(-1)
+        for label, v in (("force", self.force), ("torque", self.torque)):
+            if v.shape != (3,) or not np.all(np.isfinite(v)):
+                raise ModelError(f"WorldForce: the {label} must be a finite 3-vector")
+
+    def wrench(self, rotation: np.ndarray) -> np.ndarray:
+        """(6,) the force and torque (the same whatever the body's rotation)."""
+        return np.concatenate([self.force, self.torque])
+
+
 def _check_friction(friction: float, name: str) -> float:
     if not np.isscalar(friction):
         raise ModelError(f"{name}: the friction coefficient must be one number")
@@ -134,7 +152,8 @@ class RigidBody:
             torque -c I w, e.g. the drag of a fluid or of an air table (as Bullet's damping).
         position, rotation, velocity, angular_velocity: the initial state (default: the
             shape's pose, at rest).
-        forces: forces fixed in the body's frame (:class:`BodyForce`), turning with it.
+        forces: forces fixed in the body's frame (:class:`BodyForce`), turning with it, or
+            in the world (:class:`WorldForce`).
         held: six flags, the components of the twist (v_x, v_y, v_z, w_x, w_y, w_z, world
             frame) held at zero (SOFA's PartialFixedConstraint on a Rigid3 frame, a cart on
             a rail): the step projects them out of the free twist and of M^-1, so that no
@@ -155,7 +174,7 @@ class RigidBody:
         velocity=(0.0, 0.0, 0.0),
         angular_velocity=(0.0, 0.0, 0.0),
         name: str = "body",
-        forces: Sequence[BodyForce] = (),
+        forces: Sequence[BodyForce | WorldForce] = (),
         held: Sequence[bool] | None = None,
     ) -> None:
         self.name = name

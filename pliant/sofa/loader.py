@@ -52,7 +52,7 @@ from pliant.geometry.collision import Box, Plane, TriangleMesh
 from pliant.mesh.quality import signed_volumes
 from pliant.mesh.tetmesh import TetMesh
 from pliant.model import Model, State
-from pliant.sofa import rods
+from pliant.sofa import rigid_scene, rods
 from pliant.sofa.bodies import (
     Part,
     _groups,
@@ -63,6 +63,7 @@ from pliant.sofa.bodies import (
 )
 from pliant.sofa.components import FIELDS, is_visual
 from pliant.sofa.grids import GRIDS, HEXAHEDRA, grid_tetrahedra, hex_body
+from pliant.sofa.prefabs.stlib import SHARED_MESHES
 from pliant.sofa.rigids import (
     MASS_GENERATOR,
     SPHERE_MODEL,
@@ -81,6 +82,7 @@ from pliant.sofa.tree import (
     SceneNode,
     SceneObject,
     close_match,
+    flatten,
     read_scene,
 )
 
@@ -227,6 +229,8 @@ HANDLED = HANDLED | ARTICULATED
 # A body's state read from a file (pliant.sofa.states); springs between points the body
 # carries (pliant.fem.loads.EmbeddedSprings).
 HANDLED = HANDLED | {"ReadState", "MeshSpringForceField"}
+# Joints between rigid bodies, in scenes of rigid bodies alone (pliant.sofa.rigid_scene).
+HANDLED = HANDLED | rigid_scene.JOINTS
 # Components Pliant knows but cannot map, and why (their data are still checked).
 UNSUPPORTED = {
     # SoftRobots registers it on Vec1 only: an articulation's angle or course, which an
@@ -597,20 +601,11 @@ def load_scene(
 
 def _floats(value, what: str) -> np.ndarray:
     """A scene value (string of numbers, number, or sequence) as a flat float array."""
-    parts = value.replace(",", " ").split() if isinstance(value, str) else list(_flatten(value))
+    parts = value.replace(",", " ").split() if isinstance(value, str) else list(flatten(value))
     try:
         return np.array([float(p) for p in parts], dtype=float)
     except (TypeError, ValueError) as exc:
         raise SceneError(f"{what}: expected numbers, got {value!r}") from exc
-
-
-def _flatten(value):
-    """The numbers of a nested sequence (lists, tuples, arrays, mixed as scripts build them)."""
-    if isinstance(value, (list, tuple, np.ndarray)):
-        for item in value:
-            yield from _flatten(item)
-    else:
-        yield value
 
 
 def _value_type(obj: SceneObject, options: tuple[str, ...]) -> str:
@@ -702,8 +697,9 @@ def _sphere_nodes(roi: SceneObject, points: np.ndarray) -> np.ndarray:
 
 def _read_obj(file: Path) -> meshio.Mesh:
     """An OBJ file's vertices and faces (polygons fanned into triangles), for files meshio
-    refuses (texture coordinates that do not match the vertices)."""
-    points, faces = [], []
+    refuses (texture coordinates that do not match the vertices), and its lines (polylines
+    cut into edges) where it has some."""
+    points, faces, lines = [], [], []
     for line in file.read_text(errors="replace").splitlines():
         parts = line.split()
         if not parts:
@@ -714,7 +710,14 @@ def _read_obj(file: Path) -> meshio.Mesh:
             ids = [int(p.split("/")[0]) for p in parts[1:]]
             ids = [i - 1 if i > 0 else len(points) + i for i in ids]
             faces += [[ids[0], ids[k], ids[k + 1]] for k in range(1, len(ids) - 1)]
-    return meshio.Mesh(np.array(points), [("triangle", np.array(faces, dtype=np.int64))])
+        elif parts[0] == "l":
+            ids = [int(p.split("/")[0]) for p in parts[1:]]
+            ids = [i - 1 if i > 0 else len(points) + i for i in ids]
+            lines += [[a, b] for a, b in zip(ids[:-1], ids[1:], strict=True)]
+    cells = [("triangle", np.array(faces, dtype=np.int64))]
+    if lines:
+        cells.append(("line", np.array(lines, dtype=np.int64)))
+    return meshio.Mesh(np.array(points), cells)
 
 
 def _read_gid(file: Path) -> meshio.Mesh:
@@ -779,13 +782,24 @@ class _Builder:
             scene = SofaScene(model, dt, solver_kind, self.path, self.root, Bindings(hooks=[rod]))
             scene.write_outputs(model.rest_state())
             return scene
+        if rigid_scene.is_rigid_scene(self):  # rigid bodies alone
+            return self._rigid_scene()
+        joints = [
+            f"{o.type} (at {n.path})"
+            for n in self.root.walk()
+            for o in n.objects
+            if o.type in rigid_scene.JOINTS
+        ]
+        if joints:
+            raise SceneError(
+                f"{self.path.name}: joints between rigid bodies are read in scenes of rigid"
+                " bodies alone (no deformable body), not beside a deformable body: "
+                + "; ".join(joints)
+            )
         self._servos = read_servos(self.root)
         nodes = self._body_nodes()
         body_node = nodes[0]
-        dt = float(_floats(self.root.attrs.get("dt", 0.01), "root.dt")[0])
-        gravity = _floats(self.root.attrs.get("gravity", "0 -9.81 0"), "root.gravity")
-        if gravity.size != 3:
-            raise SceneError(f"root.gravity: three values expected, got {gravity.size}")
+        dt, gravity = self._scene_time()
         parts = [Part(n, *self._body(n, gravity)) for n in nodes]
         body, mesh, solver_kind = parts[0].body, parts[0].mesh, parts[0].solver_kind
         unread = [
@@ -944,6 +958,25 @@ class _Builder:
                     and str(dofs.attrs.get("template", "Vec3")).startswith("Vec3")
                 ):
                     dofs.attrs["position"] = _frozen(self._own_points(node, dofs))
+
+    def _scene_time(self) -> tuple[float, np.ndarray]:
+        """The root's dt and gravity."""
+        dt = float(_floats(self.root.attrs.get("dt", 0.01), "root.dt")[0])
+        gravity = _floats(self.root.attrs.get("gravity", "0 -9.81 0"), "root.gravity")
+        if gravity.size != 3:
+            raise SceneError(f"root.gravity: three values expected, got {gravity.size}")
+        return dt, gravity
+
+    def _rigid_scene(self) -> SofaScene:
+        """A scene of rigid bodies alone (pliant.sofa.rigid_scene)."""
+        dt, gravity = self._scene_time()
+        model, dofs, hook = rigid_scene.rigid_model(self, dt, gravity)
+        for obj in [o for n in self.root.walk() for o in n.objects if o.type in MESH_LOADERS]:
+            init_loader(obj)  # SOFA initialises them: their outputs, for the scripts
+        bindings = Bindings(rigid=dofs, hooks=[hook])
+        scene = SofaScene(model, dt, "dynamic", self.path, self.root, bindings)
+        scene.write_outputs(model.rest_state())
+        return scene
 
     def _check_supported(self) -> None:
         """One error for everything the scene holds that Pliant cannot simulate: components
@@ -1650,8 +1683,18 @@ class _Builder:
 
     def _loaded(self, loader: SceneObject) -> tuple[np.ndarray, dict[str, np.ndarray]]:
         """The loader's points (transformed as SOFA's MeshLoader does: scale, then rotation,
-        then translation) and its cells by type, in the file's order."""
-        file = self._resolve_file(loader)
+        then translation) and its cells by type, in the file's order. A SOFA shared mesh
+        (``mesh/cube.obj``, which SOFA finds in its own share folder) not beside the scene is
+        the one STLIB's prefabs write out (:data:`pliant.sofa.prefabs.stlib.SHARED_MESHES`)."""
+        try:
+            file = self._resolve_file(loader)
+        except SceneError:
+            name = str(loader.attrs.get("filename", "")).replace("\\", "/")
+            if name not in SHARED_MESHES:
+                raise
+            points, faces = SHARED_MESHES[name]
+            triangles = np.asarray(faces, dtype=np.int64)
+            return _placed(loader, np.asarray(points, dtype=float)), {"triangle": triangles}
         try:
             with warnings.catch_warnings():
                 # meshio sniffs an ASCII STL as binary first, with an integer overflow warning.
@@ -2429,7 +2472,18 @@ def _init_rigid_mass(obj: SceneObject) -> None:
     generate_rigid_mass(_script_builder(obj.node), obj)
 
 
+def init_loader(loader: SceneObject) -> None:
+    """A mesh loader's init(): its ``position`` (placed), ``edges`` and ``triangles`` outputs,
+    where not set, as scripts read them (SofaGym's SimpleMaze walks its path's edges)."""
+    points, cells = _script_builder(loader.node)._loaded(loader)
+    outputs = {"position": points, "edges": cells.get("line"), "triangles": cells.get("triangle")}
+    for key, value in outputs.items():
+        if value is not None and (key not in loader.attrs or _is_link(loader.attrs[key])):
+            loader.attrs[key] = _frozen(value) if key == "position" else _frozen(value).astype(int)
+
+
 INITIALISERS.update(
+    **dict.fromkeys(MESH_LOADERS - {"GIDMeshLoader"}, init_loader),
     MechanicalObject=_init_positions,
     BoxROI=_init_roi,
     SphereROI=_init_roi,
