@@ -19,9 +19,10 @@
   (:class:`~pliant.constraints.rigid_joints.SlidingJoint`). Each point is one of a
   MechanicalObject carried by a rigid body (a ``RigidMapping``: its positions are in the
   body's frame), or a still one (world positions).
-* ``PartialFixedConstraint`` (``fixedDirections``, six values) and ``FixedConstraint`` on a
-  body's frame: its velocity components held at zero (:class:`~pliant.constraints.
-  rigid_joints.AxisLock`).
+* ``FixedConstraint`` on a body's frame: its velocity held at zero (:class:`~pliant.
+  constraints.rigid_joints.AxisLock`); a ``PartialFixedConstraint`` holds components of its
+  twist as on any rigid body (``RigidBody(held=...)``, read by :func:`~pliant.sofa.rigids.
+  rigid_body`).
 * ``RestShapeSpringsForceField`` on a body's frame (``stiffness``, ``angularStiffness``): an
   implicit spring to the frame's ``rest_position`` (:class:`~pliant.constraints.rigid_joints.
   RestSpring`), read again before each step.
@@ -149,12 +150,6 @@ def rigid_model(
                 springs.append((rest, _spring(obj, body, rest)))
             elif obj.type in FIXED:
                 held.append(AxisLock(body, [1] * 6, name=obj.path))
-            elif obj.type in PARTIAL:
-                directions = field_numbers(obj, "fixedDirections", [1, 1, 1, 1, 1, 1])
-                if directions.size != 6:
-                    raise SceneError(f"{obj.path}.fixedDirections: six values on a Rigid3 frame")
-                if directions.any():
-                    held.append(AxisLock(body, directions != 0, name=obj.path))
             elif obj.type == "ConstantForceField":
                 force = WorldForce()
                 body.forces.append(force)
