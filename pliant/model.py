@@ -26,9 +26,10 @@ from pliant.constraints.cable import CableActuator, CableBundle
 from pliant.constraints.contact import Contacts
 from pliant.constraints.control import commands
 from pliant.constraints.friction import ContactForces
+from pliant.constraints.rigid_joints import RigidJoint, check_joints
 from pliant.errors import ModelError, StateError
 from pliant.fem.body import TetBody
-from pliant.fem.rigid import DrivenNodes, RigidBody
+from pliant.fem.rigid import DrivenNodes, KinematicBody, RigidBody
 from pliant.fem.rod import RodBody
 from pliant.files import replace
 
@@ -55,7 +56,7 @@ class ModelLayout:
             return tuple(f"{c.name} ({type(c).__name__})" for c in items)
 
         return cls(
-            int(model.body.n_nodes),
+            0 if model.body is None else int(model.body.n_nodes),
             named(model.actuators),
             named(model.effectors),
             tuple(b.name for b in model.rigid_bodies),
@@ -285,10 +286,14 @@ class ConstraintSpace:
 
 
 class Model:
-    """A simulated robot: one deformable body, its constraints, and what it is coupled to.
+    """A simulated robot: one deformable body, its constraints, and what it is coupled to; or
+    rigid bodies alone (no deformable body: `body` None).
 
     Args:
-        body: the deformable body: tetrahedra, or a rod (:class:`pliant.fem.rod.RodBody`).
+        body: the deformable body: tetrahedra, or a rod (:class:`pliant.fem.rod.RodBody`);
+            None for a model of rigid bodies alone (a cart and pole, a ball in a maze): its
+            state then has no nodes, and its bodies are stepped by the rigid bodies' scheme
+            (:mod:`pliant.solvers.rigid`) with their joints and contacts.
         actuators: cables, cavities, ... in the order of the actuation vector.
         effectors: position effectors, used by inverse control.
         contacts: obstacles the body touches and the contact law (friction, margin).
@@ -298,11 +303,17 @@ class Model:
             `contacts` and each other; `contacts` detects them) or carries (`attachments`).
         attachments: points of the body held at fixed places of rigid bodies of the model
             (:class:`pliant.constraints.attachment.Attachment`).
+        joints: joints between the rigid bodies, or a body and the world
+            (:mod:`pliant.constraints.rigid_joints`); a model without deformable body only.
+        obstacles: kinematic bodies (a prescribed pose) moving shapes of `contacts`, which
+            the others of its shapes stay still; a model without deformable body only.
+        gravity: (3,) of a model without deformable body (default (0, 0, -9.81)); a body's
+            model takes its body's.
     """
 
     def __init__(
         self,
-        body: TetBody | RodBody,
+        body: TetBody | RodBody | None,
         *,
         actuators: list[Actuator] | tuple = (),
         effectors: list[Constraint] | tuple = (),
@@ -310,6 +321,9 @@ class Model:
         drivers: list[DrivenNodes] | tuple = (),
         rigid_bodies: list[RigidBody] | tuple = (),
         attachments: list[Attachment] | tuple = (),
+        joints: list[RigidJoint] | tuple = (),
+        obstacles: list[KinematicBody] | tuple = (),
+        gravity=None,
         name: str = "robot",
     ) -> None:
         self.body = body
@@ -320,6 +334,18 @@ class Model:
         self.drivers = list(drivers)
         self.rigid_bodies = list(rigid_bodies)
         self.attachments = list(attachments)
+        self.joints = list(joints)
+        self.obstacles = list(obstacles)
+        if body is None:
+            self._rigid_only(gravity)
+            return
+        if self.joints or self.obstacles or gravity is not None:
+            raise ModelError(
+                f"{name}: joints, moving obstacles and a gravity of the model's own are those"
+                " of a model of rigid bodies alone (body None); a deformable body's model"
+                " takes its body's gravity, and couples its rigid bodies by contact or"
+                " attachment"
+            )
         self._check_drivers()
         if self.rigid_bodies and contacts is None and not self.attachments:
             raise ModelError(
@@ -349,6 +375,46 @@ class Model:
         names = [c.name for c in self.actuators + self.effectors]
         if len(set(names)) != len(names):
             raise ModelError(f"constraint names must be unique, got {names}")
+        self.layout = ModelLayout.of(self)
+
+    def _rigid_only(self, gravity) -> None:
+        """Check and complete a model of rigid bodies alone (no deformable body)."""
+        name = self.name
+        if not self.rigid_bodies:
+            raise ModelError(f"{name}: a model without deformable body needs rigid bodies")
+        what = [
+            label
+            for label, items in (
+                ("actuators", self.actuators),
+                ("effectors", self.effectors),
+                ("drivers", self.drivers),
+                ("attachments", self.attachments),
+            )
+            if items
+        ]
+        if what:
+            raise ModelError(
+                f"{name}: {', '.join(what)} act on a deformable body's nodes, and the model has"
+                " none (body None)"
+            )
+        for b in self.rigid_bodies:
+            if not isinstance(b, RigidBody):
+                raise ModelError(f"{name}: {b!r} is not a RigidBody")
+        shapes = {id(s) for s in self.contacts.shapes} if self.contacts is not None else set()
+        for o in self.obstacles:
+            if not isinstance(o, KinematicBody):
+                raise ModelError(f"{name}: a moving obstacle is a KinematicBody, got {o!r}")
+            if id(o.shape) not in shapes:
+                raise ModelError(
+                    f"{name}: the obstacle {o.name} moves a shape that is not one of the"
+                    " contacts' (give it in Contacts too: its friction and margin are theirs)"
+                )
+        check_joints(self.joints, self.rigid_bodies)
+        g = np.asarray((0.0, 0.0, -9.81) if gravity is None else gravity, dtype=float)
+        if g.shape != (3,) or not np.all(np.isfinite(g)):
+            raise ModelError(f"{name}: gravity must be a finite 3-vector, got {gravity!r}")
+        self.gravity = g
+        self._groups, self._n_actuator_groups = [], 0
         self.layout = ModelLayout.of(self)
 
     def geometric_pattern(self) -> tuple[np.ndarray, np.ndarray] | None:
@@ -479,7 +545,7 @@ class Model:
     def rest_state(self) -> State:
         """The body at rest (driven nodes at their t = 0 positions), rigid bodies at their
         initial poses and velocities."""
-        q = self.drive(self.body.rest_positions, 0.0)
+        q = np.zeros((0, 3)) if self.body is None else self.drive(self.body.rest_positions, 0.0)
         b = self.rigid_bodies
         return State(
             q,
@@ -522,7 +588,7 @@ class Model:
                 f"{what} was made by another model than {self.name}: "
                 + "; ".join(layout.differences(self.layout))
             )
-        n = self.body.n_nodes
+        n = 0 if self.body is None else self.body.n_nodes
         b = len(self.rigid_bodies)
         cast = {}
         for name, shape in (

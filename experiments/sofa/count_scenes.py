@@ -75,7 +75,7 @@ def default_config(scene: Path) -> dict | None:
 
 
 WORKER = r"""
-import json, sys, numpy as np
+import inspect, json, sys, numpy as np
 from pliant.sofa import SceneError, load_scene
 path, config, gym = sys.argv[1], json.loads(sys.argv[2]), sys.argv[3] == "1"
 try:
@@ -87,7 +87,8 @@ try:
     detail = ""
     if gym and scene.root.getObject("Reward") is not None:
         goal = (config or {}).get("goalPos")
-        scene.root.Reward.update(goal) if goal is not None else scene.root.Reward.update()
+        takes = len(inspect.signature(scene.root.Reward.update).parameters)  # SofaGym: either
+        scene.root.Reward.update(goal) if goal is not None and takes else scene.root.Reward.update()
         for _ in range(2):
             state = solver.step(state)
         reward = scene.root.Reward.getReward()
@@ -152,8 +153,13 @@ def main() -> None:
                 config["goalPos"] = config["goalList"][0]
                 config["goal_node"] = 0
             if "board_dim" in config:  # BubbleMotion draws its ball and goal on the board
+                # Its environment draws the ball's start in [4, board_dim) and the goal in
+                # [1, 1 + board_dim) across the board; its reward divides by their initial
+                # distance across the board (x, y): the goal two cm off the start each way.
                 middle = config["board_dim"] / 2.0
-                config.update(init_pos=[middle, middle, 5.0], goalPos=[middle, middle, 2.0])
+                config.update(
+                    init_pos=[middle, middle, 5.0], goalPos=[middle - 2.0, middle + 2.0, 2.0]
+                )
             if not re.search(r"def createScene\(\s*\w+\s*,", scene.read_text()):
                 config = None  # a scene of the folder that takes no configuration
         jobs.append((scene, scene.relative_to(args.sofagym), config, True))

@@ -6,6 +6,7 @@ from __future__ import annotations
 import json
 import time
 import warnings
+from contextlib import nullcontext
 from pathlib import Path
 from typing import Annotated
 
@@ -90,15 +91,18 @@ def run(
     folder = out / robot
     images = []
     state = start = model.rest_state()
-    cell_type, cells, rows = model.body.vtk_cells()
-    rest = model.body.rest_positions[rows]
+    body = model.body  # None: rigid bodies alone (no VTU series, the frames only)
+    cell_type, cells, rows = body.vtk_cells() if body is not None else (None, None, None)
+    rest = body.rest_positions[rows] if body is not None else None
     if states:
         from pliant.viz.viewer import SERIES_FILE
 
         (folder / "states").mkdir(parents=True, exist_ok=True)
         write_json(folder / "states" / SERIES_FILE, {"robot": robot, "dt": dt}, indent=None)
     with (
-        VtuSeriesWriter(folder, robot, cells, cell_type) as vtu,
+        VtuSeriesWriter(folder, robot, cells, cell_type)
+        if body is not None
+        else nullcontext() as vtu,
         Progress(console=console) as bar,
     ):
         task = bar.add_task(f"{robot}: {n_steps} steps", total=n_steps)
@@ -106,20 +110,25 @@ def run(
             bar.advance(task)
             if state.step in frame_steps:
                 images.append(camera.frame(state, title=f"{robot}  t = {state.time:.2f} s"))
-                vtu.write(
-                    state.time,
-                    state.positions[rows],
-                    {
-                        "displacement": state.positions[rows] - rest,
-                        "velocity": state.velocities[rows],
-                    },
-                )
+                if vtu is not None:
+                    vtu.write(
+                        state.time,
+                        state.positions[rows],
+                        {
+                            "displacement": state.positions[rows] - rest,
+                            "velocity": state.velocities[rows],
+                        },
+                    )
                 if states:
                     state.save(folder / "states" / f"state_{state.step:06d}.npz")
     gif = save_gif(images, folder / f"{robot}.gif", fps=15)
     png = save_png(images[-1], folder / f"{robot}.png")
+    if body is None:
+        console.print(f"{len(model.rigid_bodies)} rigid bodies, {n_steps} steps")
+        console.print(f"saved {gif} and {png}")
+        return
     console.print(
-        f"{model.body.label}, {n_steps} steps; actuation"
+        f"{body.label}, {n_steps} steps; actuation"
         f" {np.round(state.actuation, 2).tolist()} -> displacement"
         f" {np.round(state.displacement, 2).tolist()}"
     )

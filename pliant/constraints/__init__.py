@@ -10,7 +10,7 @@ from pliant.constraints.control import DirectControl, InverseControl
 from pliant.constraints.effector import PositionEffector, RigidEffector
 from pliant.constraints.joint import RotationActuator
 from pliant.constraints.point import PointActuator
-from pliant.constraints.surface import SurfaceContact, body_pieces
+from pliant.constraints.surface import RigidSurfaceContact, SurfaceContact, body_pieces
 
 __all__ = [
     "Actuator",
@@ -27,6 +27,7 @@ __all__ = [
     "PositionEffector",
     "RigidEffector",
     "RotationActuator",
+    "RigidSurfaceContact",
     "SurfaceContact",
     "Weld",
     "body_pieces",

@@ -46,7 +46,7 @@ import numpy as np
 
 from pliant.constraints.base import Constraint, EmbeddedPoints, JacobianRows
 from pliant.constraints.friction import ContactConstraint
-from pliant.constraints.surface import SurfaceContact
+from pliant.constraints.surface import RigidSurfaceContact, SurfaceContact
 from pliant.errors import ContactError, ContactMarginWarning
 from pliant.fem.material import check_friction
 from pliant.fem.rigid import RigidBody, RigidStep, contact_twist_jacobian
@@ -155,10 +155,15 @@ class Contacts:
             piece against the surface of another), detected within `margin` each step and
             solved with the others; `shapes` may then be empty. Their rows follow the
             obstacles' and the planes'.
+        rigid_surfaces: points carried by the model's rigid bodies against triangles of the
+            body (:class:`RigidSurfaceContact`), coupled with the bodies as their shapes'
+            contacts are; their rows follow the surface contacts'.
     """
 
     #: The surface contacts between pieces of the body (none unless given).
     surfaces: Sequence[SurfaceContact] = ()
+    #: The contacts of rigid bodies' points with the body's triangles (none unless given).
+    rigid_surfaces: Sequence[RigidSurfaceContact] = ()
 
     def __init__(
         self,
@@ -172,15 +177,21 @@ class Contacts:
         thickness: float = 0.0,
         planes: PointPlanes | None = None,
         surfaces: Sequence[SurfaceContact] = (),
+        rigid_surfaces: Sequence[RigidSurfaceContact] = (),
     ) -> None:
         self.shapes = list(shapes)
         self.planes = planes
         if surfaces:  # else the class's empty default: the model's attributes stay as they were
             self.surfaces = list(surfaces)
-        if not self.shapes and planes is None and not surfaces:
+        if rigid_surfaces:
+            self.rigid_surfaces = list(rigid_surfaces)
+        if not self.shapes and planes is None and not surfaces and not rigid_surfaces:
             raise ContactError(
                 "Contacts needs at least one shape (or point planes, or surface contacts)"
             )
+        for surface in rigid_surfaces:
+            if not isinstance(surface, RigidSurfaceContact):
+                raise ContactError(f"not a RigidSurfaceContact: {surface!r}")
         for surface in surfaces:
             if not isinstance(surface, SurfaceContact):
                 raise ContactError(f"not a SurfaceContact: {surface!r}")
@@ -216,6 +227,11 @@ class Contacts:
         self.n_colliding = len(self.points)
         if self.surfaces and not self.points.linear:
             raise ContactError("surface contacts need colliding points linear in the nodes")
+        for surface in self.rigid_surfaces:
+            if not any(surface.body is b for b in self.bodies):
+                raise ContactError(f"{surface.name}: its rigid body is not one of the model's")
+            if surface.vertices.nodes.max() >= body.n_nodes:
+                raise ContactError(f"{surface.name}: its triangles read outside the body")
         for surface in self.surfaces:
             for points in (surface.points, surface.vertices):
                 if points.nodes.max() >= body.n_nodes:
@@ -378,6 +394,44 @@ class Contacts:
             return None
         return ContactConstraint.joined(parts) if len(parts) > 1 else parts[0]
 
+    def _rigid_surface_rows(self, positions, rigid: RigidStep, reach: np.ndarray):
+        """The rows of the rigid bodies' points against the body's triangles and their G
+        (the rigid point is side a: +frames . J(p)), or None when no point is near. A
+        contact's identity: the point, the pair (numbered after the surface contacts), twice
+        the triangle."""
+        first = len(self.shapes) + len(self.bodies) + 1 + len(self.surfaces)
+        parts, twist_rows, n = [], [], len(self.bodies)
+        for s, surface in enumerate(self.rigid_surfaces):
+            i = next(i for i, b in enumerate(self.bodies) if b is surface.body)
+            found = surface.detect_rigid(
+                positions,
+                self.margin + reach[i],
+                first + s,
+                rigid.positions[i],
+                rigid.rotations[i],
+            )
+            if found is None:
+                continue
+            contacts, nodes, weights, origin = found
+            parts.append(
+                ContactConstraint.relative(
+                    contacts, nodes, weights, origin, friction=surface.friction
+                )
+            )
+            twist_rows.append(
+                contact_twist_jacobian(
+                    contacts.frames,
+                    contacts.point_a,
+                    np.full(len(contacts), i),
+                    rigid.positions,
+                    n,
+                )
+            )
+        if not parts:
+            return None
+        rows = ContactConstraint.joined(parts) if len(parts) > 1 else parts[0]
+        return rows, np.vstack(twist_rows)
+
     def _colliding(self, positions: np.ndarray) -> np.ndarray:
         """The colliding points' positions (without the planes' offsets)."""
         return self.points.positions(positions)[: self.n_colliding]
@@ -442,6 +496,11 @@ class Contacts:
         if surface is not None:  # nor do the rows between pieces of the body
             rows = ContactConstraint.joined([rows, surface])
             jacobian = np.vstack([jacobian, np.zeros((3 * len(surface.contacts), 6 * n))])
+        if self.rigid_surfaces:
+            found = self._rigid_surface_rows(positions, rigid, reach)
+            if found is not None:
+                rows = ContactConstraint.joined([rows, found[0]])
+                jacobian = np.vstack([jacobian, found[1]])
         pairs = self._rigid_pairs(reach)
         if len(rows.contacts) + len(pairs) == 0:
             return None

@@ -164,7 +164,35 @@ class SurfaceContact:
             if id(points) not in placed:
                 placed[id(points)] = points.positions(x)
         p, vertices = placed[id(self.points)], placed[id(self.vertices)]
-        reach = margin + self.distance
+        found = self._nearest(p, vertices, margin + self.distance)
+        if found is None:
+            return None
+        pi, ti, bary, normal, closest, gap = found
+        d0 = p[pi] - closest
+        k = pi.size
+        contacts = ContactSet(
+            pi, np.full(k, index_b, dtype=np.int64), 2 * ti, gap, normal, p[pi], closest
+        )
+        pn, pw = self._point_rows
+        vn, vw_ = self._vertex_rows
+        corners = self.triangles[ti]  # (k, 3) vertices
+        nodes = np.concatenate([pn[pi], vn[corners].reshape(k, -1)], axis=1)
+        weights = np.concatenate(
+            [pw[pi], (-bary[:, :, None] * vw_[corners]).reshape(k, -1)], axis=1
+        )
+        return contacts, nodes, weights, d0
+
+    def _nearest(
+        self, p: np.ndarray, vertices: np.ndarray, reach: float, *, one_side: bool = False
+    ):
+        """The (point, triangle) pairs of the points `p` within `reach` of the triangles on
+        `vertices` (see the module docstring): point and triangle indices, barycentric
+        weights (k, 3), unit normals, closest points and gaps; None when no point is near.
+
+        With `one_side`, a point outside the surface (in front of its closest triangle) gets
+        no contact with a triangle it lies behind: that triangle is another sheet of the
+        surface seen through the body (the far side of a thin wall, the ceiling of a cavity
+        under a membrane), whose row would push the point into the body."""
         corners = vertices[self._used]
         lo, hi = corners.min(axis=0) - reach, corners.max(axis=0) + reach
         near = np.flatnonzero(np.all((p >= lo) & (p <= hi), axis=1))
@@ -207,30 +235,29 @@ class SurfaceContact:
         chosen &= dist <= reach
         if not chosen.any():
             return None
-        pi, ti, vw, feature, closest, on = (
+        nearest_of = np.zeros(pi.size, dtype=bool)
+        nearest_of[order[first]] = True
+        pi, ti, vw, feature, closest, on, nearest_of = (
             pi[chosen],
             ti[chosen],
             vw[chosen],
             feature[chosen],
             closest[chosen],
             on[chosen],
+            nearest_of[chosen],
         )
         bary = np.column_stack([1.0 - vw.sum(axis=1), vw])
         normal = self._normals(tri, face, ti, np.where(on, kernels.FACE, feature))
-        d0 = p[pi] - closest
-        gap = np.einsum("ij,ij->i", normal, d0) - self.distance
-        k = pi.size
-        contacts = ContactSet(
-            pi, np.full(k, index_b, dtype=np.int64), 2 * ti, gap, normal, p[pi], closest
-        )
-        pn, pw = self._point_rows
-        vn, vw_ = self._vertex_rows
-        corners = self.triangles[ti]  # (k, 3) vertices
-        nodes = np.concatenate([pn[pi], vn[corners].reshape(k, -1)], axis=1)
-        weights = np.concatenate(
-            [pw[pi], (-bary[:, :, None] * vw_[corners]).reshape(k, -1)], axis=1
-        )
-        return contacts, nodes, weights, d0
+        side = np.einsum("ij,ij->i", normal, p[pi] - closest)
+        if one_side:
+            outside = np.zeros(len(p), dtype=bool)
+            outside[pi[nearest_of]] = side[nearest_of] >= 0.0
+            keep = nearest_of | ~(outside[pi] & (side < 0.0))
+            if not keep.all():
+                pi, ti, bary, normal, closest, side = (
+                    a[keep] for a in (pi, ti, bary, normal, closest, side)
+                )
+        return pi, ti, bary, normal, closest, side - self.distance
 
     def _normals(
         self, tri: np.ndarray, face: np.ndarray, t: np.ndarray, feature: np.ndarray
@@ -259,6 +286,92 @@ class SurfaceContact:
                 np.add.at(corner, self.triangles[:, k], angle[:, None] * face)
             normal[on_vertex] = corner[self.triangles[t[on_vertex], feature[on_vertex]]]
         return normal / np.linalg.norm(normal, axis=1, keepdims=True)
+
+
+class RigidSurfaceContact(SurfaceContact):
+    """Points carried by a rigid body against the current surface triangles of the
+    deformable body (SOFA's point or sphere collision model of a rigid object against a
+    deformable TriangleCollisionModel).
+
+    The points sit at fixed places `local` in the rigid body's frame; a sphere is its centre
+    with its radius added to the contact distance. Each step, posed with the body at the
+    step's start, they are detected as :class:`SurfaceContact`'s points are, except that a
+    point in front of its closest triangle gets no contact with a triangle it lies behind
+    (another sheet of the surface within reach: a thin wall's far face, a cavity's ceiling
+    under a membrane, as on SOFA's BubbleMotion board; its row would push the point through
+    the body). The row reads
+    the relative point d = p - q as there, but p moves with the rigid body:
+
+        delta = phi + frames (q0 - q(x)) + h G u,
+
+    the triangle's part on its three nodes (weights -b_i, :meth:`ContactConstraint.relative`)
+    and G = frames . J(p) the rigid point's velocity in the body's twist u
+    (:func:`pliant.fem.rigid.contact_twist_jacobian`), coupled by the step as any contact
+    with a rigid body (:class:`pliant.constraints.contact.CoupledContact`).
+
+    Args:
+        body: the rigid body (one of the model's).
+        local: (k, 3) the points in the body's frame (relative to its centre of mass).
+        vertices, triangles: the deformable surface, as :class:`SurfaceContact`'s.
+        friction: Coulomb coefficient mu.
+        distance: the contact distance r; `radius` is added to it (a sphere's centre).
+        name: what to call the pair in errors.
+    """
+
+    def __init__(
+        self,
+        body,
+        local: np.ndarray,
+        vertices: EmbeddedPoints,
+        triangles: np.ndarray,
+        *,
+        friction: float = 0.0,
+        distance: float = 0.0,
+        radius: float = 0.0,
+        name: str = "rigid surface contact",
+    ) -> None:
+        local = np.asarray(local, dtype=float)
+        if local.ndim != 2 or local.shape[1] != 3 or len(local) == 0:
+            raise ContactError(f"{name}: local points must be a non-empty (k, 3) array")
+        if not np.all(np.isfinite(local)):
+            raise ContactError(f"{name}: local points must be finite")
+        if not (math.isfinite(radius) and radius >= 0.0):
+            raise ContactError(f"{name}: the radius must be finite and >= 0")
+        # The surface checks of SurfaceContact, with the body's points standing in for the
+        # colliding points (they read no node).
+        stand_in = EmbeddedPoints.at_nodes(np.zeros(len(local), dtype=np.int64))
+        stand_in.weights = np.zeros_like(stand_in.weights)
+        super().__init__(
+            stand_in,
+            vertices,
+            triangles,
+            friction=friction,
+            distance=distance + radius,
+            name=name,
+        )
+        self.body = body
+        self.local = local.copy()
+
+    def detect_rigid(
+        self, x: np.ndarray, margin: float, index_b: int, centre: np.ndarray, rotation
+    ):
+        """As :meth:`SurfaceContact.detect`, the points placed by the body's pose (`centre`,
+        `rotation`): the ContactSet (point_a the rigid point, in the world) and the rows'
+        (nodes, weights, origin) of the triangle's part, or None when no point is near."""
+        p = centre + self.local @ np.asarray(rotation).T
+        found = self._nearest(p, self.vertices.positions(x), margin + self.distance, one_side=True)
+        if found is None:
+            return None
+        pi, ti, bary, normal, closest, gap = found
+        k = pi.size
+        contacts = ContactSet(
+            pi, np.full(k, index_b, dtype=np.int64), 2 * ti, gap, normal, p[pi], closest
+        )
+        vn, vw = self._vertex_rows
+        corners = self.triangles[ti]
+        nodes = vn[corners].reshape(k, -1)
+        weights = (-bary[:, :, None] * vw[corners]).reshape(k, -1)
+        return contacts, nodes, weights, -closest
 
 
 def _twins(triangles: np.ndarray) -> np.ndarray:

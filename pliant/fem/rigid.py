@@ -106,6 +106,24 @@ class BodyForce:
         return np.vstack([skew(wrench[:3]), skew(wrench[3:])])
 
 
+class WorldForce:
+    """A force and a torque about the centre of mass fixed in the world (SOFA's
+    ConstantForceField on a Rigid3 frame: ``totalForce`` (fx fy fz tx ty tz)); `force` and
+    `torque` may be reassigned between steps (a controller pushing a cart). Taken at the start
+    of the step, like gravity."""
+
+    def __init__(self, force=(0.0, 0.0, 0.0), torque=(0.0, 0.0, 0.0)) -> None:
+        self.force = np.asarray(force, dtype=float).reshape(-1)
+        self.torque = np.asarray(torque, dtype=float).reshape(-1)
+        for label, v in (("force", self.force), ("torque", self.torque)):
+            if v.shape != (3,) or not np.all(np.isfinite(v)):
+                raise ModelError(f"WorldForce: the {label} must be a finite 3-vector")
+
+    def wrench(self, rotation: np.ndarray) -> np.ndarray:
+        """(6,) the force and torque (the same whatever the body's rotation)."""
+        return np.concatenate([self.force, self.torque])
+
+
 def _check_friction(friction: float, name: str) -> float:
     if not np.isscalar(friction):
         raise ModelError(f"{name}: the friction coefficient must be one number")
@@ -134,7 +152,12 @@ class RigidBody:
             torque -c I w, e.g. the drag of a fluid or of an air table (as Bullet's damping).
         position, rotation, velocity, angular_velocity: the initial state (default: the
             shape's pose, at rest).
-        forces: forces fixed in the body's frame (:class:`BodyForce`), turning with it.
+        forces: forces fixed in the body's frame (:class:`BodyForce`), turning with it, or
+            in the world (:class:`WorldForce`).
+        held: six flags, the components of the twist (v_x, v_y, v_z, w_x, w_y, w_z, world
+            frame) held at zero (SOFA's PartialFixedConstraint on a Rigid3 frame, a cart on
+            a rail): the step projects them out of the free twist and of M^-1, so that no
+            force moves the body along them (default: none held).
     """
 
     def __init__(
@@ -151,10 +174,19 @@ class RigidBody:
         velocity=(0.0, 0.0, 0.0),
         angular_velocity=(0.0, 0.0, 0.0),
         name: str = "body",
-        forces: Sequence[BodyForce] = (),
+        forces: Sequence[BodyForce | WorldForce] = (),
+        held: Sequence[bool] | None = None,
     ) -> None:
         self.name = name
         self.forces = list(forces)
+        self.held = None
+        if held is not None:
+            flags = np.asarray(held)
+            if flags.shape != (6,) or flags.dtype != bool:
+                raise ModelError(f"{name}: held must be six booleans, got {held!r}")
+            if flags.all():
+                raise ModelError(f"{name}: every motion held: a fixed body is an obstacle")
+            self.held = flags.copy() if flags.any() else None
         if shape.bounds() is None:
             raise ModelError(
                 f"{name}: a rigid body needs a bounded shape, got a {type(shape).__name__}"
@@ -409,6 +441,8 @@ def free_twists(
             twists[i, 3:] += dt * world_inverse @ wrench[3:]
         twists[i, :3] /= 1.0 + dt * b.linear_damping
         twists[i, 3:] /= 1.0 + dt * b.angular_damping
+        if b.held is not None:
+            twists[i, b.held] = 0.0
     return twists
 
 
@@ -422,6 +456,9 @@ def inverse_mass(bodies: list[RigidBody], rotations: np.ndarray, dt: float) -> n
         m_inv[i, 3:, i, 3:] = (rotations[i] @ b.inverse_inertia @ rotations[i].T) / (
             1.0 + dt * b.angular_damping
         )
+        if b.held is not None:  # P M^-1 P, P the projection off the held components
+            m_inv[i, b.held, i] = 0.0
+            m_inv[i, :, i, b.held] = 0.0
     return m_inv.reshape(6 * n, 6 * n)
 
 

@@ -366,9 +366,18 @@ class TriangleMesh(Shape):
 
     Raises ContactError if an edge is not shared by exactly two faces of opposite orientation
     (the mesh is not closed), or if the enclosed volume is not positive (normals inwards).
+
+    A point's side is read from the pseudo-normal of its closest feature (Baerentzen and
+    Aanaes 2005), exact for a surface that does not cross itself. With ``winding=True`` it is
+    read from the generalised winding number instead (inside where the faces' solid angles sum
+    to more than half a sphere; Jacobson et al. 2013), which stays right where a surface
+    overlaps itself (a decimated scan whose faces coincide, facing opposite ways), at a cost of
+    one pass over the faces per point.
     """
 
-    def __init__(self, vertices, faces, position=(0.0, 0.0, 0.0), rotation=None) -> None:
+    def __init__(
+        self, vertices, faces, position=(0.0, 0.0, 0.0), rotation=None, *, winding: bool = False
+    ) -> None:
         v = np.asarray(vertices, dtype=float)
         f = np.asarray(faces)
         if v.ndim != 2 or v.shape[1] != 3 or f.ndim != 2 or f.shape[1] != 3 or len(f) < 4:
@@ -396,6 +405,7 @@ class TriangleMesh(Shape):
         self._bvh = kernels.build_bvh(self._triangles)
         self._vertex_box = (v.min(axis=0), v.max(axis=0))
         self._pseudo_normals()
+        self.winding = bool(winding)
         super().__init__(position, rotation)
 
     def _check_closed(self) -> None:
@@ -459,13 +469,33 @@ class TriangleMesh(Shape):
         on_edge = (feature >= kernels.EDGE_AB) & (feature <= kernels.EDGE_CA)
         pseudo[on_edge] = self._edge_normals[tri[on_edge], feature[on_edge] - kernels.EDGE_AB]
         d = p - closest
-        sign = np.where(np.einsum("ij,ij->i", d, pseudo) < 0.0, -1.0, 1.0)
+        if self.winding:
+            sign = np.where(self.winding_number(p) > 0.5, -1.0, 1.0)
+        else:
+            sign = np.where(np.einsum("ij,ij->i", d, pseudo) < 0.0, -1.0, 1.0)
         length = np.sqrt(dist2)
         gap = sign * length
         normal = pseudo / np.linalg.norm(pseudo, axis=1, keepdims=True)
         off = length > 1e-12 * self._size
         normal[off] = d[off] / gap[off, None]
         return gap, normal, closest
+
+    def winding_number(self, p: np.ndarray) -> np.ndarray:
+        """(k,) the generalised winding number of points in the shape frame: the faces' solid
+        angles over 4 pi (Van Oosterom and Strackee's formula), 1 inside, 0 outside."""
+        out = np.empty(len(p))
+        for i, point in enumerate(np.asarray(p, dtype=float)):
+            a, b, c = (self._triangles[:, k] - point for k in range(3))
+            la, lb, lc = (np.linalg.norm(x, axis=1) for x in (a, b, c))
+            det = np.einsum("ij,ij->i", a, np.cross(b, c))
+            den = (
+                la * lb * lc
+                + np.einsum("ij,ij->i", a, b) * lc
+                + np.einsum("ij,ij->i", a, c) * lb
+                + np.einsum("ij,ij->i", b, c) * la
+            )
+            out[i] = np.arctan2(det, den).sum() / (2.0 * np.pi)
+        return out
 
     def _local_box(self):
         return self._vertex_box

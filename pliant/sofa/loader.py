@@ -41,7 +41,7 @@ from pliant.constraints.cavity import CavityActuator, enclosed_volume
 from pliant.constraints.contact import Contacts, PointPlanes
 from pliant.constraints.effector import PositionEffector
 from pliant.constraints.point import PointActuator
-from pliant.constraints.surface import SurfaceContact
+from pliant.constraints.surface import RigidSurfaceContact, SurfaceContact
 from pliant.errors import ContactError, ModelError
 from pliant.fem.body import TetBody, fixed_components, nodes_in_box
 from pliant.fem.loads import EmbeddedSprings, Load, NodalForces, RestShapeSprings
@@ -52,10 +52,18 @@ from pliant.geometry.collision import Box, Plane, TriangleMesh
 from pliant.mesh.quality import signed_volumes
 from pliant.mesh.tetmesh import TetMesh
 from pliant.model import Model, State
-from pliant.sofa import reduced, rods
-from pliant.sofa.bodies import Part, check_held_if_massless, contact_problem, join, surface_pairs
+from pliant.sofa import reduced, rigid_scene, rods
+from pliant.sofa.bodies import (
+    Part,
+    _groups,
+    check_held_if_massless,
+    contact_problem,
+    join,
+    surface_pairs,
+)
 from pliant.sofa.components import FIELDS, is_visual
 from pliant.sofa.grids import GRIDS, HEXAHEDRA, grid_tetrahedra, hex_body
+from pliant.sofa.prefabs.stlib import SHARED_MESHES
 from pliant.sofa.rigids import (
     MASS_GENERATOR,
     SPHERE_MODEL,
@@ -74,6 +82,7 @@ from pliant.sofa.tree import (
     SceneNode,
     SceneObject,
     close_match,
+    flatten,
     read_scene,
 )
 
@@ -222,6 +231,8 @@ HANDLED = HANDLED | ARTICULATED
 # A body's state read from a file (pliant.sofa.states); springs between points the body
 # carries (pliant.fem.loads.EmbeddedSprings).
 HANDLED = HANDLED | {"ReadState", "MeshSpringForceField"}
+# Joints between rigid bodies, in scenes of rigid bodies alone (pliant.sofa.rigid_scene).
+HANDLED = HANDLED | rigid_scene.JOINTS
 # Components Pliant knows but cannot map, and why (their data are still checked).
 UNSUPPORTED = {
     # SoftRobots registers it on Vec1 only: an articulation's angle or course, which an
@@ -395,6 +406,9 @@ class SofaScene:
                 dofs.attrs["position"] = _frozen(x[None])
                 continue
             dofs.attrs["position"] = _frozen(np.concatenate([x, Rotation.from_matrix(r).as_quat()]))
+        for dofs, i, local in bindings.carried:  # points on a rigid body (RigidMapping)
+            x, r = state.rigid_positions[i], state.rigid_rotations[i]
+            dofs.attrs["position"] = _frozen(x + local @ r.T)
         for dofs, frames in bindings.frames:  # Rigidify's frames: a rigid body's, or held
             poses = []
             for index, x, r in frames:
@@ -461,6 +475,9 @@ class Bindings:
     bodies: list[tuple[SceneObject, slice]] = dataclasses.field(default_factory=list)
     mapped: list[tuple[SceneObject, EmbeddedPoints]] = dataclasses.field(default_factory=list)
     rigid: list[SceneObject] = dataclasses.field(default_factory=list)
+    # Points carried by a rigid body through a RigidMapping: their MechanicalObject, the
+    # body's index and the points in its frame.
+    carried: list[tuple[SceneObject, int, np.ndarray]] = dataclasses.field(default_factory=list)
     written: list[np.ndarray] = dataclasses.field(default_factory=list)  # as last written
     # Rigidify's frames: their MechanicalObject, and for each frame (rigid body index or None
     # where it is held, its initial position and rotation).
@@ -586,20 +603,11 @@ def load_scene(
 
 def _floats(value, what: str) -> np.ndarray:
     """A scene value (string of numbers, number, or sequence) as a flat float array."""
-    parts = value.replace(",", " ").split() if isinstance(value, str) else list(_flatten(value))
+    parts = value.replace(",", " ").split() if isinstance(value, str) else list(flatten(value))
     try:
         return np.array([float(p) for p in parts], dtype=float)
     except (TypeError, ValueError) as exc:
         raise SceneError(f"{what}: expected numbers, got {value!r}") from exc
-
-
-def _flatten(value):
-    """The numbers of a nested sequence (lists, tuples, arrays, mixed as scripts build them)."""
-    if isinstance(value, (list, tuple, np.ndarray)):
-        for item in value:
-            yield from _flatten(item)
-    else:
-        yield value
 
 
 def _value_type(obj: SceneObject, options: tuple[str, ...]) -> str:
@@ -691,8 +699,9 @@ def _sphere_nodes(roi: SceneObject, points: np.ndarray) -> np.ndarray:
 
 def _read_obj(file: Path) -> meshio.Mesh:
     """An OBJ file's vertices and faces (polygons fanned into triangles), for files meshio
-    refuses (texture coordinates that do not match the vertices)."""
-    points, faces = [], []
+    refuses (texture coordinates that do not match the vertices), and its lines (polylines
+    cut into edges) where it has some."""
+    points, faces, lines = [], [], []
     for line in file.read_text(errors="replace").splitlines():
         parts = line.split()
         if not parts:
@@ -703,7 +712,14 @@ def _read_obj(file: Path) -> meshio.Mesh:
             ids = [int(p.split("/")[0]) for p in parts[1:]]
             ids = [i - 1 if i > 0 else len(points) + i for i in ids]
             faces += [[ids[0], ids[k], ids[k + 1]] for k in range(1, len(ids) - 1)]
-    return meshio.Mesh(np.array(points), [("triangle", np.array(faces, dtype=np.int64))])
+        elif parts[0] == "l":
+            ids = [int(p.split("/")[0]) for p in parts[1:]]
+            ids = [i - 1 if i > 0 else len(points) + i for i in ids]
+            lines += [[a, b] for a, b in zip(ids[:-1], ids[1:], strict=True)]
+    cells = [("triangle", np.array(faces, dtype=np.int64))]
+    if lines:
+        cells.append(("line", np.array(lines, dtype=np.int64)))
+    return meshio.Mesh(np.array(points), cells)
 
 
 def _read_gid(file: Path) -> meshio.Mesh:
@@ -776,13 +792,24 @@ class _Builder:
             scene = SofaScene(model, dt, solver_kind, self.path, self.root, Bindings(hooks=[rod]))
             scene.write_outputs(model.rest_state())
             return scene
+        if rigid_scene.is_rigid_scene(self):  # rigid bodies alone
+            return self._rigid_scene()
+        joints = [
+            f"{o.type} (at {n.path})"
+            for n in self.root.walk()
+            for o in n.objects
+            if o.type in rigid_scene.JOINTS
+        ]
+        if joints:
+            raise SceneError(
+                f"{self.path.name}: joints between rigid bodies are read in scenes of rigid"
+                " bodies alone (no deformable body), not beside a deformable body: "
+                + "; ".join(joints)
+            )
         self._servos = read_servos(self.root)
         nodes = self._body_nodes()
         body_node = nodes[0]
-        dt = float(_floats(self.root.attrs.get("dt", 0.01), "root.dt")[0])
-        gravity = _floats(self.root.attrs.get("gravity", "0 -9.81 0"), "root.gravity")
-        if gravity.size != 3:
-            raise SceneError(f"root.gravity: three values expected, got {gravity.size}")
+        dt, gravity = self._scene_time()
         parts = [Part(n, *self._body(n, gravity)) for n in nodes]
         body, mesh, solver_kind = parts[0].body, parts[0].mesh, parts[0].solver_kind
         unread = [
@@ -871,6 +898,7 @@ class _Builder:
             for n in self.root.walk()
             if self._is_rigid(n)
         ]
+        self.bindings.carried = self._rigidly_carried(rigid)
         self.bindings.servos = list(self._servos.values())
         self.bindings.frames, k = [], len(rigid)
         for g in self._rigidified:  # the rigid bodies of the free frames follow the others
@@ -881,6 +909,82 @@ class _Builder:
                 k += not g.fixed[j]
             self.bindings.frames.append((g.dofs, entries))
         scene = SofaScene(model, dt, solver_kind, self.path, self.root, self.bindings)
+        scene.write_outputs(model.rest_state())
+        self._default_positions()
+        return scene
+
+    def _rigidly_carried(self, rigid: list[RigidBody]) -> list[tuple[SceneObject, int, np.ndarray]]:
+        """The points that the rigid bodies' child nodes carry by a ``RigidMapping`` (a
+        Goal, a collision surface), each body's in its frame: the child's MechanicalObject's
+        points (SOFA's one point at the origin when it gives none and no mesh sizes it, then
+        its transform), taken as offsets in the frame, or, with the mapping's
+        ``globalToLocalCoords``, as world points brought into the body's first pose."""
+        found = []
+        for i, dofs in enumerate(self.bindings.rigid[: len(rigid)]):
+            if dofs is None or not str(dofs.attrs.get("template", "")).startswith("Rigid3"):
+                continue
+            for child in dofs.node.children:
+                mappings = [o for o in child.objects if o.type == "RigidMapping"]
+                points = [o for o in child.objects if o.type == "MechanicalObject"]
+                if not mappings or len(points) != 1 or "rigidIndexPerPoint" in mappings[0].attrs:
+                    continue
+                if not str(points[0].attrs.get("template", "Vec3")).startswith("Vec3"):
+                    continue  # a frame carried by the body (Rigid3 to Rigid3): not points
+                if int(_float(mappings[0], "index", 0)) != 0:
+                    raise SceneError(
+                        f"{mappings[0].path}: a rigid body has one frame (index 0), not"
+                        f" {mappings[0].attrs['index']}"
+                    )
+                local = self._own_points(child, points[0])
+                if _flag(mappings[0], "globalToLocalCoords", False):
+                    local = (local - rigid[i].position) @ rigid[i].rotation
+                found.append((points[0], i, local))
+        return found
+
+    def _own_points(self, node: SceneNode, dofs: SceneObject) -> np.ndarray:
+        """A MechanicalObject's points as SOFA initialises them: its own positions (or its
+        mesh's), else ``size`` points (SOFA's default: one) at the origin, transformed."""
+        sized = "position" in dofs.attrs or "src" in dofs.attrs
+        if sized or any(o.type in MESH_LOADERS for o in node.objects):
+            return self._positions(node, dofs)
+        if any(o.type in TOPOLOGIES and "position" in o.attrs for o in node.objects):
+            raise SceneError(f"{dofs.path}: points given by a topology's position are not read")
+        size = int(_float(dofs, "size", 0)) if "size" in dofs.attrs else 0
+        return _placed(dofs, np.zeros((max(size, 1), 3)))
+
+    def _default_positions(self) -> None:
+        """SOFA's default positions for the Vec3 MechanicalObjects the scene gives none (nor a
+        mesh to read): ``size`` points (one unless given) at the origin under the object's
+        transform, as scripts then read them (after the model is built: nothing in it reads
+        them)."""
+        for node in self.root.walk():
+            if any(o.type in MESH_LOADERS or o.type in TOPOLOGIES for o in node.objects):
+                continue
+            for dofs in node.objects:
+                if (
+                    dofs.type == "MechanicalObject"
+                    and "position" not in dofs.attrs
+                    and "src" not in dofs.attrs
+                    and str(dofs.attrs.get("template", "Vec3")).startswith("Vec3")
+                ):
+                    dofs.attrs["position"] = _frozen(self._own_points(node, dofs))
+
+    def _scene_time(self) -> tuple[float, np.ndarray]:
+        """The root's dt and gravity."""
+        dt = float(_floats(self.root.attrs.get("dt", 0.01), "root.dt")[0])
+        gravity = _floats(self.root.attrs.get("gravity", "0 -9.81 0"), "root.gravity")
+        if gravity.size != 3:
+            raise SceneError(f"root.gravity: three values expected, got {gravity.size}")
+        return dt, gravity
+
+    def _rigid_scene(self) -> SofaScene:
+        """A scene of rigid bodies alone (pliant.sofa.rigid_scene)."""
+        dt, gravity = self._scene_time()
+        model, dofs, hook = rigid_scene.rigid_model(self, dt, gravity)
+        for obj in [o for n in self.root.walk() for o in n.objects if o.type in MESH_LOADERS]:
+            init_loader(obj)  # SOFA initialises them: their outputs, for the scripts
+        bindings = Bindings(rigid=dofs, hooks=[hook])
+        scene = SofaScene(model, dt, "dynamic", self.path, self.root, bindings)
         scene.write_outputs(model.rest_state())
         return scene
 
@@ -947,7 +1051,9 @@ class _Builder:
         ``alarmDistance`` is the contact margin, ``contactDistance`` the points' thickness,
         the response's ``mu`` the friction everywhere. Of several deformable bodies, the
         points of one touch the triangles of another (SurfaceContact) where SOFA tests the
-        two models against each other (:func:`pliant.sofa.bodies.surface_pairs`)."""
+        two models against each other (:func:`pliant.sofa.bodies.surface_pairs`), and the
+        points (or sphere) of a rigid body touch a body's TriangleCollisionModel
+        (RigidSurfaceContact) where they share no ``group``."""
         intersection = [o for n in self.root.walk() for o in n.objects if o.type in INTERSECTIONS]
         models = [o for n in self.root.walk() for o in n.objects if o.type in COLLISION_MODELS]
         if not models or not self._detects():
@@ -959,6 +1065,10 @@ class _Builder:
         rigid_nodes = [n for n in self.root.walk() if self._is_rigid(n)]
         rigid = [self._rigid_body(n, friction) for n in rigid_nodes]
         inside_rigid = {id(c) for n in rigid_nodes for c in n.walk()}
+        rigid_models = [
+            [o for c in n.walk() for o in c.objects if o.type in COLLISION_MODELS]
+            for n in rigid_nodes
+        ]
         points, obstacles, joined = [], [], []
         on_bodies: list[tuple[int, SceneObject]] = []  # (part, model) of the bodies' models
         embedded_at: dict[int, EmbeddedPoints] = {}  # a node's collision points
@@ -971,8 +1081,11 @@ class _Builder:
                 k = parts.index(part)
                 on_bodies += [(k, o) for o in node.objects if o.type in COLLISION_MODELS]
                 if "PointCollisionModel" not in types:
-                    if len(parts) > 1 and "TriangleCollisionModel" in types:
-                        continue  # another body's points may touch its triangles
+                    touched = len(parts) > 1 or any(
+                        _touches(m, o) for ms in rigid_models for m in ms for o in node.objects
+                    )
+                    if touched and "TriangleCollisionModel" in types:
+                        continue  # another body's or a rigid body's points may touch them
                     raise SceneError(
                         f"{node.path}: the body collides by points only (PointCollisionModel),"
                         f" not by {', '.join(sorted(types & COLLISION_MODELS))}"
@@ -993,6 +1106,23 @@ class _Builder:
                 embedded_at[id(node)] = joined[-1]
             else:
                 obstacles.append(self._obstacle(node))
+        rigid_surfaces = [
+            RigidSurfaceContact(
+                rigid[r],
+                _rigid_points(rigid[r].shape)[0],
+                *self._surface(b.node, parts[k], mesh),
+                friction=friction,
+                distance=thickness,
+                radius=_rigid_points(rigid[r].shape)[1],
+                name=f"{rigid_nodes[r].path} on {b.node.path}",
+            )
+            for r, models in enumerate(rigid_models)
+            for k, b in on_bodies
+            if any(_touches(m, b) for m in models)
+        ]
+        if not points and rigid_surfaces:  # the body is touched by its triangles only
+            joined = [EmbeddedPoints.at_nodes(np.zeros(0, dtype=np.int64))]
+            points = [np.zeros((0, 3))]
         if not points:
             models = ", ".join(o.path for _, o in on_bodies)
             raise SceneError(
@@ -1017,11 +1147,11 @@ class _Builder:
         ]
         if not obstacles and not rigid and not surfaces:  # SOFA detects nothing: no contact
             return None, []
-        if rigid and not obstacles:
+        if rigid and not obstacles and not rigid_surfaces:
             raise SceneError(f"{self.path.name}: rigid bodies need a static obstacle too")
         embedded = (
-            EmbeddedPoints.stack(joined)  # each body's points in its own mesh
-            if len(parts) > 1
+            EmbeddedPoints.stack(joined)  # each body's points in its own mesh (or none)
+            if len(parts) > 1 or not any(len(p) for p in points)
             else EmbeddedPoints(
                 mesh,
                 np.vstack(points),
@@ -1036,6 +1166,7 @@ class _Builder:
             points=embedded,
             thickness=thickness,
             surfaces=surfaces,
+            rigid_surfaces=rigid_surfaces,
         )
         return contacts, rigid
 
@@ -1571,8 +1702,18 @@ class _Builder:
 
     def _loaded(self, loader: SceneObject) -> tuple[np.ndarray, dict[str, np.ndarray]]:
         """The loader's points (transformed as SOFA's MeshLoader does: scale, then rotation,
-        then translation) and its cells by type, in the file's order."""
-        file = self._resolve_file(loader)
+        then translation) and its cells by type, in the file's order. A SOFA shared mesh
+        (``mesh/cube.obj``, which SOFA finds in its own share folder) not beside the scene is
+        the one STLIB's prefabs write out (:data:`pliant.sofa.prefabs.stlib.SHARED_MESHES`)."""
+        try:
+            file = self._resolve_file(loader)
+        except SceneError:
+            name = str(loader.attrs.get("filename", "")).replace("\\", "/")
+            if name not in SHARED_MESHES:
+                raise
+            points, faces = SHARED_MESHES[name]
+            triangles = np.asarray(faces, dtype=np.int64)
+            return _placed(loader, np.asarray(points, dtype=float)), {"triangle": triangles}
         try:
             with warnings.catch_warnings():
                 # meshio sniffs an ASCII STL as binary first, with an integer overflow warning.
@@ -2350,9 +2491,37 @@ def _init_rigid_mass(obj: SceneObject) -> None:
     generate_rigid_mass(_script_builder(obj.node), obj)
 
 
+def init_loader(loader: SceneObject) -> None:
+    """A mesh loader's init(): its ``position`` (placed), ``edges`` and ``triangles`` outputs,
+    where not set, as scripts read them (SofaGym's SimpleMaze walks its path's edges)."""
+    points, cells = _script_builder(loader.node)._loaded(loader)
+    outputs = {"position": points, "edges": cells.get("line"), "triangles": cells.get("triangle")}
+    for key, value in outputs.items():
+        if value is not None and (key not in loader.attrs or _is_link(loader.attrs[key])):
+            loader.attrs[key] = _frozen(value) if key == "position" else _frozen(value).astype(int)
+
+
 INITIALISERS.update(
+    **dict.fromkeys(MESH_LOADERS - {"GIDMeshLoader"}, init_loader),
     MechanicalObject=_init_positions,
     BoxROI=_init_roi,
     SphereROI=_init_roi,
     GenerateRigidMass=_init_rigid_mass,
 )
+
+
+def _touches(model: SceneObject, triangles: SceneObject) -> bool:
+    """Whether SOFA tests a rigid body's collision `model` (points, triangles or a sphere)
+    against a deformable body's `triangles`: a TriangleCollisionModel, no group in common."""
+    return triangles.type == "TriangleCollisionModel" and not (_groups(model) & _groups(triangles))
+
+
+def _rigid_points(shape) -> tuple[np.ndarray, float]:
+    """The points of a rigid body's shape that touch a deformable surface, in its frame, and
+    their radius: a sphere's centre (its radius), a box's corners, a mesh's vertices."""
+    if isinstance(shape, Box):
+        signs = np.array([[i, j, k] for i in (-1, 1) for j in (-1, 1) for k in (-1, 1)])
+        return signs * shape.half_extents, 0.0
+    if isinstance(shape, TriangleMesh):
+        return shape.vertices, 0.0
+    return np.zeros((1, 3)), float(shape.radius)

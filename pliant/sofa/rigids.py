@@ -235,9 +235,35 @@ def rigid_body(builder: _Builder, node: SceneNode, friction: float) -> RigidBody
         inertia = m * values[2:].reshape(3, 3)
     shape.set_pose(position, rotation)
     try:
-        return RigidBody(shape, m, inertia, friction=friction, name=node.name)
+        return RigidBody(
+            shape, m, inertia, friction=friction, name=node.name, held=_held(node, dofs)
+        )
     except ModelError as exc:
         raise SceneError(f"{node.path}: {exc}") from exc
+
+
+def _held(node: SceneNode, dofs: SceneObject) -> np.ndarray | None:
+    """The twist components a PartialFixedConstraint on the body's node holds (its
+    ``fixedDirections``: x y z, then rx ry rz on a Rigid3 frame, world axes), or None."""
+    held = np.zeros(6, dtype=bool)
+    for obj in node.objects:
+        if obj.type not in ("PartialFixedConstraint", "PartialFixedProjectiveConstraint"):
+            continue
+        indices = field_numbers(obj, "indices", [0])
+        fix_all = str(obj.attrs.get("fixAll", False)).strip().lower() in ("1", "true", "yes")
+        if not fix_all and 0 not in indices:
+            continue  # it holds another frame: the body has one
+        directions = field_numbers(obj, "fixedDirections", [1, 1, 1]) != 0
+        size = 6 if _template(dofs).startswith("Rigid3") else 3
+        if directions.size != size:
+            raise SceneError(
+                f"{obj.path}.fixedDirections: {size} flags for a {_template(dofs)} frame,"
+                f" got {directions.size}"
+            )
+        held[:size] |= directions
+    if held.all():
+        raise SceneError(f"{node.path}: every motion held by a PartialFixedConstraint")
+    return held if held.any() else None
 
 
 def static_sphere(builder: _Builder, node: SceneNode) -> Sphere:

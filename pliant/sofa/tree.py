@@ -87,7 +87,20 @@ def field_numbers(obj: SceneObject, key: str, default) -> np.ndarray:
     try:
         return np.atleast_1d(np.asarray(data_value(raw), dtype=float)).ravel()
     except (TypeError, ValueError):
+        pass
+    try:  # nested lists of unequal lengths (a rigid mass as [m, V, [I (9)]]), flattened
+        return np.asarray(list(flatten(data_value(raw))), dtype=float)
+    except (TypeError, ValueError):
         raise SceneError(f"{obj.path}.{key}: expected numbers, got {raw!r}") from None
+
+
+def flatten(value):
+    """The numbers of a nested sequence (lists, tuples, arrays, mixed as scripts build them)."""
+    if isinstance(value, (list, tuple, np.ndarray)):
+        for item in value:
+            yield from flatten(item)
+    else:
+        yield value
 
 
 class Data:
@@ -143,7 +156,9 @@ class Data:
 
     @contextmanager
     def writeable(self):
-        array = np.array(self.value, dtype=float)
+        value = self.value  # index fields stay integers, as SofaPython3 gives them
+        integer = isinstance(value, np.ndarray) and value.dtype.kind in "iu"
+        array = np.array(value, dtype=np.int64 if integer else float)
         yield array
         self.owner.attrs[self.key] = array
 

@@ -55,6 +55,11 @@ open, and a contact that stays open needs no force, so the step solves those clo
 last step or approaching fast enough to close, and takes in the others only where its
 solution would close them. The solution is the whole problem's; the compliance columns solved
 are those of the few points that touch (the Trunk pushing a cube: 4 of 75 points).
+
+A model of rigid bodies alone (no deformable body, ``Model(None, ...)``) is stepped by the
+rigid bodies' scheme (:class:`pliant.solvers.rigid.RigidSolver`: the same free motion, M^-1
+and contact solver as the coupled step, with the model's joints, obstacles and contact law);
+the state carries no nodes.
 """
 
 from __future__ import annotations
@@ -72,7 +77,7 @@ from pliant.constraints.friction import ContactForces, ContactReport, ContactSol
 from pliant.errors import ConstraintError, DivergenceError, ModelError, SolverError
 from pliant.fem.body import PARALLEL_MIN_TETS
 from pliant.fem.kernels import equal_2d
-from pliant.fem.rigid import RigidStep, integrate_poses
+from pliant.fem.rigid import KinematicBody, RigidStep, integrate_poses
 from pliant.model import ConstraintSpace, Model, State
 from pliant.solvers.base import (
     StepReport,
@@ -83,6 +88,7 @@ from pliant.solvers.base import (
 )
 from pliant.solvers.compliance import PointCompliance, PointRows
 from pliant.solvers.compliance_kernels import framed_block
+from pliant.solvers.rigid import RigidSolver, RigidState, RigidWorld
 from pliant.solvers.system import LinearisedSystem, TangentPolicy
 
 #: The slices of a problem without rows (as Model.constraint_space gives them).
@@ -146,6 +152,16 @@ class ImplicitEuler:
             screen_gap = number_option(screen_gap, "screen_gap", at_least=0.0)
         self.model = model
         self.first_order = bool(first_order)
+        self.last_report = StepReport()
+        self._rigid_solver = None
+        if model.body is None:
+            if self.first_order:
+                raise ModelError(
+                    f"{model.name} has no deformable body: first_order (no inertia) does not"
+                    " apply to its rigid bodies, stepped with their inertia"
+                )
+            self._rigid_solver = _rigid_solver(model, self.dt)
+            return
         _check_massless_held(model)
         self.system = LinearisedSystem(model.body, policy=tangent, rtol=rtol)
         self._objects, self._object_rows = self._find_objects()
@@ -160,6 +176,7 @@ class ImplicitEuler:
             and model.contacts is not None
             and model.contacts.points.linear
             and not model.contacts.surfaces  # rows on relative points: columns every step
+            and not model.contacts.rigid_surfaces
             else None
         )
         self._row_points: dict[tuple[str, ...] | None, PointRows | None] = {}
@@ -180,7 +197,6 @@ class ImplicitEuler:
             model.actuators or model.effectors or model.attachments or model.contacts is not None
         )
         self._gravity = body.gravity_forces()
-        self.last_report = StepReport()
         # The linearisation of the last state returned, checked before it was (see `step`);
         # off while `condense` takes its passive step.
         self._ahead: LookAhead | None = None
@@ -211,6 +227,8 @@ class ImplicitEuler:
         """
         model, body, h = self.model, self.model.body, self.dt
         state = model.check_state(state)
+        if self._rigid_solver is not None:
+            return self._rigid_step_only(state, control)
         ctrl = begin_control(model, state, control)
         step = state.step + 1
         at = model.drive(state.positions, state.time + h) if model.drivers else state.positions
@@ -321,6 +339,41 @@ class ImplicitEuler:
             contact=contact_report,
         )
         return new
+
+    def _rigid_step_only(self, state: State, control) -> State:
+        """A step of a model without deformable body (module docstring)."""
+        if control is not None and np.size(control) != 0:
+            raise ModelError(f"{self.model.name} has no actuators; got a control {control!r}")
+        solver = self._rigid_solver
+        solver.dt = self.dt
+        after = solver.step(
+            RigidState(
+                state.rigid_positions,
+                state.rigid_rotations,
+                state.rigid_velocities,
+                state.rigid_angular_velocities,
+                state.time,
+                state.step,
+                state.contact_forces,
+            )
+        )
+        self.last_report = StepReport(contact=solver.last_report)
+        none = np.zeros((0, 3))
+        return State(
+            none,
+            none.copy(),
+            after.time,
+            after.step,
+            np.zeros(0),
+            np.zeros(0),
+            after.contacts,
+            after.positions,
+            after.rotations,
+            after.velocities,
+            after.angular_velocities,
+            displacement_before=np.zeros(0),
+            layout=self.model.layout,
+        )
 
     def _linearise(self, state: State, *, reuse: bool = True):
         """The body linearised at `state` with the velocities of a step from it (driven nodes
@@ -609,6 +662,44 @@ class ImplicitEuler:
         finally:
             self.system.policy, self._look_ahead = saved, True
         return self.last_report.problem
+
+
+def _rigid_solver(model: Model, dt: float) -> RigidSolver:
+    """The rigid bodies' solver of a model without deformable body: its bodies, joints, moving
+    obstacles and the other shapes of its contacts (still, each with its friction), its
+    gravity, and its contacts' margin and tolerance."""
+    contacts = model.contacts
+    moving = {id(o.shape) for o in model.obstacles}
+    still = []
+    if contacts is not None:
+        if contacts.planes is not None or contacts.surfaces or contacts.points is not None:
+            raise ModelError(
+                f"{model.name}: contact points, point planes and surface contacts are a"
+                " deformable body's; a model without one collides its rigid bodies with shapes"
+            )
+        still = [
+            KinematicBody(shape, friction=float(mu), name=f"shape {i}")
+            for i, (shape, mu) in enumerate(
+                zip(
+                    contacts.shapes,
+                    np.broadcast_to(contacts.friction, len(contacts.shapes)),
+                    strict=True,
+                )
+            )
+            if id(shape) not in moving
+        ]
+    world = RigidWorld(
+        model.rigid_bodies, [*still, *model.obstacles], gravity=model.gravity, joints=model.joints
+    )
+    if contacts is None:
+        return RigidSolver(world, dt)
+    return RigidSolver(
+        world,
+        dt,
+        margin=contacts.margin or 0.0,
+        tolerance=contacts.tolerance,
+        max_iterations=contacts.max_iterations,
+    )
 
 
 def _check_massless_held(model: Model) -> None:

@@ -3,6 +3,14 @@ constraint space: the velocity-level time stepping of Stewart and Trinkle (IJNME
 Anitescu and Potra (1997) written in the compliance form of the deformable step, with the free
 motion, M^-1 and the contact Jacobian of the bodies (pliant.fem.rigid, whose module docstring
 states the scheme) and one contact solver for both (pliant.constraints.friction).
+
+Joints (:mod:`pliant.constraints.rigid_joints`: ball, sliding, locked axes) add bilateral rows
+G after the contact rows: W gains h^2 G M^-1 G^T and its coupling with the contacts,
+delta_free the joints' delta(q) + h G u_free; the joint rows are eliminated (their Schur
+complement, :func:`pliant.constraints.attachment.eliminate`) before the contact solver sees
+the problem, and u = u_free + h M^-1 (J^T lambda_c + G^T lambda_j). A spring's rows
+(RestSpring) add their compliance 1 / k to W's diagonal: the spring acts at the end of the
+step. Without joints the step is the contact step alone.
 """
 
 from __future__ import annotations
@@ -12,9 +20,16 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from pliant.constraints.attachment import eliminate
 from pliant.constraints.condensed import CondensedProblem
 from pliant.constraints.friction import ContactForces, ContactReport, solve_contact
-from pliant.errors import DivergenceError, ModelError
+from pliant.constraints.rigid_joints import (
+    RigidJoint,
+    check_joints,
+    joint_compliance,
+    joint_rows,
+)
+from pliant.errors import DivergenceError, ModelError, SolverError
 from pliant.fem.rigid import (
     KinematicBody,
     RigidBody,
@@ -65,7 +80,8 @@ class RigidState:
 
 class RigidWorld:
     """Dynamic rigid bodies, obstacles (kinematic bodies, or plain shapes held still) and
-    gravity. The model: built once; what changes lives in RigidState."""
+    gravity, and the joints between the bodies (:mod:`pliant.constraints.rigid_joints`). The
+    model: built once; what changes lives in RigidState."""
 
     def __init__(
         self,
@@ -73,8 +89,11 @@ class RigidWorld:
         obstacles: list[KinematicBody | Shape] = (),
         *,
         gravity=(0.0, 0.0, -9.81),
+        joints: list[RigidJoint] = (),
     ) -> None:
         self.bodies = list(bodies)
+        self.joints = list(joints)
+        check_joints(self.joints, self.bodies)
         self.obstacles = [
             o if isinstance(o, KinematicBody) else KinematicBody(o) for o in obstacles
         ]
@@ -196,6 +215,15 @@ class RigidSolver:
                     obstacle_velocity[c] += sign * frames[c] @ velocity
         return jac, obstacle_velocity
 
+    def _with_joints(self, state, jac, delta_free, u_free):
+        """The contact rows then the joints' (module docstring): the rows' Jacobian on the
+        twists and their delta_free."""
+        world, h = self.world, self.dt
+        distance, rows = joint_rows(world.joints, world.bodies, state.positions, state.rotations)
+        jac = np.vstack([jac, rows])
+        delta_free = np.concatenate([delta_free, distance + h * (rows @ u_free)])
+        return jac, delta_free
+
     def step(self, state: RigidState) -> RigidState:
         """The state one step h later (see the module docstring); raises DivergenceError if
         it is not finite."""
@@ -227,19 +255,31 @@ class RigidSolver:
             * np.array([colliders[j].friction for j in contacts.index_b])
         )
         empty = slice(0, 0)
-        problem = CondensedProblem(
-            0.5 * (compliance + compliance.T),
-            delta_free,
-            {"actuator": empty, "effector": empty, "contact": slice(0, 3 * k)},
-        )
+        slices = {"actuator": empty, "effector": empty, "contact": slice(0, 3 * k)}
+        if world.joints:  # their rows after the contacts', eliminated before the contact solve
+            jac, delta_free = self._with_joints(state, jac, delta_free, u_free)
+            slices["attachment"] = slice(3 * k, delta_free.size)
+            compliance = h * h * (jac @ m_inv @ jac.T)
+            rows = np.arange(3 * k, delta_free.size)
+            compliance[rows, rows] += joint_compliance(world.joints)  # springs' rows
+        problem = CondensedProblem(0.5 * (compliance + compliance.T), delta_free, slices)
+        elimination = None
+        if world.joints:
+            try:
+                elimination = eliminate(problem)
+            except SolverError as exc:  # joints that hold the same motion twice
+                raise DivergenceError(
+                    f"step {state.step + 1}: the joints' {exc}", step=state.step + 1, cause="solver"
+                ) from exc
         solution = solve_contact(
-            problem,
+            problem if elimination is None else elimination.problem,
             mu,
             initial=state.contacts.warm_start(contacts),
             tolerance=self.tolerance,
             max_iterations=self.max_iterations,
         )
-        u = (u_free + h * (m_inv @ (jac.T @ solution.forces))).reshape(-1, 6)
+        forces = solution.forces if elimination is None else elimination.full(solution.forces)
+        u = (u_free + h * (m_inv @ (jac.T @ forces))).reshape(-1, 6)
         if not np.all(np.isfinite(u)):
             raise DivergenceError(
                 f"step {state.step + 1}: the rigid bodies' velocities became non-finite;"

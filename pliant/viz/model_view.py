@@ -31,9 +31,14 @@ class RobotCamera:
         self.view = view
         self.size = size
         # Up is against gravity: its largest component's axis (z without gravity).
-        gravity = np.asarray(getattr(model.body, "gravity", np.zeros(3)), dtype=float)
+        # (A model of rigid bodies alone, body None, has its own gravity and no surface.)
+        gravity = getattr(model.body, "gravity", getattr(model, "gravity", np.zeros(3)))
+        gravity = np.asarray(gravity, dtype=float)
         self.vertical = "xyz"[int(np.argmax(np.abs(gravity)))] if np.any(gravity) else "z"
-        rest, _ = model.body.skin(model.body.rest_positions)
+        if model.body is not None:
+            rest, _ = model.body.skin(model.body.rest_positions)
+        else:
+            rest = np.vstack([b.shape.bounds() for b in model.rigid_bodies])
         lo, hi = rest.min(axis=0), rest.max(axis=0)
         self._centre = 0.5 * (lo + hi)
         self._floor = 0.6 * float(np.linalg.norm(hi - lo))
@@ -82,7 +87,10 @@ class RobotCamera:
         if goals is not None:
             markers["goal"] = (np.atleast_2d(goals), "tab:green")
         return render_scene(
-            [(*self.model.body.skin(x), BODY_COLOR), *self._solids(state)],
+            [
+                *([] if self.model.body is None else [(*self.model.body.skin(x), BODY_COLOR)]),
+                *self._solids(state),
+            ],
             title=title,
             markers=markers or None,
             lines=lines or None,

@@ -786,6 +786,10 @@ def test_invalid_rigid_bodies_raise():
         RigidBody(Plane(), 1.0, inertia=np.eye(3))
     with pytest.raises(ContactError, match="mu"):
         RigidBody(Sphere(0.1), 1.0, friction=-0.2)
+    with pytest.raises(ModelError, match="six booleans"):
+        RigidBody(Sphere(0.1), 1.0, held=[True, False, False])
+    with pytest.raises(ModelError, match="every motion held"):
+        RigidBody(Sphere(0.1), 1.0, held=[True] * 6)
     np.testing.assert_allclose(
         box_inertia(12.0, [0.5, 1.0, 1.5]), np.diag([13.0, 10.0, 5.0]), rtol=1e-12
     )

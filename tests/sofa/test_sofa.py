@@ -40,7 +40,7 @@ DOCS = [Path(__file__).parents[2] / "docs" / name for name in ("sofa.md", "sofa-
 @pytest.mark.parametrize(
     "code",
     [c for page in DOCS for c in re.findall(r"```python\n(.*?)```", page.read_text(), flags=re.S)],
-    ids=["port", "choice", "stlib", "sofagym", "sofagym-env", "supports"],
+    ids=["port", "choice", "stlib", "sofagym", "rigid-only", "sofagym-env", "supports"],
 )
 def test_docs_examples_run(code: str) -> None:
     exec(compile(code, "docs/sofa*.md", "exec"), {})

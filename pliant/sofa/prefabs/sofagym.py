@@ -15,7 +15,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from pliant.sofa.prefabs.splib import AnimationManager
-from pliant.sofa.prefabs.stlib import SHAPES, ContactHeader
+from pliant.sofa.prefabs.stlib import SHARED_MESHES, ContactHeader
 from pliant.sofa.tree import SceneNode
 
 
@@ -47,15 +47,11 @@ def addVisu(rootNode: SceneNode, config, position, direction, cutoff: float = 25
     """Cameras and spot lights: nothing Pliant simulates."""
 
 
-# SOFA's shared meshes a scene may name (SofaGym's carts: mesh/cube.obj), written out.
-_SHARED = {"mesh/cube.obj": SHAPES["cube"]}
-
-
 def _mesh(node: SceneNode, filename: str, scale) -> dict:
     """The mesh of `filename` in `node` (a loader named ``loader``, or SOFA's shared mesh
     written out as a topology): the data a GenerateRigidMass reads it from."""
     scale3d = np.broadcast_to(np.asarray(scale, dtype=float), 3)
-    shared = _SHARED.get(str(filename).replace("\\", "/"))
+    shared = SHARED_MESHES.get(str(filename).replace("\\", "/"))
     if shared is None:
         loader = "MeshSTLLoader" if str(filename).lower().endswith(".stl") else "MeshOBJLoader"
         node.addObject(loader, name="loader", filename=filename, scale3d=scale3d.tolist())

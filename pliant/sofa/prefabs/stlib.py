@@ -284,6 +284,9 @@ _CUBE_FACES = [
 _FLOOR = np.array([[-1, 0, -1], [1, 0, -1], [1, 0, 1], [-1, 0, 1]], dtype=float)
 _FLOOR_FACES = [[0, 2, 1], [0, 3, 2]]
 SHAPES = {"cube": (_CUBE, _CUBE_FACES), "floor": (_FLOOR, _FLOOR_FACES)}
+# SOFA's shared meshes a scene may name (SofaGym's carts: mesh/cube.obj), written out: SOFA
+# finds them in its share folder, beside no scene.
+SHARED_MESHES = {"mesh/cube.obj": SHAPES["cube"]}
 
 
 def RigidObject(  # noqa: N802
