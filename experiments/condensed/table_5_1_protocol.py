@@ -27,12 +27,12 @@ Needs the uniform dataset of table_5_1.py (collected first, 16 min on two quiet 
 
 Writes table_5_1_diamond_protocol.json (old and new figures) to --out and the two networks to
 --work (diamond_protocol_uniform.pt, diamond_protocol_corner.pt). The two networks are kept in
-experiments/results/condensed/models; ``--evaluate`` re-scores them from the repository alone
+experiments/results/condensed/table_5_1_models; ``--evaluate`` re-scores them from the repository alone
 (the held-out samples solved again by the FEM from the plan the models record: 1625 solves,
 about 8 min on one quiet core):
 
     python experiments/condensed/table_5_1_protocol.py --evaluate \
-        experiments/results/condensed/models --out /tmp/t51
+        experiments/results/condensed/table_5_1_models --out /tmp/t51
 """
 
 from __future__ import annotations
