@@ -892,6 +892,9 @@ class _Builder:
             attachments=attachments,
             name=self.path.stem,
         )
+        carriers = [f for f in frames if isinstance(f.shape, TriangleMesh)]
+        if carriers and contacts is not None:  # the body's points near its own frame's mesh
+            contacts.keep_apart(carriers)
         self.bindings.bodies = [
             (dofs, slice(p.offset, p.offset + p.body.n_nodes))
             for p in parts
