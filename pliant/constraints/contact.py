@@ -185,7 +185,7 @@ class Contacts:
             self.surfaces = list(surfaces)
         if rigid_surfaces:
             self.rigid_surfaces = list(rigid_surfaces)
-        if not self.shapes and planes is None and not surfaces and not rigid_surfaces:
+        if not (self.shapes or planes is not None or surfaces or rigid_surfaces) and points is None:
             raise ContactError(
                 "Contacts needs at least one shape (or point planes, or surface contacts)"
             )
@@ -222,6 +222,8 @@ class Contacts:
         self._colliders = [*self.shapes, *(b.shape for b in self.bodies)]
         if len({id(s) for s in self._colliders}) != len(self._colliders):
             raise ContactError("each obstacle and rigid body needs its own shape object")
+        if not (self._colliders or self.planes is not None or self.surfaces):
+            raise ContactError("Contacts needs at least one shape or rigid body for its points")
         if self.points is None:
             self.points = EmbeddedPoints.at_nodes(body.colliding_nodes())
         self.n_colliding = len(self.points)

@@ -1299,9 +1299,11 @@ class _Builder:
         parent = node.parent
         maps = [o for o in node.objects if o.type == "RigidMapping"]
         frame = self._rigid_dofs(parent)
-        if frame is None or len(maps) != 1 or "TriangleCollisionModel" not in {
-            o.type for o in node.objects
-        }:
+        if (
+            frame is None
+            or len(maps) != 1
+            or "TriangleCollisionModel" not in {o.type for o in node.objects}
+        ):
             return None
         if not (self._is_frames(parent) or self._servo_part(parent)):
             return None
@@ -1315,9 +1317,15 @@ class _Builder:
         from its winding number: SofaGym's maze floor is two coincident sheets)."""
         points = self._positions(node, self._one(node, {"MechanicalObject"}, "MechanicalObjects"))
         position, rotation = rigid_pose(dofs, index)
-        world = points @ rotation.T + position
+        local = (points @ rotation.T + position - x) @ r
+        faces = self._faces(node)
+        if faces.size and faces.max() >= len(local):
+            raise SceneError(f"{node.path}: triangles index {faces.max()} of {len(local)} points")
+        tri = local[faces]
+        if np.einsum("ij,ij->i", tri[:, 0], np.cross(tri[:, 1], tri[:, 2])).sum() < 0.0:
+            faces = faces[:, ::-1]  # a closed surface's triangles turned inwards
         try:
-            return TriangleMesh((world - x) @ r, self._faces(node), x, r, winding=True)
+            return TriangleMesh(local, faces, x, r, winding=True)
         except ContactError as exc:
             raise SceneError(f"{node.path}: {exc}") from exc
 
