@@ -1325,7 +1325,7 @@ class _Builder:
         if np.einsum("ij,ij->i", tri[:, 0], np.cross(tri[:, 1], tri[:, 2])).sum() < 0.0:
             faces = faces[:, ::-1]  # a closed surface's triangles turned inwards
         try:
-            return TriangleMesh(local, faces, x, r, winding=True)
+            return TriangleMesh(local, faces, x, r, winding=True, per_face=True)
         except ContactError as exc:
             raise SceneError(f"{node.path}: {exc}") from exc
 
