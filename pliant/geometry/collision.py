@@ -814,7 +814,8 @@ def collide(shape_a: Shape, shape_b: Shape, margin: float) -> ContactSet:
 
 def _sphere_faces(sphere: Sphere, mesh: TriangleMesh, margin: float) -> ContactSet | None:
     """Contacts of a sphere outside a mesh with each face whose closest point is within the
-    margin (faces meeting at one closest point, an edge or a vertex, give one contact);
+    margin, the sphere on the face's outer side (faces meeting at one closest point, an edge
+    or a vertex, give one contact);
     feature 2 f + 1 for face f. None where the centre is inside the mesh (the closest
     feature answers then)."""
     centre = sphere.position
@@ -824,7 +825,9 @@ def _sphere_faces(sphere: Sphere, mesh: TriangleMesh, margin: float) -> ContactS
     closest = _closest_on_triangles(q, mesh._triangles)
     offset = q - closest
     distance = np.linalg.norm(offset, axis=1)
-    near = np.flatnonzero(distance - sphere.radius < margin)
+    tri = mesh._triangles
+    outer = np.einsum("ij,ij->i", offset, np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]))
+    near = np.flatnonzero((distance - sphere.radius < margin) & (outer > 0.0))
     if near.size == 0:
         return ContactSet.concatenate([])
     _, first = np.unique(np.round(closest[near] / (1e-9 * mesh._size)), axis=0, return_index=True)

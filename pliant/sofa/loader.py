@@ -919,6 +919,11 @@ class _Builder:
         scene = SofaScene(model, dt, solver_kind, self.path, self.root, self.bindings)
         scene.write_outputs(model.rest_state())
         self._default_positions()
+        for obj in [o for n in self.root.walk() for o in n.objects if o.type in MESH_LOADERS]:
+            try:  # SOFA initialises them: their outputs, for the scripts (Maze's path edges)
+                init_loader(obj)
+            except SceneError:
+                continue  # a mesh the model does not read, not found: as before, unread
         return scene
 
     def _rigidly_carried(self, rigid: list[RigidBody]) -> list[tuple[SceneObject, int, np.ndarray]]:

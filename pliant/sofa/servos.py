@@ -235,6 +235,7 @@ def read_servos(root: SceneNode) -> dict[int, Servo]:
         )
         made._base_pose = (position, rotation)
         made.base = base
+        object.__setattr__(base, "servo_base", True)  # a script's RigidDof may slide it
         # SOFA's rest_position: the position the scene gave (a script's RigidDof reads it)
         base.attrs.setdefault("rest_position", base.attrs.get("position", [0, 0, 0, 0, 0, 0, 1]))
         servos[id(wheel)] = made

@@ -98,7 +98,8 @@ def test_a_mesh_on_a_free_rigidified_frame_is_that_frame_s_shape(plate_scene) ->
 
 def test_a_ball_rests_on_the_carried_mesh_and_weighs_on_the_body(plate_scene) -> None:
     """After 40 steps the ball sits on the plate at its radius (no penetration beyond the
-    contact solver's tolerance), at rest, its weight carried by its contact; the plate and the
+    contact solver's tolerance), at rest, its weight carried by its contacts (to the solver's
+    tolerance: the ball jitters at 1e-4 mm/s); the plate and the
     block's middle have sunk under it and the frame's weight (both ends clamped)."""
     scene, state = plate_scene
     ball, frame = scene.model.rigid_bodies
@@ -114,4 +115,4 @@ def test_a_ball_rests_on_the_carried_mesh_and_weighs_on_the_body(plate_scene) ->
     assert x_frame[1] < 10.0 - 1e-3  # the frame moves with the block, which sags
     weight = ball.mass * 9810.0
     normal = state.contact_forces.forces.sum(axis=0)[1]
-    assert normal == pytest.approx(weight, rel=1e-6)
+    assert normal == pytest.approx(weight, rel=1e-4)  # the contact solver's tolerance

@@ -291,9 +291,8 @@ class RigidDof:
     """SPLIB's handle on a Rigid3 MechanicalObject's first frame, in the world as SOFA holds
     it after ``init`` (the object's ``translation`` and ``rotation`` applied): ``position``,
     ``rest_position``, ``orientation``, ``forward`` (its z axis), ``left`` (x), ``up`` (y)
-    read; ``setPosition`` (and ``position = ...``) moves the frame's origin, which Pliant
-    follows where the frame is a servo's base (the servo slides with it). Anything else is
-    named in the scene's error."""
+    read; ``setPosition`` (and ``position = ...``) moves the origin of a servo's base, once the
+    scene steps (the servo slides with it). Anything else is named in the scene's error."""
 
     def __init__(self, rigidobject) -> None:
         self.__dict__["rigidobject"] = rigidobject
@@ -318,6 +317,11 @@ class RigidDof:
         return turn.apply(self._frame(field)[:3]) + shift
 
     def setPosition(self, v, field: str = "position") -> None:  # noqa: N802
+        if not self.rigidobject.__dict__.get("servo_base", False):
+            raise SceneError(
+                f"splib3.numerics.RigidDof.setPosition (on {self.rigidobject.getPathName()}):"
+                " Pliant moves a servo's base only (read as the scene steps), not another frame"
+            )
         turn, shift = self._transform()
         frame = self._frame(field)
         local = turn.inv().apply(np.asarray(v, dtype=float).reshape(3) - shift)
