@@ -185,7 +185,7 @@ class Contacts:
             self.surfaces = list(surfaces)
         if rigid_surfaces:
             self.rigid_surfaces = list(rigid_surfaces)
-        if not self.shapes and planes is None and not surfaces and not rigid_surfaces:
+        if not (self.shapes or planes is not None or surfaces or rigid_surfaces) and points is None:
             raise ContactError(
                 "Contacts needs at least one shape (or point planes, or surface contacts)"
             )
@@ -222,6 +222,8 @@ class Contacts:
         self._colliders = [*self.shapes, *(b.shape for b in self.bodies)]
         if len({id(s) for s in self._colliders}) != len(self._colliders):
             raise ContactError("each obstacle and rigid body needs its own shape object")
+        if not (self._colliders or self.planes is not None or self.surfaces):
+            raise ContactError("Contacts needs at least one shape or rigid body for its points")
         if self.points is None:
             self.points = EmbeddedPoints.at_nodes(body.colliding_nodes())
         self.n_colliding = len(self.points)
@@ -266,6 +268,19 @@ class Contacts:
             for j, nodes in enumerate(own):
                 carried[j, column] |= bool(nodes) and nodes <= held
         self._carried = carried if carried.any() else None
+
+    def keep_apart(self, bodies: Sequence[RigidBody]) -> None:
+        """The body's points do not collide with these rigid bodies (after :meth:`attach`): a
+        shape carried by a frame of the body itself (Rigidify's, which SOFA's mesh rides on),
+        whose nearby points move with the frame, so that their rows would have no compliance
+        of their own but the round-off of the frame's."""
+        index = {id(b): i for i, b in enumerate(self.bodies)}
+        if self._carried is None:
+            self._carried = np.zeros((len(self.points), len(self.bodies)), dtype=bool)
+        for body in bodies:
+            if id(body) not in index:
+                raise ContactError(f"{body.name}: not one of the model's rigid bodies")
+            self._carried[:, index[id(body)]] = True
 
     def check_overlap(self, positions: np.ndarray) -> None:
         """ContactError if a colliding point starts inside a shape deeper than the margin."""
@@ -512,12 +527,13 @@ class Contacts:
         )
         obstacle = pairs.index_b < len(shapes)
         obstacle_motion = np.zeros((len(pairs), 3))
-        obstacle_motion[obstacle] = (
-            dt
-            * shape_velocities(
-                replace(pairs, index_b=np.where(obstacle, pairs.index_b, 0)), shapes
-            )[obstacle]
-        )
+        if obstacle.any():  # (none where the rigid bodies touch only each other)
+            obstacle_motion[obstacle] = (
+                dt
+                * shape_velocities(
+                    replace(pairs, index_b=np.where(obstacle, pairs.index_b, 0)), shapes
+                )[obstacle]
+            )
         pair_distance = -np.einsum("krj,kj->kr", pairs.frames, obstacle_motion)
         pair_distance[:, 0] += pairs.gap
         pair_friction = np.sqrt(mu[len(shapes) + pairs.index_a] * mu[pairs.index_b])

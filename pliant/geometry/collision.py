@@ -372,11 +372,20 @@ class TriangleMesh(Shape):
     read from the generalised winding number instead (inside where the faces' solid angles sum
     to more than half a sphere; Jacobson et al. 2013), which stays right where a surface
     overlaps itself (a decimated scan whose faces coincide, facing opposite ways), at a cost of
-    one pass over the faces per point.
+    one pass over the faces per point. With ``per_face=True`` a sphere outside the mesh touches
+    each face within the margin (one contact each, :func:`collide`), not only the closest
+    feature: a ball in a maze's corridor holds on its floor while a wall is nearer.
     """
 
     def __init__(
-        self, vertices, faces, position=(0.0, 0.0, 0.0), rotation=None, *, winding: bool = False
+        self,
+        vertices,
+        faces,
+        position=(0.0, 0.0, 0.0),
+        rotation=None,
+        *,
+        winding: bool = False,
+        per_face: bool = False,
     ) -> None:
         v = np.asarray(vertices, dtype=float)
         f = np.asarray(faces)
@@ -406,6 +415,7 @@ class TriangleMesh(Shape):
         self._vertex_box = (v.min(axis=0), v.max(axis=0))
         self._pseudo_normals()
         self.winding = bool(winding)
+        self.per_face = bool(per_face)
         super().__init__(position, rotation)
 
     def _check_closed(self) -> None:
@@ -779,6 +789,10 @@ def collide(shape_a: Shape, shape_b: Shape, margin: float) -> ContactSet:
         return collide(shape_b, shape_a, margin).swapped()
     if isinstance(shape_b, Sphere) and not isinstance(shape_a, Sphere):
         return collide(shape_b, shape_a, margin).swapped()
+    if isinstance(shape_a, Sphere) and isinstance(shape_b, TriangleMesh) and shape_b.per_face:
+        found = _sphere_faces(shape_a, shape_b, margin)
+        if found is not None:
+            return found
     sides = [(shape_a, shape_b, False)]
     if not isinstance(shape_a, Sphere):
         sides.append((shape_b, shape_a, True))
@@ -796,6 +810,72 @@ def collide(shape_a: Shape, shape_b: Shape, margin: float) -> ContactSet:
         contacts = replace(contacts, index_a=np.zeros(len(contacts), dtype=np.int64))
         found.append(contacts.swapped() if swap else contacts)
     return ContactSet.concatenate(found)
+
+
+def _sphere_faces(sphere: Sphere, mesh: TriangleMesh, margin: float) -> ContactSet | None:
+    """Contacts of a sphere outside a mesh with each face whose closest point is within the
+    margin, the sphere on the face's outer side (faces meeting at one closest point, an edge
+    or a vertex, give one contact);
+    feature 2 f + 1 for face f. None where the centre is inside the mesh (the closest
+    feature answers then)."""
+    centre = sphere.position
+    if mesh.signed_distance(centre[None]).gap[0] <= 0.0:
+        return None
+    q = (centre - mesh.position) @ mesh.rotation
+    closest = _closest_on_triangles(q, mesh._triangles)
+    offset = q - closest
+    distance = np.linalg.norm(offset, axis=1)
+    tri = mesh._triangles
+    outer = np.einsum("ij,ij->i", offset, np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]))
+    near = np.flatnonzero((distance - sphere.radius < margin) & (outer > 0.0))
+    if near.size == 0:
+        return ContactSet.concatenate([])
+    _, first = np.unique(np.round(closest[near] / (1e-9 * mesh._size)), axis=0, return_index=True)
+    near = near[np.sort(first)]
+    normal = (offset[near] / distance[near, None]) @ mesh.rotation.T
+    point_b = closest[near] @ mesh.rotation.T + mesh.position
+    k = near.size
+    return ContactSet(
+        np.zeros(k, dtype=np.int64),
+        np.zeros(k, dtype=np.int64),
+        2 * near + 1,
+        distance[near] - sphere.radius,
+        normal,
+        centre - sphere.radius * normal,
+        point_b,
+    )
+
+
+def _closest_on_triangles(p: np.ndarray, tri: np.ndarray) -> np.ndarray:
+    """(m, 3) closest point to p on each triangle (Ericson, Real-Time Collision Detection 5.1.5)."""
+    a, b, c = tri[:, 0], tri[:, 1], tri[:, 2]
+    ab, ac, ap = b - a, c - a, p - a
+    d1, d2 = np.einsum("ij,ij->i", ab, ap), np.einsum("ij,ij->i", ac, ap)
+    bp, cp = p - b, p - c
+    d3, d4 = np.einsum("ij,ij->i", ab, bp), np.einsum("ij,ij->i", ac, bp)
+    d5, d6 = np.einsum("ij,ij->i", ab, cp), np.einsum("ij,ij->i", ac, cp)
+    va, vb, vc = d3 * d6 - d5 * d4, d5 * d2 - d1 * d6, d1 * d4 - d3 * d2
+    with np.errstate(divide="ignore", invalid="ignore"):
+        denom = 1.0 / (va + vb + vc)
+        v, w = vb * denom, vc * denom
+        out = a + ab * v[:, None] + ac * w[:, None]  # inside the face
+        t_ab = d1 / (d1 - d3)
+        t_ac = d2 / (d2 - d6)
+        t_bc = (d4 - d3) / ((d4 - d3) + (d5 - d6))
+    cases = [
+        ((d1 <= 0) & (d2 <= 0), a),
+        ((d3 >= 0) & (d4 <= d3), b),
+        ((vc <= 0) & (d1 >= 0) & (d3 <= 0), a + ab * t_ab[:, None]),
+        ((d6 >= 0) & (d5 <= d6), c),
+        ((vb <= 0) & (d2 >= 0) & (d6 <= 0), a + ac * t_ac[:, None]),
+        ((va <= 0) & (d4 - d3 >= 0) & (d5 - d6 >= 0), b + (c - b) * t_bc[:, None]),
+    ]
+    done = np.zeros(len(tri), dtype=bool)
+    for mask, point in cases:
+        pick = mask & ~done
+        out[pick] = point[pick]
+        done |= pick
+    return out
 
 
 def _collide_parts(shape_a: Shape, union: BoxUnion, margin: float) -> ContactSet:

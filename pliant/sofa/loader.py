@@ -46,7 +46,7 @@ from pliant.errors import ContactError, ModelError
 from pliant.fem.body import TetBody, fixed_components, nodes_in_box
 from pliant.fem.loads import EmbeddedSprings, Load, NodalForces, RestShapeSprings
 from pliant.fem.material import Corotational, Material, NeoHookean, StVenantKirchhoff
-from pliant.fem.rigid import DrivenNodes, RigidBody
+from pliant.fem.rigid import DrivenNodes, RigidBody, box_inertia
 from pliant.fem.supports import OnLine, OnPlane, Projection
 from pliant.geometry.collision import Box, Plane, TriangleMesh
 from pliant.mesh.quality import signed_volumes
@@ -522,6 +522,8 @@ class _Frames:
     fixed: np.ndarray
     # the servo turning each frame (its nodes are then held and driven), or None
     driven: list = dataclasses.field(default_factory=list)
+    # the (MechanicalObject, index) each frame is read from (a free frame's source), or None
+    origins: list = dataclasses.field(default_factory=list)
 
 
 @dataclass(frozen=True)
@@ -774,6 +776,9 @@ class _Builder:
         self._springs_read: set[int] = set()  # MeshSpringForceFields read on a body
         # The collision surfaces of the bodies read so far (vertices, triangles), by node.
         self._surfaces: dict[int, tuple[EmbeddedPoints, np.ndarray]] = {}
+        # Collision triangles carried by a moving frame: (node, frame dofs, index).
+        self._carried: list[tuple[SceneNode, SceneObject, int]] = []
+        self._carried_friction = 0.5
 
     # --- scene-wide ------------------------------------------------------------------------
     def build(self) -> SofaScene:
@@ -887,6 +892,9 @@ class _Builder:
             attachments=attachments,
             name=self.path.stem,
         )
+        carriers = [f for f in frames if isinstance(f.shape, TriangleMesh)]
+        if carriers and contacts is not None:  # the body's points near its own frame's mesh
+            contacts.keep_apart(carriers)
         self.bindings.bodies = [
             (dofs, slice(p.offset, p.offset + p.body.n_nodes))
             for p in parts
@@ -911,6 +919,11 @@ class _Builder:
         scene = SofaScene(model, dt, solver_kind, self.path, self.root, self.bindings)
         scene.write_outputs(model.rest_state())
         self._default_positions()
+        for obj in [o for n in self.root.walk() for o in n.objects if o.type in MESH_LOADERS]:
+            try:  # SOFA initialises them: their outputs, for the scripts (Maze's path edges)
+                init_loader(obj)
+            except SceneError:
+                continue  # a mesh the model does not read, not found: as before, unread
         return scene
 
     def _rigidly_carried(self, rigid: list[RigidBody]) -> list[tuple[SceneObject, int, np.ndarray]]:
@@ -1062,6 +1075,7 @@ class _Builder:
         margin = _float(proximity, "alarmDistance", 1.0)
         thickness = _float(proximity, "contactDistance", 0.5)
         friction = self._friction()
+        self._carried_friction = friction
         rigid_nodes = [n for n in self.root.walk() if self._is_rigid(n)]
         rigid = [self._rigid_body(n, friction) for n in rigid_nodes]
         inside_rigid = {id(c) for n in rigid_nodes for c in n.walk()}
@@ -1104,6 +1118,8 @@ class _Builder:
                 joined.append(self._embed(mesh, points[-1], body))
                 self._part = None
                 embedded_at[id(node)] = joined[-1]
+            elif (carrier := self._moving_carrier(node)) is not None:
+                self._carried.append((node, *carrier))  # on a free frame: _free_frames
             else:
                 obstacles.append(self._obstacle(node))
         rigid_surfaces = [
@@ -1147,7 +1163,7 @@ class _Builder:
         ]
         if not obstacles and not rigid and not surfaces:  # SOFA detects nothing: no contact
             return None, []
-        if rigid and not obstacles and not rigid_surfaces:
+        if rigid and not obstacles and not rigid_surfaces and not self._carried:
             raise SceneError(f"{self.path.name}: rigid bodies need a static obstacle too")
         embedded = (
             EmbeddedPoints.stack(joined)  # each body's points in its own mesh (or none)
@@ -1280,6 +1296,43 @@ class _Builder:
 
     def _rigid_body(self, node: SceneNode, friction: float) -> RigidBody:
         return rigid_body(self, node, friction)
+
+    def _moving_carrier(self, node: SceneNode) -> tuple[SceneObject, int] | None:
+        """The frame (MechanicalObject, index) whose RigidMapping carries a node's collision
+        triangles, where that frame moves with the body (Rigidify's frames, or a frame they
+        map from: the Tripod's free centre); None for a still frame's or no frame's."""
+        parent = node.parent
+        maps = [o for o in node.objects if o.type == "RigidMapping"]
+        frame = self._rigid_dofs(parent)
+        if (
+            frame is None
+            or len(maps) != 1
+            or "TriangleCollisionModel" not in {o.type for o in node.objects}
+        ):
+            return None
+        if not (self._is_frames(parent) or self._servo_part(parent)):
+            return None
+        link = maps[0].attrs.get("input")
+        dofs = frame if link is None else self.link_dofs(node, str(link))
+        return (dofs, int(_float(maps[0], "index", 0.0))) if dofs is not None else None
+
+    def _carried_mesh(self, node: SceneNode, dofs: SceneObject, index: int, x, r):
+        """The triangles a RigidMapping carries on frame (dofs, index), as a closed mesh in
+        the coordinates of the rigid body at (x, r) that moves that frame (its inside read
+        from its winding number: SofaGym's maze floor is two coincident sheets)."""
+        points = self._positions(node, self._one(node, {"MechanicalObject"}, "MechanicalObjects"))
+        position, rotation = rigid_pose(dofs, index)
+        local = (points @ rotation.T + position - x) @ r
+        faces = self._faces(node)
+        if faces.size and faces.max() >= len(local):
+            raise SceneError(f"{node.path}: triangles index {faces.max()} of {len(local)} points")
+        tri = local[faces]
+        if np.einsum("ij,ij->i", tri[:, 0], np.cross(tri[:, 1], tri[:, 2])).sum() < 0.0:
+            faces = faces[:, ::-1]  # a closed surface's triangles turned inwards
+        try:
+            return TriangleMesh(local, faces, x, r, winding=True, per_face=True)
+        except ContactError as exc:
+            raise SceneError(f"{node.path}: {exc}") from exc
 
     def _obstacle(self, node: SceneNode):
         """A static obstacle: a plane where its triangles are coplanar, else a closed mesh."""
@@ -1981,9 +2034,10 @@ class _Builder:
             poses = self._frame_poses(frames, owner, chosen, per_point, points)
             held = np.zeros(len(poses), dtype=bool)
             driven: list = [None] * len(poses)
+            origins: list = [None] * len(poses)
             for obj in frames_node.objects:
                 if obj.type in ("SubsetMultiMapping", "RigidMapping"):  # from servos, frames
-                    self._mapped_frames(obj, poses, held, driven)
+                    self._mapped_frames(obj, poses, held, driven, origins)
                 elif obj.type in ("FixedConstraint", "FixedProjectiveConstraint"):
                     idx = _floats(obj.attrs.get("indices", ""), f"{obj.path}.indices")
                     held[idx.astype(np.int64)] = True
@@ -1994,10 +2048,14 @@ class _Builder:
                         f" not a {obj.type}"
                     )
             groups = [chosen[per_point == j] for j in range(len(poses))]
-            self._rigidified.append(_Frames(frames, groups, list(enumerate(poses)), held, driven))
+            self._rigidified.append(
+                _Frames(frames, groups, list(enumerate(poses)), held, driven, origins)
+            )
         return self._rigidified
 
-    def _mapped_frames(self, mapping: SceneObject, poses: list, held, driven: list) -> None:
+    def _mapped_frames(
+        self, mapping: SceneObject, poses: list, held, driven: list, origins: list
+    ) -> None:
         """Rigidify's frames given by a SubsetMultiMapping (``input``: Rigid3 frames, in
         ``indexPairs`` (input, index) for each frame): the wheel of a servo (its frame 1) turns
         its frame, the servo's base (frame 0) holds it, and any other Rigid3 frame (the
@@ -2029,6 +2087,7 @@ class _Builder:
                 poses[j] = servo._base_pose
             else:
                 poses[j] = rigid_pose(dofs, int(i))
+                origins[j] = (dofs, int(i))
                 held[j] = any(
                     o.type in ("FixedConstraint", "FixedProjectiveConstraint")
                     for o in dofs.node.objects
@@ -2103,7 +2162,7 @@ class _Builder:
     def _free_frames(self, body_node: SceneNode, body: TetBody, mesh: TetMesh):
         """A rigid body for each free frame (FRAME_MASS_SHARE of its nodes' mass, a box a
         thousandth of the body's extent, which nothing touches), its nodes attached to it."""
-        bodies, attachments = [], []
+        bodies, attachments, carried = [], [], []
         for g in self._groups(body_node, body.rest_positions):
             for j, (x, r) in g.poses:
                 if g.fixed[j]:
@@ -2115,15 +2174,36 @@ class _Builder:
                     )
                 mass = FRAME_MASS_SHARE * float(body.node_masses[g.groups[j]].sum())
                 size = 1e-3 * body.extent
+                box = Box(np.full(3, size), position=x, rotation=r)
+                meshes = [
+                    self._carried_mesh(n, d, i, x, r)
+                    for n, d, i in self._carried
+                    if g.origins[j] is not None and (d, i) == g.origins[j]
+                ]
+                if len(meshes) > 1:
+                    raise SceneError(
+                        f"{g.dofs.path}[{j}]: several collision meshes on one frame (a rigid"
+                        " body has one shape in Pliant)"
+                    )
                 frame = RigidBody(
-                    Box(np.full(3, size), position=x, rotation=r),
+                    meshes[0] if meshes else box,
                     mass,
+                    box_inertia(mass, box.half_extents),
+                    friction=self._carried_friction if meshes else 0.5,
                     name=f"{g.dofs.node.name}[{j}]",
                 )
+                carried += [(n, d, i) for n, d, i in self._carried if (d, i) == g.origins[j]]
                 bodies.append(frame)
                 attachments.append(
                     Attachment(EmbeddedPoints.at_nodes(g.groups[j]), frame, name=frame.name)
                 )
+        stray = [n for n, _, _ in self._carried if not any(n is c for c, _, _ in carried)]
+        if stray:
+            raise SceneError(
+                f"{stray[0].path}: a collision model carried by a moving frame"
+                f" ({stray[0].parent.path}, Rigidify's held frame or a servo's) is not supported:"
+                " Pliant's moving shapes are rigid bodies (a free frame of Rigidify's carries one)"
+            )
         return bodies, attachments
 
     # --- self-contact planes -------------------------------------------------------------------

@@ -100,10 +100,21 @@ class Servo:
     # (time the command was set, angle), in time order: the wheel reaches each command at
     # the end of the step that begins at its time.
     commands: list[tuple[float, float]] = field(default_factory=list)
+    # The base's MechanicalObject, and (time, shift of its origin) in time order: a script
+    # slides the base (SPLIB's RigidDof.setPosition), reached as a command is.
+    base: SceneObject | None = None
+    slides: list[tuple[float, np.ndarray]] = field(default_factory=list)
 
     def angle(self, t: float) -> float:
         current = self.commands[0][1]
         for since, value in self.commands:
+            if since < t:
+                current = value
+        return current
+
+    def shift(self, t: float) -> np.ndarray:
+        current = np.zeros(3)
+        for since, value in self.slides:
             if since < t:
                 current = value
         return current
@@ -123,6 +134,17 @@ class Servo:
         if value != self.commands[-1][1]:
             self.commands = [c for c in self.commands if c[0] < t] + [(t, value)]
             self.carrier.forget()
+        if self.base is None:
+            return
+        position, rotation = rigid_pose(self.base)
+        if np.abs(rotation - self._base_pose[1]).max() > 1e-9:
+            raise SceneError(
+                f"{self.base.path}: a script turned a servo's base; Pliant slides it only"
+            )
+        shift = position - self._base_pose[0]
+        if not np.array_equal(shift, self.shift(math.inf)):
+            self.slides = [c for c in self.slides if c[0] < t] + [(t, shift)]
+            self.carrier.forget()
 
     def write(self, t: float) -> None:
         """The angle and the wheel's frames into the scene's data."""
@@ -131,7 +153,7 @@ class Servo:
         base = self._base_pose
         x, r = self.carrier.pose(t)
         poses = [
-            np.concatenate([base[0], Rotation.from_matrix(base[1]).as_quat()]),
+            np.concatenate([base[0] + self.shift(t), Rotation.from_matrix(base[1]).as_quat()]),
             np.concatenate([x, Rotation.from_matrix(r).as_quat()]),
         ]
         dofs.attrs["position"] = np.array(poses)
@@ -205,14 +227,29 @@ def read_servos(root: SceneNode) -> dict[int, Servo]:
             made.commands = [(-math.inf, 0.0)]
             start = made.command()
         made.commands = [(-math.inf, start)]
+        turned = servo(pivot, axis, made.angle, wheel_origin, rotation)
         made.carrier = KinematicBody(
             Box(np.full(3, 1e-3), position=wheel_origin, rotation=rotation),
-            servo(pivot, axis, made.angle, wheel_origin, rotation),
+            _slid(turned, made.shift),
             name=str(node.parent.name if node.parent is not None else node.name),
         )
         made._base_pose = (position, rotation)
+        made.base = base
+        object.__setattr__(base, "servo_base", True)  # a script's RigidDof may slide it
+        # SOFA's rest_position: the position the scene gave (a script's RigidDof reads it)
+        base.attrs.setdefault("rest_position", base.attrs.get("position", [0, 0, 0, 0, 0, 0, 1]))
         servos[id(wheel)] = made
     return servos
+
+
+def _slid(turned, shift):
+    """The wheel's trajectory: turned by the servo, shifted with its base."""
+
+    def pose(t: float) -> tuple[np.ndarray, np.ndarray]:
+        x, r = turned(t)
+        return x + shift(t), r
+
+    return pose
 
 
 def linked_dofs(node: SceneNode, link: str) -> SceneObject | None:

@@ -288,21 +288,82 @@ def getOrientedBoxFromTransform(  # noqa: N802
 
 
 class RigidDof:
-    """SPLIB's handle on a Rigid3 MechanicalObject (a servo's base moved by a controller).
-    Importable; Pliant's servo bases stay where the scene put them, so a call that reads or
-    moves the frame is named in the scene's error."""
+    """SPLIB's handle on a Rigid3 MechanicalObject's first frame, in the world as SOFA holds
+    it after ``init`` (the object's ``translation`` and ``rotation`` applied): ``position``,
+    ``rest_position``, ``orientation``, ``forward`` (its z axis), ``left`` (x), ``up`` (y)
+    read; ``setPosition`` (and ``position = ...``) moves the origin of a servo's base, once the
+    scene steps (the servo slides with it). Anything else is named in the scene's error."""
 
     def __init__(self, rigidobject) -> None:
-        self.rigidobject = rigidobject
+        self.__dict__["rigidobject"] = rigidobject
+
+    def _transform(self) -> tuple[Rotation, np.ndarray]:
+        attrs = self.rigidobject.attrs
+        turn = Rotation.from_euler("xyz", _vector(attrs.get("rotation", [0, 0, 0])), True)
+        return turn, _vector(attrs.get("translation", [0, 0, 0]))
+
+    def _frame(self, field: str) -> np.ndarray:
+        attrs = self.rigidobject.attrs
+        value = attrs.get(field, attrs.get("position", [0, 0, 0, 0, 0, 0, 1]))
+        frame = _vector(value)
+        if frame.size < 7:
+            raise SceneError(f"{self.rigidobject.path}.{field}: no Rigid3 frame")
+        return frame[:7]
+
+    def getPosition(self, index: int = 0, field: str = "position") -> np.ndarray:  # noqa: N802
+        if index != 0:
+            raise SceneError(f"{self.rigidobject.path}: RigidDof reads frame 0 only")
+        turn, shift = self._transform()
+        return turn.apply(self._frame(field)[:3]) + shift
+
+    def setPosition(self, v, field: str = "position") -> None:  # noqa: N802
+        if not self.rigidobject.__dict__.get("servo_base", False):
+            raise SceneError(
+                f"splib3.numerics.RigidDof.setPosition (on {self.rigidobject.getPathName()}):"
+                " Pliant moves a servo's base only (read as the scene steps), not another frame"
+            )
+        turn, shift = self._transform()
+        frame = self._frame(field)
+        local = turn.inv().apply(np.asarray(v, dtype=float).reshape(3) - shift)
+        self.rigidobject.attrs[field] = [[*local.tolist(), *frame[3:].tolist()]]
+
+    def getOrientation(self, field: str = "position") -> np.ndarray:  # noqa: N802
+        turn, _ = self._transform()
+        return (turn * Rotation.from_quat(self._frame(field)[3:])).as_quat()
+
+    def _axis(self, axis) -> np.ndarray:
+        return Rotation.from_quat(self.getOrientation()).apply(axis)
+
+    forward = property(lambda self: self._axis([0.0, 0.0, 1.0]))
+    left = property(lambda self: self._axis([1.0, 0.0, 0.0]))
+    up = property(lambda self: self._axis([0.0, 1.0, 0.0]))
 
     def __getattr__(self, key: str):
-        if key.startswith("__") or key == "rigidobject":
+        if key.startswith("__"):
             raise AttributeError(key)
+        if key in ("position", "rest_position"):
+            return self.getPosition(field=key)
+        if key in ("orientation", "rest_orientation"):
+            return self.getOrientation(field=key.replace("orientation", "position"))
         raise SceneError(
             f"splib3.numerics.RigidDof.{key} (on {self.rigidobject.getPathName()}): Pliant"
-            " holds a servo's base where the scene placed it and does not move it from a"
-            " controller"
+            " reads a frame's position and orientation and moves its origin only"
         )
+
+    def __setattr__(self, key: str, value) -> None:
+        if key in ("position", "rest_position"):
+            self.setPosition(value, field=key)
+            return
+        raise SceneError(
+            f"splib3.numerics.RigidDof.{key} (on {self.rigidobject.getPathName()}): Pliant"
+            " moves a frame's origin only (setPosition)"
+        )
+
+
+def _vector(value) -> np.ndarray:
+    if isinstance(value, str):
+        value = value.replace(",", " ").split()
+    return np.asarray(value, dtype=float).reshape(-1)
 
 
 def setData(target, **values) -> None:  # noqa: N802
