@@ -27,9 +27,9 @@ Needs the uniform dataset of table_5_1.py (collected first, 16 min on two quiet 
 
 Writes table_5_1_diamond_protocol.json (old and new figures) to --out and the two networks to
 --work (diamond_protocol_uniform.pt, diamond_protocol_corner.pt). The two networks are kept in
-experiments/results/condensed/table_5_1_models; ``--evaluate`` re-scores them from the repository alone
-(the held-out samples solved again by the FEM from the plan the models record: 1625 solves,
-about 8 min on one quiet core):
+experiments/results/condensed/table_5_1_models; ``--evaluate`` re-scores them from the
+repository alone (the held-out samples solved again by the FEM from the plan the models record:
+1617 converged of 1625 solves, 18 min on the shared machine):
 
     python experiments/condensed/table_5_1_protocol.py --evaluate \
         experiments/results/condensed/table_5_1_models --out /tmp/t51

@@ -840,7 +840,8 @@ STUDIES: tuple[Study, ...] = (
         not_kept="the Finger's network and the first Diamond runs' are not tracked (out/ is"
         " ignored; the study's command re-makes them: Diamond collection 16 min on two quiet"
         " cores, trainings 20-25 min a robot on one); the protocol's two Diamond networks are"
-        " kept (experiments/results/condensed/table_5_1_models, 1.7 MB each) and --evaluate scores them",
+        " kept (experiments/results/condensed/table_5_1_models, 1.7 MB each) and --evaluate"
+        " scores them",
         # The protocol's networks, kept: the held-out samples solved again by the FEM from the
         # plan the models record (deterministic), then scored. On 2026-12-07 (a training and a
         # scene count beside it) it gave both committed test losses to the last digit.
