@@ -36,6 +36,7 @@ _TABLE_5_7 = "experiments/results/condensed/table_5_7.json"
 _TABLE_5_8 = "experiments/results/condensed/trajectories.json"
 _CALIBRATION = "experiments/results/condensed/calibration_finger.json"
 _MODELS = "experiments/results/condensed/models"  # the kept condensed models
+_TABLE_5_1_MODELS = "experiments/results/condensed/table_5_1_models"  # Table 5.1's, kept
 _TRAJOPT = "experiments/results/trajopt/diamond.json"
 _ROUTING = "experiments/results/diff/routing.json"
 _DIFF_CONTROL = {
@@ -846,8 +847,8 @@ STUDIES: tuple[Study, ...] = (
         # plan the models record (deterministic), then scored. On 2026-12-07 (a training and a
         # scene count beside it) it gave both committed test losses to the last digit.
         evaluate=Quick(
-            "python experiments/condensed/table_5_1_protocol.py --evaluate"
-            " experiments/results/condensed/table_5_1_models --out {out}",
+            f"python experiments/condensed/table_5_1_protocol.py --evaluate {_TABLE_5_1_MODELS}"
+            " --out {out}",
             {_TABLE_5_1_PROTOCOL: "table_5_1_diamond_protocol.json"},
             seconds=1068.0,
             figures=(
@@ -1039,8 +1040,9 @@ STUDIES: tuple[Study, ...] = (
         title="Trajectories, learned against exact condensed model; calibrating nu",
         command=(
             f"python experiments/condensed/trajectories.py {_MODELS}/finger_coarse_1000.pt"
-            " out/condensed_full/diamond_6500.pt && python experiments/condensed/calibration.py"
-            " --samples 320 --samples-per-design 4 --epochs 1500"
+            f" {_TABLE_5_1_MODELS}/diamond_protocol_uniform.pt && python"
+            " experiments/condensed/calibration.py --samples 320 --samples-per-design 4"
+            " --epochs 1500"
         ),
         docs="docs/condensed.md",
         figures=(
@@ -1086,12 +1088,9 @@ STUDIES: tuple[Study, ...] = (
                 docs="docs/condensed.md",
             ),
         ),
-        not_kept="the Diamond's network (out/condensed_full/diamond_6500.pt, made by table-5.1's"
-        " study) and the calibration's F and G are not tracked (out/ is ignored): the Diamond's"
-        " collection and training take about 36 min on two quiet cores, over what the shared"
-        " machine gave this session",
-        retrain="python experiments/condensed/table_5_1.py --robot diamond --workers 2 --work"
-        " out/condensed_full && python experiments/condensed/calibration.py --samples 320"
+        not_kept="the calibration's F and G are not tracked (out/ is ignored); re-made by the"
+        " calibration's command",
+        retrain="python experiments/condensed/calibration.py --samples 320"
         " --samples-per-design 4 --epochs 1500",
         quick=Quick(
             "python experiments/condensed/table_5_1.py --finger-samples 16 --diamond-samples 16"
@@ -1102,14 +1101,18 @@ STUDIES: tuple[Study, ...] = (
             {_TABLE_5_8: "trajectories.json", _CALIBRATION: "calibration_finger.json"},
             seconds=140.0,
         ),
-        # The Finger's network is table-5.2's coarse one, kept: its trajectory followed again
-        # (the committed row was made by this command on 2026-12-07; nice 19, load 10-12).
+        # The Finger's network is table-5.2's coarse one, the Diamond's table-5.1's protocol
+        # uniform one, both kept: their trajectories followed again (the committed rows were
+        # made by this command on 2026-12-07, 59 s on the shared machine).
         evaluate=Quick(
             f"python experiments/condensed/trajectories.py {_MODELS}/finger_coarse_1000.pt"
-            " --out {out}",
+            f" {_TABLE_5_1_MODELS}/diamond_protocol_uniform.pt --out {{out}}",
             {_TABLE_5_8: "trajectories.json"},
-            seconds=118.0,
-            figures=("Finger closing, open loop, trajectory error",),
+            seconds=59.0,
+            figures=(
+                "Finger closing, open loop, trajectory error",
+                "Diamond lifted circle, open loop, trajectory error",
+            ),
         ),
     ),
     Study(
