@@ -17,6 +17,22 @@ from pliant.mesh.quality import fix_orientation, remove_unused_nodes, validate_m
 from pliant.mesh.tetmesh import TetMesh
 
 
+def read_meshio(path: str | os.PathLike, file_format: str | None = None) -> meshio.Mesh:
+    """``meshio.read``, its failures one MeshFileError: meshio prints its complaints and ends
+    the interpreter (``sys.exit``) on some files it cannot parse (an old Gmsh format, a format
+    it cannot tell)."""
+    said = io.StringIO()
+    try:
+        with contextlib.redirect_stdout(said), contextlib.redirect_stderr(said):
+            return meshio.read(path, file_format=file_format)
+    except (Exception, SystemExit) as exc:  # meshio signals malformed input many ways
+        cause = " ".join(said.getvalue().split()) or f"{type(exc).__name__}: {exc}"
+        raise MeshFileError(
+            f"cannot read mesh file {str(path)!r} (empty, truncated, corrupt or a format meshio"
+            f" does not read?): {cause}"
+        ) from None
+
+
 def load_mesh(path: str | os.PathLike[str]) -> TetMesh:
     """Read the tetrahedra of a mesh file into a validated `TetMesh`.
 
@@ -31,17 +47,7 @@ def load_mesh(path: str | os.PathLike[str]) -> TetMesh:
     path = Path(path)
     if not path.is_file():
         raise MeshFileError(f"mesh file {str(path)!r} does not exist")
-    said = io.StringIO()
-    try:
-        # meshio prints its complaints, and ends the interpreter (sys.exit) on some files it
-        # cannot parse: both become one MeshFileError.
-        with contextlib.redirect_stdout(said), contextlib.redirect_stderr(said):
-            raw = meshio.read(path)
-    except (Exception, SystemExit) as exc:  # meshio signals malformed input many ways
-        cause = " ".join(said.getvalue().split()) or f"{type(exc).__name__}: {exc}"
-        raise MeshFileError(
-            f"cannot read mesh file {str(path)!r} (empty, truncated or corrupt?): {cause}"
-        ) from None
+    raw = read_meshio(path)
 
     blocks = [block.data for block in raw.cells if block.type == "tetra"]
     if not blocks or sum(len(b) for b in blocks) == 0:

@@ -49,6 +49,7 @@ from pliant.fem.material import Corotational, Material, NeoHookean, StVenantKirc
 from pliant.fem.rigid import DrivenNodes, RigidBody, box_inertia
 from pliant.fem.supports import OnLine, OnPlane, Projection
 from pliant.geometry.collision import Box, Plane, TriangleMesh
+from pliant.mesh.io import read_meshio
 from pliant.mesh.quality import signed_volumes
 from pliant.mesh.tetmesh import TetMesh
 from pliant.model import Model, State
@@ -1778,7 +1779,7 @@ class _Builder:
                 elif loader.type == "GIDMeshLoader":
                     raw = _read_gid(file)
                 else:
-                    raw = meshio.read(file, file_format="vtu" if xml else None)
+                    raw = read_meshio(file, file_format="vtu" if xml else None)
         except Exception as exc:  # meshio reports malformed files with many exception types
             raise SceneError(f"{loader.path}: cannot read {str(file)!r}: {exc}") from exc
         cells: dict[str, list[np.ndarray]] = {}

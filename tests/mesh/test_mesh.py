@@ -460,6 +460,12 @@ def test_load_errors_name_the_cause(tmp_path: Path) -> None:
     garbage.write_bytes(np.random.default_rng(1).bytes(2000))
     with pytest.raises(MeshFileError, match="cannot read"):
         load_mesh(garbage)
+    # A format meshio cannot tell or parse (Gmsh 1, SOFA's liver.msh) ends meshio's reading
+    # with sys.exit: the same error, the interpreter alive.
+    old_gmsh = tmp_path / "old.msh"
+    old_gmsh.write_text("$NOD\n1\n1 0 0 0\n$ENDNOD\n$ELM\n0\n$ENDELM\n")
+    with pytest.raises(MeshFileError, match="cannot read"):
+        load_mesh(old_gmsh)
     surface_only = tmp_path / "surface.vtu"
     meshio.write(surface_only, meshio.Mesh(UNIT_TET_POINTS, [("triangle", np.array([[0, 1, 2]]))]))
     with pytest.raises(MeshFileError, match="no linear tetrahedra.*triangle"):
