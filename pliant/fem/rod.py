@@ -296,7 +296,8 @@ class RodBody(DeformableBody):
         self._mass_diagonal = np.repeat(self.node_masses, 3)[self.free_dofs]
         diagonal = self.pattern.matrix(np.arange(self.pattern.nnz, dtype=float)).diagonal()
         self.mass_data = np.zeros(self.pattern.nnz)
-        self.mass_data[diagonal.astype(np.int64)] = self._mass_diagonal
+        self._mass_slots = diagonal.astype(np.int64)
+        self.mass_data[self._mass_slots] = self._mass_diagonal
         self._blocks = np.empty((m, 12, 12))
         self.loads = [
             LoadAssembly(load, self.n_nodes, self.free_index, self.pattern) for load in loads
@@ -342,6 +343,48 @@ class RodBody(DeformableBody):
         if not np.array_equal(self.gamma0[idx, 2], value):
             self.gamma0[idx, 2] = value
             self.changed()
+
+    def set_elements(
+        self,
+        lengths: np.ndarray,
+        shear_stretch: np.ndarray,
+        bend_twist: np.ndarray,
+        strain: np.ndarray,
+        curvature: np.ndarray,
+        node_masses: np.ndarray,
+    ) -> None:
+        """Replace every element's reference length (m,), stiffness C = diag(shear, shear,
+        stretch) and B = diag(bend, bend, twist) (m, 3 each, >= 0: 0 leaves the element
+        without elasticity), rest strains gamma0 and kappa0 (m, 3), and the nodes' lumped
+        masses (2N,: translational, then rotary): a rod whose material slides along its nodes
+        (an instrument pushed through an entry, :mod:`pliant.fem.instruments`). In place:
+        the kernels and the solvers read these very arrays from the next step."""
+        m, n = self.n_elements, self.n_centreline
+        values = {
+            "lengths": (lengths, (m,)),
+            "shear_stretch": (shear_stretch, (m, 3)),
+            "bend_twist": (bend_twist, (m, 3)),
+            "strain": (strain, (m, 3)),
+            "curvature": (curvature, (m, 3)),
+            "node_masses": (node_masses, (2 * n,)),
+        }
+        for name, (value, shape) in values.items():
+            array = np.asarray(value, dtype=float)
+            if array.shape != shape or not np.all(np.isfinite(array)):
+                raise ModelError(f"set_elements: {name} must be finite, shape {shape}")
+            if name != "lengths" and name not in ("strain", "curvature") and array.min() < 0:
+                raise ModelError(f"set_elements: {name} must be >= 0")
+        if np.min(lengths) <= 0.0:
+            raise ModelError("set_elements: lengths must be > 0")
+        self.lengths[:] = lengths
+        self._elements[5][:] = shear_stretch
+        self._elements[6][:] = bend_twist
+        self.gamma0[:] = strain
+        self.kappa0[:] = curvature
+        self.node_masses[:] = node_masses
+        self._mass_diagonal[:] = np.repeat(self.node_masses, 3)[self.free_dofs]
+        self.mass_data[self._mass_slots] = self._mass_diagonal
+        self.changed()
 
     # --- layout -----------------------------------------------------------------------------
     @property

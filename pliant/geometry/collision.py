@@ -514,6 +514,53 @@ class TriangleMesh(Shape):
         return _rotate(self.vertices, self.rotation) + self.position, 0.0
 
 
+class TriangleSurface(TriangleMesh):
+    """An open triangle surface (a vessel's wall, a phantom with openings): a point's gap is
+    its unsigned distance to the nearest face, the normal from that face to the point, so a
+    point stays on the side it comes from (SOFA's proximity contact, LocalMinDistance, is so:
+    distance-based, with no inside). Zero-area faces are left out.
+    """
+
+    def __init__(self, vertices, faces, position=(0.0, 0.0, 0.0), rotation=None) -> None:
+        v = np.asarray(vertices, dtype=float)
+        f = np.asarray(faces)
+        if v.ndim != 2 or v.shape[1] != 3 or f.ndim != 2 or f.shape[1] != 3 or len(f) < 1:
+            raise ContactError(
+                f"a triangle surface needs (n, 3) vertices and (m >= 1, 3) faces,"
+                f" got {v.shape} and {f.shape}"
+            )
+        if not np.all(np.isfinite(v)):
+            raise ContactError("surface vertices must be finite")
+        if not np.issubdtype(f.dtype, np.integer) or f.min() < 0 or f.max() >= len(v):
+            raise ContactError(f"faces must index the {len(v)} vertices")
+        tri = v[f.astype(np.int64)]
+        face = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+        area2 = np.linalg.norm(face, axis=1)
+        keep = area2 > 1e-14 * area2.max()
+        self.vertices, self.faces = v.copy(), f.astype(np.int64)[keep]
+        self.volume = 0.0
+        self._size = float(np.linalg.norm(np.ptp(v, axis=0)))
+        self._triangles = np.ascontiguousarray(tri[keep])
+        self._bvh = kernels.build_bvh(self._triangles)
+        self._vertex_box = (v.min(axis=0), v.max(axis=0))
+        self._face_normals = face[keep] / area2[keep, None]
+        self.winding = False
+        self.per_face = False
+        Shape.__init__(self, position, rotation)
+
+    def _local_distance(self, p):
+        dist2, closest, tri, _ = kernels.closest_points(
+            np.ascontiguousarray(p), self._triangles, *self._bvh
+        )
+        d = p - closest
+        normal = self._face_normals[tri].copy()
+        normal[np.einsum("ij,ij->i", d, normal) < 0.0] *= -1.0
+        gap = np.sqrt(dist2)
+        off = gap > 1e-12 * self._size
+        normal[off] = d[off] / gap[off, None]
+        return gap, normal, closest
+
+
 def _box_surface(half: np.ndarray, cell: float | None) -> tuple[np.ndarray, np.ndarray]:
     """Vertices and outward triangles of the surface of the box [-half, half], each face split
     into a grid of cells no longer than `cell` (None: two triangles a face)."""

@@ -53,7 +53,7 @@ from pliant.mesh.io import read_meshio
 from pliant.mesh.quality import signed_volumes
 from pliant.mesh.tetmesh import TetMesh
 from pliant.model import Model, State
-from pliant.sofa import reduced, rigid_scene, rods
+from pliant.sofa import instruments, reduced, rigid_scene, rods
 from pliant.sofa.bodies import (
     Part,
     _groups,
@@ -798,6 +798,11 @@ class _Builder:
             scene = SofaScene(model, dt, solver_kind, self.path, self.root, Bindings(hooks=[rod]))
             scene.write_outputs(model.rest_state())
             return scene
+        if instruments.has_instruments(self.root):  # BeamAdapter's instruments as the body
+            model, dt, solver_kind, hook = instruments.instrument_model(self)
+            scene = SofaScene(model, dt, solver_kind, self.path, self.root, Bindings(hooks=[hook]))
+            scene.write_outputs(model.rest_state())
+            return scene
         if rigid_scene.is_rigid_scene(self):  # rigid bodies alone
             return self._rigid_scene()
         joints = [
@@ -1009,6 +1014,8 @@ class _Builder:
         problems = []
         detects = self._detects()
         handled = HANDLED | (rods.COMPONENTS if rods.has_rods(self.root) else frozenset())
+        if instruments.has_instruments(self.root):  # BeamAdapter's deployed instruments
+            handled = handled | instruments.COMPONENTS
         for node in self.root.walk():
             for obj in node.objects:
                 if not detects and obj.type.endswith("CollisionModel"):
@@ -1370,7 +1377,8 @@ class _Builder:
     def _faces(self, node: SceneNode) -> np.ndarray:
         """The triangles of a node's collision model: its MeshTopology's, or its loader's."""
         topology = self._one(node, {"MeshTopology"}, "topologies")
-        if topology is not None and "triangles" in topology.attrs:
+        given = None if topology is None else topology.attrs.get("triangles")
+        if given is not None and not _is_link(given):  # a link: its node's loader's, below
             faces = _floats(topology.attrs["triangles"], f"{topology.path}.triangles")
             return faces.astype(np.int64).reshape(-1, 3)
         loaders = [o for o in node.objects if o.type in MESH_LOADERS]
@@ -2332,6 +2340,14 @@ class _Builder:
         applies it at initialisation."""
         value = dofs.attrs.get("position", dofs.attrs.get("src"))
         topology = next((o for o in node.objects if o.type in TOPOLOGIES), None)
+        if (
+            topology is not None
+            and "position" in topology.attrs
+            and value is not None
+            and not _is_link(value)
+            and _floats(value, f"{dofs.path}.position").size == 3
+        ):
+            value = None  # SOFA's MechanicalObject of one point takes its topology's points
         if value is None and topology is not None and "position" in topology.attrs:
             value = topology.attrs["position"]  # SOFA's MechanicalObject takes its topology's
             if not _is_link(value):
