@@ -226,6 +226,7 @@ class CombinedInstrument:
             the entry to the entry's pose (RestShapeSpringsForceField on indexFirstNode).
         gravity, rayleigh_mass, rayleigh_stiffness: as :class:`~pliant.fem.rod.RodBody`.
         threshold: abscissas closer than this are one node.
+        loads: more loads on the rod's rows (forces on nodes, moments on orientation rows).
     """
 
     def __init__(
@@ -239,6 +240,7 @@ class CombinedInstrument:
         rayleigh_mass: float = 0.0,
         rayleigh_stiffness: float = 0.0,
         threshold: float = 0.01,
+        loads: Sequence[Load] = (),
     ) -> None:
         if not instruments:
             raise ModelError("a combined instrument needs one instrument at least")
@@ -268,9 +270,10 @@ class CombinedInstrument:
                 RestShapeSprings(np.arange(n), np.zeros((n, 3)), 1.0),
                 TurnSprings(np.arange(n, 2 * n), np.tile(np.eye(3), (n, 1, 1)), 1.0),
                 NodalForces(np.arange(n), np.zeros((n, 3))),
+                *loads,
             ],
         )
-        self.springs, self.turns, self.weight = (a.load for a in self.body.loads)
+        self.springs, self.turns, self.weight = (a.load for a in self.body.loads[:3])
         self.abscissas = np.zeros(1)  # of the deployed nodes, the last of the rod's
         self.tips = np.zeros(len(self.instruments))
         self.rotations = np.zeros(len(self.instruments))

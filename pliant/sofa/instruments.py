@@ -45,8 +45,10 @@ from pliant.constraints.base import EmbeddedPoints
 from pliant.constraints.contact import Contacts
 from pliant.errors import ContactError, ModelError
 from pliant.fem.instruments import CombinedInstrument, Instrument, RestShape
+from pliant.fem.loads import NodalForces
 from pliant.geometry.collision import TriangleSurface
 from pliant.model import Model, State
+from pliant.sofa.components import is_visual
 from pliant.sofa.tree import SceneError, SceneNode, SceneObject, data_value, field_numbers
 
 if TYPE_CHECKING:
@@ -70,6 +72,30 @@ COMPONENTS = frozenset(
         "QuadSetTopologyContainer",
         "QuadSetTopologyModifier",
         "QuadSetGeometryAlgorithms",
+    }
+)
+
+
+# What the combined instrument's node may hold (beside visual components).
+ON_INSTRUMENTS = frozenset(
+    {
+        "MechanicalObject",
+        "RegularGridTopology",
+        "EdgeSetTopologyContainer",
+        "EdgeSetTopologyModifier",
+        "EdgeSetGeometryAlgorithms",
+        "EulerImplicitSolver",
+        "BTDLinearSolver",
+        "SparseLDLSolver",
+        "LinearSolverConstraintCorrection",
+        "GenericConstraintCorrection",
+        INTERPOLATION,
+        FORCE_FIELD,
+        CONTROLLER,
+        "FixedConstraint",
+        "FixedProjectiveConstraint",
+        "RestShapeSpringsForceField",
+        "ConstantForceField",
     }
 )
 
@@ -164,6 +190,21 @@ def _per_instrument(controller: SceneObject, key: str, count: int) -> np.ndarray
     return out
 
 
+def _force_field(obj: SceneObject, count: int) -> NodalForces:
+    """A Rigid3 ConstantForceField on the combined instrument's nodes: its ``forces`` (one
+    per index) or ``force`` (on each), force and moment, as constants."""
+    indices = _numbers(obj, "indices", [count - 1]).astype(np.int64)
+    if indices.size == 0 or indices.min() < 0 or indices.max() >= count:
+        raise SceneError(f"{obj.path}.indices: nodes in [0, {count}) expected")
+    values = _numbers(obj, "forces", _numbers(obj, "force", []).tolist())
+    if values.size not in (6, 6 * indices.size):
+        raise SceneError(f"{obj.path}: six values (force, moment) per index expected")
+    values = np.broadcast_to(values.reshape(-1, 6), (indices.size, 6))
+    return NodalForces(
+        np.concatenate([indices, count + indices]), np.vstack([values[:, :3], values[:, 3:]])
+    )
+
+
 class InstrumentData:
     """The controller's inputs and the nodes' outputs in the scene's data, read before and
     written after each step (a :class:`pliant.sofa.loader.SofaScene` hook)."""
@@ -245,6 +286,19 @@ def instrument_model(builder: _Builder) -> tuple[Model, float, str, InstrumentDa
         if obj.type == "RestShapeSpringsForceField":
             k = _number(obj, "stiffness", 1.0)
             springs = (k, _number(obj, "angularStiffness", k))
+    unread = [
+        f"{o.type} (at {node.path})"
+        for o in node.objects
+        if o.type not in ON_INSTRUMENTS and not is_visual(o.type)
+    ]
+    if unread:
+        raise SceneError(
+            f"{path.name}: on the combined instrument Pliant reads "
+            + ", ".join(sorted(ON_INSTRUMENTS))
+            + "; not "
+            + "; ".join(unread)
+        )
+    loads = [_force_field(obj, count) for obj in node.objects if obj.type == "ConstantForceField"]
     dt, gravity = builder._scene_time()
     kind, damping = builder._ode_solver(node)
     if kind != "dynamic":
@@ -262,6 +316,7 @@ def instrument_model(builder: _Builder) -> tuple[Model, float, str, InstrumentDa
             rayleigh_mass=damping[0],
             rayleigh_stiffness=damping[1],
             threshold=_number(controller, "threshold", 0.01),
+            loads=loads,
         )
         combined.start_state(tips, turns)
     except ModelError as exc:
