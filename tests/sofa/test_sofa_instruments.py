@@ -9,9 +9,11 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
+import gymnasium as gym
 import numpy as np
 import pytest
 
+from pliant.envs.sofagym import SofaGymEnv
 from pliant.fem.instruments import Instrument, RestShape, node_abscissas
 from pliant.sofa import SceneError, load_scene
 
@@ -172,3 +174,22 @@ def test_sofagym_instrument_scenes_load_and_step(name: str) -> None:
         assert len(phantom) > 1000 and np.ptp(phantom[:, 2]) > 100.0
     reward = scene.root.Reward.getReward()
     assert np.all(np.isfinite(reward))
+
+
+@pytest.mark.skipif(not SOFAGYM.is_dir(), reason=f"SofaGym is not at {SOFAGYM} (set $SOFAGYM)")
+def test_catheter_beam_environment_pushes_and_turns_through_its_toolbox() -> None:
+    """SofaGym's CatheterBeam loop (pliant.envs.SofaGymEnv): its actions' animations
+    (splib3's AnimationManagerController) write xtip and rotationInstrument, its getState
+    reads them back with the tip."""
+    path = SOFAGYM / "sofagym" / "envs" / "CatheterBeam" / "CatheterBeamScene.py"
+    config = {"source": [0, 0, 160], "target": [0, 0, 0], "scale_factor": 10, "dt": 0.01}
+    config |= {"timer_limit": 80, "zFar": 4000, "seed": None, "goal": True}
+    config |= {"goalList": [1226, 1663], "dim_state": 12}
+    env = SofaGymEnv(path, config, action_space=gym.spaces.Discrete(12))
+    env.reset(seed=0)
+    for action in (0, 0, 1):  # push 10 twice (2 scale / 2, scale 10), then turn 1/3
+        state, reward, *_ = env.step(action)
+    assert state[0] == pytest.approx(21.0)  # xtip of the catheter, from 1
+    assert state[3] == pytest.approx(1.0 / 3.0)  # its rotation
+    assert 1.0 < state[8] < 21.0  # the tip on its way along z (the entry's axis)
+    assert np.isfinite(reward)
