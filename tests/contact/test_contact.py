@@ -32,6 +32,7 @@ from pliant.geometry.collision import (
     Plane,
     Sphere,
     TriangleMesh,
+    TriangleSurface,
     collide,
     detect,
     shape_velocities,
@@ -796,3 +797,15 @@ def test_invalid_rigid_bodies_raise():
     # A capsule of vanishing length is a sphere; a long thin one is a rod, m (2L)^2 / 12.
     np.testing.assert_allclose(capsule_inertia(3.0, 0.5, 1e-12), sphere_inertia(3.0, 0.5))
     np.testing.assert_allclose(capsule_inertia(3.0, 1e-4, 1.0)[0, 0], 3.0 * 4 / 12, rtol=1e-3)
+
+
+def test_an_open_triangle_surface_keeps_points_on_their_side() -> None:
+    """TriangleSurface (an open wall): the unsigned distance to its nearest face, the normal
+    toward the point, on either side."""
+    square = TriangleSurface(
+        [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [1.0, 1.0, 0.0], [0.0, 1.0, 0.0]], [[0, 1, 2], [0, 2, 3]]
+    )
+    query = square.signed_distance(np.array([[0.3, 0.4, 0.2], [0.3, 0.4, -0.1], [1.5, 0.5, 0.0]]))
+    np.testing.assert_allclose(query.gap, [0.2, 0.1, 0.5])
+    np.testing.assert_allclose(query.normal, [[0, 0, 1], [0, 0, -1], [1, 0, 0]], atol=1e-12)
+    np.testing.assert_allclose(query.closest[0], [0.3, 0.4, 0.0])
