@@ -387,18 +387,7 @@ class TriangleMesh(Shape):
         winding: bool = False,
         per_face: bool = False,
     ) -> None:
-        v = np.asarray(vertices, dtype=float)
-        f = np.asarray(faces)
-        if v.ndim != 2 or v.shape[1] != 3 or f.ndim != 2 or f.shape[1] != 3 or len(f) < 4:
-            raise ContactError(
-                f"a triangle mesh needs (n, 3) vertices and (m >= 4, 3) faces,"
-                f" got {v.shape} and {f.shape}"
-            )
-        if not np.all(np.isfinite(v)):
-            raise ContactError("mesh vertices must be finite")
-        if not np.issubdtype(f.dtype, np.integer) or f.min() < 0 or f.max() >= len(v):
-            raise ContactError(f"faces must index the {len(v)} vertices")
-        f = f.astype(np.int64)
+        v, f = _checked_triangles(vertices, faces, "a triangle mesh", 4)
         self.vertices, self.faces = v.copy(), f
         self._check_closed()
         tri = v[f]
@@ -522,18 +511,8 @@ class TriangleSurface(TriangleMesh):
     """
 
     def __init__(self, vertices, faces, position=(0.0, 0.0, 0.0), rotation=None) -> None:
-        v = np.asarray(vertices, dtype=float)
-        f = np.asarray(faces)
-        if v.ndim != 2 or v.shape[1] != 3 or f.ndim != 2 or f.shape[1] != 3 or len(f) < 1:
-            raise ContactError(
-                f"a triangle surface needs (n, 3) vertices and (m >= 1, 3) faces,"
-                f" got {v.shape} and {f.shape}"
-            )
-        if not np.all(np.isfinite(v)):
-            raise ContactError("surface vertices must be finite")
-        if not np.issubdtype(f.dtype, np.integer) or f.min() < 0 or f.max() >= len(v):
-            raise ContactError(f"faces must index the {len(v)} vertices")
-        tri = v[f.astype(np.int64)]
+        v, f = _checked_triangles(vertices, faces, "a triangle surface", 1)
+        tri = v[f]
         face = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
         area2 = np.linalg.norm(face, axis=1)
         keep = area2 > 1e-14 * area2.max()
@@ -559,6 +538,21 @@ class TriangleSurface(TriangleMesh):
         off = gap > 1e-12 * self._size
         normal[off] = d[off] / gap[off, None]
         return gap, normal, closest
+
+
+def _checked_triangles(vertices, faces, what: str, least: int) -> tuple[np.ndarray, np.ndarray]:
+    """(n, 3) finite float vertices and (m >= least, 3) int64 faces indexing them."""
+    v = np.asarray(vertices, dtype=float)
+    f = np.asarray(faces)
+    if v.ndim != 2 or v.shape[1] != 3 or f.ndim != 2 or f.shape[1] != 3 or len(f) < least:
+        raise ContactError(
+            f"{what} needs (n, 3) vertices and (m >= {least}, 3) faces, got {v.shape} and {f.shape}"
+        )
+    if not np.all(np.isfinite(v)):
+        raise ContactError("mesh vertices must be finite")
+    if not np.issubdtype(f.dtype, np.integer) or f.min() < 0 or f.max() >= len(v):
+        raise ContactError(f"faces must index the {len(v)} vertices")
+    return v, f.astype(np.int64)
 
 
 def _box_surface(half: np.ndarray, cell: float | None) -> tuple[np.ndarray, np.ndarray]:
