@@ -40,7 +40,7 @@ from __future__ import annotations
 import math
 import warnings
 from collections.abc import Sequence
-from dataclasses import replace
+from dataclasses import fields, replace
 
 import numpy as np
 
@@ -214,6 +214,9 @@ class Contacts:
         self.thickness = float(thickness)
         self.bodies: list[RigidBody] = []
         self._carried: np.ndarray | None = None  # (points, bodies): point held by the body
+        # (colliding points,) True where a point does not collide with the shapes now (an
+        # instrument's nodes waiting behind its entry), set between steps; None: all collide
+        self.resting: np.ndarray | None = None
 
     def attach(self, body, rigid_bodies: Sequence[RigidBody] = ()) -> None:
         """Resolve the defaults against the body and take the model's rigid bodies (called
@@ -287,6 +290,7 @@ class Contacts:
         if not self.shapes:
             return
         found = detect(self._colliding(positions), self.shapes, self.margin, radius=self.thickness)
+        found = self._awake(found)
         if len(found) and found.gap.min() < -self.margin:
             i = int(np.argmin(found.gap))
             raise ContactError(
@@ -308,6 +312,8 @@ class Contacts:
             return
         ends = self._colliding(positions)[fast]
         near = detect(ends, self._colliders, self.margin, radius=self.thickness)
+        if self.resting is not None:
+            near = _kept(near, ~self.resting[fast[near.index_a]])
         if len(near):
             moved = float(travel[fast[near.index_a]].max())
             warnings.warn(
@@ -359,7 +365,7 @@ class Contacts:
                 raise ContactError("contacts with rigid bodies need a dynamic step (ImplicitEuler)")
             return self._coupled(points, positions, dt, rigid)
         found = (
-            detect(points, self.shapes, self.margin, radius=self.thickness)
+            self._awake(detect(points, self.shapes, self.margin, radius=self.thickness))
             if self.shapes
             else ContactSet.empty()
         )
@@ -446,6 +452,12 @@ class Contacts:
             return None
         rows = ContactConstraint.joined(parts) if len(parts) > 1 else parts[0]
         return rows, np.vstack(twist_rows)
+
+    def _awake(self, found: ContactSet) -> ContactSet:
+        """The contacts of the points that are not :attr:`resting`."""
+        if self.resting is None or not len(found):
+            return found
+        return _kept(found, ~self.resting[found.index_a])
 
     def _colliding(self, positions: np.ndarray) -> np.ndarray:
         """The colliding points' positions (without the planes' offsets)."""
@@ -635,3 +647,8 @@ class CoupledContact(Constraint):
             np.vstack([rows.nodes, np.zeros((r, m), dtype=np.int64)]),
             np.concatenate([rows.values, np.zeros((r, m, 3))]),
         )
+
+
+def _kept(found: ContactSet, keep: np.ndarray) -> ContactSet:
+    """The contacts of `found` where `keep` is True."""
+    return ContactSet(*(getattr(found, f.name)[keep] for f in fields(ContactSet)))

@@ -19,7 +19,8 @@ What is read (the mechanics and their departures from BeamAdapter are in
   ``BTDLinearSolver`` is a linear solver (Pliant's is exact);
 * contact: where the instrument's node carries collision models (the
   ``MultiAdaptiveBeamMapping`` 's points and lines) and the scene detects collisions, its
-  nodes collide with the scene's static obstacles (``TriangleCollisionModel`` with
+  deployed nodes (not those waiting behind the entry: ``Contacts.resting``) collide with the
+  scene's static obstacles (``TriangleCollisionModel`` with
   ``simulated=False moving=False``) at the intersection's ``contactDistance``, the
   ``alarmDistance`` as margin. Departure: BeamAdapter collides points and segments sampled
   along the beams (``numEdgesCollis``); Pliant collides the nodes;
@@ -209,9 +210,9 @@ class InstrumentData:
     """The controller's inputs and the nodes' outputs in the scene's data, read before and
     written after each step (a :class:`pliant.sofa.loader.SofaScene` hook)."""
 
-    def __init__(self, combined, controller, dofs, collision, dt: float) -> None:
+    def __init__(self, combined, controller, dofs, collision, dt: float, contacts=None) -> None:
         self.combined, self.controller, self.dofs = combined, controller, dofs
-        self.collision, self.dt = collision, dt
+        self.collision, self.dt, self.contacts = collision, dt, contacts
 
     def commands(self) -> tuple[np.ndarray, np.ndarray]:
         count = len(self.combined.instruments)
@@ -226,7 +227,13 @@ class InstrumentData:
     def read(self, state: State) -> State:
         tips, turns = self.commands()
         x, v = self.combined.deploy(state.positions, state.velocities, tips, turns)
+        self.rest_waiting()
         return dataclasses.replace(state, positions=x, velocities=v)
+
+    def rest_waiting(self) -> None:
+        """The nodes waiting behind the entry do not collide."""
+        if self.contacts is not None:
+            self.contacts.resting = np.arange(self.combined.n) < self.combined.first
 
     def write(self, state: State) -> None:
         combined = self.combined
@@ -326,8 +333,9 @@ def instrument_model(builder: _Builder) -> tuple[Model, float, str, InstrumentDa
         if any(o.type == "MultiAdaptiveBeamMapping" for o in child.objects):
             collision = builder._one(child, {"MechanicalObject"}, "MechanicalObjects")
     contacts = _contacts(builder, node, combined)
+    data = InstrumentData(combined, controller, dofs, collision, dt, contacts)
+    data.rest_waiting()
     model = Model(combined.body, contacts=contacts, name=path.stem)
-    data = InstrumentData(combined, controller, dofs, collision, dt)
     return model, dt, kind, data
 
 

@@ -452,3 +452,13 @@ def test_inverse_control_of_a_walker_resting_with_friction_keeps_its_contacts_st
         after = solver.step(state, InverseControl(goals=goals))
     moved = model.effectors[0].points.positions(after.positions) - goals
     assert np.abs(moved).max() < 0.05
+
+
+def test_resting_points_do_not_collide() -> None:
+    """Contacts.resting: the cube's points touching the floor give rows; marked resting,
+    none."""
+    model = _cube(lift=0.0)
+    x = model.rest_state().positions
+    assert model.contacts.constraint(x, 0.01) is not None
+    model.contacts.resting = np.ones(model.contacts.n_colliding, dtype=bool)
+    assert model.contacts.constraint(x, 0.01) is None

@@ -122,6 +122,21 @@ def test_a_spire_deployed_freely_takes_its_curvature_and_turns_with_rotation() -
     np.testing.assert_allclose(tips[1], np.cross(AXIS, tips[0]), atol=1e-6 * across)
 
 
+def test_an_instrument_pushed_against_a_wall_slides_along_it() -> None:
+    """Pushed to 60 against a wall tilted 45 degrees across the entry's axis at z = 30: the
+    deployed nodes stay on the entry's side, the tip touching the wall at the contact
+    distance (0.5), the instrument bent along it; the collision node holds the deployed
+    nodes."""
+    scene = _run({"wall": 30.0}, 100, push=(1.0, 60.0))
+    points = _deployed(scene)[:, :3]
+    distance = (points[:, 2] - points[:, 0] - 30.0) / np.sqrt(2.0)  # to the wall, < 0 before it
+    assert distance.max() == pytest.approx(-0.5, abs=0.05)
+    assert distance[-1] == distance.max()
+    assert points[-1, 0] > 10.0  # deflected along the wall, not through it
+    collision = scene.root.InstrumentCombined.Collis.CollisionDOFs.position.value
+    np.testing.assert_allclose(collision, points)
+
+
 def test_unread_components_on_the_instrument_are_one_scene_error(tmp_path) -> None:
     text = SCENE.read_text().replace(
         "    return root\n",

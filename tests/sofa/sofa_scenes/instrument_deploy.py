@@ -8,7 +8,9 @@ Rigid3 nodes driven by an InterventionalRadiologyController, entering at the ori
         youngModulusExtremity) and radius, massDensity;
     xtip, rotation: the controller's xtip and rotationInstrument;
     tip_force: a ConstantForceField (fx fy fz mx my mz) on the last node (default none);
-    nodes: the combined instrument's nodes (default 30).
+    nodes: the combined instrument's nodes (default 30);
+    wall: z where a static square wall (two triangles, 100 wide, tilted 45 degrees about y)
+        crosses the entry's axis, with SOFA's collision pipeline (default none).
 """
 
 STRAIGHT = {
@@ -74,6 +76,25 @@ def createScene(root, config=None):
         stiffness=1e8,
         angularStiffness=1e8,
     )
+    if config.get("wall") is not None:
+        root.addObject("DefaultPipeline")
+        root.addObject("BruteForceBroadPhase")
+        root.addObject("BVHNarrowPhase")
+        root.addObject("LocalMinDistance", alarmDistance=2.0, contactDistance=0.5)
+        root.addObject("DefaultContactManager", response="FrictionContactConstraint")
+        collis = instrument.addChild("Collis")
+        collis.addObject("EdgeSetTopologyContainer", name="collisEdgeSet")
+        collis.addObject("MechanicalObject", name="CollisionDOFs")
+        collis.addObject("MultiAdaptiveBeamMapping", controller="../controller", useCurvAbs=True)
+        collis.addObject("LineCollisionModel", group=1)
+        collis.addObject("PointCollisionModel", group=1)
+        z = config["wall"]
+        wall = root.addChild("Wall")
+        corners = [[-50.0, -50.0, z - 50.0], [50.0, -50.0, z + 50.0]]
+        corners += [[50.0, 50.0, z + 50.0], [-50.0, 50.0, z - 50.0]]
+        wall.addObject("MeshTopology", position=corners, triangles=[[0, 2, 1], [0, 3, 2]])
+        wall.addObject("MechanicalObject", name="DOFs")
+        wall.addObject("TriangleCollisionModel", simulated=False, moving=False)
     if config.get("tip_force") is not None:
         instrument.addObject(
             "ConstantForceField", indices=[config["nodes"] - 1], forces=[config["tip_force"]]
