@@ -9,8 +9,8 @@ The semantics are those of SOFA's BeamAdapter plugin (``WireRestShape``,
   ``straight_length``, then a spire of diameter D and height h per turn up to its ``length``
   (the frame turned by theta = 2 pi s / sqrt(h^2 + (pi D)^2) about y, tilted by
   atan(h / (pi D)) about z); Young's modulus ``young`` on the straight part,
-  ``young_extremity`` beyond; the key points [0, straight_length, length] sampled by
-  ``density`` beams each;
+  ``young_extremity`` beyond (read at each beam's distal end, as BeamAdapter does); the
+  key points [0, straight_length, length] sampled by ``density`` beams each;
 * the instruments share one rod of N nodes (the combined instrument). Each instrument's tip
   is at the abscissa ``xtip`` from the entry, its proximal end ``xtip - length`` (behind the
   entry while not fully pushed). Each step the nodes are placed at the deployed abscissas: 0,
@@ -37,8 +37,9 @@ whose shape comes from before the entry (a push) is put on the entry's axis at t
 and the nodes deployed at the start straight along it, where BeamAdapter puts them on the
 entry itself, and two nodes BeamAdapter takes from one point of the last shape are taken
 half their new spacing apart (Pliant's elements must not shrink to nothing; its elasticity
-pushes them out, as BeamAdapter's does);
-``rigidCurvAbs`` rigid parts and non-procedural (mesh) rest shapes are not read.
+pushes them out, as BeamAdapter's does); the masses are lumped on the nodes (translational, and rotary rho I per length), where
+BeamAdapter's beam has its own mass matrix; ``rigidCurvAbs`` rigid parts and non-procedural
+(mesh) rest shapes are not read.
 """
 
 from __future__ import annotations
