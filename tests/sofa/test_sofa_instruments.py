@@ -85,6 +85,13 @@ def test_a_straight_instrument_pushed_in_stays_on_the_entry_axis_with_its_tip_at
     np.testing.assert_allclose(deployed[:, 2], np.linspace(0.0, 50.0, 11), atol=1e-4)
 
 
+def test_the_controller_speed_pushes_the_controlled_instrument() -> None:
+    """speed 100 a second: xtip grows 1 a step of 0.01 s (written back), the tip following."""
+    scene = _run({"speed": 100.0}, 30)
+    assert scene.root.InstrumentCombined.controller.xtip.value[0] == pytest.approx(31.0)
+    assert 20.0 < _deployed(scene)[-1, :3] @ AXIS < 31.0
+
+
 def test_a_deployed_cantilever_bends_as_a_beam_under_a_tip_load() -> None:
     """50 deployed, a force F across it on the tip: F L^3 / (3 E I) (the rod's shear and the
     entry springs: within 0.5 %); two instruments over the same length add their E I."""

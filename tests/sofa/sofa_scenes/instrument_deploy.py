@@ -6,7 +6,7 @@ Rigid3 nodes driven by an InterventionalRadiologyController, entering at the ori
     instruments: a list of rest shapes, each a dict of WireRestShape's data (length,
         straightLength, spireDiameter, spireHeight, densityOfBeams, youngModulus,
         youngModulusExtremity) and radius, massDensity;
-    xtip, rotation: the controller's xtip and rotationInstrument;
+    xtip, rotation, speed: the controller's xtip, rotationInstrument and speed (default 0);
     tip_force: a ConstantForceField (fx fy fz mx my mz) on the last node (default none);
     nodes: the combined instrument's nodes (default 30);
     wall: z where a static square wall (two triangles, 100 wide, tilted 45 degrees about y)
@@ -66,7 +66,7 @@ def createScene(root, config=None):
         xtip=config["xtip"],
         rotationInstrument=config["rotation"],
         startingPos=[0, 0, 0, 0, -0.7071068, 0, 0.7071068],
-        speed=0,
+        speed=config.get("speed", 0.0),
         controlledInstrument=0,
     )
     instrument.addObject("FixedConstraint", name="FixedConstraint", indices=0)
