@@ -120,8 +120,9 @@ def fingerprint(name: str) -> dict:
 
 # Attributes added since the fixture was written, with the value that leaves a model as it was
 # (a rigid body's held twist components; a triangle mesh's winding-number inside and per-face
-# sphere contacts): a model that has them at these values is the fingerprinted one.
-_ADDED = {"held": None, "per_face": False, "winding": False}
+# sphere contacts; the contacts' resting points): a model that has them at these values is the
+# fingerprinted one.
+_ADDED = {"held": None, "per_face": False, "winding": False, "resting": None}
 
 
 def _compare(expected, got, path: str, rtol: float) -> list[str]:
