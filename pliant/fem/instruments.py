@@ -37,9 +37,9 @@ whose shape comes from before the entry (a push) is put on the entry's axis at t
 and the nodes deployed at the start straight along it, where BeamAdapter puts them on the
 entry itself, and two nodes BeamAdapter takes from one point of the last shape are taken
 half their new spacing apart (Pliant's elements must not shrink to nothing; its elasticity
-pushes them out, as BeamAdapter's does); the masses are lumped on the nodes (translational, and rotary rho I per length), where
-BeamAdapter's beam has its own mass matrix; ``rigidCurvAbs`` rigid parts and non-procedural
-(mesh) rest shapes are not read.
+pushes them out, as BeamAdapter's does); the masses are lumped on the nodes
+(translational, and rotary rho I per length), where BeamAdapter's beam has its own mass
+matrix; ``rigidCurvAbs`` rigid parts and non-procedural (mesh) rest shapes are not read.
 """
 
 from __future__ import annotations
