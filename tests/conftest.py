@@ -171,6 +171,15 @@ def mechanical_energy(model: Model, state: State) -> float:
     return total
 
 
+def run_scene(scene, steps: int) -> State:
+    """A loaded SOFA scene (pliant.sofa.SofaScene) stepped `steps` times from rest by its own
+    solver (controllers and hooks around each step); the last state."""
+    solver, state = scene.solver(), scene.model.rest_state()
+    for _ in range(steps):
+        state = solver.step(state)
+    return state
+
+
 # The tutorials (examples/tutorial_*.py) run in their quick settings, in two files so that
 # neither is a long pole under pytest-xdist's --dist loadfile: the learning ones
 # (tests/interface/test_tutorials_learning.py) and every other (test_tutorials_simulation.py).

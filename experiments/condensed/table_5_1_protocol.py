@@ -47,7 +47,7 @@ import torch
 import typer
 
 from pliant import configure_threads
-from pliant.condensed.collect import load_or_collect, solve_split
+from pliant.condensed.collect import held_out_split, load_or_collect
 from pliant.condensed.dataset import Dataset, Split
 from pliant.condensed.learned import LearnedCondensedModel
 from pliant.condensed.networks import StandardisedMLP
@@ -101,19 +101,13 @@ def scores(network: StandardisedMLP, test: Split) -> dict:
     }
 
 
-def held_out(plan, test_seed: int, workers: int) -> Split:
-    """The held-out test set: the test stream of `test_seed` in the uniform plan's box, solved
-    from rest by the plan's robot and solver (deterministic: the same samples every time)."""
-    return solve_split(replace(plan, seed=test_seed), "test", workers=workers).converged_only()
-
-
 def evaluate_kept(folder: Path, test_seed: int, workers: int, out: Path) -> None:
     """The kept networks scored on the held-out samples solved again (--evaluate)."""
     models = {
         key: LearnedCondensedModel.load(folder / f"diamond_protocol_{key}.pt")
         for key in ("uniform", "corner")
     }
-    test = held_out(models["uniform"].plan, test_seed, workers)
+    test = held_out_split(models["uniform"].plan, test_seed, workers=workers)
     report = {
         "test_samples": len(test),
         **{key: scores(model.network, test) for key, model in models.items()},
@@ -161,7 +155,7 @@ def main(
     )
     second, corner_row = train(both, validation, corner_epochs, work / f"protocol_{name}.ckpt")
     # The held-out test set, drawn only now: the test stream of another seed, same box.
-    test = held_out(uniform.plan, test_seed, workers)
+    test = held_out_split(uniform.plan, test_seed, workers=workers)
     for key, network in (("uniform", first), ("corner", second)):
         LearnedCondensedModel.from_dataset(network, uniform, {"selected_on": "validation"}).save(
             work / f"diamond_protocol_{key}.pt"

@@ -20,6 +20,7 @@ again, and :func:`verify` names the bad ones.
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import hashlib
 import json
@@ -143,6 +144,19 @@ def solve_split(plan: CollectionPlan, split: str, *, workers: int | None = None)
     solved = dict(run_jobs(solve_chunk, jobs, workers=workers))
     empty = Split.empty(Split.widths(plan, _layout(plan)))
     return Split.concatenate([empty, *(solved[key] for key in chunks)])
+
+
+def held_out_split(plan: CollectionPlan, seed: int, *, workers: int | None = None) -> Split:
+    """A held-out test set for a model trained on `plan`: the test split of the same plan
+    drawn from another `seed` (the same box, count and robot), solved as `collect` solves it,
+    converged samples only. Deterministic: the same samples every time, so it can be drawn
+    after every choice was made on the plan's own test split (then a validation set) and
+    re-made from the plan a kept model records."""
+    if seed == plan.seed:
+        raise DatasetError(f"a held-out seed must differ from the plan's ({plan.seed})")
+    return solve_split(
+        dataclasses.replace(plan, seed=seed), "test", workers=workers
+    ).converged_only()
 
 
 def _chunks(plan: CollectionPlan, points: dict[str, np.ndarray], splits) -> list[ChunkKey]:

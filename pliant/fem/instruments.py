@@ -28,7 +28,8 @@ The semantics are those of SOFA's BeamAdapter plugin (``WireRestShape``,
   the section, per instrument present, lumped on the nodes.
 
 Departures from BeamAdapter: Pliant's rod is a geometrically exact Cosserat rod (one-point
-quadrature, shear and stretch as stiffnesses), not BeamAdapter's Timoshenko beam elements on
+quadrature, shear and stretch as stiffnesses: its shear deformation adds about (r / L)^2 of
+the bending deflection), not BeamAdapter's Euler-Bernoulli beam elements (shear areas 0) on
 spline-interpolated frames; the last shape is carried onto new abscissas linearly (positions,
 velocities) and by slerp (frames) where BeamAdapter interpolates on its beam spline; the nodes
 waiting at the entry are held by stiff springs at points on the entry axis behind it (their
@@ -53,7 +54,7 @@ from scipy.spatial.transform import Rotation
 
 from pliant.errors import ModelError
 from pliant.fem import rod_kernels
-from pliant.fem.loads import Load, NodalForces, RestShapeSprings
+from pliant.fem.loads import Load, NodalForces, RestShapeSprings, RotationSprings
 from pliant.fem.material import Material
 from pliant.fem.rod import RodBody, RodSection
 
@@ -269,7 +270,7 @@ class CombinedInstrument:
             rayleigh_stiffness=rayleigh_stiffness,
             loads=[
                 RestShapeSprings(np.arange(n), np.zeros((n, 3)), 1.0),
-                TurnSprings(np.arange(n, 2 * n), np.tile(np.eye(3), (n, 1, 1)), 1.0),
+                RotationSprings(np.arange(n, 2 * n), np.zeros((2 * n, 3)), 1.0),
                 NodalForces(np.arange(n), np.zeros((n, 3))),
                 *loads,
             ],
@@ -438,7 +439,7 @@ class CombinedInstrument:
     def _set_supports(self, shear_stretch, bend_twist, lengths, mass) -> None:
         """The springs: stiff on the waiting nodes, the scene's on the node at the entry;
         the weight of the deployed nodes."""
-        first = self.first
+        n, first = self.n, self.first
         live = shear_stretch[:, 2] > 0  # held as stiffly as the stiffest element
         hold, hold_turn = 1.0, 1.0
         if live.any():
@@ -449,9 +450,10 @@ class CombinedInstrument:
         k[:first], k_turn[:first] = hold, hold_turn
         k[first] += self.base_stiffness[0]
         k_turn[first] += self.base_stiffness[1]
+        anchors = np.repeat((self.start[1] @ AXES)[None], n, axis=0)
         for node in range(first + 1):
-            point, frame = self.waiting_pose(node)
-            self.springs.anchors[node], self.turns.anchors[node] = point, frame @ AXES
+            self.springs.anchors[node] = self.waiting_pose(node)[0]
+        self.turns.rest = Rotation.from_matrix(anchors)  # every node's: the entry's frame
         self.weight.values[:] = 0.0
         self.weight.values[first:] = mass[first:, None] * self.gravity
         self.body.changed()
@@ -467,33 +469,6 @@ class CombinedInstrument:
         quats[:first] = Rotation.from_matrix(self.start[1]).as_quat()
         quats[quats[:, 3] < 0] *= -1.0
         return np.hstack([points, quats])
-
-
-class TurnSprings(Load):
-    """Springs turning orientation rows back to anchor frames: energy k/2 |u|^2, u =
-    log(R R_a^T) (a spatial rotation vector, as the rod's increments are spatial spins), the
-    moment -k u and the tangent k I (exact at the anchor).
-
-    Args:
-        rows: (k,) orientation rows of the rod (n_centreline + node).
-        anchors: (k, 3, 3) anchor frames (Pliant's directors as columns).
-        stiffness: moment per radian, one value or one per row (>= 0).
-    """
-
-    def __init__(self, rows, anchors, stiffness) -> None:
-        self.groups = np.asarray(rows, dtype=np.int64).reshape(-1, 1)
-        self.anchors = np.array(anchors, dtype=float).reshape(-1, 3, 3)
-        self.stiffness = np.broadcast_to(np.asarray(stiffness, float), (len(self.groups),)).copy()
-        if len(self.anchors) != len(self.groups) or np.any(self.stiffness < 0):
-            raise ModelError("TurnSprings: one anchor frame and a stiffness >= 0 per row")
-
-    def group_forces(self, x, time):
-        rotations = rod_kernels.node_rotations(np.ascontiguousarray(x[self.groups[:, 0]]))
-        u = np.array([_rotvec(r @ a.T) for r, a in zip(rotations, self.anchors, strict=True)])
-        return (-self.stiffness[:, None] * u)[:, None, :]
-
-    def group_tangents(self, x, time):
-        return self.stiffness[:, None, None] * np.eye(3)[None]
 
 
 def _rotvec(rotation: np.ndarray) -> np.ndarray:

@@ -16,6 +16,7 @@ from __future__ import annotations
 from collections.abc import Callable
 
 import numpy as np
+from scipy.spatial.transform import Rotation
 
 from pliant.errors import ModelError
 from pliant.mesh.locate import locate_points
@@ -247,6 +248,36 @@ class RestShapeSprings(Load):
 
     def group_forces(self, x, time):
         return (-self.stiffness[:, None] * (x[self.groups[:, 0]] - self.anchors))[:, None, :]
+
+    def group_tangents(self, x, time):
+        return self.stiffness[:, None, None] * np.eye(3)[None]
+
+
+class RotationSprings(Load):
+    """Springs turning a rod's orientations back to their rest rotations (SOFA's angular
+    RestShapeSpringsForceField on Rigid3 frames): on an orientation row holding the rotation
+    vector of R, the moment -k log(R R0^T) (world axes: the rotation vector of the turn from
+    rest), whatever the rest rotation R0; tangent k I, SOFA's (exact at rest).
+
+    Args:
+        nodes: (k,) orientation rows (rotation vectors: :class:`pliant.fem.rod.RodBody`'s
+            rows N..2N-1).
+        rest_positions: the body's rest positions (those rows' rest rotation vectors).
+        stiffness: k (moment per radian), one value or one per node.
+    """
+
+    def __init__(self, nodes, rest_positions, stiffness) -> None:
+        idx = _check_nodes(nodes, "RotationSprings")
+        k = np.broadcast_to(np.asarray(stiffness, dtype=float), idx.shape).copy()
+        if not np.all(np.isfinite(k)) or np.any(k <= 0):
+            raise ModelError("RotationSprings: stiffness must be finite and > 0")
+        self.groups = idx.reshape(-1, 1)
+        self.stiffness = k
+        self.rest = Rotation.from_rotvec(np.asarray(rest_positions, dtype=float)[idx])
+
+    def group_forces(self, x, time):
+        turn = (Rotation.from_rotvec(x[self.groups[:, 0]]) * self.rest.inv()).as_rotvec()
+        return (-self.stiffness[:, None] * turn)[:, None, :]
 
     def group_tangents(self, x, time):
         return self.stiffness[:, None, None] * np.eye(3)[None]

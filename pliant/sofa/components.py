@@ -440,6 +440,36 @@ FIELDS: dict[str, dict] = {
         ["RuleBasedContactManager", "DefaultContactManager", "CollisionResponse"],
         {"response": "", "responseParams": ""},
     ),
+    # BeamAdapter (pliant.sofa.beams); SOFA's defaults.
+    "BeamInterpolation": {
+        "crossSectionShape": "circular",
+        "radius": [1.0],
+        "innerRadius": [0.0],
+        "lengthY": [1.0],
+        "lengthZ": [1.0],
+        "sideLength": 1.0,
+        "smallRadius": 1.0,
+        "largeRadius": 1.0,
+        "defaultYoungModulus": [1.0e5],
+        "defaultPoissonRatio": [0.4],
+        "straight": True,
+        "dofsAndBeamsAligned": True,
+        "vecID": "current",
+        "DOF0TransformNode0": _EMPTY,
+        "DOF1TransformNode1": _EMPTY,
+        "lengthList": _EMPTY,
+        "edgeList": _EMPTY,
+        "curvAbsList": _EMPTY,
+        "template": "Rigid3",
+    },
+    "AdaptiveBeamForceFieldAndMass": {
+        "computeMass": True,
+        "massDensity": [1.0],
+        "shearStressComputation": True,
+        "reinforceLength": False,
+        "interpolation": "",
+        "template": "Rigid3",
+    },
 }
 
 # Components that change nothing Pliant computes, besides those named in the loader:

@@ -53,7 +53,7 @@ from pliant.mesh.io import read_meshio
 from pliant.mesh.quality import signed_volumes
 from pliant.mesh.tetmesh import TetMesh
 from pliant.model import Model, State
-from pliant.sofa import instruments, reduced, rigid_scene, rods
+from pliant.sofa import beams, instruments, reduced, rigid_scene, rods
 from pliant.sofa.bodies import (
     Part,
     _groups,
@@ -243,11 +243,9 @@ UNSUPPORTED = {
     "JointConstraint": "an articulation's degree of freedom (Vec1 of an"
     " ArticulatedSystemMapping); Pliant reads a servo's angle from its"
     " RestShapeSpringsForceField's rest_position only",
-    # BeamAdapter's beams (SofaGym's StemPendulum): Pliant reads the Cosserat plugin's rods
-    # (pliant.sofa.rods), not BeamAdapter's interpolated beams.
-    "BeamInterpolation": "BeamAdapter's beam (Pliant reads SOFA's Cosserat plugin rods)",
-    "AdaptiveBeamForceFieldAndMass": "BeamAdapter's beam (Pliant reads SOFA's Cosserat"
-    " plugin rods)",
+    # BeamAdapter's beams are read (pliant.sofa.beams) where a BeamInterpolation holds them.
+    "AdaptiveBeamForceFieldAndMass": "BeamAdapter's beam element, read with a"
+    " BeamInterpolation (pliant.sofa.beams)",
 }
 # A rigidified group's frame is a Pliant rigid body with this share of its nodes' mass (SOFA's
 # frames have none of their own: the nodes carry it; Pliant's rigid bodies need a mass).
@@ -803,6 +801,12 @@ class _Builder:
             scene = SofaScene(model, dt, solver_kind, self.path, self.root, Bindings(hooks=[hook]))
             scene.write_outputs(model.rest_state())
             return scene
+        if beams.has_beams(self.root):  # a BeamAdapter beam as the body
+            _refuse_on_rods(self.root)
+            model, dt, solver_kind, beam = beams.beam_model(self)
+            scene = SofaScene(model, dt, solver_kind, self.path, self.root, Bindings(hooks=[beam]))
+            scene.write_outputs(model.rest_state())
+            return scene
         if rigid_scene.is_rigid_scene(self):  # rigid bodies alone
             return self._rigid_scene()
         joints = [
@@ -1014,6 +1018,7 @@ class _Builder:
         problems = []
         detects = self._detects()
         handled = HANDLED | (rods.COMPONENTS if rods.has_rods(self.root) else frozenset())
+        handled |= beams.COMPONENTS if beams.has_beams(self.root) else frozenset()
         if instruments.has_instruments(self.root):  # BeamAdapter's deployed instruments
             handled = handled | instruments.COMPONENTS
         for node in self.root.walk():

@@ -30,7 +30,8 @@ What the rod carries:
   a rod with no mass anywhere is solved statically, as SOFA's implicit step is then;
 * its base: held by a ``FixedConstraint`` (a clamp), by ``PartialFixedConstraint``'s
   directions, by ``RestShapeSpringsForceField``'s springs (``stiffness`` on its position,
-  ``angularStiffness`` on its angle, linearised), or free; a base that is a rigid body with
+  ``angularStiffness`` on its turn from rest, :class:`pliant.fem.loads.RotationSprings`),
+  or free; a base that is a rigid body with
   a mass (SofaGym's cart) is built into the rod's first node: its mass, and its inertia
   (isotropic, the mean of its principal moments);
 * solids welded to a frame by a Rigid3 ``BilateralInteractionConstraint`` (position and
@@ -64,7 +65,7 @@ from scipy.spatial.transform import Rotation
 from pliant.constraints.base import EmbeddedPoints
 from pliant.constraints.contact import Contacts
 from pliant.errors import ModelError
-from pliant.fem.loads import NodalForces, RestShapeSprings
+from pliant.fem.loads import NodalForces, RestShapeSprings, RotationSprings
 from pliant.fem.material import Material
 from pliant.fem.rod import RodBody, RodSection
 from pliant.model import Model, State
@@ -386,16 +387,26 @@ class RodData:
         np.add.at(weight, self.section_of, lengths)
         strains[weight > 0] /= weight[weight > 0, None]
         rod.strains.attrs["position"] = _frozen(strains)
-        for child in rod.frames.node.children:  # points carried by the frames
-            dofs = child.getMechanicalState()
-            if dofs is None:
-                continue
-            if _objects(child, "IdentityMapping"):
-                dofs.attrs["position"] = _frozen(x[:n][frames])
-            for mapping in _objects(child, "RigidMapping"):
-                node = frames[int(_numbers(mapping, "index", [0])[0])]
-                local = self.carried.setdefault(id(dofs), _local_points(dofs))
-                dofs.attrs["position"] = _frozen(x[node] + local @ sofa[node].T)
+        write_carried(rod.frames.node, x[:n], sofa, frames, self.carried)
+
+
+def write_carried(
+    node: SceneNode, points: np.ndarray, sofa: np.ndarray, frame_node: np.ndarray, cache: dict
+) -> None:
+    """The points carried by a rod's frames (children of the frames' `node` with an
+    IdentityMapping or a RigidMapping), placed at the rod's nodes `points` and SOFA frames
+    `sofa`; frame k of the MechanicalObject is node `frame_node[k]`. `cache` keeps each
+    RigidMapping's points in its frame, read once."""
+    for child in node.children:
+        dofs = child.getMechanicalState()
+        if dofs is None:
+            continue
+        if _objects(child, "IdentityMapping"):
+            dofs.attrs["position"] = _frozen(points[frame_node])
+        for mapping in _objects(child, "RigidMapping"):
+            at = frame_node[int(_numbers(mapping, "index", [0])[0])]
+            local = cache.setdefault(id(dofs), _local_points(dofs))
+            dofs.attrs["position"] = _frozen(points[at] + local @ sofa[at].T)
 
 
 def _local_points(dofs: SceneObject) -> np.ndarray:
@@ -507,7 +518,7 @@ def rod_model(builder: _Builder) -> tuple[Model, float, str, RodData]:
                 rest_turn = np.vstack(
                     [points, Rotation.from_matrix(sofa_frames @ AXES).as_rotvec()]
                 )
-                loads.append(RestShapeSprings([n], rest_turn, k_turn))
+                loads.append(RotationSprings([n], rest_turn, k_turn))
     solid = _mass_of(builder, base_node)
     if solid is not None:
         masses.append((0, *solid))

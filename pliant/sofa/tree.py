@@ -348,8 +348,21 @@ class SceneObject:
 
         defaults = FIELDS.get(self.type, {})
         if key in self.attrs or key in defaults or key in OBJECT_DEFAULTS:
-            return Data(self, key, defaults.get(key, OBJECT_DEFAULTS.get(key)))
+            default = defaults.get(key, OBJECT_DEFAULTS.get(key))
+            rigid_force = self.type == "ConstantForceField" and key in ("force", "totalForce")
+            if rigid_force and self._on_rigid():  # a Rigid3 force: a force and a moment
+                default = [0.0] * 6
+            return Data(self, key, default)
         return None
+
+    def _on_rigid(self) -> bool:
+        """Whether the component acts on a Rigid3 state (its template, else its node's
+        MechanicalObject's)."""
+        template = self.attrs.get("template")
+        if template is None:
+            dofs = next((o for o in self.node.objects if o.type == "MechanicalObject"), None)
+            template = None if dofs is None else dofs.attrs.get("template")
+        return str(template or "").startswith("Rigid3")
 
     def getData(self, key: str) -> Data | None:  # noqa: N802
         return self.findData(key)

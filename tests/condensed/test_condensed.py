@@ -20,7 +20,7 @@ import torch  # noqa: E402
 
 from pliant import robots  # noqa: E402
 from pliant.condensed.calibration import calibrate  # noqa: E402
-from pliant.condensed.collect import collect, solve_split  # noqa: E402
+from pliant.condensed.collect import collect, held_out_split, solve_split  # noqa: E402
 from pliant.condensed.control import (  # noqa: E402
     PID,
     EmbeddedController,
@@ -157,6 +157,18 @@ def test_one_split_solved_again_is_that_split_of_the_dataset(small) -> None:
         np.testing.assert_array_equal(getattr(test, f.name), getattr(small.test, f.name), f.name)
     with pytest.raises(DatasetError, match="split"):
         solve_split(SMALL, "validation")
+
+
+def test_a_held_out_split_is_the_test_stream_of_another_seed(small) -> None:
+    """Drawn after training: the same box and count, other samples, re-made identically; the
+    plan's own seed is refused (those are the samples the epoch was chosen on)."""
+    held = held_out_split(SMALL, 1, workers=1)
+    again = held_out_split(SMALL, 1, workers=1)
+    assert 0 < len(held) <= SMALL.n_test
+    np.testing.assert_array_equal(held.inputs(), again.inputs())
+    assert not np.isin(held.inputs()[:, 0], small.test.inputs()[:, 0]).any()
+    with pytest.raises(DatasetError, match="held-out seed"):
+        held_out_split(SMALL, SMALL.seed)
 
 
 # ---------------------------------------------------------------------------------------------

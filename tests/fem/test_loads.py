@@ -7,6 +7,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from conftest import distorted_box
+from scipy.spatial.transform import Rotation
 
 from pliant.constraints.base import EmbeddedPoints
 from pliant.constraints.cable import CableActuator
@@ -17,6 +18,7 @@ from pliant.fem.loads import (
     FollowerForce,
     NodalForces,
     RestShapeSprings,
+    RotationSprings,
     SurfacePressure,
     SurfaceTraction,
 )
@@ -404,3 +406,20 @@ def test_a_body_force_turns_with_a_rigid_body() -> None:
             - push.wrench(exp_map(-eps * axis) @ rotation)
         ) / (2 * eps)
         assert np.abs(push.tangent(rotation) @ axis - fd).max() < 1e-8
+
+
+def test_rotation_springs_turn_back_from_any_rest_rotation() -> None:
+    """The moment is -k times the rotation vector of the turn from rest, in world axes,
+    whatever the rest rotation (here 120 degrees about (1, 1, 1)): a turn of 0.1 about z from
+    rest gives (0, 0, -0.1 k); at rest none; tangent k I."""
+    rest = Rotation.from_rotvec(2 * np.pi / 3 * np.ones(3) / np.sqrt(3))
+    k = 300.0
+    springs = RotationSprings([1], np.vstack([np.zeros(3), rest.as_rotvec()]), k)
+    turned = (Rotation.from_rotvec([0.0, 0.0, 0.1]) * rest).as_rotvec()
+    x = np.vstack([np.zeros(3), turned])
+    np.testing.assert_allclose(springs.group_forces(x, 0.0)[0, 0], [0.0, 0.0, -0.1 * k], atol=1e-9)
+    at_rest = np.vstack([np.zeros(3), rest.as_rotvec()])
+    np.testing.assert_allclose(springs.group_forces(at_rest, 0.0), 0.0, atol=1e-12)
+    np.testing.assert_allclose(springs.group_tangents(x, 0.0)[0], k * np.eye(3))
+    with pytest.raises(ModelError, match="stiffness"):
+        RotationSprings([1], at_rest, 0.0)

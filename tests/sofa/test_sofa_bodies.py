@@ -9,6 +9,7 @@ from pathlib import Path
 import meshio
 import numpy as np
 import pytest
+from conftest import run_scene
 
 from pliant.constraints.base import EmbeddedPoints
 from pliant.constraints.cable import CableActuator
@@ -39,17 +40,10 @@ def _load(folder: Path, **config):
     return load_scene(SCENE, mesh_dirs=[folder], config=config or None)
 
 
-def _run(scene, steps: int = STEPS):
-    solver, state = scene.solver(), scene.model.rest_state()
-    for _ in range(steps):
-        state = solver.step(state)
-    return state
-
-
 @pytest.fixture(scope="module")
 def joined(beam):
     scene = _load(beam[1])
-    return scene, _run(scene)
+    return scene, run_scene(scene, STEPS)
 
 
 def test_two_bodies_move_exactly_as_each_alone(beam, joined) -> None:
@@ -63,7 +57,7 @@ def test_two_bodies_move_exactly_as_each_alone(beam, joined) -> None:
     assert [a.name for a in scene.model.actuators] == ["A/cable", "B/cable"]
     rest = scene.model.body.rest_positions
     for rows, name in ((slice(0, n), "A"), (slice(n, 2 * n), "B")):
-        alone = _run(_load(beam[1], bodies=name))
+        alone = run_scene(_load(beam[1], bodies=name), STEPS)
         assert np.abs(alone.positions - rest[rows]).max() > 0.5
         assert np.abs(state.positions[rows] - alone.positions).max() < 1e-9
         assert np.abs(state.velocities[rows] - alone.velocities).max() < 1e-6
@@ -76,13 +70,13 @@ def test_bodies_of_different_damping_each_keep_their_own(beam) -> None:
     config = {"damping_b": 0.5, "mass_damping_b": 2.0}
     scene = _load(beam[1], **config)
     assert scene.model.body.rayleigh_dofs() is not None
-    state = _run(scene)
+    state = run_scene(scene, STEPS)
     n = beam[0].n_nodes
     for rows, name in ((slice(0, n), "A"), (slice(n, 2 * n), "B")):
-        alone = _run(_load(beam[1], bodies=name, **config))
+        alone = run_scene(_load(beam[1], bodies=name, **config), STEPS)
         assert np.abs(state.positions[rows] - alone.positions).max() < 1e-9
         assert np.abs(state.velocities[rows] - alone.velocities).max() < 1e-6
-    lightly = _run(_load(beam[1], bodies="B"))
+    lightly = run_scene(_load(beam[1], bodies="B"), STEPS)
     assert np.abs(lightly.velocities).max() > 1.05 * np.abs(state.velocities[n:]).max()
 
 
@@ -176,7 +170,7 @@ def test_bodies_in_one_collision_group_touch_the_floor(beam) -> None:
     assert len(points) == 2 * n
     rest = scene.model.body.rest_positions
     np.testing.assert_allclose(points.positions(rest), rest, atol=1e-9)
-    state = _run(scene, 2)
+    state = run_scene(scene, 2)
     assert np.all(np.isfinite(state.positions))
     assert state.positions[:, 1].min() > -3.0 - 0.1 - 1e-3  # the floor, less the thickness
 

@@ -8,6 +8,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import run_scene
 
 from pliant.diff.step import check_model
 from pliant.errors import ModelError, ReductionError
@@ -21,17 +22,10 @@ SCENE = Path(__file__).parent / "sofa_scenes" / "shell_cube.py"
 STEPS = 3
 
 
-def _run(scene, steps: int = STEPS):
-    solver, state = scene.solver(), scene.model.rest_state()
-    for _ in range(steps):
-        state = solver.step(state)
-    return state
-
-
 @pytest.fixture(scope="module")
 def alone():
     scene = load_scene(SCENE)
-    return scene, _run(scene)
+    return scene, run_scene(scene, STEPS)
 
 
 def test_scene_reads_the_shell(alone) -> None:
@@ -55,7 +49,7 @@ def test_scene_steps_as_the_api_body(alone, method) -> None:
     scene, state = alone
     if method == "small":
         scene = load_scene(SCENE, config={"method": "small"})
-        state = _run(scene)
+        state = run_scene(scene, STEPS)
     body = scene.model.body
     api = ShellBody(
         body.rest_positions,
@@ -81,7 +75,7 @@ def test_shell_beside_a_beam_moves_as_alone(alone) -> None:
     on the union's nodes as a membrane), the cube's nodes end where the cube alone ends."""
     _, state = alone
     scene = load_scene(SCENE, config={"beam": True})
-    joined = _run(scene)
+    joined = run_scene(scene, STEPS)
     assert scene.model.body.n_nodes == 8 + 16
     np.testing.assert_allclose(joined.positions[:8], state.positions, atol=1e-12)
     beam = joined.positions[8:] - scene.model.body.rest_positions[8:]
@@ -101,7 +95,7 @@ def test_shell_and_beam_touch_by_points_against_triangles() -> None:
     scene = load_scene(SCENE, config={"beam": True, "contact": True})
     names = sorted(s.name for s in scene.model.contacts.surfaces)
     assert names == ["root/Beam on root/Cube", "root/Cube on root/Beam"]
-    state = _run(scene, 1)
+    state = run_scene(scene, 1)
     assert np.all(np.isfinite(state.positions))
 
 
