@@ -274,7 +274,8 @@ def instrument_model(builder: _Builder) -> tuple[Model, float, str, InstrumentDa
             f" ({builder._deformable_nodes()[0].path}); Pliant's model has one body"
         )
     dofs = builder._one(node, {"MechanicalObject"}, "MechanicalObjects")
-    if dofs is None or not str(dofs.attrs.get("template", "")).startswith("Rigid3"):
+    template = "" if dofs is None else str(dofs.attrs.get("template", ""))
+    if not template.startswith("Rigid3"):
         raise SceneError(f"{node.path}: the combined instrument needs a Rigid3 MechanicalObject")
     grid = builder._one(node, {"RegularGridTopology"}, "grid topologies")
     if grid is not None:
