@@ -2,6 +2,8 @@
 
     python experiments/diff/policy.py [--quick] [--fresh] [--learner apg|ppo] [--report]
         [--apg-steps N] [--ppo-steps N] [--evals K] [--out FILE]
+    python experiments/diff/policy.py --evaluate experiments/results/diff/policy_models
+        [--out FILE]
 
 The environment is pliant/Diamond-v0 with continuous absolute actions (the four cable
 displacements in [0, 20] mm, ramped over 5 solver steps of 0.01 s), the Diamond at mesh size
@@ -30,7 +32,9 @@ Each learner is evaluated ``--evals`` times along its budget on the validation g
 mean final distance, the curves of success against environment steps. ``--learner`` trains one
 learner (the two can run side by side), checkpointing after each evaluation so that a run cut
 short resumes; ``--report`` (or the plain command, after both) picks each learner's policy on
-validation, draws the test goals, evaluates, and writes the result file and its figure.
+validation, draws the test goals, evaluates, and writes the result file and its figure; the
+study's run keeps the two selected policies in experiments/results/diff/policy_models
+(``--evaluate`` tests them again on the held-out goals, from the repository alone).
 Timings are wall-clock on a shared 2-core machine.
 """
 
@@ -38,6 +42,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import shutil
 import time
 from pathlib import Path
 
@@ -60,6 +65,9 @@ ENV_ID = "pliant/Diamond-v0"
 ENV_KWARGS = {"action_type": "continuous", "continuous_mode": "absolute", "mesh_size": 20.0}
 SEEDS = {"train": 0, "validation": 1, "test": 2026}
 LEARNERS = ("apg", "ppo")
+# The selected policies, kept (small) for `--evaluate`: the APG network's state and the SB3 zip.
+KEPT = ROOT / "experiments" / "results" / "diff" / "policy_models"
+KEPT_FILES = {"apg": "apg.pt", "ppo": "ppo.zip"}
 
 
 class MLP(torch.nn.Module):
@@ -295,9 +303,37 @@ def run_learner(name: str, args, folder: Path, goals: dict) -> dict:
     return record
 
 
+def keep(folder: Path, records: dict) -> dict:
+    """Copy each learner's selected policy to KEPT (what `--evaluate` reads); their paths."""
+    KEPT.mkdir(parents=True, exist_ok=True)
+    kept = {}
+    for name, record in records.items():
+        target = KEPT / KEPT_FILES[name]
+        with atomic_path(target) as tmp:
+            shutil.copyfile(folder / select(record["curve"])["checkpoint"], tmp)
+        kept[name] = str(target.relative_to(ROOT))
+    return kept
+
+
+def evaluate_kept(args, models: Path, out: Path) -> None:
+    """The kept policies on the held-out test goals (drawn again from their seed, beside the
+    result file), as the report evaluates them: the test figures of the result file."""
+    env = make_env()
+    goals = goal_set(out.parent, env, "test", args.test_goals, args.settle)
+    result = {"evaluated": str(models), "test_goals": len(goals)}
+    for name in LEARNERS:
+        actor = load_actor(name, models, KEPT_FILES[name])
+        result[name] = {"test": evaluate(env, actor, goals)}
+        print(name.upper(), "test", result[name]["test"], flush=True)
+    write_results(out, result)
+    print(f"wrote {out}")
+
+
 def report(args, folder: Path, out: Path, settings: dict) -> None:
     records = {name: json.loads((folder / f"{name}.json").read_text()) for name in LEARNERS}
     result = {"setting": settings}
+    if out == OUT:  # the study's own run keeps its selected policies
+        result["kept"] = keep(folder, records)
     for name, record in records.items():
         curve = record["curve"]
         best = select(curve)
@@ -365,11 +401,22 @@ def main() -> None:
     parser.add_argument("--horizon", type=int, default=10, help="APG episode, control steps")
     parser.add_argument("--apg-lr", type=float, default=5e-3)
     parser.add_argument("--out", type=Path, default=None)
+    parser.add_argument(
+        "--evaluate",
+        type=Path,
+        metavar="DIR",
+        help="only test the kept policies in DIR (apg.pt, ppo.zip) on the held-out goals",
+    )
     args = parser.parse_args()
     if args.quick:
         args.apg_steps, args.ppo_steps, args.evals, args.horizon, args.settle = 8, 16, 1, 4, 3
         args.train_goals, args.validation_goals, args.test_goals = 4, 1, 1
     torch.set_num_threads(1)
+    if args.evaluate is not None:
+        out = args.out or (ROOT / "out" / "diff" / "policy_evaluated.json")
+        out.parent.mkdir(parents=True, exist_ok=True)
+        evaluate_kept(args, args.evaluate, out)
+        return
     out = args.out or (ROOT / "out" / "diff" / "policy_quick.json" if args.quick else OUT)
     folder = ROOT / "out" / "diff" / ("policy_quick" if args.quick else "policy")
     folder.mkdir(parents=True, exist_ok=True)
