@@ -37,6 +37,12 @@ _TABLE_5_8 = "experiments/results/condensed/trajectories.json"
 _CALIBRATION = "experiments/results/condensed/calibration_finger.json"
 _MODELS = "experiments/results/condensed/models"  # the kept condensed models
 _TABLE_5_1_MODELS = "experiments/results/condensed/table_5_1_models"  # Table 5.1's, kept
+# Why the other condensed networks are not kept (their studies' not_kept).
+_NETWORK_SIZE = (
+    " A condensed network is 1-2 MB (float32): the repository keeps three (Table 5.1's two"
+    " protocol networks, Table 5.2's coarse one) besides the RL policies, within the 30 MB its"
+    " tracked results may take"
+)
 _TRAJOPT = "experiments/results/trajopt/diamond.json"
 _ROUTING = "experiments/results/diff/routing.json"
 _DIFF_CONTROL = {
@@ -983,7 +989,8 @@ STUDIES: tuple[Study, ...] = (
             ),
         ),
         not_kept="the network and dataset are not tracked (out/ is ignored); re-made by the "
-        "study's command (the committed run: collection 115 min on 2 workers, training 10 min)",
+        "study's command (the committed run: collection 115 min on 2 workers, training 10 min)."
+        + _NETWORK_SIZE,
         no_quick="the Stiff-Flop's collection alone takes tens of minutes",
     ),
     Study(
@@ -1050,7 +1057,8 @@ STUDIES: tuple[Study, ...] = (
         ),
         not_kept="the networks and datasets are not tracked (out/ is ignored); re-made by the "
         "study's command (mechanical: collection 78 min on one core, F 7 min and G 4 min;"
-        " geometric: 50 000 samples, about 2 h on 2 idle cores, then 2 networks of 14 min)",
+        " geometric: 50 000 samples, about 2 h on 2 idle cores, then 2 networks of 14 min)."
+        + _NETWORK_SIZE,
         no_quick="10 000 and 50 000 samples, each its own design and mesh: hours",
     ),
     Study(
@@ -1108,7 +1116,7 @@ STUDIES: tuple[Study, ...] = (
             ),
         ),
         not_kept="the calibration's F and G are not tracked (out/ is ignored); re-made by the"
-        " calibration's command",
+        " calibration's command." + _NETWORK_SIZE,
         retrain="python experiments/condensed/calibration.py --samples 320"
         " --samples-per-design 4 --epochs 1500",
         quick=Quick(
