@@ -72,7 +72,7 @@ INTERPOLATION = "BeamInterpolation"
 FORCEFIELD = "AdaptiveBeamForceFieldAndMass"
 COMPONENTS = frozenset({INTERPOLATION, FORCEFIELD})
 # BeamInterpolation's defaults (BeamAdapter's source).
-DEFAULT_YOUNG, DEFAULT_POISSON, DEFAULT_RADIUS, DEFAULT_SIDE = 1.0e5, 0.4, 1.0, 1.0
+DEFAULT_YOUNG, DEFAULT_POISSON = 1.0e5, 0.4
 # Shear compliance left to Pliant's rod, as a share of the shortest element's bending one.
 SHEAR_SHARE = 1e-4
 EDGE_TOPOLOGIES = ("EdgeSetTopologyContainer", "MeshTopology", "RegularGridTopology")
@@ -120,32 +120,10 @@ def _per_edge(obj: SceneObject, key: str, default: float, edges: int) -> np.ndar
 
 
 def _section(interpolation: SceneObject, edges: int) -> RodSection:
-    shape = str(interpolation.attrs.get("crossSectionShape", "circular")).strip().lower()
-    if shape == "rectangular":
-        ly = _one_value(interpolation, "lengthY", DEFAULT_SIDE, edges)
-        lz = _one_value(interpolation, "lengthZ", DEFAULT_SIDE, edges)
-        try:
-            section = RodSection.rectangle(ly, lz)
-        except ModelError as exc:
-            raise SceneError(f"{interpolation.path}: {exc}") from exc
-        return dataclasses.replace(section, torsion=sum(section.inertia))
-    if shape != "circular":
-        raise SceneError(
-            f"{interpolation.path}.crossSectionShape: 'circular' or 'rectangular', got {shape!r}"
-        )
-    radius = _one_value(interpolation, "radius", DEFAULT_RADIUS, edges)
-    inner = _one_value(interpolation, "innerRadius", 0.0, edges)
-    try:
-        section = RodSection.circle(radius)
-    except ModelError as exc:
-        raise SceneError(f"{interpolation.path}: {exc}") from exc
-    if inner > 0.0:
-        if inner >= radius:
-            raise SceneError(f"{interpolation.path}.innerRadius: smaller than the radius expected")
-        i = np.pi * (radius**4 - inner**4) / 4.0
-        area = np.pi * (radius**2 - inner**2)
-        section = dataclasses.replace(section, area=area, inertia=(i, i), torsion=2.0 * i)
-    return section
+    """The section, one for every edge (:func:`pliant.sofa.rods.sofa_section`)."""
+    return rods.sofa_section(
+        interpolation, lambda key, default: _one_value(interpolation, key, default, edges)
+    )
 
 
 def _edges(builder: _Builder, node: SceneNode, count: int) -> np.ndarray:
@@ -268,28 +246,11 @@ def beam_model(builder: _Builder) -> tuple[Model, float, str, BeamData]:
     if len(found) != 1:
         names = ", ".join(o.path for o in found)
         raise SceneError(f"{path.name}: Pliant simulates one BeamAdapter beam, got {names}")
-    if builder._deformable_nodes():
-        raise SceneError(
-            f"{path.name}: a beam beside a deformable body"
-            f" ({builder._deformable_nodes()[0].path}); Pliant's model has one body"
-        )
-    acting = [
-        f"{o.type} (at {n.path})"
-        for n in root.walk()
-        for o in n.objects
-        if o.type in builder.point_constraints
-    ]
-    if acting:
-        raise SceneError(
-            f"{path.name}: actuators and effectors act on a tetrahedral body's points, not on a"
-            " beam: " + "; ".join(acting)
-        )
+    dt, gravity = rods.alone(builder, "a beam")
     beam = _read_beam(builder, found[0])
     node, n, edges = beam.dofs.node, len(beam.points), beam.edges
     m = len(edges)
     polyline = np.array_equal(edges, np.column_stack([np.arange(n - 1), np.arange(1, n)]))
-    gravity = np.asarray(data_value(root.attrs.get("gravity", [0.0, -9.81, 0.0])), float)
-    dt = float(np.asarray(data_value(root.attrs.get("dt", 0.01)), float).reshape(-1)[0])
     section = _section(beam.interpolation, m)
     young = _per_edge(beam.interpolation, "defaultYoungModulus", DEFAULT_YOUNG, m)
     poisson = _one_value(beam.interpolation, "defaultPoissonRatio", DEFAULT_POISSON, m)

@@ -49,6 +49,7 @@ from pliant.fem.instruments import CombinedInstrument, Instrument, RestShape
 from pliant.fem.loads import NodalForces
 from pliant.geometry.collision import TriangleSurface
 from pliant.model import Model, State
+from pliant.sofa import rods
 from pliant.sofa.components import is_visual
 from pliant.sofa.tree import SceneError, SceneNode, SceneObject, data_value, field_numbers
 
@@ -268,11 +269,7 @@ def instrument_model(builder: _Builder) -> tuple[Model, float, str, InstrumentDa
         )
     controller = controllers[0]
     node = controller.node
-    if builder._deformable_nodes():
-        raise SceneError(
-            f"{path.name}: instruments beside a deformable body"
-            f" ({builder._deformable_nodes()[0].path}); Pliant's model has one body"
-        )
+    dt, gravity = rods.alone(builder, "instruments")
     dofs = builder._one(node, {"MechanicalObject"}, "MechanicalObjects")
     template = "" if dofs is None else str(dofs.attrs.get("template", ""))
     if not template.startswith("Rigid3"):
@@ -307,7 +304,6 @@ def instrument_model(builder: _Builder) -> tuple[Model, float, str, InstrumentDa
             + "; ".join(unread)
         )
     loads = [_force_field(obj, count) for obj in node.objects if obj.type == "ConstantForceField"]
-    dt, gravity = builder._scene_time()
     kind, damping = builder._ode_solver(node)
     if kind != "dynamic":
         raise SceneError(f"{node.path}: instruments are deployed with an EulerImplicitSolver")

@@ -790,21 +790,20 @@ class _Builder:
                 stacklevel=3,
             )
         self._check_supported()
-        if rods.has_rods(self.root) and rods.moving_rods(self):  # a rod as the body
+        # A slender body as the scene's one body, with its own data hook: a Cosserat rod,
+        # BeamAdapter's deployed instruments, a BeamAdapter beam.
+        slender = None
+        if rods.has_rods(self.root) and rods.moving_rods(self):
             _refuse_on_rods(self.root)
-            model, dt, solver_kind, rod = rods.rod_model(self)
-            scene = SofaScene(model, dt, solver_kind, self.path, self.root, Bindings(hooks=[rod]))
-            scene.write_outputs(model.rest_state())
-            return scene
-        if instruments.has_instruments(self.root):  # BeamAdapter's instruments as the body
-            model, dt, solver_kind, hook = instruments.instrument_model(self)
+            slender = rods.rod_model
+        elif instruments.has_instruments(self.root):
+            slender = instruments.instrument_model
+        elif beams.has_beams(self.root):
+            _refuse_on_rods(self.root)
+            slender = beams.beam_model
+        if slender is not None:
+            model, dt, solver_kind, hook = slender(self)
             scene = SofaScene(model, dt, solver_kind, self.path, self.root, Bindings(hooks=[hook]))
-            scene.write_outputs(model.rest_state())
-            return scene
-        if beams.has_beams(self.root):  # a BeamAdapter beam as the body
-            _refuse_on_rods(self.root)
-            model, dt, solver_kind, beam = beams.beam_model(self)
-            scene = SofaScene(model, dt, solver_kind, self.path, self.root, Bindings(hooks=[beam]))
             scene.write_outputs(model.rest_state())
             return scene
         if rigid_scene.is_rigid_scene(self):  # rigid bodies alone

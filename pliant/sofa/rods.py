@@ -55,6 +55,7 @@ A controller that writes the strains' ``rest_position`` sets the rod's rest curv
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
@@ -227,22 +228,30 @@ def _rest_frames(rod: _Rod, base: tuple[np.ndarray, np.ndarray]) -> tuple[np.nda
 
 
 def _section(law: SceneObject) -> RodSection:
-    shape = str(law.attrs.get("crossSectionShape", "circular")).strip().lower()
-    if shape == "rectangular":
-        ly = float(_numbers(law, "lengthY", [1.0])[0])
-        lz = float(_numbers(law, "lengthZ", [1.0])[0])
-        section = RodSection.rectangle(ly, lz)
-        return dataclasses.replace(section, torsion=sum(section.inertia))
-    if shape != "circular":
-        raise SceneError(
-            f"{law.path}.crossSectionShape: 'circular' or 'rectangular', got {shape!r}"
-        )
-    radius = float(_numbers(law, "radius", [DEFAULT_RADIUS])[0])
-    inner = float(_numbers(law, "innerRadius", [0.0])[0])
-    section = RodSection.circle(radius)
+    return sofa_section(law, lambda key, default: float(_numbers(law, key, [default])[0]))
+
+
+def sofa_section(obj: SceneObject, value: Callable[[str, float], float]) -> RodSection:
+    """A beam's section as SOFA reads it (the Cosserat plugin's BeamHookeLawForceField and
+    BeamAdapter's BeamInterpolation alike): ``crossSectionShape`` circular (``radius``,
+    ``innerRadius``; J = 2 I) or rectangular (``lengthY``, ``lengthZ``; J = Iy + Iz), each 1
+    by default. `value(key, default)` reads one number of `obj`."""
+    shape = str(obj.attrs.get("crossSectionShape", "circular")).strip().lower()
+    try:
+        if shape == "rectangular":
+            section = RodSection.rectangle(value("lengthY", 1.0), value("lengthZ", 1.0))
+            return dataclasses.replace(section, torsion=sum(section.inertia))
+        if shape != "circular":
+            raise SceneError(
+                f"{obj.path}.crossSectionShape: 'circular' or 'rectangular', got {shape!r}"
+            )
+        radius, inner = value("radius", DEFAULT_RADIUS), value("innerRadius", 0.0)
+        section = RodSection.circle(radius)
+    except ModelError as exc:
+        raise SceneError(f"{obj.path}: {exc}") from exc
     if inner > 0.0:
         if inner >= radius:
-            raise SceneError(f"{law.path}.innerRadius: smaller than the radius expected")
+            raise SceneError(f"{obj.path}.innerRadius: smaller than the radius expected")
         i = np.pi * (radius**4 - inner**4) / 4.0
         area = np.pi * (radius**2 - inner**2)
         section = dataclasses.replace(section, area=area, inertia=(i, i), torsion=2.0 * i)
@@ -463,6 +472,30 @@ def moving_rods(builder: _Builder) -> bool:
     return False
 
 
+def alone(builder: _Builder, body: str) -> tuple[float, np.ndarray]:
+    """The root's time step and gravity for a scene whose one body is `body` (a rod, a beam,
+    instruments); a SceneError where a deformable body stands beside it (Pliant's model has
+    one body) or actuators and effectors act (on a tetrahedral body's points only)."""
+    path = builder.path
+    if builder._deformable_nodes():
+        raise SceneError(
+            f"{path.name}: {body} beside a deformable body"
+            f" ({builder._deformable_nodes()[0].path}); Pliant's model has one body"
+        )
+    acting = [
+        f"{o.type} (at {n.path})"
+        for n in builder.root.walk()
+        for o in n.objects
+        if o.type in builder.point_constraints
+    ]
+    if acting:
+        raise SceneError(
+            f"{path.name}: actuators and effectors act on a tetrahedral body's points, not on"
+            f" {body}: " + "; ".join(acting)
+        )
+    return builder._scene_time()
+
+
 def rod_model(builder: _Builder) -> tuple[Model, float, str, RodData]:
     """The scene's model, its one moving Cosserat rod as the body (see the module text); the
     root's time step, the solver kind ("dynamic", or "static" for a rod with no mass) and the
@@ -477,24 +510,7 @@ def rod_model(builder: _Builder) -> tuple[Model, float, str, RodData]:
             f" {len(moving)} ({names})"
         )
     rod = moving[0]
-    if builder._deformable_nodes():
-        raise SceneError(
-            f"{path.name}: a Cosserat rod beside a tetrahedral body"
-            f" ({builder._deformable_nodes()[0].path}); Pliant's model has one body"
-        )
-    acting = [
-        f"{o.type} (at {n.path})"
-        for n in root.walk()
-        for o in n.objects
-        if o.type in builder.point_constraints
-    ]
-    if acting:
-        raise SceneError(
-            f"{path.name}: actuators and effectors act on a tetrahedral body's points, not on a"
-            " Cosserat rod: " + "; ".join(acting)
-        )
-    gravity = np.asarray(data_value(root.attrs.get("gravity", [0.0, -9.81, 0.0])), float)
-    dt = float(np.asarray(data_value(root.attrs.get("dt", 0.01)), float).reshape(-1)[0])
+    dt, gravity = alone(builder, "a Cosserat rod")
     base_pose = _pose(builder, rod.base)
     points, sofa_frames = _rest_frames(rod, base_pose)
     n = len(points)
