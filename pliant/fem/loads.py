@@ -238,10 +238,11 @@ class RestShapeSprings(Load):
     """
 
     def __init__(self, nodes, rest_positions, stiffness) -> None:
-        idx = _check_nodes(nodes, "RestShapeSprings")
+        name = type(self).__name__
+        idx = _check_nodes(nodes, name)
         k = np.broadcast_to(np.asarray(stiffness, dtype=float), idx.shape).copy()
         if not np.all(np.isfinite(k)) or np.any(k <= 0):
-            raise ModelError("RestShapeSprings: stiffness must be finite and > 0")
+            raise ModelError(f"{name}: stiffness must be finite and > 0")
         self.groups = idx.reshape(-1, 1)
         self.stiffness = k
         self.anchors = np.asarray(rest_positions, dtype=float)[idx]
@@ -253,7 +254,7 @@ class RestShapeSprings(Load):
         return self.stiffness[:, None, None] * np.eye(3)[None]
 
 
-class RotationSprings(Load):
+class RotationSprings(RestShapeSprings):
     """Springs turning a rod's orientations back to their rest rotations (SOFA's angular
     RestShapeSpringsForceField on Rigid3 frames): on an orientation row holding the rotation
     vector of R, the moment -k log(R R0^T) (world axes: the rotation vector of the turn from
@@ -267,20 +268,12 @@ class RotationSprings(Load):
     """
 
     def __init__(self, nodes, rest_positions, stiffness) -> None:
-        idx = _check_nodes(nodes, "RotationSprings")
-        k = np.broadcast_to(np.asarray(stiffness, dtype=float), idx.shape).copy()
-        if not np.all(np.isfinite(k)) or np.any(k <= 0):
-            raise ModelError("RotationSprings: stiffness must be finite and > 0")
-        self.groups = idx.reshape(-1, 1)
-        self.stiffness = k
-        self.rest = Rotation.from_rotvec(np.asarray(rest_positions, dtype=float)[idx])
+        super().__init__(nodes, rest_positions, stiffness)
+        self.rest = Rotation.from_rotvec(self.anchors)
 
     def group_forces(self, x, time):
         turn = (Rotation.from_rotvec(x[self.groups[:, 0]]) * self.rest.inv()).as_rotvec()
         return (-self.stiffness[:, None] * turn)[:, None, :]
-
-    def group_tangents(self, x, time):
-        return self.stiffness[:, None, None] * np.eye(3)[None]
 
 
 class EmbeddedSprings(Load):
