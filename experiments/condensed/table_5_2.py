@@ -44,11 +44,11 @@ import numpy as np
 import typer
 
 from pliant import robots
-from pliant.condensed.collect import held_out_split, load_or_collect, solve_split
+from pliant.condensed.collect import load_or_collect, solve_split
 from pliant.condensed.control import EmbeddedController, loop_frequency
 from pliant.condensed.dataset import CollectionPlan
 from pliant.condensed.learned import LearnedCondensedModel, OutOfBoundsWarning
-from pliant.condensed.train import TrainConfig, train_condensed
+from pliant.condensed.train import TrainConfig, score_held_out, train_condensed
 from pliant.condensed.train import evaluate as evaluate_loss
 
 THESIS = {"coarse": (3.79e-6, 308.6), "fine": (4.26e-6, 334.4), "superfine": (3.60e-6, 296.7)}
@@ -83,7 +83,7 @@ def main(
             rows[resolution] = {
                 "evaluated": str(evaluate / f"finger_{resolution}_{samples}.pt"),
                 "test_loss": evaluate_loss(learned, test)["loss"],
-                "held_out": _held_out(learned, held_out_seed, workers),
+                "held_out": score_held_out(learned, held_out_seed, workers=workers),
                 **_rates(learned, goals, iterations),
             }
             print(resolution, json.dumps(rows[resolution]))
@@ -113,7 +113,7 @@ def main(
             "samples": samples,
             "failed_samples": int(np.sum(~dataset.train.converged.astype(bool))),
             "test_loss": evaluate_loss(learned, dataset.test)["loss"],
-            "held_out": _held_out(learned, held_out_seed, workers),
+            "held_out": score_held_out(learned, held_out_seed, workers=workers),
             "best_epoch": result.best_epoch,
             "epochs": epochs,
             **_rates(learned, goals, iterations),
@@ -128,13 +128,6 @@ def main(
         " SOFA's material tangent (the thesis' W), equilibria on the consistent tangent."
     )
     table.write_text(json.dumps(rows, indent=1))
-
-
-def _held_out(learned: LearnedCondensedModel, seed: int, workers: int) -> dict:
-    """The network's loss on a held-out test set drawn after its training: the plan's test
-    stream of another seed (its own test split chose the epoch: a validation set)."""
-    test = held_out_split(learned.plan, seed, workers=workers)
-    return {"seed": seed, "samples": len(test), "test_loss": evaluate_loss(learned, test)["loss"]}
 
 
 def _rates(learned: LearnedCondensedModel, goals: np.ndarray, iterations: int) -> dict:

@@ -203,6 +203,9 @@ def main() -> None:
     clock = time.perf_counter()
     stop = [] if args.stop_at is None else [StopAtSuccess(RUN, args.stop_at, args.final_episodes)]
     result = train(config, RUN, resume=resume, total_timesteps=args.steps, extra_callbacks=stop)
+    if result.summary["stopped_by"] is not None:  # a signal: checkpointed, rerun to go on
+        print(f"stopped by {result.summary['stopped_by']} at step {result.summary['steps']}")
+        return
     final = evaluate_saved(RUN / "final", episodes=args.final_episodes, seed=TEST_SEED)
     summary = {
         **result.summary,

@@ -22,6 +22,7 @@ import torch
 from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
 from torch import Tensor
 
+from pliant.condensed.collect import held_out_split
 from pliant.condensed.dataset import Dataset, Split, atomic_write
 from pliant.condensed.learned import LearnedCondensedModel
 from pliant.condensed.networks import ACTIVATIONS, StandardisedMLP
@@ -275,6 +276,23 @@ def sample_losses(network: StandardisedMLP, split: Split) -> np.ndarray:
     network.eval()
     with torch.no_grad():
         return ((network(x) - network.output_scale(y)) ** 2).mean(dim=1).numpy()
+
+
+def score_held_out(
+    learned: LearnedCondensedModel, seed: int, *, workers: int | None = None
+) -> dict[str, float]:
+    """F's loss (Eq. 5.5) on a test set drawn after its training: the test stream of its plan
+    under another `seed` (``held_out_split``; the plan's own test split chose the epoch, a
+    validation set), with its spread over the samples (median, the worst sample's share)."""
+    test = held_out_split(learned.plan, seed, workers=workers)
+    per_sample = sample_losses(learned.network, test)
+    return {
+        "seed": seed,
+        "samples": len(test),
+        "test_loss": evaluate(learned, test)["loss"],
+        "median_sample_loss": float(np.median(per_sample)),
+        "worst_sample_share": float(per_sample.max() / per_sample.sum()),
+    }
 
 
 def _tensor(array: np.ndarray) -> Tensor:

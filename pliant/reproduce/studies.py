@@ -46,6 +46,18 @@ _NETWORK_SIZE = (
     " tracked results may take"
 )
 _TRAJOPT = "experiments/results/trajopt/diamond.json"
+_CONTACTS = "experiments/results/condensed/contacts/contacts.json"
+_DESIGN = "experiments/results/condensed/design/design.json"
+_DESIGN_DATA = (
+    "640 samples over 80 designs (Length 38-42, Height 20-22, Joint Height 5-8 mm), each meshed"
+    " anew, cable 0 pulled 0-10 mm and cable 1 held (the thesis' finger has one cable)"
+)
+_CONTACTS_QUICK = (
+    "python experiments/condensed/contacts.py --finger-samples 16 --gripper-poses 8 --epochs 2"
+    " --pushes 2 --goals 2 --iterations 1 --workers 1 --work {out}/work --out {out}"
+)
+_FEW_EPOCHS_CONTACTS = "1000 epochs (the thesis' best epochs 42 540 and 38 440)"
+_SCENARIOS = ("stiff-flop", "lianford-spiral", "lianford-pick-place", "lianford-orientation")
 _ROUTING = "experiments/results/diff/routing.json"
 _DIFF_CONTROL = {
     "Diamond": "experiments/results/diff/control.json",
@@ -79,6 +91,11 @@ _MECHANICAL = (
     " epochs and G 10 000 (the thesis' best epochs 12 530 and 18 420)"
 )
 _CONDENSED_SAMPLES = "fewer epochs than the thesis' 9000 (1500); W is SOFA's material tangent"
+_EPOCH_ON_TEST = (
+    "the epoch of least test loss is reported, as the thesis' tables report theirs: a"
+    " validation loss (the training keeps the network at its best test epoch); a held-out test"
+    " drawn afterwards needs the network, not kept: "
+)
 
 STUDIES: tuple[Study, ...] = (
     Study(
@@ -993,6 +1010,109 @@ STUDIES: tuple[Study, ...] = (
         ),
     ),
     Study(
+        name="table-5.3",
+        thesis="§5.1.4, Table 5.3, Fig. 5.8, 5.9",
+        title="The Finger with contact points, learned: a button pushed, a cube moved by three",
+        command=(
+            "python experiments/condensed/contacts.py --finger-samples 500 --gripper-poses 320"
+            " --epochs 1000 --workers 2"
+        ),
+        docs="docs/condensed.md",
+        figures=(
+            *(
+                Figure(
+                    f"{robot}, under the protocol: held-out test",
+                    _CONTACTS,
+                    f"{key}_dataset/held_out/test_loss",
+                    thesis=thesis,
+                    unit="",
+                    better="lower",
+                    tolerance=0.5,
+                    departure=departure,
+                    fmt=fmt,
+                    docs="docs/condensed.md",
+                    protocol="the epoch chosen on the dataset's test split (its validation"
+                    f" set), tested on {tested} drawn afterwards (the plan's test split under"
+                    " seed 1); the next figure is the loss on the validation set",
+                )
+                for robot, key, thesis, departure, fmt, tested in (
+                    (
+                        "Finger with contact points",
+                        "finger",
+                        1.67e-6,
+                        "500 samples in a box of cables and contact-point pushes about where the"
+                        " cables put the points (the thesis samples the cube's space by inverse"
+                        " control); " + _FEW_EPOCHS_CONTACTS,
+                        "{:.2e}",
+                        "125 samples",
+                    ),
+                    (
+                        "three-finger gripper",
+                        "gripper",
+                        1.24e-3,
+                        "320 cube poses by inverse control, 3 samples each; "
+                        + _FEW_EPOCHS_CONTACTS,
+                        "{:.1e}",
+                        "240 samples of a chain of cube goals collected afresh",
+                    ),
+                )
+            ),
+            *(
+                Figure(
+                    robot,
+                    _CONTACTS,
+                    f"{key}_dataset/test_loss",
+                    thesis=thesis,
+                    unit="",
+                    better="lower",
+                    tolerance=0.5,
+                    departure=_FEW_EPOCHS_CONTACTS,
+                    fmt=fmt,
+                    docs="docs/condensed.md",
+                    protocol="the epoch of least loss on this test split is reported (the"
+                    " thesis' protocol too): a validation loss; the held-out test is above",
+                )
+                for robot, key, thesis, fmt in (
+                    ("Finger with contact points", "finger", 1.67e-6, "{:.2e}"),
+                    ("three-finger gripper", "gripper", 1.24e-3, "{:.1e}"),
+                )
+            ),
+            *(
+                Figure(
+                    f"button of 50 mN/mm, learned W: worst error of the push reached, {n}",
+                    _CONTACTS,
+                    f"button/learned_{steps}_steps/relative_error_max",
+                    thesis=None,
+                    unit="%",
+                    better="lower",
+                    tolerance=0.5,
+                    scale=100.0,
+                    fmt="{:.1f}",
+                    docs="docs/condensed.md",
+                )
+                for steps, n in ((1, "one step"), (3, "three steps"))
+            ),
+            *(
+                Figure(
+                    f"cube on a 1.5 mm circle, {source} matrices: mean distance to the goals",
+                    _CONTACTS,
+                    f"gripper/{source}/distance_to_goal_mean_mm",
+                    thesis=None,
+                    unit="mm",
+                    better="lower",
+                    tolerance=0.5,
+                    fmt="{:.2f}",
+                    docs="docs/condensed.md",
+                )
+                for source in ("learned", "exact")
+            ),
+        ),
+        quick=Quick(_CONTACTS_QUICK, {_CONTACTS: "contacts.json"}, seconds=34.0),
+        not_kept="the two networks (256 x 3, 0.6 MB together) are not tracked (out/ is"
+        " ignored); the study's command re-makes them and every figure in about 6 minutes on"
+        " two quiet cores",
+    ),
+    Study(
         name="table-5.4",
         thesis="Table 5.4",
         title="Stiff-Flop, pressure actuation: standardised test loss",
@@ -1013,6 +1133,7 @@ STUDIES: tuple[Study, ...] = (
                 " (thesis 50 000)",
                 fmt="{:.2e}",
                 docs="docs/condensed.md",
+                protocol=_EPOCH_ON_TEST + "the study's command re-makes it (2 h)",
             ),
         ),
         not_kept="the network and dataset are not tracked (out/ is ignored); re-made by the "
@@ -1044,6 +1165,7 @@ STUDIES: tuple[Study, ...] = (
                 departure=_MECHANICAL,
                 fmt="{:.2e}",
                 docs="docs/condensed.md",
+                protocol=_EPOCH_ON_TEST + "the study's command re-makes it (80 min)",
             ),
             Figure(
                 "mechanical parameters, F",
@@ -1056,6 +1178,7 @@ STUDIES: tuple[Study, ...] = (
                 departure=_MECHANICAL,
                 fmt="{:.2e}",
                 docs="docs/condensed.md",
+                protocol=_EPOCH_ON_TEST + "the study's command re-makes it (80 min)",
             ),
             Figure(
                 "geometry, G",
@@ -1068,6 +1191,7 @@ STUDIES: tuple[Study, ...] = (
                 departure="G stays flat from its first epoch (train and test alike)",
                 fmt="{:.3g}",
                 docs="docs/condensed.md",
+                protocol=_EPOCH_ON_TEST + "the study's command re-makes it (about 2.5 h)",
             ),
             Figure(
                 "geometry, F",
@@ -1080,6 +1204,7 @@ STUDIES: tuple[Study, ...] = (
                 departure="60 epochs (the thesis' best epoch 270), SiLU and a cosine learning rate",
                 fmt="{:.3g}",
                 docs="docs/condensed.md",
+                protocol=_EPOCH_ON_TEST + "the study's command re-makes it (about 2.5 h)",
             ),
         ),
         not_kept="the networks and datasets are not tracked (out/ is ignored); re-made by the "
@@ -1170,6 +1295,59 @@ STUDIES: tuple[Study, ...] = (
         ),
     ),
     Study(
+        name="design",
+        thesis="§5.1.6, Fig. 5.15-5.17",
+        title="Designing the parametric Finger for dexterity and strength through its learned"
+        " condensed model, checked on the FEM",
+        command="python experiments/condensed/design.py --samples 640 --epochs 1500",
+        docs="docs/condensed.md",
+        figures=(
+            *(
+                Figure(
+                    f"learned {what} against the FEM's, worst relative gap over the grid's and"
+                    " the refined optima",
+                    _DESIGN,
+                    f"fem_check_gap/{key}_max_relative",
+                    thesis=None,
+                    unit="%",
+                    better="lower",
+                    tolerance=0.5,
+                    scale=100.0,
+                    departure=_DESIGN_DATA,
+                    fmt="{:.1f}",
+                    docs="docs/condensed.md",
+                )
+                for what, key in (
+                    ("bending angle (dexterity, Eq. 5.17)", "angle_rad"),
+                    ("tip force (strength, Eq. 5.19)", "tip_force_mN"),
+                )
+            ),
+            Figure(
+                "the strongest design, refined: its length",
+                _DESIGN,
+                "refined/strength/design/length",
+                thesis=42.0,
+                unit="mm",
+                better="closer",
+                tolerance=0.05,
+                departure="the shortest length of the box, where the thesis finds the longest:"
+                " Pliant's finger, its cables 0.4 of the height from the mid-plane, pushes"
+                " harder the stiffer and shorter it is; height and joint height at their"
+                " maxima, as the thesis'. " + _DESIGN_DATA,
+                fmt="{:.1f}",
+            ),
+        ),
+        quick=Quick(
+            "python experiments/condensed/design.py --samples 16 --samples-per-design 8"
+            " --epochs 2 --iterations 2 --work {out}/work --out {out}",
+            {_DESIGN: "design/design.json"},
+            seconds=46.0,
+        ),
+        not_kept="the parametric model (F 3 x 450 and G, 1.8 MB) is not tracked (out/ is"
+        " ignored); the study's command re-makes it and every figure (15 min on one core)."
+        + _NETWORK_SIZE,
+    ),
+    Study(
         name="trajopt-diamond",
         thesis="§5.2.3",
         title="Diamond DDP on the condensed dynamics: iterations to converge",
@@ -1205,6 +1383,43 @@ STUDIES: tuple[Study, ...] = (
             "python experiments/trajopt/diamond.py --max-iterations 1 --out {out}",
             {_TRAJOPT: "diamond.json"},
             seconds=144.0,
+        ),
+    ),
+    Study(
+        name="trajopt-stiff-flop-lianford",
+        thesis="§5.2.4, §5.2.5, Fig. 5.21, 5.22",
+        title="DDP on the condensed dynamics: the Stiff-Flop and the Lianford reach their goals",
+        command=" && ".join(
+            f"pliant trajopt {name} --out experiments/results/trajopt" for name in _SCENARIOS
+        ),
+        docs="docs/trajopt.md",
+        figures=tuple(
+            Figure(
+                f"{run}, error at the end of the horizon",
+                f"experiments/results/trajopt/{scenario}.json",
+                f"runs/run={run}/final_error",
+                thesis=None,
+                unit="mm",
+                better="lower",
+                tolerance=0.1,
+                departure="Pliant's Stiff-Flop and Lianford, their goals reachable by"
+                " construction (where a constant actuation rests the effector); the thesis"
+                " plots its trajectories without a number",
+                fmt="{:.3f}",
+                docs="docs/trajopt.md",
+            )
+            for scenario, run in (
+                ("stiff-flop", "stiff-flop-middle"),
+                ("stiff-flop", "stiff-flop-tip"),
+                ("lianford-spiral", "lianford-spiral"),
+                ("lianford-pick-place", "lianford-pick-place"),
+                ("lianford-orientation", "lianford-orientation"),
+            )
+        ),
+        quick=Quick(
+            " && ".join(f"pliant trajopt {name} --quick --out {{out}}" for name in _SCENARIOS),
+            {f"experiments/results/trajopt/{name}.json": f"{name}.json" for name in _SCENARIOS},
+            seconds=77.0,
         ),
     ),
     Study(

@@ -44,7 +44,13 @@ from pliant.condensed.parametric import (  # noqa: E402
     train_parametric,
 )
 from pliant.condensed.sampling import Box  # noqa: E402
-from pliant.condensed.train import TrainConfig, evaluate, train_condensed  # noqa: E402
+from pliant.condensed.train import (  # noqa: E402
+    TrainConfig,
+    evaluate,
+    sample_losses,
+    score_held_out,
+    train_condensed,
+)
 from pliant.constraints.condensed import CondensedProblem  # noqa: E402
 from pliant.constraints.inverse import solve_inverse  # noqa: E402
 from pliant.errors import DatasetError, LearnedModelError, ModelError  # noqa: E402
@@ -179,6 +185,21 @@ def test_network_beats_the_constant_w0_baseline_on_held_out_samples(learned, dat
     scores = evaluate(learned, dataset.test)
     assert scores["samples"] == 6
     assert scores["loss"] < 0.1 * scores["baseline_loss"], scores
+
+
+def test_held_out_score_is_the_loss_on_samples_drawn_after_training(learned) -> None:
+    """The protocol's figure: the loss on the plan's test stream under another seed (samples
+    the epoch was not chosen on), the same as `evaluate` there, its spread from the samples'."""
+    scores = score_held_out(learned, 11, workers=1)
+    held = held_out_split(learned.plan, 11, workers=1)
+    per_sample = sample_losses(learned.network, held)
+    assert scores["samples"] == len(held) > 0 and scores["seed"] == 11
+    assert scores["test_loss"] == pytest.approx(evaluate(learned, held)["loss"], rel=1e-6)
+    assert scores["median_sample_loss"] == pytest.approx(float(np.median(per_sample)))
+    assert scores["worst_sample_share"] == pytest.approx(per_sample.max() / per_sample.sum())
+    assert 0.0 < scores["worst_sample_share"] <= 1.0
+    with pytest.raises(DatasetError, match="held-out seed"):
+        score_held_out(learned, learned.plan.seed)
 
 
 def test_saved_model_predicts_as_the_trained_one(learned, dataset, tmp_path) -> None:
