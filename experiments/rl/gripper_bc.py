@@ -98,6 +98,8 @@ def variant(args) -> str:
 
 
 def results_of(args) -> Path:
+    if args.out is not None:
+        return args.out
     return RESULTS.with_name(RESULTS.name + variant(args))
 
 
@@ -118,7 +120,7 @@ def run(name: str, bc: bool, args) -> dict:
     if bc:
         overrides["bc"] = {
             "expert": "pliant.envs.gripper:expert",
-            "episodes": 30,
+            "episodes": args.expert_episodes,
             "successful_only": True,
             "epochs": args.bc_epochs,
         }
@@ -159,6 +161,8 @@ def plot(runs: dict, folder: Path, threshold: float, path: Path, suffix: str = "
         ax.plot(steps, success, "o-", color=colour, label=f"{name}: evaluations")
         with open(folder_of(folder, name + suffix) / "episodes.csv") as f:
             rows = list(csv.DictReader(f))
+        if len(rows) < 20:  # too few episodes for a running mean of 20 (a short run)
+            continue
         won = np.convolve([r["success"] == "1" for r in rows], np.ones(20) / 20, mode="valid")
         done = [float(r["step"]) for r in rows][19:]
         ax.plot(done, 100 * won, color=colour, lw=0.8, alpha=0.6, label=f"{name}: last 20 episodes")
@@ -179,8 +183,12 @@ def main() -> None:
     parser.add_argument("--eval-episodes", type=int, default=10)
     parser.add_argument("--threshold", type=float, default=0.8)
     parser.add_argument("--bc-epochs", type=int, default=3000)
+    parser.add_argument("--expert-episodes", type=int, default=30, help="to clone from")
     parser.add_argument("--threads", type=int, default=1)
     parser.add_argument("--runs", type=Path, default=Path("runs"))
+    parser.add_argument(
+        "--out", type=Path, default=None, help="results (default: experiments/results/rl/...)"
+    )
     parser.add_argument(
         "--only", choices=("bc", "scratch"), default=None, help="run one of the two"
     )

@@ -99,7 +99,7 @@ def quick(study: Study, root: Path = ROOT) -> tuple[list[Row], float]:
         seconds = _shell(study.quick.command.replace("{out}", out), root)
         rows = []
         for figure in study.figures:
-            if figure.file not in study.quick.files:
+            if not study.quick.makes(figure):
                 continue
             produced = Path(out) / study.quick.files[figure.file]
             try:
