@@ -3,8 +3,8 @@ that checks the pipeline in minutes, and the figures it writes, each read from a
 file (never typed in) beside the thesis' value and the departure from the thesis, stated.
 
 A figure's ``path`` walks the JSON file: keys separated by ``/``, list indices as integers,
-``field=value`` for the entry of a list whose field has that value, and ``*`` for every entry of
-a mapping or list; a path that reaches several numbers gives their mean
+``field=value`` for the entries of a list whose field has that value (one at least), and ``*``
+for every entry of a mapping or list; a path that reaches several numbers gives their mean
 (three seeds' steps to solve, say). ``scale`` turns the stored number into the unit shown (100
 for a fraction shown in %).
 """
@@ -33,7 +33,8 @@ class Figure:
     Args:
         name: what is measured, in the thesis' words.
         file: the result file, relative to the repository root.
-        path: keys into the file's JSON, separated by ``/`` (``*`` for every entry: mean).
+        path: keys into the file's JSON, separated by ``/`` (``*`` for every entry,
+            ``field=value`` for the entries of a list with that value: their mean).
         thesis: the thesis' value, in ``thesis_unit`` (``None`` where it gives none).
         unit: the unit of ours, after ``scale``.
         better: which way ours beats the thesis: ``lower``, ``higher`` or ``closer`` (within
@@ -117,12 +118,12 @@ def _walk(data, keys: list[str], figure: Figure) -> list:
     if key == "*":
         entries = data.values() if isinstance(data, dict) else data
         return [v for entry in entries for v in _walk(entry, rest, figure)]
-    if isinstance(data, list) and "=" in key:  # the entry whose field equals the value
+    if isinstance(data, list) and "=" in key:  # the entries whose field equals the value
         field, value = key.split("=", 1)
         chosen = [e for e in data if isinstance(e, dict) and str(e.get(field)) == value]
-        if len(chosen) != 1:
-            raise FigureError(f"{figure.name}: {figure.file}: {len(chosen)} entries {key!r}")
-        return _walk(chosen[0], rest, figure)
+        if not chosen:
+            raise FigureError(f"{figure.name}: {figure.file}: no entry {key!r}")
+        return [v for entry in chosen for v in _walk(entry, rest, figure)]
     try:
         child = data[int(key)] if isinstance(data, list) else data[key]
     except (KeyError, IndexError, ValueError, TypeError) as error:

@@ -48,6 +48,8 @@ _NETWORK_SIZE = (
 _TRAJOPT = "experiments/results/trajopt/diamond.json"
 _GRIPPER_BC = "experiments/results/rl/gripper_bc/summary.json"
 _MAZE = "experiments/results/planning/maze_corners.json"
+_ROBUST_TRUNK = "experiments/results/proxy/robustness_trunk.json"
+_ROBUST_MULTIGAIT = "experiments/results/proxy/robustness_surface.json"
 _CONTACTS = "experiments/results/condensed/contacts/contacts.json"
 _DESIGN = "experiments/results/condensed/design/design.json"
 _DESIGN_DATA = (
@@ -818,6 +820,63 @@ STUDIES: tuple[Study, ...] = (
             {_TRANSFER: "multigait_transfer.json"},
             seconds=2090.0,
         ),
+    ),
+    Study(
+        name="proxy-robustness",
+        thesis="§4.1.3, Fig. 4.5, 4.6",
+        title="Proxies with their parameters perturbed: PPO learns again on each, the policy"
+        " transfers to the FEM",
+        command=(
+            "python experiments/proxy/robustness.py --levels 0,0.001,0.01,0.1 --parameters"
+            " experiments/proxy/surface/multigait-joint_calibration.json --draws 3"
+            " --feedforward 1 --transfer-steps 8 --tag _surface && python"
+            " experiments/proxy/robustness.py --robot trunk --levels 0.1,0.01,0.001 --draws 5"
+        ),
+        docs="docs/studies/proxy-pipeline.md",
+        figures=(
+            *(
+                Figure(
+                    f"Multigait, parameters perturbed by {level}: FEM's travel in 8 transferred"
+                    " steps, mean of 3 draws",
+                    _ROBUST_MULTIGAIT,
+                    f"rows/level={level}/transfer/fem_travel_mm",
+                    thesis=None,
+                    unit="mm",
+                    better="higher",
+                    tolerance=0.5,
+                    departure="the thesis shows that the reward still increases at every level"
+                    " (Fig. 4.5), without a number; 1440 PPO steps a draw",
+                    fmt="{:.1f}",
+                    docs="docs/studies/proxy-multigait.md",
+                    protocol="every draw's final policy, none chosen",
+                )
+                for level in ("0.0", "0.001", "0.01", "0.1")
+            ),
+            *(
+                Figure(
+                    f"Trunk, parameters perturbed by {level}: FEM's mean final cube-goal"
+                    " distance on 20 goals, mean of 5 draws (doing nothing: 21.3 mm)",
+                    _ROBUST_TRUNK,
+                    f"rows/level={level}/transfer/fem/mean_final_distance_mm",
+                    thesis=None,
+                    unit="mm",
+                    better="lower",
+                    tolerance=0.5,
+                    departure="the thesis finds the Trunk's results the same as the Multigait's"
+                    " (Fig. 4.6), without a number; 20 400 PPO steps a draw",
+                    fmt="{:.1f}",
+                    docs="docs/studies/proxy-pipeline.md",
+                    protocol="every draw's final policy, none chosen",
+                )
+                for level in ("0.1", "0.01", "0.001")
+            ),
+        ),
+        no_quick="each row is a PPO training on a perturbed proxy (3 to 10 min) and its"
+        " transfer to the FEM; the script writes into experiments/results/proxy/ (no output"
+        " option)",
+        not_kept="the perturbed proxies' policies are not tracked (their folders hold"
+        " Stable-Baselines3 models); the figures are re-made by the study's command (about 46"
+        " min for the Multigait's 12 rows, 2.5 h for the Trunk's 15, on one core)",
     ),
     Study(
         name="graph-selector",

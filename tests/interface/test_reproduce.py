@@ -146,11 +146,15 @@ def _figure(**changes) -> Figure:
 
 
 def test_paths_walk_keys_indices_fields_and_stars(tmp_path):
-    data = {"runs": {"a": {"mm": 1.0}, "b": {"mm": 3.0}}, "rows": [{"id": "x", "v": 0.25}]}
+    rows = [{"id": "x", "v": 0.25}, {"id": "y", "v": 1.0}, {"id": "y", "v": 2.0}]
+    data = {"runs": {"a": {"mm": 1.0}, "b": {"mm": 3.0}}, "rows": rows}
     (tmp_path / "result.json").write_text(json.dumps(data))
     assert _figure().read(tmp_path) == 2.0  # the mean of both runs
     assert _figure(path="rows/0/v", scale=100.0).read(tmp_path) == 25.0
     assert _figure(path="rows/id=x/v").read(tmp_path) == 0.25
+    assert _figure(path="rows/id=y/v").read(tmp_path) == 1.5  # the mean of a level's draws
+    with pytest.raises(FigureError, match="no entry"):
+        _figure(path="rows/id=z/v").read(tmp_path)
     with pytest.raises(FigureError, match="has no"):
         _figure(path="runs/c/mm").read(tmp_path)
     with pytest.raises(FigureError, match="not numbers"):
