@@ -64,6 +64,7 @@ from pliant.condensed.manipulation import (
 from pliant.condensed.plots import plot_forces, plot_history, plot_reached
 from pliant.condensed.sampling import Box
 from pliant.condensed.train import TrainConfig, evaluate, train_condensed
+from pliant.errors import DatasetError
 
 HANGING = {"gravity": [9810.0, 0.0, 0.0]}
 FINGER = dict(
@@ -208,6 +209,8 @@ def held_out_test(plan: CollectionPlan, seed: int, work: Path, workers: int):
     collected whole with that seed (into `work`) and its test split kept."""
     if plan.sampling != "gripper":
         return held_out_split(plan, seed, workers=workers)
+    if seed == plan.seed:  # as held_out_split refuses: those samples chose the epoch
+        raise DatasetError(f"a held-out seed must differ from the plan's ({plan.seed})")
     other = replace(plan, seed=seed)
     path = work / f"contacts_gripper_{plan.n_train}_seed{seed}.h5"
     return load_or_collect(other, path, workers=workers).test.converged_only()
