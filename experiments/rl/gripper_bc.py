@@ -22,6 +22,14 @@ runs/gripper_{scratch,bc}_push_down, results in experiments/results/rl/gripper_b
 decrease of the height error over the step divided by 20, clipped to [0, 1], plus 1 on
 success), the other difference from the thesis' set-up; runs and results with the suffix
 ``_sofagym_reward`` (after ``_push_down`` when both are given).
+
+Both final policies are kept beside the results (``policy_bc.npz``, ``policy_scratch.npz``:
+the LSTM actor and the observation statistics, ``pliant.learn.kept``); ``--evaluate FOLDER``
+re-evaluates them as the runs' final evaluations did (``--eval-episodes`` deterministic
+episodes, seed 10 000 on) into ``--out``/summary.json, and exits:
+
+    PYTHONPATH=. python experiments/rl/gripper_bc.py --evaluate \
+        experiments/results/rl/gripper_bc --out /tmp/gripper_bc
 """
 
 from __future__ import annotations
@@ -37,10 +45,11 @@ from stable_baselines3.common.callbacks import BaseCallback
 
 from pliant import configure_threads
 from pliant.learn import load_config, train
-from pliant.learn.evaluate import evaluate_saved, run_episodes
+from pliant.learn.evaluate import evaluate_saved, export_run, run_episodes
 from pliant.learn.vec import make_env
 
 RESULTS = Path("experiments/results/rl/gripper_bc")
+EVAL_SEED = 10_000  # pliant.learn's evaluations: episode k resets with seed 10 000 + k
 THESIS = {"algo": "RecurrentPPO, LSTM 128", "steps_to_converge": 1_400_000, "bc_epochs": 3000}
 
 
@@ -63,7 +72,7 @@ class EvaluateAtStart(BaseCallback):
             env,
             self.episodes,
             normalize_obs=None if vecnorm is None else vecnorm.normalize_obs,
-            seed=10_000,
+            seed=EVAL_SEED,
         )
         env.close()
         self.path.write_text(json.dumps({"step": 0, **result.to_dict()}, indent=1))
@@ -176,6 +185,20 @@ def plot(runs: dict, folder: Path, threshold: float, path: Path, suffix: str = "
     plt.close(fig)
 
 
+def evaluate_kept(folder: Path, args) -> None:
+    """--evaluate: the kept final policies in `folder`, as the runs' final evaluations."""
+    runs = {}
+    for name in ("bc", "scratch"):
+        evaluation = evaluate_saved(
+            folder / f"policy_{name}.npz", episodes=args.eval_episodes, seed=EVAL_SEED
+        )
+        runs[name] = {"training": {"final_evaluation": evaluation.to_dict()}}
+    out = args.out or RESULTS
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "summary.json").write_text(json.dumps({"runs": runs}, indent=1))
+    print(json.dumps({name: r["training"]["final_evaluation"] for name, r in runs.items()}))
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--steps", type=int, default=60_000)
@@ -194,8 +217,16 @@ def main() -> None:
     )
     parser.add_argument("--push-down", action="store_true", help="random downward force")
     parser.add_argument("--sofagym-reward", action="store_true", help="SofaGym's reward")
+    parser.add_argument(
+        "--evaluate", type=Path, default=None, help="re-evaluate the kept policies here, exit"
+    )
     args = parser.parse_args()
     configure_threads(torch_threads=args.threads)
+    if args.evaluate is not None:
+        if args.out is None:
+            parser.error("--evaluate needs --out (not to overwrite the committed results)")
+        evaluate_kept(args.evaluate, args)
+        return
     results = results_of(args)
     results.mkdir(parents=True, exist_ok=True)
     summary_path = results / "summary.json"
@@ -216,7 +247,8 @@ def main() -> None:
     summary_path.write_text(json.dumps(summary, indent=1))
     suffix = variant(args)
     plot(summary["runs"], args.runs, args.threshold, results / "success.png", suffix)
-    for name in summary["runs"]:  # one evaluation episode of each final policy
+    for name in summary["runs"]:  # kept, and one evaluation episode of each, as a GIF
+        export_run(folder_of(args.runs, name + suffix) / "final", results / f"policy_{name}.npz")
         evaluate_saved(
             folder_of(args.runs, name + suffix) / "final",
             episodes=1,

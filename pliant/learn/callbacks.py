@@ -120,10 +120,10 @@ class RobustnessCallback(BaseCallback):
 
 
 class EvalCallback(BaseCallback):
-    """Every `freq` steps (and at the end), `episodes` deterministic episodes on a separate
-    environment with the training normaliser's statistics: ``eval/success_rate``,
-    ``eval/mean_reward`` in TensorBoard, the learning curve in ``evaluations.json``, the best
-    model so far in ``best/``."""
+    """Every `freq` steps (and at the end: the final policy, after its last update),
+    `episodes` deterministic episodes on a separate environment with the training normaliser's
+    statistics: ``eval/success_rate``, ``eval/mean_reward`` in TensorBoard, the learning curve
+    in ``evaluations.json``, the best model so far in ``best/``."""
 
     def __init__(self, run_dir: Path, env, freq: int, episodes: int, config) -> None:
         super().__init__()
@@ -183,7 +183,10 @@ class EvalCallback(BaseCallback):
         if self.freq > 0 and self.episodes > 0 and self.num_timesteps >= self.next_eval:
             while self.next_eval <= self.num_timesteps:
                 self.next_eval += self.freq
-            self.evaluate()
+            # At the run's last step the policy still has its last update to come (after the
+            # rollout): the evaluation at training end is the final policy's.
+            if self.num_timesteps < self.model._total_timesteps:
+                self.evaluate()
         return True
 
     def _on_training_end(self) -> None:

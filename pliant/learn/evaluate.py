@@ -145,7 +145,9 @@ class _NormalisedInput:
         self.policy = policy
 
     def predict(self, observation, state=None, episode_start=None, deterministic=True):
-        return self.policy.predict(observation, deterministic=deterministic, normalized=True)
+        return self.policy.predict(
+            observation, state, episode_start, deterministic=deterministic, normalized=True
+        )
 
 
 def _kept(path: Path, algo: str | None) -> SavedPolicy:

@@ -15,17 +15,22 @@ The file (NumPy's ``savez_compressed``, no pickles; each member CRC-checked on r
     obs_mean, obs_var  VecNormalize's observation statistics, where the run used one
     trunk.I.weight/bias, mean.I.*, log_std.I.*   the Linear layers of each sequence
     log_std            PPO's and A2C's state-independent log standard deviation (Box actions)
+    lstm.*             RecurrentPPO's actor LSTM (torch's weight_ih_l0, weight_hh_l0, ...)
 
-``meta``: ``format``, ``version``, ``algo``, ``kind`` (``diag_gaussian``: PPO/A2C on Box
-actions, clipped to the bounds; ``categorical``: PPO/A2C on Discrete actions;
+``meta``: ``format``, ``version``, ``algo``, ``kind`` (``diag_gaussian``: PPO, A2C or
+RecurrentPPO on Box actions, clipped to the bounds; ``categorical``: the same on Discrete ones;
 ``squashed_gaussian``: SAC; ``deterministic``: TD3's tanh actor; ``greedy``: DQN's Q-network),
 ``layers`` (each sequence's modules in order: ``linear`` or a ``torch.nn`` activation's name),
 ``observation_space``, ``action_space``, ``normalize`` (VecNormalize's ``clip_obs`` and
-``epsilon``, or null), and ``provenance`` (what the exporter was given: the environment, the
-run's configuration, seed, step and source).
+``epsilon``, or null), ``lstm`` (RecurrentPPO's actor LSTM: ``input_size``, ``hidden_size``,
+``num_layers``; null for the others; version 2 of the format) and ``provenance`` (what the
+exporter was given: the environment, the run's configuration, seed, step and source).
 
-Recurrent policies, state-dependent exploration (gSDE), image and dictionary observations are
-not kept (a :class:`~pliant.errors.PolicyError` says so at export).
+A recurrent policy (sb3-contrib's RecurrentPPO) is kept with its actor's LSTM: ``predict``
+takes and returns the LSTM's state and resets it where ``episode_start`` says, as
+RecurrentPPO's ``predict`` does (the critic's LSTM is not kept: acting does not use it).
+State-dependent exploration (gSDE), image and dictionary observations are not kept (a
+:class:`~pliant.errors.PolicyError` says so at export).
 """
 
 from __future__ import annotations
@@ -42,7 +47,8 @@ from pliant.errors import PolicyError
 from pliant.files import load_npz, read_checked, save_npz
 
 FORMAT = "pliant-kept-policy"
-VERSION = 1
+VERSION = 2  # 2: RecurrentPPO's actor LSTM (``lstm``); files without one are written as 1
+READABLE = (1, 2)
 KINDS = ("diag_gaussian", "categorical", "squashed_gaussian", "deterministic", "greedy")
 # SB3's clamp of SAC's log standard deviation (stable_baselines3.sac.policies)
 LOG_STD_MIN, LOG_STD_MAX = -20.0, 2.0
@@ -86,6 +92,23 @@ def _space(space) -> tuple[dict, dict]:
     raise PolicyError(f"a {type(space).__name__} space cannot be kept (Box or Discrete)")
 
 
+def _lstm(model, algo: str, arrays: dict) -> dict | None:
+    """RecurrentPPO's actor LSTM added to `arrays` (``lstm.weight_ih_l0``, ...) and described;
+    None for a feed-forward policy."""
+    if algo != "RecurrentPPO":
+        return None
+    lstm = model.policy.lstm_actor
+    if lstm.bidirectional or lstm.proj_size or not lstm.bias or lstm.batch_first:
+        raise PolicyError("only a plain LSTM (one direction, biases, no projection) is kept")
+    for name, value in lstm.state_dict().items():
+        arrays[f"lstm.{name}"] = value.detach().cpu().numpy().astype(np.float32)
+    return {
+        "input_size": lstm.input_size,
+        "hidden_size": lstm.hidden_size,
+        "num_layers": lstm.num_layers,
+    }
+
+
 def _actor(model, algo: str, arrays: dict) -> tuple[str, dict]:
     """The acting networks of `model`: its kind and each sequence's layers."""
     from stable_baselines3.common.torch_layers import FlattenExtractor
@@ -93,7 +116,7 @@ def _actor(model, algo: str, arrays: dict) -> tuple[str, dict]:
     policy = model.policy
     if getattr(policy, "use_sde", False):
         raise PolicyError(f"{algo} with state-dependent exploration (gSDE) cannot be kept")
-    if algo in ("PPO", "A2C"):
+    if algo in ("PPO", "A2C", "RecurrentPPO"):
         features = policy.pi_features_extractor
         layers = {"trunk": _sequence(policy.mlp_extractor.policy_net, "trunk", arrays)}
         layers["mean"] = _sequence(policy.action_net, "mean", arrays)
@@ -118,7 +141,9 @@ def _actor(model, algo: str, arrays: dict) -> tuple[str, dict]:
         features = policy.q_net.features_extractor
         layers, kind = {"trunk": _sequence(policy.q_net.q_net, "trunk", arrays)}, "greedy"
     else:
-        raise PolicyError(f"a {algo} policy cannot be kept (PPO, A2C, SAC, TD3 or DQN)")
+        raise PolicyError(
+            f"a {algo} policy cannot be kept (PPO, A2C, RecurrentPPO, SAC, TD3 or DQN)"
+        )
     if not isinstance(features, FlattenExtractor):
         raise PolicyError(f"a {type(features).__name__} features extractor cannot be kept")
     return kind, layers
@@ -135,7 +160,8 @@ def export_policy(
     """Write what acting needs of the SB3 `model` to `path` (``.npz``), atomically.
 
     Args:
-        model: a PPO, A2C, SAC, TD3 or DQN model with an MLP policy.
+        model: a PPO, A2C, SAC, TD3 or DQN model with an MLP policy, or a RecurrentPPO
+            model with an LSTM one.
         algo: its algorithm (default: the model's class name).
         vecnormalize: the VecNormalize the model was trained behind, if any (its observation
             statistics are kept; rewards are not normalised when acting).
@@ -152,6 +178,7 @@ def export_policy(
     action, act_bounds = _space(model.action_space)
     arrays: dict[str, np.ndarray] = {}
     kind, layers = _actor(model, algo, arrays)
+    lstm = _lstm(model, algo, arrays)
     arrays.update({f"observation_{k}": v for k, v in obs_bounds.items()})
     arrays.update({f"action_{k}": v for k, v in act_bounds.items()})
     normalize = None
@@ -163,10 +190,11 @@ def export_policy(
         normalize = {"clip_obs": float(vecnormalize.clip_obs), "epsilon": vecnormalize.epsilon}
     meta = {
         "format": FORMAT,
-        "version": VERSION,
+        "version": VERSION if lstm else 1,
         "algo": algo,
         "kind": kind,
         "layers": layers,
+        "lstm": lstm,
         "observation_space": observation,
         "action_space": action,
         "normalize": normalize,
@@ -233,7 +261,8 @@ class ObservationNormalizer:
 class KeptPolicy:
     """A kept policy (see the module's docstring): ``predict`` acts on raw observations (the
     normaliser, where there is one, applied first) as SB3's ``model.predict`` does on
-    normalised ones; ``env_id``, ``env_kwargs`` and ``provenance`` say where it comes from."""
+    normalised ones; ``env_id``, ``env_kwargs`` and ``provenance`` say where it comes from;
+    ``lstm`` is a recurrent policy's actor LSTM (None for the others)."""
 
     def __init__(self, meta: dict, arrays: dict, path: Path) -> None:
         self.path = path
@@ -253,6 +282,7 @@ class KeptPolicy:
         self.networks = {
             name: _Sequence(layers, name, arrays) for name, layers in meta["layers"].items()
         }
+        self.lstm = _lstm_from(meta.get("lstm"), arrays)
         self.log_std = None
         if self.kind == "diag_gaussian":
             self.log_std = torch.from_numpy(np.array(arrays["log_std"], np.float32))
@@ -271,8 +301,10 @@ class KeptPolicy:
         """Each network's input and output against the spaces (a file that loads but does
         not fit its own description is corrupt)."""
         x = torch.zeros((1, int(np.prod(self.observation_space.shape))))
+        if self.lstm is not None and self.lstm.input_size != x.shape[1]:
+            raise ValueError(f"its LSTM takes {self.lstm.input_size} inputs, not {x.shape[1]}")
         with torch.no_grad():
-            out = self._distribution_params(x)
+            out = self._distribution_params(self._recur(x, None, None)[0])
         width = (
             int(self.action_space.n)
             if isinstance(self.action_space, spaces.Discrete)
@@ -292,6 +324,33 @@ class KeptPolicy:
             log_std = torch.clamp(self.networks["log_std"](latent), LOG_STD_MIN, LOG_STD_MAX)
             return mean, log_std
         return (mean,)  # categorical: logits
+
+    def _recur(self, x: torch.Tensor, state, episode_start):
+        """The actor LSTM's output for one step of ``len(x)`` environments from `state` (zeros
+        where None; reset where `episode_start`), and its next state; `x` itself and None for
+        a feed-forward policy."""
+        if self.lstm is None:
+            return x, None
+        n = len(x)
+        shape = (self.lstm.num_layers, n, self.lstm.hidden_size)
+        if state is None:
+            h = c = torch.zeros(shape)
+        else:
+            try:
+                h, c = (torch.as_tensor(np.asarray(s), dtype=torch.float32) for s in state)
+            except (TypeError, ValueError) as exc:
+                raise PolicyError(f"{self.path}: the LSTM state is not (h, c): {exc}") from None
+            if h.shape != shape or c.shape != shape:
+                raise PolicyError(
+                    f"{self.path}: an LSTM state of shapes {tuple(h.shape)}, {tuple(c.shape)};"
+                    f" for {n} observation(s) it is {shape}"
+                )
+        if episode_start is not None:
+            keep = 1.0 - torch.as_tensor(np.asarray(episode_start), dtype=torch.float32)
+            keep = keep.reshape(1, n, 1)
+            h, c = keep * h, keep * c
+        out, (h, c) = self.lstm(x[None], (h, c))  # a sequence of one step
+        return out[0], (h.numpy(), c.numpy())
 
     def normalize_obs(self, obs):
         """The observation as the policy's networks take it (normalised where it was)."""
@@ -325,14 +384,17 @@ class KeptPolicy:
         *,
         normalized: bool = False,
     ):
-        """``(action, None)`` for a raw observation (or a batch) as SB3's ``predict`` gives;
+        """``(action, state)`` for a raw observation (or a batch) as SB3's ``predict`` gives:
+        `state` None, except a recurrent policy's LSTM state ``(h, c)``, which the next call
+        takes (`episode_start`, one flag per observation, resets it);
         ``normalized=True``: the observation is already normalised (SB3's own convention)."""
         obs, batched = self._batch(observation)
         if not normalized:
             obs = self.normalize_obs(obs)
         x = torch.as_tensor(obs).float().reshape(len(obs), -1)  # SB3: Box obs .float(), flat
         with torch.no_grad():
-            params = self._distribution_params(x)
+            latent, state = self._recur(x, state, episode_start)
+            params = self._distribution_params(latent)
             actions = self._act(params, deterministic)
         actions = actions.cpu().numpy().reshape((-1, *self.action_space.shape))
         if isinstance(self.action_space, spaces.Box):
@@ -341,7 +403,7 @@ class KeptPolicy:
                 actions = low + 0.5 * (actions + 1.0) * (high - low)
             else:
                 actions = np.clip(actions, self.action_space.low, self.action_space.high)
-        return (actions if batched else actions.squeeze(axis=0)), None
+        return (actions if batched else actions.squeeze(axis=0)), state
 
     def _act(self, params, deterministic: bool) -> torch.Tensor:
         if self.kind == "deterministic":
@@ -362,6 +424,22 @@ class KeptPolicy:
         return torch.tanh(out) if self.kind == "squashed_gaussian" else out
 
 
+def _lstm_from(description: dict | None, arrays: dict) -> torch.nn.LSTM | None:
+    if description is None:
+        return None
+    lstm = torch.nn.LSTM(
+        int(description["input_size"]),
+        int(description["hidden_size"]),
+        num_layers=int(description["num_layers"]),
+    )
+    state = {
+        name: torch.from_numpy(np.array(arrays[f"lstm.{name}"], np.float32))
+        for name in lstm.state_dict()
+    }
+    lstm.load_state_dict(state)  # RuntimeError for a weight of the wrong shape
+    return lstm.eval()
+
+
 def load_policy(path: str | Path) -> KeptPolicy:
     """The kept policy in `path` (a ``.npz`` written by :func:`export_policy`).
 
@@ -376,8 +454,10 @@ def load_policy(path: str | Path) -> KeptPolicy:
         meta = json.loads(bytes(arrays["meta"]).decode())
         if meta.get("format") != FORMAT:
             raise ValueError(f"format {meta.get('format')!r}, not {FORMAT!r}")
-        if meta.get("version") != VERSION:
-            raise ValueError(f"version {meta.get('version')!r}; this Pliant reads {VERSION}")
+        if meta.get("version") not in READABLE:
+            raise ValueError(
+                f"version {meta.get('version')!r}; this Pliant reads {READABLE[-1]} and older"
+            )
         return KeptPolicy(meta, arrays, p)
 
     return read_checked(path, parse, "a kept policy")

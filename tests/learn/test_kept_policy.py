@@ -105,6 +105,70 @@ def test_kept_policy_acts_as_the_sb3_model(tmp_path, algo, action_space, normali
             assert np.ptp(expected[:, 0]) > 0.1  # the draws differ: a real distribution
 
 
+def _recurrent(action_space, normalize: bool, layers: int = 1):
+    from sb3_contrib import RecurrentPPO
+
+    torch.manual_seed(5)
+    env = _Spaces(BOX_OBS, action_space)
+    kwargs = {"net_arch": [16], "lstm_hidden_size": 12, "n_lstm_layers": layers}
+    model = RecurrentPPO("MlpLstmPolicy", env, policy_kwargs=kwargs, n_steps=8, batch_size=8)
+    if isinstance(action_space, gym.spaces.Box):
+        with torch.no_grad():
+            model.policy.log_std.copy_(torch.tensor([-0.5, 0.3, 0.1]))
+    vecnorm = _normalizer(env, np.random.default_rng(4)) if normalize else None
+    return model, vecnorm
+
+
+@pytest.mark.parametrize(
+    ("action_space", "normalize", "layers"),
+    [(BOX_ACT, True, 1), (BOX_ACT, False, 2), (gym.spaces.Discrete(5), True, 1)],
+)
+def test_a_kept_recurrent_policy_acts_as_the_sb3_model(tmp_path, action_space, normalize, layers):
+    """RecurrentPPO: the actor's LSTM carried from step to step and reset where an episode
+    starts, for a batch of environments: the same actions and states as its ``predict``."""
+    model, vecnorm = _recurrent(action_space, normalize, layers)
+    kept = load_kept(export_policy(model, tmp_path / "lstm.npz", vecnormalize=vecnorm))
+    assert kept.algo == "RecurrentPPO" and kept.meta["version"] == 2
+    rng = np.random.default_rng(0)
+    ours = theirs = None
+    for t in range(6):  # 4 environments; the second and the last restart at steps 3 and 4
+        raw = rng.uniform(-4, 4, size=(4, 6)).astype(np.float32)
+        seen = vecnorm.normalize_obs(raw) if vecnorm is not None else raw
+        start = np.array([t == 0, t in (0, 3), t == 0, t in (0, 4)])
+        expected, theirs = model.predict(seen, theirs, start, deterministic=True)
+        actions, ours = kept.predict(raw, ours, start, deterministic=True)
+        np.testing.assert_array_equal(actions, expected)
+        for a, b in zip(ours, theirs, strict=True):
+            np.testing.assert_allclose(a, b, rtol=0, atol=1e-6)
+    assert np.abs(ours[0]).max() > 1e-3  # a state that carries something
+    torch.manual_seed(2)
+    sampled, _ = model.predict(seen, theirs, None, deterministic=False)
+    torch.manual_seed(2)
+    np.testing.assert_array_equal(kept.predict(raw, ours, None, deterministic=False)[0], sampled)
+    single, state = kept.predict(raw[0])  # one observation, a fresh state
+    assert state[0].shape == (layers, 1, 12)
+    first, _ = model.predict(seen[0], None, np.array([True]), deterministic=True)
+    np.testing.assert_array_equal(single, first)
+    with pytest.raises(PolicyError, match="LSTM state"):
+        kept.predict(raw, (ours[0][:, :2], ours[1][:, :2]))
+
+
+def test_a_kept_recurrent_policy_evaluates_as_its_saved_run(tmp_path):
+    """Episodes on an environment (the LSTM reset at each): the same returns as the run's own
+    RecurrentPPO through ``pliant.learn.evaluate``."""
+    from sb3_contrib import RecurrentPPO
+
+    env = make_env(TOY)
+    kwargs = {"net_arch": [16], "lstm_hidden_size": 8}
+    model = RecurrentPPO("MlpLstmPolicy", env, policy_kwargs=kwargs, seed=0)
+    save_policy(model, tmp_path / "final", "RecurrentPPO", TOY, {}, None)
+    export_run(tmp_path / "final", tmp_path / "kept.npz")
+    kept, saved = load_policy(tmp_path / "kept.npz"), load_policy(tmp_path / "final")
+    ours = run_episodes(kept.model, env, 3, seed=5)
+    theirs = run_episodes(saved.model, env, 3, seed=5)
+    assert ours.returns == theirs.returns and ours.mean_length > 1
+
+
 def test_a_3x512_ppo_actor_is_small(tmp_path):
     env = _Spaces(gym.spaces.Box(-1, 1, (48,), np.float32), BOX_ACT)
     arch = {"net_arch": {"pi": [512, 512, 512], "vf": [512, 512, 512]}}

@@ -87,6 +87,25 @@ def test_learner_beats_random_policy(tmp_path, algo, steps):
 
 
 @pytest.mark.parametrize("algo", ["PPO", "SAC"])
+def test_the_final_evaluation_is_the_final_policys(tmp_path, algo):
+    """A run whose last step is an evaluation step: its final evaluation is of the policy it
+    saves (after the last update of the rollout, which follows the step), not of the one
+    before it; the curve has one entry a step."""
+    hyper = {"policy": "MlpPolicy", "policy_kwargs": {"net_arch": [16]}}
+    if algo == "PPO":
+        hyper.update(n_steps=100, batch_size=50)
+    else:
+        hyper.update(learning_starts=50, batch_size=32, train_freq=100, gradient_steps=20)
+    config = _config(algo, 300, eval_freq=100, eval_episodes=3, seed=1, hyperparams=hyper)
+    result = train(config, tmp_path / "run")
+    final = result.summary["final_evaluation"]
+    curve = json.loads((tmp_path / "run" / "evaluations.json").read_text())
+    assert [e["step"] for e in curve] == [100, 200, 300] and final == curve[-1]
+    again = evaluate_saved(tmp_path / "run" / "final", episodes=3, seed=10_000)
+    assert again.to_dict() == {k: v for k, v in final.items() if k != "step"}
+
+
+@pytest.mark.parametrize("algo", ["PPO", "SAC"])
 def test_resume_after_interruption_gives_the_same_parameters(tmp_path, algo):
     """A run stopped after its checkpoint at step 300 and resumed ends with parameters equal,
     bit for bit, to those of an uninterrupted run (one environment, fixed seed); SAC's replay
