@@ -51,7 +51,7 @@ from pliant.condensed.collect import held_out_split, load_or_collect
 from pliant.condensed.dataset import Dataset, Split
 from pliant.condensed.learned import LearnedCondensedModel
 from pliant.condensed.networks import StandardisedMLP
-from pliant.condensed.train import TrainConfig, evaluate_loss, fit, sample_losses
+from pliant.condensed.train import TrainConfig, fit, loss_spread, sample_losses
 
 TRAINING = TrainConfig(
     batch_size=256, learning_rate=2e-3, activation="silu", schedule="cosine", progress=False
@@ -92,12 +92,12 @@ def train(data: Split, validation: Split, epochs: int, checkpoint: Path) -> tupl
 
 
 def scores(network: StandardisedMLP, test: Split) -> dict:
-    """The test loss (Eq. 5.5) and its spread over the samples."""
-    per_sample = sample_losses(network, test)
+    """The test loss (Eq. 5.5) and its spread over the samples, under this study's names."""
+    spread = loss_spread(network, test)
     return {
-        "test_loss": evaluate_loss(network, _tensor(test.inputs()), _tensor(test.outputs())),
-        "median_test_sample_loss": float(np.median(per_sample)),
-        "worst_test_sample_share": float(per_sample.max() / per_sample.sum()),
+        "test_loss": spread["loss"],
+        "median_test_sample_loss": spread["median_sample_loss"],
+        "worst_test_sample_share": spread["worst_sample_share"],
     }
 
 

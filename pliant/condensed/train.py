@@ -278,20 +278,32 @@ def sample_losses(network: StandardisedMLP, split: Split) -> np.ndarray:
         return ((network(x) - network.output_scale(y)) ** 2).mean(dim=1).numpy()
 
 
+def loss_spread(network: StandardisedMLP, split: Split) -> dict[str, float]:
+    """Eq. 5.5 on the converged samples of `split` (computed as every test loss is, by
+    :func:`evaluate_loss`) and its spread over them: the median sample's loss and the worst
+    sample's share of their sum (one outlier sample, or a loss spread over many)."""
+    good = split.converged_only()
+    per_sample = sample_losses(network, good)
+    return {
+        "loss": evaluate_loss(network, _tensor(good.inputs()), _tensor(good.outputs())),
+        "median_sample_loss": float(np.median(per_sample)),
+        "worst_sample_share": float(per_sample.max() / per_sample.sum()),
+    }
+
+
 def score_held_out(
     learned: LearnedCondensedModel, seed: int, *, workers: int | None = None
 ) -> dict[str, float]:
     """F's loss (Eq. 5.5) on a test set drawn after its training: the test stream of its plan
     under another `seed` (``held_out_split``; the plan's own test split chose the epoch, a
-    validation set), with its spread over the samples (median, the worst sample's share)."""
+    validation set), with its spread over the samples (:func:`loss_spread`)."""
     test = held_out_split(learned.plan, seed, workers=workers)
-    per_sample = sample_losses(learned.network, test)
+    spread = loss_spread(learned.network, test)
     return {
         "seed": seed,
         "samples": len(test),
-        "test_loss": evaluate(learned, test)["loss"],
-        "median_sample_loss": float(np.median(per_sample)),
-        "worst_sample_share": float(per_sample.max() / per_sample.sum()),
+        "test_loss": spread.pop("loss"),
+        **spread,
     }
 
 

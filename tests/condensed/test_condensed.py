@@ -47,6 +47,7 @@ from pliant.condensed.sampling import Box  # noqa: E402
 from pliant.condensed.train import (  # noqa: E402
     TrainConfig,
     evaluate,
+    loss_spread,
     sample_losses,
     score_held_out,
     train_condensed,
@@ -200,6 +201,8 @@ def test_held_out_score_is_the_loss_on_samples_drawn_after_training(learned) -> 
     assert 0.0 < scores["worst_sample_share"] <= 1.0
     with pytest.raises(DatasetError, match="held-out seed"):
         score_held_out(learned, learned.plan.seed)
+    spread = loss_spread(learned.network, held)  # what both the score and `evaluate` compute
+    assert spread["loss"] == evaluate(learned, held)["loss"] == scores["test_loss"]
 
 
 def test_saved_model_predicts_as_the_trained_one(learned, dataset, tmp_path) -> None:
