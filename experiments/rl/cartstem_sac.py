@@ -19,6 +19,7 @@ import shutil
 import time
 from pathlib import Path
 
+import torch
 from stable_baselines3.common.callbacks import BaseCallback
 
 from pliant import configure_threads
@@ -32,6 +33,12 @@ RESULTS = Path("experiments/results/rl/cartstem_sac")
 # Disjoint goal draws (each episode k of a draw resets with seed + k).
 VALIDATION_SEED = 30_000  # --stop-at's checks
 TEST_SEED = 20_000  # the reported figures; chosen by nothing
+PROTOCOL = {
+    "evaluations_seed": 10_000,  # the 20-goal evaluations, which choose the best policy
+    "validation_seed": VALIDATION_SEED,
+    "test_seed": TEST_SEED,
+    "best": "the policy of the best 20-goal evaluation (success, then return)",
+}
 
 
 class StopAtSuccess(BaseCallback):
@@ -82,6 +89,16 @@ def publish(run: Path, partial: bool, command: str) -> None:
     (RESULTS / "status.json").write_text(json.dumps(status, indent=1))
 
 
+def on_test_goals(policy: Path, episodes: int, mode: str):
+    """`policy` (a run's folder or a kept policy.npz) on the `episodes` test goals, acting by
+    its mean action or by sampling; the samples drawn after seeding torch with the test seed,
+    so that the saved model and its kept actor draw the same actions (pliant.learn.kept)."""
+    torch.manual_seed(TEST_SEED)
+    return evaluate_saved(
+        policy, episodes=episodes, seed=TEST_SEED, deterministic=mode == "deterministic"
+    )
+
+
 def goal_evaluations(run: Path, episodes: int, last: Path | None = None) -> dict:
     """The final and the best (by the 20-goal evaluations) policies on the same `episodes`
     test goals and carts (seed 20 000 on), acting deterministically (the mean action) and by
@@ -98,16 +115,15 @@ def goal_evaluations(run: Path, episodes: int, last: Path | None = None) -> dict
             best = max(curve, key=lambda e: (e["success_rate"] or 0.0) + 1e-9 * e["mean_return"])
             step = {"step": best["step"]}
         for mode in ("deterministic", "stochastic"):
-            evaluation = evaluate_saved(
-                folder, episodes=episodes, seed=TEST_SEED, deterministic=mode == "deterministic"
-            )
+            evaluation = on_test_goals(folder, episodes, mode)
             results[f"{name}_{mode}"] = {**step, **evaluation.to_dict()}
     return results
 
 
 def publish_partial(run: Path, episodes: int, command: str) -> None:
     """A stopped run: its latest checkpoint's policy evaluated on `episodes` goals, a GIF,
-    the learning curve so far, all labelled partial; the best policy's goals as well."""
+    the learning curve so far, all labelled partial; the best policy's goals as well (chosen
+    on the 20-goal evaluations, seed 10 000 on), and that policy kept (policy.npz)."""
     import pickle
 
     from pliant.learn.callbacks import latest_checkpoint
@@ -133,19 +149,19 @@ def publish_partial(run: Path, episodes: int, command: str) -> None:
             else []
         ),
         "thesis": {"algo": "SAC, MLP 3x512", "steps_to_solve": 200_000},
+        "protocol": PROTOCOL,
     }
     (run / "summary.json").write_text(json.dumps(summary, indent=1))
     publish(run, partial=True, command=command)
+    if (run / "best").exists():  # the policy its figures report, chosen on validation goals
+        export_run(run / "best", RESULTS / "policy.npz")
 
 
 def evaluate_kept(policy: Path, episodes: int, out: Path) -> None:
     """A kept policy on the `episodes` test goals, both ways of acting (--evaluate)."""
     results = {}
     for mode in ("deterministic", "stochastic"):
-        evaluation = evaluate_saved(
-            policy, episodes=episodes, seed=TEST_SEED, deterministic=mode == "deterministic"
-        )
-        results[f"best_{mode}"] = evaluation.to_dict()
+        results[f"best_{mode}"] = on_test_goals(policy, episodes, mode).to_dict()
     out.mkdir(parents=True, exist_ok=True)
     write_json(out / "summary.json", {"policy": str(policy), f"{episodes}_goals": results})
     print(json.dumps(results, indent=1))
@@ -213,11 +229,7 @@ def main() -> None:
         f"{args.final_episodes}_goals": goal_evaluations(RUN, args.final_episodes),
         "wall_seconds_with_final_evaluation_this_session": time.perf_counter() - clock,
         "thesis": {"algo": "SAC, MLP 3x512", "steps_to_solve": 200_000},
-        "protocol": {
-            "evaluations_seed": 10_000,
-            "validation_seed": VALIDATION_SEED,
-            "test_seed": TEST_SEED,
-        },
+        "protocol": PROTOCOL,
     }
     (RUN / "summary.json").write_text(json.dumps(summary, indent=1))
     publish(RUN, partial=False, command=command)
