@@ -19,7 +19,6 @@ import shutil
 import time
 from pathlib import Path
 
-import torch
 from stable_baselines3.common.callbacks import BaseCallback
 
 from pliant import configure_threads
@@ -93,9 +92,12 @@ def on_test_goals(policy: Path, episodes: int, mode: str):
     """`policy` (a run's folder or a kept policy.npz) on the `episodes` test goals, acting by
     its mean action or by sampling; the samples drawn after seeding torch with the test seed,
     so that the saved model and its kept actor draw the same actions (pliant.learn.kept)."""
-    torch.manual_seed(TEST_SEED)
     return evaluate_saved(
-        policy, episodes=episodes, seed=TEST_SEED, deterministic=mode == "deterministic"
+        policy,
+        episodes=episodes,
+        seed=TEST_SEED,
+        deterministic=mode == "deterministic",
+        action_seed=TEST_SEED,
     )
 
 

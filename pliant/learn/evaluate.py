@@ -244,9 +244,13 @@ def evaluate_saved(
     deterministic: bool = True,
     gif: Path | None = None,
     gif_episodes: int = 1,
+    action_seed: int | None = None,
 ) -> Evaluation:
     """Evaluate a saved policy (``pliant eval``/``pliant enjoy``). The environment defaults to
-    the one it was trained on, with the same keyword arguments."""
+    the one it was trained on, with the same keyword arguments. `action_seed`: torch seeded
+    with it once the policy is loaded, so that sampled actions (``deterministic=False``) are
+    the same draws from a saved model and from its kept actor (loading an SB3 model draws
+    from torch's generator, loading a kept policy does not)."""
     saved = load_policy(path, algo)
     env_id = env_id or saved.env_id
     if env_id is None:
@@ -254,6 +258,10 @@ def evaluate_saved(
     kwargs = {**saved.env_kwargs, **(env_kwargs or {})}
     env = make_env(env_id, kwargs, render_mode="rgb_array" if gif else None)
     frames: list | None = [] if gif else None
+    if action_seed is not None:
+        import torch  # loaded with the policy already
+
+        torch.manual_seed(action_seed)
     try:
         result = run_episodes(
             saved.model,

@@ -20,7 +20,13 @@ from typer.testing import CliRunner
 
 from pliant.cli import app
 from pliant.errors import CorruptFileError, PolicyError
-from pliant.learn.evaluate import export_run, load_policy, run_episodes, save_policy
+from pliant.learn.evaluate import (
+    evaluate_saved,
+    export_run,
+    load_policy,
+    run_episodes,
+    save_policy,
+)
 from pliant.learn.kept import KeptPolicy, export_policy
 from pliant.learn.kept import load_policy as load_kept
 from pliant.learn.toys import PointReachEnv
@@ -248,6 +254,22 @@ def test_a_kept_policy_evaluates_as_its_saved_run(tmp_path):
         load_policy(tmp_path / "final", algo="SAC")
     with pytest.raises(PolicyError, match="kept policy already"):
         export_run(tmp_path / "final", tmp_path / "again.npz")
+
+
+def test_sampled_episodes_of_a_kept_policy_are_its_saved_models(tmp_path):
+    """`action_seed`: a SAC model and its kept actor, acting by sampling, draw the same actions
+    (an SB3 model's loading draws from torch's generator; the seed is set after it)."""
+    env = make_env(TOY)
+    model = SAC("MlpPolicy", env, policy_kwargs={"net_arch": [16]}, seed=0, learning_starts=0)
+    save_policy(model, tmp_path / "final", "SAC", TOY, {}, None)
+    export_run(tmp_path / "final", tmp_path / "kept.npz")
+    runs = [
+        evaluate_saved(path, episodes=3, seed=5, deterministic=False, action_seed=7)
+        for path in (tmp_path / "final", tmp_path / "kept.npz", tmp_path / "kept.npz")
+    ]
+    assert runs[0].returns == runs[1].returns == runs[2].returns
+    other = evaluate_saved(tmp_path / "kept.npz", episodes=3, seed=5, deterministic=False)
+    assert other.returns != runs[0].returns  # the draws depend on the seed
 
 
 def test_layers_are_kept_by_name_only_with_their_default_arguments(tmp_path):
