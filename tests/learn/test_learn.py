@@ -226,6 +226,39 @@ def test_successful_episodes_keep_whole_episodes_of_the_expert():
         successful_episodes({**data, "successes": np.zeros(3, dtype=bool)})
 
 
+def test_recurrent_cloning_loss_is_the_step_by_step_one():
+    """The cloning loss of one episode from zero states, its LSTM run over the sequence in one
+    call: the loss and gradients of sb3-contrib's step-by-step evaluation (reset at its start)."""
+    import gymnasium as gym
+    from sb3_contrib import RecurrentPPO
+    from sb3_contrib.common.recurrent.type_aliases import RNNStates
+
+    from pliant.learn.bc import _loss
+
+    env = make_env(TOY)
+    policy = RecurrentPPO("MlpLstmPolicy", env, policy_kwargs={"lstm_hidden_size": 16}).policy
+    assert isinstance(env.action_space, gym.spaces.Box)
+    obs, actions = torch.randn(9, *env.observation_space.shape), torch.rand(9, 1) - 0.5
+    starts = torch.zeros(9)
+    starts[0] = 1.0
+
+    def gradients(loss):
+        policy.zero_grad()
+        loss.backward()
+        return {k: p.grad.clone() for k, p in policy.named_parameters() if p.grad is not None}
+
+    ours = _loss(policy, obs, actions, 1e-3, starts)
+    zeros = torch.zeros(1, 1, 16)
+    states = RNNStates((zeros, zeros), (zeros, zeros))
+    _, log_prob, entropy = policy.evaluate_actions(obs, actions, states, starts)
+    theirs = -log_prob.mean() - 1e-3 * entropy.mean()
+    assert float(ours) == pytest.approx(float(theirs), rel=1e-6)
+    a, b = gradients(ours), gradients(theirs)
+    assert a.keys() == b.keys() and any("lstm_actor" in k for k in a)
+    for key in a:
+        torch.testing.assert_close(a[key], b[key], rtol=1e-5, atol=1e-7)
+
+
 def test_bc_pretraining_through_train(tmp_path):
     cfg = _config(
         "PPO",
