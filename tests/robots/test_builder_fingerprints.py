@@ -27,8 +27,12 @@ FIXTURE = Path(__file__).parent / "data" / "builder_fingerprints.json"
 DT = 0.01
 T_CONTROL = 0.5  # the scripted actuation's time used for the step's control
 
-# What the fingerprint reads of the model's parts: plain attributes of these kinds.
-_SKIP = {"mesh", "body", "rod", "carrier", "shape_cache", "_cache", "model"}
+# What the fingerprint reads of the model's parts: plain attributes of these kinds. Not a
+# collision shape's bounding-volume hierarchy (``_bvh``): derived from its triangles (which are
+# read), and its node layout follows numpy's argpartition among equal centroids, which numpy
+# 2.4 orders otherwise than the numpy the fixture was written with (the mazes' walls).
+_NOT_READ = {"_bvh"}
+_SKIP = {"mesh", "body", "rod", "carrier", "shape_cache", "_cache", "model", *_NOT_READ}
 
 
 def _project(array: np.ndarray) -> list:
@@ -126,6 +130,8 @@ _ADDED = {"held": None, "per_face": False, "winding": False, "resting": None}
 
 
 def _compare(expected, got, path: str, rtol: float) -> list[str]:
+    if isinstance(expected, dict):  # the fixture reads parts no longer read (the BVHs)
+        expected = {k: v for k, v in expected.items() if k not in _NOT_READ}
     if isinstance(expected, dict) and isinstance(got, dict):
         added = [k for k in set(got) - set(expected) if k in _ADDED]
         changed = [f"{path}.{k}: {got[k]!r} != {_ADDED[k]!r}" for k in added if got[k] != _ADDED[k]]
