@@ -346,8 +346,12 @@ class KeptPolicy:
                     f" for {n} observation(s) it is {shape}"
                 )
         if episode_start is not None:
-            keep = 1.0 - torch.as_tensor(np.asarray(episode_start), dtype=torch.float32)
-            keep = keep.reshape(1, n, 1)
+            start = np.asarray(episode_start, dtype=np.float32).reshape(-1)
+            if start.shape != (n,):
+                raise PolicyError(
+                    f"{self.path}: {start.size} episode_start flag(s) for {n} observation(s)"
+                )
+            keep = (1.0 - torch.from_numpy(start)).reshape(1, n, 1)
             h, c = keep * h, keep * c
         out, (h, c) = self.lstm(x[None], (h, c))  # a sequence of one step
         return out[0], (h.numpy(), c.numpy())

@@ -157,6 +157,8 @@ def test_a_kept_recurrent_policy_acts_as_the_sb3_model(tmp_path, action_space, n
     np.testing.assert_array_equal(single, first)
     with pytest.raises(PolicyError, match="LSTM state"):
         kept.predict(raw, (ours[0][:, :2], ours[1][:, :2]))
+    with pytest.raises(PolicyError, match="3 episode_start flag"):
+        kept.predict(raw, ours, np.ones(3, dtype=bool))
 
 
 def test_a_kept_recurrent_policy_evaluates_as_its_saved_run(tmp_path):
