@@ -101,6 +101,24 @@ _EPOCH_ON_TEST = (
     " drawn afterwards needs the network, not kept: "
 )
 
+
+def _table_5_2_loss(name: str, path: str, thesis: float, protocol: str) -> Figure:
+    """A Table 5.2 loss (a mesh's validation or held-out test loss)."""
+    return Figure(
+        name,
+        _TABLE_5_2,
+        path,
+        thesis=thesis,
+        unit="",
+        better="lower",
+        tolerance=0.5,
+        departure="1000 samples a mesh (thesis 6500), 1000 epochs (thesis 9000)",
+        fmt="{:.2e}",
+        docs="docs/condensed.md",
+        protocol=protocol,
+    )
+
+
 STUDIES: tuple[Study, ...] = (
     Study(
         name="table-3.1",
@@ -1155,20 +1173,13 @@ STUDIES: tuple[Study, ...] = (
         docs="docs/condensed.md",
         figures=(
             *(
-                Figure(
+                _table_5_2_loss(
                     f"test loss, {mesh} mesh, under the protocol: held-out test",
-                    _TABLE_5_2,
                     f"{key}/held_out/test_loss",
-                    thesis=thesis,
-                    unit="",
-                    better="lower",
-                    tolerance=0.5,
-                    departure="1000 samples a mesh (thesis 6500), 1000 epochs (thesis 9000)",
-                    fmt="{:.2e}",
-                    docs="docs/condensed.md",
-                    protocol="the epoch chosen on the plan's test split (its validation set),"
-                    " tested on 250 samples drawn afterwards (the plan's test stream of seed 1);"
-                    f" old figure {old} (chosen on its test set)",
+                    thesis,
+                    "the epoch chosen on the plan's test split (its validation set), tested on"
+                    " 250 samples drawn afterwards (the plan's test stream of seed 1); old"
+                    f" figure {old} (chosen on its test set)",
                 )
                 for mesh, key, thesis, old in (
                     ("coarse", "coarse", 3.79e-6, "2.98e-6"),
@@ -1177,19 +1188,12 @@ STUDIES: tuple[Study, ...] = (
                 )
             ),
             *(
-                Figure(
+                _table_5_2_loss(
                     f"test loss, {mesh} mesh",
-                    _TABLE_5_2,
                     f"{key}/test_loss",
-                    thesis=thesis,
-                    unit="",
-                    better="lower",
-                    tolerance=0.5,
-                    departure="1000 samples a mesh (thesis 6500), 1000 epochs (thesis 9000)",
-                    fmt="{:.2e}",
-                    docs="docs/condensed.md",
-                    protocol="the epoch of least loss on this test split is reported: a"
-                    " validation loss; the held-out test is the figure above" + retrained,
+                    thesis,
+                    "the epoch of least loss on this test split is reported: a validation loss;"
+                    " the held-out test is the figure above" + retrained,
                 )
                 for mesh, key, thesis, retrained in (
                     (
