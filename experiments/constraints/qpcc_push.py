@@ -31,6 +31,7 @@ import numpy as np  # noqa: E402
 from pliant.files import write_results  # noqa: E402
 from pliant.robots.trunk_cube import PUSH_TARGETS, push_demo, trunk_push  # noqa: E402
 from pliant.solvers import ImplicitEuler  # noqa: E402
+from pliant.viz import save_figure
 
 DT = 0.01
 PERIOD = 1.5  # seconds per target (push_demo)
@@ -113,7 +114,7 @@ def plot(results: list[dict], path: Path) -> None:
     for ax in axes:
         ax.legend(fontsize=7)
     fig.tight_layout()
-    fig.savefig(path, dpi=90)
+    save_figure(fig, path, dpi=90)
     plt.close(fig)
 
 

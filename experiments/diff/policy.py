@@ -58,6 +58,7 @@ import pliant.envs  # noqa: E402, F401  (registers the environments)
 from pliant.diff.policy import closed_loop, embedded_positions  # noqa: E402
 from pliant.files import atomic_path, write_results  # noqa: E402
 from pliant.solvers import ImplicitEuler  # noqa: E402
+from pliant.viz import save_figure
 
 ROOT = Path(__file__).resolve().parents[2]
 OUT = ROOT / "experiments" / "results" / "diff" / "policy.json"
@@ -381,7 +382,7 @@ def plot(result: dict, path: Path) -> None:
     axes[0].legend()
     fig.suptitle("Diamond reaching (reachable goals, success within 5 mm)", fontsize=10)
     fig.tight_layout()
-    fig.savefig(path, dpi=90)
+    save_figure(fig, path, dpi=90)
     plt.close(fig)
 
 

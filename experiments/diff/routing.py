@@ -35,6 +35,7 @@ from pliant.diff.design import DesignResult, RoutingDesign, optimise_routing
 from pliant.diff.scenes import routing_finger
 from pliant.errors import DivergenceError
 from pliant.robots.finger import soft_finger
+from pliant.viz import save_figure
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
@@ -109,7 +110,7 @@ def figure(out: dict, path: Path) -> None:
     bx.set_ylim(-2.0, 40.0)
     bx.legend(fontsize=7, loc="upper center", ncols=2)
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    save_figure(fig, path, dpi=110)
     plt.close(fig)
 
 

@@ -48,6 +48,7 @@ from pliant.learn.graph.settings import (  # noqa: E402
     run_label,
 )
 from pliant.learn.graph.training import train_run  # noqa: E402
+from pliant.viz import save_figure
 
 THESIS = {
     "CartStemContact": {"sac": 140_000, "graph": 80_000, "convex": 40_000},
@@ -245,7 +246,7 @@ def main() -> None:
         ax.set(xlabel="environment steps", ylabel=label, title=args.scene)
         ax.legend()
     fig.tight_layout()
-    fig.savefig(root / "curves.png", dpi=120)
+    save_figure(fig, root / "curves.png", dpi=120)
     # The seeds' first crossings as a step function: the share of a method's seeds that have
     # reached the success by each step (a seed that never does keeps the curve below 1).
     fig, ax = plt.subplots(figsize=(6, 3.5))
@@ -263,7 +264,7 @@ def main() -> None:
            title=args.scene, ylim=(0, 1.05))  # fmt: skip
     ax.legend(loc="lower right", fontsize="small")
     fig.tight_layout()
-    fig.savefig(root / "first_crossings.png", dpi=120)
+    save_figure(fig, root / "first_crossings.png", dpi=120)
     print(json.dumps(summary["runs"], indent=1))
 
 

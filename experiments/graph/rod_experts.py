@@ -29,6 +29,7 @@ import numpy as np  # noqa: E402
 
 from pliant.learn.graph.rod import angle_rule, expert_rollout  # noqa: E402
 from pliant.learn.graph.scenes import make_scene  # noqa: E402
+from pliant.viz import save_figure
 
 
 def replay(folder: Path) -> dict:
@@ -118,7 +119,7 @@ def main() -> None:
     ax.set(xlabel="environment step (0.1 s)", ylabel="rod angle (deg)", title="RodManipulator")
     ax.legend()
     fig.tight_layout()
-    fig.savefig(root / f"{args.name}.png", dpi=120)
+    save_figure(fig, root / f"{args.name}.png", dpi=120)
 
 
 if __name__ == "__main__":

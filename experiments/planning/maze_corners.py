@@ -27,6 +27,7 @@ from scipy.optimize import lsq_linear
 
 from pliant.envs import make
 from pliant.planning import OPD, run_episode
+from pliant.viz import save_figure
 from pliant.viz.video import atomic_path
 
 OUT = Path(__file__).parents[1] / "results" / "planning" / "maze_corners.json"
@@ -133,7 +134,7 @@ def plot(done: dict, path: Path) -> None:
     axes[0].set_ylabel("y (mm)")
     axes[1].legend(fontsize="small")
     fig.tight_layout()
-    fig.savefig(path, dpi=100)
+    save_figure(fig, path, dpi=100)
 
 
 def main() -> None:

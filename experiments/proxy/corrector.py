@@ -28,6 +28,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 from pliant.transfer.batch import run_jobs  # noqa: E402
+from pliant.viz import save_figure
 
 RESULTS = Path("experiments/results/proxy")
 CALIBRATIONS = Path("experiments/proxy")
@@ -121,7 +122,7 @@ def main() -> None:
     ax.set_title("Multigait open-loop transfer with the tip-angle corrector")
     ax.legend(fontsize=7)
     fig.tight_layout()
-    fig.savefig(args.out / "corrector.png", dpi=110)
+    save_figure(fig, args.out / "corrector.png", dpi=110)
 
 
 if __name__ == "__main__":

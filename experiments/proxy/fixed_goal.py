@@ -48,6 +48,7 @@ from pliant.transfer.fem_rl import FIXED_GOAL_OUT as OUT
 from pliant.transfer.fem_rl import FIXED_GOAL_TOLERANCE as TOLERANCE
 from pliant.transfer.fem_rl import FIXED_GOALS as GOALS
 from pliant.transfer.rl import SETTINGS, episode, rl_config
+from pliant.viz import save_figure
 
 # GOALS: offsets (x, z) in mm from the cube's settled start, inside the environments' draw
 # box [5, 40] x [-30, 20]: one along x (the thesis' first case), two at (x, z).
@@ -169,7 +170,7 @@ def plot(summary: dict, path: Path) -> None:
     ax.set_title("Trunk, one goal per run, 2e5 simulation steps each")
     ax.legend(fontsize=8)
     fig.tight_layout()
-    fig.savefig(path, dpi=90)
+    save_figure(fig, path, dpi=90)
 
 
 def main() -> None:

@@ -41,6 +41,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 from pliant.files import write_json  # noqa: E402
 from pliant.transfer.batch import run_transfers  # noqa: E402
 from pliant.transfer.reports import transfer_row  # noqa: E402
+from pliant.viz import save_figure
 
 RESULTS = Path("experiments/results/proxy")
 LOOP = ["--inverse-model", "twin", "--matched", "underside"]
@@ -224,7 +225,7 @@ def main() -> None:
     third.set_title("robustness policies (noise, draw), corrector 0.5")
     third.legend(fontsize=7)
     fig.tight_layout()
-    fig.savefig(RESULTS / "prior_summary.png", dpi=110)
+    save_figure(fig, RESULTS / "prior_summary.png", dpi=110)
 
 
 if __name__ == "__main__":

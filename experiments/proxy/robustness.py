@@ -52,6 +52,7 @@ from pliant.transfer.fem_rl import summary, transfer_proxy_policy
 from pliant.transfer.proxy import FORWARD, MULTIGAIT_GAINS, multigait_transfer
 from pliant.transfer.reports import EARLIER_BUILD
 from pliant.transfer.rl import degraded, learn
+from pliant.viz import save_figure
 
 OUT = Path("experiments/results/proxy")
 #: the Trunk's study: the proxy it degrades, and its PPO settings (the pipeline's)
@@ -100,7 +101,7 @@ def plot(rows: list[dict], path: Path) -> None:
         ax.set_title(title)
         ax.legend(fontsize=8)
     fig.tight_layout()
-    fig.savefig(path, dpi=120)
+    save_figure(fig, path, dpi=120)
 
 
 def trunk_transfer_summary(policy_dir: Path) -> dict:
@@ -141,7 +142,7 @@ def plot_trunk(rows: list[dict], path: Path) -> None:
     ax.set_title("Trunk: 20 evaluation goals")
     ax.legend(fontsize=8)
     fig.tight_layout()
-    fig.savefig(path, dpi=120)
+    save_figure(fig, path, dpi=120)
 
 
 def retransfer(report: dict, path: Path, tag: str) -> None:

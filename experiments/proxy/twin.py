@@ -26,6 +26,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 from pliant.files import write_json  # noqa: E402
 from pliant.transfer.batch import run_transfers  # noqa: E402
 from pliant.transfer.reports import transfer_row  # noqa: E402
+from pliant.viz import save_figure
 
 RESULTS = Path("experiments/results/proxy")
 CALIBRATIONS = Path("experiments/proxy")
@@ -102,7 +103,7 @@ def main() -> None:
     right.tick_params(axis="y", labelsize=7)
     right.legend(fontsize=7)
     fig.tight_layout()
-    fig.savefig(RESULTS / "twin_summary.png", dpi=110)
+    save_figure(fig, RESULTS / "twin_summary.png", dpi=110)
 
 
 if __name__ == "__main__":

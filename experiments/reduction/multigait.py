@@ -40,6 +40,7 @@ from pliant.reduction.pipeline import build, multigait_cases  # noqa: E402
 from pliant.reduction.solver import ReducedImplicitEuler  # noqa: E402
 from pliant.robots.multigait import centre_of_mass, demo_actuation, multigait  # noqa: E402
 from pliant.solvers import ImplicitEuler  # noqa: E402
+from pliant.viz import save_figure
 
 DT, EVERY, CHUNK = 0.01, 5, 60
 
@@ -219,7 +220,7 @@ def plot(results: dict, path: Path) -> None:
         ax.set_ylabel(ylabel)
     fig.suptitle(f"Reduced Multigait ({results['model']}) over the hand gait")
     fig.tight_layout()
-    fig.savefig(path, dpi=100)
+    save_figure(fig, path, dpi=100)
 
 
 if __name__ == "__main__":

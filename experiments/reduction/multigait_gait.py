@@ -32,6 +32,7 @@ import numpy as np  # noqa: E402
 from pliant.errors import ContactConvergenceWarning  # noqa: E402
 from pliant.robots.multigait import centre_of_mass, demo_actuation, multigait  # noqa: E402
 from pliant.solvers import ImplicitEuler  # noqa: E402
+from pliant.viz import save_figure
 
 DT = 0.01
 
@@ -125,7 +126,7 @@ def main() -> None:
     ax.set_title(f"Multigait, {results['tetrahedra']} tetrahedra, phase {args.phase} s")
     ax.legend()
     fig.tight_layout()
-    fig.savefig(args.out.with_suffix(".png"), dpi=100)
+    save_figure(fig, args.out.with_suffix(".png"), dpi=100)
     for name, run in runs.items():
         per_cycle = ", ".join(f"{d:+.2f}" for d in run["travel_per_cycle_mm"])
         print(

@@ -39,6 +39,7 @@ import numpy as np
 
 import pliant.envs  # noqa: F401  (registers the environments)
 from pliant.files import write_results
+from pliant.viz import save_figure
 
 HAND = [4, 0, 2, 5, 1, 3]  # rear, centre, front inflated; then deflated in that order
 # Thesis Table 3.2 (cm): cumulative reward on the reduced model, final x on the reduced and on
@@ -168,7 +169,7 @@ def plot(results: dict, path: Path) -> None:
     b.set_title("PPO on ReducedMultigait-v0")
     b.legend()
     fig.tight_layout()
-    fig.savefig(path, dpi=100)
+    save_figure(fig, path, dpi=100)
 
 
 def main() -> None:

@@ -47,6 +47,7 @@ from pliant import configure_threads
 from pliant.learn import load_config, train
 from pliant.learn.evaluate import evaluate_saved, export_run, run_episodes
 from pliant.learn.vec import make_env
+from pliant.viz import save_figure
 
 RESULTS = Path("experiments/results/rl/gripper_bc")
 EVAL_SEED = 10_000  # pliant.learn's evaluations: episode k resets with seed 10 000 + k
@@ -181,7 +182,7 @@ def plot(runs: dict, folder: Path, threshold: float, path: Path, suffix: str = "
     ax.set_title("Gripper, RecurrentPPO (LSTM 128)")
     ax.legend(fontsize=8)
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    save_figure(fig, path, dpi=110)
     plt.close(fig)
 
 

@@ -23,8 +23,9 @@ import numpy as np
 from experiments.rl.trunk_debris_pull import episode
 from pliant.envs import make
 from pliant.envs.trunk_space_debris import expert
-from pliant.files import atomic_path, write_json
+from pliant.files import write_json
 from pliant.robots.trunk_debris import beside_trunk
+from pliant.viz import save_figure
 
 RESULTS = Path("experiments/results/rl/trunk_debris_pull_map")
 SIZES = (25.0, 30.0, 35.0, 40.0)
@@ -81,8 +82,7 @@ def plot(summary: dict, path: Path) -> None:
                 ax.set_xlabel("height of the cube's centre (mm)")
     fig.suptitle("whole-arm pull: catches (green) by placement", fontsize=9)
     fig.tight_layout()
-    with atomic_path(path) as tmp:
-        fig.savefig(tmp, dpi=110)
+    save_figure(fig, path, dpi=110)
     plt.close(fig)
 
 

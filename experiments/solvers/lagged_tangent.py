@@ -27,6 +27,7 @@ from pliant import robots  # noqa: E402
 from pliant.bench import reference_diamond  # noqa: E402
 from pliant.mesh import load_mesh  # noqa: E402
 from pliant.solvers import ImplicitEuler  # noqa: E402
+from pliant.viz import save_figure  # noqa: E402
 
 DT, RAMP, DURATION = 0.01, 0.3, 1.5
 
@@ -86,7 +87,7 @@ def main() -> None:
         ax.legend(fontsize=7)
     fig.tight_layout()
     args.out.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(args.out.with_suffix(".png"), dpi=110)
+    save_figure(fig, args.out.with_suffix(".png"), dpi=110)
     fd, tmp = tempfile.mkstemp(dir=args.out.parent, suffix=".json")
     with os.fdopen(fd, "w") as fh:
         payload = {"dt": DT, "ramp_s": RAMP, "duration_s": DURATION, "scenes": results}

@@ -13,7 +13,7 @@ import numpy as np
 
 from pliant.viz.plots import goal_distance_axes
 from pliant.viz.render import offscreen_figure
-from pliant.viz.video import atomic_path
+from pliant.viz.video import save_figure
 
 if TYPE_CHECKING:
     from pliant.condensed.design import DesignStudy
@@ -192,8 +192,7 @@ def _save(
     if title:
         (fig.suptitle if ax is None else ax.set_title)(title)
     fig.tight_layout()
-    with atomic_path(path) as tmp:
-        fig.savefig(tmp, format="png", dpi=dpi)
+    save_figure(fig, path, dpi=dpi)
     return Path(path)
 
 

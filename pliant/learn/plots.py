@@ -15,6 +15,8 @@ def plot_learning_curve(run_dir: Path, out: Path | None = None, title: str | Non
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
+    from pliant.viz import save_figure
+
     run_dir = Path(run_dir)
     out = out or run_dir / "learning_curve.png"
     curve = json.loads((run_dir / "evaluations.json").read_text())
@@ -44,6 +46,6 @@ def plot_learning_curve(run_dir: Path, out: Path | None = None, title: str | Non
         axes[1].set_ylim(-2, 102)
     fig.suptitle(title or run_dir.name)
     fig.tight_layout()
-    fig.savefig(out, dpi=110)
+    save_figure(fig, out, dpi=110)
     plt.close(fig)
     return out

@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 from matplotlib.figure import Figure
 
-from pliant.viz.video import atomic_path
+from pliant.viz.video import save_figure
 
 
 def plot_trajectory(
@@ -57,6 +57,5 @@ def plot_trajectory(
     if title:
         fig.suptitle(title)
     fig.tight_layout()
-    with atomic_path(path) as tmp:
-        fig.savefig(tmp, format="png", dpi=120)
+    save_figure(fig, path, dpi=120)
     return Path(path)

@@ -97,7 +97,7 @@ from pliant.robots.trunk_cube import trunk_cube
 from pliant.solvers import ImplicitEuler
 from pliant.viz.model_view import RobotCamera
 from pliant.viz.render import offscreen_figure
-from pliant.viz.video import atomic_path
+from pliant.viz.video import save_figure
 
 FORWARD = np.array([-1.0, 0.0, 0.0])  # the Multigait's forward direction (its environments')
 INVERSE_MODELS = ("qp", "twin", "sensitivity")
@@ -937,8 +937,7 @@ def plot_transfer(result: TransferResult, path) -> None:
     right.set_title(f"summed reward (relative difference {100 * result.relative_difference:.1f} %)")
     right.legend(fontsize=8)
     fig.tight_layout()
-    with atomic_path(path) as tmp:
-        fig.savefig(tmp, format="png", dpi=120)
+    save_figure(fig, path, dpi=120)
 
 
 def frame(transfer: Transfer, cameras: dict) -> np.ndarray:

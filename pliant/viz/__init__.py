@@ -10,7 +10,7 @@ from pliant.viz.render import (
     render_surface,
     scene_bounds,
 )
-from pliant.viz.video import VtuSeriesWriter, atomic_path, save_gif, save_png
+from pliant.viz.video import VtuSeriesWriter, atomic_path, save_figure, save_gif, save_png
 
 __all__ = [
     "DEFAULT_VIEW",
@@ -25,6 +25,7 @@ __all__ = [
     "render_frame",
     "render_scene",
     "render_surface",
+    "save_figure",
     "save_gif",
     "save_png",
     "scene_bounds",

@@ -15,15 +15,14 @@ from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 
 from pliant.viz.render import apply_camera, offscreen_figure, scene_bounds
-from pliant.viz.video import atomic_path
+from pliant.viz.video import save_figure
 
 _MARKERS = ("o", "s", "^", "D", "v", "P", "X")
 _DPI = 150
 
 
 def _save(fig: Figure, path: str | os.PathLike) -> Path:
-    with atomic_path(path) as tmp:
-        fig.savefig(tmp, format="png", dpi=_DPI)
+    save_figure(fig, path, dpi=_DPI)
     return Path(path)
 
 

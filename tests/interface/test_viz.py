@@ -22,6 +22,7 @@ from pliant.viz import (
     render_frame,
     render_scene,
     render_surface,
+    save_figure,
     save_gif,
     save_png,
     scene_bounds,
@@ -203,6 +204,36 @@ def test_png_round_trip(tmp_path):
     image = np.random.default_rng(0).integers(0, 256, (10, 12, 3), dtype=np.uint8)
     path = save_png(image, tmp_path / "sub" / "frame.png")
     np.testing.assert_array_equal(iio.imread(path), image)
+
+
+def test_a_figure_is_kept_in_256_colours_looking_the_same_and_smaller(tmp_path):
+    import io
+
+    from matplotlib.figure import Figure
+    from PIL import Image
+
+    fig = Figure(figsize=(5, 3.5))
+    ax = fig.add_subplot()
+    x = np.linspace(0.0, 6.0, 400)
+    ax.contourf(*np.meshgrid(x, x), np.sin(x)[:, None] * np.cos(x)[None, :], levels=30)
+    ax.plot(x, 3 + np.sin(3 * x), "k-", lw=0.7, label="anti-aliased line")
+    ax.legend()
+    ax.set_title("a contour plot and a line")
+    truecolour = io.BytesIO()
+    fig.savefig(truecolour, format="png", dpi=100)
+    reference = np.asarray(Image.open(truecolour).convert("RGB"), dtype=float)
+
+    path = save_figure(fig, tmp_path / "sub" / "figure.png", dpi=100)
+    kept = Image.open(path)
+    assert kept.mode == "P" and len(kept.getcolors(maxcolors=256)) <= 256
+    pixels = np.asarray(kept.convert("RGB"), dtype=float)
+    assert pixels.shape == reference.shape
+    # At most a few grey levels off on average, nowhere a different colour.
+    assert np.abs(pixels - reference).mean() < 0.5
+    assert np.quantile(np.abs(pixels - reference).max(axis=2), 0.999) < 16
+    assert path.stat().st_size < 0.6 * truecolour.getbuffer().nbytes
+    again = save_figure(fig, tmp_path / "again.png", dpi=100)
+    assert again.read_bytes() == path.read_bytes()
 
 
 def test_atomic_path_leaves_nothing_when_writing_fails(tmp_path):
