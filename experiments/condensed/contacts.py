@@ -34,8 +34,17 @@ therefore a validation set (``test_loss``, ``best_epoch``: the figures reported 
 ``held_out`` loss is measured on a test set drawn afterwards, the test split of the same plan
 under ``--held-out-seed`` (the Finger's solved alone; the gripper's, sampled by inverse
 control along a chain of cube goals, collected whole with that seed and its test split kept).
-Datasets and models go to --work (collection resumable); the JSON report and the figures to
---out.
+Datasets go to --work (collection resumable); the JSON report, the figures and the two
+networks (``models/finger.pt``, ``models/gripper.pt``, 0.3 MB each) to --out.
+
+Kept networks (issue #61): ``--evaluate FOLDER`` loads ``finger.pt`` and ``gripper.pt`` from
+FOLDER and re-makes every figure that depends on the networks alone: the held-out test losses
+(their samples solved again by the FEM from the plans the networks record), the button's pushes
+and the gripper's circle, into ``--out``'s contacts.json. The validation losses and epochs are
+the training's, not the networks'.
+
+    python experiments/condensed/contacts.py \
+        --evaluate experiments/results/condensed/contacts/models --out out/contacts_evaluate
 """
 
 from __future__ import annotations
@@ -54,7 +63,7 @@ from pliant import configure_threads, robots
 from pliant.condensed.collect import held_out_split, load_or_collect
 from pliant.condensed.contact import ContactRobot
 from pliant.condensed.dataset import SPLITS, CollectionPlan, atomic_write
-from pliant.condensed.learned import OutOfBoundsWarning
+from pliant.condensed.learned import LearnedCondensedModel, OutOfBoundsWarning
 from pliant.condensed.manipulation import (
     Grasp,
     ManipulationController,
@@ -102,14 +111,21 @@ def main(
     iterations: Annotated[int, typer.Option(help="control steps per goal")] = 3,
     workers: Annotated[int, typer.Option()] = 2,
     held_out_seed: Annotated[int, typer.Option(help="seed of the held-out test draw")] = 1,
-    work: Annotated[Path, typer.Option(help="datasets, models")] = Path("out/condensed"),
+    work: Annotated[Path, typer.Option(help="datasets")] = Path("out/condensed"),
     out: Annotated[Path, typer.Option(help="results")] = Path(
         "experiments/results/condensed/contacts"
     ),
+    kept: Annotated[
+        Path | None,
+        typer.Option("--evaluate", help="score the kept networks in this folder, train nothing"),
+    ] = None,
 ) -> None:
     out.mkdir(parents=True, exist_ok=True)
     # Small networks: a second thread only contends on a shared machine.
     configure_threads(torch_threads=1)
+    if kept is not None:
+        evaluate_kept(kept, held_out_seed, pushes, goals, radius, iterations, work, workers, out)
+        return
     widths = tuple(int(h) for h in hidden.split(","))
     report: dict = {"seconds": {}}
     models = {}
@@ -134,7 +150,7 @@ def main(
         start = time.perf_counter()
         learned, result = train_condensed(dataset, config)
         report["seconds"][f"{name}_training"] = time.perf_counter() - start
-        learned.save(work / f"contacts_{name}_{n}.pt")
+        learned.save(out / "models" / f"{name}.pt")
         models[name] = learned
         scores = evaluate(learned, dataset.test)
         start = time.perf_counter()
@@ -174,13 +190,7 @@ def main(
         }
         print(name, json.dumps(report[f"{name}_dataset"]))
 
-    robot = ContactRobot(robots.build("finger", **HANGING), "contact_points", consistent=False)
-    start = time.perf_counter()
-    report["button"] = button(robot, models["finger"], pushes, out)
-    report["seconds"]["button"] = time.perf_counter() - start
-    start = time.perf_counter()
-    report["gripper"] = gripper(robot, models["gripper"], goals, radius, iterations, out)
-    report["seconds"]["gripper"] = time.perf_counter() - start
+    control(report, models, pushes, goals, radius, iterations, out)
     report["settings"] = {
         "units": "mm, mN",
         "button_stiffness_mN_per_mm": BUTTON_STIFFNESS,
@@ -199,6 +209,53 @@ def main(
         " starts gripping, every cable at 1.5 mm: a cable only pulls, and the cube of fingers"
         " at rest could not be lowered."
     )
+    path = out / "contacts.json"
+    atomic_write(path, lambda tmp: Path(tmp).write_text(json.dumps(report, indent=1)))
+
+
+def control(
+    report: dict, models: dict, pushes: int, goals: int, radius: float, iterations: int, out: Path
+) -> None:
+    """The button pushed by the Finger's network and the cube's circle by the gripper's."""
+    robot = ContactRobot(robots.build("finger", **HANGING), "contact_points", consistent=False)
+    start = time.perf_counter()
+    report["button"] = button(robot, models["finger"], pushes, out)
+    report["seconds"]["button"] = time.perf_counter() - start
+    start = time.perf_counter()
+    report["gripper"] = gripper(robot, models["gripper"], goals, radius, iterations, out)
+    report["seconds"]["gripper"] = time.perf_counter() - start
+
+
+def evaluate_kept(
+    folder: Path,
+    held_out_seed: int,
+    pushes: int,
+    goals: int,
+    radius: float,
+    iterations: int,
+    work: Path,
+    workers: int,
+    out: Path,
+) -> None:
+    """The kept networks' figures re-made (--evaluate): held-out losses, button, circle."""
+    models = {
+        name: LearnedCondensedModel.load(folder / f"{name}.pt") for name in ("finger", "gripper")
+    }
+    report: dict = {"seconds": {}, "evaluated": str(folder)}
+    for name, learned in models.items():
+        start = time.perf_counter()
+        held_out = evaluate(learned, held_out_test(learned.plan, held_out_seed, work, workers))
+        report["seconds"][f"{name}_held_out"] = time.perf_counter() - start
+        report[f"{name}_dataset"] = {
+            "held_out": {
+                "seed": held_out_seed,
+                "samples": held_out["samples"],
+                "test_loss": held_out["loss"],
+            },
+            "best_epoch": learned.training["best_epoch"],
+        }
+        print(name, json.dumps(report[f"{name}_dataset"]))
+    control(report, models, pushes, goals, radius, iterations, out)
     path = out / "contacts.json"
     atomic_write(path, lambda tmp: Path(tmp).write_text(json.dumps(report, indent=1)))
 

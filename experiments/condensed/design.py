@@ -12,6 +12,13 @@ the learned objectives to the FEM's over those designs):
     OPENBLAS_NUM_THREADS=1 python experiments/condensed/design.py --samples 640 --epochs 1500
 
 The same study on any parametric model: `pliant condensed design MODEL --out FOLDER`.
+
+The trained model is kept (``design/model.pt``, F 3 x 450 and G 2 x 64, issue #61):
+``--evaluate MODEL`` re-makes every figure (the study and the FEM checks depend on the model
+alone) without collecting or training:
+
+    python experiments/condensed/design.py \
+        --evaluate experiments/results/condensed/design/model.pt --out out/design_evaluate
 """
 
 from __future__ import annotations
@@ -34,6 +41,7 @@ from pliant.condensed.mechanics import symmetric
 from pliant.condensed.parametric import ParametricCondensedModel, train_parametric
 from pliant.condensed.plots import plot_design_study
 from pliant.condensed.train import TrainConfig
+from pliant.files import write_json
 from pliant.solvers import StaticSolver
 
 GEOMETRY = {"length": (38.0, 42.0), "height": (20.0, 22.0), "joint_height": (5.0, 8.0)}
@@ -93,7 +101,14 @@ def main(
         "out/condensed"
     ),
     out: Annotated[Path, typer.Option(help="results")] = Path("experiments/results/condensed"),
+    kept: Annotated[
+        Path | None,
+        typer.Option("--evaluate", help="the study of this kept model; collect and train nothing"),
+    ] = None,
 ) -> None:
+    if kept is not None:
+        design_figures(ParametricCondensedModel.load(kept), iterations, out / "design")
+        return
     plan = CollectionPlan(
         "finger",
         ((0.0, 10.0), (0.0, 0.0)),
@@ -118,11 +133,14 @@ def main(
     # G maps three numbers to 20 from 80 designs, each meshed anew (its W0 carries the
     # remeshing's noise): a small network overfits it less than 3 x 450
     model, _ = train_parametric(dataset, config("f", (450, 450, 450)), config("g", (64, 64)))
-    model.save(path.with_suffix(".pt"))
+    model.save(out / "design" / "model.pt")
+    design_figures(model, iterations, out / "design")
 
+
+def design_figures(model: ParametricCondensedModel, iterations: int, folder: Path) -> None:
+    """The design study on `model` and its FEM checks: figures and design.json in `folder`."""
     objectives = FingerObjectives()
     study = design_study(model, objectives, iterations=iterations)
-    folder = out / "design"
     plot_design_study(study, folder)
     summary = study.summary()
 
@@ -158,14 +176,14 @@ def main(
         for key in ("angle_rad", "tip_force_mN")
     }
     summary["training"] = model.training
-    summary["samples"] = samples
-    summary["samples_per_design"] = samples_per_design
+    summary["samples"] = model.plan.n_train
+    summary["samples_per_design"] = model.plan.samples_per_design
     summary["note"] = (
         "Cable 0 pulled 10 mm, cable 1 held at its length. alpha: angle between the tip's"
         " chords from the root at rest and pulled; beta: |lambda_c^z| on the tip held at its"
         " rest position (Eq. 5.18, W and delta_free at the free pull, as in the thesis)."
     )
-    (folder / "design.json").write_text(json.dumps(summary, indent=1))
+    write_json(folder / "design.json", summary)
 
 
 if __name__ == "__main__":

@@ -143,7 +143,7 @@ class ParametricCondensedModel:
     def save(self, path: str | os.PathLike) -> Path:
         """Write the model atomically (LearnedModelError, nothing left behind, on failure)."""
         networks = {
-            name: {"config": net.config(), "state": net.state_dict()}
+            name: {"config": net.config(), "state": _float32_where_exact(net.state_dict())}
             for name, net in (
                 ("condensed", self.network.condensed),
                 ("design", self.network.design),
@@ -170,6 +170,18 @@ class ParametricCondensedModel:
             Box(*data["input_box"]),
             data["training"],
         )
+
+
+def _float32_where_exact(state: dict[str, torch.Tensor]) -> dict[str, torch.Tensor]:
+    """The float64 tensors whose values are float32 numbers stored as float32: F and G train
+    in float32 and are cast up to evaluate, so a model file holds the same numbers in half the
+    bytes (loading casts them up again); any other tensor as it is."""
+    return {
+        key: value.float()
+        if value.dtype == torch.float64 and torch.equal(value.float().double(), value)
+        else value
+        for key, value in state.items()
+    }
 
 
 def train_parametric(

@@ -630,14 +630,29 @@ def test_dataset_over_designs_shares_designs_and_goals_and_trains_g_and_f(tmp_pa
 
     config = TrainConfig(epochs=5, batch_size=4, hidden=(8,), progress=False)
     model, _ = train_parametric(data, config, config)
-    loaded = ParametricCondensedModel.load(model.save(tmp_path / "p.pt"))
+    path = model.save(tmp_path / "p.pt")
+    loaded = ParametricCondensedModel.load(path)
     delta_a = torch.tensor([[1.0, 0.0]], dtype=torch.float64)
     p = loaded.design_tensor(poisson_ratio=0.45)
-    np.testing.assert_allclose(
+    # trained in float32, evaluated in float64, kept in float32: the same numbers
+    stored = torch.load(path, weights_only=False)["networks"]["condensed"]["state"]
+    assert {v.dtype for v in stored.values()} == {torch.float32}
+    np.testing.assert_array_equal(
         effector_rows(loaded, delta_a, p).detach(), effector_rows(model, delta_a, p).detach()
     )
     with pytest.raises(LearnedModelError, match="unknown design parameters"):
         loaded.design_tensor(height=20.0)
+
+
+def test_a_parametric_model_keeps_float64_weights_that_are_not_float32_numbers() -> None:
+    from pliant.condensed.parametric import _float32_where_exact
+
+    exact = torch.tensor([0.5, 3.0, float(np.float32(0.1))], dtype=torch.float64)
+    finer = torch.tensor([0.5, 0.1], dtype=torch.float64)
+    other = torch.tensor([1, 2])
+    kept = _float32_where_exact({"exact": exact, "finer": finer, "other": other})
+    assert kept["exact"].dtype == torch.float32 and torch.equal(kept["exact"].double(), exact)
+    assert kept["finer"] is finer and kept["other"] is other
 
 
 def test_a_design_the_builder_rejects_gives_failed_samples(tmp_path, monkeypatch) -> None:
