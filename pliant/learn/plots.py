@@ -8,14 +8,14 @@ from pathlib import Path
 
 import numpy as np
 
+from pliant.viz import save_figure
+
 
 def plot_learning_curve(run_dir: Path, out: Path | None = None, title: str | None = None) -> Path:
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-
-    from pliant.viz import save_figure
 
     run_dir = Path(run_dir)
     out = out or run_dir / "learning_curve.png"
